@@ -1,0 +1,67 @@
+//! The single-precision instantiation of softfem's numeric modules.
+//!
+//! Everything here is re-exported at the crate root; `softfem::f64` holds the same items in
+//! double precision, compiled from the same source files (see `src/f64.rs`).
+
+/// The scalar, vector and matrix types this precision is written against.
+pub mod types {
+    /// The floating-point scalar of this precision.
+    pub type Real = f32;
+    pub use glam::{Mat2, Mat3, Vec2, Vec3};
+}
+
+/// Transcendental and bit-level helpers of this precision.
+///
+/// This shim is the one place that decides where square roots and exponents come from: always
+/// `libm`, so results do not depend on the platform's C library or on the `std` feature.
+pub(crate) mod math {
+    use super::types::Real;
+
+    /// Jacobi sweeps used by [`svd3`](super::svd::svd3) in this precision.
+    pub const DEFAULT_SVD_SWEEPS: u32 = 4;
+
+    /// Magnitudes below this are treated as zero inside the SVD, whose working scale is of
+    /// order one. Chosen so that the square of anything larger is still a normal number.
+    pub const TINY: Real = 1e-18;
+
+    /// Square root (correctly rounded, IEEE 754).
+    #[inline(always)]
+    #[must_use]
+    pub fn sqrt(x: Real) -> Real {
+        libm::sqrtf(x)
+    }
+
+    /// The unbiased binary exponent of a finite non-zero `x`: `2^e <= |x| < 2^(e+1)`.
+    #[inline(always)]
+    #[must_use]
+    pub fn exponent(x: Real) -> i32 {
+        let biased = ((x.to_bits() >> 23) & 255) as i32;
+        if biased == 0 {
+            // Subnormal: rare, and the bit trick does not apply.
+            libm::ilogbf(x)
+        } else {
+            biased - 127
+        }
+    }
+
+    /// `2^n` for `n` in the normal range `[-126, 127]` (exact).
+    #[inline(always)]
+    #[must_use]
+    pub fn pow2(n: i32) -> Real {
+        Real::from_bits((((n + 127) as u32) & 255) << 23)
+    }
+
+    /// `if condition { a } else { b }` as bit masking, so that it never becomes a branch.
+    #[inline(always)]
+    #[must_use]
+    pub fn select(condition: bool, a: Real, b: Real) -> Real {
+        let mask = (u32::from(condition)).wrapping_neg();
+        Real::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
+    }
+}
+
+#[path = "svd.rs"]
+pub mod svd;
+
+#[path = "polar.rs"]
+pub mod polar;

@@ -1,0 +1,67 @@
+//! The double-precision instantiation of softfem's numeric modules.
+//!
+//! The same items as at the crate root, in double precision, compiled from the same source files
+//! (see `src/f32.rs`).
+
+/// The scalar, vector and matrix types this precision is written against.
+pub mod types {
+    /// The floating-point scalar of this precision.
+    pub type Real = f64;
+    pub use glam::{DMat2 as Mat2, DMat3 as Mat3, DVec2 as Vec2, DVec3 as Vec3};
+}
+
+/// Transcendental and bit-level helpers of this precision.
+///
+/// This shim is the one place that decides where square roots and exponents come from: always
+/// `libm`, so results do not depend on the platform's C library or on the `std` feature.
+pub(crate) mod math {
+    use super::types::Real;
+
+    /// Jacobi sweeps used by [`svd3`](super::svd::svd3) in this precision.
+    pub const DEFAULT_SVD_SWEEPS: u32 = 5;
+
+    /// Magnitudes below this are treated as zero inside the SVD, whose working scale is of
+    /// order one. Chosen so that the square of anything larger is still a normal number.
+    pub const TINY: Real = 1e-150;
+
+    /// Square root (correctly rounded, IEEE 754).
+    #[inline(always)]
+    #[must_use]
+    pub fn sqrt(x: Real) -> Real {
+        libm::sqrt(x)
+    }
+
+    /// The unbiased binary exponent of a finite non-zero `x`: `2^e <= |x| < 2^(e+1)`.
+    #[inline(always)]
+    #[must_use]
+    pub fn exponent(x: Real) -> i32 {
+        let biased = ((x.to_bits() >> 52) & 2047) as i32;
+        if biased == 0 {
+            // Subnormal: rare, and the bit trick does not apply.
+            libm::ilogb(x)
+        } else {
+            biased - 1023
+        }
+    }
+
+    /// `2^n` for `n` in the normal range `[-1022, 1023]` (exact).
+    #[inline(always)]
+    #[must_use]
+    pub fn pow2(n: i32) -> Real {
+        Real::from_bits((((n + 1023) as u64) & 2047) << 52)
+    }
+
+    /// `if condition { a } else { b }` as bit masking, so that it never becomes a branch.
+    #[inline(always)]
+    #[must_use]
+    pub fn select(condition: bool, a: Real, b: Real) -> Real {
+        let mask = (u64::from(condition)).wrapping_neg();
+        Real::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
+    }
+}
+
+#[path = "svd.rs"]
+pub mod svd;
+
+#[path = "polar.rs"]
+pub mod polar;

@@ -1,0 +1,53 @@
+//! # softfem
+//!
+//! Elastic soft bodies for firmware and game engines: linear FEM/FVM kernels on tetrahedra and
+//! triangles, `#![no_std]` and allocation-free, on buffers the caller owns.
+//!
+//! * `f32` at the crate root, the same API in `f64` under [`softfem::f64`](mod@f64), compiled from one
+//!   source.
+//! * [`svd`]: a rotation-variant 3x3 Jacobi SVD (`det u = det v = +1`, inversion carried by the
+//!   smallest singular value), accurate to a few `eps` on every class of input from `1e-30` to
+//!   `1e30`, with the sweep count as a speed/accuracy knob.
+//! * [`polar`]: polar decomposition on top of it.
+//!
+//! glam is re-exported as [`glam`] so that callers use the exact version the kernels
+//! are built against.
+//!
+//! ```
+//! use softfem::glam::Mat3;
+//! use softfem::svd::svd3;
+//!
+//! let f = Mat3::from_cols_array(&[1.2, 0.1, 0.0, 0.3, 0.9, 0.0, 0.0, 0.2, 1.1]);
+//! let svd = svd3(f);
+//! assert!(svd.to_mat3().abs_diff_eq(f, 1e-6));
+//! assert!(svd.sigma.x >= svd.sigma.y && svd.sigma.y >= svd.sigma.z.abs());
+//! ```
+//!
+//! ## Features
+//! * `std`: host-only conveniences (none yet in this release; the kernels never need it).
+//! * `defmt`: derives `defmt::Format` on every public error and report type.
+#![no_std]
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing
+    )
+)]
+#![warn(missing_docs)]
+// One source, two precisions: `src/f32.rs` and `src/f64.rs` each include the shared numeric
+// modules (`svd.rs`, `polar.rs`, ...) against their own `Real`/`Vec3`/`Mat3` aliases.
+#![allow(clippy::duplicate_mod)]
+
+#[cfg(feature = "std")]
+extern crate std;
+
+pub use glam;
+
+#[path = "f32.rs"]
+mod single;
+pub use single::{polar, svd, types};
+
+pub mod f64;
