@@ -18,7 +18,7 @@ pub(crate) mod math {
     use super::types::Real;
 
     /// Jacobi sweeps used by [`svd3`](super::svd::svd3) in this precision.
-    pub const DEFAULT_SVD_SWEEPS: u32 = 5;
+    pub const DEFAULT_SVD_SWEEPS: u32 = 4;
 
     /// Magnitudes below this are treated as zero inside the SVD, whose working scale is of
     /// order one. Chosen so that the square of anything larger is still a normal number.

