@@ -31,6 +31,35 @@ pub(crate) mod math {
         libm::sqrtf(x)
     }
 
+    /// The unsigned integer with the bit width of `Real`.
+    pub type Bits = u32;
+
+    /// Values per [`Lanes`](super::lanes::Lanes) group: 32 bytes, two SSE registers.
+    pub const LANES: usize = 8;
+
+    /// [`sqrt`] of every lane, with the target's packed square root where there is one
+    /// (`sqrtps` on x86_64: the same correctly rounded result per lane).
+    #[inline(always)]
+    #[must_use]
+    pub fn sqrt_lanes(x: [Real; LANES]) -> [Real; LANES] {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse"))]
+        {
+            use core::arch::x86_64::{_mm_loadu_ps, _mm_sqrt_ps, _mm_storeu_ps};
+            let mut out = [0.0; LANES];
+            for (src, dst) in x.chunks_exact(4).zip(out.chunks_exact_mut(4)) {
+                // SAFETY: SSE is enabled for this build (the cfg above); both pointers
+                // address 4 in-bounds values (chunks_exact(4)), and the unaligned load and
+                // store have no alignment requirement.
+                unsafe { _mm_storeu_ps(dst.as_mut_ptr(), _mm_sqrt_ps(_mm_loadu_ps(src.as_ptr()))) }
+            }
+            out
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse")))]
+        {
+            x.map(sqrt)
+        }
+    }
+
     /// The unbiased binary exponent of a finite non-zero `x`: `2^e <= |x| < 2^(e+1)`.
     #[inline(always)]
     #[must_use]
@@ -59,6 +88,9 @@ pub(crate) mod math {
         Real::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
     }
 }
+
+#[path = "lanes.rs"]
+pub mod lanes;
 
 #[path = "svd.rs"]
 pub mod svd;

@@ -31,6 +31,35 @@ pub(crate) mod math {
         libm::sqrt(x)
     }
 
+    /// The unsigned integer with the bit width of `Real`.
+    pub type Bits = u64;
+
+    /// Values per [`Lanes`](super::lanes::Lanes) group: 32 bytes, two SSE registers.
+    pub const LANES: usize = 4;
+
+    /// [`sqrt`] of every lane, with the target's packed square root where there is one
+    /// (`sqrtpd` on x86_64: the same correctly rounded result per lane).
+    #[inline(always)]
+    #[must_use]
+    pub fn sqrt_lanes(x: [Real; LANES]) -> [Real; LANES] {
+        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
+        {
+            use core::arch::x86_64::{_mm_loadu_pd, _mm_sqrt_pd, _mm_storeu_pd};
+            let mut out = [0.0; LANES];
+            for (src, dst) in x.chunks_exact(2).zip(out.chunks_exact_mut(2)) {
+                // SAFETY: SSE2 is enabled for this build (the cfg above); both pointers
+                // address 2 in-bounds values (chunks_exact(2)), and the unaligned load and
+                // store have no alignment requirement.
+                unsafe { _mm_storeu_pd(dst.as_mut_ptr(), _mm_sqrt_pd(_mm_loadu_pd(src.as_ptr()))) }
+            }
+            out
+        }
+        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
+        {
+            x.map(sqrt)
+        }
+    }
+
     /// The unbiased binary exponent of a finite non-zero `x`: `2^e <= |x| < 2^(e+1)`.
     #[inline(always)]
     #[must_use]
@@ -59,6 +88,9 @@ pub(crate) mod math {
         Real::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
     }
 }
+
+#[path = "lanes.rs"]
+pub mod lanes;
 
 #[path = "svd.rs"]
 pub mod svd;

@@ -48,6 +48,6 @@ pub use glam;
 
 #[path = "f32.rs"]
 mod single;
-pub use single::{polar, svd, types};
+pub use single::{lanes, polar, svd, types};
 
 pub mod f64;

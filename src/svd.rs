@@ -17,8 +17,9 @@
 //!    `a^T a` has lost them to rounding (its entries carry only `eps ||a||^2`), and skipping this
 //!    step is what limits Jacobi-on-`a^T a` codes to about `sqrt(eps)` relative accuracy.
 //!
-//! Every step is straight-line code on scalars apart from a few data-independent selects, so the
-//! routine lifts to SIMD lanes unchanged.
+//! Every step is straight-line code with selects instead of branches, written once against
+//! [`Lane`]: [`svd3`] runs it on one matrix, [`svd3_lanes`] on [`LANES`] matrices at once in SIMD
+//! registers, with bit-identical results per matrix.
 //!
 //! # Accuracy
 //! For every finite input whose singular values stay below `Real::MAX`: no NaN or inf, `u` and `v`
@@ -26,7 +27,8 @@
 //! README for the measured maxima per class of matrix). The number of sweeps trades accuracy for
 //! speed: see [`svd3_sweeps`].
 
-use super::math::{self, select};
+use super::lanes::{LANES, Lane, Lanes, M3, V3};
+use super::math;
 use super::types::{Mat3, Real, Vec3};
 
 /// Jacobi sweeps used by [`svd3`]: 4 in both precisions (each sweep is three rotations). With 3,
@@ -52,13 +54,28 @@ impl Svd3 {
     pub fn to_mat3(&self) -> Mat3 {
         self.u * Mat3::from_diagonal(self.sigma) * self.v.transpose()
     }
+
+    /// What [`svd3`] returns for a non-finite input.
+    const NON_FINITE: Svd3 = Svd3 {
+        u: Mat3::IDENTITY,
+        sigma: Vec3::NAN,
+        v: Mat3::IDENTITY,
+    };
+
+    /// What [`svd3`] returns for the zero matrix.
+    const ZERO: Svd3 = Svd3 {
+        u: Mat3::IDENTITY,
+        sigma: Vec3::ZERO,
+        v: Mat3::IDENTITY,
+    };
 }
 
 /// The rotation-variant SVD of `a` with [`DEFAULT_SWEEPS`] Jacobi sweeps.
 ///
 /// Never panics and always terminates. A non-finite `a` (any NaN or inf entry) returns
 /// `u = v = identity` and `sigma = (NaN, NaN, NaN)`, so the failure propagates instead of
-/// hiding. The zero matrix returns `u = v = identity`, `sigma = 0`.
+/// hiding. The zero matrix returns `u = v = identity`, `sigma = 0`. Singular values beyond
+/// `Real::MAX` (entries near the top of the range) saturate to infinity.
 ///
 /// ```
 /// use softfem::glam::{Mat3, Vec3};
@@ -86,146 +103,246 @@ pub fn svd3(a: Mat3) -> Svd3 {
 /// Non-finite and zero input behave as in [`svd3`].
 #[must_use]
 pub fn svd3_sweeps(a: Mat3, sweeps: u32) -> Svd3 {
-    if !a.is_finite() {
-        return Svd3 {
-            u: Mat3::IDENTITY,
-            sigma: Vec3::NAN,
-            v: Mat3::IDENTITY,
+    let Some(prescale) = Prescale::of(a) else {
+        return if a.is_finite() {
+            Svd3::ZERO
+        } else {
+            Svd3::NON_FINITE
         };
+    };
+    let (u, sigma, v) = decompose_scaled(M3::from_mat3(prescale.apply(a)), sweeps);
+    Svd3 {
+        u: u.to_mat3(),
+        sigma: prescale.undo(Vec3::new(sigma.x, sigma.y, sigma.z)),
+        v: v.to_mat3(),
     }
-    let max_abs = a
-        .x_axis
-        .abs()
-        .max(a.y_axis.abs())
-        .max(a.z_axis.abs())
-        .max_element();
-    if max_abs == 0.0 {
-        return Svd3 {
-            u: Mat3::IDENTITY,
-            sigma: Vec3::ZERO,
-            v: Mat3::IDENTITY,
-        };
-    }
-
-    // Step 1: bring the largest entry into [1, 2). Two factors, because 2^-e alone leaves the
-    // normal range for the extreme exponents of subnormal or huge inputs.
-    let e = math::exponent(max_abs);
-    let (e_lo, e_hi) = (e / 2, e - e / 2);
-    let b = a * math::pow2(-e_lo) * math::pow2(-e_hi);
-
-    let (u, sigma, v) = decompose_scaled(b, sweeps);
-    let sigma = sigma * math::pow2(e_lo) * math::pow2(e_hi);
-    Svd3 { u, sigma, v }
 }
 
-/// Steps 2-5 of the algorithm on a matrix whose largest entry lies in `[1, 2)`.
-#[inline(always)]
-fn decompose_scaled(a: Mat3, sweeps: u32) -> (Mat3, Vec3, Mat3) {
-    // Step 2: Jacobi on the symmetric a^T a, accumulating v.
-    let ata = a.transpose() * a;
-    let mut s = SymmetricEntries {
-        s00: ata.x_axis.x,
-        s11: ata.y_axis.y,
-        s22: ata.z_axis.z,
-        s01: ata.y_axis.x,
-        s02: ata.z_axis.x,
-        s12: ata.z_axis.y,
+/// [`svd3`] of [`LANES`] matrices at once (8 in `f32`, 4 in `f64`), in SIMD registers.
+///
+/// Each result is bit-for-bit what [`svd3`] returns for the same matrix, including the
+/// non-finite and zero cases; the batch only runs faster. Use it when the matrices come in
+/// groups, e.g. the deformation gradients of consecutive elements.
+///
+/// ```
+/// use softfem::glam::Mat3;
+/// use softfem::lanes::LANES;
+/// use softfem::svd::{svd3, svd3_lanes};
+///
+/// let batch: [Mat3; LANES] =
+///     core::array::from_fn(|i| Mat3::from_rotation_x(i as f32) * (1.0 + i as f32));
+/// let results = svd3_lanes(&batch);
+/// for (a, svd) in batch.iter().zip(&results) {
+///     assert_eq!(*svd, svd3(*a));
+/// }
+/// ```
+#[inline]
+#[must_use]
+pub fn svd3_lanes(a: &[Mat3; LANES]) -> [Svd3; LANES] {
+    svd3_lanes_sweeps(a, DEFAULT_SWEEPS)
+}
+
+/// [`svd3_sweeps`] of [`LANES`] matrices at once; see [`svd3_lanes`].
+#[must_use]
+pub fn svd3_lanes_sweeps(a: &[Mat3; LANES], sweeps: u32) -> [Svd3; LANES] {
+    let prescales = a.map(Prescale::of);
+    // Lanes without a decomposition (zero or non-finite) run on the identity, which keeps every
+    // lane finite, and are replaced afterwards.
+    let scaled: [Mat3; LANES] = core::array::from_fn(|i| match (prescales.get(i), a.get(i)) {
+        (Some(Some(prescale)), Some(m)) => prescale.apply(*m),
+        _ => Mat3::IDENTITY,
+    });
+    let entry = |f: fn(&Mat3) -> Real| Lanes(scaled.map(|m| f(&m)));
+    let packed = M3 {
+        c0: V3::new(
+            entry(|m| m.x_axis.x),
+            entry(|m| m.x_axis.y),
+            entry(|m| m.x_axis.z),
+        ),
+        c1: V3::new(
+            entry(|m| m.y_axis.x),
+            entry(|m| m.y_axis.y),
+            entry(|m| m.y_axis.z),
+        ),
+        c2: V3::new(
+            entry(|m| m.z_axis.x),
+            entry(|m| m.z_axis.y),
+            entry(|m| m.z_axis.z),
+        ),
     };
-    let mut v = Mat3::IDENTITY;
+    let (u, sigma, v) = decompose_scaled(packed, sweeps);
+    core::array::from_fn(|i| match (prescales.get(i), a.get(i)) {
+        (Some(Some(prescale)), _) => Svd3 {
+            u: u.lane(i),
+            sigma: prescale.undo(sigma.lane(i)),
+            v: v.lane(i),
+        },
+        (_, Some(m)) if m.is_finite() => Svd3::ZERO,
+        _ => Svd3::NON_FINITE,
+    })
+}
+
+/// Step 1: the exact power-of-two scaling that brings the largest entry into `[1, 2)`, as two
+/// factors, because `2^-e` alone leaves the normal range for the extreme exponents of subnormal
+/// or huge inputs.
+#[derive(Clone, Copy)]
+struct Prescale {
+    e_lo: i32,
+    e_hi: i32,
+}
+
+impl Prescale {
+    /// `None` for the zero matrix and for non-finite input, which have no decomposition to run.
+    #[inline(always)]
+    fn of(a: Mat3) -> Option<Prescale> {
+        let max_abs = a
+            .x_axis
+            .abs()
+            .max(a.y_axis.abs())
+            .max(a.z_axis.abs())
+            .max_element();
+        if !a.is_finite() || max_abs == 0.0 {
+            return None;
+        }
+        let e = math::exponent(max_abs);
+        Some(Prescale {
+            e_lo: e / 2,
+            e_hi: e - e / 2,
+        })
+    }
+
+    #[inline(always)]
+    fn apply(self, a: Mat3) -> Mat3 {
+        a * math::pow2(-self.e_lo) * math::pow2(-self.e_hi)
+    }
+
+    #[inline(always)]
+    fn undo(self, sigma: Vec3) -> Vec3 {
+        sigma * math::pow2(self.e_lo) * math::pow2(self.e_hi)
+    }
+}
+
+impl M3<Real> {
+    #[inline(always)]
+    fn from_mat3(m: Mat3) -> Self {
+        M3 {
+            c0: V3::new(m.x_axis.x, m.x_axis.y, m.x_axis.z),
+            c1: V3::new(m.y_axis.x, m.y_axis.y, m.y_axis.z),
+            c2: V3::new(m.z_axis.x, m.z_axis.y, m.z_axis.z),
+        }
+    }
+
+    #[inline(always)]
+    fn to_mat3(self) -> Mat3 {
+        Mat3::from_cols(self.c0.to_vec3(), self.c1.to_vec3(), self.c2.to_vec3())
+    }
+}
+
+impl V3<Real> {
+    #[inline(always)]
+    fn to_vec3(self) -> Vec3 {
+        Vec3::new(self.x, self.y, self.z)
+    }
+}
+
+impl M3<Lanes> {
+    /// The matrix held in lane `i` (zero for `i >= LANES`).
+    #[inline(always)]
+    fn lane(&self, i: usize) -> Mat3 {
+        Mat3::from_cols(self.c0.lane(i), self.c1.lane(i), self.c2.lane(i))
+    }
+}
+
+impl V3<Lanes> {
+    /// The vector held in lane `i` (zero for `i >= LANES`).
+    #[inline(always)]
+    fn lane(&self, i: usize) -> Vec3 {
+        let get = |l: Lanes| l.0.get(i).copied().unwrap_or(0.0);
+        Vec3::new(get(self.x), get(self.y), get(self.z))
+    }
+}
+
+/// Steps 2-5 of the algorithm on matrices whose largest entry lies in `[1, 2)`. Returns
+/// `(u, sigma, v)` with `sigma` still on that scale.
+#[inline(always)]
+fn decompose_scaled<L: Lane>(a: M3<L>, sweeps: u32) -> (M3<L>, V3<L>, M3<L>) {
+    // Step 2: Jacobi on the symmetric a^T a, accumulating v.
+    let ata = a.transpose().mul(a);
+    let mut s = SymmetricEntries {
+        s00: ata.c0.x,
+        s11: ata.c1.y,
+        s22: ata.c2.z,
+        s01: ata.c1.x,
+        s02: ata.c2.x,
+        s12: ata.c2.y,
+    };
+    let mut v = M3::identity();
     for _ in 0..sweeps {
         let r = jacobi_rotation(s.s00, s.s11, s.s01);
         r.apply_symmetric(&mut s.s00, &mut s.s11, &mut s.s01, &mut s.s02, &mut s.s12);
-        r.rotate_columns(&mut v.x_axis, &mut v.y_axis);
+        r.rotate_columns(&mut v.c0, &mut v.c1);
 
         let r = jacobi_rotation(s.s00, s.s22, s.s02);
         r.apply_symmetric(&mut s.s00, &mut s.s22, &mut s.s02, &mut s.s01, &mut s.s12);
-        r.rotate_columns(&mut v.x_axis, &mut v.z_axis);
+        r.rotate_columns(&mut v.c0, &mut v.c2);
 
         let r = jacobi_rotation(s.s11, s.s22, s.s12);
         r.apply_symmetric(&mut s.s11, &mut s.s22, &mut s.s12, &mut s.s01, &mut s.s02);
-        r.rotate_columns(&mut v.y_axis, &mut v.z_axis);
+        r.rotate_columns(&mut v.c1, &mut v.c2);
     }
 
     // Rounding in the rotations leaves v orthonormal only to ~10 eps after four sweeps, and that
     // error passes straight into the reconstruction (a = b v^T needs v v^T = I). One
     // Newton-Schulz step, v <- v - v (v^T v - I) / 2, squares it away.
-    let orthogonality_defect = v.transpose() * v - Mat3::IDENTITY;
-    v -= v * orthogonality_defect * 0.5;
+    let orthogonality_defect = v.transpose().mul(v).sub(M3::identity());
+    v = v.sub(v.mul(orthogonality_defect).scale(L::splat(0.5)));
 
     // Step 3: b = a v with columns sorted by decreasing norm.
-    let mut b = a * v;
-    let mut norms = Vec3::new(
-        b.x_axis.length_squared(),
-        b.y_axis.length_squared(),
-        b.z_axis.length_squared(),
-    );
-    sort_pair(
-        &mut b.x_axis,
-        &mut b.y_axis,
-        &mut v.x_axis,
-        &mut v.y_axis,
-        &mut norms.x,
-        &mut norms.y,
-    );
-    sort_pair(
-        &mut b.x_axis,
-        &mut b.z_axis,
-        &mut v.x_axis,
-        &mut v.z_axis,
-        &mut norms.x,
-        &mut norms.z,
-    );
-    sort_pair(
-        &mut b.y_axis,
-        &mut b.z_axis,
-        &mut v.y_axis,
-        &mut v.z_axis,
-        &mut norms.y,
-        &mut norms.z,
-    );
+    let mut b = a.mul(v);
+    let mut norms = [b.c0.dot(b.c0), b.c1.dot(b.c1), b.c2.dot(b.c2)];
+    let [n0, n1, n2] = &mut norms;
+    sort_pair(&mut b.c0, &mut b.c1, &mut v.c0, &mut v.c1, n0, n1);
+    sort_pair(&mut b.c0, &mut b.c2, &mut v.c0, &mut v.c2, n0, n2);
+    sort_pair(&mut b.c1, &mut b.c2, &mut v.c1, &mut v.c2, n1, n2);
 
     // Step 4: Givens QR of the first column, b = u r. Rows of r are kept as the columns of `rt`
-    // so that every row operation is a column operation on glam vectors.
+    // so that every row operation is a column operation.
     let mut rt = b.transpose();
-    let mut u = Mat3::IDENTITY;
-    let g = Givens::zeroing(rt.x_axis.x, rt.y_axis.x);
-    g.rotate_rows(&mut rt.x_axis, &mut rt.y_axis, &mut u.x_axis, &mut u.y_axis);
-    let g = Givens::zeroing(rt.x_axis.x, rt.z_axis.x);
-    g.rotate_rows(&mut rt.x_axis, &mut rt.z_axis, &mut u.x_axis, &mut u.z_axis);
+    let mut u = M3::identity();
+    let g = Givens::zeroing(rt.c0.x, rt.c1.x);
+    g.rotate_rows(&mut rt.c0, &mut rt.c1, &mut u.c0, &mut u.c1);
+    let g = Givens::zeroing(rt.c0.x, rt.c2.x);
+    g.rotate_rows(&mut rt.c0, &mut rt.c2, &mut u.c0, &mut u.c2);
 
     // Step 5: the remaining 2x2 block m = [[r11, r12], [r21, r22]] gets its own SVD: a Jacobi
     // rotation from the Gram matrix of m's columns (formed from m itself, scaled to order one,
     // not from a^T a), larger column first, then a Givens rotation that triangularises it. This
     // also completes the QR decomposition.
-    let (r11, r12) = (rt.y_axis.y, rt.y_axis.z);
-    let (r21, r22) = (rt.z_axis.y, rt.z_axis.z);
+    let (r11, r12) = (rt.c1.y, rt.c1.z);
+    let (r21, r22) = (rt.c2.y, rt.c2.z);
     let block_max = r11.abs().max(r12.abs()).max(r21.abs()).max(r22.abs());
-    let inv_scale = 1.0 / block_max.max(math::TINY);
-    let (m11, m12, m21, m22) = (
-        r11 * inv_scale,
-        r12 * inv_scale,
-        r21 * inv_scale,
-        r22 * inv_scale,
-    );
+    let inv_scale = L::splat(1.0) / block_max.max(L::splat(math::TINY));
+    let (m11, m12) = (r11 * inv_scale, r12 * inv_scale);
+    let (m21, m22) = (r21 * inv_scale, r22 * inv_scale);
     let g11 = m11 * m11 + m21 * m21;
     let g22 = m12 * m12 + m22 * m22;
     let g12 = m11 * m12 + m21 * m22;
     let rot = jacobi_rotation(g11, g22, g12).larger_first(g11, g22, g12);
     // Columns 1 and 2 of r are the y and z components of the row vectors in `rt`.
-    let mut col1 = Vec3::new(rt.x_axis.y, r11, r21);
-    let mut col2 = Vec3::new(rt.x_axis.z, r12, r22);
+    let mut col1 = V3::new(rt.c0.y, r11, r21);
+    let mut col2 = V3::new(rt.c0.z, r12, r22);
     rot.rotate_columns(&mut col1, &mut col2);
-    rot.rotate_columns(&mut v.y_axis, &mut v.z_axis);
+    rot.rotate_columns(&mut v.c1, &mut v.c2);
     let g = Givens::zeroing(col1.y, col1.z);
     let r11 = g.c * col1.y + g.s * col1.z;
     let r22 = g.c * col2.z - g.s * col2.y;
-    g.rotate_basis(&mut u.y_axis, &mut u.z_axis);
+    g.rotate_basis(&mut u.c1, &mut u.c2);
 
     // Rounding (repeated singular values) or too few sweeps can leave the values slightly out of
     // order; a three-comparator sorting network restores the contract exactly.
-    let mut sorted = Svd3 {
+    let mut sorted = Triplets {
         u,
-        sigma: Vec3::new(rt.x_axis.x, r11, r22),
+        sigma: V3::new(rt.c0.x, r11, r22),
         v,
     };
     sorted.order_first_pair();
@@ -234,26 +351,28 @@ fn decompose_scaled(a: Mat3, sweeps: u32) -> (Mat3, Vec3, Mat3) {
     (sorted.u, sorted.sigma, sorted.v)
 }
 
-impl Svd3 {
+/// A decomposition in progress: `u diag(sigma) v^T`.
+struct Triplets<L> {
+    u: M3<L>,
+    sigma: V3<L>,
+    v: M3<L>,
+}
+
+impl<L: Lane> Triplets<L> {
     /// Ensures `sigma.x >= sigma.y` (both non-negative) by swapping the first two singular
     /// triplets; the third pair of vectors is negated so that both determinants stay `+1`.
     #[inline(always)]
     fn order_first_pair(&mut self) {
-        let swap = self.sigma.y > self.sigma.x;
-        let (u, v) = (self.u, self.v);
-        self.u = Mat3::from_cols(
-            select_vec(swap, u.y_axis, u.x_axis),
-            select_vec(swap, u.x_axis, u.y_axis),
-            select_vec(swap, -u.z_axis, u.z_axis),
-        );
-        self.v = Mat3::from_cols(
-            select_vec(swap, v.y_axis, v.x_axis),
-            select_vec(swap, v.x_axis, v.y_axis),
-            select_vec(swap, -v.z_axis, v.z_axis),
-        );
+        let swap = self.sigma.y.gt(self.sigma.x);
+        for m in [&mut self.u, &mut self.v] {
+            let old = *m;
+            m.c0 = V3::select(swap, old.c1, old.c0);
+            m.c1 = V3::select(swap, old.c0, old.c1);
+            m.c2 = V3::select(swap, old.c2.neg(), old.c2);
+        }
         let (s0, s1) = (self.sigma.x, self.sigma.y);
-        self.sigma.x = select(swap, s1, s0);
-        self.sigma.y = select(swap, s0, s1);
+        self.sigma.x = L::select(swap, s1, s0);
+        self.sigma.y = L::select(swap, s0, s1);
     }
 
     /// Ensures `sigma.y >= |sigma.z|` by swapping the last two singular triplets. The sign of
@@ -262,177 +381,176 @@ impl Svd3 {
     /// and whose bases keep determinant `+1`.
     #[inline(always)]
     fn order_second_pair(&mut self) {
-        let swap = self.sigma.z.abs() > self.sigma.y;
-        let (u, v) = (self.u, self.v);
         let (s1, s2) = (self.sigma.y, self.sigma.z);
-        let k = (1.0 as Real).copysign(s2);
-        self.u.y_axis = select_vec(swap, u.z_axis, u.y_axis);
-        self.u.z_axis = select_vec(swap, -u.y_axis, u.z_axis);
-        self.v.y_axis = select_vec(swap, v.z_axis * k, v.y_axis);
-        self.v.z_axis = select_vec(swap, -v.y_axis * k, v.z_axis);
-        self.sigma.y = select(swap, s2.abs(), s1);
-        self.sigma.z = select(swap, s1 * k, s2);
+        let swap = s2.abs().gt(s1);
+        let k = s2.sign();
+        let (u, v) = (self.u, self.v);
+        self.u.c1 = V3::select(swap, u.c2, u.c1);
+        self.u.c2 = V3::select(swap, u.c1.neg(), u.c2);
+        self.v.c1 = V3::select(swap, v.c2.scale(k), v.c1);
+        self.v.c2 = V3::select(swap, v.c1.neg().scale(k), v.c2);
+        self.sigma.y = L::select(swap, s2.abs(), s1);
+        self.sigma.z = L::select(swap, s1 * k, s2);
     }
 }
 
-/// `if condition { a } else { b }` on vectors, without a branch.
-#[inline(always)]
-fn select_vec(condition: bool, a: Vec3, b: Vec3) -> Vec3 {
-    Vec3::new(
-        select(condition, a.x, b.x),
-        select(condition, a.y, b.y),
-        select(condition, a.z, b.z),
-    )
-}
-
 /// The six independent entries of a symmetric 3x3 matrix.
-struct SymmetricEntries {
-    s00: Real,
-    s11: Real,
-    s22: Real,
-    s01: Real,
-    s02: Real,
-    s12: Real,
+struct SymmetricEntries<L> {
+    s00: L,
+    s11: L,
+    s22: L,
+    s01: L,
+    s02: L,
+    s12: L,
 }
 
-/// A plane rotation `[[c, s], [-s, c]]` acting on a pair of indices `(p, q)`.
+/// A plane rotation `[[c, s], [-s, c]]` acting on a pair of indices `(p, q)`, with
+/// `(c, s) = (den, y) / h`.
 #[derive(Clone, Copy)]
-struct JacobiRotation {
-    c: Real,
-    s: Real,
+struct JacobiRotation<L> {
+    c: L,
+    s: L,
     /// `s / c`, the tangent used to update the diagonal without cancellation.
-    t: Real,
+    t: L,
+    /// `den = c h` and `h` themselves, so that the updates on the critical path of the sweep
+    /// need one division by `h` instead of waiting for `1 / h` and then multiplying by `c`.
+    den: L,
+    h: L,
 }
 
 /// The rotation that zeroes the off-diagonal of the symmetric 2x2 block `[[app, apq], [apq, aqq]]`
 /// (the smaller of the two angles that do, `|theta| <= pi/4`).
 ///
 /// With `d = aqq - app`, `y = 2 apq sgn(d)`, `r = sqrt(d^2 + y^2)` and `den = |d| + r`, the tangent
-/// is `t = y / den` (Rutishauser's stable form) and `(c, s) = (den, y) / sqrt(den^2 + y^2)`.
+/// is `t = y / den` (Rutishauser's stable form) and `(c, s) = (den, y) / h`,
+/// `h = sqrt(den^2 + y^2)`.
 ///
 /// The inputs are expected on the normalised scale of [`decompose_scaled`] (largest entries of
 /// order one). Off-diagonals below [`math::TINY`] are treated as zero: they are far below the
 /// rounding of the diagonal, and keeping them would square into subnormals whose lost bits break
-/// `c^2 + s^2 = 1`. Written without branches: the guards are selects.
+/// `c^2 + s^2 = 1`.
 #[inline(always)]
-fn jacobi_rotation(app: Real, aqq: Real, apq: Real) -> JacobiRotation {
+fn jacobi_rotation<L: Lane>(app: L, aqq: L, apq: L) -> JacobiRotation<L> {
+    let tiny = L::splat(math::TINY);
     let d = aqq - app;
-    let y = 2.0 * apq * (1.0 as Real).copysign(d);
-    let y = select(y.abs() > math::TINY, y, 0.0);
-    let r = math::sqrt(d * d + y * y);
+    let apq = L::select(apq.abs().gt(tiny), apq, L::splat(0.0));
+    let two_apq = apq + apq;
+    let r = (d * d + two_apq * two_apq).sqrt();
     // den >= TINY keeps d = y = 0 (nothing to rotate) at c = 1, s = 0 instead of 0/0.
-    let den = (d.abs() + r).max(math::TINY);
-    let inv_h = 1.0 / math::sqrt(den * den + y * y);
+    let den = (d.abs() + r).max(tiny);
+    let y = two_apq * d.sign();
+    let h = (den * den + y * y).sqrt();
+    let inv_h = L::splat(1.0) / h;
     JacobiRotation {
         c: den * inv_h,
         s: y * inv_h,
         t: y / den,
+        den,
+        h,
     }
 }
 
-impl JacobiRotation {
+impl<L: Lane> JacobiRotation<L> {
     /// Applies `J^T S J` to a symmetric matrix given by the entries touched by the pair `(p, q)`
     /// and the remaining index `r`; `apq` becomes zero.
+    ///
+    /// `c rp - s rq` is evaluated as `den (rp - t rq) / h` (and likewise for `arq`): the same
+    /// value, but everything except the final division is ready before `h` is, which shortens
+    /// the sweep's chain of dependent operations.
     #[inline(always)]
-    fn apply_symmetric(
-        &self,
-        app: &mut Real,
-        aqq: &mut Real,
-        apq: &mut Real,
-        arp: &mut Real,
-        arq: &mut Real,
-    ) {
+    fn apply_symmetric(&self, app: &mut L, aqq: &mut L, apq: &mut L, arp: &mut L, arq: &mut L) {
         let shift = self.t * *apq;
-        *app -= shift;
-        *aqq += shift;
-        *apq = 0.0;
+        *app = *app - shift;
+        *aqq = *aqq + shift;
+        *apq = L::splat(0.0);
         let (rp, rq) = (*arp, *arq);
-        *arp = self.c * rp - self.s * rq;
-        *arq = self.s * rp + self.c * rq;
+        *arp = self.den * (rp - self.t * rq) / self.h;
+        *arq = self.den * (rq + self.t * rp) / self.h;
     }
 
     /// Right-multiplies a matrix by `J`, given its columns `p` and `q`.
     #[inline(always)]
-    fn rotate_columns(&self, p: &mut Vec3, q: &mut Vec3) {
+    fn rotate_columns(&self, p: &mut V3<L>, q: &mut V3<L>) {
         let (old_p, old_q) = (*p, *q);
-        *p = old_p * self.c - old_q * self.s;
-        *q = old_p * self.s + old_q * self.c;
+        *p = old_p.scale(self.c).sub(old_q.scale(self.s));
+        *q = old_p.scale(self.s).add(old_q.scale(self.c));
     }
 
     /// This rotation, followed by a quarter turn when that puts the larger diagonal entry of
     /// `J^T S J` (for `S = [[app, apq], [apq, aqq]]`) first. The quarter turn swaps the two
-    /// columns and negates one, so the result is still a rotation.
+    /// columns and negates one, so the result is still a rotation; only `c` and `s` are updated,
+    /// as nothing uses the other fields afterwards.
     #[inline(always)]
-    fn larger_first(self, app: Real, aqq: Real, apq: Real) -> Self {
+    fn larger_first(self, app: L, aqq: L, apq: L) -> Self {
         let shift = self.t * apq;
-        let swap = app - shift < aqq + shift;
+        let swap = (aqq + shift).gt(app - shift);
         JacobiRotation {
-            c: select(swap, -self.s, self.c),
-            s: select(swap, self.c, self.s),
-            t: select(swap, -self.c / self.s, self.t),
+            c: L::select(swap, -self.s, self.c),
+            s: L::select(swap, self.c, self.s),
+            ..self
         }
     }
 }
 
 /// A Givens rotation `[[c, s], [-s, c]]` applied to two rows.
 #[derive(Clone, Copy)]
-struct Givens {
-    c: Real,
-    s: Real,
+struct Givens<L> {
+    c: L,
+    s: L,
 }
 
-impl Givens {
+impl<L: Lane> Givens<L> {
     /// The rotation that maps the pair `(a, b)` to `(sqrt(a^2 + b^2), 0)`.
     ///
     /// On the normalised scale of [`decompose_scaled`]: a pair whose length is below
     /// [`math::TINY`] is left alone (identity), since its squares would be subnormal.
     #[inline(always)]
-    fn zeroing(a: Real, b: Real) -> Givens {
-        let length = math::sqrt(a * a + b * b);
-        let usable = length > math::TINY;
-        let inv_length = 1.0 / length.max(math::TINY);
+    fn zeroing(a: L, b: L) -> Self {
+        let tiny = L::splat(math::TINY);
+        let length = (a * a + b * b).sqrt();
+        let usable = length.gt(tiny);
+        let safe_length = length.max(tiny);
         Givens {
-            c: select(usable, a * inv_length, 1.0),
-            s: select(usable, b * inv_length, 0.0),
+            c: L::select(usable, a / safe_length, L::splat(1.0)),
+            s: L::select(usable, b / safe_length, L::splat(0.0)),
         }
     }
 
     /// Applies the rotation to rows `p` and `q` of `r` (stored as vectors) and the inverse to
     /// columns `p` and `q` of `u`, so that the product `u r` is unchanged.
     #[inline(always)]
-    fn rotate_rows(&self, row_p: &mut Vec3, row_q: &mut Vec3, u_p: &mut Vec3, u_q: &mut Vec3) {
-        let (p, q) = (*row_p, *row_q);
-        *row_p = p * self.c + q * self.s;
-        *row_q = q * self.c - p * self.s;
+    fn rotate_rows(&self, row_p: &mut V3<L>, row_q: &mut V3<L>, u_p: &mut V3<L>, u_q: &mut V3<L>) {
+        self.rotate_basis(row_p, row_q);
         self.rotate_basis(u_p, u_q);
     }
 
-    /// Right-multiplies `u` by the transpose of this rotation, given its columns `p` and `q`.
+    /// `(p, q) <- (c p + s q, c q - s p)`: the rotation applied to two rows, or equivalently
+    /// the right-multiplication of `u` by its transpose, given columns `p` and `q`.
     #[inline(always)]
-    fn rotate_basis(&self, u_p: &mut Vec3, u_q: &mut Vec3) {
-        let (p, q) = (*u_p, *u_q);
-        *u_p = p * self.c + q * self.s;
-        *u_q = q * self.c - p * self.s;
+    fn rotate_basis(&self, p: &mut V3<L>, q: &mut V3<L>) {
+        let (old_p, old_q) = (*p, *q);
+        *p = old_p.scale(self.c).add(old_q.scale(self.s));
+        *q = old_q.scale(self.c).sub(old_p.scale(self.s));
     }
 }
 
 /// Orders two columns of `b` (and the matching columns of `v`) by decreasing squared norm. A swap
 /// negates the new second column so that `det v` stays `+1` and `b = a v` still holds.
 #[inline(always)]
-fn sort_pair(
-    b_p: &mut Vec3,
-    b_q: &mut Vec3,
-    v_p: &mut Vec3,
-    v_q: &mut Vec3,
-    norm_p: &mut Real,
-    norm_q: &mut Real,
+fn sort_pair<L: Lane>(
+    b_p: &mut V3<L>,
+    b_q: &mut V3<L>,
+    v_p: &mut V3<L>,
+    v_q: &mut V3<L>,
+    norm_p: &mut L,
+    norm_q: &mut L,
 ) {
-    let swap = *norm_p < *norm_q;
+    let swap = norm_q.gt(*norm_p);
     let (bp, bq, vp, vq, np, nq) = (*b_p, *b_q, *v_p, *v_q, *norm_p, *norm_q);
-    *b_p = select_vec(swap, bq, bp);
-    *b_q = select_vec(swap, -bp, bq);
-    *v_p = select_vec(swap, vq, vp);
-    *v_q = select_vec(swap, -vp, vq);
-    *norm_p = select(swap, nq, np);
-    *norm_q = select(swap, np, nq);
+    *b_p = V3::select(swap, bq, bp);
+    *b_q = V3::select(swap, bp.neg(), bq);
+    *v_p = V3::select(swap, vq, vp);
+    *v_q = V3::select(swap, vp.neg(), vq);
+    *norm_p = L::select(swap, nq, np);
+    *norm_q = L::select(swap, np, nq);
 }
