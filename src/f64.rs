@@ -1,7 +1,9 @@
 //! The double-precision instantiation of softfem's numeric modules.
 //!
 //! The same items as at the crate root, in double precision, compiled from the same source files
-//! (see `src/f32.rs`).
+//! (see `src/f32.rs`). The error types do not depend on the precision and are the crate root's.
+
+pub use crate::error::MaterialError;
 
 /// The scalar, vector and matrix types this precision is written against.
 pub mod types {

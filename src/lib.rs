@@ -46,6 +46,9 @@ extern crate std;
 
 pub use glam;
 
+pub mod error;
+pub use error::MaterialError;
+
 #[path = "f32.rs"]
 mod single;
 pub use single::{polar, svd, types};
