@@ -8,7 +8,7 @@ use core::fmt;
 /// An elastic material was given parameters for which it is not a stable solid.
 ///
 /// Returned by the `from_lame` and `from_young_poisson` constructors of every model in
-/// `material`. Each variant names the parameter at fault; the valid ranges are
+/// [`material`](crate::material). Each variant names the parameter at fault; the valid ranges are
 /// those of isotropic linear elasticity: shear modulus `mu > 0` and bulk modulus
 /// `K = lambda + 2 mu / 3 > 0`, or equivalently Young's modulus `E > 0` and Poisson ratio
 /// `-1 < nu < 1/2`. Every parameter must also be finite.
