@@ -60,6 +60,20 @@ pub(crate) mod math {
         }
     }
 
+    /// Real cube root (`cbrt(-8) = -2`).
+    #[inline(always)]
+    #[must_use]
+    pub fn cbrt(x: Real) -> Real {
+        libm::cbrtf(x)
+    }
+
+    /// `ln(1 + x)`, accurate for small `x`.
+    #[inline(always)]
+    #[must_use]
+    pub fn ln_1p(x: Real) -> Real {
+        libm::log1pf(x)
+    }
+
     /// The unbiased binary exponent of a finite non-zero `x`: `2^e <= |x| < 2^(e+1)`.
     #[inline(always)]
     #[must_use]
@@ -97,3 +111,6 @@ pub mod svd;
 
 #[path = "polar.rs"]
 pub mod polar;
+
+#[path = "material/mod.rs"]
+pub mod material;

@@ -1,7 +1,9 @@
 //! The double-precision instantiation of softfem's numeric modules.
 //!
 //! The same items as at the crate root, in double precision, compiled from the same source files
-//! (see `src/f32.rs`).
+//! (see `src/f32.rs`). The error types do not depend on the precision and are the crate root's.
+
+pub use crate::error::MaterialError;
 
 /// The scalar, vector and matrix types this precision is written against.
 pub mod types {
@@ -60,6 +62,20 @@ pub(crate) mod math {
         }
     }
 
+    /// Real cube root (`cbrt(-8) = -2`).
+    #[inline(always)]
+    #[must_use]
+    pub fn cbrt(x: Real) -> Real {
+        libm::cbrt(x)
+    }
+
+    /// `ln(1 + x)`, accurate for small `x`.
+    #[inline(always)]
+    #[must_use]
+    pub fn ln_1p(x: Real) -> Real {
+        libm::log1p(x)
+    }
+
     /// The unbiased binary exponent of a finite non-zero `x`: `2^e <= |x| < 2^(e+1)`.
     #[inline(always)]
     #[must_use]
@@ -97,3 +113,6 @@ pub mod svd;
 
 #[path = "polar.rs"]
 pub mod polar;
+
+#[path = "material/mod.rs"]
+pub mod material;

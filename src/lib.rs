@@ -9,6 +9,10 @@
 //!   smallest singular value), accurate to a few `eps` on every class of input from `1e-30` to
 //!   `1e30`, with the sweep count as a speed/accuracy knob.
 //! * [`polar`]: polar decomposition on top of it.
+//! * [`material`]: hyperelastic models (StVK, the seed's neo-Hookean, stable neo-Hookean) behind
+//!   one [`Material`](material::Material) trait, with energy density, first Piola–Kirchhoff
+//!   stress and their principal-stretch forms; constructors validate parameters
+//!   ([`MaterialError`]).
 //!
 //! glam is re-exported as [`glam`] so that callers use the exact version the kernels
 //! are built against.
@@ -46,8 +50,11 @@ extern crate std;
 
 pub use glam;
 
+pub mod error;
+pub use error::MaterialError;
+
 #[path = "f32.rs"]
 mod single;
-pub use single::{lanes, polar, svd, types};
+pub use single::{lanes, material, polar, svd, types};
 
 pub mod f64;

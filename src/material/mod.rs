@@ -1,0 +1,255 @@
+//! Hyperelastic material models: strain energy density and first Piola–Kirchhoff stress
+//! (`SPEC.md` section 2).
+//!
+//! # Conventions
+//! * `f` is the deformation gradient `F = Ds Dm^-1` (dimensionless), `J = det F`,
+//!   `I_C = tr(F^T F)`, `cof(F) = det(F) F^-T`.
+//! * [`Material::energy_density`] is the strain energy `W` per unit **rest** volume, in
+//!   J/m^3 = Pa; [`Material::first_piola`] is `P = dW/dF` in Pa (force per unit rest area). A
+//!   tetrahedron of rest volume `V` stores `V W` and receives the forces `-V P Dm^-T`.
+//! * The principal forms take the signed singular values `s` of `F` from
+//!   [`svd3`] (dimensionless stretches, `s.z < 0` exactly when the element is
+//!   inverted) and return `W(s)` and `dW/ds`. By isotropy `P = U diag(dW/ds) V^T`, which the
+//!   provided methods of [`Material`] compute.
+//! * Every model is built from validated [`Lame`] parameters (Pa) and linearises to the same
+//!   small-strain elasticity `P = lambda tr(eps) I + 2 mu eps`, so swapping models never changes
+//!   how stiff a scene is at small strain. Every model has `W(I) = 0` and `P(I) = 0`.
+//!
+//! # Which model a scene needs
+//! | model | inverted element (`J <= 0`) | strong compression | cost |
+//! |---|---|---|---|
+//! | [`StVK`] | reflections are stress-free equilibria: an inverted element stays inverted | softens: the uniaxial nominal stress peaks at stretch `1/sqrt(3)`, then collapses | cheapest |
+//! | [`NeoHookean`] (the seed's) | barrier at `J = 0`: energy and stress blow up, and an element pushed through cannot come back | stiffens without bound | a cube root |
+//! | [`StableNeoHookean`] | smooth through `J = 0`, restoring force on inverted elements | stiffens, finite everywhere | a `ln` |
+//!
+//! Small deformations (a few percent): any. Large deformations with implicit (energy-based)
+//! stepping or relaxation, or anything that can invert: [`StableNeoHookean`]. Explicit stepping
+//! of [`StVK`] or [`NeoHookean`] through inversion: the clamped principal path
+//! [`Material::first_piola_principal_clamped`] (Irving, Teran, Fedkiw 2004).
+//!
+//! ```
+//! use softfem::glam::{Mat3, Vec3};
+//! use softfem::material::{Material, StableNeoHookean};
+//!
+//! let rubber = StableNeoHookean::from_young_poisson(1.0e6, 0.45)?;
+//! // Squash an element by 10% along z.
+//! let f = Mat3::from_diagonal(Vec3::new(1.0, 1.0, 0.9));
+//! let p = rubber.first_piola(f);
+//! assert!(p.z_axis.z < 0.0); // compressive
+//! assert!(rubber.energy_density(f) > 0.0);
+//! // The principal path (through the SVD) gives the same stress.
+//! assert!(rubber.first_piola_principal(f).abs_diff_eq(p, 1e-4 * p.z_axis.z.abs()));
+//! # Ok::<(), softfem::MaterialError>(())
+//! ```
+
+use core::fmt::Debug;
+
+use super::math;
+use super::svd::{Svd3, svd3};
+use super::types::{Mat3, Real, Vec3};
+use crate::error::MaterialError;
+
+/// The constructors and parameter accessors every model shares. A model `$model` provides
+/// `fn new(lame: Lame) -> $model` and keeps its parameters in a field `lame: Lame`.
+macro_rules! lame_constructors {
+    ($model:ident) => {
+        impl $model {
+            #[doc = concat!("The [`", stringify!($model), "`] model with Lamé parameters `lambda` \
+                and `mu` (both Pa).")]
+            ///
+            /// # Errors
+            /// As [`Lame::new`]: `lambda` not finite, `mu` not finite and positive, or the bulk
+            /// modulus `lambda + 2 mu / 3` not finite and positive.
+            #[inline]
+            pub fn from_lame(lambda: Real, mu: Real) -> Result<Self, MaterialError> {
+                Lame::new(lambda, mu).map(Self::new)
+            }
+
+            #[doc = concat!("The [`", stringify!($model), "`] model with Young's modulus `e` \
+                (Pa) and Poisson ratio `nu` (dimensionless).")]
+            ///
+            /// # Errors
+            /// As [`Lame::from_young_poisson`]: `e` not finite and positive, or `nu` outside
+            /// `(-1, 1/2)`.
+            ///
+            /// ```
+            #[doc = concat!("use softfem::material::", stringify!($model), " as Model;")]
+            ///
+            /// let steel = Model::from_young_poisson(200e9, 0.3)?;
+            /// assert!((steel.mu() - 200e9 / 2.6).abs() < 1e-6 * steel.mu());
+            /// // nu = 1/2 is incompressible: not representable with a finite lambda.
+            /// assert!(Model::from_young_poisson(1e6, 0.5).is_err());
+            /// # Ok::<(), softfem::MaterialError>(())
+            /// ```
+            #[inline]
+            pub fn from_young_poisson(e: Real, nu: Real) -> Result<Self, MaterialError> {
+                Lame::from_young_poisson(e, nu).map(Self::new)
+            }
+
+            /// The first Lamé parameter `lambda` (Pa) this model linearises to.
+            #[inline]
+            #[must_use]
+            pub fn lambda(&self) -> Real {
+                self.lame.lambda()
+            }
+
+            /// The shear modulus `mu` (Pa) this model linearises to.
+            #[inline]
+            #[must_use]
+            pub fn mu(&self) -> Real {
+                self.lame.mu()
+            }
+
+            /// The validated Lamé parameters of this model.
+            #[inline]
+            #[must_use]
+            pub fn lame(&self) -> Lame {
+                self.lame
+            }
+        }
+    };
+}
+
+mod lame;
+mod neo_hookean;
+mod stable_neo_hookean;
+mod stvk;
+
+pub use lame::Lame;
+pub use neo_hookean::NeoHookean;
+pub use stable_neo_hookean::StableNeoHookean;
+pub use stvk::StVK;
+
+/// An isotropic hyperelastic material: a strain energy density and its derivatives, in two
+/// equivalent forms (direct in `F`, and principal in the signed singular values of `F`).
+///
+/// Implementors provide the four required methods; the principal-path stresses are provided.
+/// All methods are pure functions of their arguments, never panic, and propagate NaN and
+/// infinity from their input instead of hiding them.
+pub trait Material: Copy + Debug {
+    /// The strain energy density `W(F)` (J/m^3 = Pa, per unit rest volume) at deformation
+    /// gradient `f` (dimensionless).
+    #[must_use]
+    fn energy_density(&self, f: Mat3) -> Real;
+
+    /// The first Piola–Kirchhoff stress `P = dW/dF` (Pa) at deformation gradient `f`, computed
+    /// directly from `f` (no SVD).
+    #[must_use]
+    fn first_piola(&self, f: Mat3) -> Mat3;
+
+    /// The strain energy density `W` (J/m^3) as a function of the signed singular values `s` of
+    /// `F` (dimensionless, as returned by [`svd3`]: `s.z < 0` for an inverted element).
+    /// Equals [`energy_density`](Material::energy_density) of any `F` with these singular values.
+    #[must_use]
+    fn principal_energy(&self, s: Vec3) -> Real;
+
+    /// The principal stresses `dW/ds` (Pa): the gradient of
+    /// [`principal_energy`](Material::principal_energy) with respect to the signed singular
+    /// values `s`.
+    #[must_use]
+    fn principal_stress(&self, s: Vec3) -> Vec3;
+
+    /// The first Piola–Kirchhoff stress (Pa) by the principal path, `P = U diag(dW/ds) V^T` with
+    /// `F = U diag(s) V^T` from [`svd3`]. Agrees with [`first_piola`](Material::first_piola) to
+    /// rounding wherever the model is defined.
+    #[inline]
+    #[must_use]
+    fn first_piola_principal(&self, f: Mat3) -> Mat3 {
+        self.first_piola_from_svd(&svd3(f))
+    }
+
+    /// The principal-path stress `U diag(dW/ds) V^T` (Pa) from an SVD the caller already has,
+    /// so that a kernel which needs the SVD anyway does not compute it twice.
+    #[inline]
+    #[must_use]
+    fn first_piola_from_svd(&self, svd: &Svd3) -> Mat3 {
+        svd.u.mul_diagonal_scale(self.principal_stress(svd.sigma)) * svd.v.transpose()
+    }
+
+    /// **Not the gradient of any energy: for explicit time stepping only.** The inversion-robust
+    /// stress (Pa) of Irving, Teran and Fedkiw, "Invertible finite elements for robust
+    /// simulation of large deformation" (SCA 2004): `U diag(dW/ds(s')) V^T` with the stretches
+    /// clamped from below, `s'_i = max(s_i, threshold)`.
+    ///
+    /// An inverted or nearly flat element is thereby given the stress of a mildly compressed,
+    /// uninverted one, which pushes it back towards `J > 0` even for models whose own stress
+    /// traps it ([`StVK`]) or is not finite ([`NeoHookean`] at `J = 0`). `threshold` is a
+    /// dimensionless stretch, typically `0.2..0.5`; it must be positive for the result to be
+    /// finite with [`NeoHookean`]. Elements with every stretch at or above `threshold` get
+    /// exactly [`first_piola_principal`](Material::first_piola_principal).
+    ///
+    /// Because the clamped stress is not `dW/dF` for any `W`, the forces it produces are not
+    /// conservative: energy-based solvers (implicit Euler as minimisation, relaxation, line
+    /// searches) must not use it, and energy is not conserved by it. NaN stretches propagate.
+    #[inline]
+    #[must_use]
+    fn first_piola_principal_clamped(&self, f: Mat3, threshold: Real) -> Mat3 {
+        self.first_piola_clamped_from_svd(&svd3(f), threshold)
+    }
+
+    /// [`first_piola_principal_clamped`](Material::first_piola_principal_clamped) from an SVD
+    /// the caller already has. **Not the gradient of any energy: for explicit time stepping
+    /// only.**
+    #[inline]
+    #[must_use]
+    fn first_piola_clamped_from_svd(&self, svd: &Svd3, threshold: Real) -> Mat3 {
+        // `select` rather than `max`: `Real::max` would replace a NaN stretch by the threshold
+        // and hide a non-finite deformation behind a finite stress.
+        let clamp = |s: Real| math::select(s < threshold, threshold, s);
+        let clamped = Vec3::new(clamp(svd.sigma.x), clamp(svd.sigma.y), clamp(svd.sigma.z));
+        svd.u.mul_diagonal_scale(self.principal_stress(clamped)) * svd.v.transpose()
+    }
+}
+
+/// `tr(a^T a)`, the squared Frobenius norm; `I_C` when `a = F`.
+#[inline(always)]
+fn frobenius_squared(a: Mat3) -> Real {
+    a.x_axis.length_squared() + a.y_axis.length_squared() + a.z_axis.length_squared()
+}
+
+/// `cof(F) = det(F) F^-T` as cross products of the columns of `F`: no division, so it is exact
+/// up to rounding for singular and inverted `F` too. `F^T cof(F) = det(F) I` column by column.
+#[inline(always)]
+fn cofactor(f: Mat3) -> Mat3 {
+    Mat3::from_cols(
+        f.y_axis.cross(f.z_axis),
+        f.z_axis.cross(f.x_axis),
+        f.x_axis.cross(f.y_axis),
+    )
+}
+
+/// `(I_C, J) = (tr(F^T F), det F)`.
+#[inline(always)]
+fn invariants(f: Mat3) -> (Real, Real) {
+    (frobenius_squared(f), f.determinant())
+}
+
+/// `(I_C, J) = (sum s_i^2, s0 s1 s2)` from the signed singular values.
+#[inline(always)]
+fn principal_invariants(s: Vec3) -> (Real, Real) {
+    (s.length_squared(), s.x * s.y * s.z)
+}
+
+/// `P` of a model written as `W(I_C, J)`: `dI_C/dF = 2 F` and `dJ/dF = cof(F)` give
+/// `P = a F + b cof(F)` with `(a, b) = (2 dW/dI_C, dW/dJ)` from `coefficients(I_C, J)`.
+#[inline(always)]
+fn invariant_first_piola(f: Mat3, coefficients: impl FnOnce(Real, Real) -> (Real, Real)) -> Mat3 {
+    let cof = cofactor(f);
+    let j = f.x_axis.dot(cof.x_axis);
+    let (a, b) = coefficients(frobenius_squared(f), j);
+    f * a + cof * b
+}
+
+/// `dW/ds` of a model written as `W(I_C, J)`: `dI_C/ds_i = 2 s_i` and `dJ/ds_i = p_i`, the
+/// product of the other two stretches, give `dW/ds_i = a s_i + b p_i` with `(a, b)` as in
+/// [`invariant_first_piola`].
+#[inline(always)]
+fn invariant_principal_stress(
+    s: Vec3,
+    coefficients: impl FnOnce(Real, Real) -> (Real, Real),
+) -> Vec3 {
+    let (ic, j) = principal_invariants(s);
+    let (a, b) = coefficients(ic, j);
+    let p = Vec3::new(s.y * s.z, s.z * s.x, s.x * s.y);
+    s * a + p * b
+}

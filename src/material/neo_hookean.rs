@@ -1,0 +1,109 @@
+//! The seed notes' neo-Hookean model: isochoric shear energy plus a quadratic volume penalty.
+
+use super::{
+    Lame, Mat3, Material, MaterialError, Real, Vec3, invariant_first_piola,
+    invariant_principal_stress, invariants, math, principal_invariants,
+};
+
+/// The seed's (isochoric) neo-Hookean model (`SPEC.md` section 2): with `I_C = tr(F^T F)`,
+/// `J = det F` and bulk modulus `K = lambda + 2 mu / 3`,
+/// `W = mu/2 (J^(-2/3) I_C - 3) + K/2 (J - 1)^2` and
+/// `P = mu J^(-2/3) F - (mu/3) J^(-5/3) I_C cof(F) + K (J - 1) cof(F)`.
+///
+/// # At and beyond `J = 0`
+/// The shear term is a barrier: `W >= mu (J^(-2/3) - 3/2)` when two stretches are 1, so the
+/// energy and the stress grow without bound as `J -> 0`, and an element pushed through `J = 0`
+/// cannot come back. Precisely:
+/// * `J = 0` (a flat element): `W = +inf` (NaN if `F = 0`) and `P` has non-finite entries (inf
+///   or NaN). Nothing panics; the NaN propagates so a stepper can detect it. Use the clamped
+///   principal path ([`Material::first_piola_principal_clamped`]) or [`StableNeoHookean`] when
+///   elements may flatten.
+/// * `J < 0`: `J^(-2/3)` is taken as the real cube root, `(J^2)^(-1/3) > 0`, so `W` and `P` are
+///   finite and `P` is still the gradient of `W` (the mirror image of the `J > 0` branch of the
+///   shear term). Its barrier then holds the element on the inverted side: the failure mode
+///   the stability tests show, rather than a NaN.
+///
+/// ```
+/// use softfem::glam::{Mat3, Vec3};
+/// use softfem::material::{Material, NeoHookean};
+///
+/// let nh = NeoHookean::from_lame(2.0e6, 1.0e6)?;
+/// let flattened = |t: f32| Mat3::from_diagonal(Vec3::new(1.0, 1.0, t));
+/// // The barrier: squashing 100x harder costs far more energy.
+/// assert!(nh.energy_density(flattened(1e-3)) > 10.0 * nh.energy_density(flattened(1e-1)));
+/// // A flat element has infinite energy and a non-finite stress, without panicking.
+/// assert_eq!(nh.energy_density(flattened(0.0)), f32::INFINITY);
+/// assert!(!nh.first_piola(flattened(0.0)).is_finite());
+/// # Ok::<(), softfem::MaterialError>(())
+/// ```
+///
+/// [`StableNeoHookean`]: super::StableNeoHookean
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NeoHookean {
+    lame: Lame,
+    /// `K = lambda + 2 mu / 3` (Pa).
+    bulk_modulus: Real,
+}
+
+impl NeoHookean {
+    /// The model with the given (already validated) Lamé parameters.
+    #[inline]
+    #[must_use]
+    pub fn new(lame: Lame) -> NeoHookean {
+        NeoHookean {
+            lame,
+            bulk_modulus: lame.bulk_modulus(),
+        }
+    }
+
+    /// `W(I_C, J)`.
+    #[inline(always)]
+    fn energy(&self, ic: Real, j: Real) -> Real {
+        let shear = 0.5 * self.lame.mu() * (j_pow_minus_two_thirds(j) * ic - 3.0);
+        shear + 0.5 * self.bulk_modulus * (j - 1.0) * (j - 1.0)
+    }
+
+    /// `(2 dW/dI_C, dW/dJ) = (mu J^(-2/3), -(mu/3) J^(-5/3) I_C + K (J - 1))`.
+    #[inline(always)]
+    fn stress_coefficients(&self, ic: Real, j: Real) -> (Real, Real) {
+        let shear = self.lame.mu() * j_pow_minus_two_thirds(j);
+        // Grouped as (I_C / 3) / J so that the two shear terms of P cancel exactly at F = I.
+        (
+            shear,
+            self.bulk_modulus * (j - 1.0) - shear * (ic / 3.0) / j,
+        )
+    }
+}
+
+lame_constructors!(NeoHookean);
+
+/// `J^(-2/3)` through the real cube root: defined and positive for `J < 0`, `+inf` at `J = 0`.
+#[inline(always)]
+fn j_pow_minus_two_thirds(j: Real) -> Real {
+    let cube_root = math::cbrt(j);
+    1.0 / (cube_root * cube_root)
+}
+
+impl Material for NeoHookean {
+    #[inline]
+    fn energy_density(&self, f: Mat3) -> Real {
+        let (ic, j) = invariants(f);
+        self.energy(ic, j)
+    }
+
+    #[inline]
+    fn first_piola(&self, f: Mat3) -> Mat3 {
+        invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
+    }
+
+    #[inline]
+    fn principal_energy(&self, s: Vec3) -> Real {
+        let (ic, j) = principal_invariants(s);
+        self.energy(ic, j)
+    }
+
+    #[inline]
+    fn principal_stress(&self, s: Vec3) -> Vec3 {
+        invariant_principal_stress(s, |ic, j| self.stress_coefficients(ic, j))
+    }
+}

@@ -1,0 +1,103 @@
+//! Stable neo-Hookean (Smith, de Goes, Kim 2018): smooth through inversion.
+
+use super::{
+    Lame, Mat3, Material, MaterialError, Real, Vec3, invariant_first_piola,
+    invariant_principal_stress, invariants, math, principal_invariants,
+};
+
+/// Stable neo-Hookean: Smith, de Goes, Kim, "Stable Neo-Hookean Flesh Simulation" (ACM TOG
+/// 2018), as in `SPEC.md` section 2. With `I_C = tr(F^T F)`, `J = det F` and the paper's
+/// constants `m = 4 mu / 3`, `l = lambda + 5 mu / 6`, `a = 1 + 3 m / (4 l)` (chosen so that the
+/// model linearises to `(lambda, mu)`),
+/// `W = m/2 (I_C - 3) + l/2 (J - a)^2 - m/2 ln(I_C + 1) - W0`, where the constant
+/// `W0 = l/2 (1 - a)^2 - m/2 ln 4` makes `W(I) = 0`, and
+/// `P = m (1 - 1/(I_C + 1)) F + l (J - a) cof(F)`.
+///
+/// Finite and smooth for every finite `F`, including flat (`J = 0`) and inverted (`J < 0`)
+/// elements, which it pushes back towards `J > 0`: the model to use whenever elements may
+/// invert, and with energy-based solvers.
+///
+/// The energy is evaluated in the algebraically equal form
+/// `W = 2 mu / 3 ((I_C - 3) - ln(1 + (I_C - 3) / 4)) + (J - 1) (l (J - 1) - 2 mu) / 2`
+/// (using `l (a - 1) = mu`), which is exactly zero at rest and keeps its accuracy at small
+/// strain instead of subtracting the constant `W0` from terms of order `lambda`.
+///
+/// ```
+/// use softfem::glam::{Mat3, Vec3};
+/// use softfem::material::{Material, StableNeoHookean};
+///
+/// let snh = StableNeoHookean::from_lame(2.0e6, 1.0e6)?;
+/// // Flat and inverted elements have finite energy and a stress pushing them back (P_zz < 0
+/// // lowers the energy as the z-stretch grows).
+/// for t in [0.0, -0.5] {
+///     let f = Mat3::from_diagonal(Vec3::new(1.0, 1.0, t));
+///     assert!(snh.energy_density(f).is_finite());
+///     assert!(snh.first_piola(f).z_axis.z < 0.0);
+/// }
+/// # Ok::<(), softfem::MaterialError>(())
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StableNeoHookean {
+    lame: Lame,
+    /// The paper's volume stiffness `l = lambda + 5 mu / 6` (Pa); at least `mu / 6 > 0` for
+    /// valid [`Lame`] parameters.
+    volume_stiffness: Real,
+}
+
+impl StableNeoHookean {
+    /// The model with the given (already validated) Lamé parameters.
+    #[inline]
+    #[must_use]
+    pub fn new(lame: Lame) -> StableNeoHookean {
+        StableNeoHookean {
+            lame,
+            volume_stiffness: lame.lambda() + 5.0 * lame.mu() / 6.0,
+        }
+    }
+
+    /// `W(I_C, J)` in the cancellation-free form of the type's documentation.
+    #[inline(always)]
+    fn energy(&self, ic: Real, j: Real) -> Real {
+        let mu = self.lame.mu();
+        let shear = ic - 3.0;
+        let shear = 2.0 * mu / 3.0 * (shear - math::ln_1p(0.25 * shear));
+        shear + 0.5 * (j - 1.0) * (self.volume_stiffness * (j - 1.0) - 2.0 * mu)
+    }
+
+    /// `(2 dW/dI_C, dW/dJ) = (m I_C / (I_C + 1), l (J - a))`, with `l (J - a) = l (J - 1) - mu`.
+    #[inline(always)]
+    fn stress_coefficients(&self, ic: Real, j: Real) -> (Real, Real) {
+        let mu = self.lame.mu();
+        // (4 I_C) / (3 (I_C + 1)) is exactly 1 at rest (12/12), so P(I) = mu I - mu I = 0.
+        (
+            mu * ((4.0 * ic) / (3.0 * (ic + 1.0))),
+            self.volume_stiffness * (j - 1.0) - mu,
+        )
+    }
+}
+
+lame_constructors!(StableNeoHookean);
+
+impl Material for StableNeoHookean {
+    #[inline]
+    fn energy_density(&self, f: Mat3) -> Real {
+        let (ic, j) = invariants(f);
+        self.energy(ic, j)
+    }
+
+    #[inline]
+    fn first_piola(&self, f: Mat3) -> Mat3 {
+        invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
+    }
+
+    #[inline]
+    fn principal_energy(&self, s: Vec3) -> Real {
+        let (ic, j) = principal_invariants(s);
+        self.energy(ic, j)
+    }
+
+    #[inline]
+    fn principal_stress(&self, s: Vec3) -> Vec3 {
+        invariant_principal_stress(s, |ic, j| self.stress_coefficients(ic, j))
+    }
+}
