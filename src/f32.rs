@@ -34,8 +34,8 @@ pub(crate) mod math {
     /// The unsigned integer with the bit width of `Real`.
     pub type Bits = u32;
 
-    /// Values per [`Lanes`](super::lanes::Lanes) group: 32 bytes, two SSE registers.
-    pub const LANES: usize = 8;
+    /// Values per [`Lanes`](super::lanes::Lanes) group: one SSE register of f32.
+    pub const LANES: usize = 4;
 
     /// [`sqrt`] of every lane, with the target's packed square root where there is one
     /// (`sqrtps` on x86_64: the same correctly rounded result per lane).

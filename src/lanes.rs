@@ -10,7 +10,7 @@ use super::math;
 use super::types::Real;
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
-/// Number of values a [`Lanes`] holds in this precision (32 bytes of data: two SSE registers).
+/// Number of values a [`Lanes`] holds: 4 in both precisions (one SSE register of f32, two of f64).
 pub const LANES: usize = math::LANES;
 
 /// A scalar-like number type: [`Real`] itself or a group of [`Lanes`].

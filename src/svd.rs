@@ -24,8 +24,13 @@
 //! # Accuracy
 //! For every finite input whose singular values stay below `Real::MAX`: no NaN or inf, `u` and `v`
 //! orthonormal to a few `eps`, reconstruction error a small multiple of `eps * ||a||` (see the
-//! README for the measured maxima per class of matrix). The number of sweeps trades accuracy for
-//! speed: see [`svd3_sweeps`].
+//! README for the measured maxima per class of matrix). Singular values in the subnormal range
+//! are rounded to that range's grid, which adds up to one smallest subnormal of absolute error
+//! (no format can do better). The number of sweeps trades accuracy for speed: see
+//! [`svd3_sweeps`].
+//!
+//! The sign of `det a` is carried by the sign bit of `sigma.z`; when `|det a|` is so small that
+//! `sigma.z` rounds to zero, it is `-0.0` for an inverted `a`.
 
 use super::lanes::{LANES, Lane, Lanes, M3, V3};
 use super::math;
@@ -118,7 +123,7 @@ pub fn svd3_sweeps(a: Mat3, sweeps: u32) -> Svd3 {
     }
 }
 
-/// [`svd3`] of [`LANES`] matrices at once (8 in `f32`, 4 in `f64`), in SIMD registers.
+/// [`svd3`] of [`LANES`] (4) matrices at once, in SIMD registers.
 ///
 /// Each result is bit-for-bit what [`svd3`] returns for the same matrix, including the
 /// non-finite and zero cases; the batch only runs faster. Use it when the matrices come in
