@@ -150,36 +150,30 @@ pub fn svd3_lanes(a: &[Mat3; LANES]) -> [Svd3; LANES] {
 /// [`svd3_sweeps`] of [`LANES`] matrices at once; see [`svd3_lanes`].
 #[must_use]
 pub fn svd3_lanes_sweeps(a: &[Mat3; LANES], sweeps: u32) -> [Svd3; LANES] {
-    let prescales = a.map(Prescale::of);
+    let packed = M3::pack(a);
     // Lanes without a decomposition (zero or non-finite) run on the identity, which keeps every
     // lane finite, and are replaced afterwards.
-    let scaled: [Mat3; LANES] = core::array::from_fn(|i| match (prescales.get(i), a.get(i)) {
-        (Some(Some(prescale)), Some(m)) => prescale.apply(*m),
-        _ => Mat3::IDENTITY,
-    });
-    let entry = |f: fn(&Mat3) -> Real| Lanes(scaled.map(|m| f(&m)));
-    let packed = M3 {
-        c0: V3::new(
-            entry(|m| m.x_axis.x),
-            entry(|m| m.x_axis.y),
-            entry(|m| m.x_axis.z),
-        ),
-        c1: V3::new(
-            entry(|m| m.y_axis.x),
-            entry(|m| m.y_axis.y),
-            entry(|m| m.y_axis.z),
-        ),
-        c2: V3::new(
-            entry(|m| m.z_axis.x),
-            entry(|m| m.z_axis.y),
-            entry(|m| m.z_axis.z),
-        ),
+    let prescales = a.map(Prescale::of);
+    let usable =
+        Lanes(prescales.map(|p| if p.is_some() { 1.0 } else { 0.0 })).gt(Lanes::splat(0.0));
+    let factor = |f: fn(&Prescale) -> Real| Lanes(prescales.map(|p| p.as_ref().map_or(1.0, f)));
+    let scaled = packed
+        .scale(factor(|p| math::pow2(-p.e_lo)))
+        .scale(factor(|p| math::pow2(-p.e_hi)));
+    let identity = M3::identity();
+    let scaled = M3 {
+        c0: V3::select(usable, scaled.c0, identity.c0),
+        c1: V3::select(usable, scaled.c1, identity.c1),
+        c2: V3::select(usable, scaled.c2, identity.c2),
     };
-    let (u, sigma, v) = decompose_scaled(packed, sweeps);
+    let (u, sigma, v) = decompose_scaled(scaled, sweeps);
+    let sigma = sigma
+        .scale(factor(|p| math::pow2(p.e_lo)))
+        .scale(factor(|p| math::pow2(p.e_hi)));
     core::array::from_fn(|i| match (prescales.get(i), a.get(i)) {
-        (Some(Some(prescale)), _) => Svd3 {
+        (Some(Some(_)), _) => Svd3 {
             u: u.lane(i),
-            sigma: prescale.undo(sigma.lane(i)),
+            sigma: sigma.lane(i),
             v: v.lane(i),
         },
         (_, Some(m)) if m.is_finite() => Svd3::ZERO,
@@ -251,6 +245,29 @@ impl V3<Real> {
 }
 
 impl M3<Lanes> {
+    /// The matrices as lanes: entry `(r, c)` of lane `i` is entry `(r, c)` of `a[i]`.
+    #[inline(always)]
+    fn pack(a: &[Mat3; LANES]) -> Self {
+        let entry = |f: fn(&Mat3) -> Real| Lanes(a.map(|m| f(&m)));
+        M3 {
+            c0: V3::new(
+                entry(|m| m.x_axis.x),
+                entry(|m| m.x_axis.y),
+                entry(|m| m.x_axis.z),
+            ),
+            c1: V3::new(
+                entry(|m| m.y_axis.x),
+                entry(|m| m.y_axis.y),
+                entry(|m| m.y_axis.z),
+            ),
+            c2: V3::new(
+                entry(|m| m.z_axis.x),
+                entry(|m| m.z_axis.y),
+                entry(|m| m.z_axis.z),
+            ),
+        }
+    }
+
     /// The matrix held in lane `i` (zero for `i >= LANES`).
     #[inline(always)]
     fn lane(&self, i: usize) -> Mat3 {
