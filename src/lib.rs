@@ -58,3 +58,8 @@ mod single;
 pub use single::{lanes, material, polar, svd, types};
 
 pub mod f64;
+
+// The README's Rust examples run as doc tests, so the README cannot drift from the API.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+struct ReadmeDoctests;
