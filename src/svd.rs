@@ -73,6 +73,16 @@ impl Svd3 {
         sigma: Vec3::ZERO,
         v: Mat3::IDENTITY,
     };
+
+    /// The documented result for an input [`Prescale::of`] rejects: zero or non-finite.
+    #[inline(always)]
+    fn without_decomposition(a: Mat3) -> Svd3 {
+        if a.is_finite() {
+            Svd3::ZERO
+        } else {
+            Svd3::NON_FINITE
+        }
+    }
 }
 
 /// The rotation-variant SVD of `a` with [`DEFAULT_SWEEPS`] Jacobi sweeps.
@@ -109,16 +119,12 @@ pub fn svd3(a: Mat3) -> Svd3 {
 #[must_use]
 pub fn svd3_sweeps(a: Mat3, sweeps: u32) -> Svd3 {
     let Some(prescale) = Prescale::of(a) else {
-        return if a.is_finite() {
-            Svd3::ZERO
-        } else {
-            Svd3::NON_FINITE
-        };
+        return Svd3::without_decomposition(a);
     };
     let (u, sigma, v) = decompose_scaled(M3::from_mat3(prescale.apply(a)), sweeps);
     Svd3 {
         u: u.to_mat3(),
-        sigma: prescale.undo(Vec3::new(sigma.x, sigma.y, sigma.z)),
+        sigma: prescale.undo(sigma.to_vec3()),
         v: v.to_mat3(),
     }
 }
@@ -150,33 +156,21 @@ pub fn svd3_lanes(a: &[Mat3; LANES]) -> [Svd3; LANES] {
 /// [`svd3_sweeps`] of [`LANES`] matrices at once; see [`svd3_lanes`].
 #[must_use]
 pub fn svd3_lanes_sweeps(a: &[Mat3; LANES], sweeps: u32) -> [Svd3; LANES] {
-    let packed = M3::pack(a);
-    // Lanes without a decomposition (zero or non-finite) run on the identity, which keeps every
-    // lane finite, and are replaced afterwards.
     let prescales = a.map(Prescale::of);
-    let usable =
-        Lanes(prescales.map(|p| if p.is_some() { 1.0 } else { 0.0 })).gt(Lanes::splat(0.0));
-    let factor = |f: fn(&Prescale) -> Real| Lanes(prescales.map(|p| p.as_ref().map_or(1.0, f)));
-    let scaled = packed
-        .scale(factor(|p| math::pow2(-p.e_lo)))
-        .scale(factor(|p| math::pow2(-p.e_hi)));
-    let identity = M3::identity();
-    let scaled = M3 {
-        c0: V3::select(usable, scaled.c0, identity.c0),
-        c1: V3::select(usable, scaled.c1, identity.c1),
-        c2: V3::select(usable, scaled.c2, identity.c2),
-    };
-    let (u, sigma, v) = decompose_scaled(scaled, sweeps);
-    let sigma = sigma
-        .scale(factor(|p| math::pow2(p.e_lo)))
-        .scale(factor(|p| math::pow2(p.e_hi)));
+    // Lanes without a decomposition (zero or non-finite input) run on the identity, which keeps
+    // every lane finite, and are replaced afterwards.
+    let scaled = core::array::from_fn(|i| match (prescales.get(i), a.get(i)) {
+        (Some(Some(prescale)), Some(m)) => prescale.apply(*m),
+        _ => Mat3::IDENTITY,
+    });
+    let (u, sigma, v) = decompose_scaled(M3::pack(&scaled), sweeps);
     core::array::from_fn(|i| match (prescales.get(i), a.get(i)) {
-        (Some(Some(_)), _) => Svd3 {
+        (Some(Some(prescale)), _) => Svd3 {
             u: u.lane(i),
-            sigma: sigma.lane(i),
+            sigma: prescale.undo(sigma.lane(i)),
             v: v.lane(i),
         },
-        (_, Some(m)) if m.is_finite() => Svd3::ZERO,
+        (_, Some(m)) => Svd3::without_decomposition(*m),
         _ => Svd3::NON_FINITE,
     })
 }
