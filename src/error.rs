@@ -44,3 +44,96 @@ impl fmt::Display for MaterialError {
 }
 
 impl core::error::Error for MaterialError {}
+
+/// One of the caller-owned output buffers of a mesh generator (see [`GenerateError::BufferLength`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum GenerateBuffer {
+    /// The vertex positions (`&mut [Vec3]` or `&mut [Vec2]`).
+    Positions,
+    /// The tetrahedron index buffer (`&mut [[u32; 4]]`).
+    Tetrahedra,
+    /// The triangle index buffer (`&mut [[u32; 3]]`).
+    Triangles,
+}
+
+impl fmt::Display for GenerateBuffer {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            GenerateBuffer::Positions => "positions",
+            GenerateBuffer::Tetrahedra => "tetrahedra",
+            GenerateBuffer::Triangles => "triangles",
+        })
+    }
+}
+
+/// A mesh generator in [`generate`](crate::generate) was asked for a mesh it cannot produce.
+///
+/// The generators check their arguments in this order and write nothing when they fail: the cell
+/// counts ([`ZeroCells`](Self::ZeroCells), [`TooManyVertices`](Self::TooManyVertices),
+/// [`TooManyElements`](Self::TooManyElements)), the geometry ([`NonFiniteBox`](Self::NonFiniteBox),
+/// [`EmptyBox`](Self::EmptyBox)), the buffer lengths ([`BufferLength`](Self::BufferLength)), and
+/// last the elements themselves ([`DegenerateCells`](Self::DegenerateCells)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum GenerateError {
+    /// A cell count (`nx`, `ny` or `nz`) is zero.
+    ZeroCells,
+    /// The mesh would have more than `u32::MAX` vertices, so its indices would not fit in `u32`.
+    TooManyVertices,
+    /// The number of elements does not fit in `usize` (only possible where `usize` is 32 bits).
+    TooManyElements,
+    /// An output buffer does not have exactly the length the counts function reports.
+    BufferLength {
+        /// The buffer at fault.
+        buffer: GenerateBuffer,
+        /// The length it must have.
+        expected: usize,
+        /// The length it has.
+        actual: usize,
+    },
+    /// A corner of the box (or the origin or an edge vector of a 3D rectangle) is NaN or infinite.
+    NonFiniteBox,
+    /// The box is empty: `min >= max` on some axis (or the two edge vectors of a 3D rectangle are
+    /// zero or parallel).
+    EmptyBox,
+    /// The cells are too small or too large for this precision: after rounding, some element would
+    /// have a rest volume (area) that is not a positive finite number, for example because
+    /// neighbouring grid coordinates round to the same value or the volume underflows or
+    /// overflows.
+    DegenerateCells,
+}
+
+impl fmt::Display for GenerateError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            GenerateError::ZeroCells => f.write_str("every cell count must be at least 1"),
+            GenerateError::TooManyVertices => {
+                f.write_str("the mesh would have more vertices than u32 indices can address")
+            }
+            GenerateError::TooManyElements => {
+                f.write_str("the number of elements does not fit in usize")
+            }
+            GenerateError::BufferLength {
+                buffer,
+                expected,
+                actual,
+            } => write!(
+                f,
+                "the {buffer} buffer has length {actual}, but the mesh needs exactly {expected}"
+            ),
+            GenerateError::NonFiniteBox => f.write_str("the box geometry must be finite"),
+            GenerateError::EmptyBox => {
+                f.write_str("the box is empty (min >= max on an axis, or parallel edge vectors)")
+            }
+            GenerateError::DegenerateCells => f.write_str(
+                "the cells are too small or too large for this precision: \
+                 an element would not have a positive finite rest volume",
+            ),
+        }
+    }
+}
+
+impl core::error::Error for GenerateError {}

@@ -114,3 +114,6 @@ pub mod polar;
 
 #[path = "material/mod.rs"]
 pub mod material;
+
+#[path = "generate.rs"]
+pub mod generate;
