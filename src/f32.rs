@@ -117,3 +117,7 @@ pub mod material;
 
 #[path = "generate.rs"]
 pub mod generate;
+
+#[cfg(feature = "std")]
+#[path = "tetgen.rs"]
+pub mod tetgen;

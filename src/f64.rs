@@ -4,6 +4,8 @@
 //! (see `src/f32.rs`). The error types do not depend on the precision and are the crate root's.
 
 pub use crate::error::{GenerateBuffer, GenerateError, MaterialError};
+#[cfg(feature = "std")]
+pub use crate::error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 
 /// The scalar, vector and matrix types this precision is written against.
 pub mod types {
@@ -119,3 +121,7 @@ pub mod material;
 
 #[path = "generate.rs"]
 pub mod generate;
+
+#[cfg(feature = "std")]
+#[path = "tetgen.rs"]
+pub mod tetgen;

@@ -31,7 +31,8 @@
 //! ```
 //!
 //! ## Features
-//! * `std`: host-only conveniences (none yet in this release; the kernels never need it).
+//! * `std`: host-only conveniences; the kernels never need it. Enables the `tetgen` module, a reader for
+//!   TetGen `.node` / `.ele` meshes.
 //! * `defmt`: derives `defmt::Format` on every public error and report type.
 #![no_std]
 #![cfg_attr(
@@ -58,6 +59,10 @@ pub use error::{GenerateBuffer, GenerateError, MaterialError};
 
 #[path = "f32.rs"]
 mod single;
+#[cfg(feature = "std")]
+pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
+#[cfg(feature = "std")]
+pub use single::tetgen;
 pub use single::{generate, lanes, material, polar, svd, types};
 
 pub mod f64;
