@@ -44,3 +44,317 @@ impl fmt::Display for MaterialError {
 }
 
 impl core::error::Error for MaterialError {}
+
+/// One of the caller-owned output buffers of a mesh generator (see [`GenerateError::BufferLength`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum GenerateBuffer {
+    /// The vertex positions (`&mut [Vec3]` or `&mut [Vec2]`).
+    Positions,
+    /// The tetrahedron index buffer (`&mut [[u32; 4]]`).
+    Tetrahedra,
+    /// The triangle index buffer (`&mut [[u32; 3]]`).
+    Triangles,
+}
+
+impl fmt::Display for GenerateBuffer {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            GenerateBuffer::Positions => "positions",
+            GenerateBuffer::Tetrahedra => "tetrahedra",
+            GenerateBuffer::Triangles => "triangles",
+        })
+    }
+}
+
+/// A mesh generator in [`generate`](crate::generate) was asked for a mesh it cannot produce.
+///
+/// The generators check their arguments in this order and write nothing when they fail: the cell
+/// counts ([`ZeroCells`](Self::ZeroCells), [`TooManyVertices`](Self::TooManyVertices),
+/// [`TooManyElements`](Self::TooManyElements)), the geometry ([`NonFiniteBox`](Self::NonFiniteBox),
+/// [`EmptyBox`](Self::EmptyBox)), the buffer lengths ([`BufferLength`](Self::BufferLength)), and
+/// last the elements themselves ([`DegenerateCells`](Self::DegenerateCells)).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum GenerateError {
+    /// A cell count (`nx`, `ny` or `nz`) is zero.
+    ZeroCells,
+    /// The mesh would have more than `u32::MAX` vertices, so its indices would not fit in `u32`.
+    TooManyVertices,
+    /// The number of elements does not fit in `usize` (only possible where `usize` is 32 bits).
+    TooManyElements,
+    /// An output buffer does not have exactly the length the counts function reports.
+    BufferLength {
+        /// The buffer at fault.
+        buffer: GenerateBuffer,
+        /// The length it must have.
+        expected: usize,
+        /// The length it has.
+        actual: usize,
+    },
+    /// A corner of the box (or the origin or an edge vector of a 3D rectangle) is NaN or infinite.
+    NonFiniteBox,
+    /// The box is empty: `min >= max` on some axis (or the two edge vectors of a 3D rectangle are
+    /// zero or parallel).
+    EmptyBox,
+    /// The cells are too small or too large for this precision: after rounding, some element would
+    /// have a rest volume (area) that is not a positive finite number, for example because
+    /// neighbouring grid coordinates round to the same value or the volume underflows or
+    /// overflows.
+    DegenerateCells,
+}
+
+impl fmt::Display for GenerateError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            GenerateError::ZeroCells => f.write_str("every cell count must be at least 1"),
+            GenerateError::TooManyVertices => {
+                f.write_str("the mesh would have more vertices than u32 indices can address")
+            }
+            GenerateError::TooManyElements => {
+                f.write_str("the number of elements does not fit in usize")
+            }
+            GenerateError::BufferLength {
+                buffer,
+                expected,
+                actual,
+            } => write!(
+                f,
+                "the {buffer} buffer has length {actual}, but the mesh needs exactly {expected}"
+            ),
+            GenerateError::NonFiniteBox => f.write_str("the box geometry must be finite"),
+            GenerateError::EmptyBox => {
+                f.write_str("the box is empty (min >= max on an axis, or parallel edge vectors)")
+            }
+            GenerateError::DegenerateCells => f.write_str(
+                "the cells are too small or too large for this precision: \
+                 an element would not have a positive finite rest volume",
+            ),
+        }
+    }
+}
+
+impl core::error::Error for GenerateError {}
+
+/// Which file of a TetGen mesh a [`TetgenFormatError`] is in.
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum TetgenFile {
+    /// The `.node` file (vertex positions).
+    Node,
+    /// The `.ele` file (tetrahedra).
+    Ele,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for TetgenFile {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            TetgenFile::Node => ".node",
+            TetgenFile::Ele => ".ele",
+        })
+    }
+}
+
+/// What is wrong with one line of a TetGen file (see [`TetgenFormatError`]).
+///
+/// Field numbers count from 1 within the line, after comments (`#` to the end of the line) are
+/// removed.
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum TetgenProblem {
+    /// The file has no header line (it is empty, or only comments and blank lines).
+    MissingHeader,
+    /// A header field has a value this reader does not accept.
+    BadHeader {
+        /// The field (1-based).
+        field: usize,
+        /// What the field must be, for example `"the dimension 3"`.
+        expected: &'static str,
+    },
+    /// The `.ele` header declares 10-node (quadratic, `-o2`) tetrahedra; only 4-node linear
+    /// tetrahedra are supported.
+    UnsupportedElement {
+        /// The declared number of nodes per tetrahedron.
+        nodes_per_tet: usize,
+    },
+    /// The `.node` header declares more points than `u32` indices can address.
+    TooManyNodes,
+    /// The file has a different number of records than its header declares. Reported on the
+    /// header line when records are missing, and on the first extra record otherwise.
+    WrongCount {
+        /// The count in the header.
+        declared: usize,
+        /// The number of records in the file.
+        found: usize,
+    },
+    /// A line has too few (or too many) fields for what the header declares.
+    FieldCount {
+        /// Fields the header implies: index, coordinates or nodes, attributes, marker.
+        expected: usize,
+        /// Fields on the line.
+        found: usize,
+    },
+    /// A field is not a number (or not an integer where an index or count is expected).
+    NonNumeric {
+        /// The field (1-based).
+        field: usize,
+    },
+    /// A coordinate is NaN or infinite, or overflows this precision.
+    NonFinite {
+        /// The field (1-based).
+        field: usize,
+    },
+    /// The first point's index is neither 0 nor 1.
+    FirstIndex {
+        /// The index found.
+        found: i64,
+    },
+    /// A record's index is not one more than the previous record's (a duplicate, a gap, or, for
+    /// the first tetrahedron, not the numbering base of the points).
+    NonConsecutiveIndex {
+        /// The index the record must have.
+        expected: u64,
+        /// The index found.
+        found: i64,
+    },
+    /// A tetrahedron refers to a point that the `.node` file does not have.
+    IndexOutOfRange {
+        /// The point index found.
+        index: i64,
+        /// The number of points in the `.node` file.
+        points: usize,
+        /// The index of the first point (0 or 1).
+        first: u32,
+    },
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for TetgenProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            TetgenProblem::MissingHeader => f.write_str("missing header line"),
+            TetgenProblem::BadHeader { field, expected } => {
+                write!(f, "header field {field} must be {expected}")
+            }
+            TetgenProblem::UnsupportedElement { nodes_per_tet } => write!(
+                f,
+                "{nodes_per_tet}-node tetrahedra are not supported (only 4-node linear ones)"
+            ),
+            TetgenProblem::TooManyNodes => f.write_str("more points than u32 indices can address"),
+            TetgenProblem::WrongCount { declared, found } => {
+                write!(
+                    f,
+                    "the header declares {declared} records, the file has {found}"
+                )
+            }
+            TetgenProblem::FieldCount { expected, found } => {
+                write!(f, "expected {expected} fields, found {found}")
+            }
+            TetgenProblem::NonNumeric { field } => write!(f, "field {field} is not a valid number"),
+            TetgenProblem::NonFinite { field } => {
+                write!(
+                    f,
+                    "coordinate in field {field} is not finite in this precision"
+                )
+            }
+            TetgenProblem::FirstIndex { found } => {
+                write!(
+                    f,
+                    "the first point has index {found}; indices must start at 0 or 1"
+                )
+            }
+            TetgenProblem::NonConsecutiveIndex { expected, found } => write!(
+                f,
+                "record index {found} where {expected} was expected (indices must be consecutive)"
+            ),
+            TetgenProblem::IndexOutOfRange {
+                index,
+                points,
+                first,
+            } => write!(
+                f,
+                "point index {index} is out of range ({points} points numbered from {first})"
+            ),
+        }
+    }
+}
+
+/// A TetGen `.node` or `.ele` text is malformed: which file, which line (1-based) and what is
+/// wrong with it.
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TetgenFormatError {
+    /// The file the problem is in.
+    pub file: TetgenFile,
+    /// The line, counting from 1 (past the last line for a missing header).
+    pub line: usize,
+    /// What is wrong.
+    pub problem: TetgenProblem,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for TetgenFormatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} file, line {}: {}",
+            self.file, self.line, self.problem
+        )
+    }
+}
+
+#[cfg(feature = "std")]
+impl core::error::Error for TetgenFormatError {}
+
+/// Reading a TetGen mesh from files failed (see `read_tetgen_files` in the `tetgen` module).
+#[cfg(feature = "std")]
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum TetgenError {
+    /// A file could not be read.
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A file was read but is malformed.
+    Format {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Where and what.
+        error: TetgenFormatError,
+    },
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for TetgenError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TetgenError::Io { path, source } => {
+                write!(f, "cannot read {}: {source}", path.display())
+            }
+            TetgenError::Format { path, error } => {
+                write!(f, "{}:{}: {}", path.display(), error.line, error.problem)
+            }
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl core::error::Error for TetgenError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            TetgenError::Io { source, .. } => Some(source),
+            TetgenError::Format { error, .. } => Some(error),
+        }
+    }
+}

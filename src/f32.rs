@@ -114,3 +114,10 @@ pub mod polar;
 
 #[path = "material/mod.rs"]
 pub mod material;
+
+#[path = "generate.rs"]
+pub mod generate;
+
+#[cfg(feature = "std")]
+#[path = "tetgen.rs"]
+pub mod tetgen;

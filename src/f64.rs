@@ -3,7 +3,9 @@
 //! The same items as at the crate root, in double precision, compiled from the same source files
 //! (see `src/f32.rs`). The error types do not depend on the precision and are the crate root's.
 
-pub use crate::error::MaterialError;
+pub use crate::error::{GenerateBuffer, GenerateError, MaterialError};
+#[cfg(feature = "std")]
+pub use crate::error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 
 /// The scalar, vector and matrix types this precision is written against.
 pub mod types {
@@ -116,3 +118,10 @@ pub mod polar;
 
 #[path = "material/mod.rs"]
 pub mod material;
+
+#[path = "generate.rs"]
+pub mod generate;
+
+#[cfg(feature = "std")]
+#[path = "tetgen.rs"]
+pub mod tetgen;

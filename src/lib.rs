@@ -13,6 +13,9 @@
 //!   one [`Material`](material::Material) trait, with energy density, first Piola–Kirchhoff
 //!   stress and their principal-stretch forms; constructors validate parameters
 //!   ([`MaterialError`]).
+//! * [`generate`]: structured meshes written into caller buffers — a box of tetrahedra
+//!   ([`fill_box`](generate::fill_box)) and a rectangle of triangles in 2D or 3D — positively
+//!   oriented and conforming ([`GenerateError`]).
 //!
 //! glam is re-exported as [`glam`] so that callers use the exact version the kernels
 //! are built against.
@@ -28,7 +31,8 @@
 //! ```
 //!
 //! ## Features
-//! * `std`: host-only conveniences (none yet in this release; the kernels never need it).
+//! * `std`: host-only conveniences; the kernels never need it. Enables the `tetgen` module, a reader for
+//!   TetGen `.node` / `.ele` meshes.
 //! * `defmt`: derives `defmt::Format` on every public error and report type.
 #![no_std]
 #![cfg_attr(
@@ -51,11 +55,15 @@ extern crate std;
 pub use glam;
 
 pub mod error;
-pub use error::MaterialError;
+pub use error::{GenerateBuffer, GenerateError, MaterialError};
 
 #[path = "f32.rs"]
 mod single;
-pub use single::{lanes, material, polar, svd, types};
+#[cfg(feature = "std")]
+pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
+#[cfg(feature = "std")]
+pub use single::tetgen;
+pub use single::{generate, lanes, material, polar, svd, types};
 
 pub mod f64;
 
