@@ -1,6 +1,6 @@
 //! One numeric algorithm, run on one value or on several at once.
 //!
-//! The SVD (and later kernels) are written once against [`Lane`]: implemented by the plain scalar
+//! The SVD (and later kernels) are written once against `Lane`: implemented by the plain scalar
 //! [`Real`] and by [`Lanes`], a fixed group of independent values that the compiler maps onto
 //! SIMD registers. Every operation is element-wise and IEEE-correctly rounded in both, so a value
 //! computed in lane `i` is bit-for-bit the value the scalar code computes for the same input.

@@ -18,7 +18,7 @@
 //!    step is what limits Jacobi-on-`a^T a` codes to about `sqrt(eps)` relative accuracy.
 //!
 //! Every step is straight-line code with selects instead of branches, written once against
-//! [`Lane`]: [`svd3`] runs it on one matrix, [`svd3_lanes`] on [`LANES`] matrices at once in SIMD
+//! `Lane`: [`svd3`] runs it on one matrix, [`svd3_lanes`] on [`LANES`] matrices at once in SIMD
 //! registers, with bit-identical results per matrix.
 //!
 //! # Accuracy
