@@ -114,3 +114,9 @@ pub mod polar;
 
 #[path = "material/mod.rs"]
 pub mod material;
+
+#[path = "element/mod.rs"]
+pub mod element;
+
+#[path = "mesh/mod.rs"]
+pub mod mesh;

@@ -3,7 +3,7 @@
 //! The same items as at the crate root, in double precision, compiled from the same source files
 //! (see `src/f32.rs`). The error types do not depend on the precision and are the crate root's.
 
-pub use crate::error::MaterialError;
+pub use crate::error::{Buffer, ElementError, MaterialError, MeshError};
 
 /// The scalar, vector and matrix types this precision is written against.
 pub mod types {
@@ -116,3 +116,9 @@ pub mod polar;
 
 #[path = "material/mod.rs"]
 pub mod material;
+
+#[path = "element/mod.rs"]
+pub mod element;
+
+#[path = "mesh/mod.rs"]
+pub mod mesh;

@@ -14,8 +14,34 @@
 //!   stress and their principal-stretch forms; constructors validate parameters
 //!   ([`MaterialError`]).
 //!
+//! * [`element`]: rest data, deformation gradient, nodal forces and energy of one tetrahedron or
+//!   triangle (2D solid or membrane).
+//! * [`mesh`]: validated meshes borrowing the caller's buffers ([`MeshError`] names the first bad
+//!   element or vertex), with the mesh-level kernels: elastic forces (direct, principal, clamped),
+//!   energies, stresses and lumped masses.
+//!
 //! glam is re-exported as [`glam`] so that callers use the exact version the kernels
 //! are built against.
+//!
+//! A unit cube in five tetrahedra, squashed by 10%, pushes back:
+//! ```
+//! use softfem::{element::TetRest, glam::Vec3, material::StableNeoHookean, mesh::TetMesh};
+//!
+//! let corners = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]];
+//! let rest = corners.map(|[x, y, z]| Vec3::new(x as f32, y as f32, z as f32)); // m
+//! let tets = [[0, 1, 3, 4], [1, 2, 3, 6], [1, 4, 5, 6], [3, 4, 6, 7], [1, 3, 4, 6]];
+//! let mut rest_data = [TetRest::default(); 5];
+//! let mesh = TetMesh::new(&rest, &tets, &mut rest_data)?;
+//!
+//! let rubber = StableNeoHookean::from_young_poisson(1.0e6, 0.45).unwrap(); // Pa
+//! let squashed = rest.map(|x| x * Vec3::new(1.0, 1.0, 0.9));
+//! let mut forces = [Vec3::ZERO; 8]; // N; the kernels add into it
+//! mesh.add_elastic_forces(&rubber, &squashed, &mut forces)?;
+//! assert!(forces[4..].iter().all(|f| f.z > 0.0)); // the top face is pushed back up
+//! assert!(forces.iter().sum::<Vec3>().length() < 1.0); // and the forces balance
+//! println!("energy: {} J", mesh.elastic_energy(&rubber, &squashed)?);
+//! # Ok::<(), softfem::MeshError>(())
+//! ```
 //!
 //! ```
 //! use softfem::glam::Mat3;
@@ -51,10 +77,10 @@ extern crate std;
 pub use glam;
 
 pub mod error;
-pub use error::MaterialError;
+pub use error::{Buffer, ElementError, MaterialError, MeshError};
 
 #[path = "f32.rs"]
 mod single;
-pub use single::{lanes, material, polar, svd, types};
+pub use single::{element, lanes, material, mesh, polar, svd, types};
 
 pub mod f64;
