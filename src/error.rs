@@ -165,7 +165,8 @@ pub enum MeshError {
 
 impl MeshError {
     /// The mesh-level error for `error` in element number `element`, whose corner vertices are
-    /// `corners`.
+    /// `corners`. Mesh constructors check every rest position before any element, so
+    /// `NonFiniteRestPosition` does not reach this point in practice; it names the first corner.
     pub(crate) fn in_element(error: ElementError, element: usize, corners: &[u32]) -> MeshError {
         match error {
             ElementError::NonFiniteRestPosition => MeshError::NonFiniteRestPosition {
