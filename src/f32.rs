@@ -121,3 +121,9 @@ pub mod generate;
 #[cfg(feature = "std")]
 #[path = "tetgen.rs"]
 pub mod tetgen;
+
+#[path = "element/mod.rs"]
+pub mod element;
+
+#[path = "mesh/mod.rs"]
+pub mod mesh;

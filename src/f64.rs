@@ -3,7 +3,9 @@
 //! The same items as at the crate root, in double precision, compiled from the same source files
 //! (see `src/f32.rs`). The error types do not depend on the precision and are the crate root's.
 
-pub use crate::error::{GenerateBuffer, GenerateError, MaterialError};
+pub use crate::error::{
+    Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError,
+};
 #[cfg(feature = "std")]
 pub use crate::error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 
@@ -125,3 +127,9 @@ pub mod generate;
 #[cfg(feature = "std")]
 #[path = "tetgen.rs"]
 pub mod tetgen;
+
+#[path = "element/mod.rs"]
+pub mod element;
+
+#[path = "mesh/mod.rs"]
+pub mod mesh;

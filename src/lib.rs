@@ -16,9 +16,34 @@
 //! * [`generate`]: structured meshes written into caller buffers — a box of tetrahedra
 //!   ([`fill_box`](generate::fill_box)) and a rectangle of triangles in 2D or 3D — positively
 //!   oriented and conforming ([`GenerateError`]).
+//! * [`element`]: rest data, deformation gradient, nodal forces and energy of one tetrahedron or
+//!   triangle (2D solid or membrane).
+//! * [`mesh`]: validated meshes borrowing the caller's buffers ([`MeshError`] names the first bad
+//!   element or vertex), with the mesh-level kernels: elastic forces (direct, principal, clamped),
+//!   energies, stresses and lumped masses.
 //!
 //! glam is re-exported as [`glam`] so that callers use the exact version the kernels
 //! are built against.
+//!
+//! A unit cube in five tetrahedra, squashed by 10%, pushes back:
+//! ```
+//! use softfem::{element::TetRest, glam::Vec3, material::StableNeoHookean, mesh::TetMesh};
+//!
+//! let corners = [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]];
+//! let rest = corners.map(|[x, y, z]| Vec3::new(x as f32, y as f32, z as f32)); // m
+//! let tets = [[0, 1, 3, 4], [1, 2, 3, 6], [1, 4, 5, 6], [3, 4, 6, 7], [1, 3, 4, 6]];
+//! let mut rest_data = [TetRest::default(); 5];
+//! let mesh = TetMesh::new(&rest, &tets, &mut rest_data)?;
+//!
+//! let rubber = StableNeoHookean::from_young_poisson(1.0e6, 0.45).unwrap(); // Pa
+//! let squashed = rest.map(|x| x * Vec3::new(1.0, 1.0, 0.9));
+//! let mut forces = [Vec3::ZERO; 8]; // N; the kernels add into it
+//! mesh.add_elastic_forces(&rubber, &squashed, &mut forces)?;
+//! assert!(forces[4..].iter().all(|f| f.z > 0.0)); // the top face is pushed back up
+//! assert!(forces.iter().sum::<Vec3>().length() < 1.0); // and the forces balance
+//! println!("energy: {} J", mesh.elastic_energy(&rubber, &squashed)?);
+//! # Ok::<(), softfem::MeshError>(())
+//! ```
 //!
 //! ```
 //! use softfem::glam::Mat3;
@@ -55,7 +80,7 @@ extern crate std;
 pub use glam;
 
 pub mod error;
-pub use error::{GenerateBuffer, GenerateError, MaterialError};
+pub use error::{Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError};
 
 #[path = "f32.rs"]
 mod single;
@@ -63,7 +88,7 @@ mod single;
 pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 #[cfg(feature = "std")]
 pub use single::tetgen;
-pub use single::{generate, lanes, material, polar, svd, types};
+pub use single::{element, generate, lanes, material, mesh, polar, svd, types};
 
 pub mod f64;
 

@@ -1,0 +1,123 @@
+//! Validated meshes and the mesh-level kernels: elastic forces, energies, stresses and lumped
+//! masses over buffers the caller owns.
+//!
+//! A mesh borrows the caller's element index buffer and a caller-provided buffer for the
+//! precomputed rest data ([`TetRest`](super::element::TetRest) or
+//! [`TriRest`](super::element::TriRest)), which its constructor fills. Construction validates
+//! everything that can be checked once — buffer lengths, vertex indices, finite rest positions,
+//! positive non-degenerate rest volumes — and reports the first offending element or vertex as a
+//! [`MeshError`]. Nothing is allocated.
+//!
+//! The kernels then check only what changes between calls: the lengths of the buffers they are
+//! given and the finiteness of the deformed positions (one pass, before anything is written).
+//! **On error, output buffers are unchanged.** Kernels named `add_*` add into their output, so
+//! that gravity or contact forces can be accumulated in the same buffer; the others overwrite.
+//!
+//! * [`TetMesh`]: tetrahedra with any [`Material`](super::material::Material).
+//! * [`TriMesh`]: 2D triangles (positions `Vec2`), [`MembraneMesh`]: triangles in space
+//!   (positions `Vec3`), both with [`TriangleStVK`](super::element::TriangleStVK).
+
+use super::element::Column;
+use crate::error::{Buffer, MeshError};
+
+mod tet;
+mod triangle;
+
+pub use tet::TetMesh;
+pub use triangle::{MembraneMesh, TriMesh};
+
+/// `Ok` if `actual == expected`, else [`MeshError::LengthMismatch`] naming `buffer`.
+#[inline]
+fn check_length(buffer: Buffer, expected: usize, actual: usize) -> Result<(), MeshError> {
+    if actual == expected {
+        Ok(())
+    } else {
+        Err(MeshError::LengthMismatch {
+            buffer,
+            expected,
+            actual,
+        })
+    }
+}
+
+/// `Ok` if every position is finite, else `error` of the first vertex that is not.
+#[inline]
+fn check_finite<V: Column>(
+    positions: &[V],
+    error: fn(usize) -> MeshError,
+) -> Result<(), MeshError> {
+    // `p * 0` is zero for a finite coordinate and NaN for NaN or infinity, so the sum is finite
+    // exactly when every position is: one branch-free (vectorisable) pass in the common case,
+    // and a search for the culprit only on failure.
+    let sum = positions.iter().fold(V::default(), |acc, &p| acc + p * 0.0);
+    if sum.is_finite() {
+        return Ok(());
+    }
+    positions
+        .iter()
+        .position(|p| !p.is_finite())
+        .map_or(Ok(()), |vertex| Err(error(vertex)))
+}
+
+/// `Ok` if every corner of every element is below `vertex_count`, else the first offender.
+fn check_indices<const N: usize>(
+    elements: &[[u32; N]],
+    vertex_count: usize,
+) -> Result<(), MeshError> {
+    for (element, corners) in elements.iter().enumerate() {
+        for (corner, &index) in (0u8..).zip(corners) {
+            if index as usize >= vertex_count {
+                return Err(MeshError::IndexOutOfRange {
+                    element,
+                    corner,
+                    index,
+                    vertex_count,
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The positions of an element's corners. Indices were validated at construction and the
+/// buffer length checked by the caller, so the fallback never happens; it only keeps the
+/// loop free of panics.
+#[inline(always)]
+fn gather<V: Copy + Default, const N: usize>(positions: &[V], corners: &[u32; N]) -> [V; N] {
+    corners.map(|i| positions.get(i as usize).copied().unwrap_or_default())
+}
+
+/// Adds an element's nodal `values` into `buffer` at its corners.
+#[inline(always)]
+fn scatter_add<V: Column, const N: usize>(buffer: &mut [V], corners: &[u32; N], values: [V; N]) {
+    for (&i, value) in corners.iter().zip(values) {
+        if let Some(slot) = buffer.get_mut(i as usize) {
+            *slot += value;
+        }
+    }
+}
+
+/// Lumped masses: `density * measure / N` to each of the `N` corners of every element, into
+/// `masses` zeroed first. `density` must be finite and positive.
+fn lumped_masses<const N: usize>(
+    elements: &[[u32; N]],
+    measures: impl Iterator<Item = super::types::Real>,
+    density: super::types::Real,
+    masses: &mut [super::types::Real],
+    vertex_count: usize,
+) -> Result<(), MeshError> {
+    if !(density > 0.0 && density.is_finite()) {
+        return Err(MeshError::Density);
+    }
+    check_length(Buffer::Masses, vertex_count, masses.len())?;
+    masses.fill(0.0);
+    let share = density / N as super::types::Real;
+    for (corners, measure) in elements.iter().zip(measures) {
+        for &i in corners {
+            if let Some(mass) = masses.get_mut(i as usize) {
+                *mass += share * measure;
+            }
+        }
+    }
+    Ok(())
+}

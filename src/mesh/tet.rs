@@ -1,0 +1,294 @@
+//! Tetrahedral meshes.
+
+use super::super::element::TetRest;
+use super::super::lanes::LANES;
+use super::super::material::Material;
+use super::super::svd::{Svd3, svd3, svd3_lanes};
+use super::super::types::{Mat3, Real, Vec3};
+use super::{check_finite, check_indices, check_length, gather, scatter_add};
+use crate::error::{Buffer, MeshError};
+
+/// A validated tetrahedral mesh: the caller's index buffer and the rest data computed from the
+/// rest positions, borrowed for `'a`. No heap.
+///
+/// Every element has vertex indices below [`vertex_count`](TetMesh::vertex_count), a positive,
+/// non-degenerate rest volume and finite `Dm^-1`, so the kernels need no per-element checks.
+///
+/// ```
+/// use softfem::glam::Vec3;
+/// use softfem::material::StVK;
+/// use softfem::element::TetRest;
+/// use softfem::mesh::TetMesh;
+///
+/// let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+/// let tets = [[0, 1, 2, 3]];
+/// let mut rest_data = [TetRest::default(); 1];
+/// let mesh = TetMesh::new(&rest, &tets, &mut rest_data)?;
+///
+/// let squashed = rest.map(|x| x * Vec3::new(1.0, 1.0, 0.9));
+/// let mut forces = [Vec3::ZERO; 4];
+/// let stvk = StVK::from_young_poisson(1.0e6, 0.3).unwrap();
+/// mesh.add_elastic_forces(&stvk, &squashed, &mut forces)?;
+/// assert!(forces[3].z > 0.0); // the squashed apex is pushed back up
+///
+/// let mut masses = [0.0; 4];
+/// mesh.lumped_masses(1000.0, &mut masses)?; // kg/m^3
+/// assert!((masses.iter().sum::<f32>() - 1000.0 / 6.0).abs() < 1e-3);
+/// # Ok::<(), softfem::MeshError>(())
+/// ```
+#[derive(Clone, Copy, Debug)]
+pub struct TetMesh<'a> {
+    tets: &'a [[u32; 4]],
+    rest: &'a [TetRest],
+    vertex_count: usize,
+}
+
+impl<'a> TetMesh<'a> {
+    /// Validates the mesh with rest positions `rest_positions` (m) and vertex indices `tets`,
+    /// filling `rest` (one entry per tetrahedron) with each element's rest data.
+    ///
+    /// # Errors
+    /// The first problem found, in this order: [`MeshError::LengthMismatch`] (`rest` must have
+    /// `tets.len()` entries), [`MeshError::NonFiniteRestPosition`] (first such vertex),
+    /// [`MeshError::IndexOutOfRange`] (first element and corner),
+    /// [`MeshError::InvertedElement`] or [`MeshError::DegenerateElement`] (first such element;
+    /// see [`TetRest::new`] and [`fix_orientation`](super::super::element::fix_orientation)). On
+    /// error, `rest` may be partly written.
+    pub fn new(
+        rest_positions: &[Vec3],
+        tets: &'a [[u32; 4]],
+        rest: &'a mut [TetRest],
+    ) -> Result<TetMesh<'a>, MeshError> {
+        check_length(Buffer::RestData, tets.len(), rest.len())?;
+        check_finite(rest_positions, |vertex| MeshError::NonFiniteRestPosition {
+            vertex,
+        })?;
+        let vertex_count = rest_positions.len();
+        check_indices(tets, vertex_count)?;
+        for (element, (corners, slot)) in tets.iter().zip(rest.iter_mut()).enumerate() {
+            *slot = TetRest::new(gather(rest_positions, corners))
+                .map_err(|error| MeshError::in_element(error, element, corners))?;
+        }
+        Ok(TetMesh {
+            tets,
+            rest,
+            vertex_count,
+        })
+    }
+
+    /// The number of vertices (the length every position, force and mass buffer must have).
+    #[inline]
+    #[must_use]
+    pub fn vertex_count(&self) -> usize {
+        self.vertex_count
+    }
+
+    /// The number of tetrahedra.
+    #[inline]
+    #[must_use]
+    pub fn element_count(&self) -> usize {
+        self.tets.len()
+    }
+
+    /// The vertex indices of every tetrahedron.
+    #[inline]
+    #[must_use]
+    pub fn tets(&self) -> &'a [[u32; 4]] {
+        self.tets
+    }
+
+    /// The rest data of every tetrahedron.
+    #[inline]
+    #[must_use]
+    pub fn rest(&self) -> &'a [TetRest] {
+        self.rest
+    }
+
+    /// The total rest volume (m^3).
+    #[must_use]
+    pub fn rest_volume(&self) -> Real {
+        self.rest.iter().map(|r| r.volume).sum()
+    }
+
+    /// Adds the elastic forces (N) of `material` at deformed `positions` (m) into `forces`,
+    /// using the direct stress [`Material::first_piola`].
+    ///
+    /// # Errors
+    /// [`MeshError::LengthMismatch`] if `positions` or `forces` does not have
+    /// [`vertex_count`](TetMesh::vertex_count) entries; [`MeshError::NonFinitePosition`] naming
+    /// the first non-finite vertex. On error, `forces` is unchanged.
+    pub fn add_elastic_forces<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        self.check_positions(positions)?;
+        check_length(Buffer::Forces, self.vertex_count, forces.len())?;
+        for (corners, rest) in self.tets.iter().zip(self.rest) {
+            let f = rest.deformation_gradient(gather(positions, corners));
+            scatter_add(forces, corners, rest.nodal_forces(material.first_piola(f)));
+        }
+        Ok(())
+    }
+
+    /// As [`add_elastic_forces`](TetMesh::add_elastic_forces), through the principal
+    /// (SVD) stress `P = U diag(dW/ds) V^T` ([`Material::first_piola_from_svd`]). Equal to the
+    /// direct path to rounding wherever the model is defined; the SVDs of consecutive
+    /// tetrahedra are computed [`LANES`] at a time ([`svd3_lanes`]).
+    ///
+    /// # Errors
+    /// As [`add_elastic_forces`](TetMesh::add_elastic_forces); on error, `forces` is unchanged.
+    pub fn add_elastic_forces_principal<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        self.add_svd_forces(positions, forces, |svd| material.first_piola_from_svd(svd))
+    }
+
+    /// **Not the gradient of any energy: for explicit time stepping only.** As
+    /// [`add_elastic_forces_principal`](TetMesh::add_elastic_forces_principal), with the
+    /// stretches clamped from below at `threshold` (dimensionless, typically `0.2..0.5`) so that
+    /// inverted elements get a restoring force: see
+    /// [`Material::first_piola_principal_clamped`]. Energy-based solvers (implicit Euler as
+    /// minimisation, relaxation, line searches) must not use these forces.
+    ///
+    /// # Errors
+    /// As [`add_elastic_forces`](TetMesh::add_elastic_forces); on error, `forces` is unchanged.
+    pub fn add_elastic_forces_clamped<M: Material>(
+        &self,
+        material: &M,
+        threshold: Real,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        self.add_svd_forces(positions, forces, |svd| {
+            material.first_piola_clamped_from_svd(svd, threshold)
+        })
+    }
+
+    /// The total elastic energy `sum V W(F)` (J) of `material` at deformed `positions` (m).
+    /// Infinite or NaN if the material is (e.g. [`NeoHookean`](super::super::material::NeoHookean)
+    /// with a flat element).
+    ///
+    /// # Errors
+    /// As [`add_elastic_forces`](TetMesh::add_elastic_forces) for `positions`.
+    pub fn elastic_energy<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+    ) -> Result<Real, MeshError> {
+        self.check_positions(positions)?;
+        Ok(self
+            .tets
+            .iter()
+            .zip(self.rest)
+            .map(|(corners, rest)| rest.elastic_energy(material, gather(positions, corners)))
+            .sum())
+    }
+
+    /// Writes the energy `V W(F)` (J) of every tetrahedron into `out`.
+    ///
+    /// # Errors
+    /// As [`add_elastic_forces`](TetMesh::add_elastic_forces), and
+    /// [`MeshError::LengthMismatch`] if `out` does not have one entry per element. On error,
+    /// `out` is unchanged.
+    pub fn element_energies<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        out: &mut [Real],
+    ) -> Result<(), MeshError> {
+        self.check_positions(positions)?;
+        check_length(Buffer::Energies, self.tets.len(), out.len())?;
+        for ((corners, rest), energy) in self.tets.iter().zip(self.rest).zip(out) {
+            *energy = rest.elastic_energy(material, gather(positions, corners));
+        }
+        Ok(())
+    }
+
+    /// Writes the first Piola–Kirchhoff stress `P` (Pa, direct path) of every tetrahedron into
+    /// `out`.
+    ///
+    /// # Errors
+    /// As [`add_elastic_forces`](TetMesh::add_elastic_forces), and
+    /// [`MeshError::LengthMismatch`] if `out` does not have one entry per element. On error,
+    /// `out` is unchanged.
+    pub fn element_stresses<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        out: &mut [Mat3],
+    ) -> Result<(), MeshError> {
+        self.check_positions(positions)?;
+        check_length(Buffer::Stresses, self.tets.len(), out.len())?;
+        for ((corners, rest), stress) in self.tets.iter().zip(self.rest).zip(out) {
+            *stress = material.first_piola(rest.deformation_gradient(gather(positions, corners)));
+        }
+        Ok(())
+    }
+
+    /// Writes the lumped mass (kg) of every vertex into `masses` (overwriting): each
+    /// tetrahedron gives `density * V / 4` to each of its corners (`SPEC.md` section 4).
+    /// Vertices in no element get zero.
+    ///
+    /// # Errors
+    /// [`MeshError::Density`] if `density` (kg/m^3) is not finite and positive;
+    /// [`MeshError::LengthMismatch`] if `masses` does not have one entry per vertex. On error,
+    /// `masses` is unchanged.
+    pub fn lumped_masses(&self, density: Real, masses: &mut [Real]) -> Result<(), MeshError> {
+        super::lumped_masses(
+            self.tets,
+            self.rest.iter().map(|r| r.volume),
+            density,
+            masses,
+            self.vertex_count,
+        )
+    }
+
+    /// Length and finiteness of a deformed position buffer.
+    fn check_positions(&self, positions: &[Vec3]) -> Result<(), MeshError> {
+        check_length(Buffer::Positions, self.vertex_count, positions.len())?;
+        check_finite(positions, |vertex| MeshError::NonFinitePosition { vertex })
+    }
+
+    /// The principal-path force loop, with `stress` mapping an SVD of `F` to `P`.
+    fn add_svd_forces(
+        &self,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+        stress: impl Fn(&Svd3) -> Mat3,
+    ) -> Result<(), MeshError> {
+        self.check_positions(positions)?;
+        check_length(Buffer::Forces, self.vertex_count, forces.len())?;
+        let tet_groups = self.tets.chunks_exact(LANES);
+        let rest_groups = self.rest.chunks_exact(LANES);
+        let tail = tet_groups.remainder().iter().zip(rest_groups.remainder());
+        for (tets, rests) in tet_groups.zip(rest_groups) {
+            let (Ok(tets), Ok(rests)) = (
+                <&[[u32; 4]; LANES]>::try_from(tets),
+                <&[TetRest; LANES]>::try_from(rests),
+            ) else {
+                continue; // chunks_exact: never taken
+            };
+            let gradients: [Mat3; LANES] =
+                core::array::from_fn(|lane| match (tets.get(lane), rests.get(lane)) {
+                    (Some(corners), Some(rest)) => {
+                        rest.deformation_gradient(gather(positions, corners))
+                    }
+                    _ => Mat3::ZERO,
+                });
+            let svds = svd3_lanes(&gradients);
+            for ((corners, rest), svd) in tets.iter().zip(rests).zip(&svds) {
+                scatter_add(forces, corners, rest.nodal_forces(stress(svd)));
+            }
+        }
+        for (corners, rest) in tail {
+            let svd = svd3(rest.deformation_gradient(gather(positions, corners)));
+            scatter_add(forces, corners, rest.nodal_forces(stress(&svd)));
+        }
+        Ok(())
+    }
+}
