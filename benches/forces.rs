@@ -1,0 +1,462 @@
+//! Throughput of the mesh force kernels in million tetrahedra per second, single thread, on boxes
+//! of about 10k, 100k and 1M tetrahedra (Kuhn 6-tet split, `softfem::generate::fill_box`).
+//!
+//! Variants (f32 unless stated): `TetMesh::add_elastic_forces` (direct stress) for StVK,
+//! neo-Hookean and stable neo-Hookean; `add_elastic_forces_principal` (SVD path) for StVK and
+//! stable neo-Hookean; `add_elastic_forces_clamped` (threshold 0.3) for stable neo-Hookean; StVK
+//! direct in f64 (`softfem::f64`) for reference; and `elastic_energy` for StVK.
+//!
+//! Every force iteration zeroes the force buffer and then adds the forces of the whole mesh, so
+//! the reported times include the zeroing (one pass over the vertices) and the finiteness check
+//! of the positions that every kernel call makes. The energy variant has no buffer to zero.
+//!
+//! The deformed positions are the rest grid (the unit cube) through a fixed general affine map
+//! (a matrix with no zero entries and no symmetry: stretch, shear and rotation; determinant about
+//! 1.14) plus a deterministic per-vertex jitter of up to 8% of the grid spacing per coordinate, so
+//! `F` differs from element to element and is never trivial, and `J > 0` everywhere (checked at
+//! start-up; the tables print the range of `J`).
+//!
+//! `cargo bench --bench forces` runs two passes:
+//! 1. criterion, one group per mesh size with `Throughput::Elements(tets)`, one benchmark per
+//!    variant, each iteration one pass over the whole mesh, 10 samples each. The 1M group uses
+//!    flat sampling and a longer measurement time (an iteration takes 25 to 200 ms there). With
+//!    the table pass, the whole run takes about two minutes.
+//! 2. a plain `Instant` pass that times every variant round-robin several times per mesh size,
+//!    keeps the minimum per variant and prints one markdown table per mesh size (Mtets/s, ns/tet,
+//!    throughput relative to StVK direct f32). Interleaving the variants and taking minima means
+//!    the ratios come from the same machine state, which criterion's separate runs do not
+//!    guarantee.
+//!
+//! `SOFTFEM_BENCH_QUICK=1` skips criterion and the 1M mesh and runs the table pass with few
+//! repetitions: a smoke test that finishes in seconds.
+
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use criterion::{Criterion, SamplingMode, Throughput};
+use softfem::MeshError;
+use softfem::generate::{BoxSplit, box_counts, fill_box};
+use softfem::glam::{DVec3, Mat3, Vec3};
+use softfem::material::{NeoHookean, StVK, StableNeoHookean};
+use softfem::mesh::TetMesh;
+
+/// Cubes per axis of the benchmarked boxes, 6 tetrahedra per cube: 10 368, 105 456 and 998 250
+/// tetrahedra.
+const CELLS_PER_AXIS: [usize; 3] = [12, 26, 55];
+
+/// Meshes in quick mode: the first two sizes.
+const QUICK_MESHES: usize = 2;
+
+/// Meshes with at least this many tetrahedra get criterion's flat sampling and a longer
+/// measurement time.
+const LARGE_MESH_TETS: usize = 500_000;
+
+/// Young's modulus (Pa) and Poisson ratio of every material: a soft rubber.
+const YOUNG: f32 = 1.0e6;
+const POISSON: f32 = 0.45;
+
+/// Stretch threshold of the clamped variant.
+const CLAMP_THRESHOLD: f32 = 0.3;
+
+/// Largest jitter per coordinate, as a fraction of the grid spacing.
+const JITTER: f32 = 0.08;
+
+/// xorshift64* (Vigna 2016): deterministic, dependency-free, good enough for a jitter.
+struct XorShift64Star(u64);
+
+impl XorShift64Star {
+    fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+
+    /// Uniform in `[-1, 1)`, from the top 24 bits so every value is exact in f32.
+    fn next_signed_unit(&mut self) -> f32 {
+        let bits = (self.next_u64() >> 40) as u32;
+        bits as f32 / (1u32 << 23) as f32 - 1.0
+    }
+}
+
+/// One benchmarked box: the generated mesh, its deformed positions and the rest data the two
+/// `TetMesh`es borrow, in both precisions.
+struct DeformedBox {
+    cells: usize,
+    tets: Vec<[u32; 4]>,
+    rest_positions: Vec<Vec3>,
+    positions: Vec<Vec3>,
+    rest_positions_f64: Vec<DVec3>,
+    positions_f64: Vec<DVec3>,
+    rest: Vec<softfem::element::TetRest>,
+    rest_f64: Vec<softfem::f64::element::TetRest>,
+    /// Smallest and largest `J = det F` over the elements.
+    j_range: (f32, f32),
+}
+
+/// What the tables and criterion say about a box, kept apart from the buffers the variants
+/// borrow.
+#[derive(Clone, Copy)]
+struct MeshInfo {
+    cells: usize,
+    tets: usize,
+    vertices: usize,
+    j_range: (f32, f32),
+}
+
+impl DeformedBox {
+    /// The unit cube in `cells^3` cubes, deformed by a fixed affine map plus jitter.
+    fn new(cells: usize) -> Self {
+        let (vertex_count, tet_count) = box_counts(cells, cells, cells, BoxSplit::Kuhn6).unwrap();
+        let mut rest_positions = vec![Vec3::ZERO; vertex_count];
+        let mut tets = vec![[0u32; 4]; tet_count];
+        fill_box(
+            Vec3::ZERO,
+            Vec3::ONE,
+            cells,
+            cells,
+            cells,
+            BoxSplit::Kuhn6,
+            &mut rest_positions,
+            &mut tets,
+        )
+        .unwrap();
+
+        // Columns of a general map (no symmetry, no zero entries), then a translation.
+        let affine = Mat3::from_cols(
+            Vec3::new(1.10, -0.10, 0.05),
+            Vec3::new(0.15, 0.95, -0.12),
+            Vec3::new(-0.05, 0.20, 1.05),
+        );
+        let offset = Vec3::new(0.3, -0.2, 0.1);
+        let amplitude = JITTER / cells as f32;
+        let mut rng = XorShift64Star(0x5eed_f0ce_5b0c_2026);
+        let positions: Vec<Vec3> = rest_positions
+            .iter()
+            .map(|&x| {
+                let jitter = Vec3::new(
+                    rng.next_signed_unit(),
+                    rng.next_signed_unit(),
+                    rng.next_signed_unit(),
+                );
+                affine * x + offset + jitter * amplitude
+            })
+            .collect();
+
+        let volume = |x: &[Vec3], [a, b, c, d]: [u32; 4]| {
+            let [a, b, c, d] = [a, b, c, d].map(|v| x[v as usize]);
+            Mat3::from_cols(b - a, c - a, d - a).determinant()
+        };
+        let j_range = tets
+            .iter()
+            .map(|&tet| volume(&positions, tet) / volume(&rest_positions, tet))
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), j| {
+                (lo.min(j), hi.max(j))
+            });
+        assert!(
+            j_range.0 > 0.0,
+            "an element is inverted: J range {j_range:?}"
+        );
+
+        DeformedBox {
+            cells,
+            rest_positions_f64: rest_positions.iter().map(|x| x.as_dvec3()).collect(),
+            positions_f64: positions.iter().map(|x| x.as_dvec3()).collect(),
+            rest: vec![softfem::element::TetRest::default(); tet_count],
+            rest_f64: vec![softfem::f64::element::TetRest::default(); tet_count],
+            tets,
+            rest_positions,
+            positions,
+            j_range,
+        }
+    }
+
+    fn info(&self) -> MeshInfo {
+        MeshInfo {
+            cells: self.cells,
+            tets: self.tets.len(),
+            vertices: self.rest_positions.len(),
+            j_range: self.j_range,
+        }
+    }
+
+    /// Validates both meshes (filling the rest data) and returns every variant on them.
+    fn variants(&mut self) -> Vec<Variant<'_>> {
+        let DeformedBox {
+            tets,
+            rest_positions,
+            positions,
+            rest_positions_f64,
+            positions_f64,
+            rest,
+            rest_f64,
+            ..
+        } = self;
+        let mesh = TetMesh::new(rest_positions, tets, rest).unwrap();
+        let mesh_f64 =
+            softfem::f64::mesh::TetMesh::new(rest_positions_f64, tets, rest_f64).unwrap();
+        let positions: &[Vec3] = positions;
+        let positions_f64: &[DVec3] = positions_f64;
+
+        let stvk = StVK::from_young_poisson(YOUNG, POISSON).unwrap();
+        let neo_hookean = NeoHookean::from_young_poisson(YOUNG, POISSON).unwrap();
+        let stable = StableNeoHookean::from_young_poisson(YOUNG, POISSON).unwrap();
+        let stvk_f64 =
+            softfem::f64::material::StVK::from_young_poisson(YOUNG.into(), POISSON.into()).unwrap();
+
+        // Each force variant zeroes its own buffer, then runs one kernel over the whole mesh.
+        let n = mesh.vertex_count();
+        vec![
+            Variant::forces(
+                "StVK, direct, f32",
+                "stvk_direct_f32",
+                n,
+                move |f: &mut [Vec3]| mesh.add_elastic_forces(&stvk, positions, f),
+            ),
+            Variant::forces(
+                "neo-Hookean, direct, f32",
+                "neo_hookean_direct_f32",
+                n,
+                move |f: &mut [Vec3]| mesh.add_elastic_forces(&neo_hookean, positions, f),
+            ),
+            Variant::forces(
+                "stable neo-Hookean, direct, f32",
+                "stable_nh_direct_f32",
+                n,
+                move |f: &mut [Vec3]| mesh.add_elastic_forces(&stable, positions, f),
+            ),
+            Variant::forces(
+                "StVK, principal (SVD), f32",
+                "stvk_principal_f32",
+                n,
+                move |f: &mut [Vec3]| mesh.add_elastic_forces_principal(&stvk, positions, f),
+            ),
+            Variant::forces(
+                "stable neo-Hookean, principal (SVD), f32",
+                "stable_nh_principal_f32",
+                n,
+                move |f: &mut [Vec3]| mesh.add_elastic_forces_principal(&stable, positions, f),
+            ),
+            Variant::forces(
+                "stable neo-Hookean, clamped (SVD, threshold 0.3), f32",
+                "stable_nh_clamped_f32",
+                n,
+                move |f: &mut [Vec3]| {
+                    mesh.add_elastic_forces_clamped(&stable, CLAMP_THRESHOLD, positions, f)
+                },
+            ),
+            Variant::forces(
+                "StVK, direct, f64",
+                "stvk_direct_f64",
+                mesh_f64.vertex_count(),
+                move |f: &mut [DVec3]| mesh_f64.add_elastic_forces(&stvk_f64, positions_f64, f),
+            ),
+            Variant {
+                label: "StVK, `elastic_energy` (no forces), f32",
+                id: "stvk_energy_f32",
+                run: Box::new(move || {
+                    black_box(mesh.elastic_energy(&stvk, black_box(positions)).unwrap());
+                }),
+            },
+        ]
+    }
+}
+
+/// A benchmarked variant: its table label, its criterion id and one pass over the whole mesh.
+struct Variant<'a> {
+    label: &'static str,
+    id: &'static str,
+    run: Box<dyn FnMut() + 'a>,
+}
+
+impl<'a> Variant<'a> {
+    /// A force variant: each run zeroes a force buffer of `vertex_count` entries (owned by the
+    /// variant), then calls `add` on it.
+    fn forces<V: Copy + Default + 'a>(
+        label: &'static str,
+        id: &'static str,
+        vertex_count: usize,
+        add: impl Fn(&mut [V]) -> Result<(), MeshError> + 'a,
+    ) -> Self {
+        let mut forces = vec![V::default(); vertex_count];
+        Variant {
+            label,
+            id,
+            run: Box::new(move || {
+                forces.fill(V::default());
+                add(black_box(&mut forces)).unwrap();
+                black_box(&forces);
+            }),
+        }
+    }
+}
+
+/// The criterion group of one mesh size, one benchmark per variant.
+fn criterion_group(c: &mut Criterion, info: &MeshInfo, variants: &mut [Variant<'_>]) {
+    // "forces_10k", "forces_105k", "forces_998k".
+    let mut group = c.benchmark_group(format!("forces_{}k", (info.tets + 500) / 1000));
+    group.throughput(Throughput::Elements(info.tets as u64));
+    if info.tets >= LARGE_MESH_TETS {
+        // 25 to 200 ms per iteration: linear sampling (1 + 2 + ... + 10 iterations per sample)
+        // would need 55 of them; flat sampling needs 10.
+        group
+            .sampling_mode(SamplingMode::Flat)
+            .sample_size(10)
+            .measurement_time(Duration::from_secs(3));
+    }
+    for variant in variants.iter_mut() {
+        group.bench_function(variant.id, |b| b.iter(&mut variant.run));
+    }
+    group.finish();
+}
+
+/// Tetrahedra per timed block (repetitions are rounded up to cover it), and round-robin rounds
+/// over all variants.
+struct TablePlan {
+    tets_per_block: usize,
+    rounds: u32,
+}
+
+/// Times every variant round-robin `plan.rounds` times and returns the minimum ns per tetrahedron
+/// for each (the minimum is the estimate least disturbed by other processes), and the number of
+/// mesh passes per timed block.
+fn time_variants(variants: &mut [Variant<'_>], tets: usize, plan: &TablePlan) -> (Vec<f64>, u32) {
+    // Warm caches, branch predictors and CPU frequency before the first timed block.
+    for variant in variants.iter_mut() {
+        (variant.run)();
+    }
+    let repetitions = u32::try_from(plan.tets_per_block.div_ceil(tets).max(1)).unwrap();
+    let tets_per_block = f64::from(repetitions) * tets as f64;
+    let mut best = vec![f64::INFINITY; variants.len()];
+    for _ in 0..plan.rounds {
+        for (variant, best) in variants.iter_mut().zip(&mut best) {
+            let start = Instant::now();
+            for _ in 0..repetitions {
+                (variant.run)();
+            }
+            let ns = start.elapsed().as_secs_f64() * 1e9 / tets_per_block;
+            *best = best.min(ns);
+        }
+    }
+    (best, repetitions)
+}
+
+/// The CPU model from `/proc/cpuinfo` where there is one, so a pasted table says what it ran on.
+fn cpu_model() -> Option<String> {
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").ok()?;
+    cpuinfo
+        .lines()
+        .find_map(|line| line.strip_prefix("model name")?.split_once(':'))
+        .map(|(_, model)| model.trim().to_owned())
+}
+
+fn print_table(info: &MeshInfo, variants: &mut [Variant<'_>], plan: &TablePlan) {
+    let tets = info.tets;
+    let (ns, repetitions) = time_variants(variants, tets, plan);
+    let reference_ns = ns[0];
+    let (j_min, j_max) = info.j_range;
+    println!();
+    println!(
+        "Forces on a box of {tets} tetrahedra ({n}^3 cubes, Kuhn 6-tet split, {vertices} \
+         vertices), affine deformation plus jitter (J in [{j_min:.3}, {j_max:.3}]); one thread; \
+         each force pass zeroes the force buffer, then adds the forces of every tetrahedron \
+         (zeroing included in the time). Minimum of {rounds} round-robin rounds of \
+         {repetitions} mesh passes per variant, on {cpu} ({arch}).",
+        n = info.cells,
+        vertices = info.vertices,
+        rounds = plan.rounds,
+        cpu = cpu_model().unwrap_or_else(|| "unknown CPU".into()),
+        arch = std::env::consts::ARCH,
+    );
+    println!();
+    println!("| variant | Mtets/s | ns/tet | throughput vs StVK direct f32 |");
+    println!("|---|---:|---:|---:|");
+    for (variant, ns) in variants.iter().zip(&ns) {
+        println!(
+            "| {} | {:.1} | {ns:.1} | {:.2}x |",
+            variant.label,
+            1e3 / ns,
+            reference_ns / ns
+        );
+    }
+}
+
+fn print_tables(cases: &mut [(MeshInfo, Vec<Variant<'_>>)], plan: &TablePlan) {
+    for (info, variants) in cases {
+        print_table(info, variants, plan);
+    }
+    println!();
+    println!(
+        "For context, from the issue (measured by a colleague, not by this benchmark): \"NVIDIA \
+         Warp 1.19 CPU backend, one thread, same machine: StVK 48 Mtets/s and stable neo-Hookean \
+         46 Mtets/s at 98k tets, 37 Mtets/s at 976k\"."
+    );
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let has_flag = |flag: &str| {
+        args.iter()
+            .any(|arg| arg == flag || arg.strip_prefix(flag).is_some_and(|v| v.starts_with('=')))
+    };
+    let quick = std::env::var("SOFTFEM_BENCH_QUICK").is_ok_and(|value| value == "1");
+    let mesh_count = if quick {
+        QUICK_MESHES
+    } else {
+        CELLS_PER_AXIS.len()
+    };
+
+    // The boxes own the buffers and the variants borrow them, so the boxes are built first.
+    let mut boxes: Vec<DeformedBox> = CELLS_PER_AXIS[..mesh_count]
+        .iter()
+        .map(|&cells| DeformedBox::new(cells))
+        .collect();
+    let mut cases: Vec<(MeshInfo, Vec<Variant<'_>>)> = boxes
+        .iter_mut()
+        .map(|mesh| (mesh.info(), mesh.variants()))
+        .collect();
+
+    if quick {
+        print_tables(
+            &mut cases,
+            &TablePlan {
+                tets_per_block: 200_000,
+                rounds: 3,
+            },
+        );
+        return;
+    }
+
+    // Ten samples in about 1.8 s per benchmark on the two smaller meshes and 3.3 s on the largest
+    // keep the criterion pass near a minute; command-line flags (`--measurement-time`,
+    // `--sample-size`, a name filter, ...) override these, except the largest mesh's own
+    // sampling settings (see `criterion_group`).
+    let mut criterion = Criterion::default()
+        .without_plots()
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_millis(1500))
+        .sample_size(10)
+        .configure_from_args();
+    for (info, variants) in &mut cases {
+        criterion_group(&mut criterion, info, variants);
+    }
+    criterion.final_summary();
+
+    // `--list` and `--profile-time` are not measurements; `--test` (`cargo bench -- --test`)
+    // only checks that everything runs, so one short table pass is enough.
+    if has_flag("--list") || has_flag("--profile-time") {
+        return;
+    }
+    let plan = if has_flag("--test") {
+        TablePlan {
+            tets_per_block: 1,
+            rounds: 1,
+        }
+    } else {
+        TablePlan {
+            tets_per_block: 4_000_000,
+            rounds: 5,
+        }
+    };
+    print_tables(&mut cases, &plan);
+}
