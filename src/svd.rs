@@ -442,17 +442,17 @@ struct JacobiRotation<L> {
 /// `h = sqrt(den^2 + y^2)`.
 ///
 /// The inputs are expected on the normalised scale of [`decompose_scaled`] (largest entries of
-/// order one). Off-diagonals below [`math::TINY`] are treated as zero: they are far below the
-/// rounding of the diagonal, and keeping them would square into subnormals whose lost bits break
-/// `c^2 + s^2 = 1`.
+/// order one), where anything below [`math::TINY`] is far below the rounding of the diagonal.
 #[inline(always)]
 fn jacobi_rotation<L: Lane>(app: L, aqq: L, apq: L) -> JacobiRotation<L> {
     let tiny = L::splat(math::TINY);
     let d = aqq - app;
-    let apq = L::select(apq.abs().gt(tiny), apq, L::splat(0.0));
     let two_apq = apq + apq;
     let r = (d * d + two_apq * two_apq).sqrt();
-    // den >= TINY keeps d = y = 0 (nothing to rotate) at c = 1, s = 0 instead of 0/0.
+    // den >= TINY keeps d = y = 0 (nothing to rotate) at c = 1, s = 0 instead of 0/0, and keeps
+    // den^2 a normal number, so h = sqrt(den^2 + y^2) is accurate even when y^2 is subnormal
+    // (its absolute error, at most the smallest subnormal, is then far below eps den^2): that is
+    // what makes c^2 + s^2 = 1 hold to rounding for every input.
     let den = (d.abs() + r).max(tiny);
     let y = two_apq * d.sign();
     let h = (den * den + y * y).sqrt();
