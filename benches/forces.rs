@@ -30,9 +30,12 @@
 //! `SOFTFEM_BENCH_QUICK=1` skips criterion and the 1M mesh and runs the table pass with few
 //! repetitions: a smoke test that finishes in seconds.
 
-use std::hint::black_box;
-use std::time::{Duration, Instant};
+mod common;
 
+use std::hint::black_box;
+use std::time::Duration;
+
+use common::{TablePass, XorShift64Star};
 use criterion::{Criterion, SamplingMode, Throughput};
 use softfem::MeshError;
 use softfem::generate::{BoxSplit, box_counts, fill_box};
@@ -60,24 +63,6 @@ const CLAMP_THRESHOLD: f32 = 0.3;
 
 /// Largest jitter per coordinate, as a fraction of the grid spacing.
 const JITTER: f32 = 0.08;
-
-/// xorshift64* (Vigna 2016): deterministic, dependency-free, good enough for a jitter.
-struct XorShift64Star(u64);
-
-impl XorShift64Star {
-    fn next_u64(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-
-    /// Uniform in `[-1, 1)`, from the top 24 bits so every value is exact in f32.
-    fn next_signed_unit(&mut self) -> f32 {
-        let bits = (self.next_u64() >> 40) as u32;
-        bits as f32 / (1u32 << 23) as f32 - 1.0
-    }
-}
 
 /// One benchmarked box: the generated mesh, its deformed positions and the rest data the two
 /// `TetMesh`es borrow, in both precisions.
@@ -317,42 +302,17 @@ struct TablePlan {
     rounds: u32,
 }
 
-/// Times every variant round-robin `plan.rounds` times and returns the minimum ns per tetrahedron
-/// for each (the minimum is the estimate least disturbed by other processes), and the number of
-/// mesh passes per timed block.
-fn time_variants(variants: &mut [Variant<'_>], tets: usize, plan: &TablePlan) -> (Vec<f64>, u32) {
-    // Warm caches, branch predictors and CPU frequency before the first timed block.
-    for variant in variants.iter_mut() {
-        (variant.run)();
-    }
-    let repetitions = u32::try_from(plan.tets_per_block.div_ceil(tets).max(1)).unwrap();
-    let tets_per_block = f64::from(repetitions) * tets as f64;
-    let mut best = vec![f64::INFINITY; variants.len()];
-    for _ in 0..plan.rounds {
-        for (variant, best) in variants.iter_mut().zip(&mut best) {
-            let start = Instant::now();
-            for _ in 0..repetitions {
-                (variant.run)();
-            }
-            let ns = start.elapsed().as_secs_f64() * 1e9 / tets_per_block;
-            *best = best.min(ns);
-        }
-    }
-    (best, repetitions)
-}
-
-/// The CPU model from `/proc/cpuinfo` where there is one, so a pasted table says what it ran on.
-fn cpu_model() -> Option<String> {
-    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").ok()?;
-    cpuinfo
-        .lines()
-        .find_map(|line| line.strip_prefix("model name")?.split_once(':'))
-        .map(|(_, model)| model.trim().to_owned())
-}
-
 fn print_table(info: &MeshInfo, variants: &mut [Variant<'_>], plan: &TablePlan) {
     let tets = info.tets;
-    let (ns, repetitions) = time_variants(variants, tets, plan);
+    // Mesh passes per timed block: enough to cover `plan.tets_per_block`, at least one.
+    let repetitions = u32::try_from(plan.tets_per_block.div_ceil(tets).max(1)).unwrap();
+    let ns = common::round_robin_min_ns(
+        variants,
+        |variant| (variant.run)(),
+        repetitions,
+        tets,
+        plan.rounds,
+    );
     let reference_ns = ns[0];
     let (j_min, j_max) = info.j_range;
     println!();
@@ -361,24 +321,29 @@ fn print_table(info: &MeshInfo, variants: &mut [Variant<'_>], plan: &TablePlan) 
          vertices), affine deformation plus jitter (J in [{j_min:.3}, {j_max:.3}]); one thread; \
          each force pass zeroes the force buffer, then adds the forces of every tetrahedron \
          (zeroing included in the time). Minimum of {rounds} round-robin rounds of \
-         {repetitions} mesh passes per variant, on {cpu} ({arch}).",
+         {repetitions} mesh passes per variant, on {machine}.",
         n = info.cells,
         vertices = info.vertices,
         rounds = plan.rounds,
-        cpu = cpu_model().unwrap_or_else(|| "unknown CPU".into()),
-        arch = std::env::consts::ARCH,
+        machine = common::machine(),
     );
     println!();
-    println!("| variant | Mtets/s | ns/tet | throughput vs StVK direct f32 |");
-    println!("|---|---:|---:|---:|");
-    for (variant, ns) in variants.iter().zip(&ns) {
-        println!(
-            "| {} | {:.1} | {ns:.1} | {:.2}x |",
-            variant.label,
-            1e3 / ns,
-            reference_ns / ns
-        );
-    }
+    common::print_markdown_table(
+        &[
+            "variant",
+            "Mtets/s",
+            "ns/tet",
+            "throughput vs StVK direct f32",
+        ],
+        variants.iter().zip(&ns).map(|(variant, ns)| {
+            vec![
+                variant.label.to_owned(),
+                format!("{:.1}", 1e3 / ns),
+                format!("{ns:.1}"),
+                format!("{:.2}x", reference_ns / ns),
+            ]
+        }),
+    );
 }
 
 fn print_tables(cases: &mut [(MeshInfo, Vec<Variant<'_>>)], plan: &TablePlan) {
@@ -394,12 +359,7 @@ fn print_tables(cases: &mut [(MeshInfo, Vec<Variant<'_>>)], plan: &TablePlan) {
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().collect();
-    let has_flag = |flag: &str| {
-        args.iter()
-            .any(|arg| arg == flag || arg.strip_prefix(flag).is_some_and(|v| v.starts_with('=')))
-    };
-    let quick = std::env::var("SOFTFEM_BENCH_QUICK").is_ok_and(|value| value == "1");
+    let quick = common::quick();
     let mesh_count = if quick {
         QUICK_MESHES
     } else {
@@ -442,21 +402,16 @@ fn main() {
     }
     criterion.final_summary();
 
-    // `--list` and `--profile-time` are not measurements; `--test` (`cargo bench -- --test`)
-    // only checks that everything runs, so one short table pass is enough.
-    if has_flag("--list") || has_flag("--profile-time") {
-        return;
-    }
-    let plan = if has_flag("--test") {
-        TablePlan {
+    let plan = match common::table_pass() {
+        TablePass::Skip => return,
+        TablePass::Test => TablePlan {
             tets_per_block: 1,
             rounds: 1,
-        }
-    } else {
-        TablePlan {
+        },
+        TablePass::Full => TablePlan {
             tets_per_block: 4_000_000,
             rounds: 5,
-        }
+        },
     };
     print_tables(&mut cases, &plan);
 }

@@ -13,9 +13,12 @@
 //! `SOFTFEM_BENCH_QUICK=1` skips criterion and runs the table pass with few repetitions: a smoke
 //! test that finishes in about a second (used by `.ci/run`).
 
-use std::hint::black_box;
-use std::time::{Duration, Instant};
+mod common;
 
+use std::hint::black_box;
+use std::time::Duration;
+
+use common::{TablePass, XorShift64Star};
 use criterion::{BenchmarkId, Criterion, Throughput};
 use nalgebra::Matrix3;
 use softfem::glam::{DMat3, Mat3};
@@ -26,29 +29,6 @@ const BATCH_LEN: usize = 1024;
 
 /// Sweep counts benchmarked through `svd3_sweeps`.
 const SWEEP_COUNTS: std::ops::RangeInclusive<u32> = 1..=6;
-
-/// xorshift64* (Vigna 2016): deterministic, dependency-free, good enough for test matrices.
-struct XorShift64Star(u64);
-
-impl XorShift64Star {
-    fn next_u64(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-
-    /// Uniform in `[-1, 1)`, from the top 24 bits so every value is exact in f32.
-    fn next_signed_unit(&mut self) -> f32 {
-        let bits = (self.next_u64() >> 40) as u32;
-        bits as f32 / (1u32 << 23) as f32 - 1.0
-    }
-
-    /// Uniform in `0..n`.
-    fn next_below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
-    }
-}
 
 /// Half general matrices (entries uniform in `[-1, 1]`, so any conditioning and either sign of
 /// the determinant), half deformation gradients near identity (`I + 0.2 * noise`, what an FEM
@@ -242,73 +222,45 @@ struct TablePlan {
     rounds: u32,
 }
 
-/// Times every variant round-robin `plan.rounds` times and returns the minimum ns per
-/// decomposition for each (the minimum is the estimate least disturbed by other processes).
-fn time_variants(variants: &[Variant<'_>], plan: &TablePlan) -> Vec<f64> {
-    // Warm caches, branch predictors and CPU frequency before the first timed block.
-    for variant in variants {
-        black_box((variant.run_batch)());
-    }
-    let decompositions = f64::from(plan.repetitions) * BATCH_LEN as f64;
-    let mut best = vec![f64::INFINITY; variants.len()];
-    for _ in 0..plan.rounds {
-        for (variant, best) in variants.iter().zip(&mut best) {
-            let start = Instant::now();
-            for _ in 0..plan.repetitions {
-                black_box((variant.run_batch)());
-            }
-            let ns = start.elapsed().as_secs_f64() * 1e9 / decompositions;
-            *best = best.min(ns);
-        }
-    }
-    best
-}
-
-/// The CPU model from `/proc/cpuinfo` where there is one, so a pasted table says what it ran on.
-fn cpu_model() -> Option<String> {
-    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").ok()?;
-    cpuinfo
-        .lines()
-        .find_map(|line| line.strip_prefix("model name")?.split_once(':'))
-        .map(|(_, model)| model.trim().to_owned())
-}
-
-fn print_table(variants: &[Variant<'_>], plan: &TablePlan) {
-    let ns = time_variants(variants, plan);
+fn print_table(variants: &mut [Variant<'_>], plan: &TablePlan) {
+    let ns = common::round_robin_min_ns(
+        variants,
+        |variant| {
+            black_box((variant.run_batch)());
+        },
+        plan.repetitions,
+        BATCH_LEN,
+        plan.rounds,
+    );
     let reference_ns = ns[0];
     println!();
     println!(
         "SVD of 3x3 matrices: {BATCH_LEN} inputs (half general, half near identity), minimum of \
-         {} round-robin rounds of {} batches per variant, on {} ({}).",
+         {} round-robin rounds of {} batches per variant, on {}.",
         plan.rounds,
         plan.repetitions,
-        cpu_model().unwrap_or_else(|| "unknown CPU".into()),
-        std::env::consts::ARCH,
+        common::machine(),
     );
     println!();
-    println!("| variant | ns/decomposition | speed-up vs nalgebra f32 |");
-    println!("|---|---:|---:|");
-    for (variant, ns) in variants.iter().zip(&ns) {
-        println!(
-            "| {} | {ns:.1} | {:.2}x |",
-            variant.label,
-            reference_ns / ns
-        );
-    }
+    common::print_markdown_table(
+        &["variant", "ns/decomposition", "speed-up vs nalgebra f32"],
+        variants.iter().zip(&ns).map(|(variant, ns)| {
+            vec![
+                variant.label.clone(),
+                format!("{ns:.1}"),
+                format!("{:.2}x", reference_ns / ns),
+            ]
+        }),
+    );
 }
 
 fn main() {
     let inputs = Inputs::new();
-    let variants = variants(&inputs);
-    let args: Vec<String> = std::env::args().collect();
-    let has_flag = |flag: &str| {
-        args.iter()
-            .any(|arg| arg == flag || arg.strip_prefix(flag).is_some_and(|v| v.starts_with('=')))
-    };
+    let mut variants = variants(&inputs);
 
-    if std::env::var("SOFTFEM_BENCH_QUICK").is_ok_and(|value| value == "1") {
+    if common::quick() {
         print_table(
-            &variants,
+            &mut variants,
             &TablePlan {
                 repetitions: 5,
                 rounds: 3,
@@ -328,21 +280,16 @@ fn main() {
     criterion_benches(&mut criterion, &inputs);
     criterion.final_summary();
 
-    // `--list` and `--profile-time` are not measurements; `--test` (`cargo bench -- --test`)
-    // only checks that everything runs, so one short table pass is enough.
-    if has_flag("--list") || has_flag("--profile-time") {
-        return;
-    }
-    let plan = if has_flag("--test") {
-        TablePlan {
+    let plan = match common::table_pass() {
+        TablePass::Skip => return,
+        TablePass::Test => TablePlan {
             repetitions: 1,
             rounds: 1,
-        }
-    } else {
-        TablePlan {
+        },
+        TablePass::Full => TablePlan {
             repetitions: 200,
             rounds: 5,
-        }
+        },
     };
-    print_table(&variants, &plan);
+    print_table(&mut variants, &plan);
 }

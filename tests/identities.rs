@@ -10,23 +10,7 @@
 
 use std::collections::HashMap;
 
-/// A deterministic xorshift64* generator, so every run sees the same samples.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-
-    /// Uniform in `[lo, hi)`.
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        let unit = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-        lo + (hi - lo) * unit
-    }
-}
+mod common;
 
 /// The boundary faces of a set of elements with `N` corners: every face (the element minus one
 /// corner) that belongs to exactly one element, with the corner it is opposite to.
@@ -47,52 +31,17 @@ fn boundary_faces<const N: usize>(elements: &[[u32; N]]) -> Vec<(Vec<u32>, u32)>
         .collect()
 }
 
-/// Runs `$check(lame, model)` for the three models and every parameter set.
-macro_rules! for_each_model {
-    ($check:ident) => {
-        for lame in parameter_sets() {
-            $check(lame, StVK::new(lame));
-            $check(lame, NeoHookean::new(lame));
-            $check(lame, StableNeoHookean::new(lame));
-        }
-    };
-}
-
 macro_rules! identity_tests {
     ($precision:ident, $($api:ident)::+) => {
         mod $precision {
-            use super::{Rng, boundary_faces};
+            use super::boundary_faces;
+            use crate::common::{Rng, for_each_model, material_helpers};
             use $($api)::+::element::{TetRest, TriRest, TriangleStVK, fix_orientation};
             use $($api)::+::material::{Lame, Material, NeoHookean, StVK, StableNeoHookean};
             use $($api)::+::mesh::{MembraneMesh, TetMesh, TriMesh};
             use $($api)::+::types::{Mat2, Mat3, Real, Vec2, Vec3};
 
-            const EPS: Real = Real::EPSILON;
-
-            /// Soft rubber, nearly incompressible rubber (`lambda/mu = 9`, which amplifies
-            /// rounding) and an auxetic material (`lambda < 0`, so sign mistakes show).
-            fn parameter_sets() -> [Lame; 3] {
-                [
-                    Lame::from_young_poisson(1.0e5, 0.3).unwrap(),
-                    Lame::from_young_poisson(1.0e6, 0.45).unwrap(),
-                    Lame::from_young_poisson(2.0e3, -0.3).unwrap(),
-                ]
-            }
-
-            /// The P-wave modulus `lambda + 2 mu` (Pa), the scale of stresses at strains of
-            /// order one.
-            fn modulus(lame: Lame) -> Real {
-                lame.lambda() + 2.0 * lame.mu()
-            }
-
-            fn norm(m: Mat3) -> Real {
-                (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared())
-                    .sqrt()
-            }
-
-            fn uniform(rng: &mut Rng, lo: Real, hi: Real) -> Real {
-                rng.uniform(lo as f64, hi as f64) as Real
-            }
+            material_helpers!();
 
             fn random_vector(rng: &mut Rng, size: Real) -> Vec3 {
                 Vec3::new(
@@ -161,6 +110,15 @@ macro_rules! identity_tests {
                 [(x, t, 1.0), (bx, bt, 0.5)]
             }
 
+            /// Runs `check(mesh, x0, tets, h)` on each of [`meshes`], validated.
+            fn for_each_mesh(mut check: impl FnMut(&TetMesh<'_>, &[Vec3], &[[u32; 4]], Real)) {
+                for (x0, tets, h) in meshes() {
+                    let mut rest = vec![TetRest::default(); tets.len()];
+                    let mesh = TetMesh::new(&x0, &tets, &mut rest).unwrap();
+                    check(&mesh, &x0, &tets, h);
+                }
+            }
+
             fn forces_of<M: Material>(
                 mesh: &TetMesh, model: &M, x: &[Vec3],
             ) -> Vec<Vec3> {
@@ -173,10 +131,8 @@ macro_rules! identity_tests {
 
             fn rigid_motion_is_free<M: Material>(lame: Lame, model: M) {
                 let mut rng = Rng(7);
-                for (x0, tets, h) in meshes() {
-                    let mut rest = vec![TetRest::default(); tets.len()];
-                    let mesh = TetMesh::new(&x0, &tets, &mut rest).unwrap();
-                    assert_eq!(forces_of(&mesh, &model, &x0), vec![Vec3::ZERO; x0.len()]);
+                for_each_mesh(|mesh, x0, _, h| {
+                    assert_eq!(forces_of(mesh, &model, &x0), vec![Vec3::ZERO; x0.len()]);
                     assert_eq!(mesh.elastic_energy(&model, &x0).unwrap(), 0.0);
                     for _ in 0..10 {
                         let (r, t) = (random_rotation(&mut rng), random_vector(&mut rng, 3.0));
@@ -186,14 +142,14 @@ macro_rules! identity_tests {
                         // (amplified up to lambda/mu), and a vertex sums up to ~20 elements'
                         // forces of size |P| h^2.
                         let tol = 4096.0 * EPS * modulus(lame) * h * h;
-                        for f in forces_of(&mesh, &model, &x) {
+                        for f in forces_of(mesh, &model, &x) {
                             assert!(f.length() <= tol, "{model:?}: |f| = {:e}", f.length());
                         }
                         // W is quadratic in the strain error: far below the rounding of P.
                         let energy = mesh.elastic_energy(&model, &x).unwrap();
                         assert!(energy.abs() <= tol * h, "{model:?}: E = {energy:e}");
                     }
-                }
+                });
             }
 
             #[test]
@@ -205,9 +161,7 @@ macro_rules! identity_tests {
 
             fn forces_balance<M: Material>(lame: Lame, model: M) {
                 let mut rng = Rng(11);
-                for (x0, tets, h) in meshes() {
-                    let mut rest = vec![TetRest::default(); tets.len()];
-                    let mesh = TetMesh::new(&x0, &tets, &mut rest).unwrap();
+                for_each_mesh(|mesh, x0, tets, h| {
                     for _ in 0..5 {
                         // Random non-affine deformation, element stretches within ~[0.6, 1.5].
                         let g = random_rotation(&mut rng);
@@ -215,7 +169,7 @@ macro_rules! identity_tests {
                             .iter()
                             .map(|&p| g * p + random_vector(&mut rng, 0.15 * h))
                             .collect();
-                        let forces = forces_of(&mesh, &model, &x);
+                        let forces = forces_of(mesh, &model, &x);
                         // Per vertex forces of size ~modulus h^2; sums of a few dozen of them,
                         // each with a relative error of a few hundred eps (as in
                         // rigid_motion_is_free).
@@ -241,7 +195,7 @@ macro_rules! identity_tests {
                             }
                         }
                     }
-                }
+                });
             }
 
             #[test]
@@ -253,13 +207,11 @@ macro_rules! identity_tests {
 
             fn paths_agree<M: Material>(lame: Lame, model: M) {
                 let mut rng = Rng(13);
-                for (x0, tets, h) in meshes() {
-                    let mut rest = vec![TetRest::default(); tets.len()];
-                    let mesh = TetMesh::new(&x0, &tets, &mut rest).unwrap();
+                for_each_mesh(|mesh, x0, _, h| {
                     let g = random_rotation(&mut rng) * Mat3::from_diagonal(Vec3::new(1.2, 0.9, 1.05));
                     let x: Vec<Vec3> =
                         x0.iter().map(|&p| g * p + random_vector(&mut rng, 0.1 * h)).collect();
-                    let direct = forces_of(&mesh, &model, &x);
+                    let direct = forces_of(mesh, &model, &x);
                     let mut principal = vec![Vec3::ZERO; x.len()];
                     mesh.add_elastic_forces_principal(&model, &x, &mut principal).unwrap();
                     // Stretches here stay above 0.5, so a clamp at 0.1 changes nothing.
@@ -272,7 +224,7 @@ macro_rules! identity_tests {
                     for (a, b) in direct.iter().zip(&principal) {
                         assert!((*a - *b).length() <= tol, "{model:?}: {a:?} vs {b:?}");
                     }
-                }
+                });
             }
 
             #[test]
@@ -664,9 +616,7 @@ macro_rules! identity_tests {
 
             #[test]
             fn lumped_masses_distribute_the_total_mass() {
-                for (x0, tets, _) in meshes() {
-                    let mut rest = vec![TetRest::default(); tets.len()];
-                    let mesh = TetMesh::new(&x0, &tets, &mut rest).unwrap();
+                for_each_mesh(|mesh, x0, tets, _| {
                     let mut masses = vec![-1.0; x0.len()];
                     mesh.lumped_masses(1000.0, &mut masses).unwrap();
                     // The boxes have volume 1: the total is rho exactly up to rounding.
@@ -682,7 +632,7 @@ macro_rules! identity_tests {
                     for (m, v) in masses.iter().zip(&volume_around) {
                         assert!((m - 250.0 * v).abs() <= 64.0 * EPS * 1000.0);
                     }
-                }
+                });
                 let (x0, tris) = square_grid(2, 0.5);
                 let mut rest = vec![TriRest::default(); tris.len()];
                 let mesh = TriMesh::new(&x0, &tris, &mut rest).unwrap();
@@ -708,7 +658,7 @@ identity_tests!(double, softfem::f64);
 /// force scale `modulus * h^2`; the tolerance `sqrt(eps) ~ 1.5e-8` of that scale sits well above
 /// both and far below any error a wrong formula would make.
 mod gradient {
-    use super::Rng;
+    use crate::common::Rng;
     use softfem::f64::element::{TetRest, TriRest, TriangleStVK, fix_orientation};
     use softfem::f64::material::{Lame, Material, NeoHookean, StVK, StableNeoHookean};
     use softfem::f64::mesh::{MembraneMesh, TetMesh, TriMesh};
@@ -742,9 +692,37 @@ mod gradient {
         out
     }
 
+    /// `x0` scaled by 1.1 and moved by up to 0.15 per coordinate: a general deformation with
+    /// stretches well clear of inversion.
+    fn deformed<const D: usize>(rng: &mut Rng, x0: &[[f64; D]]) -> Vec<[f64; D]> {
+        x0.iter()
+            .map(|p| core::array::from_fn(|d| p[d] * 1.1 + rng.uniform(-0.15, 0.15)))
+            .collect()
+    }
+
+    /// Asserts that `forces(x)` is `-dE/dx` for `E = energy(x)`, to [`tolerance`]; `V` is the
+    /// position type of the mesh, `D` its number of coordinates.
+    fn assert_forces_are_minus_gradient<V, const D: usize>(
+        what: &str,
+        lame: Lame,
+        x: &[[f64; D]],
+        energy: impl Fn(&[V]) -> f64,
+        forces: impl Fn(&[V]) -> Vec<V>,
+    ) where
+        V: Copy + From<[f64; D]> + Into<[f64; D]>,
+    {
+        let vectors = |x: &[[f64; D]]| -> Vec<V> { x.iter().map(|&p| V::from(p)).collect() };
+        let expected = minus_gradient(x, |x| energy(&vectors(x)));
+        for (f, e) in forces(&vectors(x)).into_iter().zip(&expected) {
+            let f: [f64; D] = f.into();
+            let error = f.iter().zip(e).map(|(a, b)| (a - b) * (a - b)).sum::<f64>();
+            assert!(error.sqrt() <= tolerance(lame), "{what}: {f:?} vs {e:?}");
+        }
+    }
+
     fn check_tets<M: Material>(lame: Lame, model: M) {
         let mut rng = Rng(29);
-        let x0 = [
+        let corners = [
             [0.0, 0.0, 0.0],
             [1.0, 0.0, 0.0],
             [1.0, 1.0, 0.0],
@@ -753,8 +731,8 @@ mod gradient {
             [1.0, 0.0, 1.0],
             [1.0, 1.0, 1.0],
             [0.0, 1.0, 1.0],
-        ]
-        .map(Vec3::from_array);
+        ];
+        let x0 = corners.map(Vec3::from_array);
         let tets = [
             [0, 1, 3, 4],
             [1, 2, 3, 6],
@@ -765,32 +743,17 @@ mod gradient {
         .map(|t: [u32; 4]| fix_orientation(t, t.map(|v| x0[v as usize])));
         let mut rest = [TetRest::default(); 5];
         let mesh = TetMesh::new(&x0, &tets, &mut rest).unwrap();
-        let x: Vec<[f64; 3]> = x0
-            .iter()
-            .map(|p| {
-                (*p * 1.1
-                    + Vec3::new(
-                        rng.uniform(-0.15, 0.15),
-                        rng.uniform(-0.15, 0.15),
-                        rng.uniform(-0.15, 0.15),
-                    ))
-                .to_array()
-            })
-            .collect();
-        let energy = |x: &[[f64; 3]]| {
-            let x: Vec<Vec3> = x.iter().map(|p| Vec3::from_array(*p)).collect();
-            mesh.elastic_energy(&model, &x).unwrap()
-        };
-        let expected = minus_gradient(&x, energy);
-        let xv: Vec<Vec3> = x.iter().map(|p| Vec3::from_array(*p)).collect();
-        let mut forces = vec![Vec3::ZERO; x.len()];
-        mesh.add_elastic_forces(&model, &xv, &mut forces).unwrap();
-        for (f, e) in forces.iter().zip(&expected) {
-            assert!(
-                (*f - Vec3::from_array(*e)).length() <= tolerance(lame),
-                "{model:?}: {f:?} vs {e:?}"
-            );
-        }
+        assert_forces_are_minus_gradient(
+            &format!("{model:?}"),
+            lame,
+            &deformed(&mut rng, &corners),
+            |x: &[Vec3]| mesh.elastic_energy(&model, x).unwrap(),
+            |x| {
+                let mut forces = vec![Vec3::ZERO; x.len()];
+                mesh.add_elastic_forces(&model, x, &mut forces).unwrap();
+                forces
+            },
+        );
     }
 
     #[test]
@@ -811,69 +774,43 @@ mod gradient {
         let mut rng = Rng(31);
         let lame = Lame::from_young_poisson(1.0e6, 0.45).unwrap();
         let model = TriangleStVK::new(&StVK::new(lame));
-        let x0 = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]].map(Vec2::from_array);
+        let corners = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let x0 = corners.map(Vec2::from_array);
         let tris = [[0, 1, 2], [0, 2, 3]];
         let mut rest = [TriRest::default(); 2];
         let mesh = TriMesh::new(&x0, &tris, &mut rest).unwrap();
-        let x: Vec<[f64; 2]> = x0
-            .iter()
-            .map(|p| {
-                (*p * 1.1 + Vec2::new(rng.uniform(-0.15, 0.15), rng.uniform(-0.15, 0.15)))
-                    .to_array()
-            })
-            .collect();
-        let energy = |x: &[[f64; 2]]| {
-            let x: Vec<Vec2> = x.iter().map(|p| Vec2::from_array(*p)).collect();
-            mesh.elastic_energy(&model, &x).unwrap()
-        };
-        let expected = minus_gradient(&x, energy);
-        let xv: Vec<Vec2> = x.iter().map(|p| Vec2::from_array(*p)).collect();
-        let mut forces = vec![Vec2::ZERO; 4];
-        mesh.add_elastic_forces(&model, &xv, &mut forces).unwrap();
-        for (f, e) in forces.iter().zip(&expected) {
-            assert!(
-                (*f - Vec2::from_array(*e)).length() <= tolerance(lame),
-                "{f:?} vs {e:?}"
-            );
-        }
+        assert_forces_are_minus_gradient(
+            "triangles",
+            lame,
+            &deformed(&mut rng, &corners),
+            |x: &[Vec2]| mesh.elastic_energy(&model, x).unwrap(),
+            |x| {
+                let mut forces = vec![Vec2::ZERO; 4];
+                mesh.add_elastic_forces(&model, x, &mut forces).unwrap();
+                forces
+            },
+        );
 
         // A membrane, tilted at rest and bent out of plane when deformed.
-        let m0 = [
+        let corners = [
             [0.0, 0.0, 0.0],
             [1.0, 0.0, 0.2],
             [1.0, 1.0, 0.5],
             [0.0, 1.0, 0.1],
-        ]
-        .map(Vec3::from_array);
+        ];
+        let m0 = corners.map(Vec3::from_array);
         let mut membrane_rest = [TriRest::default(); 2];
         let membrane = MembraneMesh::new(&m0, &tris, &mut membrane_rest).unwrap();
-        let x: Vec<[f64; 3]> = m0
-            .iter()
-            .map(|p| {
-                (*p * 1.1
-                    + Vec3::new(
-                        rng.uniform(-0.15, 0.15),
-                        rng.uniform(-0.15, 0.15),
-                        rng.uniform(-0.15, 0.15),
-                    ))
-                .to_array()
-            })
-            .collect();
-        let energy = |x: &[[f64; 3]]| {
-            let x: Vec<Vec3> = x.iter().map(|p| Vec3::from_array(*p)).collect();
-            membrane.elastic_energy(&model, &x).unwrap()
-        };
-        let expected = minus_gradient(&x, energy);
-        let xv: Vec<Vec3> = x.iter().map(|p| Vec3::from_array(*p)).collect();
-        let mut forces = vec![Vec3::ZERO; 4];
-        membrane
-            .add_elastic_forces(&model, &xv, &mut forces)
-            .unwrap();
-        for (f, e) in forces.iter().zip(&expected) {
-            assert!(
-                (*f - Vec3::from_array(*e)).length() <= tolerance(lame),
-                "{f:?} vs {e:?}"
-            );
-        }
+        assert_forces_are_minus_gradient(
+            "membrane",
+            lame,
+            &deformed(&mut rng, &corners),
+            |x: &[Vec3]| membrane.elastic_energy(&model, x).unwrap(),
+            |x| {
+                let mut forces = vec![Vec3::ZERO; 4];
+                membrane.add_elastic_forces(&model, x, &mut forces).unwrap();
+                forces
+            },
+        );
     }
 }

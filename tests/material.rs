@@ -5,74 +5,21 @@
 //! the crate root and the `f64` API under `softfem::f64`. Tolerances are expressed in the
 //! machine epsilon of the precision (`EPS`), each with the reasoning that sizes it.
 
-/// A deterministic xorshift64* generator, so every run sees the same samples.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-
-    /// Uniform in `[lo, hi)`.
-    fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        let unit = (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64;
-        lo + (hi - lo) * unit
-    }
-}
-
-/// Runs the generic check `$check(lame, model)` for the three models and every parameter set
-/// (expanded inside `material_tests!`, where the names resolve to one precision's items).
-macro_rules! for_each_model {
-    ($check:ident) => {
-        for lame in parameter_sets() {
-            $check(lame, StVK::new(lame));
-            $check(lame, NeoHookean::new(lame));
-            $check(lame, StableNeoHookean::new(lame));
-        }
-    };
-}
+mod common;
 
 macro_rules! material_tests {
     ($precision:ident, $($api:ident)::+) => {
         mod $precision {
-            use super::Rng;
+            use crate::common::{Rng, for_each_model, material_helpers};
             use $($api)::+::MaterialError;
             use $($api)::+::material::{Lame, Material, NeoHookean, StVK, StableNeoHookean};
             use $($api)::+::svd::svd3;
             use $($api)::+::types::{Mat3, Real, Vec3};
 
-            const EPS: Real = Real::EPSILON;
-
-            /// Parameter sets (Pa): soft rubber, nearly incompressible rubber, and an auxetic
-            /// material with negative `lambda`, so that sign mistakes in `lambda` show.
-            fn parameter_sets() -> [Lame; 3] {
-                [
-                    Lame::from_young_poisson(1.0e5, 0.3).unwrap(),
-                    Lame::from_young_poisson(1.0e6, 0.45).unwrap(),
-                    Lame::from_young_poisson(2.0e3, -0.3).unwrap(),
-                ]
-            }
-
-            /// The P-wave modulus `lambda + 2 mu` (Pa): the scale of every stress at strains
-            /// of order one, used to turn relative tolerances into absolute ones.
-            fn modulus(lame: Lame) -> Real {
-                lame.lambda() + 2.0 * lame.mu()
-            }
-
-            fn norm(m: Mat3) -> Real {
-                (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared())
-                    .sqrt()
-            }
+            material_helpers!();
 
             fn diag(x: Real, y: Real, z: Real) -> Mat3 {
                 Mat3::from_diagonal(Vec3::new(x, y, z))
-            }
-
-            fn uniform(rng: &mut Rng, lo: Real, hi: Real) -> Real {
-                rng.uniform(lo as f64, hi as f64) as Real
             }
 
             fn random_rotation(rng: &mut Rng) -> Mat3 {

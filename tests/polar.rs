@@ -2,11 +2,14 @@
 //! precisions: `rotation` a proper rotation, `stretch` symmetric, the product reconstructing `a`,
 //! and an inverted `a` showing up as one negative principal stretch instead of a reflection.
 //!
-//! Checks are written once against the [`Precision`] trait and run for `f32` (crate root) and
+//! Checks are written once against the [`Polar`] trait and run for `f32` (crate root) and
 //! `f64` (`softfem::f64`); errors are measured in f64 from the outputs widened exactly.
 
+mod common;
+
+use common::{F32, F64, Precision, Rng, frobenius};
 use nalgebra::{Matrix3, SymmetricEigen};
-use softfem::glam::{DMat3, DQuat, DVec3};
+use softfem::glam::{DMat3, DVec3};
 
 /// A polar decomposition widened to f64 (exact for f32 outputs).
 #[derive(Clone, Copy, Debug)]
@@ -16,35 +19,16 @@ struct Wide {
 }
 
 /// One precision of softfem's polar decomposition, with the tolerances of its SVD
-/// (`tests/svd.rs` justifies them: about 80 / 450 eps for orthonormality, 17 / 450 eps for the
-/// reconstruction). Forming `u v^T` and `v diag(sigma) v^T` adds a few more roundings, each far
-/// below those margins.
-trait Precision {
-    const NAME: &'static str;
-    const ORTH_TOL: f64;
-    const RECON_TOL: f64;
-
-    /// `a` rounded to this precision: the input the decomposition actually sees.
-    fn round(a: DMat3) -> DMat3;
+/// ([`Precision`]; `tests/svd.rs` checks them: about 80 / 450 eps for orthonormality, 17 / 450 eps
+/// for the reconstruction). Forming `u v^T` and `v diag(sigma) v^T` adds a few more roundings,
+/// each far below those margins.
+trait Polar: Precision {
     fn polar(a: DMat3) -> Wide;
     /// Whether `Polar3::from_svd(&svd3(a))` equals `polar3(a)` exactly.
     fn from_svd_is_polar3(a: DMat3) -> bool;
-    /// `a` as a Rust expression of this precision, for failure messages.
-    fn show(a: DMat3) -> String;
 }
 
-struct F32;
-struct F64;
-
-impl Precision for F32 {
-    const NAME: &'static str = "f32";
-    const ORTH_TOL: f64 = 1e-5;
-    const RECON_TOL: f64 = 2e-6;
-
-    fn round(a: DMat3) -> DMat3 {
-        a.as_mat3().as_dmat3()
-    }
-
+impl Polar for F32 {
     fn polar(a: DMat3) -> Wide {
         let polar = softfem::polar::polar3(a.as_mat3());
         Wide {
@@ -57,21 +41,9 @@ impl Precision for F32 {
         let a = a.as_mat3();
         softfem::polar::Polar3::from_svd(&softfem::svd::svd3(a)) == softfem::polar::polar3(a)
     }
-
-    fn show(a: DMat3) -> String {
-        format!("Mat3::from_cols_array(&{:?})", a.as_mat3().to_cols_array())
-    }
 }
 
-impl Precision for F64 {
-    const NAME: &'static str = "f64";
-    const ORTH_TOL: f64 = 1e-13;
-    const RECON_TOL: f64 = 1e-13;
-
-    fn round(a: DMat3) -> DMat3 {
-        a
-    }
-
+impl Polar for F64 {
     fn polar(a: DMat3) -> Wide {
         let polar = softfem::f64::polar::polar3(a);
         Wide {
@@ -84,60 +56,6 @@ impl Precision for F64 {
         softfem::f64::polar::Polar3::from_svd(&softfem::f64::svd::svd3(a))
             == softfem::f64::polar::polar3(a)
     }
-
-    fn show(a: DMat3) -> String {
-        format!("DMat3::from_cols_array(&{:?})", a.to_cols_array())
-    }
-}
-
-/// xorshift64* (Vigna 2016): deterministic and dependency-free.
-struct Rng(u64);
-
-impl Rng {
-    fn new(seed: u64) -> Self {
-        Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1)
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-
-    /// Uniform in `[0, 1)`.
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in `[lo, hi)`.
-    fn between(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-
-    fn entries(&mut self) -> DMat3 {
-        DMat3::from_cols_array(&core::array::from_fn(|_| self.between(-1.0, 1.0)))
-    }
-
-    /// A uniformly distributed proper rotation (normalised point of the unit 4-ball).
-    fn rotation(&mut self) -> DMat3 {
-        loop {
-            let q = DQuat::from_xyzw(
-                self.between(-1.0, 1.0),
-                self.between(-1.0, 1.0),
-                self.between(-1.0, 1.0),
-                self.between(-1.0, 1.0),
-            );
-            let norm = q.length();
-            if norm > 0.1 && norm <= 1.0 {
-                return DMat3::from_quat(q / norm);
-            }
-        }
-    }
-}
-
-fn frobenius(m: DMat3) -> f64 {
-    m.to_cols_array().iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
 /// Eigenvalues of the symmetric part of `m`, ascending (nalgebra, f64).
@@ -153,7 +71,7 @@ fn eigenvalues(m: DMat3) -> [f64; 3] {
     values
 }
 
-fn fail<P: Precision>(a: DMat3, polar: &Wide, what: String) -> ! {
+fn fail<P: Polar>(a: DMat3, polar: &Wide, what: String) -> ! {
     panic!(
         "{} polar3: {what}\n  input:  {}\n  output: {polar:?}",
         P::NAME,
@@ -165,7 +83,7 @@ fn fail<P: Precision>(a: DMat3, polar: &Wide, what: String) -> ! {
 /// reconstruction, and, where `det a` is clear of rounding (`|det a| > 1e-3 ||a||_F^3`, so the
 /// smallest principal stretch is at least `1e-3 s0` in magnitude), the sign pattern of the
 /// stretch: positive definite for `det a > 0`, exactly one negative eigenvalue for `det a < 0`.
-fn check_polar<P: Precision>(a: DMat3) -> Wide {
+fn check_polar<P: Polar>(a: DMat3) -> Wide {
     let polar = P::polar(a);
     let Wide { rotation, stretch } = polar;
     if !(rotation.is_finite() && stretch.is_finite()) {
@@ -207,35 +125,30 @@ fn check_polar<P: Precision>(a: DMat3) -> Wide {
     polar
 }
 
-/// `r diag(s) q^T` with random rotations.
-fn rotated(rng: &mut Rng, s: DVec3) -> DMat3 {
-    rng.rotation() * DMat3::from_diagonal(s) * rng.rotation().transpose()
-}
-
 /// A mix of the SVD test classes: random, ill-conditioned, inverted, rank-deficient, scaled.
 fn sample(rng: &mut Rng, i: usize) -> DMat3 {
     match i % 7 {
         0 => rng.entries(),
         1 => {
-            let s = DVec3::new(1.0, rng.between(1e-3, 1.0), 1e-3);
-            rotated(rng, s)
+            let s = DVec3::new(1.0, rng.uniform(1e-3, 1.0), 1e-3);
+            rng.rotated(s)
         }
         2 => {
-            let s = DVec3::new(1.0, rng.between(0.2, 1.0), -rng.between(0.01, 0.2));
-            rotated(rng, s)
+            let s = DVec3::new(1.0, rng.uniform(0.2, 1.0), -rng.uniform(0.01, 0.2));
+            rng.rotated(s)
         }
         3 => {
             let mut m = rng.entries();
             m.z_axis = DVec3::ZERO;
             rng.rotation() * m
         }
-        4 => rotated(rng, DVec3::new(1.0, 1.0, -1.0)),
+        4 => rng.rotated(DVec3::new(1.0, 1.0, -1.0)),
         5 => rng.entries() * 1e-30,
         _ => rng.entries() * 1e30,
     }
 }
 
-fn contract<P: Precision>() {
+fn contract<P: Polar>() {
     let mut rng = Rng::new(3);
     for i in 0..3000 {
         check_polar::<P>(P::round(sample(&mut rng, i)));
@@ -250,7 +163,7 @@ fn rotation_is_proper_stretch_symmetric_product_reconstructs() {
 
 /// Inverted inputs, including `-I` and a plain reflection: the rotation stays proper and the
 /// stretch takes the inversion as exactly one negative eigenvalue, the smallest in magnitude.
-fn inverted<P: Precision>() {
+fn inverted<P: Polar>() {
     let mut rng = Rng::new(5);
     let mut inputs = vec![
         -DMat3::IDENTITY,
@@ -285,7 +198,7 @@ fn inverted_input_gives_one_negative_stretch_and_a_proper_rotation() {
     inverted::<F64>();
 }
 
-fn from_svd<P: Precision>() {
+fn from_svd<P: Polar>() {
     let mut rng = Rng::new(7);
     for i in 0..1000 {
         let a = P::round(sample(&mut rng, i));
@@ -305,7 +218,7 @@ fn from_svd_equals_polar3() {
 /// (Higham, *Functions of Matrices*, 8.1), here with `s_i + s_j >= 1` for the positive cases and
 /// `|s_i| - |s_j| >= 0.5` for the inverted one, and `||delta||` is the input rounding plus the
 /// decomposition's backward error, both below `2 RECON_TOL ||a||` with `||a|| <= 4`.
-fn closed_forms<P: Precision>() {
+fn closed_forms<P: Polar>() {
     let about_z = DMat3::from_rotation_z(0.7);
     let axis = DVec3::new(1.0, -2.0, 0.5).normalize();
     let about_axis = DMat3::from_axis_angle(axis, -2.1);
@@ -363,16 +276,16 @@ fn closed_form_rotation_times_stretch_is_recovered() {
 /// the rotation is equivariant. Inputs have well-separated singular values (`s_i + s_j >= 1.2`, and
 /// `s1 - |s2| >= 0.4` when inverted), so by the same perturbation bound as [`closed_forms`] both
 /// factors move by well under `10 RECON_TOL`.
-fn equivariance<P: Precision>() {
+fn equivariance<P: Polar>() {
     let mut rng = Rng::new(11);
     for _ in 0..1000 {
         let sign = if rng.unit() < 0.5 { 1.0 } else { -1.0 };
         let s = DVec3::new(
-            rng.between(1.5, 2.0),
-            rng.between(0.8, 1.2),
-            sign * rng.between(0.2, 0.4),
+            rng.uniform(1.5, 2.0),
+            rng.uniform(0.8, 1.2),
+            sign * rng.uniform(0.2, 0.4),
         );
-        let a = P::round(rotated(&mut rng, s));
+        let a = P::round(rng.rotated(s));
         let q = rng.rotation();
         let qa = P::round(q * a);
         let (base, turned) = (P::polar(a), P::polar(qa));
@@ -400,7 +313,7 @@ fn rotation_equivariance() {
 
 /// Documented special inputs: non-finite gives the identity rotation and a NaN stretch, zero
 /// gives the identity rotation and a zero stretch.
-fn special_inputs<P: Precision>() {
+fn special_inputs<P: Polar>() {
     for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
         for entry in 0..9 {
             let mut entries = [0.5; 9];

@@ -8,18 +8,21 @@
 //! * a reconstruction error of a few `eps ||a||`;
 //! * singular values within a few `eps * s0` of an independent reference (nalgebra's f64 SVD).
 //!
-//! Every check is written once against the [`Precision`] trait and run for `f32` (crate root) and
+//! Every check is written once against the [`Svd`] trait and run for `f32` (crate root) and
 //! `f64` (`softfem::f64`). All error measures are computed in f64 from the outputs widened
 //! exactly, on the input as the decomposition saw it (rounded to its precision).
 //!
 //! `cargo test --release --test svd -- report --nocapture` prints the table of maximum errors per
 //! class quoted in the README.
 
+mod common;
+
 use std::sync::OnceLock;
 
+use common::{F32, F64, Precision, Rng, frobenius};
 use nalgebra::DMatrix;
 use proptest::prelude::*;
-use softfem::glam::{DMat3, DQuat, DVec3};
+use softfem::glam::{DMat3, DVec3};
 
 /// Matrices per `svd3_lanes` call; the same in both precisions.
 const LANES: usize = softfem::lanes::LANES;
@@ -49,17 +52,9 @@ struct Extremes {
     max: f64,
 }
 
-/// One precision of softfem's SVD, with the tolerances its contract promises.
-trait Precision {
-    const NAME: &'static str;
-    /// `||q^T q - I||_F` and `|det q - 1|` for `q = u, v`. About 80 eps in f32 and 450 in f64: a
-    /// product of a dozen exact plane rotations drifts from orthogonality by a few eps; the margin
-    /// keeps the bound robust to reordering of the arithmetic by the ongoing optimisation work.
-    const ORTH_TOL: f64;
-    /// `||u diag(sigma) v^T - a||_F / ||a||_F`. 2e-6 is 17 eps in f32, 1e-13 is 450 eps in f64:
-    /// the algorithm is backward stable (orthogonal transformations only, exact power-of-two
-    /// scaling), so the error is a small multiple of eps whatever the conditioning.
-    const RECON_TOL: f64;
+/// One precision of softfem's SVD, with the tolerances its contract promises (the orthonormality
+/// and reconstruction ones in [`Precision`]).
+trait Svd: Precision {
     /// `max_i |sigma_i - ref_i| / s0`. By Weyl's inequality a backward error `e ||a||` moves
     /// every singular value by at most `e ||a||_2 = e s0`, so absolute accuracy relative to `s0`
     /// is what a backward-stable SVD (ours and the reference alike) can promise, even for tiny
@@ -67,26 +62,16 @@ trait Precision {
     const SIGMA_TOL: f64;
     const EXTREMES: Extremes;
 
-    /// `a` rounded to this precision: the input the decomposition actually sees.
-    fn round(a: DMat3) -> DMat3;
     fn svd(a: DMat3) -> Wide;
     fn svd_sweeps(a: DMat3, sweeps: u32) -> Wide;
     /// `svd3_lanes` on a group of [`LANES`] matrices.
     fn svd_lanes(a: [DMat3; LANES]) -> [Wide; LANES];
     fn default_sweeps() -> u32;
-    /// `a` as a Rust expression of this precision, for failure messages.
-    fn show(a: DMat3) -> String;
     /// Per-class results, computed once whichever test asks first.
     fn cache() -> &'static [OnceLock<MaxErrors>; CLASSES.len()];
 }
 
-struct F32;
-struct F64;
-
-impl Precision for F32 {
-    const NAME: &'static str = "f32";
-    const ORTH_TOL: f64 = 1e-5;
-    const RECON_TOL: f64 = 2e-6;
+impl Svd for F32 {
     const SIGMA_TOL: f64 = 2e-6;
     const EXTREMES: Extremes = Extremes {
         subnormal: 1e-39,
@@ -94,10 +79,6 @@ impl Precision for F32 {
         huge: 1e37,
         max: f32::MAX as f64,
     };
-
-    fn round(a: DMat3) -> DMat3 {
-        a.as_mat3().as_dmat3()
-    }
 
     fn svd(a: DMat3) -> Wide {
         let svd = softfem::svd::svd3(a.as_mat3());
@@ -129,10 +110,6 @@ impl Precision for F32 {
         softfem::svd::DEFAULT_SWEEPS
     }
 
-    fn show(a: DMat3) -> String {
-        format!("Mat3::from_cols_array(&{:?})", a.as_mat3().to_cols_array())
-    }
-
     fn cache() -> &'static [OnceLock<MaxErrors>; CLASSES.len()] {
         static CACHE: [OnceLock<MaxErrors>; CLASSES.len()] =
             [const { OnceLock::new() }; CLASSES.len()];
@@ -140,10 +117,7 @@ impl Precision for F32 {
     }
 }
 
-impl Precision for F64 {
-    const NAME: &'static str = "f64";
-    const ORTH_TOL: f64 = 1e-13;
-    const RECON_TOL: f64 = 1e-13;
+impl Svd for F64 {
     const SIGMA_TOL: f64 = 1e-13;
     const EXTREMES: Extremes = Extremes {
         subnormal: 1e-310,
@@ -151,10 +125,6 @@ impl Precision for F64 {
         huge: 1e307,
         max: f64::MAX,
     };
-
-    fn round(a: DMat3) -> DMat3 {
-        a
-    }
 
     fn svd(a: DMat3) -> Wide {
         let svd = softfem::f64::svd::svd3(a);
@@ -186,94 +156,10 @@ impl Precision for F64 {
         softfem::f64::svd::DEFAULT_SWEEPS
     }
 
-    fn show(a: DMat3) -> String {
-        format!("DMat3::from_cols_array(&{:?})", a.to_cols_array())
-    }
-
     fn cache() -> &'static [OnceLock<MaxErrors>; CLASSES.len()] {
         static CACHE: [OnceLock<MaxErrors>; CLASSES.len()] =
             [const { OnceLock::new() }; CLASSES.len()];
         &CACHE
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Deterministic random matrices.
-// ---------------------------------------------------------------------------------------------
-
-/// xorshift64* (Vigna 2016): deterministic and dependency-free.
-struct Rng(u64);
-
-impl Rng {
-    fn new(seed: u64) -> Self {
-        // Any non-zero state works; mixing the seed keeps nearby seeds apart.
-        Rng(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1)
-    }
-
-    fn next_u64(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-
-    /// Uniform in `[0, 1)`.
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in `[-1, 1)`.
-    fn signed(&mut self) -> f64 {
-        2.0 * self.unit() - 1.0
-    }
-
-    /// Uniform in `0..n`.
-    fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
-    }
-
-    fn sign(&mut self) -> f64 {
-        if self.next_u64() >> 63 == 0 {
-            1.0
-        } else {
-            -1.0
-        }
-    }
-
-    /// Log-uniform in `[lo, hi]`.
-    fn log_uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo * (hi / lo).powf(self.unit())
-    }
-
-    /// `k / 2^bits` for a uniform integer `|k| <= 2^bits`: products of two such numbers with
-    /// `bits <= 12`, and sums of two products with `bits <= 11`, are exact in f32.
-    fn short(&mut self, bits: u32) -> f64 {
-        let k = self.below((2 << bits) + 1) as f64 - (1u64 << bits) as f64;
-        k / (1u64 << bits) as f64
-    }
-
-    fn entries(&mut self) -> DMat3 {
-        DMat3::from_cols_array(&core::array::from_fn(|_| self.signed()))
-    }
-
-    fn vector(&mut self) -> DVec3 {
-        DVec3::new(self.signed(), self.signed(), self.signed())
-    }
-
-    /// A uniformly distributed proper rotation (normalised point of the unit 4-ball).
-    fn rotation(&mut self) -> DMat3 {
-        loop {
-            let q = DQuat::from_xyzw(self.signed(), self.signed(), self.signed(), self.signed());
-            let norm = q.length();
-            if norm > 0.1 && norm <= 1.0 {
-                return DMat3::from_quat(q / norm);
-            }
-        }
-    }
-
-    /// `r1 diag(s) r2^T` with independent random rotations.
-    fn rotated(&mut self, s: DVec3) -> DMat3 {
-        self.rotation() * DMat3::from_diagonal(s) * self.rotation().transpose()
     }
 }
 
@@ -533,18 +419,18 @@ classes! {
     class_largest_safe => "largest safe (1e37 / 1e307)", largest_safe;
 }
 
-/// The `index`-th matrix stream: the same matrices for every test that asks.
-fn class_rng(class: usize) -> Rng {
-    Rng::new(0x50f7_fe11 + class as u64)
+/// The first `count` matrices of class `class`, rounded to `P`: the same stream for every test
+/// that asks.
+fn class_matrices<P: Svd>(class: usize, count: usize) -> impl Iterator<Item = DMat3> {
+    let mut rng = Rng::new(0x50f7_fe11 + class as u64);
+    (0..count).map(move |_| P::round((CLASSES[class].generate)(&mut rng, &P::EXTREMES)))
 }
 
 /// The maximum errors over [`PER_CLASS`] matrices of one class, asserting the contract on each.
-fn class_errors<P: Precision>(class: usize) -> MaxErrors {
+fn class_errors<P: Svd>(class: usize) -> MaxErrors {
     *P::cache()[class].get_or_init(|| {
-        let mut rng = class_rng(class);
         let mut max = MaxErrors::default();
-        for _ in 0..PER_CLASS {
-            let a = P::round((CLASSES[class].generate)(&mut rng, &P::EXTREMES));
+        for a in class_matrices::<P>(class, PER_CLASS) {
             max.absorb(check_decomposition::<P>(a, CLASSES[class].label));
         }
         max
@@ -568,10 +454,6 @@ impl MaxErrors {
         self.orth = self.orth.max(other.orth);
         self.sigma = self.sigma.max(other.sigma);
     }
-}
-
-fn frobenius(m: DMat3) -> f64 {
-    m.to_cols_array().iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
 fn orthonormality_error(q: DMat3) -> f64 {
@@ -615,7 +497,7 @@ struct Reference {
 }
 
 impl Reference {
-    fn new<P: Precision>(a: DMat3) -> Self {
+    fn new<P: Svd>(a: DMat3) -> Self {
         let max_abs = a.abs().to_cols_array().into_iter().fold(0.0, f64::max);
         let exponent = if max_abs == 0.0 {
             0
@@ -650,7 +532,7 @@ impl Reference {
 }
 
 /// Fails with everything needed to reproduce: precision, input as source code, output.
-fn fail<P: Precision>(a: DMat3, svd: &Wide, context: &str, what: String) -> ! {
+fn fail<P: Svd>(a: DMat3, svd: &Wide, context: &str, what: String) -> ! {
     panic!(
         "{} svd3 ({context}): {what}\n  input:  {}\n  output: {svd:?}",
         P::NAME,
@@ -664,12 +546,7 @@ fn fail<P: Precision>(a: DMat3, svd: &Wide, context: &str, what: String) -> ! {
 /// any rounding of the smallest value). The sign is read from the sign bit: when `s2` underflows
 /// to zero (subnormal inputs) it must still be `-0.0` for `det a < 0` and `+0.0` otherwise.
 /// Returns the orthonormality error.
-fn check_structure<P: Precision>(
-    a: DMat3,
-    svd: &Wide,
-    reference: &Reference,
-    context: &str,
-) -> f64 {
+fn check_structure<P: Svd>(a: DMat3, svd: &Wide, reference: &Reference, context: &str) -> f64 {
     if !(svd.u.is_finite() && svd.sigma.is_finite() && svd.v.is_finite()) {
         fail::<P>(a, svd, context, "non-finite output".into());
     }
@@ -699,7 +576,7 @@ fn check_structure<P: Precision>(
 }
 
 /// The full contract of [`svd3`](softfem::svd::svd3) on one input (already rounded to `P`).
-fn check_decomposition<P: Precision>(a: DMat3, context: &str) -> MaxErrors {
+fn check_decomposition<P: Svd>(a: DMat3, context: &str) -> MaxErrors {
     let svd = P::svd(a);
     let reference = Reference::new::<P>(a);
     let orth = check_structure::<P>(a, &svd, &reference, context);
@@ -748,11 +625,9 @@ fn check_decomposition<P: Precision>(a: DMat3, context: &str) -> MaxErrors {
 /// Matrices per class for the sweep-count and default-sweep checks.
 const PER_CLASS_SWEEPS: usize = 150;
 
-fn sweeps_keep_structure<P: Precision>() {
+fn sweeps_keep_structure<P: Svd>() {
     for (class_index, class) in CLASSES.iter().enumerate() {
-        let mut rng = class_rng(class_index);
-        for _ in 0..PER_CLASS_SWEEPS {
-            let a = P::round((class.generate)(&mut rng, &P::EXTREMES));
+        for a in class_matrices::<P>(class_index, PER_CLASS_SWEEPS) {
             let reference = Reference::new::<P>(a);
             for sweeps in 0..=8 {
                 let context = format!("{}, {sweeps} sweeps", class.label);
@@ -769,11 +644,9 @@ fn sweeps_0_to_8_keep_the_structural_contract() {
 }
 
 /// `svd3` is `svd3_sweeps(DEFAULT_SWEEPS)`, so the class tests prove the accuracy of the default.
-fn default_is_default_sweeps<P: Precision>() {
-    for (class_index, class) in CLASSES.iter().enumerate() {
-        let mut rng = class_rng(class_index);
-        for _ in 0..PER_CLASS_SWEEPS {
-            let a = P::round((class.generate)(&mut rng, &P::EXTREMES));
+fn default_is_default_sweeps<P: Svd>() {
+    for class in 0..CLASSES.len() {
+        for a in class_matrices::<P>(class, PER_CLASS_SWEEPS) {
             assert_eq!(
                 P::svd(a),
                 P::svd_sweeps(a, P::default_sweeps()),
@@ -809,15 +682,11 @@ fn bits(svd: &Wide) -> [u64; 21] {
 /// `svd3_lanes` gives, lane by lane, exactly the bits `svd3` gives for the same matrix: over every
 /// class, and in groups that mix ordinary, zero, non-finite, subnormal and huge matrices so that
 /// the special cases of one lane cannot leak into another.
-fn lanes_match_scalar<P: Precision>() {
+fn lanes_match_scalar<P: Svd>() {
     let mut groups: Vec<[DMat3; LANES]> = Vec::new();
-    let mut all = Vec::new();
-    for (class_index, class) in CLASSES.iter().enumerate() {
-        let mut rng = class_rng(class_index);
-        for _ in 0..PER_CLASS_SWEEPS {
-            all.push(P::round((class.generate)(&mut rng, &P::EXTREMES)));
-        }
-    }
+    let all: Vec<DMat3> = (0..CLASSES.len())
+        .flat_map(|class| class_matrices::<P>(class, PER_CLASS_SWEEPS))
+        .collect();
     // Consecutive matrices of one class, then a shuffle across classes.
     groups.extend(
         all.chunks_exact(LANES)
@@ -865,7 +734,7 @@ fn svd3_lanes_is_bitwise_svd3_per_matrix() {
 }
 
 /// Any NaN or infinite entry gives `u = v = I` and `sigma = (NaN, NaN, NaN)`, for any sweeps.
-fn non_finite_input<P: Precision>() {
+fn non_finite_input<P: Svd>() {
     let mut rng = Rng::new(7);
     for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
         for entry in 0..9 {
@@ -896,7 +765,7 @@ fn non_finite_input_gives_identity_and_nan() {
 /// At the edge of the range, singular values equal to `MAX` are still exact; beyond it
 /// (singular values above `MAX`) the routine still returns: the documented guarantee there is only
 /// that it never panics and always terminates.
-fn overflowing_input<P: Precision>() {
+fn overflowing_input<P: Svd>() {
     let max = P::EXTREMES.max;
     for diagonal in [[max, -max, max], [max, max / 2.0, -max / 4.0]] {
         check_decomposition::<P>(DMat3::from_diagonal(DVec3::from_array(diagonal)), "edge");
@@ -918,7 +787,7 @@ fn range_edge_is_exact_and_overflow_returns() {
 }
 
 /// The zero matrix (either sign of zero), for every sweep count: `u = v = I`, `sigma = 0`.
-fn zero_input<P: Precision>() {
+fn zero_input<P: Svd>() {
     for a in [DMat3::ZERO, -DMat3::ZERO] {
         for sweeps in 0..=8 {
             let svd = P::svd_sweeps(a, sweeps);
@@ -937,7 +806,7 @@ fn zero_input_gives_identity_and_zero() {
 
 /// Closed forms a reader can check by hand: diagonal matrices with any signs and order have
 /// `|entries|` sorted as singular values, the sign of the determinant on the last.
-fn diagonal_closed_forms<P: Precision>() {
+fn diagonal_closed_forms<P: Svd>() {
     let cases = [
         ([1.0, 1.0, 1.0], [1.0, 1.0, 1.0]),
         ([-1.0, -1.0, -1.0], [1.0, 1.0, -1.0]),
@@ -973,7 +842,7 @@ fn diagonal_matrices_give_sorted_signed_entries() {
 /// two agree within `3 SIGMA_TOL s0`. Singular vectors move by at most backward error / gap
 /// (Wedin): with gaps `>= 0.3 s0` and backward errors below `RECON_TOL`, `20 RECON_TOL` is a safe
 /// bound.
-fn rotation_invariance<P: Precision>() {
+fn rotation_invariance<P: Svd>() {
     let mut rng = Rng::new(11);
     for i in 0..1000 {
         let a = P::round(match i % 4 {
@@ -1123,15 +992,13 @@ proptest! {
 // ---------------------------------------------------------------------------------------------
 
 /// Max recon and sigma errors per sweep count, over the normal-range classes.
-fn sweep_errors<P: Precision>(sweeps: u32) -> MaxErrors {
+fn sweep_errors<P: Svd>(sweeps: u32) -> MaxErrors {
     let mut max = MaxErrors::default();
     for (class_index, class) in CLASSES.iter().enumerate() {
         if class.subnormal {
             continue;
         }
-        let mut rng = class_rng(class_index);
-        for _ in 0..PER_CLASS_SWEEPS {
-            let a = P::round((class.generate)(&mut rng, &P::EXTREMES));
+        for a in class_matrices::<P>(class_index, PER_CLASS_SWEEPS) {
             if a == DMat3::ZERO {
                 continue;
             }

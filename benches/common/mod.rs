@@ -1,0 +1,128 @@
+//! What the benchmarks share (included with `mod common;`): the deterministic input stream, the
+//! round-robin minimum timing of the table pass, the command-line and quick-mode handling, and
+//! the pieces of the markdown tables.
+
+// Each bench crate compiles its own copy of this module and uses only part of it (the force
+// benchmark draws no random indices), so the items one crate leaves unused would otherwise warn.
+#![allow(dead_code)]
+
+use std::time::Instant;
+
+/// xorshift64* (Vigna 2016): deterministic, dependency-free, good enough for benchmark inputs.
+pub struct XorShift64Star(pub u64);
+
+impl XorShift64Star {
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+
+    /// Uniform in `[-1, 1)`, from the top 24 bits so every value is exact in f32.
+    pub fn next_signed_unit(&mut self) -> f32 {
+        let bits = (self.next_u64() >> 40) as u32;
+        bits as f32 / (1u32 << 23) as f32 - 1.0
+    }
+
+    /// Uniform in `0..n`.
+    pub fn next_below(&mut self, n: usize) -> usize {
+        (self.next_u64() % n as u64) as usize
+    }
+}
+
+/// Whether `SOFTFEM_BENCH_QUICK=1` asks for the smoke-test run: no criterion, a short table pass.
+pub fn quick() -> bool {
+    std::env::var("SOFTFEM_BENCH_QUICK").is_ok_and(|value| value == "1")
+}
+
+/// What the table pass after criterion should do, from the command line.
+pub enum TablePass {
+    /// `--list` or `--profile-time`: not a measurement, so no table.
+    Skip,
+    /// `--test` (`cargo bench -- --test`): only checks that everything runs, so one short pass.
+    Test,
+    /// A real measurement.
+    Full,
+}
+
+/// The [`TablePass`] the command line asks for. A flag counts alone (`--test`) or with a value
+/// (`--profile-time=5`).
+pub fn table_pass() -> TablePass {
+    let args: Vec<String> = std::env::args().collect();
+    let has_flag = |flag: &str| {
+        args.iter()
+            .any(|arg| arg == flag || arg.strip_prefix(flag).is_some_and(|v| v.starts_with('=')))
+    };
+    if has_flag("--list") || has_flag("--profile-time") {
+        TablePass::Skip
+    } else if has_flag("--test") {
+        TablePass::Test
+    } else {
+        TablePass::Full
+    }
+}
+
+/// Calls `run` on every variant once (warming caches, branch predictors and CPU frequency), then
+/// times it round-robin `rounds` times, `repetitions` calls per timed block, and returns the
+/// minimum ns per item for each variant, where one call processes `items_per_run` items. The
+/// minimum is the estimate least disturbed by other processes, and interleaving the variants
+/// means their ratios come from the same machine state.
+pub fn round_robin_min_ns<V>(
+    variants: &mut [V],
+    mut run: impl FnMut(&mut V),
+    repetitions: u32,
+    items_per_run: usize,
+    rounds: u32,
+) -> Vec<f64> {
+    for variant in variants.iter_mut() {
+        run(variant);
+    }
+    let items_per_block = f64::from(repetitions) * items_per_run as f64;
+    let mut best = vec![f64::INFINITY; variants.len()];
+    for _ in 0..rounds {
+        for (variant, best) in variants.iter_mut().zip(&mut best) {
+            let start = Instant::now();
+            for _ in 0..repetitions {
+                run(variant);
+            }
+            let ns = start.elapsed().as_secs_f64() * 1e9 / items_per_block;
+            *best = best.min(ns);
+        }
+    }
+    best
+}
+
+/// The CPU model from `/proc/cpuinfo` where there is one, so a pasted table says what it ran on.
+fn cpu_model() -> Option<String> {
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").ok()?;
+    cpuinfo
+        .lines()
+        .find_map(|line| line.strip_prefix("model name")?.split_once(':'))
+        .map(|(_, model)| model.trim().to_owned())
+}
+
+/// `"<CPU model> (<architecture>)"`, for the caption of a table.
+pub fn machine() -> String {
+    format!(
+        "{} ({})",
+        cpu_model().unwrap_or_else(|| "unknown CPU".into()),
+        std::env::consts::ARCH
+    )
+}
+
+/// Prints a markdown table: a left-aligned first column and right-aligned numeric columns.
+pub fn print_markdown_table(header: &[&str], rows: impl IntoIterator<Item = Vec<String>>) {
+    let row = |cells: &[String]| println!("| {} |", cells.join(" | "));
+    row(&header
+        .iter()
+        .map(|cell| cell.to_string())
+        .collect::<Vec<_>>());
+    let rule: Vec<&str> = (0..header.len())
+        .map(|column| if column == 0 { "---" } else { "---:" })
+        .collect();
+    println!("|{}|", rule.join("|"));
+    for cells in rows {
+        row(&cells);
+    }
+}
