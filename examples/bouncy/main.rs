@@ -2,11 +2,12 @@
 //! dropped onto the ground.
 //!
 //! Today this builds the scene from the flags, validates the mesh and material, and writes the
-//! initial state: `frame_0000.vtk` (ParaView) in the output directory. The
+//! initial state: `frame_0000.vtk` (ParaView) and `filmstrip.svg` in the output directory. The
 //! time loop (`scene::run`) is written and tested; it is driven once `softfem::step` lands, and
 //! until then nothing here pretends to move the body.
 
 mod cli;
+mod filmstrip;
 // The time loop (`scene::run`, `RunConfig`, `StepInfo`...), the progress bar and the summary are
 // tested but not called until `softfem::step` drives them; these two allows go then.
 #[allow(dead_code)]
@@ -16,11 +17,13 @@ mod scene;
 mod surface;
 mod vtk;
 
+use std::path::Path;
 use std::process::ExitCode;
 
 use clap::Parser;
 
 use cli::{Args, VtkContent};
+use filmstrip::{Camera, Filmstrip, Recorder};
 use scene::{AnyMaterial, Body, FrameView, Geometry, State};
 use softfem::element::TetRest;
 
@@ -76,6 +79,11 @@ fn bouncy(args: &Args) -> Result<(), String> {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
     let mut writer = FrameWriter::new(args, &body);
+    let mut recorder = Recorder::new(
+        args.panels as usize,
+        f64::from(args.duration),
+        1.0 / f64::from(args.frame_rate),
+    );
     let initial = FrameView {
         index: 0,
         step: 0,
@@ -84,7 +92,23 @@ fn bouncy(args: &Args) -> Result<(), String> {
         velocities: &state.velocities,
     };
     writer.write(&initial)?;
+    recorder.offer(0.0, &state.positions);
     writer.finish()?;
+
+    let title = format!(
+        "softfem bouncy: {}, {} stepper, E = {} kPa, ν = {}",
+        args.model,
+        args.stepper,
+        args.young_modulus / 1000.0,
+        args.poisson_ratio
+    );
+    let subtitle = format!(
+        "{}; {} tets; ρ = {} kg/m³; initial state only (time stepping arrives with softfem::step)",
+        geometry.source,
+        body.mesh.element_count(),
+        args.density
+    );
+    write_filmstrip(&args.out, &title, &subtitle, &body, &recorder)?;
 
     let energies = body.energies(&material, &state.positions, &state.velocities)?;
     println!(
@@ -95,8 +119,9 @@ fn bouncy(args: &Args) -> Result<(), String> {
         energies.kinetic
     );
     println!(
-        "wrote     {} (VTK: ParaView)",
-        args.out.join(vtk::frame_file_name(0)).display()
+        "wrote     {} (VTK: ParaView) and {}",
+        args.out.join(vtk::frame_file_name(0)).display(),
+        args.out.join("filmstrip.svg").display()
     );
     println!("time stepping arrives with softfem::step: this run wrote the initial state only");
     Ok(())
@@ -171,4 +196,24 @@ impl<'a> FrameWriter<'a> {
         vtk::write_series_file(&path, &self.written)
             .map_err(|e| format!("cannot write {}: {e}", path.display()))
     }
+}
+
+fn write_filmstrip(
+    out: &Path,
+    title: &str,
+    subtitle: &str,
+    body: &Body<'_>,
+    recorder: &Recorder,
+) -> Result<(), String> {
+    let snapshots = recorder.snapshots();
+    let svg = Filmstrip {
+        title,
+        subtitle,
+        triangles: &body.surface.triangles,
+        snapshots: &snapshots,
+        camera: Camera::default(),
+    }
+    .to_svg();
+    let path = out.join("filmstrip.svg");
+    std::fs::write(&path, svg).map_err(|e| format!("cannot write {}: {e}", path.display()))
 }
