@@ -1,0 +1,238 @@
+//! Command-line flags of the bouncy scene, with defaults and validation.
+//!
+//! clap turns every bad flag into a readable message and exit status 2; the value parsers here
+//! add the physical ranges (a Poisson ratio must lie in (-1, 0.5), a density must be positive...).
+
+use std::fmt;
+use std::path::PathBuf;
+
+use clap::{Parser, ValueEnum};
+
+/// A soft body dropped onto the ground: it bounces, wobbles and settles.
+///
+/// Writes VTK frames (open them in ParaView) and an SVG filmstrip of the body at a few instants
+/// into the output directory.
+#[derive(Clone, Debug, Parser)]
+#[command(name = "bouncy", version, allow_negative_numbers = true)]
+pub struct Args {
+    /// Hyperelastic material model.
+    #[arg(long, value_enum, default_value_t = Model::StableNeoHookean)]
+    pub model: Model,
+
+    /// Time stepper: explicit symplectic Euler, or implicit Euler solved by preconditioned
+    /// gradient descent ("relax").
+    #[arg(long, value_enum, default_value_t = Stepper::Explicit)]
+    pub stepper: Stepper,
+
+    /// Time step (s). Default: a safe fraction of the stable bound for explicit, 1/60 s for relax.
+    #[arg(long, value_parser = positive_finite)]
+    pub dt: Option<f32>,
+
+    /// Simulated time (s).
+    #[arg(long, default_value_t = 3.0, value_parser = positive_finite)]
+    pub duration: f32,
+
+    /// Cells per axis of the generated jelly cube (6 tetrahedra per cell); ignored with --mesh.
+    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=200))]
+    pub resolution: u32,
+
+    /// Edge length of the generated jelly cube (m); ignored with --mesh.
+    #[arg(long, default_value_t = 0.2, value_parser = positive_finite)]
+    pub size: f32,
+
+    /// Height of the body's lowest point above the ground at the start (m).
+    #[arg(long, default_value_t = 0.5, value_parser = non_negative_finite)]
+    pub drop_height: f32,
+
+    /// A TetGen mesh to drop instead of the jelly cube: the .node file, with the .ele file
+    /// next to it (same name). Coordinates are taken as metres.
+    #[arg(long, value_name = "PATH.node")]
+    pub mesh: Option<PathBuf>,
+
+    /// Young's modulus (Pa).
+    #[arg(long = "young", default_value_t = 5.0e4, value_parser = positive_finite)]
+    pub young_modulus: f32,
+
+    /// Poisson ratio, in (-1, 0.5).
+    #[arg(long = "poisson", default_value_t = 0.45, value_parser = poisson_ratio)]
+    pub poisson_ratio: f32,
+
+    /// Density (kg/m^3).
+    #[arg(long, default_value_t = 1000.0, value_parser = positive_finite)]
+    pub density: f32,
+
+    /// Output frames per simulated second (VTK files and filmstrip candidates).
+    #[arg(long, default_value_t = 30.0, value_parser = positive_finite)]
+    pub frame_rate: f32,
+
+    /// Write a VTK file every N output frames (0: no VTK files).
+    #[arg(long, default_value_t = 1)]
+    pub vtk_every: u32,
+
+    /// What the VTK files contain: the whole tetrahedral mesh or only its boundary surface.
+    #[arg(long, value_enum, default_value_t = VtkContent::Volume)]
+    pub vtk: VtkContent,
+
+    /// Panels of the SVG filmstrip (instants evenly spaced from start to end).
+    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=24))]
+    pub panels: u32,
+
+    /// Output directory (created if missing).
+    #[arg(long, default_value = "out/bouncy")]
+    pub out: PathBuf,
+
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// The hyperelastic models of `softfem::material`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Model {
+    /// Saint Venant–Kirchhoff (cheapest; softens under strong compression).
+    #[value(name = "stvk")]
+    StVK,
+    /// The seed's neo-Hookean (barrier at J = 0).
+    NeoHookean,
+    /// Stable neo-Hookean (smooth through inversion).
+    StableNeoHookean,
+}
+
+impl fmt::Display for Model {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Model::StVK => "StVK",
+            Model::NeoHookean => "neo-Hookean",
+            Model::StableNeoHookean => "stable neo-Hookean",
+        })
+    }
+}
+
+/// The time steppers of `softfem::step`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Stepper {
+    /// Explicit symplectic Euler.
+    Explicit,
+    /// Implicit Euler by preconditioned gradient descent.
+    Relax,
+}
+
+impl fmt::Display for Stepper {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Stepper::Explicit => "explicit",
+            Stepper::Relax => "relax",
+        })
+    }
+}
+
+/// What goes into each VTK file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum VtkContent {
+    /// Every tetrahedron (cell type 10), with per-tet volume ratio.
+    Volume,
+    /// The boundary triangles (cell type 5), each with its tetrahedron's volume ratio.
+    Surface,
+}
+
+fn parse_number(text: &str) -> Result<f32, String> {
+    text.trim()
+        .parse::<f32>()
+        .map_err(|_| format!("`{text}` is not a number"))
+}
+
+fn positive_finite(text: &str) -> Result<f32, String> {
+    let value = parse_number(text)?;
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(format!("must be a positive finite number, got {text}"))
+    }
+}
+
+fn non_negative_finite(text: &str) -> Result<f32, String> {
+    let value = parse_number(text)?;
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(format!("must be a finite number >= 0, got {text}"))
+    }
+}
+
+fn poisson_ratio(text: &str) -> Result<f32, String> {
+    let value = parse_number(text)?;
+    // nu = 1/2 is incompressible (infinite lambda); nu <= -1 has a non-positive bulk modulus.
+    if value > -1.0 && value < 0.5 {
+        Ok(value)
+    } else {
+        Err(format!(
+            "the Poisson ratio must lie strictly between -1 and 0.5, got {text}"
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(flags: &[&str]) -> Result<Args, clap::Error> {
+        Args::try_parse_from(std::iter::once("bouncy").chain(flags.iter().copied()))
+    }
+
+    #[test]
+    fn defaults_describe_the_jelly_cube() {
+        let args = parse(&[]).unwrap();
+        assert_eq!(args.model, Model::StableNeoHookean);
+        assert_eq!(args.stepper, Stepper::Explicit);
+        assert_eq!(args.resolution, 6);
+        assert_eq!((args.size, args.drop_height), (0.2, 0.5));
+        assert_eq!(
+            (args.young_modulus, args.poisson_ratio, args.density),
+            (5.0e4, 0.45, 1000.0)
+        );
+        assert_eq!(args.duration, 3.0);
+        assert_eq!(args.dt, None);
+        assert_eq!(args.out, PathBuf::from("out/bouncy"));
+        assert!(args.mesh.is_none());
+    }
+
+    #[test]
+    fn flags_parse() {
+        let args = parse(&[
+            "--model",
+            "stvk",
+            "--stepper",
+            "relax",
+            "--dt",
+            "0.01",
+            "--poisson",
+            "-0.2",
+            "--mesh",
+            "assets/meshes/cube.node",
+        ])
+        .unwrap();
+        assert_eq!(args.model, Model::StVK);
+        assert_eq!(args.stepper, Stepper::Relax);
+        assert_eq!(args.dt, Some(0.01));
+        assert_eq!(args.poisson_ratio, -0.2);
+        assert_eq!(args.mesh, Some(PathBuf::from("assets/meshes/cube.node")));
+    }
+
+    #[test]
+    fn bad_values_are_rejected_with_the_reason() {
+        for (flags, reason) in [
+            (&["--poisson", "0.5"][..], "strictly between -1 and 0.5"),
+            (&["--poisson", "-1"][..], "strictly between -1 and 0.5"),
+            (&["--young", "0"][..], "positive finite"),
+            (&["--density", "nan"][..], "positive finite"),
+            (&["--dt", "-0.1"][..], "positive finite"),
+            (&["--drop-height", "-1"][..], "finite number >= 0"),
+            (&["--duration", "abc"][..], "not a number"),
+            (&["--resolution", "0"][..], "resolution"),
+            (&["--model", "rubber"][..], "rubber"),
+        ] {
+            let error = parse(flags).unwrap_err().to_string();
+            assert!(error.contains(reason), "{flags:?}: {error}");
+        }
+    }
+}
