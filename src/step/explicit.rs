@@ -337,6 +337,7 @@ fn substep<F: ElasticModel>(
     *history = Some((h, indicator));
 
     let drag = 1.0 / (1.0 + settings.damping * h);
+    let resting_speed = 2.0 * h * super::super::math::sqrt(gravity_squared);
     let mut contacts = 0;
     let state = positions.iter_mut().zip(velocities.iter_mut());
     for ((((x, v), f), &m), pinned) in state.zip(&*forces).zip(masses).zip(pinned_flags(pinned)) {
@@ -346,7 +347,7 @@ fn substep<F: ElasticModel>(
         *v = (*v + (*f * (1.0 / m) + gravity) * h) * drag;
         *x += *v * h;
         if let Some(ground) = ground {
-            contacts += usize::from(ground.resolve(x, v));
+            contacts += usize::from(ground.resolve(x, v, resting_speed));
         }
     }
     match first_non_finite(positions, velocities) {

@@ -11,7 +11,9 @@ use crate::error::StepError;
 ///
 /// A vertex found inside the ground after a step is projected onto the plane along `n`. If it
 /// was moving into the ground (`v_n = n . v < 0`), its normal velocity becomes `-e v_n`
-/// (restitution `e` in `[0, 1]`: 0 stops it, 1 reflects it), and the normal velocity change
+/// (restitution `e` in `[0, 1]`: 0 stops it, 1 reflects it; impacts slower than `2 h |g|`,
+/// what gravity adds in two steps, count as resting contact and do not bounce, so that a
+/// resting body does not jitter), and the normal velocity change
 /// `dv_n = (1 + e) |v_n|` bounds the friction: the tangential speed is reduced by
 /// `min(|v_t|, friction * dv_n)` (Coulomb's law for an impulse, friction coefficient `>= 0`, no
 /// distinction between static and kinetic). The position projection does no work on the
@@ -104,15 +106,16 @@ impl<V: Vector> Ground<V> {
     }
 
     /// Projects `x` and applies restitution and friction to `v` if `x` was inside the ground;
-    /// returns whether it was.
+    /// returns whether it was. Approach speeds up to `resting_speed` (m/s) do not bounce.
     #[inline(always)]
-    pub(super) fn resolve(&self, x: &mut V, v: &mut V) -> bool {
+    pub(super) fn resolve(&self, x: &mut V, v: &mut V, resting_speed: Real) -> bool {
         if !self.project(x) {
             return false;
         }
         let vn = self.normal.dot(*v);
         if vn < 0.0 {
-            let normal_change = (1.0 + self.restitution) * -vn;
+            let restitution = math::select(-vn > resting_speed, self.restitution, 0.0);
+            let normal_change = (1.0 + restitution) * -vn;
             let tangential = *v - self.normal * vn;
             *v = self.friction_applied(tangential, normal_change)
                 + self.normal * (-self.restitution * vn);
