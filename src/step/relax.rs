@@ -53,8 +53,10 @@ pub struct RelaxSettings<V> {
     /// acts on the velocity after the solve; restitution is ignored (implicit Euler does not
     /// bounce).
     pub ground: Option<Ground<V>>,
-    /// Stop when `|grad Phi| <= tolerance |grad Phi(x_0)|` (relative residual, in `[0, 1)`;
-    /// 0 runs the whole budget).
+    /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` (relative residual, in
+    /// `[0, 1)`; 0 runs the whole budget), `|M g|` the norm of the gravity load on the free
+    /// vertices (N): a step that starts near equilibrium is measured against the load, not
+    /// against its own rounding-level initial residual.
     pub tolerance: Real,
     /// The iteration budget.
     pub max_iterations: u32,
@@ -140,7 +142,7 @@ pub struct RelaxReport {
     pub final_residual: Real,
     /// `Phi` (J) at the result, with the gravity potential measured from the start positions.
     pub phi: Real,
-    /// Whether the relative residual reached the tolerance.
+    /// Whether the residual reached the tolerance (see [`RelaxSettings::tolerance`]).
     pub converged: bool,
 }
 
@@ -494,7 +496,17 @@ fn descend<'b, F: ElasticEnergy>(
 
     let initial_residual = objective.residual(positions, gradient);
     let mut residual = initial_residual;
-    let target = settings.tolerance * initial_residual;
+    // Relative to the larger of the initial residual and the gravity load, so that a step
+    // starting at (or near) equilibrium, whose initial residual is mostly rounding, is not asked
+    // to reduce it further.
+    let load_squared: Real = objective
+        .masses
+        .iter()
+        .zip(pinned_flags(objective.pinned))
+        .filter(|(_, pinned)| !pinned)
+        .map(|(&m, _)| m * m * objective.gravity.dot(objective.gravity))
+        .sum();
+    let target = settings.tolerance * initial_residual.max(math::sqrt(load_squared));
     direction.fill(F::Vector::ZERO);
     let mut iterations = 0;
     while residual > target && iterations < settings.max_iterations {
