@@ -537,3 +537,155 @@ impl fmt::Display for MeshError {
 }
 
 impl core::error::Error for MeshError {}
+
+/// A caller-owned buffer passed to a time stepper in [`step`](crate::step), named in
+/// [`StepError::LengthMismatch`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum StepBuffer {
+    /// The positions, one per vertex.
+    Positions,
+    /// The velocities, one per vertex.
+    Velocities,
+    /// The lumped masses, one per vertex.
+    Masses,
+    /// The pinned-vertex flags: empty (nothing pinned) or one per vertex.
+    Pinned,
+    /// The vector scratch buffer (see `explicit_scratch_len` / `relax_scratch_len`).
+    Scratch,
+    /// The scalar scratch buffer of the relaxation (one per vertex).
+    ScalarScratch,
+}
+
+impl fmt::Display for StepBuffer {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            StepBuffer::Positions => "positions",
+            StepBuffer::Velocities => "velocities",
+            StepBuffer::Masses => "masses",
+            StepBuffer::Pinned => "pinned flags",
+            StepBuffer::Scratch => "scratch",
+            StepBuffer::ScalarScratch => "scalar scratch",
+        })
+    }
+}
+
+/// A time step was refused (bad parameters or input, nothing touched) or failed (blow-up, the
+/// caller's state restored to exactly what it was before the call).
+///
+/// Returned by the steppers of [`step`](crate::step). Parameter and input errors are found before
+/// anything is written; [`NonFiniteState`](Self::NonFiniteState) and
+/// [`EnergyBlowUp`](Self::EnergyBlowUp) are found after the step, and the stepper then restores
+/// positions and velocities bit for bit from its scratch backup.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum StepError {
+    /// The time step `dt` (s) is NaN, infinite, zero or negative.
+    TimeStep,
+    /// The number of substeps is zero.
+    Substeps,
+    /// A buffer does not have the length the model needs.
+    LengthMismatch {
+        /// The buffer at fault.
+        buffer: StepBuffer,
+        /// The length it must have.
+        expected: usize,
+        /// The length it has.
+        actual: usize,
+    },
+    /// A lumped mass is NaN, infinite, zero or negative.
+    Mass {
+        /// The vertex index.
+        vertex: usize,
+    },
+    /// Gravity has a NaN or infinite component.
+    Gravity,
+    /// The damping coefficient (1/s) is NaN, infinite or negative.
+    Damping,
+    /// The ground normal is zero, NaN or infinite, or its offset is not finite.
+    Ground,
+    /// The restitution coefficient is NaN or outside `[0, 1]`.
+    Restitution,
+    /// The friction coefficient is NaN, infinite or negative.
+    Friction,
+    /// The blow-up growth limit is NaN or not greater than 1.
+    GrowthLimit,
+    /// A relaxation setting is out of range: tolerance not in `[0, 1)`, Armijo constant not in
+    /// `(0, 1)`, backtracking factor not in `(0, 1)`, momentum not in `[0, 1)`.
+    RelaxSettings,
+    /// A given position or velocity is NaN or infinite (before the step).
+    NonFiniteInput {
+        /// The first such vertex.
+        vertex: usize,
+    },
+    /// The step produced a NaN or infinite position or velocity; the state was restored.
+    NonFiniteState {
+        /// The first such vertex.
+        vertex: usize,
+    },
+    /// The energy indicator grew by more than the allowed factor in one (sub)step: the explicit
+    /// step is past its stability limit. The state was restored.
+    EnergyBlowUp,
+    /// The force or energy kernel refused the input.
+    Mesh(MeshError),
+}
+
+impl From<MeshError> for StepError {
+    fn from(error: MeshError) -> StepError {
+        StepError::Mesh(error)
+    }
+}
+
+impl fmt::Display for StepError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            StepError::TimeStep => f.write_str("the time step must be finite and positive"),
+            StepError::Substeps => f.write_str("the number of substeps must be at least 1"),
+            StepError::LengthMismatch {
+                buffer,
+                expected,
+                actual,
+            } => write!(
+                f,
+                "the {buffer} buffer has length {actual}, expected {expected}"
+            ),
+            StepError::Mass { vertex } => {
+                write!(f, "the mass of vertex {vertex} must be finite and positive")
+            }
+            StepError::Gravity => f.write_str("gravity must be finite"),
+            StepError::Damping => f.write_str("the damping coefficient must be finite and >= 0"),
+            StepError::Ground => {
+                f.write_str("the ground needs a finite non-zero normal and a finite offset")
+            }
+            StepError::Restitution => f.write_str("the restitution must lie in [0, 1]"),
+            StepError::Friction => f.write_str("the friction coefficient must be finite and >= 0"),
+            StepError::GrowthLimit => {
+                f.write_str("the blow-up growth limit must be a number greater than 1")
+            }
+            StepError::RelaxSettings => f.write_str("a relaxation setting is out of range"),
+            StepError::NonFiniteInput { vertex } => {
+                write!(f, "position or velocity of vertex {vertex} is not finite")
+            }
+            StepError::NonFiniteState { vertex } => write!(
+                f,
+                "the step made vertex {vertex} non-finite (blow-up); the state was restored"
+            ),
+            StepError::EnergyBlowUp => f.write_str(
+                "the energy grew beyond the allowed factor in one step (time step above the \
+                 stability limit); the state was restored",
+            ),
+            StepError::Mesh(error) => write!(f, "{error}"),
+        }
+    }
+}
+
+impl core::error::Error for StepError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            StepError::Mesh(error) => Some(error),
+            _ => None,
+        }
+    }
+}

@@ -127,3 +127,6 @@ pub mod element;
 
 #[path = "mesh/mod.rs"]
 pub mod mesh;
+
+#[path = "step/mod.rs"]
+pub mod step;

@@ -4,7 +4,8 @@
 //! (see `src/f32.rs`). The error types do not depend on the precision and are the crate root's.
 
 pub use crate::error::{
-    Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError,
+    Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError, StepBuffer,
+    StepError,
 };
 #[cfg(feature = "std")]
 pub use crate::error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
@@ -133,3 +134,6 @@ pub mod element;
 
 #[path = "mesh/mod.rs"]
 pub mod mesh;
+
+#[path = "step/mod.rs"]
+pub mod step;

@@ -80,7 +80,10 @@ extern crate std;
 pub use glam;
 
 pub mod error;
-pub use error::{Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError};
+pub use error::{
+    Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError, StepBuffer,
+    StepError,
+};
 
 #[path = "f32.rs"]
 mod single;
@@ -88,7 +91,7 @@ mod single;
 pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 #[cfg(feature = "std")]
 pub use single::tetgen;
-pub use single::{element, generate, lanes, material, mesh, polar, svd, types};
+pub use single::{element, generate, lanes, material, mesh, polar, step, svd, types};
 
 pub mod f64;
 

@@ -1,0 +1,421 @@
+//! Time stepping on caller-owned state (`SPEC.md` section 4): explicit symplectic Euler with its
+//! stability bound and blow-up detection, and implicit Euler as a minimisation solved by
+//! preconditioned gradient descent (also a quasi-static relaxation to equilibrium).
+//!
+//! # Conventions
+//! * SI units: positions m, velocities m/s, masses kg (lumped, one per vertex, e.g. from
+//!   [`TetMesh::lumped_masses`](super::mesh::TetMesh::lumped_masses)), forces N, energies J,
+//!   time s, gravity m/s^2, damping 1/s. 2D meshes work per unit thickness (N/m, J/m, kg/m) and
+//!   membranes with moduli in N/m and densities in kg/m^2, exactly as in
+//!   [`mesh`](super::mesh).
+//! * The body is described by an [`ElasticModel`]: a validated mesh plus a material, and which
+//!   force path to use. [`TetElastic`] (direct stress, any [`Material`]) also implements
+//!   [`ElasticEnergy`] and so works with the relaxation; [`TetClamped`] (inversion-robust clamped
+//!   principal stress, not an energy gradient) is for the explicit stepper only, and so are the
+//!   triangle models [`TriElastic`] (2D) and [`MembraneElastic`].
+//! * `pinned` is a slice of flags, empty (nothing pinned) or one per vertex: a pinned vertex's
+//!   position and velocity are never changed by any stepper.
+//! * The ground is a half-space, see [`Ground`].
+//! * Nothing is allocated: scratch space is a caller buffer sized by [`explicit_scratch_len`]
+//!   or [`relax_scratch_len`].
+//! * Every stepper validates all parameters and buffers **before** touching anything, and
+//!   restores positions and velocities bit for bit when a step fails ([`StepError`]).
+//!
+//! # The stability bound
+//!
+//! ## What is computed
+//! Symplectic Euler on `M a = -K u` is stable when `dt < 2 / omega_max`, `omega_max^2` the
+//! largest eigenvalue of `M^-1 K` (`SPEC.md` section 4). Two upper bounds on `omega_max^2`, both
+//! from per-element bounds `k_e >= lambda_max(K_e)`:
+//!
+//! * Element stiffness. With `g_j = grad N_j` the shape-function gradients (rows of `Dm^-1`,
+//!   `g_0 = -(g_1 + g_2 + g_3)`) and `U` the nodal displacements as columns, the displacement
+//!   gradient is `U G^T` with `G = [g_0 .. g_3]`, so `|eps|_F <= |grad u|_F <= |U|_F
+//!   sigma_max(G)`. The small-strain energy density `eps : C : eps` is at most
+//!   `c_max |eps|^2` with `c_max = max(3 lambda + 2 mu, 2 mu)` in 3D (the bulk and shear
+//!   eigenvalues of `C`) and `max(2 lambda + 2 mu, 2 mu)` for triangles. Hence
+//!   `u^T K_e u <= V c_max lambda_max(G G^T) |U|^2`: `k_e = V c_max lambda_max(G G^T)` (N/m),
+//!   with `lambda_max(G G^T)` from the SVD of the 3x3 (closed form for 2x2) matrix.
+//! * Vertex bound ([`stable_time_step`]): `u^T K u = sum_e u_e^T K_e u_e <= sum_i |u_i|^2
+//!   k_i` with `k_i = sum_{e owns i} k_e`, so `omega_max^2 <= max_i k_i / m_i` over free
+//!   vertices (pinned ones are removed degrees of freedom) for **any** positive masses, and
+//!   `dt = min_i 2 sqrt(m_i / k_i)`. With lumped masses this is never smaller than the element
+//!   bound below (a mass-weighted average of it).
+//! * Element bound ([`element_stable_time_step`]): with each element's own lumped share
+//!   `rho V / N` per corner, `omega_e^2 <= N k_e / (rho V)` and `omega_max <= max_e omega_e`
+//!   (Irons' element eigenvalue inequality), so `dt = min_e 2 sqrt(rho V / (N k_e))`. For a
+//!   regular tetrahedron with `nu = 0.3` this is `0.52 a / c_d` (edge `a`,
+//!   `c_d = sqrt((lambda + 2 mu) / rho)`), SPEC's `0.45..0.5 h / c_d`.
+//!
+//! ## What it guarantees
+//! Both are guaranteed lower bounds on the critical step **of the linearised system at
+//! rest**: small strains about the rest shape, with `lambda` and `mu` the material's
+//! small-strain moduli ([`linearised_moduli`], measured from the material by central
+//! differences and enlarged by 0.1% to cover their error). A body strongly compressed (a
+//! stiffening model) or rotated far from rest with a non-rotation-invariant force path has
+//! higher frequencies: leave a margin (0.5..0.9 of the bound), and rely on the stepper's
+//! blow-up detection for the rest. Damping (mass-proportional, applied as
+//! `v / (1 + c dt)`) only lowers the amplification and needs no margin.
+//!
+//! # The relaxation's preconditioner
+//!
+//! `P_i = m_i / h^2 + k_i` with `k_i` the sum of the stiffness bounds of the elements around
+//! vertex `i` (see [the stability bound](#the-stability-bound)): `u^T K u <= sum_i k_i |u_i|^2`
+//! for the small-strain stiffness `K`, so `diag(P)` majorises the Hessian of `Phi` near rest and
+//! the full step `alpha = 1` along `d = -P^-1 grad Phi` decreases `Phi` by at least
+//! `grad.d / 2`: the Armijo test (with `c <= 1/2`) accepts it at the first try, and one
+//! iteration costs one fused energy-and-force pass. It is a bound, not the exact diagonal: about
+//! 2..4 times larger than `V (lambda + 2 mu) |grad N_i|^2`, which is the price of never
+//! backtracking in the linear regime.
+//!
+//! Jobs, one file each: [`explicit`](step_explicit) stepping, [`stability`](stable_time_step)
+//! bounds, [`relax`](relax_step)ation and the [`ground`](Ground) contact.
+
+use core::fmt::Debug;
+use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
+
+use super::element::TriangleStVK;
+use super::material::Material;
+use super::mesh::{MembraneMesh, TetMesh, TriMesh};
+use super::types::{Real, Vec2, Vec3};
+use crate::error::{MeshError, StepBuffer, StepError};
+
+mod explicit;
+mod ground;
+mod relax;
+mod stability;
+
+pub use explicit::{
+    DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, explicit_scratch_len,
+    step_explicit,
+};
+pub use ground::Ground;
+pub use relax::{
+    RelaxReport, RelaxScratch, RelaxSettings, relax_quasi_static, relax_scratch_len, relax_step,
+};
+pub use stability::{element_stable_time_step, linearised_moduli, stable_time_step};
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for super::Vec2 {}
+    impl Sealed for super::Vec3 {}
+}
+
+/// The position types the steppers are written once for: `Vec2` (2D solids) and `Vec3`.
+/// Sealed.
+pub trait Vector:
+    Copy
+    + Default
+    + Debug
+    + PartialEq
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Real, Output = Self>
+    + Neg<Output = Self>
+    + AddAssign
+    + SubAssign
+    + sealed::Sealed
+{
+    /// The zero vector.
+    const ZERO: Self;
+    /// The dot product.
+    fn dot(self, other: Self) -> Real;
+    /// Whether every coordinate is finite.
+    fn is_finite(self) -> bool;
+}
+
+impl Vector for Vec2 {
+    const ZERO: Self = Vec2::ZERO;
+    #[inline(always)]
+    fn dot(self, other: Self) -> Real {
+        Vec2::dot(self, other)
+    }
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        Vec2::is_finite(self)
+    }
+}
+
+impl Vector for Vec3 {
+    const ZERO: Self = Vec3::ZERO;
+    #[inline(always)]
+    fn dot(self, other: Self) -> Real {
+        Vec3::dot(self, other)
+    }
+    #[inline(always)]
+    fn is_finite(self) -> bool {
+        Vec3::is_finite(self)
+    }
+}
+
+/// An elastic body the explicit stepper can advance: a validated mesh, a material and a force
+/// path. Implement it to plug in other force models (extra springs, a different element).
+pub trait ElasticModel {
+    /// The position, velocity and force type (`Vec3`, or `Vec2` for 2D solids).
+    type Vector: Vector;
+
+    /// The number of vertices: the length of every per-vertex buffer.
+    fn vertex_count(&self) -> usize;
+
+    /// Adds the elastic forces (N) at `positions` (m) into `forces`.
+    ///
+    /// # Errors
+    /// As the mesh kernels: length mismatch or non-finite positions; `forces` unchanged then.
+    fn add_forces(
+        &self,
+        positions: &[Self::Vector],
+        forces: &mut [Self::Vector],
+    ) -> Result<(), MeshError>;
+
+    /// Calls `visit(corners, stiffness, measure)` for every element: its vertex indices, an upper
+    /// bound (N/m) on the largest eigenvalue of its small-strain stiffness matrix at rest, and its
+    /// rest volume or area (m^3 or m^2). Used by [`stable_time_step`] and by the relaxation's
+    /// preconditioner; see `stability.rs` for the derivation.
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real));
+}
+
+/// An [`ElasticModel`] whose forces are minus the gradient of an energy, as the relaxation
+/// ([`relax_step`], [`relax_quasi_static`]) needs for its line search.
+pub trait ElasticEnergy: ElasticModel {
+    /// Returns the elastic energy (J) at `positions` (m) and adds the elastic forces (N) into
+    /// `forces`, in one pass. NaN or infinite positions give a non-finite energy (not an error).
+    ///
+    /// # Errors
+    /// [`MeshError::LengthMismatch`] if a buffer does not have one entry per vertex.
+    fn energy_and_add_forces(
+        &self,
+        positions: &[Self::Vector],
+        forces: &mut [Self::Vector],
+    ) -> Result<Real, MeshError>;
+}
+
+/// A tetrahedral body with the direct stress [`Material::first_piola`]: the forces are the
+/// exact gradient of [`TetMesh::elastic_energy`], so both steppers accept it.
+#[derive(Clone, Copy, Debug)]
+pub struct TetElastic<'a, M: Material> {
+    /// The validated mesh.
+    pub mesh: TetMesh<'a>,
+    /// The material.
+    pub material: M,
+}
+
+impl<'a, M: Material> TetElastic<'a, M> {
+    /// `material` on `mesh`.
+    #[inline]
+    #[must_use]
+    pub fn new(mesh: TetMesh<'a>, material: M) -> Self {
+        TetElastic { mesh, material }
+    }
+}
+
+/// A tetrahedral body with the clamped principal stress
+/// ([`TetMesh::add_elastic_forces_clamped`]): inverted elements are pushed back. **Not an
+/// energy gradient: explicit stepping only** (it does not implement [`ElasticEnergy`]).
+#[derive(Clone, Copy, Debug)]
+pub struct TetClamped<'a, M: Material> {
+    /// The validated mesh.
+    pub mesh: TetMesh<'a>,
+    /// The material.
+    pub material: M,
+    /// The smallest stretch the stress sees (dimensionless, typically `0.2..0.5`).
+    pub threshold: Real,
+}
+
+impl<'a, M: Material> TetClamped<'a, M> {
+    /// `material` on `mesh`, stretches clamped from below at `threshold`.
+    #[inline]
+    #[must_use]
+    pub fn new(mesh: TetMesh<'a>, material: M, threshold: Real) -> Self {
+        TetClamped {
+            mesh,
+            material,
+            threshold,
+        }
+    }
+}
+
+/// A 2D triangle body (plane strain, per unit thickness) for the explicit stepper.
+#[derive(Clone, Copy, Debug)]
+pub struct TriElastic<'a> {
+    /// The validated mesh.
+    pub mesh: TriMesh<'a>,
+    /// The material.
+    pub material: TriangleStVK,
+}
+
+/// A membrane (triangles in space) for the explicit stepper.
+#[derive(Clone, Copy, Debug)]
+pub struct MembraneElastic<'a> {
+    /// The validated mesh.
+    pub mesh: MembraneMesh<'a>,
+    /// The material (moduli in N/m for forces in N).
+    pub material: TriangleStVK,
+}
+
+impl<M: Material> ElasticModel for TetElastic<'_, M> {
+    type Vector = Vec3;
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.mesh.vertex_count()
+    }
+    #[inline]
+    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
+        self.mesh
+            .add_elastic_forces(&self.material, positions, forces)
+    }
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
+        stability::tet_stiffness(&self.mesh, &self.material, visit);
+    }
+}
+
+impl<M: Material> ElasticEnergy for TetElastic<'_, M> {
+    fn energy_and_add_forces(
+        &self,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<Real, MeshError> {
+        let n = self.mesh.vertex_count();
+        mesh_length(crate::error::Buffer::Positions, n, positions.len())?;
+        mesh_length(crate::error::Buffer::Forces, n, forces.len())?;
+        let mut energy = 0.0;
+        for (corners, rest) in self.mesh.tets().iter().zip(self.mesh.rest()) {
+            let x = corners.map(|i| positions.get(i as usize).copied().unwrap_or_default());
+            // One deformation gradient for both the energy and the stress.
+            let f = rest.deformation_gradient(x);
+            energy += rest.volume * self.material.energy_density(f);
+            let nodal = rest.nodal_forces(self.material.first_piola(f));
+            for (&i, value) in corners.iter().zip(nodal) {
+                if let Some(slot) = forces.get_mut(i as usize) {
+                    *slot += value;
+                }
+            }
+        }
+        Ok(energy)
+    }
+}
+
+impl<M: Material> ElasticModel for TetClamped<'_, M> {
+    type Vector = Vec3;
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.mesh.vertex_count()
+    }
+    #[inline]
+    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
+        self.mesh
+            .add_elastic_forces_clamped(&self.material, self.threshold, positions, forces)
+    }
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
+        stability::tet_stiffness(&self.mesh, &self.material, visit);
+    }
+}
+
+impl ElasticModel for TriElastic<'_> {
+    type Vector = Vec2;
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.mesh.vertex_count()
+    }
+    #[inline]
+    fn add_forces(&self, positions: &[Vec2], forces: &mut [Vec2]) -> Result<(), MeshError> {
+        self.mesh
+            .add_elastic_forces(&self.material, positions, forces)
+    }
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
+        stability::triangle_stiffness(self.mesh.tris(), self.mesh.rest(), &self.material, visit);
+    }
+}
+
+impl ElasticModel for MembraneElastic<'_> {
+    type Vector = Vec3;
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.mesh.vertex_count()
+    }
+    #[inline]
+    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
+        self.mesh
+            .add_elastic_forces(&self.material, positions, forces)
+    }
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
+        stability::triangle_stiffness(self.mesh.tris(), self.mesh.rest(), &self.material, visit);
+    }
+}
+
+/// `Ok` if `actual == expected`, else a mesh length error.
+#[inline]
+fn mesh_length(
+    buffer: crate::error::Buffer,
+    expected: usize,
+    actual: usize,
+) -> Result<(), MeshError> {
+    if actual == expected {
+        Ok(())
+    } else {
+        Err(MeshError::LengthMismatch {
+            buffer,
+            expected,
+            actual,
+        })
+    }
+}
+
+/// `Ok` if `actual == expected`, else [`StepError::LengthMismatch`].
+#[inline]
+fn check_length(buffer: StepBuffer, expected: usize, actual: usize) -> Result<(), StepError> {
+    if actual == expected {
+        Ok(())
+    } else {
+        Err(StepError::LengthMismatch {
+            buffer,
+            expected,
+            actual,
+        })
+    }
+}
+
+/// Checks the buffers every stepper shares: masses (finite, positive), pinned flags (empty or
+/// one per vertex), positions and optionally velocities (lengths, finite).
+fn check_state<V: Vector>(
+    vertex_count: usize,
+    masses: &[Real],
+    pinned: &[bool],
+    positions: &[V],
+    velocities: Option<&[V]>,
+) -> Result<(), StepError> {
+    check_length(StepBuffer::Positions, vertex_count, positions.len())?;
+    if let Some(velocities) = velocities {
+        check_length(StepBuffer::Velocities, vertex_count, velocities.len())?;
+    }
+    check_length(StepBuffer::Masses, vertex_count, masses.len())?;
+    if !pinned.is_empty() {
+        check_length(StepBuffer::Pinned, vertex_count, pinned.len())?;
+    }
+    if let Some(vertex) = masses.iter().position(|&m| !(m > 0.0 && m.is_finite())) {
+        return Err(StepError::Mass { vertex });
+    }
+    first_non_finite(positions, velocities.unwrap_or(&[]))
+        .map_or(Ok(()), |vertex| Err(StepError::NonFiniteInput { vertex }))
+}
+
+/// The first vertex whose position or velocity (if given) is not finite.
+fn first_non_finite<V: Vector>(positions: &[V], velocities: &[V]) -> Option<usize> {
+    let velocity_ok = |i: usize| velocities.get(i).is_none_or(|v| v.is_finite());
+    positions
+        .iter()
+        .enumerate()
+        .position(|(i, x)| !(x.is_finite() && velocity_ok(i)))
+}
+
+/// The pinned flag of every vertex, `false` past the end of `pinned` (so an empty slice pins
+/// nothing).
+#[inline]
+fn pinned_flags(pinned: &[bool]) -> impl Iterator<Item = bool> + '_ {
+    pinned.iter().copied().chain(core::iter::repeat(false))
+}
+
+/// `|v|`.
+#[inline(always)]
+fn length<V: Vector>(v: V) -> Real {
+    super::math::sqrt(v.dot(v))
+}

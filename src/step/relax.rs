@@ -1,0 +1,637 @@
+//! Implicit Euler as a minimisation, solved by Jacobi-preconditioned gradient descent with an
+//! Armijo line search (`SPEC.md` section 4; Wang and Yang, "Descent Methods for Elastic Body
+//! Simulation on the GPU", SIGGRAPH Asia 2016), and the same loop without inertia as a
+//! quasi-static relaxation. The preconditioner is derived in the `step` module documentation.
+
+use core::mem::swap;
+
+use super::super::math;
+use super::super::types::Real;
+use super::stability::vertex_stiffness;
+use super::{
+    ElasticEnergy, Ground, Vector, check_length, check_state, first_non_finite, length,
+    pinned_flags,
+};
+use crate::error::{StepBuffer, StepError};
+
+/// The length of the vector scratch buffer the relaxation needs for `vertex_count` vertices:
+/// `5 * vertex_count` (the start positions, two gradients, a trial point and the direction).
+/// The scalar scratch buffer has one entry per vertex.
+#[inline]
+#[must_use]
+pub const fn relax_scratch_len(vertex_count: usize) -> usize {
+    5 * vertex_count
+}
+
+/// Scratch space of [`relax_step`] and [`relax_quasi_static`]: `vectors` of
+/// [`relax_scratch_len`]`(vertex_count)` entries and `scalars` of `vertex_count` entries
+/// (lengths checked by the solvers).
+#[derive(Debug)]
+pub struct RelaxScratch<'a, V> {
+    vectors: &'a mut [V],
+    scalars: &'a mut [Real],
+}
+
+impl<'a, V: Vector> RelaxScratch<'a, V> {
+    /// Scratch over the caller's buffers.
+    #[inline]
+    #[must_use]
+    pub fn new(vectors: &'a mut [V], scalars: &'a mut [Real]) -> Self {
+        RelaxScratch { vectors, scalars }
+    }
+}
+
+/// The parameters of the relaxation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RelaxSettings<V> {
+    /// The time step `h` (s) of [`relax_step`]; ignored by [`relax_quasi_static`]. Finite and
+    /// positive; any size is stable (implicit Euler), larger steps damp more.
+    pub dt: Real,
+    /// The gravitational acceleration (m/s^2).
+    pub gravity: V,
+    /// An optional ground half-space, enforced by projection (a projected descent). Friction
+    /// acts on the velocity after the solve; restitution is ignored (implicit Euler does not
+    /// bounce).
+    pub ground: Option<Ground<V>>,
+    /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` (relative residual, in
+    /// `[0, 1)`; 0 runs the whole budget), `|M g|` the norm of the gravity load on the free
+    /// vertices (N): a step that starts near equilibrium is measured against the load, not
+    /// against its own rounding-level initial residual.
+    pub tolerance: Real,
+    /// The iteration budget.
+    pub max_iterations: u32,
+    /// The Armijo constant `c` in `(0, 1)`: accept `alpha` when
+    /// `Phi(x + alpha d) <= Phi(x) + c alpha grad.d`.
+    pub armijo: Real,
+    /// The backtracking factor `beta` in `(0, 1)`: `alpha <- beta alpha` on rejection.
+    pub backtrack: Real,
+    /// Rejections allowed per iteration before the solve stops (not converged).
+    pub max_backtracks: u32,
+    /// Heavy-ball momentum in `[0, 1)`: `d = -P^-1 grad Phi + momentum * (last step)`, dropped
+    /// for an iteration whenever it is not a descent direction. 0 is plain preconditioned
+    /// descent; `0.5..0.9` accelerates stiff, slowly converging solves.
+    pub momentum: Real,
+}
+
+impl<V: Vector> RelaxSettings<V> {
+    /// Time step `dt` (s), no gravity or ground, relative tolerance `1e-3`, 200 iterations,
+    /// Armijo `c = 1e-4`, `beta = 0.5`, 30 backtracks, no momentum.
+    #[inline]
+    #[must_use]
+    pub fn new(dt: Real) -> Self {
+        RelaxSettings {
+            dt,
+            gravity: V::ZERO,
+            ground: None,
+            tolerance: 1e-3,
+            max_iterations: 200,
+            armijo: 1e-4,
+            backtrack: 0.5,
+            max_backtracks: 30,
+            momentum: 0.0,
+        }
+    }
+
+    /// These settings with gravity `gravity` (m/s^2).
+    #[inline]
+    #[must_use]
+    pub fn with_gravity(self, gravity: V) -> Self {
+        RelaxSettings { gravity, ..self }
+    }
+
+    /// These settings with `ground`.
+    #[inline]
+    #[must_use]
+    pub fn with_ground(self, ground: Ground<V>) -> Self {
+        RelaxSettings {
+            ground: Some(ground),
+            ..self
+        }
+    }
+
+    /// These settings with relative tolerance `tolerance` and budget `max_iterations`.
+    #[inline]
+    #[must_use]
+    pub fn with_tolerance(self, tolerance: Real, max_iterations: u32) -> Self {
+        RelaxSettings {
+            tolerance,
+            max_iterations,
+            ..self
+        }
+    }
+
+    /// These settings with heavy-ball `momentum`.
+    #[inline]
+    #[must_use]
+    pub fn with_momentum(self, momentum: Real) -> Self {
+        RelaxSettings { momentum, ..self }
+    }
+}
+
+/// What a relaxation did. Total cost = `energy_evaluations` fused energy-and-force passes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RelaxReport {
+    /// Accepted descent iterations.
+    pub iterations: u32,
+    /// Evaluations of `Phi` and its gradient (one per line-search trial, plus the first).
+    pub energy_evaluations: u32,
+    /// `|grad Phi|` (N) at the initial guess (projected on the ground's constraint).
+    pub initial_residual: Real,
+    /// `|grad Phi|` (N) at the result.
+    pub final_residual: Real,
+    /// `Phi` (J) at the result, with the gravity potential measured from the start positions.
+    pub phi: Real,
+    /// Whether the residual reached the tolerance (see [`RelaxSettings::tolerance`]).
+    pub converged: bool,
+}
+
+/// One implicit Euler step of `settings.dt` as the minimisation of
+/// `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`
+/// (`SPEC.md` section 4), by preconditioned descent from `x = y`: `d = -P^-1 grad Phi` (see the
+/// [module documentation](super)), optional momentum, Armijo backtracking, projection of every
+/// trial point onto the ground. Then `v = (x_{n+1} - x_n) / h`, and at vertices resting on the
+/// ground Coulomb friction removes up to `friction * h R / m` of the tangential velocity, `R`
+/// the normal reaction (N, the gradient's normal component there).
+///
+/// Pinned vertices keep position and velocity. Not converging within the budget is not an
+/// error: the best iterate is used and [`RelaxReport::converged`] is false.
+///
+/// ```
+/// use softfem::element::TetRest;
+/// use softfem::glam::Vec3;
+/// use softfem::material::StableNeoHookean;
+/// use softfem::mesh::TetMesh;
+/// use softfem::step::{RelaxScratch, RelaxSettings, TetElastic, relax_scratch_len, relax_step};
+///
+/// // A tetrahedron hanging from three pinned corners sags under gravity.
+/// let rest = [Vec3::ZERO, Vec3::X, Vec3::Z, -Vec3::Y].map(|x| x * 0.1);
+/// let tets = [[0, 1, 2, 3]];
+/// let mut rest_data = [TetRest::default(); 1];
+/// let mesh = TetMesh::new(&rest, &tets, &mut rest_data)?;
+/// let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e4, 0.3)?);
+/// let mut masses = [0.0; 4];
+/// mesh.lumped_masses(1000.0, &mut masses)?;
+/// let pinned = [true, true, true, false];
+/// let settings = RelaxSettings::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+/// let (mut x, mut v) = (rest, [Vec3::ZERO; 4]);
+/// let (mut vectors, mut scalars) = ([Vec3::ZERO; relax_scratch_len(4)], [0.0; 4]);
+/// let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+/// let report = relax_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)?;
+/// assert!(report.converged && x[3].y < rest[3].y && v[3].y < 0.0);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// Before anything is touched: [`StepError::TimeStep`], [`StepError::Gravity`],
+/// [`StepError::RelaxSettings`], the ground's errors, [`StepError::LengthMismatch`],
+/// [`StepError::Mass`], [`StepError::NonFiniteInput`]. [`StepError::NonFiniteState`] if `Phi`
+/// is not finite at both `y` and `x_n` or the result is not finite; the state is then
+/// restored.
+pub fn relax_step<F: ElasticEnergy>(
+    model: &F,
+    masses: &[Real],
+    pinned: &[bool],
+    settings: &RelaxSettings<F::Vector>,
+    positions: &mut [F::Vector],
+    velocities: &mut [F::Vector],
+    scratch: &mut RelaxScratch<'_, F::Vector>,
+) -> Result<RelaxReport, StepError> {
+    if !(settings.dt > 0.0 && settings.dt.is_finite()) {
+        return Err(StepError::TimeStep);
+    }
+    minimise(
+        model,
+        masses,
+        pinned,
+        settings,
+        positions,
+        Some(velocities),
+        scratch,
+    )
+}
+
+/// Quasi-static relaxation: the loop of [`relax_step`] without the inertia term (`h` to
+/// infinity), minimising `E(x) - sum m g.(x - x_0)` from the given `positions`: it moves the
+/// body towards the equilibrium where elastic forces balance gravity (and the ground's
+/// reaction). `settings.dt` is ignored. Vertices in no element have no preconditioner and do
+/// not move.
+///
+/// # Errors
+/// As [`relax_step`] (without [`StepError::TimeStep`]).
+pub fn relax_quasi_static<F: ElasticEnergy>(
+    model: &F,
+    masses: &[Real],
+    pinned: &[bool],
+    settings: &RelaxSettings<F::Vector>,
+    positions: &mut [F::Vector],
+    scratch: &mut RelaxScratch<'_, F::Vector>,
+) -> Result<RelaxReport, StepError> {
+    minimise(model, masses, pinned, settings, positions, None, scratch)
+}
+
+/// `Phi` and its gradient, without the buffers that change.
+struct Objective<'p, F: ElasticEnergy> {
+    model: &'p F,
+    masses: &'p [Real],
+    pinned: &'p [bool],
+    /// `x_n`.
+    start: &'p [F::Vector],
+    /// `v_n` (empty in the quasi-static mode).
+    velocities: &'p [F::Vector],
+    /// `h` (unused in the quasi-static mode).
+    h: Real,
+    /// `1 / h^2`, or 0 without inertia.
+    inertia: Real,
+    gravity: F::Vector,
+    ground: Option<Ground<F::Vector>>,
+}
+
+impl<F: ElasticEnergy> Objective<'_, F> {
+    /// `y_i = x_n + h v_n` (just `x_n` without inertia).
+    #[inline(always)]
+    fn inertial_target(&self, i: usize, start: F::Vector) -> F::Vector {
+        match self.velocities.get(i) {
+            Some(&v) => start + v * self.h,
+            None => start,
+        }
+    }
+
+    /// `(Phi(x), E(x))` (J), writing the unprojected gradient (N, zero at pinned vertices) into
+    /// `gradient`. Non-finite if `x` is.
+    fn evaluate(
+        &self,
+        x: &[F::Vector],
+        gradient: &mut [F::Vector],
+    ) -> Result<(Real, Real), StepError> {
+        gradient.fill(F::Vector::ZERO);
+        let elastic = self.model.energy_and_add_forces(x, gradient)?;
+        let mut phi = elastic;
+        let rows = x.iter().zip(gradient.iter_mut()).zip(self.start);
+        for (i, (((&x, g), &start), (&m, pinned))) in rows
+            .zip(self.masses.iter().zip(pinned_flags(self.pinned)))
+            .enumerate()
+        {
+            if pinned {
+                *g = F::Vector::ZERO;
+                continue;
+            }
+            let offset = x - self.inertial_target(i, start);
+            let weight = m * self.inertia;
+            phi += 0.5 * weight * offset.dot(offset) - m * self.gravity.dot(x - start);
+            // The kernel added the forces, -dE/dx: flip them into dE/dx.
+            *g = offset * weight - *g - self.gravity * m;
+        }
+        Ok((phi, elastic))
+    }
+
+    /// Whether `x` touches the ground (within rounding of the projection).
+    #[inline(always)]
+    fn in_contact(&self, x: F::Vector) -> Option<&Ground<F::Vector>> {
+        in_contact(self.ground.as_ref(), x)
+    }
+
+    /// `v` without its component into the ground at a contact vertex (`sign` +1 for a gradient,
+    /// whose descent is `-g`, -1 for a direction).
+    #[inline(always)]
+    fn projected(&self, x: F::Vector, v: F::Vector, sign: Real) -> F::Vector {
+        match self.in_contact(x) {
+            Some(ground) => {
+                let normal = ground.normal.dot(v) * sign;
+                if normal > 0.0 {
+                    v - ground.normal * (ground.normal.dot(v))
+                } else {
+                    v
+                }
+            }
+            None => v,
+        }
+    }
+
+    /// `|grad Phi|` (N) projected on the contact constraints.
+    fn residual(&self, x: &[F::Vector], gradient: &[F::Vector]) -> Real {
+        let squared: Real = x
+            .iter()
+            .zip(gradient)
+            .map(|(&x, &g)| {
+                let g = self.projected(x, g, 1.0);
+                g.dot(g)
+            })
+            .sum();
+        math::sqrt(squared)
+    }
+}
+
+/// The shared loop of [`relax_step`] (`velocities` given) and [`relax_quasi_static`].
+fn minimise<F: ElasticEnergy>(
+    model: &F,
+    masses: &[Real],
+    pinned: &[bool],
+    settings: &RelaxSettings<F::Vector>,
+    positions: &mut [F::Vector],
+    velocities: Option<&mut [F::Vector]>,
+    scratch: &mut RelaxScratch<'_, F::Vector>,
+) -> Result<RelaxReport, StepError> {
+    let n = model.vertex_count();
+    let ground = validate(settings)?;
+    check_state(n, masses, pinned, positions, velocities.as_deref())?;
+    check_length(
+        StepBuffer::Scratch,
+        relax_scratch_len(n),
+        scratch.vectors.len(),
+    )?;
+    check_length(StepBuffer::ScalarScratch, n, scratch.scalars.len())?;
+
+    let (start, rest) = scratch.vectors.split_at_mut(n);
+    let (gradient, rest) = rest.split_at_mut(n);
+    let (trial_gradient, rest) = rest.split_at_mut(n);
+    let (trial, direction) = rest.split_at_mut(n);
+    let diagonal = &mut *scratch.scalars;
+    start.copy_from_slice(positions);
+
+    let start: &[F::Vector] = start;
+    let (h, inertia) = match velocities {
+        Some(_) => (settings.dt, 1.0 / (settings.dt * settings.dt)),
+        None => (0.0, 0.0),
+    };
+    let objective = Objective {
+        model,
+        masses,
+        pinned,
+        start,
+        velocities: velocities.as_deref().unwrap_or(&[]),
+        h,
+        inertia,
+        gravity: settings.gravity,
+        ground,
+    };
+    vertex_stiffness(model, diagonal);
+    for (p, &m) in diagonal.iter_mut().zip(masses) {
+        *p += m * inertia;
+    }
+    let buffers = Buffers {
+        gradient,
+        trial_gradient,
+        trial,
+        direction,
+        diagonal,
+    };
+    let outcome = descend(&objective, settings, positions, buffers);
+    let (report, gradient, backup) = match outcome {
+        Ok(result) => result,
+        Err(error) => {
+            positions.copy_from_slice(start);
+            return Err(error);
+        }
+    };
+    if let Some(vertex) = first_non_finite(positions, &[]) {
+        positions.copy_from_slice(start);
+        return Err(StepError::NonFiniteState { vertex });
+    }
+    let Some(velocities) = velocities else {
+        return Ok(report);
+    };
+    // v = (x_{n+1} - x_n) / h, then Coulomb friction at the contacts with the normal impulse
+    // h R, R the reaction: the gradient's normal component there.
+    backup.copy_from_slice(velocities);
+    let rows = velocities
+        .iter_mut()
+        .zip(&*positions)
+        .zip(start)
+        .zip(&*gradient);
+    for ((((v, &x), &x0), &g), (&m, pinned)) in rows.zip(masses.iter().zip(pinned_flags(pinned))) {
+        if pinned {
+            continue;
+        }
+        *v = (x - x0) * (1.0 / h);
+        if let Some(ground) = in_contact(ground.as_ref(), x) {
+            let normal = ground.normal.dot(*v);
+            let reaction = ground.normal.dot(g).max(0.0);
+            let normal_change = h * reaction / m + (-normal).max(0.0);
+            let tangential = *v - ground.normal * normal;
+            *v = ground.friction_applied(tangential, normal_change)
+                + ground.normal * normal.max(0.0);
+        }
+    }
+    if let Some(vertex) = first_non_finite(velocities, &[]) {
+        positions.copy_from_slice(start);
+        velocities.copy_from_slice(backup);
+        return Err(StepError::NonFiniteState { vertex });
+    }
+    Ok(report)
+}
+
+/// The mutable scratch of the descent loop.
+struct Buffers<'b, V> {
+    gradient: &'b mut [V],
+    trial_gradient: &'b mut [V],
+    trial: &'b mut [V],
+    direction: &'b mut [V],
+    diagonal: &'b [Real],
+}
+
+/// The relative size of `Phi`'s rounding error the line search tolerates: `sqrt(eps)`
+/// (`3.5e-4` in f32, `1.5e-8` in f64).
+const ROUNDING: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
+
+/// `g . d` over all vertices.
+fn slope_along<V: Vector>(gradient: &[V], direction: &[V]) -> Real {
+    gradient
+        .iter()
+        .zip(direction)
+        .map(|(&g, &d)| g.dot(d))
+        .sum()
+}
+
+/// What the descent loop hands back: the report, the final gradient, a free buffer.
+type Descent<'b, V> = (RelaxReport, &'b mut [V], &'b mut [V]);
+
+/// Whether a slope `grad.d` is negative (false for NaN).
+#[inline(always)]
+fn downhill(slope: Real) -> bool {
+    slope < 0.0
+}
+
+/// The descent loop from the inertial target. Returns the report, the buffer holding the
+/// final (unprojected) gradient and a free buffer of one vector per vertex.
+fn descend<'b, F: ElasticEnergy>(
+    objective: &Objective<'_, F>,
+    settings: &RelaxSettings<F::Vector>,
+    positions: &mut [F::Vector],
+    buffers: Buffers<'b, F::Vector>,
+) -> Result<Descent<'b, F::Vector>, StepError> {
+    let Buffers {
+        mut gradient,
+        mut trial_gradient,
+        trial,
+        direction,
+        diagonal,
+    } = buffers;
+    // Initial guess: the inertial target y, on the ground.
+    for (i, ((x, &x0), pinned)) in positions
+        .iter_mut()
+        .zip(objective.start)
+        .zip(pinned_flags(objective.pinned))
+        .enumerate()
+    {
+        if !pinned {
+            *x = objective.inertial_target(i, x0);
+            if let Some(ground) = &objective.ground {
+                ground.project(x);
+            }
+        }
+    }
+    let mut phi = objective.evaluate(positions, gradient)?.0;
+    let mut energy_evaluations = 1;
+    if !phi.is_finite() {
+        // y may invert an element of a barrier model: start from x_n instead.
+        positions.copy_from_slice(objective.start);
+        phi = objective.evaluate(positions, gradient)?.0;
+        energy_evaluations += 1;
+    }
+    if !phi.is_finite() {
+        let vertex = first_non_finite(gradient, &[]).unwrap_or(0);
+        return Err(StepError::NonFiniteState { vertex });
+    }
+
+    let initial_residual = objective.residual(positions, gradient);
+    let mut residual = initial_residual;
+    // Relative to the larger of the initial residual and the gravity load, so that a step
+    // starting at (or near) equilibrium, whose initial residual is mostly rounding, is not asked
+    // to reduce it further.
+    let load_squared: Real = objective
+        .masses
+        .iter()
+        .zip(pinned_flags(objective.pinned))
+        .filter(|(_, pinned)| !pinned)
+        .map(|(&m, _)| m * m * objective.gravity.dot(objective.gravity))
+        .sum();
+    let target = settings.tolerance * initial_residual.max(math::sqrt(load_squared));
+    direction.fill(F::Vector::ZERO);
+    let mut iterations = 0;
+    while residual > target && iterations < settings.max_iterations {
+        // d = -P^-1 g (+ momentum * last step), projected; plain descent if that is not
+        // downhill.
+        let mut slope = descent_direction(
+            objective,
+            positions,
+            gradient,
+            diagonal,
+            direction,
+            settings.momentum,
+        );
+        if !downhill(slope) && settings.momentum > 0.0 {
+            direction.fill(F::Vector::ZERO);
+            slope = descent_direction(objective, positions, gradient, diagonal, direction, 0.0);
+        }
+        if !downhill(slope) {
+            break; // stationary to rounding
+        }
+        let mut alpha: Real = 1.0;
+        let mut accepted = None;
+        for _ in 0..=settings.max_backtracks {
+            for (((t, &x), &d), pinned) in trial
+                .iter_mut()
+                .zip(&*positions)
+                .zip(&*direction)
+                .zip(pinned_flags(objective.pinned))
+            {
+                *t = if pinned { x } else { x + d * alpha };
+                if let Some(ground) = &objective.ground {
+                    ground.project(t);
+                }
+            }
+            let (trial_phi, trial_elastic) = objective.evaluate(trial, trial_gradient)?;
+            energy_evaluations += 1;
+            // Armijo on Phi, or, where Phi's change is below its rounding (the energy of a
+            // nearly undeformed element is a difference of O(mu V) terms), Hager and Zhang's
+            // approximate Armijo test (SIAM J. Optim. 2005): the trapezoidal estimate of the
+            // decrease from the two slopes, which has no cancellation.
+            let noise = ROUNDING * (phi.abs() + trial_phi.abs() + trial_elastic.abs());
+            let sufficient = trial_phi <= phi + settings.armijo * alpha * slope
+                || (trial_phi <= phi + noise
+                    && slope_along(trial_gradient, direction)
+                        <= (2.0 * settings.armijo - 1.0) * slope);
+            if sufficient {
+                accepted = Some(trial_phi);
+                break;
+            }
+            alpha *= settings.backtrack;
+        }
+        let Some(trial_phi) = accepted else {
+            break;
+        };
+        // Keep the step actually taken (after projection) for the momentum term.
+        for ((d, x), &t) in direction.iter_mut().zip(positions.iter_mut()).zip(&*trial) {
+            *d = t - *x;
+            *x = t;
+        }
+        swap(&mut gradient, &mut trial_gradient);
+        phi = trial_phi;
+        iterations += 1;
+        residual = objective.residual(positions, gradient);
+    }
+    let report = RelaxReport {
+        iterations,
+        energy_evaluations,
+        initial_residual,
+        final_residual: residual,
+        phi,
+        converged: residual <= target,
+    };
+    Ok((report, gradient, trial))
+}
+
+/// Writes the projected preconditioned direction into `direction` (which holds the last step)
+/// and returns the slope `grad.d`.
+fn descent_direction<F: ElasticEnergy>(
+    objective: &Objective<'_, F>,
+    positions: &[F::Vector],
+    gradient: &[F::Vector],
+    diagonal: &[Real],
+    direction: &mut [F::Vector],
+    momentum: Real,
+) -> Real {
+    let mut slope = 0.0;
+    for (((d, &x), &g), &p) in direction
+        .iter_mut()
+        .zip(positions)
+        .zip(gradient)
+        .zip(diagonal)
+    {
+        let g = objective.projected(x, g, 1.0);
+        let plain = if p > 0.0 {
+            g * (-1.0 / p)
+        } else {
+            F::Vector::ZERO
+        };
+        *d = objective.projected(x, plain + *d * momentum, -1.0);
+        slope += g.dot(*d);
+    }
+    slope
+}
+
+/// `ground` if `x` touches it (within rounding of the projection).
+#[inline(always)]
+fn in_contact<V: Vector>(ground: Option<&Ground<V>>, x: V) -> Option<&Ground<V>> {
+    ground.filter(|ground| {
+        let tolerance = 16.0 * Real::EPSILON * (ground.offset.abs() + length(x));
+        ground.height(x) <= tolerance
+    })
+}
+
+/// Checks the scalar settings; returns the ground with a unit normal.
+fn validate<V: Vector>(settings: &RelaxSettings<V>) -> Result<Option<Ground<V>>, StepError> {
+    if !settings.gravity.is_finite() {
+        return Err(StepError::Gravity);
+    }
+    let in_open_unit = |x: Real| x > 0.0 && x < 1.0;
+    if !((0.0..1.0).contains(&settings.tolerance)
+        && in_open_unit(settings.armijo)
+        && in_open_unit(settings.backtrack)
+        && (0.0..1.0).contains(&settings.momentum))
+    {
+        return Err(StepError::RelaxSettings);
+    }
+    settings.ground.as_ref().map(Ground::validated).transpose()
+}

@@ -1,0 +1,298 @@
+//! The explicit stepper's physics and contract, in both precisions: undamped energy does not
+//! drift over 1000 periods of the lowest mode; a dropped block lands and comes to rest on the
+//! ground without penetrating; pinned vertices never move; a 2D body works through the same
+//! stepper; every bad parameter gives its error and touches nothing.
+
+use nalgebra::{DMatrix, SymmetricEigen};
+
+/// Eigenvalues (ascending, 1/s^2) of `M^-1/2 K M^-1/2` (f64, nalgebra).
+fn frequencies_squared(k: &DMatrix<f64>, masses: &[f64]) -> Vec<f64> {
+    let n = k.nrows();
+    let scaled = DMatrix::from_fn(n, n, |i, j| {
+        0.5 * (k[(i, j)] + k[(j, i)]) / (masses[i / 3] * masses[j / 3]).sqrt()
+    });
+    let mut values: Vec<f64> = SymmetricEigen::new(scaled)
+        .eigenvalues
+        .iter()
+        .copied()
+        .collect();
+    values.sort_by(f64::total_cmp);
+    values
+}
+
+macro_rules! step_tests {
+    ($precision:ident, $($api:ident)::+) => {
+        mod $precision {
+            use super::frequencies_squared;
+            use nalgebra::DMatrix;
+            use softfem::{StepBuffer, StepError};
+            use $($api)::+::element::{TetRest, TriRest, TriangleStVK};
+            use $($api)::+::generate::{BoxSplit, box_counts, fill_box, fill_rectangle, rectangle_counts};
+            use $($api)::+::material::{StVK, StableNeoHookean};
+            use $($api)::+::mesh::{TetMesh, TriMesh};
+            use $($api)::+::step::{
+                ElasticModel, ExplicitScratch, ExplicitSettings, Ground, TetElastic, TriElastic,
+                explicit_scratch_len, stable_time_step, step_explicit,
+            };
+            use $($api)::+::types::{Real, Vec2, Vec3};
+
+            fn block(n: [usize; 3], min: Vec3, max: Vec3) -> (Vec<Vec3>, Vec<[u32; 4]>) {
+                let (nv, nt) = box_counts(n[0], n[1], n[2], BoxSplit::Kuhn6).unwrap();
+                let mut rest = vec![Vec3::ZERO; nv];
+                let mut tets = vec![[0; 4]; nt];
+                fill_box(min, max, n[0], n[1], n[2], BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                (rest, tets)
+            }
+
+            /// Bit patterns, so that NaN compares equal to itself.
+            fn bits<V: Copy + Into<[Real; N]>, const N: usize>(s: &[V]) -> Vec<[u64; N]> {
+                s.iter().map(|&v| v.into().map(|r: Real| r.to_bits() as u64)).collect()
+            }
+
+            #[test]
+            fn undamped_energy_does_not_drift_over_1000_periods() {
+                let (rest, tets) = block([1, 1, 1], Vec3::ZERO, Vec3::splat(0.1));
+                let mut rest_data = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let material = StVK::from_young_poisson(1.0e6, 0.3).unwrap();
+                let body = TetElastic::new(mesh, material);
+                let n = rest.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+
+                // The lowest non-rigid frequency from K (central differences, f64 eigenvalues).
+                let step = 1e-5 as Real;
+                let mut k = DMatrix::<f64>::zeros(3 * n, 3 * n);
+                for col in 0..3 * n {
+                    let mut f = [vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]];
+                    for (sign, f) in [1.0, -1.0].into_iter().zip(f.iter_mut()) {
+                        let mut x = rest.clone();
+                        x[col / 3][col % 3] += sign * step;
+                        body.add_forces(&x, f).unwrap();
+                    }
+                    for row in 0..3 * n {
+                        let df = (f[0][row / 3][row % 3] - f[1][row / 3][row % 3]) as f64;
+                        k[(row, col)] = -df / (2.0 * step as f64);
+                    }
+                }
+                let m64: Vec<f64> = masses.iter().map(|&m| m as f64).collect();
+                let omegas = frequencies_squared(&k, &m64);
+                let omega_max = omegas.last().unwrap().sqrt();
+                let omega_min = omegas.iter().find(|&&w| w > 1e-6 * omega_max * omega_max).unwrap().sqrt();
+                let period = 2.0 * std::f64::consts::PI / omega_min;
+
+                let mut stiffness = vec![0.0; n];
+                // A tenth of the bound keeps the energy's O(dt omega) oscillation small next to
+                // the drift being measured.
+                let dt = 0.1 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
+                let steps_per_period = (period / dt as f64).round() as usize;
+                let steps = 1000 * steps_per_period;
+                // Small amplitude: 1% strain, a shear plus a stretch (large enough that f32
+                // rounding of the 0.1 m positions stays far below the tolerance).
+                let mut x: Vec<Vec3> = rest.iter().map(|&p| p + Vec3::new(p.y, 0.0, 0.5 * p.z) * 1e-2).collect();
+                let mut v = vec![Vec3::ZERO; n];
+                let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                let mut scratch = ExplicitScratch::new(&mut buffer);
+                let settings = ExplicitSettings::new(dt);
+                let energy = |x: &[Vec3], v: &[Vec3]| -> f64 {
+                    let kinetic: Real = v.iter().zip(&masses).map(|(v, m)| 0.5 * m * v.length_squared()).sum();
+                    (kinetic + mesh.elastic_energy(&material, x).unwrap()) as f64
+                };
+                let e0 = energy(&x, &v);
+                let window = 50 * steps_per_period;
+                let (mut first, mut last, mut worst) = (0.0, 0.0, 0.0f64);
+                for i in 0..steps {
+                    step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    let e = energy(&x, &v);
+                    worst = worst.max((e - e0).abs() / e0);
+                    if i < window { first += e; }
+                    if i >= steps - window { last += e; }
+                }
+                let drift = (last - first).abs() / (window as f64 * e0);
+                println!(
+                    "{}: omega {omega_min:.1}..{omega_max:.1} rad/s, {steps_per_period} steps/period, \
+                     {steps} steps; drift of the 50-period mean {drift:.2e}, max oscillation {worst:.2e}",
+                    stringify!($precision)
+                );
+                // Symplectic Euler conserves a modified energy: the true energy oscillates (by
+                // O(dt omega)) but its mean must not drift.
+                assert!(drift < 1e-3);
+            }
+
+            #[test]
+            fn dropped_block_lands_and_rests_on_the_ground() {
+                let (rest, tets) = block([2, 2, 2], Vec3::new(0.0, 0.2, 0.0), Vec3::new(0.1, 0.3, 0.1));
+                let mut rest_data = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.3).unwrap());
+                let n = rest.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let mut stiffness = vec![0.0; n];
+                let dt = 0.9 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
+                let settings = ExplicitSettings::new(dt)
+                    .with_gravity(Vec3::new(0.0, -9.81, 0.0))
+                    .with_damping(5.0)
+                    .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; n]);
+                let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                let mut scratch = ExplicitScratch::new(&mut buffer);
+                let steps = (3.0 / dt) as usize;
+                let mut lowest: Real = Real::INFINITY;
+                let mut contacts = 0;
+                for _ in 0..steps {
+                    let report = step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    lowest = lowest.min(x.iter().map(|p| p.y).fold(Real::INFINITY, Real::min));
+                    contacts = report.ground_contacts;
+                }
+                let speed = v.iter().map(|v| v.length()).fold(0.0, Real::max);
+                let top = x.iter().map(|p| p.y).fold(Real::NEG_INFINITY, Real::max);
+                println!(
+                    "{}: {steps} steps of {dt:.2e} s; lowest y ever {lowest:.2e} m, final top {top:.4} m, \
+                     max speed {speed:.2e} m/s, {contacts} vertices in contact",
+                    stringify!($precision)
+                );
+                // Projection puts a vertex exactly on the plane, to rounding of 0.3 m coordinates.
+                assert!(lowest > -1e-6);
+                assert_eq!(contacts, 9); // the bottom face's 3 x 3 vertices
+                assert!(speed < 1e-2);
+                // Sagged under its weight, but not flattened: rho g h / E ~ 1% strain.
+                assert!(top > 0.095 && top < 0.1);
+            }
+
+            #[test]
+            fn pinned_vertices_never_move() {
+                let (rest, tets) = block([2, 1, 1], Vec3::ZERO, Vec3::new(0.2, 0.1, 0.1));
+                let mut rest_data = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StVK::from_young_poisson(1.0e5, 0.3).unwrap());
+                let n = rest.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let pinned: Vec<bool> = rest.iter().map(|p| p.x == 0.0).collect();
+                let mut stiffness = vec![0.0; n];
+                let dt = 0.5 * stable_time_step(&body, &masses, &pinned, &mut stiffness).unwrap();
+                let settings = ExplicitSettings::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0)).with_substeps(3);
+                let mut x = rest.clone();
+                let mut v: Vec<Vec3> = (0..n).map(|i| Vec3::new(0.0, 0.0, i as Real * 1e-3)).collect();
+                let v0 = v.clone();
+                let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                let mut scratch = ExplicitScratch::new(&mut buffer);
+                for _ in 0..200 {
+                    step_explicit(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                }
+                for i in 0..n {
+                    if pinned[i] {
+                        assert_eq!(<[Real; 3]>::from(x[i]), <[Real; 3]>::from(rest[i]));
+                        assert_eq!(<[Real; 3]>::from(v[i]), <[Real; 3]>::from(v0[i]));
+                    } else {
+                        assert!(x[i].y < rest[i].y); // the free end sags
+                    }
+                }
+            }
+
+            #[test]
+            fn a_2d_square_falls_onto_the_ground() {
+                let (nv, nt) = rectangle_counts(2, 2).unwrap();
+                let mut rest = vec![Vec2::ZERO; nv];
+                let mut tris = vec![[0; 3]; nt];
+                fill_rectangle(Vec2::new(0.0, 0.05), Vec2::new(0.1, 0.15), 2, 2, &mut rest, &mut tris).unwrap();
+                let mut rest_data = vec![TriRest::default(); nt];
+                let mesh = TriMesh::new(&rest, &tris, &mut rest_data).unwrap();
+                let body = TriElastic { mesh, material: TriangleStVK::new(&StVK::from_young_poisson(1.0e5, 0.3).unwrap()) };
+                let mut masses = vec![0.0; nv];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let mut stiffness = vec![0.0; nv];
+                let dt = 0.9 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
+                let settings = ExplicitSettings::new(dt)
+                    .with_gravity(Vec2::new(0.0, -9.81))
+                    .with_damping(5.0)
+                    .with_ground(Ground::new(Vec2::Y, 0.0).with_restitution(0.0).with_friction(0.5));
+                let (mut x, mut v) = (rest.clone(), vec![Vec2::ZERO; nv]);
+                let mut buffer = vec![Vec2::ZERO; explicit_scratch_len(nv)];
+                let mut scratch = ExplicitScratch::new(&mut buffer);
+                for _ in 0..(2.0 / dt) as usize {
+                    step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                }
+                let speed = v.iter().map(|v| v.length()).fold(0.0, Real::max);
+                println!("{}: 2D square, max speed {speed:.2e} m/s", stringify!($precision));
+                assert!(x.iter().all(|p| p.y > -1e-6));
+                assert!(x.iter().any(|p| p.y < 1e-6));
+                // Restitution 0 (with 0.3 the bottom vertices keep chattering at ~3 cm/s).
+                assert!(speed < 1e-2);
+            }
+
+            #[test]
+            fn every_bad_parameter_gives_its_error_and_touches_nothing() {
+                let (rest, tets) = block([1, 1, 1], Vec3::ZERO, Vec3::splat(0.1));
+                let mut rest_data = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StVK::from_young_poisson(1.0e5, 0.3).unwrap());
+                let n = rest.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let good = ExplicitSettings::new(1e-4).with_ground(Ground::new(Vec3::Y, -1.0));
+                let x0: Vec<Vec3> = rest.iter().map(|&p| p * 1.01).collect();
+                let v0 = vec![Vec3::new(0.1, 0.2, 0.3); n];
+                let mut buffer = vec![Vec3::splat(7.0); explicit_scratch_len(n)];
+                let nan = Real::NAN;
+                let ground = |g: Ground<Vec3>| good.with_ground(g);
+                let cases: Vec<(ExplicitSettings<Vec3>, StepError)> = vec![
+                    (ExplicitSettings { dt: 0.0, ..good }, StepError::TimeStep),
+                    (ExplicitSettings { dt: -1e-3, ..good }, StepError::TimeStep),
+                    (ExplicitSettings { dt: nan, ..good }, StepError::TimeStep),
+                    (ExplicitSettings { dt: Real::INFINITY, ..good }, StepError::TimeStep),
+                    (good.with_substeps(0), StepError::Substeps),
+                    (good.with_gravity(Vec3::new(0.0, nan, 0.0)), StepError::Gravity),
+                    (good.with_damping(-1.0), StepError::Damping),
+                    (good.with_damping(nan), StepError::Damping),
+                    (ExplicitSettings { max_energy_growth: 1.0, ..good }, StepError::GrowthLimit),
+                    (ExplicitSettings { max_energy_growth: nan, ..good }, StepError::GrowthLimit),
+                    (ground(Ground::new(Vec3::ZERO, 0.0)), StepError::Ground),
+                    (ground(Ground::new(Vec3::Y, nan)), StepError::Ground),
+                    (ground(Ground::new(Vec3::Y, 0.0).with_restitution(1.5)), StepError::Restitution),
+                    (ground(Ground::new(Vec3::Y, 0.0).with_restitution(-0.1)), StepError::Restitution),
+                    (ground(Ground::new(Vec3::Y, 0.0).with_restitution(nan)), StepError::Restitution),
+                    (ground(Ground::new(Vec3::Y, 0.0).with_friction(-0.1)), StepError::Friction),
+                    (ground(Ground::new(Vec3::Y, 0.0).with_friction(nan)), StepError::Friction),
+                ];
+                let check = |settings: &ExplicitSettings<Vec3>, masses: &[Real], pinned: &[bool], x: &mut Vec<Vec3>, v: &mut Vec<Vec3>, buffer: &mut Vec<Vec3>, expected: StepError| {
+                    let (xb, vb, bb) = (bits(x), bits(v), bits(buffer));
+                    let mut scratch = ExplicitScratch::new(buffer);
+                    let error = step_explicit(&body, masses, pinned, settings, x, v, &mut scratch).unwrap_err();
+                    assert_eq!(error, expected);
+                    assert!(!error.to_string().is_empty());
+                    assert_eq!((bits(x), bits(v), bits(buffer)), (xb, vb, bb));
+                };
+                for (settings, expected) in cases {
+                    check(&settings, &masses, &[], &mut x0.clone(), &mut v0.clone(), &mut buffer, expected);
+                }
+                // Buffers and masses.
+                let mut bad_masses = masses.clone();
+                bad_masses[3] = 0.0;
+                check(&good, &bad_masses, &[], &mut x0.clone(), &mut v0.clone(), &mut buffer, StepError::Mass { vertex: 3 });
+                bad_masses[3] = nan;
+                check(&good, &bad_masses, &[], &mut x0.clone(), &mut v0.clone(), &mut buffer, StepError::Mass { vertex: 3 });
+                let short = StepError::LengthMismatch { buffer: StepBuffer::Masses, expected: n, actual: n - 1 };
+                check(&good, &masses[1..], &[], &mut x0.clone(), &mut v0.clone(), &mut buffer, short);
+                let pins = StepError::LengthMismatch { buffer: StepBuffer::Pinned, expected: n, actual: 2 };
+                check(&good, &masses, &[true, false], &mut x0.clone(), &mut v0.clone(), &mut buffer, pins);
+                let mut v_short = v0[1..].to_vec();
+                let vel = StepError::LengthMismatch { buffer: StepBuffer::Velocities, expected: n, actual: n - 1 };
+                check(&good, &masses, &[], &mut x0.clone(), &mut v_short, &mut buffer, vel);
+                let mut small = vec![Vec3::ZERO; 2 * n];
+                let scr = StepError::LengthMismatch { buffer: StepBuffer::Scratch, expected: 3 * n, actual: 2 * n };
+                check(&good, &masses, &[], &mut x0.clone(), &mut v0.clone(), &mut small, scr);
+                let mut x_nan = x0.clone();
+                x_nan[5].z = nan;
+                check(&good, &masses, &[], &mut x_nan, &mut v0.clone(), &mut buffer, StepError::NonFiniteInput { vertex: 5 });
+                let mut v_inf = v0.clone();
+                v_inf[6].x = Real::INFINITY;
+                check(&good, &masses, &[], &mut x0.clone(), &mut v_inf, &mut buffer, StepError::NonFiniteInput { vertex: 6 });
+            }
+        }
+    };
+}
+
+step_tests!(single, softfem);
+step_tests!(double, softfem::f64);
