@@ -223,8 +223,6 @@ pub struct Body<'a> {
     pub masses: Vec<f32>,
     /// Boundary triangles, outward.
     pub surface: Surface,
-    /// Density (kg/m^3).
-    pub density: f32,
 }
 
 impl<'a> Body<'a> {
@@ -246,7 +244,6 @@ impl<'a> Body<'a> {
             mesh,
             masses,
             surface: Surface::of_tets(&geometry.tets),
-            density,
         })
     }
 
