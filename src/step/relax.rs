@@ -67,10 +67,24 @@ pub struct RelaxSettings<V> {
     pub backtrack: Real,
     /// Rejections allowed per iteration before the solve stops (not converged).
     pub max_backtracks: u32,
+    /// The first trial step `alpha_0 > 0` along `d = -P^-1 grad Phi` (dimensionless; finite).
+    /// `P` majorises the Hessian near rest, so any `alpha_0 < 2` converges on the linearised
+    /// problem; `1` is the majorisation step that the Armijo test always accepts there, and
+    /// larger steps converge faster because the bound is loose (see the
+    /// [module documentation](super#the-relaxation)). Every line search starts from it; the
+    /// Chebyshev trials use the step the last line search accepted.
+    pub step_length: Real,
     /// Heavy-ball momentum in `[0, 1)`: `d = -P^-1 grad Phi + momentum * (last step)`, dropped
     /// for an iteration whenever it is not a descent direction. 0 is plain preconditioned
-    /// descent; `0.5..0.9` accelerates stiff, slowly converging solves.
+    /// descent. Exclusive with [`chebyshev`](Self::chebyshev).
     pub momentum: Real,
+    /// Chebyshev semi-iterative acceleration (Wang and Yang 2016, section 4): `rho` in `[0, 1)`,
+    /// the estimated spectral radius of the plain iteration `x <- x + alpha d`; 0 turns it off.
+    /// See the [module documentation](super#the-relaxation) for how to choose it. Exclusive
+    /// with [`momentum`](Self::momentum).
+    pub chebyshev: Real,
+    /// Plain iterations after each (re)start before the Chebyshev weights start (`S`).
+    pub chebyshev_delay: u32,
 }
 
 impl<V: Vector> RelaxSettings<V> {
@@ -88,7 +102,10 @@ impl<V: Vector> RelaxSettings<V> {
             armijo: 1e-4,
             backtrack: 0.5,
             max_backtracks: 30,
+            step_length: 1.0,
             momentum: 0.0,
+            chebyshev: 0.0,
+            chebyshev_delay: 0,
         }
     }
 
@@ -120,11 +137,30 @@ impl<V: Vector> RelaxSettings<V> {
         }
     }
 
-    /// These settings with heavy-ball `momentum`.
+    /// These settings with heavy-ball `momentum` (and no Chebyshev acceleration).
     #[inline]
     #[must_use]
     pub fn with_momentum(self, momentum: Real) -> Self {
-        RelaxSettings { momentum, ..self }
+        RelaxSettings {
+            momentum,
+            chebyshev: 0.0,
+            ..self
+        }
+    }
+
+    /// These settings with Chebyshev acceleration for the spectral radius estimate `rho`
+    /// (and no momentum), the first trial step `step_length` and a delay of `delay`
+    /// iterations.
+    #[inline]
+    #[must_use]
+    pub fn with_chebyshev(self, rho: Real, step_length: Real, delay: u32) -> Self {
+        RelaxSettings {
+            chebyshev: rho,
+            step_length,
+            chebyshev_delay: delay,
+            momentum: 0.0,
+            ..self
+        }
     }
 }
 
@@ -134,7 +170,8 @@ impl<V: Vector> RelaxSettings<V> {
 pub struct RelaxReport {
     /// Accepted descent iterations.
     pub iterations: u32,
-    /// Evaluations of `Phi` and its gradient (one per line-search trial, plus the first).
+    /// Evaluations of `Phi` and its gradient (one per trial point, plus one or two for the
+    /// initial guess).
     pub energy_evaluations: u32,
     /// `|grad Phi|` (N) at the initial guess (projected on the ground's constraint).
     pub initial_residual: Real,
@@ -144,6 +181,11 @@ pub struct RelaxReport {
     pub phi: Real,
     /// Whether the residual reached the tolerance (see [`RelaxSettings::tolerance`]).
     pub converged: bool,
+    /// Line-search trials rejected by the Armijo test (each shrinking the step by `beta`).
+    pub backtracks: u32,
+    /// Accelerated trials rejected because `Phi` increased, each followed by a restart of the
+    /// acceleration with a plain step.
+    pub restarts: u32,
 }
 
 /// One implicit Euler step of `settings.dt` as the minimisation of
@@ -254,6 +296,25 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         match self.velocities.get(i) {
             Some(&v) => start + v * self.h,
             None => start,
+        }
+    }
+
+    /// Writes `y + offset` (`x_n + offset` without inertia) projected on the ground into
+    /// `positions` at free vertices, `x_n` at pinned ones.
+    fn initial_guess(&self, positions: &mut [F::Vector], offset: F::Vector) {
+        for (i, ((x, &x0), pinned)) in positions
+            .iter_mut()
+            .zip(self.start)
+            .zip(pinned_flags(self.pinned))
+            .enumerate()
+        {
+            *x = x0;
+            if !pinned {
+                *x = self.inertial_target(i, x0) + offset;
+                if let Some(ground) = &self.ground {
+                    ground.project(x);
+                }
+            }
         }
     }
 
@@ -467,22 +528,27 @@ fn descend<'b, F: ElasticEnergy>(
         direction,
         diagonal,
     } = buffers;
-    // Initial guess: the inertial target y, on the ground.
-    for (i, ((x, &x0), pinned)) in positions
-        .iter_mut()
-        .zip(objective.start)
-        .zip(pinned_flags(objective.pinned))
-        .enumerate()
-    {
-        if !pinned {
-            *x = objective.inertial_target(i, x0);
-            if let Some(ground) = &objective.ground {
-                ground.project(x);
-            }
-        }
-    }
+    // Initial guess: the better (lower Phi) of the inertial target y and y + h^2 g, both
+    // projected on the ground. The second is the predictor of projective dynamics (Bouaziz et
+    // al. 2014) and the exact minimiser in free fall, a rigid translation: without it the
+    // descent would have to find this lowest, slowest mode of the preconditioned system itself.
+    // For a body resting on the ground it is a poor guess (the ground stops the bottom layer
+    // and the drop compresses it): y wins there.
+    let drop = objective.gravity * (objective.h * objective.h);
+    objective.initial_guess(positions, drop);
     let mut phi = objective.evaluate(positions, gradient)?.0;
     let mut energy_evaluations = 1;
+    if drop != F::Vector::ZERO {
+        objective.initial_guess(trial, F::Vector::ZERO);
+        let inertial_phi = objective.evaluate(trial, trial_gradient)?.0;
+        energy_evaluations += 1;
+        // y also wins when y + h^2 g is not finite (NaN compares false).
+        if inertial_phi < phi || !phi.is_finite() {
+            positions.copy_from_slice(trial);
+            swap(&mut gradient, &mut trial_gradient);
+            phi = inertial_phi;
+        }
+    }
     if !phi.is_finite() {
         // y may invert an element of a barrier model: start from x_n instead.
         positions.copy_from_slice(objective.start);
@@ -507,9 +573,67 @@ fn descend<'b, F: ElasticEnergy>(
         .map(|(&m, _)| m * m * objective.gravity.dot(objective.gravity))
         .sum();
     let target = settings.tolerance * initial_residual.max(math::sqrt(load_squared));
+    // `direction` holds the last step taken, x_k - x_{k-1} (zero after a restart).
     direction.fill(F::Vector::ZERO);
     let mut iterations = 0;
+    let mut restarts = 0;
+    let mut backtracks = 0;
+    // The step length of the accelerated trials: the one the last plain line search accepted.
+    let mut alpha = settings.step_length;
+    let rho_squared = settings.chebyshev * settings.chebyshev;
+    // Iterations since the last (re)start of the acceleration, and the Chebyshev weight.
+    let mut since_restart: u32 = 0;
+    let mut omega: Real = 1.0;
     while residual > target && iterations < settings.max_iterations {
+        since_restart = since_restart.saturating_add(1);
+        if settings.chebyshev > 0.0 {
+            // Wang and Yang 2016, eq. 9-10: omega = 1 for the first S iterations, then
+            // omega_{S+1} = 2 / (2 - rho^2), omega_{k+1} = 4 / (4 - rho^2 omega_k).
+            omega = match since_restart.checked_sub(settings.chebyshev_delay) {
+                None | Some(0) => 1.0,
+                Some(1) => 2.0 / (2.0 - rho_squared),
+                Some(_) => 4.0 / (4.0 - rho_squared * omega),
+            };
+        }
+        if omega > 1.0 {
+            // x_{k+1} = omega (x_k + alpha d - x_{k-1}) + x_{k-1}
+            //         = x_k + omega alpha d + (omega - 1) (x_k - x_{k-1}).
+            for ((((t, &x), &g), &s), (&p, pinned)) in trial
+                .iter_mut()
+                .zip(&*positions)
+                .zip(&*gradient)
+                .zip(&*direction)
+                .zip(diagonal.iter().zip(pinned_flags(objective.pinned)))
+            {
+                *t = if pinned {
+                    x
+                } else {
+                    let d = preconditioned(objective, x, g, p);
+                    x + d * (omega * alpha) + s * (omega - 1.0)
+                };
+                if let Some(ground) = &objective.ground {
+                    ground.project(t);
+                }
+            }
+            let (trial_phi, trial_elastic) = objective.evaluate(trial, trial_gradient)?;
+            energy_evaluations += 1;
+            // The semi-iteration is not monotone in Phi in general, but an increase (beyond
+            // rounding) means the nonlinearity or the contacts broke the linear model it
+            // relies on: restart from a plain, line-searched step (Wang and Yang's fallback).
+            let noise = ROUNDING * (phi.abs() + trial_phi.abs() + trial_elastic.abs());
+            if trial_phi <= phi + noise {
+                accept(positions, trial, direction);
+                swap(&mut gradient, &mut trial_gradient);
+                phi = trial_phi;
+                iterations += 1;
+                residual = objective.residual(positions, gradient);
+                continue;
+            }
+            restarts += 1;
+            since_restart = 1;
+            omega = 1.0;
+            direction.fill(F::Vector::ZERO);
+        }
         // d = -P^-1 g (+ momentum * last step), projected; plain descent if that is not
         // downhill.
         let mut slope = descent_direction(
@@ -527,8 +651,8 @@ fn descend<'b, F: ElasticEnergy>(
         if !downhill(slope) {
             break; // stationary to rounding
         }
-        let mut alpha: Real = 1.0;
         let mut accepted = None;
+        alpha = settings.step_length;
         for _ in 0..=settings.max_backtracks {
             for (((t, &x), &d), pinned) in trial
                 .iter_mut()
@@ -557,15 +681,13 @@ fn descend<'b, F: ElasticEnergy>(
                 break;
             }
             alpha *= settings.backtrack;
+            backtracks += 1;
         }
         let Some(trial_phi) = accepted else {
             break;
         };
-        // Keep the step actually taken (after projection) for the momentum term.
-        for ((d, x), &t) in direction.iter_mut().zip(positions.iter_mut()).zip(&*trial) {
-            *d = t - *x;
-            *x = t;
-        }
+        // Keep the step actually taken (after projection) for the acceleration.
+        accept(positions, trial, direction);
         swap(&mut gradient, &mut trial_gradient);
         phi = trial_phi;
         iterations += 1;
@@ -578,8 +700,36 @@ fn descend<'b, F: ElasticEnergy>(
         final_residual: residual,
         phi,
         converged: residual <= target,
+        backtracks,
+        restarts,
     };
     Ok((report, gradient, trial))
+}
+
+/// Moves `positions` to `trial`, leaving the step taken in `step`.
+fn accept<V: Vector>(positions: &mut [V], trial: &[V], step: &mut [V]) {
+    for ((s, x), &t) in step.iter_mut().zip(positions.iter_mut()).zip(trial) {
+        *s = t - *x;
+        *x = t;
+    }
+}
+
+/// The projected preconditioned descent direction `-P^-1 g` at one vertex at `x` with
+/// gradient `g` and preconditioner `p` (zero where `p` is not positive).
+#[inline(always)]
+fn preconditioned<F: ElasticEnergy>(
+    objective: &Objective<'_, F>,
+    x: F::Vector,
+    g: F::Vector,
+    p: Real,
+) -> F::Vector {
+    let g = objective.projected(x, g, 1.0);
+    let plain = if p > 0.0 {
+        g * (-1.0 / p)
+    } else {
+        F::Vector::ZERO
+    };
+    objective.projected(x, plain, -1.0)
 }
 
 /// Writes the projected preconditioned direction into `direction` (which holds the last step)
@@ -629,7 +779,11 @@ fn validate<V: Vector>(settings: &RelaxSettings<V>) -> Result<Option<Ground<V>>,
     if !((0.0..1.0).contains(&settings.tolerance)
         && in_open_unit(settings.armijo)
         && in_open_unit(settings.backtrack)
-        && (0.0..1.0).contains(&settings.momentum))
+        && (0.0..1.0).contains(&settings.momentum)
+        && (0.0..1.0).contains(&settings.chebyshev)
+        && !(settings.momentum > 0.0 && settings.chebyshev > 0.0)
+        && settings.step_length > 0.0
+        && settings.step_length.is_finite())
     {
         return Err(StepError::RelaxSettings);
     }
