@@ -226,6 +226,13 @@ fn simulate<M: Material>(
                 .with_ground(ground)
                 .with_tolerance(tolerance, iterations)
                 .with_chebyshev(RELAX_CHEBYSHEV.0, RELAX_CHEBYSHEV.1, 0);
+            // The solver's own scale for its tolerance: max(|grad Phi(x_0)|, |M g|) (N).
+            let weight = body
+                .masses
+                .iter()
+                .map(|m| (m * scene::G).powi(2))
+                .sum::<f32>()
+                .sqrt();
             let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
             let mut scalars = vec![0.0; n];
             let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
@@ -240,7 +247,7 @@ fn simulate<M: Material>(
                                 iterations: report.iterations,
                                 line_search_steps: report.backtracks,
                                 relative_residual: report.final_residual
-                                    / report.initial_residual.max(f32::MIN_POSITIVE),
+                                    / report.initial_residual.max(weight),
                                 converged: report.converged,
                             }),
                         })

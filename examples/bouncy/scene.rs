@@ -379,7 +379,8 @@ pub struct SolveInfo {
     pub iterations: u32,
     /// Backtracking line-search reductions, over all iterations.
     pub line_search_steps: u32,
-    /// Final residual relative to the first.
+    /// Final residual relative to the solver's scale, the larger of the first residual and
+    /// the body's weight (as in `softfem::step::RelaxSettings::tolerance`).
     pub relative_residual: f32,
     /// Whether the residual reached the tolerance.
     pub converged: bool,
