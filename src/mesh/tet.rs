@@ -169,6 +169,27 @@ impl<'a> TetMesh<'a> {
         })
     }
 
+    /// The total elastic energy (J) and, added into `forces`, the elastic forces (N) of
+    /// `material` at `positions` (m), from one deformation gradient per element: the fused pass
+    /// of the energy-based steppers. Lengths are checked; finiteness is not (a non-finite
+    /// position gives a non-finite energy, which a line search rejects).
+    pub(crate) fn energy_and_add_forces<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<Real, MeshError> {
+        check_length(Buffer::Positions, self.vertex_count, positions.len())?;
+        check_length(Buffer::Forces, self.vertex_count, forces.len())?;
+        let mut energy = 0.0;
+        for (corners, rest) in self.tets.iter().zip(self.rest) {
+            let f = rest.deformation_gradient(gather(positions, corners));
+            energy += rest.volume * material.energy_density(f);
+            scatter_add(forces, corners, rest.nodal_forces(material.first_piola(f)));
+        }
+        Ok(energy)
+    }
+
     /// The total elastic energy `sum V W(F)` (J) of `material` at deformed `positions` (m).
     /// Infinite or NaN if the material is (e.g. [`NeoHookean`](super::super::material::NeoHookean)
     /// with a flat element).

@@ -309,23 +309,8 @@ impl<M: Material> ElasticEnergy for TetElastic<'_, M> {
         positions: &[Vec3],
         forces: &mut [Vec3],
     ) -> Result<Real, MeshError> {
-        let n = self.mesh.vertex_count();
-        mesh_length(crate::error::Buffer::Positions, n, positions.len())?;
-        mesh_length(crate::error::Buffer::Forces, n, forces.len())?;
-        let mut energy = 0.0;
-        for (corners, rest) in self.mesh.tets().iter().zip(self.mesh.rest()) {
-            let x = corners.map(|i| positions.get(i as usize).copied().unwrap_or_default());
-            // One deformation gradient for both the energy and the stress.
-            let f = rest.deformation_gradient(x);
-            energy += rest.volume * self.material.energy_density(f);
-            let nodal = rest.nodal_forces(self.material.first_piola(f));
-            for (&i, value) in corners.iter().zip(nodal) {
-                if let Some(slot) = forces.get_mut(i as usize) {
-                    *slot += value;
-                }
-            }
-        }
-        Ok(energy)
+        self.mesh
+            .energy_and_add_forces(&self.material, positions, forces)
     }
 }
 
@@ -374,24 +359,6 @@ impl ElasticModel for MembraneElastic<'_> {
     }
     fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
         stability::triangle_stiffness(self.mesh.tris(), self.mesh.rest(), &self.material, visit);
-    }
-}
-
-/// `Ok` if `actual == expected`, else a mesh length error.
-#[inline]
-fn mesh_length(
-    buffer: crate::error::Buffer,
-    expected: usize,
-    actual: usize,
-) -> Result<(), MeshError> {
-    if actual == expected {
-        Ok(())
-    } else {
-        Err(MeshError::LengthMismatch {
-            buffer,
-            expected,
-            actual,
-        })
     }
 }
 
