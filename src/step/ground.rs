@@ -118,7 +118,7 @@ impl<V: Vector> Ground<V> {
             let normal_change = (1.0 + restitution) * -vn;
             let tangential = *v - self.normal * vn;
             *v = self.friction_applied(tangential, normal_change)
-                + self.normal * (-self.restitution * vn);
+                + self.normal * (-restitution * vn);
         }
         true
     }
@@ -133,5 +133,31 @@ impl<V: Vector> Ground<V> {
         // speed is zero, where the ratio below would be 0/0).
         let keep = math::select(speed > reduction, 1.0 - reduction / speed, 0.0);
         tangential * keep
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::super::types::Vec3;
+    use super::Ground;
+
+    /// Restitution applies to real impacts; an approach at or below the resting speed leaves the
+    /// vertex on the plane with zero normal velocity (no jitter at rest), even with restitution 1.
+    #[test]
+    fn slow_impacts_do_not_bounce_and_fast_ones_do() {
+        let ground = Ground::new(Vec3::Z, 0.0)
+            .with_restitution(1.0)
+            .validated()
+            .unwrap();
+        let resting_speed = 0.02;
+
+        let (mut x, mut v) = (Vec3::new(0.0, 0.0, -1e-4), Vec3::new(0.0, 0.0, -0.015));
+        assert!(ground.resolve(&mut x, &mut v, resting_speed));
+        assert_eq!(x.z, 0.0);
+        assert_eq!(v.z, 0.0);
+
+        let (mut x, mut v) = (Vec3::new(0.0, 0.0, -1e-4), Vec3::new(0.0, 0.0, -1.5));
+        assert!(ground.resolve(&mut x, &mut v, resting_speed));
+        assert_eq!(v.z, 1.5);
     }
 }
