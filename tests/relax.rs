@@ -197,6 +197,43 @@ macro_rules! relax_tests {
                 assert!(v.iter().all(|v| (*v - expected).length() < 1e-3 * expected.length()));
             }
 
+            /// Pinned vertices are never projected onto the ground, even when they sit inside it:
+            /// the bar is clamped at its left end 0.05 m below a ground whose plane cuts through
+            /// it, and the solve must keep the clamp exactly where it is and still converge (when
+            /// every trial point moved the clamp, Armijo rejected them all and nothing converged).
+            #[test]
+            fn pinned_vertices_inside_the_ground_stay_put() {
+                use $($api)::+::step::Ground;
+                let bar = bar();
+                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
+                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
+                let n = bar.rest.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                // Ground y = 0.05 with normal +y: the bar (y in [0, 0.1]) is half inside it, the
+                // clamp included.
+                let ground = Ground::new(Vec3::Y, 0.05);
+                let settings = RelaxSettings::new(1.0 / 60.0)
+                    .with_gravity(GRAVITY)
+                    .with_ground(ground)
+                    .with_tolerance(TOLERANCE.max(1e-3), 400)
+                    .with_chebyshev(DYNAMIC_RHO, 2.0, 0);
+                let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
+                let mut scalars = vec![0.0; n];
+                let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+                let (mut x, mut v) = (bar.rest.clone(), vec![Vec3::ZERO; n]);
+                let report = relax_step(&body, &masses, &bar.pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                assert!(report.converged, "{report:?}");
+                for ((x, x0), pinned) in x.iter().zip(&bar.rest).zip(&bar.pinned) {
+                    if *pinned {
+                        assert_eq!(x, x0);
+                    } else {
+                        assert!(x.y >= 0.05 - 1e-6, "free vertex inside the ground: {x}");
+                    }
+                }
+            }
+
             #[test]
             fn bad_settings_are_refused_before_anything_is_touched() {
                 let bar = bar();

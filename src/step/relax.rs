@@ -308,14 +308,22 @@ impl<F: ElasticEnergy> Objective<'_, F> {
             .zip(pinned_flags(self.pinned))
             .enumerate()
         {
-            *x = x0;
-            if !pinned {
-                *x = self.inertial_target(i, x0) + offset;
-                if let Some(ground) = &self.ground {
-                    ground.project(x);
-                }
-            }
+            *x = if pinned {
+                x0
+            } else {
+                self.on_ground(self.inertial_target(i, x0) + offset)
+            };
         }
+    }
+
+    /// `x` projected onto the ground, if there is one. Only free vertices are ever projected:
+    /// a pinned vertex keeps its position even inside the ground (the caller's constraint wins).
+    #[inline(always)]
+    fn on_ground(&self, mut x: F::Vector) -> F::Vector {
+        if let Some(ground) = &self.ground {
+            ground.project(&mut x);
+        }
+        x
     }
 
     /// `(Phi(x), E(x))` (J), writing the unprojected gradient (N, zero at pinned vertices) into
@@ -609,11 +617,8 @@ fn descend<'b, F: ElasticEnergy>(
                     x
                 } else {
                     let d = preconditioned(objective, x, g, p);
-                    x + d * (omega * alpha) + s * (omega - 1.0)
+                    objective.on_ground(x + d * (omega * alpha) + s * (omega - 1.0))
                 };
-                if let Some(ground) = &objective.ground {
-                    ground.project(t);
-                }
             }
             let (trial_phi, trial_elastic) = objective.evaluate(trial, trial_gradient)?;
             energy_evaluations += 1;
@@ -630,7 +635,9 @@ fn descend<'b, F: ElasticEnergy>(
                 continue;
             }
             restarts += 1;
-            since_restart = 1;
+            // The plain step below is the restart's iteration 0, so the next semi-iteration
+            // takes the recurrence's first weight, 2 / (2 - rho^2).
+            since_restart = 0;
             omega = 1.0;
             direction.fill(F::Vector::ZERO);
         }
@@ -660,10 +667,11 @@ fn descend<'b, F: ElasticEnergy>(
                 .zip(&*direction)
                 .zip(pinned_flags(objective.pinned))
             {
-                *t = if pinned { x } else { x + d * alpha };
-                if let Some(ground) = &objective.ground {
-                    ground.project(t);
-                }
+                *t = if pinned {
+                    x
+                } else {
+                    objective.on_ground(x + d * alpha)
+                };
             }
             let (trial_phi, trial_elastic) = objective.evaluate(trial, trial_gradient)?;
             energy_evaluations += 1;
