@@ -613,7 +613,9 @@ pub enum StepError {
     /// The blow-up growth limit is NaN or not greater than 1.
     GrowthLimit,
     /// A relaxation setting is out of range: tolerance not in `[0, 1)`, Armijo constant not in
-    /// `(0, 1)`, backtracking factor not in `(0, 1)`, momentum not in `[0, 1)`.
+    /// `(0, 1)`, backtracking factor not in `(0, 1)`, momentum not in `[0, 1)`, Chebyshev
+    /// spectral radius not in `[0, 1)`, step length not finite and positive, or momentum and
+    /// Chebyshev acceleration both set.
     RelaxSettings,
     /// A given position or velocity is NaN or infinite (before the step).
     NonFiniteInput {

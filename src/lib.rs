@@ -21,8 +21,8 @@
 //! * [`mesh`]: validated meshes borrowing the caller's buffers ([`MeshError`] names the first bad
 //!   element or vertex), with the mesh-level kernels: elastic forces (direct, principal, clamped),
 //!   energies, stresses and lumped masses.
-//! * [`step`]: time stepping on caller-owned state — explicit symplectic Euler with a guaranteed
-//!   stable time step and blow-up detection that restores the state, and implicit Euler as energy
+//! * [`step`]: time stepping on caller-owned state — explicit symplectic Euler with a stable time
+//!   step proven for the linearised system and blow-up detection that restores the state, and implicit Euler as energy
 //!   minimisation by preconditioned descent (also quasi-static relaxation) ([`StepError`]).
 //! * [`svd3_lanes`](svd::svd3_lanes) on [`lanes`]: the SVD of 4 matrices at once, bit-identical to
 //!   `svd3`.

@@ -190,9 +190,10 @@ pub struct RelaxReport {
 
 /// One implicit Euler step of `settings.dt` as the minimisation of
 /// `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`
-/// (`SPEC.md` section 4), by preconditioned descent from `x = y`: `d = -P^-1 grad Phi` (see the
-/// [module documentation](super)), optional momentum, Armijo backtracking, projection of every
-/// trial point onto the ground. Then `v = (x_{n+1} - x_n) / h`, and at vertices resting on the
+/// (`SPEC.md` section 4), by preconditioned descent from the better (lower `Phi`) of `y` and
+/// `y + h^2 g`, both projected onto the ground: `d = -P^-1 grad Phi` (see the
+/// [module documentation](super)), optional momentum or Chebyshev acceleration, Armijo
+/// backtracking, projection of every free trial point onto the ground. Then `v = (x_{n+1} - x_n) / h`, and at vertices resting on the
 /// ground Coulomb friction removes up to `friction * h R / m` of the tangential velocity, `R`
 /// the normal reaction (N, the gradient's normal component there).
 ///
@@ -500,7 +501,7 @@ struct Buffers<'b, V> {
 }
 
 /// The relative size of `Phi`'s rounding error the line search tolerates: `sqrt(eps)`
-/// (`3.5e-4` in f32, `1.5e-8` in f64).
+/// (`2.4e-4` in f32, `1.5e-8` in f64).
 const ROUNDING: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
 
 /// `g . d` over all vertices.
