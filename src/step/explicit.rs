@@ -101,7 +101,8 @@ impl<V: Vector> ExplicitSettings<V> {
 /// Keep one per body across calls: the detector compares each substep with the one before,
 /// including the last substep of the previous call. After changing positions or velocities
 /// yourself (a kick, a teleport), call [`forget_history`](Self::forget_history) so that the
-/// change is not mistaken for a blow-up.
+/// change is not mistaken for a blow-up. (A body exactly at rest with no gravity leaves no
+/// reference to compare with, so motion started from there is never taken for one.)
 #[derive(Debug)]
 pub struct ExplicitScratch<'a, V> {
     buffer: &'a mut [V],
@@ -329,8 +330,11 @@ fn substep<F: ElasticModel>(
         }
     }
     if let Some((_, previous)) = *history {
-        // A NaN indicator counts as growth.
-        if indicator.is_nan() || indicator > settings.max_energy_growth * previous {
+        // A NaN indicator counts as growth. A zero previous indicator (exactly at rest, no
+        // gravity) is no reference: any motion would be an "infinite" jump.
+        if indicator.is_nan()
+            || (previous > 0.0 && indicator > settings.max_energy_growth * previous)
+        {
             return Err(StepError::EnergyBlowUp);
         }
     }
