@@ -35,7 +35,8 @@
 //! # Ok::<(), softfem::ElementError>(())
 //! ```
 
-use core::ops::{Add, AddAssign, Mul, Neg, Sub};
+use core::fmt::Debug;
+use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 
 use super::types::{Real, Vec2, Vec3};
 use crate::error::ElementError;
@@ -74,24 +75,37 @@ fn check_measure(measure: Real, scale: Real) -> Result<(), ElementError> {
     }
 }
 
-/// The vector types a triangle's columns can be: `Vec2` for 2D solids, `Vec3` for membranes.
-/// Lets the triangle and triangle-mesh code be written once for both.
-pub(crate) trait Column:
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for super::Vec2 {}
+    impl Sealed for super::Vec3 {}
+}
+
+/// The position types the crate is written once for: `Vec2` (2D solids) and `Vec3` (solids and
+/// membranes); a triangle's columns, a mesh's positions and forces, a stepper's state. Sealed.
+pub trait Vector:
     Copy
     + Default
+    + Debug
+    + PartialEq
     + Add<Output = Self>
     + Sub<Output = Self>
     + Mul<Real, Output = Self>
     + Neg<Output = Self>
     + AddAssign
+    + SubAssign
+    + sealed::Sealed
 {
+    /// The zero vector.
+    const ZERO: Self;
     /// The dot product.
     fn dot(self, other: Self) -> Real;
     /// Whether every coordinate is finite.
     fn is_finite(self) -> bool;
 }
 
-impl Column for Vec2 {
+impl Vector for Vec2 {
+    const ZERO: Self = Vec2::ZERO;
     #[inline(always)]
     fn dot(self, other: Self) -> Real {
         Vec2::dot(self, other)
@@ -102,7 +116,8 @@ impl Column for Vec2 {
     }
 }
 
-impl Column for Vec3 {
+impl Vector for Vec3 {
+    const ZERO: Self = Vec3::ZERO;
     #[inline(always)]
     fn dot(self, other: Self) -> Real {
         Vec3::dot(self, other)

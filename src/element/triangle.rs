@@ -7,7 +7,7 @@
 use super::super::material::StVK;
 use super::super::math;
 use super::super::types::{Mat2, Real, Vec2, Vec3};
-use super::{Column, check_measure};
+use super::{Vector, check_measure};
 use crate::error::ElementError;
 
 /// The precomputed rest data of a triangle, for a 2D solid ([`TriRest::new`]) or a membrane in
@@ -141,7 +141,7 @@ impl TriRest {
 
     /// `F = Ds Dm^-1` as columns: column `j` is `sum_k (x_{k+1} - x0) (Dm^-1)_{kj}`.
     #[inline(always)]
-    pub(crate) fn gradient<V: Column>(&self, [x0, x1, x2]: [V; 3]) -> [V; 2] {
+    pub(crate) fn gradient<V: Vector>(&self, [x0, x1, x2]: [V; 3]) -> [V; 2] {
         let (d1, d2) = (x1 - x0, x2 - x0);
         let m = self.dm_inv;
         [
@@ -152,7 +152,7 @@ impl TriRest {
 
     /// `[f1 f2] = -A P Dm^-T`: `f_{j+1} = -A sum_k P_k (Dm^-1)_{jk}`.
     #[inline(always)]
-    pub(crate) fn forces<V: Column>(&self, [p0, p1]: [V; 2]) -> [V; 3] {
+    pub(crate) fn forces<V: Vector>(&self, [p0, p1]: [V; 2]) -> [V; 3] {
         let m = self.dm_inv;
         let f1 = (p0 * m.x_axis.x + p1 * m.y_axis.x) * -self.area;
         let f2 = (p0 * m.x_axis.y + p1 * m.y_axis.y) * -self.area;
@@ -161,7 +161,7 @@ impl TriRest {
 }
 
 /// The square of the longest edge of a triangle.
-fn longest_squared<V: Column>([x0, x1, x2]: [V; 3]) -> Real {
+fn longest_squared<V: Vector>([x0, x1, x2]: [V; 3]) -> Real {
     [x1 - x0, x2 - x0, x2 - x1]
         .iter()
         .map(|e| e.dot(*e))
@@ -244,7 +244,7 @@ impl TriangleStVK {
 
     /// The Green strain `(g00, g01, g11)` of `F^T F` built from the columns of `f`.
     #[inline(always)]
-    fn green<V: Column>([c0, c1]: [V; 2]) -> (Real, Real, Real) {
+    fn green<V: Vector>([c0, c1]: [V; 2]) -> (Real, Real, Real) {
         (
             0.5 * (c0.dot(c0) - 1.0),
             0.5 * c0.dot(c1),
@@ -253,14 +253,14 @@ impl TriangleStVK {
     }
 
     #[inline(always)]
-    pub(crate) fn energy<V: Column>(&self, f: [V; 2]) -> Real {
+    pub(crate) fn energy<V: Vector>(&self, f: [V; 2]) -> Real {
         let (g00, g01, g11) = Self::green(f);
         let trace = g00 + g11;
         0.5 * self.lambda * trace * trace + self.mu * (g00 * g00 + 2.0 * g01 * g01 + g11 * g11)
     }
 
     #[inline(always)]
-    pub(crate) fn piola<V: Column>(&self, f: [V; 2]) -> [V; 2] {
+    pub(crate) fn piola<V: Vector>(&self, f: [V; 2]) -> [V; 2] {
         let (g00, g01, g11) = Self::green(f);
         let volumetric = self.lambda * (g00 + g11);
         let two_mu = 2.0 * self.mu;

@@ -17,7 +17,7 @@
 //! * [`TriMesh`]: 2D triangles (positions `Vec2`), [`MembraneMesh`]: triangles in space
 //!   (positions `Vec3`), both with [`TriangleStVK`](super::element::TriangleStVK).
 
-use super::element::Column;
+use super::element::Vector;
 use crate::error::{Buffer, MeshError};
 
 mod tet;
@@ -42,7 +42,7 @@ fn check_length(buffer: Buffer, expected: usize, actual: usize) -> Result<(), Me
 
 /// `Ok` if every position is finite, else `error` of the first vertex that is not.
 #[inline]
-fn check_finite<V: Column>(
+fn check_finite<V: Vector>(
     positions: &[V],
     error: fn(usize) -> MeshError,
 ) -> Result<(), MeshError> {
@@ -89,7 +89,7 @@ fn gather<V: Copy + Default, const N: usize>(positions: &[V], corners: &[u32; N]
 
 /// Adds an element's nodal `values` into `buffer` at its corners.
 #[inline(always)]
-fn scatter_add<V: Column, const N: usize>(buffer: &mut [V], corners: &[u32; N], values: [V; N]) {
+fn scatter_add<V: Vector, const N: usize>(buffer: &mut [V], corners: &[u32; N], values: [V; N]) {
     for (&i, value) in corners.iter().zip(values) {
         if let Some(slot) = buffer.get_mut(i as usize) {
             *slot += value;

@@ -1,6 +1,6 @@
 //! Triangle meshes: 2D solids and membranes, with [`TriangleStVK`].
 
-use super::super::element::{Column, TriRest, TriangleStVK};
+use super::super::element::{TriRest, TriangleStVK, Vector};
 use super::super::types::{Real, Vec2, Vec3};
 use super::{check_finite, check_indices, check_length, gather, scatter_add};
 use crate::error::{Buffer, ElementError, MeshError};
@@ -15,7 +15,7 @@ struct Triangles<'a> {
 }
 
 impl<'a> Triangles<'a> {
-    fn new<V: Column>(
+    fn new<V: Vector>(
         rest_positions: &[V],
         tris: &'a [[u32; 3]],
         rest: &'a mut [TriRest],
@@ -38,12 +38,12 @@ impl<'a> Triangles<'a> {
         })
     }
 
-    fn check_positions<V: Column>(&self, positions: &[V]) -> Result<(), MeshError> {
+    fn check_positions<V: Vector>(&self, positions: &[V]) -> Result<(), MeshError> {
         check_length(Buffer::Positions, self.vertex_count, positions.len())?;
         check_finite(positions, |vertex| MeshError::NonFinitePosition { vertex })
     }
 
-    fn add_elastic_forces<V: Column>(
+    fn add_elastic_forces<V: Vector>(
         &self,
         material: &TriangleStVK,
         positions: &[V],
@@ -58,7 +58,7 @@ impl<'a> Triangles<'a> {
         Ok(())
     }
 
-    fn elastic_energy<V: Column>(
+    fn elastic_energy<V: Vector>(
         &self,
         material: &TriangleStVK,
         positions: &[V],

@@ -107,7 +107,6 @@
 //! bounds, [`relax`](relax_step)ation and the [`ground`](Ground) contact.
 
 use core::fmt::Debug;
-use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 
 use super::element::TriangleStVK;
 use super::material::Material;
@@ -130,58 +129,7 @@ pub use relax::{
 };
 pub use stability::{element_stable_time_step, linearised_moduli, stable_time_step};
 
-mod sealed {
-    pub trait Sealed {}
-    impl Sealed for super::Vec2 {}
-    impl Sealed for super::Vec3 {}
-}
-
-/// The position types the steppers are written once for: `Vec2` (2D solids) and `Vec3`.
-/// Sealed.
-pub trait Vector:
-    Copy
-    + Default
-    + Debug
-    + PartialEq
-    + Add<Output = Self>
-    + Sub<Output = Self>
-    + Mul<Real, Output = Self>
-    + Neg<Output = Self>
-    + AddAssign
-    + SubAssign
-    + sealed::Sealed
-{
-    /// The zero vector.
-    const ZERO: Self;
-    /// The dot product.
-    fn dot(self, other: Self) -> Real;
-    /// Whether every coordinate is finite.
-    fn is_finite(self) -> bool;
-}
-
-impl Vector for Vec2 {
-    const ZERO: Self = Vec2::ZERO;
-    #[inline(always)]
-    fn dot(self, other: Self) -> Real {
-        Vec2::dot(self, other)
-    }
-    #[inline(always)]
-    fn is_finite(self) -> bool {
-        Vec2::is_finite(self)
-    }
-}
-
-impl Vector for Vec3 {
-    const ZERO: Self = Vec3::ZERO;
-    #[inline(always)]
-    fn dot(self, other: Self) -> Real {
-        Vec3::dot(self, other)
-    }
-    #[inline(always)]
-    fn is_finite(self) -> bool {
-        Vec3::is_finite(self)
-    }
-}
+pub use super::element::Vector;
 
 /// An elastic body the explicit stepper can advance: a validated mesh, a material and a force
 /// path. Implement it to plug in other force models (extra springs, a different element).
