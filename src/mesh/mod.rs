@@ -18,7 +18,7 @@
 //!   (positions `Vec3`), both with [`TriangleStVK`](super::element::TriangleStVK).
 
 use super::element::Vector;
-use crate::error::{Buffer, MeshError};
+use crate::error::{Buffer, ElementError, MeshError};
 
 mod tet;
 mod triangle;
@@ -57,6 +57,35 @@ fn check_finite<V: Vector>(
         .iter()
         .position(|p| !p.is_finite())
         .map_or(Ok(()), |vertex| Err(error(vertex)))
+}
+
+/// The construction shared by every mesh type: checks the rest buffer's length, finite rest
+/// positions and indices in range, then fills `rest` with `rest_data` of each element's corner
+/// positions, naming the first element that fails. Returns the vertex count.
+fn validate<V: Vector, R, const N: usize>(
+    rest_positions: &[V],
+    elements: &[[u32; N]],
+    rest: &mut [R],
+    rest_data: impl Fn([V; N]) -> Result<R, ElementError>,
+) -> Result<usize, MeshError> {
+    check_length(Buffer::RestData, elements.len(), rest.len())?;
+    check_finite(rest_positions, |vertex| MeshError::NonFiniteRestPosition {
+        vertex,
+    })?;
+    let vertex_count = rest_positions.len();
+    check_indices(elements, vertex_count)?;
+    for (element, (corners, slot)) in elements.iter().zip(rest.iter_mut()).enumerate() {
+        *slot = rest_data(gather(rest_positions, corners))
+            .map_err(|error| MeshError::in_element(error, element, corners))?;
+    }
+    Ok(vertex_count)
+}
+
+/// `Ok` if `positions` has one finite entry per vertex, else the length or the first
+/// non-finite vertex.
+fn check_positions<V: Vector>(vertex_count: usize, positions: &[V]) -> Result<(), MeshError> {
+    check_length(Buffer::Positions, vertex_count, positions.len())?;
+    check_finite(positions, |vertex| MeshError::NonFinitePosition { vertex })
 }
 
 /// `Ok` if every corner of every element is below `vertex_count`, else the first offender.

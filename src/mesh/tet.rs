@@ -5,7 +5,7 @@ use super::super::lanes::LANES;
 use super::super::material::Material;
 use super::super::svd::{Svd3, svd3, svd3_lanes};
 use super::super::types::{Mat3, Real, Vec3};
-use super::{check_finite, check_indices, check_length, gather, scatter_add};
+use super::{check_length, check_positions, gather, scatter_add, validate};
 use crate::error::{Buffer, MeshError};
 
 /// A validated tetrahedral mesh: the caller's index buffer and the rest data computed from the
@@ -59,16 +59,7 @@ impl<'a> TetMesh<'a> {
         tets: &'a [[u32; 4]],
         rest: &'a mut [TetRest],
     ) -> Result<TetMesh<'a>, MeshError> {
-        check_length(Buffer::RestData, tets.len(), rest.len())?;
-        check_finite(rest_positions, |vertex| MeshError::NonFiniteRestPosition {
-            vertex,
-        })?;
-        let vertex_count = rest_positions.len();
-        check_indices(tets, vertex_count)?;
-        for (element, (corners, slot)) in tets.iter().zip(rest.iter_mut()).enumerate() {
-            *slot = TetRest::new(gather(rest_positions, corners))
-                .map_err(|error| MeshError::in_element(error, element, corners))?;
-        }
+        let vertex_count = validate(rest_positions, tets, rest, TetRest::new)?;
         Ok(TetMesh {
             tets,
             rest,
@@ -271,8 +262,7 @@ impl<'a> TetMesh<'a> {
 
     /// Length and finiteness of a deformed position buffer.
     fn check_positions(&self, positions: &[Vec3]) -> Result<(), MeshError> {
-        check_length(Buffer::Positions, self.vertex_count, positions.len())?;
-        check_finite(positions, |vertex| MeshError::NonFinitePosition { vertex })
+        check_positions(self.vertex_count, positions)
     }
 
     /// The principal-path force loop, with `stress` mapping an SVD of `F` to `P`.

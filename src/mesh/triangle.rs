@@ -2,7 +2,7 @@
 
 use super::super::element::{TriRest, TriangleStVK, Vector};
 use super::super::types::{Real, Vec2, Vec3};
-use super::{check_finite, check_indices, check_length, gather, scatter_add};
+use super::{check_length, check_positions, gather, scatter_add, validate};
 use crate::error::{Buffer, ElementError, MeshError};
 
 /// The validated triangles of a [`TriMesh`] or [`MembraneMesh`], and the kernels written once
@@ -21,16 +21,7 @@ impl<'a> Triangles<'a> {
         rest: &'a mut [TriRest],
         rest_data: fn([V; 3]) -> Result<TriRest, ElementError>,
     ) -> Result<Self, MeshError> {
-        check_length(Buffer::RestData, tris.len(), rest.len())?;
-        check_finite(rest_positions, |vertex| MeshError::NonFiniteRestPosition {
-            vertex,
-        })?;
-        let vertex_count = rest_positions.len();
-        check_indices(tris, vertex_count)?;
-        for (element, (corners, slot)) in tris.iter().zip(rest.iter_mut()).enumerate() {
-            *slot = rest_data(gather(rest_positions, corners))
-                .map_err(|error| MeshError::in_element(error, element, corners))?;
-        }
+        let vertex_count = validate(rest_positions, tris, rest, rest_data)?;
         Ok(Triangles {
             tris,
             rest,
@@ -39,8 +30,7 @@ impl<'a> Triangles<'a> {
     }
 
     fn check_positions<V: Vector>(&self, positions: &[V]) -> Result<(), MeshError> {
-        check_length(Buffer::Positions, self.vertex_count, positions.len())?;
-        check_finite(positions, |vertex| MeshError::NonFinitePosition { vertex })
+        check_positions(self.vertex_count, positions)
     }
 
     fn add_elastic_forces<V: Vector>(
