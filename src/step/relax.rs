@@ -26,18 +26,38 @@ pub const fn relax_scratch_len(vertex_count: usize) -> usize {
 /// Scratch space of [`relax_step`] and [`relax_quasi_static`]: `vectors` of
 /// [`relax_scratch_len`]`(vertex_count)` entries and `scalars` of `vertex_count` entries
 /// (lengths checked by the solvers).
+///
+/// `scalars` keeps the preconditioner's stiffness part between calls: a per-vertex bound that
+/// depends only on the rest shape and the material, computed by the first solve and reused by
+/// every later solve with this scratch (it costs about one SVD per element, some ten force
+/// evaluations). Keep one scratch alive across the steps of a simulation. After changing the
+/// mesh or the material, call [`reset_preconditioner`](RelaxScratch::reset_preconditioner):
+/// a stale preconditioner still gives correct solutions (any positive diagonal gives descent
+/// directions, and the stopping test does not involve it) but may converge more slowly.
 #[derive(Debug)]
 pub struct RelaxScratch<'a, V> {
     vectors: &'a mut [V],
     scalars: &'a mut [Real],
+    /// Whether `scalars` holds the per-vertex stiffness bounds.
+    stiffness_ready: bool,
 }
 
 impl<'a, V: Vector> RelaxScratch<'a, V> {
-    /// Scratch over the caller's buffers.
+    /// Scratch over the caller's buffers; the first solve computes the preconditioner.
     #[inline]
     #[must_use]
     pub fn new(vectors: &'a mut [V], scalars: &'a mut [Real]) -> Self {
-        RelaxScratch { vectors, scalars }
+        RelaxScratch {
+            vectors,
+            scalars,
+            stiffness_ready: false,
+        }
+    }
+
+    /// Makes the next solve recompute the preconditioner (after a change of mesh or material).
+    #[inline]
+    pub fn reset_preconditioner(&mut self) {
+        self.stiffness_ready = false;
     }
 }
 
@@ -291,6 +311,16 @@ struct Objective<'p, F: ElasticEnergy> {
 }
 
 impl<F: ElasticEnergy> Objective<'_, F> {
+    /// The Jacobi preconditioner `P_i = k_i + m_i / h^2` (N/m) of every vertex, from the
+    /// stiffness bounds `k_i`.
+    #[inline(always)]
+    fn diagonal<'s>(&'s self, stiffness: &'s [Real]) -> impl Iterator<Item = Real> + 's {
+        stiffness
+            .iter()
+            .zip(self.masses)
+            .map(|(&k, &m)| k + m * self.inertia)
+    }
+
     /// `y_i = x_n + h v_n` (just `x_n` without inertia).
     #[inline(always)]
     fn inertial_target(&self, i: usize, start: F::Vector) -> F::Vector {
@@ -416,7 +446,11 @@ fn minimise<F: ElasticEnergy>(
     let (gradient, rest) = rest.split_at_mut(n);
     let (trial_gradient, rest) = rest.split_at_mut(n);
     let (trial, direction) = rest.split_at_mut(n);
-    let diagonal = &mut *scratch.scalars;
+    if !scratch.stiffness_ready {
+        vertex_stiffness(model, scratch.scalars);
+        scratch.stiffness_ready = true;
+    }
+    let stiffness: &[Real] = scratch.scalars;
     start.copy_from_slice(positions);
 
     let start: &[F::Vector] = start;
@@ -435,16 +469,12 @@ fn minimise<F: ElasticEnergy>(
         gravity: settings.gravity,
         ground,
     };
-    vertex_stiffness(model, diagonal);
-    for (p, &m) in diagonal.iter_mut().zip(masses) {
-        *p += m * inertia;
-    }
     let buffers = Buffers {
         gradient,
         trial_gradient,
         trial,
         direction,
-        diagonal,
+        stiffness,
     };
     let outcome = descend(&objective, settings, positions, buffers);
     let (report, gradient, backup) = match outcome {
@@ -497,7 +527,8 @@ struct Buffers<'b, V> {
     trial_gradient: &'b mut [V],
     trial: &'b mut [V],
     direction: &'b mut [V],
-    diagonal: &'b [Real],
+    /// The preconditioner's stiffness part, per vertex (N/m).
+    stiffness: &'b [Real],
 }
 
 /// The relative size of `Phi`'s rounding error the line search tolerates: `sqrt(eps)`
@@ -535,7 +566,7 @@ fn descend<'b, F: ElasticEnergy>(
         mut trial_gradient,
         trial,
         direction,
-        diagonal,
+        stiffness,
     } = buffers;
     // Initial guess: the better (lower Phi) of the inertial target y and y + h^2 g, both
     // projected on the ground. The second is the predictor of projective dynamics (Bouaziz et
@@ -607,12 +638,16 @@ fn descend<'b, F: ElasticEnergy>(
         if omega > 1.0 {
             // x_{k+1} = omega (x_k + alpha d - x_{k-1}) + x_{k-1}
             //         = x_k + omega alpha d + (omega - 1) (x_k - x_{k-1}).
-            for ((((t, &x), &g), &s), (&p, pinned)) in trial
+            for ((((t, &x), &g), &s), (p, pinned)) in trial
                 .iter_mut()
                 .zip(&*positions)
                 .zip(&*gradient)
                 .zip(&*direction)
-                .zip(diagonal.iter().zip(pinned_flags(objective.pinned)))
+                .zip(
+                    objective
+                        .diagonal(stiffness)
+                        .zip(pinned_flags(objective.pinned)),
+                )
             {
                 *t = if pinned {
                     x
@@ -648,13 +683,13 @@ fn descend<'b, F: ElasticEnergy>(
             objective,
             positions,
             gradient,
-            diagonal,
+            stiffness,
             direction,
             settings.momentum,
         );
         if !downhill(slope) && settings.momentum > 0.0 {
             direction.fill(F::Vector::ZERO);
-            slope = descent_direction(objective, positions, gradient, diagonal, direction, 0.0);
+            slope = descent_direction(objective, positions, gradient, stiffness, direction, 0.0);
         }
         if !downhill(slope) {
             break; // stationary to rounding
@@ -747,16 +782,16 @@ fn descent_direction<F: ElasticEnergy>(
     objective: &Objective<'_, F>,
     positions: &[F::Vector],
     gradient: &[F::Vector],
-    diagonal: &[Real],
+    stiffness: &[Real],
     direction: &mut [F::Vector],
     momentum: Real,
 ) -> Real {
     let mut slope = 0.0;
-    for (((d, &x), &g), &p) in direction
+    for (((d, &x), &g), p) in direction
         .iter_mut()
         .zip(positions)
         .zip(gradient)
-        .zip(diagonal)
+        .zip(objective.diagonal(stiffness))
     {
         let g = objective.projected(x, g, 1.0);
         let plain = if p > 0.0 {
