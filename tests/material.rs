@@ -141,6 +141,67 @@ macro_rules! material_tests {
 
             // ---- Identities (SPEC.md section 5) -----------------------------------------------
 
+            /// The energy at small strain against linear elasticity's
+            /// `W = mu |eps|^2 + lambda/2 (tr eps)^2`, `eps = sym(H)` for `F = I + H`. The
+            /// model error is of order `|H|` relative; a rounding error of order `eps mu` (from
+            /// forming `I_C - 3` or `J - 1` by subtraction) would be `eps / |H|^2` relative:
+            /// 12 in f32 at `|H| = 1e-4`.
+            fn small_strain_energy_is_accurate<M: Material>(lame: Lame, model: M) {
+                let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+                for size in [1e-3, 1e-4] {
+                    for _ in 0..50 {
+                        let mut entry = || uniform(&mut rng, -size, size);
+                        let h = Mat3::from_cols_array(&core::array::from_fn(|_| entry()));
+                        let strain = (h + h.transpose()) * 0.5;
+                        let trace = strain.x_axis.x + strain.y_axis.y + strain.z_axis.z;
+                        let linear = lame.mu() * norm(strain).powi(2)
+                            + 0.5 * lame.lambda() * trace * trace;
+                        let energy = model.energy_density(Mat3::IDENTITY + h);
+                        let tolerance = 20.0 * size + 100.0 * EPS / size;
+                        assert!(
+                            (energy - linear).abs() <= tolerance * linear,
+                            "{}: |H| ~ {size}: W = {energy}, linear {linear}",
+                            name::<M>()
+                        );
+                    }
+                }
+            }
+
+            #[test]
+            fn small_strain_energy_has_no_cancellation_error() {
+                // The seed's neo-Hookean is left out: its isochoric term `J^(-2/3) I_C - 3`
+                // cancels terms of order one, so its energy carries an error of order `eps mu`
+                // (documented on the type).
+                for lame in parameter_sets() {
+                    small_strain_energy_is_accurate(lame, StVK::new(lame));
+                    small_strain_energy_is_accurate(lame, StableNeoHookean::new(lame));
+                }
+            }
+
+            fn fused_energy_and_stress_match<M: Material>(_lame: Lame, model: M) {
+                // The fused call must give the separate calls' values bit for bit, at rest, on
+                // random and inverted deformations, on flat ones and on a singular one.
+                let flat = [diag(1.0, 1.0, 0.0), diag(1.2, 0.0, 0.0), Mat3::ZERO];
+                for f in deformations(200).chain(flat).chain([Mat3::IDENTITY]) {
+                    let (energy, stress) = model.energy_and_first_piola(f);
+                    let (expected_energy, expected_stress) =
+                        (model.energy_density(f), model.first_piola(f));
+                    assert_eq!(
+                        energy.to_bits(),
+                        expected_energy.to_bits(),
+                        "{}: F = {f}",
+                        name::<M>()
+                    );
+                    let bits = |m: Mat3| m.to_cols_array().map(Real::to_bits);
+                    assert_eq!(bits(stress), bits(expected_stress), "{}: F = {f}", name::<M>());
+                }
+            }
+
+            #[test]
+            fn fused_energy_and_stress_equal_the_separate_calls() {
+                for_each_model!(fused_energy_and_stress_match);
+            }
+
             fn zero_at_rest<M: Material>(lame: Lame, model: M) {
                 // StVK's Green strain is exactly zero at F = I, and the neo-Hookean forms are
                 // grouped so that their two stress terms cancel exactly (see their sources).

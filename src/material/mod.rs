@@ -137,6 +137,16 @@ pub trait Material: Copy + Debug {
     #[must_use]
     fn first_piola(&self, f: Mat3) -> Mat3;
 
+    /// `(energy_density(f), first_piola(f))` in one call, bit for bit: the per-element work
+    /// of the energy-based steppers (a line search needs both at every trial point). The
+    /// models here override it to compute the invariants, `cof(F)` and any cube root or
+    /// logarithm they share only once.
+    #[inline]
+    #[must_use]
+    fn energy_and_first_piola(&self, f: Mat3) -> (Real, Mat3) {
+        (self.energy_density(f), self.first_piola(f))
+    }
+
     /// The strain energy density `W` (J/m^3) as a function of the signed singular values `s` of
     /// `F` (dimensionless, as returned by [`svd3`]: `s.z < 0` for an inverted element).
     /// Equals [`energy_density`](Material::energy_density) of any `F` with these singular values.
@@ -218,10 +228,44 @@ fn cofactor(f: Mat3) -> Mat3 {
     )
 }
 
-/// `(I_C, J) = (tr(F^T F), det F)`.
+/// `(I_C, J) = (tr(F^T F), det F)`, with `J = F_0 . cof(F)_0` (the triple product
+/// `x . (y x z)` of the columns), exactly as [`invariant_first_piola`] forms it, so that a
+/// model's energy and stress see the same `J` to the last bit.
 #[inline(always)]
 fn invariants(f: Mat3) -> (Real, Real) {
-    (frobenius_squared(f), f.determinant())
+    (frobenius_squared(f), f.x_axis.dot(f.y_axis.cross(f.z_axis)))
+}
+
+/// `(I_C - 3, J - 1)` without cancellation, given `cof0 = F_1 x F_2`, the first column of
+/// `cof(F)`. Forming `I_C` and `J` first and subtracting would leave an absolute error of a few
+/// `eps`, which at a small strain `e` is a relative error of `eps / e` in every energy term of
+/// order `e`. Instead, with `F_ii - 1` exact for `F_ii` in `[0.5, 2]` (Sterbenz):
+/// `I_C - 3 = sum (F_ii - 1)(F_ii + 1) + sum_{i != j} F_ij^2`, and
+/// `J - 1 = F_0 . cof0 - 1 = (cof0_x - 1) + (F_00 - 1, F_10, F_20) . cof0` with
+/// `cof0_x - 1 = (F_11 - 1) + (F_22 - 1) + (F_11 - 1)(F_22 - 1) - F_21 F_12`.
+#[inline(always)]
+fn invariant_deviations(f: Mat3, cof0: Vec3) -> (Real, Real) {
+    let (a, b, c) = (f.x_axis, f.y_axis, f.z_axis);
+    let (d0, d1, d2) = (a.x - 1.0, b.y - 1.0, c.z - 1.0);
+    let diagonal = d0 * (a.x + 1.0) + d1 * (b.y + 1.0) + d2 * (c.z + 1.0);
+    let off_diagonal = (a.y * a.y + a.z * a.z) + (b.x * b.x + b.z * b.z) + (c.x * c.x + c.y * c.y);
+    let cof0_minus_1 = (d1 + d2) + (d1 * d2 - b.z * c.y);
+    (
+        diagonal + off_diagonal,
+        cof0_minus_1 + Vec3::new(d0, a.y, a.z).dot(cof0),
+    )
+}
+
+/// [`invariant_deviations`] from the signed singular values: with `d = s - 1`,
+/// `I_C - 3 = 2 sum d + |d|^2` and `J - 1 = sum d + (d0 d1 + d0 d2 + d1 d2) + d0 d1 d2`.
+#[inline(always)]
+fn principal_invariant_deviations(s: Vec3) -> (Real, Real) {
+    let d = s - Vec3::ONE;
+    let trace = d.x + d.y + d.z;
+    (
+        2.0 * trace + d.length_squared(),
+        trace + (d.x * d.y + d.x * d.z + d.y * d.z) + d.x * d.y * d.z,
+    )
 }
 
 /// `(I_C, J) = (sum s_i^2, s0 s1 s2)` from the signed singular values.
@@ -238,6 +282,21 @@ fn invariant_first_piola(f: Mat3, coefficients: impl FnOnce(Real, Real) -> (Real
     let j = f.x_axis.dot(cof.x_axis);
     let (a, b) = coefficients(frobenius_squared(f), j);
     f * a + cof * b
+}
+
+/// `(W, P)` of a model written as `W(I_C, J)`, sharing `cof(F)`: `energy(F, cof(F)_0)` gives
+/// `W` and `coefficients(I_C, J)` the `(a, b)` of [`invariant_first_piola`], whose stress this
+/// is bit for bit.
+#[inline(always)]
+fn invariant_energy_and_first_piola(
+    f: Mat3,
+    energy: impl FnOnce(Mat3, Vec3) -> Real,
+    coefficients: impl FnOnce(Real, Real) -> (Real, Real),
+) -> (Real, Mat3) {
+    let cof = cofactor(f);
+    let j = f.x_axis.dot(cof.x_axis);
+    let (a, b) = coefficients(frobenius_squared(f), j);
+    (energy(f, cof.x_axis), f * a + cof * b)
 }
 
 /// `dW/ds` of a model written as `W(I_C, J)`: `dI_C/ds_i = 2 s_i` and `dJ/ds_i = p_i`, the

@@ -1,8 +1,8 @@
 //! The seed notes' neo-Hookean model: isochoric shear energy plus a quadratic volume penalty.
 
 use super::{
-    Lame, Mat3, Material, MaterialError, Real, Vec3, invariant_first_piola,
-    invariant_principal_stress, invariants, math, principal_invariants,
+    Lame, Mat3, Material, MaterialError, Real, Vec3, cofactor, frobenius_squared,
+    invariant_first_piola, invariant_principal_stress, invariants, math, principal_invariants,
 };
 
 /// The seed's (isochoric) neo-Hookean model (`SPEC.md` section 2): with `I_C = tr(F^T F)`,
@@ -22,6 +22,14 @@ use super::{
 ///   finite and `P` is still the gradient of `W` (the mirror image of the `J > 0` branch of the
 ///   shear term). Its barrier then holds the element on the inverted side: the failure mode
 ///   the stability tests show, rather than a NaN.
+///
+/// # Rounding at small strain
+/// The isochoric term `J^(-2/3) I_C - 3` is a difference of terms of order one, so the energy
+/// carries an absolute rounding error of order `eps mu` however small the strain `e` (a relative
+/// error of `eps / e^2`, far above 1 in f32 below `e ~ 3e-4`). The stress is not affected. An
+/// f32 line search ([`relax_step`](super::super::step::relax_step)) on such a state compares
+/// energies that rounding dominates; [`StableNeoHookean`] and [`StVK`](super::StVK) form their
+/// energies without this cancellation.
 ///
 /// ```
 /// use softfem::glam::{Mat3, Vec3};
@@ -59,14 +67,26 @@ impl NeoHookean {
     /// `W(I_C, J)`.
     #[inline(always)]
     fn energy(&self, ic: Real, j: Real) -> Real {
-        let shear = 0.5 * self.lame.mu() * (j_pow_minus_two_thirds(j) * ic - 3.0);
+        self.energy_with(ic, j, j_pow_minus_two_thirds(j))
+    }
+
+    /// [`energy`](Self::energy) given `j23 = J^(-2/3)`.
+    #[inline(always)]
+    fn energy_with(&self, ic: Real, j: Real, j23: Real) -> Real {
+        let shear = 0.5 * self.lame.mu() * (j23 * ic - 3.0);
         shear + 0.5 * self.bulk_modulus * (j - 1.0) * (j - 1.0)
     }
 
     /// `(2 dW/dI_C, dW/dJ) = (mu J^(-2/3), -(mu/3) J^(-5/3) I_C + K (J - 1))`.
     #[inline(always)]
     fn stress_coefficients(&self, ic: Real, j: Real) -> (Real, Real) {
-        let shear = self.lame.mu() * j_pow_minus_two_thirds(j);
+        self.stress_coefficients_with(ic, j, j_pow_minus_two_thirds(j))
+    }
+
+    /// [`stress_coefficients`](Self::stress_coefficients) given `j23 = J^(-2/3)`.
+    #[inline(always)]
+    fn stress_coefficients_with(&self, ic: Real, j: Real, j23: Real) -> (Real, Real) {
+        let shear = self.lame.mu() * j23;
         // Grouped as (I_C / 3) / J so that the two shear terms of P cancel exactly at F = I.
         (
             shear,
@@ -94,6 +114,16 @@ impl Material for NeoHookean {
     #[inline]
     fn first_piola(&self, f: Mat3) -> Mat3 {
         invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
+    }
+
+    #[inline]
+    fn energy_and_first_piola(&self, f: Mat3) -> (Real, Mat3) {
+        // One cube root for both: the energy's invariants and the stress's, bit for bit.
+        let cof = cofactor(f);
+        let (ic, j) = (frobenius_squared(f), f.x_axis.dot(cof.x_axis));
+        let j23 = j_pow_minus_two_thirds(j);
+        let (a, b) = self.stress_coefficients_with(ic, j, j23);
+        (self.energy_with(ic, j, j23), f * a + cof * b)
     }
 
     #[inline]

@@ -1,8 +1,9 @@
 //! Stable neo-Hookean (Smith, de Goes, Kim 2018): smooth through inversion.
 
 use super::{
-    Lame, Mat3, Material, MaterialError, Real, Vec3, invariant_first_piola,
-    invariant_principal_stress, invariants, math, principal_invariants,
+    Lame, Mat3, Material, MaterialError, Real, Vec3, invariant_deviations,
+    invariant_energy_and_first_piola, invariant_first_piola, invariant_principal_stress, math,
+    principal_invariant_deviations,
 };
 
 /// Stable neo-Hookean: Smith, de Goes, Kim, "Stable Neo-Hookean Flesh Simulation" (ACM TOG
@@ -20,7 +21,11 @@ use super::{
 /// The energy is evaluated in the algebraically equal form
 /// `W = 2 mu / 3 ((I_C - 3) - ln(1 + (I_C - 3) / 4)) + (J - 1) (l (J - 1) - 2 mu) / 2`
 /// (using `l (a - 1) = mu`), which is exactly zero at rest and keeps its accuracy at small
-/// strain instead of subtracting the constant `W0` from terms of order `lambda`.
+/// strain instead of subtracting the constant `W0` from terms of order `lambda`. `I_C - 3` and
+/// `J - 1` are formed from `F - I` rather than by subtraction (see `invariant_deviations` in
+/// `material/mod.rs`), so that at a small strain `e` the energy's rounding error is of order
+/// `eps mu e` (as StVK's), not `eps mu`: a line search comparing the energies of nearby states
+/// of a large f32 mesh depends on it.
 ///
 /// ```
 /// use softfem::glam::{Mat3, Vec3};
@@ -55,16 +60,18 @@ impl StableNeoHookean {
         }
     }
 
-    /// `W(I_C, J)` in the cancellation-free form of the type's documentation.
+    /// `W` in the cancellation-free form of the type's documentation, from
+    /// `(I_C - 3, J - 1)` ([`invariant_deviations`]).
     #[inline(always)]
-    fn energy(&self, ic: Real, j: Real) -> Real {
+    fn energy(&self, ic_minus_3: Real, j_minus_1: Real) -> Real {
         let mu = self.lame.mu();
-        let shear = ic - 3.0;
-        let shear = 2.0 * mu / 3.0 * (shear - math::ln_1p(0.25 * shear));
-        shear + 0.5 * (j - 1.0) * (self.volume_stiffness * (j - 1.0) - 2.0 * mu)
+        let shear = 2.0 * mu / 3.0 * (ic_minus_3 - math::ln_1p(0.25 * ic_minus_3));
+        shear + 0.5 * j_minus_1 * (self.volume_stiffness * j_minus_1 - 2.0 * mu)
     }
 
     /// `(2 dW/dI_C, dW/dJ) = (m I_C / (I_C + 1), l (J - a))`, with `l (J - a) = l (J - 1) - mu`.
+    /// The stress does not need the cancellation-free invariants: its terms are of order `mu`
+    /// and its rounding error of order `eps mu`, as every model's.
     #[inline(always)]
     fn stress_coefficients(&self, ic: Real, j: Real) -> (Real, Real) {
         let mu = self.lame.mu();
@@ -81,8 +88,8 @@ lame_constructors!(StableNeoHookean);
 impl Material for StableNeoHookean {
     #[inline]
     fn energy_density(&self, f: Mat3) -> Real {
-        let (ic, j) = invariants(f);
-        self.energy(ic, j)
+        let (ic_minus_3, j_minus_1) = invariant_deviations(f, f.y_axis.cross(f.z_axis));
+        self.energy(ic_minus_3, j_minus_1)
     }
 
     #[inline]
@@ -91,9 +98,21 @@ impl Material for StableNeoHookean {
     }
 
     #[inline]
+    fn energy_and_first_piola(&self, f: Mat3) -> (Real, Mat3) {
+        invariant_energy_and_first_piola(
+            f,
+            |f, cof0| {
+                let (ic_minus_3, j_minus_1) = invariant_deviations(f, cof0);
+                self.energy(ic_minus_3, j_minus_1)
+            },
+            |ic, j| self.stress_coefficients(ic, j),
+        )
+    }
+
+    #[inline]
     fn principal_energy(&self, s: Vec3) -> Real {
-        let (ic, j) = principal_invariants(s);
-        self.energy(ic, j)
+        let (ic_minus_3, j_minus_1) = principal_invariant_deviations(s);
+        self.energy(ic_minus_3, j_minus_1)
     }
 
     #[inline]

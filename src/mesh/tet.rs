@@ -175,8 +175,9 @@ impl<'a> TetMesh<'a> {
         let mut energy = 0.0;
         for (corners, rest) in self.tets.iter().zip(self.rest) {
             let f = rest.deformation_gradient(gather(positions, corners));
-            energy += rest.volume * material.energy_density(f);
-            scatter_add(forces, corners, rest.nodal_forces(material.first_piola(f)));
+            let (density, stress) = material.energy_and_first_piola(f);
+            energy += rest.volume * density;
+            scatter_add(forces, corners, rest.nodal_forces(stress));
         }
         Ok(energy)
     }
