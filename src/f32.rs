@@ -31,33 +31,20 @@ pub(crate) mod math {
         libm::sqrtf(x)
     }
 
-    /// The unsigned integer with the bit width of `Real`.
+    /// The unsigned integer with the bit width of `Real` (the portable lanes' masks).
+    #[cfg(not(target_arch = "x86_64"))]
     pub type Bits = u32;
 
     /// Values per [`Lanes`](super::lanes::Lanes) group: one SSE register of f32.
     pub const LANES: usize = 4;
 
-    /// [`sqrt`] of every lane, with the target's packed square root where there is one
-    /// (`sqrtps` on x86_64: the same correctly rounded result per lane).
+    /// [`sqrt`] of every lane (the portable lanes; on x86_64 they are an SSE register and use
+    /// `sqrtps`, correctly rounded as well).
+    #[cfg(not(target_arch = "x86_64"))]
     #[inline(always)]
     #[must_use]
     pub fn sqrt_lanes(x: [Real; LANES]) -> [Real; LANES] {
-        #[cfg(all(target_arch = "x86_64", target_feature = "sse"))]
-        {
-            use core::arch::x86_64::{_mm_loadu_ps, _mm_sqrt_ps, _mm_storeu_ps};
-            let mut out = [0.0; LANES];
-            for (src, dst) in x.chunks_exact(4).zip(out.chunks_exact_mut(4)) {
-                // SAFETY: SSE is enabled for this build (the cfg above); both pointers
-                // address 4 in-bounds values (chunks_exact(4)), and the unaligned load and
-                // store have no alignment requirement.
-                unsafe { _mm_storeu_ps(dst.as_mut_ptr(), _mm_sqrt_ps(_mm_loadu_ps(src.as_ptr()))) }
-            }
-            out
-        }
-        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse")))]
-        {
-            x.map(sqrt)
-        }
+        x.map(sqrt)
     }
 
     /// Real cube root (`cbrt(-8) = -2`).
@@ -102,6 +89,14 @@ pub(crate) mod math {
         Real::from_bits((a.to_bits() & mask) | (b.to_bits() & !mask))
     }
 }
+
+/// How a group of [`lanes::Lanes`] is held: one SSE register on x86_64, an array elsewhere.
+#[cfg(target_arch = "x86_64")]
+#[path = "lanes_sse.rs"]
+mod lane_repr;
+#[cfg(not(target_arch = "x86_64"))]
+#[path = "lanes_portable.rs"]
+mod lane_repr;
 
 #[path = "lanes.rs"]
 pub mod lanes;

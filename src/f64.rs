@@ -110,6 +110,11 @@ pub(crate) mod math {
     }
 }
 
+/// How a group of [`lanes::Lanes`] is held: an array (two SSE2 registers of f64 where the
+/// compiler keeps it in registers).
+#[path = "lanes_portable.rs"]
+mod lane_repr;
+
 #[path = "lanes.rs"]
 pub mod lanes;
 

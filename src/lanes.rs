@@ -7,15 +7,26 @@
 //! Comparisons give masks and conditionals are selects, so no lane ever branches.
 
 use super::math;
-use super::types::Real;
+use super::types::{Mat3, Real, Vec3};
 use core::ops::{Add, Div, Mul, Neg, Sub};
+
+pub use super::lane_repr::{LaneMask, Lanes, transpose_vec3, untranspose_vec3};
 
 /// Number of values a [`Lanes`] holds: 4 in both precisions (one SSE register of f32, two of f64).
 pub const LANES: usize = math::LANES;
 
-/// A scalar-like number type: [`Real`] itself or a group of [`Lanes`].
-pub(crate) trait Lane:
-    Copy
+mod sealed {
+    /// Only this crate's number types implement [`Lane`](super::Lane).
+    pub trait Sealed {}
+    impl Sealed for super::Real {}
+    impl Sealed for super::Lanes {}
+}
+
+/// A scalar-like number type: [`Real`] itself or a group of [`Lanes`]. Sealed: implemented by
+/// this crate's two types only.
+pub trait Lane:
+    sealed::Sealed
+    + Copy
     + Add<Output = Self>
     + Sub<Output = Self>
     + Mul<Output = Self>
@@ -38,6 +49,9 @@ pub(crate) trait Lane:
     fn gt(self, other: Self) -> Self::Mask;
     /// `mask ? a : b`, per lane, without branching.
     fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
+    /// `f` of every lane, one at a time (for the few functions without a lane-wide form:
+    /// logarithms, cube roots).
+    fn map(self, f: impl Fn(Real) -> Real) -> Self;
 }
 
 impl Lane for Real {
@@ -77,152 +91,47 @@ impl Lane for Real {
     fn select(mask: bool, a: Self, b: Self) -> Self {
         math::select(mask, a, b)
     }
-}
-
-/// [`LANES`] independent values processed together (structure of arrays).
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C, align(16))]
-pub struct Lanes(pub [Real; LANES]);
-
-/// Per-lane comparison results: all bits set where true.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C, align(16))]
-pub struct LaneMask([math::Bits; LANES]);
-
-impl Lanes {
-    /// Applies `f` to every lane.
-    #[inline(always)]
-    #[must_use]
-    pub fn map(self, f: impl Fn(Real) -> Real) -> Lanes {
-        Lanes(self.0.map(f))
-    }
-
-    /// Combines two groups lane by lane.
-    #[inline(always)]
-    #[must_use]
-    pub fn zip(self, other: Lanes, f: impl Fn(Real, Real) -> Real) -> Lanes {
-        let mut out = self;
-        for (a, b) in out.0.iter_mut().zip(other.0) {
-            *a = f(*a, b);
-        }
-        out
-    }
-}
-
-macro_rules! lanes_binary_op {
-    ($trait:ident, $method:ident, $op:tt) => {
-        impl $trait for Lanes {
-            type Output = Lanes;
-            #[inline(always)]
-            fn $method(self, other: Lanes) -> Lanes {
-                self.zip(other, |a, b| a $op b)
-            }
-        }
-    };
-}
-lanes_binary_op!(Add, add, +);
-lanes_binary_op!(Sub, sub, -);
-lanes_binary_op!(Mul, mul, *);
-lanes_binary_op!(Div, div, /);
-
-impl Neg for Lanes {
-    type Output = Lanes;
-    #[inline(always)]
-    fn neg(self) -> Lanes {
-        self.map(|a| -a)
-    }
-}
-
-impl Lane for Lanes {
-    type Mask = LaneMask;
 
     #[inline(always)]
-    fn splat(x: Real) -> Self {
-        Lanes([x; LANES])
-    }
-
-    #[inline(always)]
-    fn sqrt(self) -> Self {
-        Lanes(math::sqrt_lanes(self.0))
-    }
-
-    #[inline(always)]
-    fn abs(self) -> Self {
-        self.map(Real::abs)
-    }
-
-    #[inline(always)]
-    fn max(self, other: Self) -> Self {
-        self.zip(other, Real::max)
-    }
-
-    #[inline(always)]
-    fn sign(self) -> Self {
-        self.map(|a| (1.0 as Real).copysign(a))
-    }
-
-    #[inline(always)]
-    fn gt(self, other: Self) -> LaneMask {
-        let mut mask = LaneMask([0; LANES]);
-        for ((m, a), b) in mask.0.iter_mut().zip(self.0).zip(other.0) {
-            *m = if a > b { math::Bits::MAX } else { 0 };
-        }
-        mask
-    }
-
-    #[inline(always)]
-    fn select(mask: LaneMask, a: Self, b: Self) -> Self {
-        let mut out = b;
-        for ((o, m), a) in out.0.iter_mut().zip(mask.0).zip(a.0) {
-            *o = Real::from_bits((a.to_bits() & m) | (o.to_bits() & !m));
-        }
-        out
+    fn map(self, f: impl Fn(Real) -> Real) -> Self {
+        f(self)
     }
 }
 
 /// A 3-vector of lane values.
 #[derive(Clone, Copy)]
-pub(crate) struct V3<L> {
+pub struct LaneVec3<L> {
+    /// The x coordinates.
     pub x: L,
+    /// The y coordinates.
     pub y: L,
+    /// The z coordinates.
     pub z: L,
 }
 
-impl<L: Lane> V3<L> {
+impl<L: Lane> LaneVec3<L> {
+    /// The vector `(x, y, z)`.
     #[inline(always)]
     pub fn new(x: L, y: L, z: L) -> Self {
-        V3 { x, y, z }
+        LaneVec3 { x, y, z }
     }
 
+    /// `x x' + y y' + z z'`, summed in that order.
     #[inline(always)]
     pub fn dot(self, o: Self) -> L {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
 
+    /// Every coordinate times `k`.
     #[inline(always)]
     pub fn scale(self, k: L) -> Self {
-        V3::new(self.x * k, self.y * k, self.z * k)
-    }
-
-    #[inline(always)]
-    pub fn add(self, o: Self) -> Self {
-        V3::new(self.x + o.x, self.y + o.y, self.z + o.z)
-    }
-
-    #[inline(always)]
-    pub fn sub(self, o: Self) -> Self {
-        V3::new(self.x - o.x, self.y - o.y, self.z - o.z)
-    }
-
-    #[inline(always)]
-    pub fn neg(self) -> Self {
-        V3::new(-self.x, -self.y, -self.z)
+        LaneVec3::new(self.x * k, self.y * k, self.z * k)
     }
 
     /// `mask ? a : b` per lane.
     #[inline(always)]
     pub fn select(mask: L::Mask, a: Self, b: Self) -> Self {
-        V3::new(
+        LaneVec3::new(
             L::select(mask, a.x, b.x),
             L::select(mask, a.y, b.y),
             L::select(mask, a.z, b.z),
@@ -230,68 +139,149 @@ impl<L: Lane> V3<L> {
     }
 }
 
-/// A 3x3 matrix of lane values, stored as columns (like glam).
-#[derive(Clone, Copy)]
-pub(crate) struct M3<L> {
-    pub c0: V3<L>,
-    pub c1: V3<L>,
-    pub c2: V3<L>,
+impl<L: Lane> Add for LaneVec3<L> {
+    type Output = Self;
+    /// The sum.
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        LaneVec3::new(self.x + o.x, self.y + o.y, self.z + o.z)
+    }
 }
 
-impl<L: Lane> M3<L> {
+impl<L: Lane> Sub for LaneVec3<L> {
+    type Output = Self;
+    /// The difference.
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        LaneVec3::new(self.x - o.x, self.y - o.y, self.z - o.z)
+    }
+}
+
+impl<L: Lane> Neg for LaneVec3<L> {
+    type Output = Self;
+    /// The negation.
+    #[inline(always)]
+    fn neg(self) -> Self {
+        LaneVec3::new(-self.x, -self.y, -self.z)
+    }
+}
+
+/// A 3x3 matrix of lane values, stored as columns (like glam).
+#[derive(Clone, Copy)]
+pub struct LaneMat3<L> {
+    /// The first column.
+    pub c0: LaneVec3<L>,
+    /// The second column.
+    pub c1: LaneVec3<L>,
+    /// The third column.
+    pub c2: LaneVec3<L>,
+}
+
+impl<L: Lane> LaneMat3<L> {
+    /// The identity in every lane.
     #[inline(always)]
     pub fn identity() -> Self {
         let (o, z) = (L::splat(1.0), L::splat(0.0));
-        M3 {
-            c0: V3::new(o, z, z),
-            c1: V3::new(z, o, z),
-            c2: V3::new(z, z, o),
+        LaneMat3 {
+            c0: LaneVec3::new(o, z, z),
+            c1: LaneVec3::new(z, o, z),
+            c2: LaneVec3::new(z, z, o),
         }
     }
 
+    /// The transpose.
     #[inline(always)]
     pub fn transpose(self) -> Self {
-        M3 {
-            c0: V3::new(self.c0.x, self.c1.x, self.c2.x),
-            c1: V3::new(self.c0.y, self.c1.y, self.c2.y),
-            c2: V3::new(self.c0.z, self.c1.z, self.c2.z),
+        LaneMat3 {
+            c0: LaneVec3::new(self.c0.x, self.c1.x, self.c2.x),
+            c1: LaneVec3::new(self.c0.y, self.c1.y, self.c2.y),
+            c2: LaneVec3::new(self.c0.z, self.c1.z, self.c2.z),
         }
     }
 
     /// `self * v`.
     #[inline(always)]
-    pub fn mul_vec(self, v: V3<L>) -> V3<L> {
-        self.c0
-            .scale(v.x)
-            .add(self.c1.scale(v.y))
-            .add(self.c2.scale(v.z))
+    pub fn mul_vec(self, v: LaneVec3<L>) -> LaneVec3<L> {
+        self.c0.scale(v.x) + self.c1.scale(v.y) + self.c2.scale(v.z)
     }
 
-    /// `self * other`.
-    #[inline(always)]
-    pub fn mul(self, other: Self) -> Self {
-        M3 {
-            c0: self.mul_vec(other.c0),
-            c1: self.mul_vec(other.c1),
-            c2: self.mul_vec(other.c2),
-        }
-    }
-
+    /// Every entry times `k`.
     #[inline(always)]
     pub fn scale(self, k: L) -> Self {
-        M3 {
+        LaneMat3 {
             c0: self.c0.scale(k),
             c1: self.c1.scale(k),
             c2: self.c2.scale(k),
         }
     }
+}
 
+impl<L: Lane> Mul for LaneMat3<L> {
+    type Output = Self;
+    /// The matrix product, each column `self * other.c_j` as in [`LaneMat3::mul_vec`].
     #[inline(always)]
-    pub fn sub(self, o: Self) -> Self {
-        M3 {
-            c0: self.c0.sub(o.c0),
-            c1: self.c1.sub(o.c1),
-            c2: self.c2.sub(o.c2),
+    fn mul(self, other: Self) -> Self {
+        LaneMat3 {
+            c0: self.mul_vec(other.c0),
+            c1: self.mul_vec(other.c1),
+            c2: self.mul_vec(other.c2),
         }
+    }
+}
+
+impl<L: Lane> Sub for LaneMat3<L> {
+    type Output = Self;
+    /// The difference.
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        LaneMat3 {
+            c0: self.c0 - o.c0,
+            c1: self.c1 - o.c1,
+            c2: self.c2 - o.c2,
+        }
+    }
+}
+
+impl LaneVec3<Lanes> {
+    /// The vectors as lanes: lane `i` holds `v[i]`.
+    #[inline(always)]
+    #[must_use]
+    pub fn from_vectors(v: [Vec3; LANES]) -> Self {
+        transpose_vec3(v)
+    }
+
+    /// The vector of every lane.
+    #[inline(always)]
+    #[must_use]
+    pub fn to_vectors(self) -> [Vec3; LANES] {
+        untranspose_vec3(self)
+    }
+}
+
+impl LaneMat3<Lanes> {
+    /// The matrices as lanes: entry `(r, c)` of lane `i` is entry `(r, c)` of `a[i]`.
+    #[inline(always)]
+    #[must_use]
+    pub fn from_matrices(a: &[Mat3; LANES]) -> Self {
+        LaneMat3 {
+            c0: transpose_vec3(a.map(|m| m.x_axis)),
+            c1: transpose_vec3(a.map(|m| m.y_axis)),
+            c2: transpose_vec3(a.map(|m| m.z_axis)),
+        }
+    }
+
+    /// The matrix of every lane.
+    #[inline(always)]
+    #[must_use]
+    pub fn to_matrices(self) -> [Mat3; LANES] {
+        let (c0, c1, c2) = (
+            untranspose_vec3(self.c0),
+            untranspose_vec3(self.c1),
+            untranspose_vec3(self.c2),
+        );
+        core::array::from_fn(|i| match (c0.get(i), c1.get(i), c2.get(i)) {
+            (Some(&x), Some(&y), Some(&z)) => Mat3::from_cols(x, y, z),
+            _ => Mat3::ZERO,
+        })
     }
 }

@@ -32,7 +32,7 @@
 //! The sign of `det a` is carried by the sign bit of `sigma.z`; when `|det a|` is so small that
 //! `sigma.z` rounds to zero, it is `-0.0` for an inverted `a`.
 
-use super::lanes::{LANES, Lane, Lanes, M3, V3};
+use super::lanes::{LANES, Lane, LaneMat3, LaneVec3};
 use super::math;
 use super::types::{Mat3, Real, Vec3};
 
@@ -121,7 +121,7 @@ pub fn svd3_sweeps(a: Mat3, sweeps: u32) -> Svd3 {
     let Some(prescale) = Prescale::of(a) else {
         return Svd3::without_decomposition(a);
     };
-    let (u, sigma, v) = decompose_scaled(M3::from_mat3(prescale.apply(a)), sweeps);
+    let (u, sigma, v) = decompose_scaled(LaneMat3::from_mat3(prescale.apply(a)), sweeps);
     Svd3 {
         u: u.to_mat3(),
         sigma: prescale.undo(sigma.to_vec3()),
@@ -163,12 +163,13 @@ pub fn svd3_lanes_sweeps(a: &[Mat3; LANES], sweeps: u32) -> [Svd3; LANES] {
         (Some(Some(prescale)), Some(m)) => prescale.apply(*m),
         _ => Mat3::IDENTITY,
     });
-    let (u, sigma, v) = decompose_scaled(M3::pack(&scaled), sweeps);
+    let (u, sigma, v) = decompose_scaled(LaneMat3::from_matrices(&scaled), sweeps);
+    let (u, sigma, v) = (u.to_matrices(), sigma.to_vectors(), v.to_matrices());
     core::array::from_fn(|i| match (prescales.get(i), a.get(i)) {
         (Some(Some(prescale)), _) => Svd3 {
-            u: u.lane(i),
-            sigma: prescale.undo(sigma.lane(i)),
-            v: v.lane(i),
+            u: u.get(i).copied().unwrap_or(Mat3::ZERO),
+            sigma: prescale.undo(sigma.get(i).copied().unwrap_or(Vec3::ZERO)),
+            v: v.get(i).copied().unwrap_or(Mat3::ZERO),
         },
         (_, Some(m)) => Svd3::without_decomposition(*m),
         _ => Svd3::NON_FINITE,
@@ -215,13 +216,13 @@ impl Prescale {
     }
 }
 
-impl M3<Real> {
+impl LaneMat3<Real> {
     #[inline(always)]
     fn from_mat3(m: Mat3) -> Self {
-        M3 {
-            c0: V3::new(m.x_axis.x, m.x_axis.y, m.x_axis.z),
-            c1: V3::new(m.y_axis.x, m.y_axis.y, m.y_axis.z),
-            c2: V3::new(m.z_axis.x, m.z_axis.y, m.z_axis.z),
+        LaneMat3 {
+            c0: LaneVec3::new(m.x_axis.x, m.x_axis.y, m.x_axis.z),
+            c1: LaneVec3::new(m.y_axis.x, m.y_axis.y, m.y_axis.z),
+            c2: LaneVec3::new(m.z_axis.x, m.z_axis.y, m.z_axis.z),
         }
     }
 
@@ -231,59 +232,22 @@ impl M3<Real> {
     }
 }
 
-impl V3<Real> {
+impl LaneVec3<Real> {
     #[inline(always)]
     fn to_vec3(self) -> Vec3 {
         Vec3::new(self.x, self.y, self.z)
     }
 }
 
-impl M3<Lanes> {
-    /// The matrices as lanes: entry `(r, c)` of lane `i` is entry `(r, c)` of `a[i]`.
-    #[inline(always)]
-    fn pack(a: &[Mat3; LANES]) -> Self {
-        let entry = |f: fn(&Mat3) -> Real| Lanes(a.map(|m| f(&m)));
-        M3 {
-            c0: V3::new(
-                entry(|m| m.x_axis.x),
-                entry(|m| m.x_axis.y),
-                entry(|m| m.x_axis.z),
-            ),
-            c1: V3::new(
-                entry(|m| m.y_axis.x),
-                entry(|m| m.y_axis.y),
-                entry(|m| m.y_axis.z),
-            ),
-            c2: V3::new(
-                entry(|m| m.z_axis.x),
-                entry(|m| m.z_axis.y),
-                entry(|m| m.z_axis.z),
-            ),
-        }
-    }
-
-    /// The matrix held in lane `i` (zero for `i >= LANES`).
-    #[inline(always)]
-    fn lane(&self, i: usize) -> Mat3 {
-        Mat3::from_cols(self.c0.lane(i), self.c1.lane(i), self.c2.lane(i))
-    }
-}
-
-impl V3<Lanes> {
-    /// The vector held in lane `i` (zero for `i >= LANES`).
-    #[inline(always)]
-    fn lane(&self, i: usize) -> Vec3 {
-        let get = |l: Lanes| l.0.get(i).copied().unwrap_or(0.0);
-        Vec3::new(get(self.x), get(self.y), get(self.z))
-    }
-}
-
 /// Steps 2-5 of the algorithm on matrices whose largest entry lies in `[1, 2)`. Returns
 /// `(u, sigma, v)` with `sigma` still on that scale.
 #[inline(always)]
-fn decompose_scaled<L: Lane>(a: M3<L>, sweeps: u32) -> (M3<L>, V3<L>, M3<L>) {
+fn decompose_scaled<L: Lane>(
+    a: LaneMat3<L>,
+    sweeps: u32,
+) -> (LaneMat3<L>, LaneVec3<L>, LaneMat3<L>) {
     // Step 2: Jacobi on the symmetric a^T a, accumulating v.
-    let ata = a.transpose().mul(a);
+    let ata = a.transpose() * a;
     let mut s = SymmetricEntries {
         s00: ata.c0.x,
         s11: ata.c1.y,
@@ -292,7 +256,7 @@ fn decompose_scaled<L: Lane>(a: M3<L>, sweeps: u32) -> (M3<L>, V3<L>, M3<L>) {
         s02: ata.c2.x,
         s12: ata.c2.y,
     };
-    let mut v = M3::identity();
+    let mut v = LaneMat3::identity();
     for _ in 0..sweeps {
         let r = jacobi_rotation(s.s00, s.s11, s.s01);
         r.apply_symmetric(&mut s.s00, &mut s.s11, &mut s.s01, &mut s.s02, &mut s.s12);
@@ -310,11 +274,11 @@ fn decompose_scaled<L: Lane>(a: M3<L>, sweeps: u32) -> (M3<L>, V3<L>, M3<L>) {
     // Rounding in the rotations leaves v orthonormal only to ~10 eps after four sweeps, and that
     // error passes straight into the reconstruction (a = b v^T needs v v^T = I). One
     // Newton-Schulz step, v <- v - v (v^T v - I) / 2, squares it away.
-    let orthogonality_defect = v.transpose().mul(v).sub(M3::identity());
-    v = v.sub(v.mul(orthogonality_defect).scale(L::splat(0.5)));
+    let orthogonality_defect = v.transpose() * v - LaneMat3::identity();
+    v = v - (v * orthogonality_defect).scale(L::splat(0.5));
 
     // Step 3: b = a v with columns sorted by decreasing norm.
-    let mut b = a.mul(v);
+    let mut b = a * v;
     let mut norms = [b.c0.dot(b.c0), b.c1.dot(b.c1), b.c2.dot(b.c2)];
     let [n0, n1, n2] = &mut norms;
     sort_pair(&mut b.c0, &mut b.c1, &mut v.c0, &mut v.c1, n0, n1);
@@ -324,7 +288,7 @@ fn decompose_scaled<L: Lane>(a: M3<L>, sweeps: u32) -> (M3<L>, V3<L>, M3<L>) {
     // Step 4: Givens QR of the first column, b = u r. Rows of r are kept as the columns of `rt`
     // so that every row operation is a column operation.
     let mut rt = b.transpose();
-    let mut u = M3::identity();
+    let mut u = LaneMat3::identity();
     let g = Givens::zeroing(rt.c0.x, rt.c1.x);
     g.rotate_rows(&mut rt.c0, &mut rt.c1, &mut u.c0, &mut u.c1);
     let g = Givens::zeroing(rt.c0.x, rt.c2.x);
@@ -345,8 +309,8 @@ fn decompose_scaled<L: Lane>(a: M3<L>, sweeps: u32) -> (M3<L>, V3<L>, M3<L>) {
     let g12 = m11 * m12 + m21 * m22;
     let rot = jacobi_rotation(g11, g22, g12).larger_first(g11, g22, g12);
     // Columns 1 and 2 of r are the y and z components of the row vectors in `rt`.
-    let mut col1 = V3::new(rt.c0.y, r11, r21);
-    let mut col2 = V3::new(rt.c0.z, r12, r22);
+    let mut col1 = LaneVec3::new(rt.c0.y, r11, r21);
+    let mut col2 = LaneVec3::new(rt.c0.z, r12, r22);
     rot.rotate_columns(&mut col1, &mut col2);
     rot.rotate_columns(&mut v.c1, &mut v.c2);
     let g = Givens::zeroing(col1.y, col1.z);
@@ -358,7 +322,7 @@ fn decompose_scaled<L: Lane>(a: M3<L>, sweeps: u32) -> (M3<L>, V3<L>, M3<L>) {
     // order; a three-comparator sorting network restores the contract exactly.
     let mut sorted = Triplets {
         u,
-        sigma: V3::new(rt.c0.x, r11, r22),
+        sigma: LaneVec3::new(rt.c0.x, r11, r22),
         v,
     };
     sorted.order_first_pair();
@@ -369,9 +333,9 @@ fn decompose_scaled<L: Lane>(a: M3<L>, sweeps: u32) -> (M3<L>, V3<L>, M3<L>) {
 
 /// A decomposition in progress: `u diag(sigma) v^T`.
 struct Triplets<L> {
-    u: M3<L>,
-    sigma: V3<L>,
-    v: M3<L>,
+    u: LaneMat3<L>,
+    sigma: LaneVec3<L>,
+    v: LaneMat3<L>,
 }
 
 impl<L: Lane> Triplets<L> {
@@ -382,9 +346,9 @@ impl<L: Lane> Triplets<L> {
         let swap = self.sigma.y.gt(self.sigma.x);
         for m in [&mut self.u, &mut self.v] {
             let old = *m;
-            m.c0 = V3::select(swap, old.c1, old.c0);
-            m.c1 = V3::select(swap, old.c0, old.c1);
-            m.c2 = V3::select(swap, old.c2.neg(), old.c2);
+            m.c0 = LaneVec3::select(swap, old.c1, old.c0);
+            m.c1 = LaneVec3::select(swap, old.c0, old.c1);
+            m.c2 = LaneVec3::select(swap, -old.c2, old.c2);
         }
         let (s0, s1) = (self.sigma.x, self.sigma.y);
         self.sigma.x = L::select(swap, s1, s0);
@@ -401,10 +365,10 @@ impl<L: Lane> Triplets<L> {
         let swap = s2.abs().gt(s1);
         let k = s2.sign();
         let (u, v) = (self.u, self.v);
-        self.u.c1 = V3::select(swap, u.c2, u.c1);
-        self.u.c2 = V3::select(swap, u.c1.neg(), u.c2);
-        self.v.c1 = V3::select(swap, v.c2.scale(k), v.c1);
-        self.v.c2 = V3::select(swap, v.c1.neg().scale(k), v.c2);
+        self.u.c1 = LaneVec3::select(swap, u.c2, u.c1);
+        self.u.c2 = LaneVec3::select(swap, -u.c1, u.c2);
+        self.v.c1 = LaneVec3::select(swap, v.c2.scale(k), v.c1);
+        self.v.c2 = LaneVec3::select(swap, (-v.c1).scale(k), v.c2);
         self.sigma.y = L::select(swap, s2.abs(), s1);
         self.sigma.z = L::select(swap, s1 * k, s2);
     }
@@ -486,10 +450,10 @@ impl<L: Lane> JacobiRotation<L> {
 
     /// Right-multiplies a matrix by `J`, given its columns `p` and `q`.
     #[inline(always)]
-    fn rotate_columns(&self, p: &mut V3<L>, q: &mut V3<L>) {
+    fn rotate_columns(&self, p: &mut LaneVec3<L>, q: &mut LaneVec3<L>) {
         let (old_p, old_q) = (*p, *q);
-        *p = old_p.scale(self.c).sub(old_q.scale(self.s));
-        *q = old_p.scale(self.s).add(old_q.scale(self.c));
+        *p = old_p.scale(self.c) - old_q.scale(self.s);
+        *q = old_p.scale(self.s) + old_q.scale(self.c);
     }
 
     /// This rotation, followed by a quarter turn when that puts the larger diagonal entry of
@@ -535,7 +499,13 @@ impl<L: Lane> Givens<L> {
     /// Applies the rotation to rows `p` and `q` of `r` (stored as vectors) and the inverse to
     /// columns `p` and `q` of `u`, so that the product `u r` is unchanged.
     #[inline(always)]
-    fn rotate_rows(&self, row_p: &mut V3<L>, row_q: &mut V3<L>, u_p: &mut V3<L>, u_q: &mut V3<L>) {
+    fn rotate_rows(
+        &self,
+        row_p: &mut LaneVec3<L>,
+        row_q: &mut LaneVec3<L>,
+        u_p: &mut LaneVec3<L>,
+        u_q: &mut LaneVec3<L>,
+    ) {
         self.rotate_basis(row_p, row_q);
         self.rotate_basis(u_p, u_q);
     }
@@ -543,10 +513,10 @@ impl<L: Lane> Givens<L> {
     /// `(p, q) <- (c p + s q, c q - s p)`: the rotation applied to two rows, or equivalently
     /// the right-multiplication of `u` by its transpose, given columns `p` and `q`.
     #[inline(always)]
-    fn rotate_basis(&self, p: &mut V3<L>, q: &mut V3<L>) {
+    fn rotate_basis(&self, p: &mut LaneVec3<L>, q: &mut LaneVec3<L>) {
         let (old_p, old_q) = (*p, *q);
-        *p = old_p.scale(self.c).add(old_q.scale(self.s));
-        *q = old_q.scale(self.c).sub(old_p.scale(self.s));
+        *p = old_p.scale(self.c) + old_q.scale(self.s);
+        *q = old_q.scale(self.c) - old_p.scale(self.s);
     }
 }
 
@@ -554,19 +524,19 @@ impl<L: Lane> Givens<L> {
 /// negates the new second column so that `det v` stays `+1` and `b = a v` still holds.
 #[inline(always)]
 fn sort_pair<L: Lane>(
-    b_p: &mut V3<L>,
-    b_q: &mut V3<L>,
-    v_p: &mut V3<L>,
-    v_q: &mut V3<L>,
+    b_p: &mut LaneVec3<L>,
+    b_q: &mut LaneVec3<L>,
+    v_p: &mut LaneVec3<L>,
+    v_q: &mut LaneVec3<L>,
     norm_p: &mut L,
     norm_q: &mut L,
 ) {
     let swap = norm_q.gt(*norm_p);
     let (bp, bq, vp, vq, np, nq) = (*b_p, *b_q, *v_p, *v_q, *norm_p, *norm_q);
-    *b_p = V3::select(swap, bq, bp);
-    *b_q = V3::select(swap, bp.neg(), bq);
-    *v_p = V3::select(swap, vq, vp);
-    *v_q = V3::select(swap, vp.neg(), vq);
+    *b_p = LaneVec3::select(swap, bq, bp);
+    *b_q = LaneVec3::select(swap, -bp, bq);
+    *v_p = LaneVec3::select(swap, vq, vp);
+    *v_q = LaneVec3::select(swap, -vp, vq);
     *norm_p = L::select(swap, nq, np);
     *norm_q = L::select(swap, np, nq);
 }
