@@ -24,6 +24,9 @@ pub mod types {
 pub(crate) mod math {
     use super::types::Real;
 
+    /// Whether the mesh kernels batch their SVDs with `svd3_lanes` (see the f32 shim).
+    pub const BATCH_SVD: bool = cfg!(any(target_arch = "x86_64", target_arch = "aarch64"));
+
     /// Jacobi sweeps used by [`svd3`](super::svd::svd3) in this precision.
     pub const DEFAULT_SVD_SWEEPS: u32 = 4;
 
@@ -31,7 +34,8 @@ pub(crate) mod math {
     /// order one. Chosen so that the square of anything larger is still a normal number.
     pub const TINY: Real = 1e-150;
 
-    /// Square root (correctly rounded, IEEE 754).
+    /// Square root (correctly rounded, IEEE 754). Software on FPUs without double precision
+    /// (Cortex-M4F), like every f64 operation there.
     #[inline(always)]
     #[must_use]
     pub fn sqrt(x: Real) -> Real {

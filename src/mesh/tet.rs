@@ -3,6 +3,7 @@
 use super::super::element::TetRest;
 use super::super::lanes::LANES;
 use super::super::material::Material;
+use super::super::math::BATCH_SVD;
 use super::super::svd::{Svd3, svd3, svd3_lanes};
 use super::super::types::{Mat3, Real, Vec3};
 use super::{check_length, check_positions, gather, scatter_add, validate};
@@ -125,8 +126,9 @@ impl<'a> TetMesh<'a> {
 
     /// As [`add_elastic_forces`](TetMesh::add_elastic_forces), through the principal
     /// (SVD) stress `P = U diag(dW/ds) V^T` ([`Material::first_piola_from_svd`]). Equal to the
-    /// direct path to rounding wherever the model is defined; the SVDs of consecutive
-    /// tetrahedra are computed [`LANES`] at a time ([`svd3_lanes`]).
+    /// direct path to rounding wherever the model is defined. On targets with SIMD (x86_64,
+    /// aarch64) the SVDs of consecutive tetrahedra are computed [`LANES`] at a time
+    /// ([`svd3_lanes`]), elsewhere one by one ([`svd3`]): the same bits either way.
     ///
     /// # Errors
     /// As [`add_elastic_forces`](TetMesh::add_elastic_forces); on error, `forces` is unchanged.
@@ -275,6 +277,13 @@ impl<'a> TetMesh<'a> {
     ) -> Result<(), MeshError> {
         self.check_positions(positions)?;
         check_length(Buffer::Forces, self.vertex_count, forces.len())?;
+        if !BATCH_SVD {
+            for (corners, rest) in self.tets.iter().zip(self.rest) {
+                let svd = svd3(rest.deformation_gradient(gather(positions, corners)));
+                scatter_add(forces, corners, rest.nodal_forces(stress(&svd)));
+            }
+            return Ok(());
+        }
         let tet_groups = self.tets.chunks_exact(LANES);
         let rest_groups = self.rest.chunks_exact(LANES);
         let tail = tet_groups.remainder().iter().zip(rest_groups.remainder());

@@ -1,0 +1,555 @@
+//! The firmware check's workload, compiled twice: into the firmware (`src/main.rs`), where it
+//! runs on the emulated Cortex-M4F, and into the host test (`tests/firmware.rs`), where the same
+//! code computes the values the firmware must reproduce.
+//!
+//! [`run`] produces a list of named [`Record`]s: a 64-bit digest of every bit the computation
+//! returned (singular vectors and values, every nodal force, every position and velocity after
+//! stepping) and one representative value to print. A [`Meter`] wraps the calls worth measuring;
+//! the host's does nothing, the firmware's counts instructions and stack.
+//!
+//! Everything here is `no_std` and allocation-free: the drop body lives in a caller-owned
+//! [`DropBody`] of each precision (a static in the firmware).
+
+/// The most records one run produces (both precisions).
+pub const MAX_RECORDS: usize = 128;
+
+/// One named result: a digest of its bits and a value to show.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Record {
+    /// `"<precision> <what>"`, unique within a run.
+    pub name: &'static str,
+    /// FNV-1a over the little-endian bit patterns of every value (see [`Digest`]).
+    pub digest: u64,
+    /// A representative value (widened to f64 exactly), for the report.
+    pub value: f64,
+}
+
+/// The records of one run, in order, in a fixed-capacity buffer.
+pub struct Records {
+    items: [Record; MAX_RECORDS],
+    len: usize,
+    /// Records that did not fit (a run with overflow must fail).
+    pub overflow: usize,
+}
+
+impl Records {
+    /// No records yet.
+    pub const fn new() -> Self {
+        const BLANK: Record = Record {
+            name: "",
+            digest: 0,
+            value: 0.0,
+        };
+        Records {
+            items: [BLANK; MAX_RECORDS],
+            len: 0,
+            overflow: 0,
+        }
+    }
+
+    /// Appends `record`, or counts it in [`overflow`](Self::overflow) when full.
+    pub fn push(&mut self, record: Record) {
+        match self.items.get_mut(self.len) {
+            Some(slot) => {
+                *slot = record;
+                self.len += 1;
+            }
+            None => self.overflow += 1,
+        }
+    }
+
+    /// The records so far.
+    pub fn as_slice(&self) -> &[Record] {
+        self.items.get(..self.len).unwrap_or(&[])
+    }
+}
+
+impl Default for Records {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// FNV-1a (64-bit) over bit patterns. Every NaN is hashed as the one quiet NaN of its width:
+/// NaN payloads and signs are not portable (x86 produces `0xffc0_0000` where Arm produces
+/// `0x7fc0_0000`) and carry no information here. Signed zeros stay distinct.
+#[derive(Clone, Copy, Debug)]
+pub struct Digest(u64);
+
+impl Digest {
+    /// The FNV-1a offset basis.
+    pub const fn new() -> Self {
+        Digest(0xcbf2_9ce4_8422_2325)
+    }
+
+    /// Mixes in `bytes`.
+    pub fn bytes(&mut self, bytes: &[u8]) {
+        for &byte in bytes {
+            self.0 = (self.0 ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+
+    /// Mixes in an `f32`.
+    pub fn f32(&mut self, x: f32) {
+        let bits = if x.is_nan() { 0x7fc0_0000 } else { x.to_bits() };
+        self.bytes(&bits.to_le_bytes());
+    }
+
+    /// Mixes in an `f64`.
+    pub fn f64(&mut self, x: f64) {
+        let bits = if x.is_nan() {
+            0x7ff8_0000_0000_0000
+        } else {
+            x.to_bits()
+        };
+        self.bytes(&bits.to_le_bytes());
+    }
+
+    /// Mixes in an integer.
+    pub fn u64(&mut self, x: u64) {
+        self.bytes(&x.to_le_bytes());
+    }
+
+    /// The digest.
+    pub const fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+impl Default for Digest {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Wraps the calls worth measuring. `name` identifies a measured section (calls to the same
+/// section accumulate); [`units`](Meter::units) adds the work done (tetrahedra, vertices,
+/// iterations) so that costs can be reported per unit.
+pub trait Meter {
+    /// Runs `work` as one call of section `name` and returns its result.
+    fn measure<R>(&mut self, name: &'static str, work: impl FnOnce() -> R) -> R;
+
+    /// Adds `units` units of work, named `unit`, to section `name`.
+    fn units(&mut self, name: &'static str, unit: &'static str, units: u64);
+}
+
+/// A [`Meter`] that only runs the work: the host's.
+#[cfg_attr(target_os = "none", allow(dead_code))]
+pub struct NoMeter;
+
+impl Meter for NoMeter {
+    fn measure<R>(&mut self, _name: &'static str, work: impl FnOnce() -> R) -> R {
+        work()
+    }
+
+    fn units(&mut self, _name: &'static str, _unit: &'static str, _units: u64) {}
+}
+
+/// A deterministic value in `[-1, 1]` with 1/1000 resolution from two integers, exact in any
+/// precision (no floating-point function is involved).
+fn jitter(i: u32, salt: u32) -> i32 {
+    let mut h = i.wrapping_mul(0x9e37_79b9) ^ salt.wrapping_mul(0x85eb_ca6b);
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x2c1b_3c6d);
+    h ^= h >> 12;
+    (h % 2001) as i32 - 1000
+}
+
+/// The workload, written once and instantiated per precision.
+macro_rules! precision {
+    ($module:ident, $prefix:literal, $($softfem:ident)::+) => {
+        /// The workload in one precision.
+        pub mod $module {
+            use core::hint::black_box;
+
+            use $($softfem)::+::element::TetRest;
+            use $($softfem)::+::generate::{BoxSplit, fill_box};
+            use $($softfem)::+::material::{Material, NeoHookean, StVK, StableNeoHookean};
+            use $($softfem)::+::mesh::TetMesh;
+            use $($softfem)::+::step::{
+                ExplicitScratch, ExplicitSettings, Ground, RelaxScratch, RelaxSettings,
+                TetElastic, relax_step, stable_time_step, step_explicit,
+            };
+            use $($softfem)::+::svd::{Svd3, svd3, svd3_lanes};
+            use $($softfem)::+::types::{Mat3, Real, Vec3};
+
+            use super::{Digest, Meter, Record, Records, jitter};
+
+            /// Everything one body needs, with capacity fixed at compile time: `V` vertices,
+            /// `T` tetrahedra (as `tests/firmware_body.rs`).
+            pub struct Body<const V: usize, const T: usize> {
+                /// Rest positions (m).
+                pub rest: [Vec3; V],
+                /// Vertex indices.
+                pub tets: [[u32; 4]; T],
+                /// `Dm^-1` and volume per tetrahedron.
+                pub rest_data: [TetRest; T],
+                /// Positions (m).
+                pub positions: [Vec3; V],
+                /// Velocities (m/s).
+                pub velocities: [Vec3; V],
+                /// Lumped masses (kg).
+                pub masses: [Real; V],
+                /// Explicit scratch: forces, position backup, velocity backup.
+                pub explicit_scratch: [[Vec3; V]; 3],
+                /// Relaxation scratch: five vectors per vertex.
+                pub relax_vectors: [[Vec3; V]; 5],
+                /// Relaxation scratch (and stiffness for the stable step): one scalar per
+                /// vertex.
+                pub relax_scalars: [Real; V],
+            }
+
+            impl<const V: usize, const T: usize> Body<V, T> {
+                /// All zeros (filled by [`run`]).
+                pub const EMPTY: Self = Body {
+                    rest: [Vec3::ZERO; V],
+                    tets: [[0; 4]; T],
+                    rest_data: [TetRest {
+                        dm_inv: Mat3::ZERO,
+                        volume: 0.0,
+                    }; T],
+                    positions: [Vec3::ZERO; V],
+                    velocities: [Vec3::ZERO; V],
+                    masses: [0.0; V],
+                    explicit_scratch: [[Vec3::ZERO; V]; 3],
+                    relax_vectors: [[Vec3::ZERO; V]; 5],
+                    relax_scalars: [0.0; V],
+                };
+            }
+
+            /// Cells per side of the dropped cube.
+            pub const DROP_CELLS: usize = 3;
+            /// The dropped cube: 4^3 vertices, 27 * 6 tetrahedra.
+            pub type DropBody = Body<64, 162>;
+
+            /// Explicit steps of the drop.
+            pub const EXPLICIT_STEPS: u32 = 300;
+            /// Implicit (relaxation) steps of the drop.
+            pub const RELAX_STEPS: u32 = 100;
+
+            fn push(records: &mut Records, name: &'static str, digest: Digest, value: Real) {
+                records.push(Record {
+                    name,
+                    digest: digest.finish(),
+                    value: value as f64,
+                });
+            }
+
+            fn real(digest: &mut Digest, x: Real) {
+                #[allow(clippy::useless_conversion)]
+                let wide = f64::from(x);
+                if core::mem::size_of::<Real>() == 4 {
+                    digest.f32(wide as f32);
+                } else {
+                    digest.f64(wide);
+                }
+            }
+
+            fn vec3(digest: &mut Digest, v: Vec3) {
+                real(digest, v.x);
+                real(digest, v.y);
+                real(digest, v.z);
+            }
+
+            fn mat3(digest: &mut Digest, m: Mat3) {
+                vec3(digest, m.x_axis);
+                vec3(digest, m.y_axis);
+                vec3(digest, m.z_axis);
+            }
+
+            fn svd_digest(digest: &mut Digest, svd: &Svd3) {
+                mat3(digest, svd.u);
+                vec3(digest, svd.sigma);
+                mat3(digest, svd.v);
+            }
+
+            /// The matrix with rows `r0`, `r1`, `r2`.
+            fn rows(r0: [Real; 3], r1: [Real; 3], r2: [Real; 3]) -> Mat3 {
+                Mat3::from_cols(Vec3::from(r0), Vec3::from(r1), Vec3::from(r2)).transpose()
+            }
+
+            /// The fixed matrices of the SVD section, with names.
+            fn svd_cases() -> [(&'static str, Mat3); 12] {
+                let general = rows([0.8, -0.3, 0.1], [0.2, 1.1, -0.4], [0.05, 0.3, 0.9]);
+                // Rotations from Pythagorean triples (3, 4, 5) and (5, 12, 13): exact cosines.
+                let rot_z = rows([0.6, -0.8, 0.0], [0.8, 0.6, 0.0], [0.0, 0.0, 1.0]);
+                let rot_x = rows([1.0, 0.0, 0.0], [0.0, 5.0 / 13.0, -12.0 / 13.0], [0.0, 12.0 / 13.0, 5.0 / 13.0]);
+                let u = Vec3::new(0.3, -1.2, 0.7);
+                let v = Vec3::new(-0.4, 0.25, 1.5);
+                let outer = |a: Vec3, b: Vec3| Mat3::from_cols(a * b.x, a * b.y, a * b.z);
+                [
+                    (concat!($prefix, " svd identity"), Mat3::IDENTITY),
+                    (concat!($prefix, " svd reflection diag(3,-2,0.5)"), Mat3::from_diagonal(Vec3::new(3.0, -2.0, 0.5))),
+                    (concat!($prefix, " svd general"), general),
+                    (concat!($prefix, " svd shear+squash"), Mat3::from_cols(Vec3::X, Vec3::new(0.2, 1.0, 0.0), Vec3::new(0.0, 0.0, 0.9))),
+                    (concat!($prefix, " svd rank 1"), outer(u, v)),
+                    (concat!($prefix, " svd rank 2"), outer(u, v) + outer(Vec3::new(1.0, 0.5, -0.25), Vec3::new(0.5, 0.5, 0.1))),
+                    (concat!($prefix, " svd zero"), Mat3::ZERO),
+                    (concat!($prefix, " svd near-singular"), rot_z * Mat3::from_diagonal(Vec3::new(1.0, 0.5, 1e-9)) * rot_x.transpose()),
+                    (concat!($prefix, " svd repeated (2,2,1) rotated"), rot_x * Mat3::from_diagonal(Vec3::new(2.0, 2.0, 1.0)) * rot_z),
+                    (concat!($prefix, " svd general * 1e30"), general * 1e30),
+                    (concat!($prefix, " svd general * 1e-30"), general * 1e-30),
+                    (concat!($prefix, " svd NaN entry"), rows([1.0, 0.0, 0.0], [0.0, Real::NAN, 0.0], [0.0, 0.0, 1.0])),
+                ]
+            }
+
+            /// SVDs of fixed matrices, one by one and four at a time.
+            fn svds(meter: &mut impl Meter, records: &mut Records) {
+                let cases = svd_cases();
+                let mut scalar = [Svd3 { u: Mat3::ZERO, sigma: Vec3::ZERO, v: Mat3::ZERO }; 12];
+                for ((name, a), out) in cases.iter().zip(&mut scalar) {
+                    let a = black_box(*a);
+                    *out = meter.measure(concat!($prefix, " svd3"), || svd3(a));
+                    meter.units(concat!($prefix, " svd3"), "SVD", 1);
+                    let mut digest = Digest::new();
+                    svd_digest(&mut digest, out);
+                    push(records, name, digest, out.sigma.x);
+                }
+                // svd3_lanes promises per-lane bit-identity with svd3; the record's value is the
+                // number of lanes that differ (0) and its digest covers all twelve results.
+                let mut digest = Digest::new();
+                let mut differing = 0;
+                for (group, expected) in cases.chunks_exact(4).zip(scalar.chunks_exact(4)) {
+                    let mats: [Mat3; 4] = core::array::from_fn(|i| group.get(i).map_or(Mat3::ZERO, |c| c.1));
+                    let mats = black_box(mats);
+                    let lanes = meter.measure(concat!($prefix, " svd3_lanes"), || svd3_lanes(&mats));
+                    meter.units(concat!($prefix, " svd3_lanes"), "SVD", 4);
+                    for (got, want) in lanes.iter().zip(expected) {
+                        let (mut a, mut b) = (Digest::new(), Digest::new());
+                        svd_digest(&mut a, got);
+                        svd_digest(&mut b, want);
+                        differing += u32::from(a.finish() != b.finish());
+                        svd_digest(&mut digest, got);
+                    }
+                }
+                push(records, concat!($prefix, " svd3_lanes vs svd3 (lanes differing)"), digest, differing as Real);
+            }
+
+            /// The small box of the force section: 2 x 2 x 2 cells of 5 cm, 27 vertices,
+            /// 48 tetrahedra.
+            const FORCE_VERTICES: usize = 27;
+            const FORCE_TETS: usize = 48;
+
+            /// Forces (direct, principal, clamped) and energy of one model on the box.
+            fn model_forces<M: Material>(
+                meter: &mut impl Meter,
+                records: &mut Records,
+                names: [&'static str; 4],
+                material: M,
+                mesh: &TetMesh<'_>,
+                deformed: &[Vec3; FORCE_VERTICES],
+            ) {
+                let [direct, principal, clamped, energy] = names;
+                for (path, name) in [direct, principal, clamped].into_iter().enumerate() {
+                    let mut forces = [Vec3::ZERO; FORCE_VERTICES];
+                    let outcome = meter.measure(name, || match path {
+                        0 => mesh.add_elastic_forces(&material, deformed, &mut forces),
+                        1 => mesh.add_elastic_forces_principal(&material, deformed, &mut forces),
+                        _ => mesh.add_elastic_forces_clamped(&material, 0.9, deformed, &mut forces),
+                    });
+                    meter.units(name, "tet", FORCE_TETS as u64);
+                    let mut digest = Digest::new();
+                    digest.u64(u64::from(outcome.is_ok()));
+                    let mut largest: Real = 0.0;
+                    for f in &forces {
+                        vec3(&mut digest, *f);
+                        largest = largest.max(f.abs().max_element());
+                    }
+                    push(records, name, digest, largest);
+                }
+                let total = meter.measure(energy, || mesh.elastic_energy(&material, deformed));
+                meter.units(energy, "tet", FORCE_TETS as u64);
+                let mut digest = Digest::new();
+                let value = total.unwrap_or(Real::NAN);
+                real(&mut digest, value);
+                push(records, energy, digest, value);
+            }
+
+            /// Forces and energies of every model on a deformed box.
+            fn forces(meter: &mut impl Meter, records: &mut Records) {
+                let mut rest = [Vec3::ZERO; FORCE_VERTICES];
+                let mut tets = [[0u32; 4]; FORCE_TETS];
+                let mut rest_data = [TetRest::default(); FORCE_TETS];
+                if fill_box(Vec3::ZERO, Vec3::splat(0.1), 2, 2, 2, BoxSplit::Kuhn6, &mut rest, &mut tets).is_err() {
+                    push(records, concat!($prefix, " force box"), Digest::new(), Real::NAN);
+                    return;
+                }
+                let Ok(mesh) = TetMesh::new(&rest, &tets, &mut rest_data) else {
+                    push(records, concat!($prefix, " force box"), Digest::new(), Real::NAN);
+                    return;
+                };
+                // An affine stretch, shear and squash (J = 1.2 * 0.85) plus up to 4 mm of jitter
+                // per coordinate: element J from about 0.7 to 1.5.
+                let affine = rows([1.2, 0.15, 0.0], [0.0, 1.0, -0.1], [0.05, 0.0, 0.85]);
+                let mut deformed = rest;
+                for (i, x) in deformed.iter_mut().enumerate() {
+                    let i = i as u32;
+                    let j = Vec3::new(jitter(i, 1) as Real, jitter(i, 2) as Real, jitter(i, 3) as Real);
+                    *x = affine * *x + j * 4e-6;
+                }
+                let deformed = black_box(deformed);
+                let mut digest = Digest::new();
+                for r in mesh.rest() {
+                    mat3(&mut digest, r.dm_inv);
+                    real(&mut digest, r.volume);
+                }
+                push(records, concat!($prefix, " box rest data"), digest, mesh.rest_volume());
+
+                let (e, nu) = (black_box(1.0e6), black_box(0.45));
+                match (StVK::from_young_poisson(e, nu), NeoHookean::from_young_poisson(e, nu), StableNeoHookean::from_young_poisson(e, nu)) {
+                    (Ok(stvk), Ok(neo), Ok(stable)) => {
+                        model_forces(meter, records, [
+                            concat!($prefix, " forces StVK direct"),
+                            concat!($prefix, " forces StVK principal"),
+                            concat!($prefix, " forces StVK clamped"),
+                            concat!($prefix, " energy StVK"),
+                        ], stvk, &mesh, &deformed);
+                        model_forces(meter, records, [
+                            concat!($prefix, " forces neo-Hookean direct"),
+                            concat!($prefix, " forces neo-Hookean principal"),
+                            concat!($prefix, " forces neo-Hookean clamped"),
+                            concat!($prefix, " energy neo-Hookean"),
+                        ], neo, &mesh, &deformed);
+                        model_forces(meter, records, [
+                            concat!($prefix, " forces stable neo-Hookean direct"),
+                            concat!($prefix, " forces stable neo-Hookean principal"),
+                            concat!($prefix, " forces stable neo-Hookean clamped"),
+                            concat!($prefix, " energy stable neo-Hookean"),
+                        ], stable, &mesh, &deformed);
+                    }
+                    _ => push(records, concat!($prefix, " materials"), Digest::new(), Real::NAN),
+                }
+            }
+
+            fn state_digest<const V: usize>(positions: &[Vec3; V], velocities: &[Vec3; V]) -> Digest {
+                let mut digest = Digest::new();
+                for (x, v) in positions.iter().zip(velocities) {
+                    vec3(&mut digest, *x);
+                    vec3(&mut digest, *v);
+                }
+                digest
+            }
+
+            fn lowest<const V: usize>(positions: &[Vec3; V]) -> Real {
+                positions.iter().fold(Real::INFINITY, |low, x| low.min(x.y))
+            }
+
+            /// A 6 cm jelly cube (stable neo-Hookean, E = 50 kPa) dropped from 3 cm onto the
+            /// ground y = 0, stepped explicitly and, from the same start, implicitly.
+            fn drop(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody) {
+                let side = 0.06;
+                let lift = Vec3::new(0.0, 0.03, 0.0);
+                let filled = fill_box(lift, lift + Vec3::splat(side), DROP_CELLS, DROP_CELLS, DROP_CELLS, BoxSplit::Kuhn6, &mut body.rest, &mut body.tets);
+                let material = StableNeoHookean::from_young_poisson(black_box(5.0e4), black_box(0.4));
+                let (Ok(()), Ok(material)) = (filled, material) else {
+                    push(records, concat!($prefix, " drop setup"), Digest::new(), Real::NAN);
+                    return;
+                };
+                let Ok(mesh) = TetMesh::new(&body.rest, &body.tets, &mut body.rest_data) else {
+                    push(records, concat!($prefix, " drop mesh"), Digest::new(), Real::NAN);
+                    return;
+                };
+                let model = TetElastic::new(mesh, material);
+                let masses_ok = mesh.lumped_masses(1000.0, &mut body.masses).is_ok();
+                let dt = stable_time_step(&model, &body.masses, &[], &mut body.relax_scalars).unwrap_or(Real::NAN);
+                let mut digest = Digest::new();
+                digest.u64(u64::from(masses_ok));
+                for m in &body.masses {
+                    real(&mut digest, *m);
+                }
+                real(&mut digest, dt);
+                push(records, concat!($prefix, " drop masses and stable dt"), digest, dt);
+
+                let gravity = Vec3::new(0.0, -9.81, 0.0);
+                let ground = Ground::new(Vec3::Y, 0.0).with_restitution(0.3).with_friction(0.5);
+
+                // Explicit: half the stable step, light damping.
+                let settings = ExplicitSettings::new(0.5 * dt).with_gravity(gravity).with_damping(2.0).with_ground(ground);
+                body.positions = body.rest;
+                body.velocities = [Vec3::ZERO; 64];
+                let mut scratch = ExplicitScratch::new(body.explicit_scratch.as_flattened_mut());
+                let mut failures = 0u64;
+                let mut contacts = 0u64;
+                let mut kinetic: Real = 0.0;
+                for step in 1..=EXPLICIT_STEPS {
+                    let (positions, velocities) = (&mut body.positions, &mut body.velocities);
+                    let report = meter.measure(concat!($prefix, " step_explicit"), || {
+                        step_explicit(&model, &body.masses, &[], &settings, positions, velocities, &mut scratch)
+                    });
+                    meter.units(concat!($prefix, " step_explicit"), "vertex step", 64);
+                    match report {
+                        Ok(report) => {
+                            contacts += report.ground_contacts as u64;
+                            kinetic = report.kinetic_energy;
+                        }
+                        Err(_) => failures += 1,
+                    }
+                    if step % 100 == 0 {
+                        let mut digest = state_digest(&body.positions, &body.velocities);
+                        digest.u64(failures);
+                        digest.u64(contacts);
+                        real(&mut digest, kinetic);
+                        let label = match step {
+                            100 => concat!($prefix, " explicit drop, step 100 (lowest y)"),
+                            200 => concat!($prefix, " explicit drop, step 200 (lowest y)"),
+                            _ => concat!($prefix, " explicit drop, step 300 (lowest y)"),
+                        };
+                        push(records, label, digest, lowest(&body.positions));
+                    }
+                }
+
+                // Implicit Euler at 240 Hz from the same start, Chebyshev-accelerated.
+                let relax = RelaxSettings::new(1.0 / 240.0)
+                    .with_gravity(gravity)
+                    .with_ground(ground)
+                    .with_tolerance(1e-3, 100)
+                    .with_chebyshev(0.99, 2.0, 0);
+                body.positions = body.rest;
+                body.velocities = [Vec3::ZERO; 64];
+                let mut scratch = RelaxScratch::new(body.relax_vectors.as_flattened_mut(), &mut body.relax_scalars);
+                let mut digest = Digest::new();
+                let mut iterations = 0u64;
+                for step in 1..=RELAX_STEPS {
+                    let (positions, velocities) = (&mut body.positions, &mut body.velocities);
+                    let report = meter.measure(concat!($prefix, " relax_step"), || {
+                        relax_step(&model, &body.masses, &[], &relax, positions, velocities, &mut scratch)
+                    });
+                    match report {
+                        Ok(report) => {
+                            iterations += u64::from(report.iterations);
+                            meter.units(concat!($prefix, " relax_step"), "vertex iteration", 64 * u64::from(report.iterations));
+                            digest.u64(u64::from(report.iterations));
+                            digest.u64(u64::from(report.energy_evaluations));
+                            digest.u64(u64::from(report.converged));
+                            real(&mut digest, report.final_residual);
+                            real(&mut digest, report.phi);
+                        }
+                        Err(_) => digest.u64(u64::MAX),
+                    }
+                    if step % 50 == 0 {
+                        let state = state_digest(&body.positions, &body.velocities);
+                        digest.u64(state.finish());
+                        let label = match step {
+                            50 => concat!($prefix, " relax drop, step 50 (lowest y)"),
+                            _ => concat!($prefix, " relax drop, step 100 (lowest y)"),
+                        };
+                        push(records, label, digest, lowest(&body.positions));
+                    }
+                }
+                let mut count = Digest::new();
+                count.u64(iterations);
+                push(records, concat!($prefix, " relax drop, iterations"), count, iterations as Real);
+            }
+
+            /// The whole workload in this precision.
+            pub fn run(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody) {
+                svds(meter, records);
+                forces(meter, records);
+                drop(meter, records, body);
+            }
+        }
+    };
+}
+
+precision!(single, "f32", softfem);
+precision!(double, "f64", softfem::f64);
