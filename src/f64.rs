@@ -27,6 +27,10 @@ pub(crate) mod math {
     /// Whether the mesh kernels batch their SVDs with `svd3_lanes` (see the f32 shim).
     pub const BATCH_SVD: bool = cfg!(any(target_arch = "x86_64", target_arch = "aarch64"));
 
+    /// Whether the direct force kernels evaluate elements in groups (see the f32 shim): not
+    /// here, where [`Lanes`](super::lanes::Lanes) is an array the optimiser handles less well.
+    pub const BATCH_FORCES: bool = false;
+
     /// Jacobi sweeps used by [`svd3`](super::svd::svd3) in this precision.
     pub const DEFAULT_SVD_SWEEPS: u32 = 4;
 

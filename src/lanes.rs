@@ -15,6 +15,15 @@ pub use super::lane_repr::{LaneMask, Lanes, transpose_vec3, untranspose_vec3};
 /// Number of values a [`Lanes`] holds: 4 in both precisions (one SSE register of f32, two of f64).
 pub const LANES: usize = math::LANES;
 
+/// `f` of each of the [`LANES`] values, in order. `<[T; N]>::map` is not always inlined (it
+/// goes through a fallible helper), and a call in the middle of a force kernel costs more than
+/// the kernel's arithmetic; this is.
+#[inline(always)]
+pub(crate) fn each_lane<T, U>(values: [T; LANES], mut f: impl FnMut(T) -> U) -> [U; LANES] {
+    let [a, b, c, d] = values;
+    [f(a), f(b), f(c), f(d)]
+}
+
 mod sealed {
     /// Only this crate's number types implement [`Lane`](super::Lane).
     pub trait Sealed {}
@@ -120,6 +129,17 @@ impl<L: Lane> LaneVec3<L> {
     #[inline(always)]
     pub fn dot(self, o: Self) -> L {
         self.x * o.x + self.y * o.y + self.z * o.z
+    }
+
+    /// The cross product, in the order of operations of glam's `Vec3::cross` (so that the
+    /// scalar instantiation gives its bits).
+    #[inline(always)]
+    pub fn cross(self, o: Self) -> Self {
+        LaneVec3::new(
+            self.y * o.z - o.y * self.z,
+            self.z * o.x - o.z * self.x,
+            self.x * o.y - o.x * self.y,
+        )
     }
 
     /// Every coordinate times `k`.
@@ -229,6 +249,19 @@ impl<L: Lane> Mul for LaneMat3<L> {
     }
 }
 
+impl<L: Lane> Add for LaneMat3<L> {
+    type Output = Self;
+    /// The sum.
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        LaneMat3 {
+            c0: self.c0 + o.c0,
+            c1: self.c1 + o.c1,
+            c2: self.c2 + o.c2,
+        }
+    }
+}
+
 impl<L: Lane> Sub for LaneMat3<L> {
     type Output = Self;
     /// The difference.
@@ -264,9 +297,9 @@ impl LaneMat3<Lanes> {
     #[must_use]
     pub fn from_matrices(a: &[Mat3; LANES]) -> Self {
         LaneMat3 {
-            c0: transpose_vec3(a.map(|m| m.x_axis)),
-            c1: transpose_vec3(a.map(|m| m.y_axis)),
-            c2: transpose_vec3(a.map(|m| m.z_axis)),
+            c0: transpose_vec3(each_lane(*a, |m| m.x_axis)),
+            c1: transpose_vec3(each_lane(*a, |m| m.y_axis)),
+            c2: transpose_vec3(each_lane(*a, |m| m.z_axis)),
         }
     }
 
@@ -283,5 +316,37 @@ impl LaneMat3<Lanes> {
             (Some(&x), Some(&y), Some(&z)) => Mat3::from_cols(x, y, z),
             _ => Mat3::ZERO,
         })
+    }
+}
+
+impl From<Vec3> for LaneVec3<Real> {
+    #[inline(always)]
+    fn from(v: Vec3) -> Self {
+        LaneVec3::new(v.x, v.y, v.z)
+    }
+}
+
+impl From<LaneVec3<Real>> for Vec3 {
+    #[inline(always)]
+    fn from(v: LaneVec3<Real>) -> Self {
+        Vec3::new(v.x, v.y, v.z)
+    }
+}
+
+impl From<Mat3> for LaneMat3<Real> {
+    #[inline(always)]
+    fn from(m: Mat3) -> Self {
+        LaneMat3 {
+            c0: m.x_axis.into(),
+            c1: m.y_axis.into(),
+            c2: m.z_axis.into(),
+        }
+    }
+}
+
+impl From<LaneMat3<Real>> for Mat3 {
+    #[inline(always)]
+    fn from(m: LaneMat3<Real>) -> Self {
+        Mat3::from_cols(m.c0.into(), m.c1.into(), m.c2.into())
     }
 }

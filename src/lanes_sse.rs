@@ -9,7 +9,7 @@
 // values): these instructions are part of the x86_64 baseline, so they are always available, and
 // they have no memory operands or other preconditions.
 
-use super::lanes::{LANES, Lane, LaneVec3};
+use super::lanes::{LANES, Lane, LaneVec3, each_lane};
 use super::types::{Real, Vec3};
 use core::arch::x86_64::{
     __m128, _mm_add_ps, _mm_and_ps, _mm_andnot_ps, _mm_cmpgt_ps, _mm_cmpunord_ps, _mm_div_ps,
@@ -151,7 +151,7 @@ impl Lane for Lanes {
 
     #[inline(always)]
     fn map(self, f: impl Fn(Real) -> Real) -> Self {
-        Lanes::from_array(self.to_array().map(f))
+        Lanes::from_array(each_lane(self.to_array(), f))
     }
 }
 
@@ -167,7 +167,7 @@ fn packed(v: Vec3) -> __m128 {
 #[inline(always)]
 #[must_use]
 pub fn transpose_vec3(v: [Vec3; LANES]) -> LaneVec3<Lanes> {
-    let [v0, v1, v2, v3] = v.map(packed);
+    let [v0, v1, v2, v3] = each_lane(v, packed);
     // SAFETY: see the module comment.
     unsafe {
         let x0_x1_y0_y1 = _mm_unpacklo_ps(v0, v1);
@@ -203,7 +203,7 @@ pub fn untranspose_vec3(v: LaneVec3<Lanes>) -> [Vec3; LANES] {
     // Each row as a `Vec3` by value: the caller's `+=` into a `Vec3` slot then loads and stores
     // the slot as 8 + 4 bytes, the same widths as the previous store to it, so store-to-load
     // forwarding works when consecutive elements share a vertex.
-    rows.map(|row| {
+    each_lane(rows, |row| {
         let [x, y, z, _] = Lanes(row).to_array();
         Vec3::new(x, y, z)
     })

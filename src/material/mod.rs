@@ -44,6 +44,7 @@
 
 use core::fmt::Debug;
 
+use super::lanes::{Lane, LaneMat3, LaneVec3, Lanes};
 use super::math;
 use super::svd::{Svd3, svd3};
 use super::types::{Mat3, Real, Vec3};
@@ -147,6 +148,28 @@ pub trait Material: Copy + Debug {
         (self.energy_density(f), self.first_piola(f))
     }
 
+    /// [`first_piola`](Material::first_piola) of the [`LANES`](super::lanes::LANES)
+    /// deformation gradients held in `f` (structure of arrays), lane by lane bit for bit. The
+    /// provided method calls `first_piola` once per lane; the models here compute every lane at
+    /// once, which the force kernels use where [`Lanes`] are SIMD registers.
+    #[inline]
+    #[must_use]
+    fn first_piola_lanes(&self, f: LaneMat3<Lanes>) -> LaneMat3<Lanes> {
+        LaneMat3::from_matrices(&f.to_matrices().map(|f| self.first_piola(f)))
+    }
+
+    /// [`energy_and_first_piola`](Material::energy_and_first_piola) of every lane of `f`, bit
+    /// for bit; see [`first_piola_lanes`](Material::first_piola_lanes).
+    #[inline]
+    #[must_use]
+    fn energy_and_first_piola_lanes(&self, f: LaneMat3<Lanes>) -> (Lanes, LaneMat3<Lanes>) {
+        let both = f.to_matrices().map(|f| self.energy_and_first_piola(f));
+        (
+            Lanes::from_array(both.map(|(energy, _)| energy)),
+            LaneMat3::from_matrices(&both.map(|(_, stress)| stress)),
+        )
+    }
+
     /// The strain energy density `W` (J/m^3) as a function of the signed singular values `s` of
     /// `F` (dimensionless, as returned by [`svd3`]: `s.z < 0` for an inverted element).
     /// Equals [`energy_density`](Material::energy_density) of any `F` with these singular values.
@@ -211,29 +234,34 @@ pub trait Material: Copy + Debug {
     }
 }
 
+// The helpers below are written once against `Lane`: instantiated with `Real` for the scalar
+// methods of `Material` and with `Lanes` for its lane methods, so that lane `i` of a group is
+// bit for bit what the scalar method gives for the same `F`. Their order of operations is that
+// of the glam expressions they replace (`Vec3::dot`, `Vec3::cross`, `Mat3 * Mat3`).
+
 /// `tr(a^T a)`, the squared Frobenius norm; `I_C` when `a = F`.
 #[inline(always)]
-fn frobenius_squared(a: Mat3) -> Real {
-    a.x_axis.length_squared() + a.y_axis.length_squared() + a.z_axis.length_squared()
+fn frobenius_squared<L: Lane>(a: LaneMat3<L>) -> L {
+    a.c0.dot(a.c0) + a.c1.dot(a.c1) + a.c2.dot(a.c2)
 }
 
 /// `cof(F) = det(F) F^-T` as cross products of the columns of `F`: no division, so it is exact
 /// up to rounding for singular and inverted `F` too. `F^T cof(F) = det(F) I` column by column.
 #[inline(always)]
-fn cofactor(f: Mat3) -> Mat3 {
-    Mat3::from_cols(
-        f.y_axis.cross(f.z_axis),
-        f.z_axis.cross(f.x_axis),
-        f.x_axis.cross(f.y_axis),
-    )
+fn cofactor<L: Lane>(f: LaneMat3<L>) -> LaneMat3<L> {
+    LaneMat3 {
+        c0: f.c1.cross(f.c2),
+        c1: f.c2.cross(f.c0),
+        c2: f.c0.cross(f.c1),
+    }
 }
 
 /// `(I_C, J) = (tr(F^T F), det F)`, with `J = F_0 . cof(F)_0` (the triple product
 /// `x . (y x z)` of the columns), exactly as [`invariant_first_piola`] forms it, so that a
 /// model's energy and stress see the same `J` to the last bit.
 #[inline(always)]
-fn invariants(f: Mat3) -> (Real, Real) {
-    (frobenius_squared(f), f.x_axis.dot(f.y_axis.cross(f.z_axis)))
+fn invariants<L: Lane>(f: LaneMat3<L>) -> (L, L) {
+    (frobenius_squared(f), f.c0.dot(f.c1.cross(f.c2)))
 }
 
 /// `(I_C - 3, J - 1)` without cancellation, given `cof0 = F_1 x F_2`, the first column of
@@ -244,15 +272,16 @@ fn invariants(f: Mat3) -> (Real, Real) {
 /// `J - 1 = F_0 . cof0 - 1 = (cof0_x - 1) + (F_00 - 1, F_10, F_20) . cof0` with
 /// `cof0_x - 1 = (F_11 - 1) + (F_22 - 1) + (F_11 - 1)(F_22 - 1) - F_21 F_12`.
 #[inline(always)]
-fn invariant_deviations(f: Mat3, cof0: Vec3) -> (Real, Real) {
-    let (a, b, c) = (f.x_axis, f.y_axis, f.z_axis);
-    let (d0, d1, d2) = (a.x - 1.0, b.y - 1.0, c.z - 1.0);
-    let diagonal = d0 * (a.x + 1.0) + d1 * (b.y + 1.0) + d2 * (c.z + 1.0);
+fn invariant_deviations<L: Lane>(f: LaneMat3<L>, cof0: LaneVec3<L>) -> (L, L) {
+    let (a, b, c) = (f.c0, f.c1, f.c2);
+    let one = L::splat(1.0);
+    let (d0, d1, d2) = (a.x - one, b.y - one, c.z - one);
+    let diagonal = d0 * (a.x + one) + d1 * (b.y + one) + d2 * (c.z + one);
     let off_diagonal = (a.y * a.y + a.z * a.z) + (b.x * b.x + b.z * b.z) + (c.x * c.x + c.y * c.y);
     let cof0_minus_1 = (d1 + d2) + (d1 * d2 - b.z * c.y);
     (
         diagonal + off_diagonal,
-        cof0_minus_1 + Vec3::new(d0, a.y, a.z).dot(cof0),
+        cof0_minus_1 + LaneVec3::new(d0, a.y, a.z).dot(cof0),
     )
 }
 
@@ -277,26 +306,29 @@ fn principal_invariants(s: Vec3) -> (Real, Real) {
 /// `P` of a model written as `W(I_C, J)`: `dI_C/dF = 2 F` and `dJ/dF = cof(F)` give
 /// `P = a F + b cof(F)` with `(a, b) = (2 dW/dI_C, dW/dJ)` from `coefficients(I_C, J)`.
 #[inline(always)]
-fn invariant_first_piola(f: Mat3, coefficients: impl FnOnce(Real, Real) -> (Real, Real)) -> Mat3 {
+fn invariant_first_piola<L: Lane>(
+    f: LaneMat3<L>,
+    coefficients: impl FnOnce(L, L) -> (L, L),
+) -> LaneMat3<L> {
     let cof = cofactor(f);
-    let j = f.x_axis.dot(cof.x_axis);
+    let j = f.c0.dot(cof.c0);
     let (a, b) = coefficients(frobenius_squared(f), j);
-    f * a + cof * b
+    f.scale(a) + cof.scale(b)
 }
 
 /// `(W, P)` of a model written as `W(I_C, J)`, sharing `cof(F)`: `energy(F, cof(F)_0)` gives
 /// `W` and `coefficients(I_C, J)` the `(a, b)` of [`invariant_first_piola`], whose stress this
 /// is bit for bit.
 #[inline(always)]
-fn invariant_energy_and_first_piola(
-    f: Mat3,
-    energy: impl FnOnce(Mat3, Vec3) -> Real,
-    coefficients: impl FnOnce(Real, Real) -> (Real, Real),
-) -> (Real, Mat3) {
+fn invariant_energy_and_first_piola<L: Lane>(
+    f: LaneMat3<L>,
+    energy: impl FnOnce(LaneMat3<L>, LaneVec3<L>) -> L,
+    coefficients: impl FnOnce(L, L) -> (L, L),
+) -> (L, LaneMat3<L>) {
     let cof = cofactor(f);
-    let j = f.x_axis.dot(cof.x_axis);
+    let j = f.c0.dot(cof.c0);
     let (a, b) = coefficients(frobenius_squared(f), j);
-    (energy(f, cof.x_axis), f * a + cof * b)
+    (energy(f, cof.c0), f.scale(a) + cof.scale(b))
 }
 
 /// `dW/ds` of a model written as `W(I_C, J)`: `dI_C/ds_i = 2 s_i` and `dJ/ds_i = p_i`, the

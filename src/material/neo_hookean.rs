@@ -1,8 +1,9 @@
 //! The seed notes' neo-Hookean model: isochoric shear energy plus a quadratic volume penalty.
 
 use super::{
-    Lame, Mat3, Material, MaterialError, Real, Vec3, cofactor, frobenius_squared,
-    invariant_first_piola, invariant_principal_stress, invariants, math, principal_invariants,
+    Lame, Lane, LaneMat3, Lanes, Mat3, Material, MaterialError, Real, Vec3, cofactor,
+    frobenius_squared, invariant_first_piola, invariant_principal_stress, invariants, math,
+    principal_invariants,
 };
 
 /// The seed's (isochoric) neo-Hookean model (`SPEC.md` section 2): with `I_C = tr(F^T F)`,
@@ -66,32 +67,43 @@ impl NeoHookean {
 
     /// `W(I_C, J)`.
     #[inline(always)]
-    fn energy(&self, ic: Real, j: Real) -> Real {
+    fn energy<L: Lane>(&self, ic: L, j: L) -> L {
         self.energy_with(ic, j, j_pow_minus_two_thirds(j))
     }
 
     /// [`energy`](Self::energy) given `j23 = J^(-2/3)`.
     #[inline(always)]
-    fn energy_with(&self, ic: Real, j: Real, j23: Real) -> Real {
-        let shear = 0.5 * self.lame.mu() * (j23 * ic - 3.0);
-        shear + 0.5 * self.bulk_modulus * (j - 1.0) * (j - 1.0)
+    fn energy_with<L: Lane>(&self, ic: L, j: L, j23: L) -> L {
+        let one = L::splat(1.0);
+        let shear = L::splat(0.5 * self.lame.mu()) * (j23 * ic - L::splat(3.0));
+        shear + L::splat(0.5 * self.bulk_modulus) * (j - one) * (j - one)
     }
 
     /// `(2 dW/dI_C, dW/dJ) = (mu J^(-2/3), -(mu/3) J^(-5/3) I_C + K (J - 1))`.
     #[inline(always)]
-    fn stress_coefficients(&self, ic: Real, j: Real) -> (Real, Real) {
+    fn stress_coefficients<L: Lane>(&self, ic: L, j: L) -> (L, L) {
         self.stress_coefficients_with(ic, j, j_pow_minus_two_thirds(j))
     }
 
     /// [`stress_coefficients`](Self::stress_coefficients) given `j23 = J^(-2/3)`.
     #[inline(always)]
-    fn stress_coefficients_with(&self, ic: Real, j: Real, j23: Real) -> (Real, Real) {
-        let shear = self.lame.mu() * j23;
+    fn stress_coefficients_with<L: Lane>(&self, ic: L, j: L, j23: L) -> (L, L) {
+        let shear = L::splat(self.lame.mu()) * j23;
         // Grouped as (I_C / 3) / J so that the two shear terms of P cancel exactly at F = I.
         (
             shear,
-            self.bulk_modulus * (j - 1.0) - shear * (ic / 3.0) / j,
+            L::splat(self.bulk_modulus) * (j - L::splat(1.0)) - shear * (ic / L::splat(3.0)) / j,
         )
+    }
+
+    /// `(W, P)` with one cofactor matrix and one cube root, for one value or a group of lanes.
+    #[inline(always)]
+    fn energy_and_stress<L: Lane>(&self, f: LaneMat3<L>) -> (L, LaneMat3<L>) {
+        let cof = cofactor(f);
+        let (ic, j) = (frobenius_squared(f), f.c0.dot(cof.c0));
+        let j23 = j_pow_minus_two_thirds(j);
+        let (a, b) = self.stress_coefficients_with(ic, j, j23);
+        (self.energy_with(ic, j, j23), f.scale(a) + cof.scale(b))
     }
 }
 
@@ -99,31 +111,37 @@ lame_constructors!(NeoHookean);
 
 /// `J^(-2/3)` through the real cube root: defined and positive for `J < 0`, `+inf` at `J = 0`.
 #[inline(always)]
-fn j_pow_minus_two_thirds(j: Real) -> Real {
-    let cube_root = math::cbrt(j);
-    1.0 / (cube_root * cube_root)
+fn j_pow_minus_two_thirds<L: Lane>(j: L) -> L {
+    let cube_root = j.map(math::cbrt);
+    L::splat(1.0) / (cube_root * cube_root)
 }
 
 impl Material for NeoHookean {
     #[inline]
     fn energy_density(&self, f: Mat3) -> Real {
-        let (ic, j) = invariants(f);
+        let (ic, j) = invariants(LaneMat3::from(f));
         self.energy(ic, j)
     }
 
     #[inline]
     fn first_piola(&self, f: Mat3) -> Mat3 {
-        invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
+        invariant_first_piola(LaneMat3::from(f), |ic, j| self.stress_coefficients(ic, j)).into()
     }
 
     #[inline]
     fn energy_and_first_piola(&self, f: Mat3) -> (Real, Mat3) {
-        // One cube root for both: the energy's invariants and the stress's, bit for bit.
-        let cof = cofactor(f);
-        let (ic, j) = (frobenius_squared(f), f.x_axis.dot(cof.x_axis));
-        let j23 = j_pow_minus_two_thirds(j);
-        let (a, b) = self.stress_coefficients_with(ic, j, j23);
-        (self.energy_with(ic, j, j23), f * a + cof * b)
+        let (energy, stress) = self.energy_and_stress(LaneMat3::from(f));
+        (energy, stress.into())
+    }
+
+    #[inline]
+    fn first_piola_lanes(&self, f: LaneMat3<Lanes>) -> LaneMat3<Lanes> {
+        invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
+    }
+
+    #[inline]
+    fn energy_and_first_piola_lanes(&self, f: LaneMat3<Lanes>) -> (Lanes, LaneMat3<Lanes>) {
+        self.energy_and_stress(f)
     }
 
     #[inline]

@@ -1,7 +1,7 @@
 //! Stable neo-Hookean (Smith, de Goes, Kim 2018): smooth through inversion.
 
 use super::{
-    Lame, Mat3, Material, MaterialError, Real, Vec3, invariant_deviations,
+    Lame, Lane, LaneMat3, Lanes, Mat3, Material, MaterialError, Real, Vec3, invariant_deviations,
     invariant_energy_and_first_piola, invariant_first_piola, invariant_principal_stress, math,
     principal_invariant_deviations,
 };
@@ -63,22 +63,39 @@ impl StableNeoHookean {
     /// `W` in the cancellation-free form of the type's documentation, from
     /// `(I_C - 3, J - 1)` ([`invariant_deviations`]).
     #[inline(always)]
-    fn energy(&self, ic_minus_3: Real, j_minus_1: Real) -> Real {
+    fn energy<L: Lane>(&self, ic_minus_3: L, j_minus_1: L) -> L {
         let mu = self.lame.mu();
-        let shear = 2.0 * mu / 3.0 * (ic_minus_3 - math::ln_1p(0.25 * ic_minus_3));
-        shear + 0.5 * j_minus_1 * (self.volume_stiffness * j_minus_1 - 2.0 * mu)
+        let logarithm = (L::splat(0.25) * ic_minus_3).map(math::ln_1p);
+        let shear = L::splat(2.0 * mu / 3.0) * (ic_minus_3 - logarithm);
+        shear
+            + L::splat(0.5)
+                * j_minus_1
+                * (L::splat(self.volume_stiffness) * j_minus_1 - L::splat(2.0 * mu))
     }
 
     /// `(2 dW/dI_C, dW/dJ) = (m I_C / (I_C + 1), l (J - a))`, with `l (J - a) = l (J - 1) - mu`.
     /// The stress does not need the cancellation-free invariants: its terms are of order `mu`
     /// and its rounding error of order `eps mu`, as every model's.
     #[inline(always)]
-    fn stress_coefficients(&self, ic: Real, j: Real) -> (Real, Real) {
-        let mu = self.lame.mu();
+    fn stress_coefficients<L: Lane>(&self, ic: L, j: L) -> (L, L) {
+        let mu = L::splat(self.lame.mu());
         // (4 I_C) / (3 (I_C + 1)) is exactly 1 at rest (12/12), so P(I) = mu I - mu I = 0.
         (
-            mu * ((4.0 * ic) / (3.0 * (ic + 1.0))),
-            self.volume_stiffness * (j - 1.0) - mu,
+            mu * ((L::splat(4.0) * ic) / (L::splat(3.0) * (ic + L::splat(1.0)))),
+            L::splat(self.volume_stiffness) * (j - L::splat(1.0)) - mu,
+        )
+    }
+
+    /// `(W, P)` from one cofactor matrix, for one value or a group of lanes.
+    #[inline(always)]
+    fn energy_and_stress<L: Lane>(&self, f: LaneMat3<L>) -> (L, LaneMat3<L>) {
+        invariant_energy_and_first_piola(
+            f,
+            |f, cof0| {
+                let (ic_minus_3, j_minus_1) = invariant_deviations(f, cof0);
+                self.energy(ic_minus_3, j_minus_1)
+            },
+            |ic, j| self.stress_coefficients(ic, j),
         )
     }
 }
@@ -88,25 +105,30 @@ lame_constructors!(StableNeoHookean);
 impl Material for StableNeoHookean {
     #[inline]
     fn energy_density(&self, f: Mat3) -> Real {
-        let (ic_minus_3, j_minus_1) = invariant_deviations(f, f.y_axis.cross(f.z_axis));
+        let f = LaneMat3::from(f);
+        let (ic_minus_3, j_minus_1) = invariant_deviations(f, f.c1.cross(f.c2));
         self.energy(ic_minus_3, j_minus_1)
     }
 
     #[inline]
     fn first_piola(&self, f: Mat3) -> Mat3 {
-        invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
+        invariant_first_piola(LaneMat3::from(f), |ic, j| self.stress_coefficients(ic, j)).into()
     }
 
     #[inline]
     fn energy_and_first_piola(&self, f: Mat3) -> (Real, Mat3) {
-        invariant_energy_and_first_piola(
-            f,
-            |f, cof0| {
-                let (ic_minus_3, j_minus_1) = invariant_deviations(f, cof0);
-                self.energy(ic_minus_3, j_minus_1)
-            },
-            |ic, j| self.stress_coefficients(ic, j),
-        )
+        let (energy, stress) = self.energy_and_stress(LaneMat3::from(f));
+        (energy, stress.into())
+    }
+
+    #[inline]
+    fn first_piola_lanes(&self, f: LaneMat3<Lanes>) -> LaneMat3<Lanes> {
+        invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
+    }
+
+    #[inline]
+    fn energy_and_first_piola_lanes(&self, f: LaneMat3<Lanes>) -> (Lanes, LaneMat3<Lanes>) {
+        self.energy_and_stress(f)
     }
 
     #[inline]

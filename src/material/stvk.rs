@@ -1,6 +1,6 @@
 //! Saint Venant–Kirchhoff: linear elasticity written in the Green strain.
 
-use super::{Lame, Mat3, Material, MaterialError, Real, Vec3, frobenius_squared};
+use super::{Lame, Lane, LaneMat3, Lanes, Mat3, Material, MaterialError, Real, Vec3};
 
 /// Saint Venant–Kirchhoff (`SPEC.md` section 2): with the Green strain `G = (F^T F - I) / 2`,
 /// `W = lambda/2 (tr G)^2 + mu tr(G^2)` and `P = F (2 mu G + lambda tr(G) I)`.
@@ -41,43 +41,81 @@ impl StVK {
 
 lame_constructors!(StVK);
 
-/// The Green strain `(F^T F - I) / 2` (dimensionless, symmetric).
-#[inline(always)]
-fn green_strain(f: Mat3) -> Mat3 {
-    (f.transpose() * f - Mat3::IDENTITY) * 0.5
-}
-
-impl Material for StVK {
-    #[inline]
-    fn energy_density(&self, f: Mat3) -> Real {
-        let g = green_strain(f);
-        let trace = g.diagonal().element_sum();
-        // tr(G^2) is the squared Frobenius norm because G is symmetric.
-        0.5 * self.lame.lambda() * trace * trace + self.lame.mu() * frobenius_squared(g)
+impl StVK {
+    /// `W(F)`, written once for one value or a group of lanes. With the Green strain
+    /// `G = (F^T F - I) / 2`, whose entries are the dot products of the columns of `F` (formed
+    /// as glam's `(F^T F - I) * 0.5` forms them): `W = lambda/2 (tr G)^2 + mu |G|^2`, where
+    /// `tr(G^2) = |G|^2` because `G` is symmetric.
+    #[inline(always)]
+    fn energy<L: Lane>(&self, f: LaneMat3<L>) -> L {
+        let (a, b, c) = (f.c0, f.c1, f.c2);
+        let (one, half) = (L::splat(1.0), L::splat(0.5));
+        let (g00, g11, g22) = (
+            (a.dot(a) - one) * half,
+            (b.dot(b) - one) * half,
+            (c.dot(c) - one) * half,
+        );
+        let (g01, g02, g12) = (a.dot(b) * half, a.dot(c) * half, b.dot(c) * half);
+        let trace = g00 + g11 + g22;
+        // |G|^2 column by column: (G00, G10, G20), (G01, G11, G21), (G02, G12, G22).
+        let squared_norm = (g00 * g00 + g01 * g01 + g02 * g02)
+            + (g01 * g01 + g11 * g11 + g12 * g12)
+            + (g02 * g02 + g12 * g12 + g22 * g22);
+        L::splat(0.5 * self.lame.lambda()) * trace * trace + L::splat(self.lame.mu()) * squared_norm
     }
 
-    #[inline]
-    fn first_piola(&self, f: Mat3) -> Mat3 {
-        // P = F S with S = 2 mu G + lambda tr(G) I and G = (F^T F - I) / 2. F^T F and S are
-        // symmetric, so only their six distinct entries are formed: the force kernel's hot path
-        // measured 4 % faster this way than with full 3x3 products.
-        let (a, b, c) = (f.x_axis, f.y_axis, f.z_axis);
+    /// `P(F)`, written once for one value or a group of lanes: `P = F S` with
+    /// `S = 2 mu G + lambda tr(G) I`. `F^T F` and `S` are symmetric, so only their six distinct
+    /// entries are formed (the force kernel's hot path measured 4 % faster this way than with
+    /// full 3x3 products).
+    #[inline(always)]
+    fn stress<L: Lane>(&self, f: LaneMat3<L>) -> LaneMat3<L> {
+        let (a, b, c) = (f.c0, f.c1, f.c2);
+        let one = L::splat(1.0);
         // 2 G: the diagonal, then the off-diagonal entries.
-        let (g00, g11, g22) = (a.dot(a) - 1.0, b.dot(b) - 1.0, c.dot(c) - 1.0);
+        let (g00, g11, g22) = (a.dot(a) - one, b.dot(b) - one, c.dot(c) - one);
         let (c01, c02, c12) = (a.dot(b), a.dot(c), b.dot(c));
-        let mu = self.lame.mu();
-        let volumetric = 0.5 * self.lame.lambda() * (g00 + g11 + g22);
+        let mu = L::splat(self.lame.mu());
+        let volumetric = L::splat(0.5 * self.lame.lambda()) * (g00 + g11 + g22);
         let (s00, s11, s22) = (
             mu * g00 + volumetric,
             mu * g11 + volumetric,
             mu * g22 + volumetric,
         );
         let (s01, s02, s12) = (mu * c01, mu * c02, mu * c12);
-        Mat3::from_cols(
-            a * s00 + b * s01 + c * s02,
-            a * s01 + b * s11 + c * s12,
-            a * s02 + b * s12 + c * s22,
-        )
+        LaneMat3 {
+            c0: a.scale(s00) + b.scale(s01) + c.scale(s02),
+            c1: a.scale(s01) + b.scale(s11) + c.scale(s12),
+            c2: a.scale(s02) + b.scale(s12) + c.scale(s22),
+        }
+    }
+}
+
+impl Material for StVK {
+    #[inline]
+    fn energy_density(&self, f: Mat3) -> Real {
+        self.energy(LaneMat3::from(f))
+    }
+
+    #[inline]
+    fn first_piola(&self, f: Mat3) -> Mat3 {
+        self.stress(LaneMat3::from(f)).into()
+    }
+
+    #[inline]
+    fn energy_and_first_piola(&self, f: Mat3) -> (Real, Mat3) {
+        let f = LaneMat3::from(f);
+        (self.energy(f), self.stress(f).into())
+    }
+
+    #[inline]
+    fn first_piola_lanes(&self, f: LaneMat3<Lanes>) -> LaneMat3<Lanes> {
+        self.stress(f)
+    }
+
+    #[inline]
+    fn energy_and_first_piola_lanes(&self, f: LaneMat3<Lanes>) -> (Lanes, LaneMat3<Lanes>) {
+        (self.energy(f), self.stress(f))
     }
 
     #[inline]

@@ -20,6 +20,7 @@
 use super::element::Vector;
 use crate::error::{Buffer, ElementError, MeshError};
 
+mod grouped;
 mod tet;
 mod triangle;
 

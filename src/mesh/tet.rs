@@ -3,9 +3,10 @@
 use super::super::element::TetRest;
 use super::super::lanes::LANES;
 use super::super::material::Material;
-use super::super::math::BATCH_SVD;
+use super::super::math::{BATCH_FORCES, BATCH_SVD};
 use super::super::svd::{Svd3, svd3, svd3_lanes};
 use super::super::types::{Mat3, Real, Vec3};
+use super::grouped::{GroupGradients, TetGroup, tet_groups};
 use super::{check_length, check_positions, gather, scatter_add, validate};
 use crate::error::{Buffer, MeshError};
 
@@ -117,7 +118,13 @@ impl<'a> TetMesh<'a> {
     ) -> Result<(), MeshError> {
         self.check_positions(positions)?;
         check_length(Buffer::Forces, self.vertex_count, forces.len())?;
-        for (corners, rest) in self.tets.iter().zip(self.rest) {
+        let (groups, tail) = self.groups_and_tail(BATCH_FORCES);
+        for group in groups {
+            let gradients = GroupGradients::new(positions, group);
+            let p = material.first_piola_lanes(gradients.f);
+            gradients.scatter_forces(group.0, p, forces);
+        }
+        for (corners, rest) in tail {
             let f = rest.deformation_gradient(gather(positions, corners));
             scatter_add(forces, corners, rest.nodal_forces(material.first_piola(f)));
         }
@@ -175,7 +182,17 @@ impl<'a> TetMesh<'a> {
         check_length(Buffer::Positions, self.vertex_count, positions.len())?;
         check_length(Buffer::Forces, self.vertex_count, forces.len())?;
         let mut energy = 0.0;
-        for (corners, rest) in self.tets.iter().zip(self.rest) {
+        let (groups, tail) = self.groups_and_tail(BATCH_FORCES);
+        for group in groups {
+            let gradients = GroupGradients::new(positions, group);
+            let (density, p) = material.energy_and_first_piola_lanes(gradients.f);
+            // Summed element by element, as the scalar loop does.
+            for element_energy in (gradients.volume * density).to_array() {
+                energy += element_energy;
+            }
+            gradients.scatter_forces(group.0, p, forces);
+        }
+        for (corners, rest) in tail {
             let f = rest.deformation_gradient(gather(positions, corners));
             let (density, stress) = material.energy_and_first_piola(f);
             energy += rest.volume * density;
@@ -261,6 +278,32 @@ impl<'a> TetMesh<'a> {
             masses,
             self.vertex_count,
         )
+    }
+
+    /// The elements to evaluate [`LANES`] at a time (all whole groups when `batch`, none
+    /// otherwise) and the rest, to evaluate one at a time.
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn groups_and_tail(
+        &self,
+        batch: bool,
+    ) -> (
+        impl Iterator<Item = TetGroup<'a>>,
+        impl Iterator<Item = (&'a [u32; 4], &'a TetRest)>,
+    ) {
+        let grouped = if batch {
+            self.tets.len() - self.tets.len() % LANES
+        } else {
+            0
+        };
+        let (tets, single_tets) = self
+            .tets
+            .split_at_checked(grouped)
+            .unwrap_or((&[], self.tets));
+        let (rest, single_rest) = self
+            .rest
+            .split_at_checked(grouped)
+            .unwrap_or((&[], self.rest));
+        (tet_groups(tets, rest), single_tets.iter().zip(single_rest))
     }
 
     /// Length and finiteness of a deformed position buffer.

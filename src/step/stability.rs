@@ -3,9 +3,9 @@
 
 use super::super::element::TriangleStVK;
 use super::super::element::{TetRest, TriRest};
-use super::super::lanes::LANES;
+use super::super::lanes::each_lane;
 use super::super::material::Material;
-use super::super::math;
+use super::super::math::{self, BATCH_SVD};
 use super::super::mesh::TetMesh;
 use super::super::svd::{svd3, svd3_lanes};
 use super::super::types::{Mat2, Mat3, Real, Vec2, Vec3};
@@ -70,27 +70,24 @@ pub(super) fn tet_stiffness<M: Material>(
     let (lambda, mu) = linearised_moduli(material);
     let c_max = largest_modulus(lambda + 2.0 * mu, mu, 3.0);
     // `G G^T` is symmetric positive semi-definite: its largest singular value is its largest
-    // eigenvalue. The SVDs run LANES elements at a time (bit-identical to `svd3`).
-    let tet_groups = mesh.tets().chunks_exact(LANES);
-    let rest_groups = mesh.rest().chunks_exact(LANES);
-    let tail = tet_groups.remainder().iter().zip(rest_groups.remainder());
-    for (tets, rests) in tet_groups.zip(rest_groups) {
-        let products: [Mat3; LANES] =
-            core::array::from_fn(|lane| rests.get(lane).map_or(Mat3::ZERO, gradient_products));
-        let svds = svd3_lanes(&products);
+    // eigenvalue. Where SIMD makes it faster, the SVDs run LANES elements at a time
+    // (bit-identical to `svd3`).
+    let (groups, tail) = mesh.groups_and_tail(BATCH_SVD);
+    for (tets, rests) in groups {
+        let svds = svd3_lanes(&each_lane(*rests, gradient_products));
         for ((corners, rest), svd) in tets.iter().zip(rests).zip(&svds) {
             visit(corners, rest.volume * c_max * svd.sigma.x, rest.volume);
         }
     }
     for (corners, rest) in tail {
-        let largest = svd3(gradient_products(rest)).sigma.x;
+        let largest = svd3(gradient_products(*rest)).sigma.x;
         visit(corners, rest.volume * c_max * largest, rest.volume);
     }
 }
 
 /// `G G^T = sum_a grad N_a grad N_a^T` over the four corners' shape-function gradients.
 #[inline]
-fn gradient_products(rest: &TetRest) -> Mat3 {
+fn gradient_products(rest: TetRest) -> Mat3 {
     let g = rest.dm_inv.transpose(); // columns: grad N_1, grad N_2, grad N_3
     let g0 = -(g.x_axis + g.y_axis + g.z_axis);
     g * g.transpose() + Mat3::from_cols(g0 * g0.x, g0 * g0.y, g0 * g0.z)
