@@ -184,6 +184,19 @@ struct Measured {
 }
 
 impl Measured {
+    /// `name: error, cost, iterations, convergence`, for the progress output and the findings.
+    fn summary(&self) -> String {
+        format!(
+            "{}: error {:.2e}, {:.1} ms/s, {:.1} iterations/step, {} of {} steps unconverged",
+            self.name(),
+            self.error,
+            self.cost,
+            self.run.iterations as f64 / self.run.steps.max(1) as f64,
+            self.run.unconverged,
+            self.run.steps
+        )
+    }
+
     fn name(&self) -> String {
         let precision = self.precision.name();
         match self.method {
@@ -303,18 +316,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
         let failure = m.run.failure.map_or(String::new(), |(t, e)| {
             format!(", failed at t = {t:.3} s: {e}")
         });
-        progress(
-            "integrators",
-            &format!(
-                "{}: error {:.2e}, {:.1} ms per simulated s, {:.1} iterations/step, {} of {} unconverged{failure}",
-                m.name(),
-                m.error,
-                m.cost,
-                m.run.iterations as f64 / m.run.steps.max(1) as f64,
-                m.run.unconverged,
-                m.run.steps
-            ),
-        );
+        progress("integrators", &format!("{}{failure}", m.summary()));
         measured.push(m);
     }
 
@@ -430,15 +432,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
         "largest displacement {amplitude:.3} m; reference self-check {self_check:.1e}"
     ));
     for m in &measured {
-        findings.line(format!(
-            "{}: error {:.2e}, {:.1} ms/s, {:.1} iterations/step, {} of {} steps unconverged",
-            m.name(),
-            m.error,
-            m.cost,
-            m.run.iterations as f64 / m.run.steps.max(1) as f64,
-            m.run.unconverged,
-            m.run.steps
-        ));
+        findings.line(m.summary());
     }
     findings.line(format!(
         "Pareto front (ms/s, error): {}",

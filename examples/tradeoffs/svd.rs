@@ -10,6 +10,7 @@
 use std::path::Path;
 
 use nalgebra::{DMatrix, Matrix3};
+use plotters::chart::SeriesLabelPosition;
 use softfem::glam::{DMat3, DQuat, DVec3, Mat3};
 
 use crate::chart::{Axis, Figure, Panel, Series, Style, Table, num};
@@ -300,21 +301,26 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
     };
     let figure = Figure {
         title: "3x3 SVD: worst error against cost, 1..6 Jacobi sweeps (labels: sweeps)".into(),
-        panels: vec![Panel::new(
-            &format!("{len} matrices: random, near identity, condition 1e6; a quarter mirrored"),
-            Axis::log("ns per decomposition (this machine, one thread)"),
-            Axis::log("worst error (singular values / s0, reconstruction)"),
-            vec![
-                series_of("softfem svd3_sweeps", "f32", Style::LinePoints, 0),
-                series_of("softfem svd3_sweeps", "f64", Style::LinePoints, 1),
-                series_of("softfem svd3_lanes_sweeps", "f32", Style::LinePoints, 5),
-                series_of("softfem svd3_lanes_sweeps", "f64", Style::LinePoints, 4),
-                series_of("nalgebra Matrix3::svd", "f32", Style::Points, 6)
-                    .with_labels(vec!["nalgebra f32".into()]),
-                series_of("nalgebra Matrix3::svd", "f64", Style::Points, 7)
-                    .with_labels(vec!["nalgebra f64".into()]),
-            ],
-        )],
+        panels: vec![
+            Panel::new(
+                &format!(
+                    "{len} matrices: random, near identity, condition 1e6; a quarter mirrored"
+                ),
+                Axis::log("ns per decomposition (this machine, one thread)"),
+                Axis::log("worst error (singular values / s0, reconstruction)"),
+                vec![
+                    series_of("softfem svd3_sweeps", "f32", Style::LinePoints, 0),
+                    series_of("softfem svd3_sweeps", "f64", Style::LinePoints, 1),
+                    series_of("softfem svd3_lanes_sweeps", "f32", Style::LinePoints, 5),
+                    series_of("softfem svd3_lanes_sweeps", "f64", Style::LinePoints, 4),
+                    series_of("nalgebra Matrix3::svd", "f32", Style::Points, 6)
+                        .with_labels(vec!["nalgebra f32".into()]),
+                    series_of("nalgebra Matrix3::svd", "f64", Style::Points, 7)
+                        .with_labels(vec!["nalgebra f64".into()]),
+                ],
+            )
+            .with_legend(SeriesLabelPosition::LowerLeft),
+        ],
     };
     figure.write(&out.join("svd.svg"))?;
 
