@@ -14,9 +14,10 @@
 //! 5. Prints the report and the code size of softfem's functions in the image (for the README):
 //!    `cargo test --test firmware -- --nocapture`.
 //!
-//! Needs `rustup target add thumbv7em-none-eabihf` and `qemu-system-arm` (Debian:
-//! `apt-get install qemu-system-arm`); `.ci/run` installs both. On x86_64 Linux their absence
-//! fails the test with that instruction; on other hosts the test is skipped with a message.
+//! Needs the `thumbv7em-none-eabihf` target and `qemu-system-arm`. On x86_64 Linux the test
+//! installs what is missing (`rustup target add`, and Debian's `apt-get install -y
+//! qemu-system-arm` as root or through `sudo -n`, as `.ci/run` does) and fails with that
+//! instruction if it cannot; on other hosts it is skipped with a message.
 
 #[path = "firmware/src/scenario.rs"]
 #[allow(dead_code)]
@@ -68,23 +69,56 @@ fn expected_table(records: &Records) -> String {
     table
 }
 
-/// Checks that the target and the emulator are installed; panics with what to install if not.
-fn check_tools() {
+/// Whether `program args` runs and exits successfully.
+fn succeeds(program: &str, args: &[&str]) -> bool {
+    Command::new(program)
+        .args(args)
+        .status()
+        .is_ok_and(|status| status.success())
+}
+
+/// Makes sure the target and the emulator are installed, installing what is missing as
+/// `.ci/run` does (so that the README's test command works on a fresh machine): the target with
+/// rustup, QEMU with apt-get (as root, or through `sudo -n`). Panics with what to install if that
+/// fails.
+fn ensure_tools() {
     let sysroot = Command::new("rustc")
         .args(["--print", "sysroot"])
         .output()
         .expect("could not run rustc");
     let sysroot = PathBuf::from(String::from_utf8_lossy(&sysroot.stdout).trim());
+    let target_installed = || sysroot.join("lib/rustlib").join(TARGET).is_dir();
+    if !target_installed() {
+        eprintln!("the Rust target {TARGET} is missing: running `rustup target add {TARGET}`");
+        succeeds("rustup", &["target", "add", TARGET]);
+    }
     assert!(
-        sysroot.join("lib/rustlib").join(TARGET).is_dir(),
-        "the Rust target {TARGET} is not installed: run `rustup target add {TARGET}` \
-         (.ci/run does this)"
+        target_installed(),
+        "the Rust target {TARGET} is not installed and `rustup target add {TARGET}` failed: \
+         install it (.ci/run does this)"
     );
-    let qemu = Command::new("qemu-system-arm").arg("--version").output();
+    let qemu_works = || succeeds("qemu-system-arm", &["--version"]);
+    if !qemu_works() {
+        eprintln!("qemu-system-arm is missing: installing Debian's qemu-system-arm with apt-get");
+        let root = Command::new("id")
+            .arg("-u")
+            .output()
+            .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0");
+        let apt = |args: &[&str]| {
+            if root {
+                succeeds("apt-get", args)
+            } else {
+                let mut with_sudo = vec!["-n", "apt-get"];
+                with_sudo.extend_from_slice(args);
+                succeeds("sudo", &with_sudo)
+            }
+        };
+        let _ = apt(&["update"]) && apt(&["install", "-y", "qemu-system-arm"]);
+    }
     assert!(
-        qemu.is_ok_and(|o| o.status.success()),
-        "qemu-system-arm is not installed: run `apt-get install -y qemu-system-arm` (Debian) \
-         (.ci/run does this)"
+        qemu_works(),
+        "qemu-system-arm is not installed and could not be installed here: run \
+         `apt-get install -y qemu-system-arm` (Debian; .ci/run does this)"
     );
 }
 
@@ -269,7 +303,7 @@ fn firmware_reproduces_the_host_bit_for_bit_on_a_cortex_m4f() {
         );
         return;
     }
-    check_tools();
+    ensure_tools();
 
     let records = host_records();
     let work_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("firmware");
