@@ -357,16 +357,19 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         x
     }
 
-    /// `(Phi(x), E(x))` (J), writing the unprojected gradient (N, zero at pinned vertices) into
-    /// `gradient`. Non-finite if `x` is.
+    /// `Phi(x)`, `E(x)` and the residual at `x`, writing the unprojected gradient (N, zero at
+    /// pinned vertices) into `gradient`. Non-finite if `x` is.
     fn evaluate(
         &self,
         x: &[F::Vector],
         gradient: &mut [F::Vector],
-    ) -> Result<(Real, Real), StepError> {
+    ) -> Result<Evaluation, StepError> {
         gradient.fill(F::Vector::ZERO);
         let elastic = self.model.energy_and_add_forces(x, gradient)?;
         let mut phi = elastic;
+        // |grad Phi|^2 projected on the contact constraints, in the same pass; pinned vertices
+        // add nothing (their gradient is zero).
+        let mut residual_squared: Real = 0.0;
         let rows = x.iter().zip(gradient.iter_mut()).zip(self.start);
         for (i, (((&x, g), &start), (&m, pinned))) in rows
             .zip(self.masses.iter().zip(pinned_flags(self.pinned)))
@@ -381,8 +384,14 @@ impl<F: ElasticEnergy> Objective<'_, F> {
             phi += 0.5 * weight * offset.dot(offset) - m * self.gravity.dot(x - start);
             // The kernel added the forces, -dE/dx: flip them into dE/dx.
             *g = offset * weight - *g - self.gravity * m;
+            let projected = self.projected(x, *g, 1.0);
+            residual_squared += projected.dot(projected);
         }
-        Ok((phi, elastic))
+        Ok(Evaluation {
+            phi,
+            elastic,
+            residual: math::sqrt(residual_squared),
+        })
     }
 
     /// Whether `x` touches the ground (within rounding of the projection).
@@ -407,19 +416,17 @@ impl<F: ElasticEnergy> Objective<'_, F> {
             None => v,
         }
     }
+}
 
-    /// `|grad Phi|` (N) projected on the contact constraints.
-    fn residual(&self, x: &[F::Vector], gradient: &[F::Vector]) -> Real {
-        let squared: Real = x
-            .iter()
-            .zip(gradient)
-            .map(|(&x, &g)| {
-                let g = self.projected(x, g, 1.0);
-                g.dot(g)
-            })
-            .sum();
-        math::sqrt(squared)
-    }
+/// What one evaluation of `Phi` gives.
+#[derive(Clone, Copy)]
+struct Evaluation {
+    /// `Phi(x)` (J).
+    phi: Real,
+    /// The elastic energy `E(x)` (J), part of `phi`.
+    elastic: Real,
+    /// `|grad Phi(x)|` (N) projected on the contact constraints.
+    residual: Real,
 }
 
 /// The shared loop of [`relax_step`] (`velocities` given) and [`relax_quasi_static`].
@@ -576,31 +583,32 @@ fn descend<'b, F: ElasticEnergy>(
     // and the drop compresses it): y wins there.
     let drop = objective.gravity * (objective.h * objective.h);
     objective.initial_guess(positions, drop);
-    let mut phi = objective.evaluate(positions, gradient)?.0;
+    let mut current = objective.evaluate(positions, gradient)?;
     let mut energy_evaluations = 1;
     if drop != F::Vector::ZERO {
         objective.initial_guess(trial, F::Vector::ZERO);
-        let inertial_phi = objective.evaluate(trial, trial_gradient)?.0;
+        let inertial = objective.evaluate(trial, trial_gradient)?;
         energy_evaluations += 1;
         // y also wins when y + h^2 g is not finite (NaN compares false).
-        if inertial_phi < phi || !phi.is_finite() {
+        if inertial.phi < current.phi || !current.phi.is_finite() {
             positions.copy_from_slice(trial);
             swap(&mut gradient, &mut trial_gradient);
-            phi = inertial_phi;
+            current = inertial;
         }
     }
-    if !phi.is_finite() {
+    if !current.phi.is_finite() {
         // y may invert an element of a barrier model: start from x_n instead.
         positions.copy_from_slice(objective.start);
-        phi = objective.evaluate(positions, gradient)?.0;
+        current = objective.evaluate(positions, gradient)?;
         energy_evaluations += 1;
     }
-    if !phi.is_finite() {
+    if !current.phi.is_finite() {
         let vertex = first_non_finite(gradient, &[]).unwrap_or(0);
         return Err(StepError::NonFiniteState { vertex });
     }
+    let mut phi = current.phi;
 
-    let initial_residual = objective.residual(positions, gradient);
+    let initial_residual = current.residual;
     let mut residual = initial_residual;
     // Relative to the larger of the initial residual and the gravity load, so that a step
     // starting at (or near) equilibrium, whose initial residual is mostly rounding, is not asked
@@ -656,7 +664,11 @@ fn descend<'b, F: ElasticEnergy>(
                     objective.on_ground(x + d * (omega * alpha) + s * (omega - 1.0))
                 };
             }
-            let (trial_phi, trial_elastic) = objective.evaluate(trial, trial_gradient)?;
+            let Evaluation {
+                phi: trial_phi,
+                elastic: trial_elastic,
+                residual: trial_residual,
+            } = objective.evaluate(trial, trial_gradient)?;
             energy_evaluations += 1;
             // The semi-iteration is not monotone in Phi in general, but an increase (beyond
             // rounding) means the nonlinearity or the contacts broke the linear model it
@@ -667,7 +679,7 @@ fn descend<'b, F: ElasticEnergy>(
                 swap(&mut gradient, &mut trial_gradient);
                 phi = trial_phi;
                 iterations += 1;
-                residual = objective.residual(positions, gradient);
+                residual = trial_residual;
                 continue;
             }
             restarts += 1;
@@ -678,7 +690,8 @@ fn descend<'b, F: ElasticEnergy>(
             direction.fill(F::Vector::ZERO);
         }
         // d = -P^-1 g (+ momentum * last step), projected; plain descent if that is not
-        // downhill.
+        // downhill. The same pass writes the first trial point, at the full step.
+        alpha = settings.step_length;
         let mut slope = descent_direction(
             objective,
             positions,
@@ -686,31 +699,38 @@ fn descend<'b, F: ElasticEnergy>(
             stiffness,
             direction,
             settings.momentum,
+            (alpha, trial),
         );
         if !downhill(slope) && settings.momentum > 0.0 {
             direction.fill(F::Vector::ZERO);
-            slope = descent_direction(objective, positions, gradient, stiffness, direction, 0.0);
+            slope = descent_direction(
+                objective,
+                positions,
+                gradient,
+                stiffness,
+                direction,
+                0.0,
+                (alpha, trial),
+            );
         }
         if !downhill(slope) {
             break; // stationary to rounding
         }
         let mut accepted = None;
-        alpha = settings.step_length;
-        for _ in 0..=settings.max_backtracks {
-            for (((t, &x), &d), pinned) in trial
-                .iter_mut()
-                .zip(&*positions)
-                .zip(&*direction)
-                .zip(pinned_flags(objective.pinned))
-            {
-                *t = if pinned {
-                    x
-                } else {
-                    objective.on_ground(x + d * alpha)
-                };
+        for attempt in 0..=settings.max_backtracks {
+            if attempt > 0 {
+                for (((t, &x), &d), pinned) in trial
+                    .iter_mut()
+                    .zip(&*positions)
+                    .zip(&*direction)
+                    .zip(pinned_flags(objective.pinned))
+                {
+                    *t = trial_point(objective, pinned, x, d, alpha);
+                }
             }
-            let (trial_phi, trial_elastic) = objective.evaluate(trial, trial_gradient)?;
+            let evaluation = objective.evaluate(trial, trial_gradient)?;
             energy_evaluations += 1;
+            let (trial_phi, trial_elastic) = (evaluation.phi, evaluation.elastic);
             // Armijo on Phi, or, where Phi's change is below its rounding (the energy of a
             // nearly undeformed element is a difference of O(mu V) terms), Hager and Zhang's
             // approximate Armijo test (SIAM J. Optim. 2005): the trapezoidal estimate of the
@@ -721,21 +741,21 @@ fn descend<'b, F: ElasticEnergy>(
                     && slope_along(trial_gradient, direction)
                         <= (2.0 * settings.armijo - 1.0) * slope);
             if sufficient {
-                accepted = Some(trial_phi);
+                accepted = Some(evaluation);
                 break;
             }
             alpha *= settings.backtrack;
             backtracks += 1;
         }
-        let Some(trial_phi) = accepted else {
+        let Some(evaluation) = accepted else {
             break;
         };
         // Keep the step actually taken (after projection) for the acceleration.
         accept(positions, trial, direction);
         swap(&mut gradient, &mut trial_gradient);
-        phi = trial_phi;
+        phi = evaluation.phi;
         iterations += 1;
-        residual = objective.residual(positions, gradient);
+        residual = evaluation.residual;
     }
     let report = RelaxReport {
         iterations,
@@ -777,7 +797,8 @@ fn preconditioned<F: ElasticEnergy>(
 }
 
 /// Writes the projected preconditioned direction into `direction` (which holds the last step)
-/// and returns the slope `grad.d`.
+/// and, in the same pass, the trial point `x + alpha d` (projected on the ground; `x` at pinned
+/// vertices) into `trial`; returns the slope `grad.d`.
 fn descent_direction<F: ElasticEnergy>(
     objective: &Objective<'_, F>,
     positions: &[F::Vector],
@@ -785,13 +806,19 @@ fn descent_direction<F: ElasticEnergy>(
     stiffness: &[Real],
     direction: &mut [F::Vector],
     momentum: Real,
+    (alpha, trial): (Real, &mut [F::Vector]),
 ) -> Real {
     let mut slope = 0.0;
-    for (((d, &x), &g), p) in direction
+    for ((((d, t), &x), &g), (p, pinned)) in direction
         .iter_mut()
+        .zip(trial.iter_mut())
         .zip(positions)
         .zip(gradient)
-        .zip(objective.diagonal(stiffness))
+        .zip(
+            objective
+                .diagonal(stiffness)
+                .zip(pinned_flags(objective.pinned)),
+        )
     {
         let g = objective.projected(x, g, 1.0);
         let plain = if p > 0.0 {
@@ -801,8 +828,26 @@ fn descent_direction<F: ElasticEnergy>(
         };
         *d = objective.projected(x, plain + *d * momentum, -1.0);
         slope += g.dot(*d);
+        *t = trial_point(objective, pinned, x, *d, alpha);
     }
     slope
+}
+
+/// The trial position of one vertex at `x` along `d`: `x + alpha d` projected on the ground, or
+/// `x` if the vertex is pinned.
+#[inline(always)]
+fn trial_point<F: ElasticEnergy>(
+    objective: &Objective<'_, F>,
+    pinned: bool,
+    x: F::Vector,
+    d: F::Vector,
+    alpha: Real,
+) -> F::Vector {
+    if pinned {
+        x
+    } else {
+        objective.on_ground(x + d * alpha)
+    }
 }
 
 /// `ground` if `x` touches it (within rounding of the projection).
