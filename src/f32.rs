@@ -31,6 +31,11 @@ pub(crate) mod math {
     /// measured twice as fast as the scalar loop on a 105k-tet box.
     pub const BATCH_FORCES: bool = cfg!(target_arch = "x86_64");
 
+    /// Whether stable neo-Hookean's `ln(1 + y)` uses its own series for `|y| <= 1/2` (same code
+    /// for one value and for a group of lanes, so both give the same bits, within 2 ulp of the
+    /// correctly rounded result) instead of `libm` lane by lane.
+    pub const SERIES_LN_1P: bool = true;
+
     /// Jacobi sweeps used by [`svd3`](super::svd::svd3) in this precision.
     pub const DEFAULT_SVD_SWEEPS: u32 = 4;
 

@@ -31,6 +31,10 @@ pub(crate) mod math {
     /// here, where [`Lanes`](super::lanes::Lanes) is an array the optimiser handles less well.
     pub const BATCH_FORCES: bool = false;
 
+    /// Whether stable neo-Hookean's `ln(1 + y)` uses its own series (see the f32 shim): not in
+    /// f64, where the series would need twice the terms; `libm` it is.
+    pub const SERIES_LN_1P: bool = false;
+
     /// Jacobi sweeps used by [`svd3`](super::svd::svd3) in this precision.
     pub const DEFAULT_SVD_SWEEPS: u32 = 4;
 

@@ -56,6 +56,8 @@ pub trait Lane:
     fn sign(self) -> Self;
     /// `self > other`, per lane.
     fn gt(self, other: Self) -> Self::Mask;
+    /// Whether no lane of `mask` is set.
+    fn none(mask: Self::Mask) -> bool;
     /// `mask ? a : b`, per lane, without branching.
     fn select(mask: Self::Mask, a: Self, b: Self) -> Self;
     /// `f` of every lane, one at a time (for the few functions without a lane-wide form:
@@ -94,6 +96,11 @@ impl Lane for Real {
     #[inline(always)]
     fn gt(self, other: Self) -> bool {
         self > other
+    }
+
+    #[inline(always)]
+    fn none(mask: bool) -> bool {
+        !mask
     }
 
     #[inline(always)]

@@ -105,6 +105,11 @@ impl Lane for Lanes {
     }
 
     #[inline(always)]
+    fn none(mask: LaneMask) -> bool {
+        mask.0.iter().all(|&m| m == 0)
+    }
+
+    #[inline(always)]
     fn map(self, f: impl Fn(Real) -> Real) -> Self {
         Lanes(self.0.map(f))
     }

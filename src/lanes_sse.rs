@@ -13,8 +13,8 @@ use super::lanes::{LANES, Lane, LaneVec3, each_lane};
 use super::types::{Real, Vec3};
 use core::arch::x86_64::{
     __m128, _mm_add_ps, _mm_and_ps, _mm_andnot_ps, _mm_cmpgt_ps, _mm_cmpunord_ps, _mm_div_ps,
-    _mm_max_ps, _mm_movehl_ps, _mm_movelh_ps, _mm_mul_ps, _mm_or_ps, _mm_set1_ps, _mm_setr_ps,
-    _mm_sqrt_ps, _mm_sub_ps, _mm_unpackhi_ps, _mm_unpacklo_ps, _mm_xor_ps,
+    _mm_max_ps, _mm_movehl_ps, _mm_movelh_ps, _mm_movemask_ps, _mm_mul_ps, _mm_or_ps, _mm_set1_ps,
+    _mm_setr_ps, _mm_sqrt_ps, _mm_sub_ps, _mm_unpackhi_ps, _mm_unpacklo_ps, _mm_xor_ps,
 };
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -141,6 +141,12 @@ impl Lane for Lanes {
     fn gt(self, other: Self) -> LaneMask {
         // SAFETY: see the module comment. Ordered: false where either lane is NaN.
         LaneMask(unsafe { _mm_cmpgt_ps(self.0, other.0) })
+    }
+
+    #[inline(always)]
+    fn none(mask: LaneMask) -> bool {
+        // SAFETY: see the module comment. The sign bit of each lane, as four bits.
+        unsafe { _mm_movemask_ps(mask.0) == 0 }
     }
 
     #[inline(always)]
