@@ -12,7 +12,11 @@
 //!    firmware must then report exactly that record as failed and exit non-zero, so the
 //!    comparison is shown to be able to fail.
 //! 5. Prints the report and the code size of softfem's functions in the image (for the README):
-//!    `cargo test --test firmware -- --nocapture`.
+//!    `cargo test --test firmware -- --nocapture`. Every measured library call goes through a
+//!    named, never-inlined function of `scenario::<precision>::pieces`; the size of a piece is
+//!    that function plus everything it reaches by direct calls and branches (the call graph from
+//!    `llvm-objdump -d`, of rustup's `llvm-tools` component; without it that table is skipped),
+//!    with compiler-builtins and libm counted apart.
 //!
 //! Needs the `thumbv7em-none-eabihf` target and `qemu-system-arm`. On x86_64 Linux the test
 //! installs what is missing (`rustup target add`, and Debian's `apt-get install -y
@@ -23,6 +27,7 @@
 #[allow(dead_code)]
 mod scenario;
 
+use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -228,38 +233,83 @@ fn corrupt_digest(image: &[u8], digest: u64) -> Vec<u8> {
     corrupted
 }
 
-/// The sizes of the named functions in a 32-bit little-endian ELF file's symbol table.
-fn function_sizes(image: &[u8]) -> Vec<(String, u32)> {
-    let u16_at = |at: usize| u16::from_le_bytes(image[at..at + 2].try_into().unwrap());
-    let u32_at = |at: usize| u32::from_le_bytes(image[at..at + 4].try_into().unwrap());
-    assert_eq!(&image[..5], b"\x7fELF\x01", "not a 32-bit ELF file");
-    let (sections, entry_size, count) = (
-        u32_at(32) as usize,
-        usize::from(u16_at(46)),
-        usize::from(u16_at(48)),
-    );
-    let header = |i: usize| sections + i * entry_size;
-    const SHT_SYMTAB: u32 = 2;
-    const STT_FUNC: u8 = 2;
-    let Some(table) = (0..count)
-        .map(header)
-        .find(|&h| u32_at(h + 4) == SHT_SYMTAB)
-    else {
-        return Vec::new();
-    };
-    let strings = u32_at(header(u32_at(table + 24) as usize) + 16) as usize;
-    let (offset, size) = (u32_at(table + 16) as usize, u32_at(table + 20) as usize);
-    let mut functions: Vec<(String, u32)> = (0..size / 16)
-        .map(|i| offset + 16 * i)
-        .filter(|&entry| image[entry + 12] & 15 == STT_FUNC)
-        .map(|entry| {
-            let name = &image[strings + u32_at(entry) as usize..];
-            let name = &name[..name.iter().position(|&b| b == 0).unwrap()];
-            (demangle(&String::from_utf8_lossy(name)), u32_at(entry + 8))
-        })
-        .collect();
-    functions.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
-    functions
+/// A function in the image's symbol table.
+struct Function {
+    /// The symbol, [`demangle`]d.
+    name: String,
+    /// The first byte (the Thumb bit of the symbol's value cleared).
+    address: u32,
+    /// Bytes.
+    size: u32,
+}
+
+/// A 32-bit little-endian ELF file's section headers and symbols.
+struct Elf<'a> {
+    image: &'a [u8],
+}
+
+impl<'a> Elf<'a> {
+    fn new(image: &'a [u8]) -> Self {
+        assert_eq!(&image[..5], b"\x7fELF\x01", "not a 32-bit ELF file");
+        Elf { image }
+    }
+
+    fn u16_at(&self, at: usize) -> u16 {
+        u16::from_le_bytes(self.image[at..at + 2].try_into().unwrap())
+    }
+
+    fn u32_at(&self, at: usize) -> u32 {
+        u32::from_le_bytes(self.image[at..at + 4].try_into().unwrap())
+    }
+
+    /// The offsets of the section headers.
+    fn sections(&self) -> impl Iterator<Item = usize> + '_ {
+        let first = self.u32_at(32) as usize;
+        let entry_size = usize::from(self.u16_at(46));
+        (0..usize::from(self.u16_at(48))).map(move |i| first + i * entry_size)
+    }
+
+    /// The NUL-terminated string at `offset` of the string table whose header is at `table`.
+    fn string(&self, table: usize, offset: u32) -> String {
+        let text = &self.image[self.u32_at(table + 16) as usize + offset as usize..];
+        String::from_utf8_lossy(&text[..text.iter().position(|&b| b == 0).unwrap()]).into_owned()
+    }
+
+    /// The size in bytes of the section called `name`, if there is one.
+    fn section_size(&self, name: &str) -> Option<u32> {
+        let names = self.sections().nth(usize::from(self.u16_at(50)))?;
+        self.sections()
+            .find(|&h| self.string(names, self.u32_at(h)) == name)
+            .map(|h| self.u32_at(h + 20))
+    }
+
+    /// Every function symbol, largest first.
+    fn functions(&self) -> Vec<Function> {
+        const SHT_SYMTAB: u32 = 2;
+        const STT_FUNC: u8 = 2;
+        let Some(table) = self.sections().find(|&h| self.u32_at(h + 4) == SHT_SYMTAB) else {
+            return Vec::new();
+        };
+        let strings = self
+            .sections()
+            .nth(self.u32_at(table + 24) as usize)
+            .unwrap();
+        let (offset, size) = (
+            self.u32_at(table + 16) as usize,
+            self.u32_at(table + 20) as usize,
+        );
+        let mut functions: Vec<Function> = (0..size / 16)
+            .map(|i| offset + 16 * i)
+            .filter(|&entry| self.image[entry + 12] & 15 == STT_FUNC)
+            .map(|entry| Function {
+                name: demangle(&self.string(strings, self.u32_at(entry))),
+                address: self.u32_at(entry + 4) & !1,
+                size: self.u32_at(entry + 8),
+            })
+            .collect();
+        functions.sort_by(|a, b| b.size.cmp(&a.size).then(a.name.cmp(&b.name)));
+        functions
+    }
 }
 
 /// `softfem::svd::svd3` for a legacy-mangled Rust symbol, with `<T as Trait>` spelled out; the
@@ -292,6 +342,255 @@ fn demangle(symbol: &str) -> String {
         .replace("$u20$", " ")
         .replace("..", "::")
         .replace("_<", "<")
+}
+
+/// The pieces whose code size the test reports: the functions of `scenario::<precision>::pieces`
+/// (never inlined, not generic: one symbol each), with a label.
+const PIECES: [(&str, &str); 17] = [
+    ("svd3", "svd3"),
+    ("svd3_lanes", "svd3_lanes"),
+    ("forces_stvk_direct", "StVK forces, direct"),
+    ("forces_neo_hookean_direct", "neo-Hookean forces, direct"),
+    (
+        "forces_stable_neo_hookean_direct",
+        "stable NH forces, direct",
+    ),
+    ("forces_stvk_principal", "StVK forces, principal"),
+    (
+        "forces_neo_hookean_principal",
+        "neo-Hookean forces, principal",
+    ),
+    (
+        "forces_stable_neo_hookean_principal",
+        "stable NH forces, principal",
+    ),
+    ("forces_stvk_clamped", "StVK forces, clamped"),
+    ("forces_neo_hookean_clamped", "neo-Hookean forces, clamped"),
+    (
+        "forces_stable_neo_hookean_clamped",
+        "stable NH forces, clamped",
+    ),
+    ("energy_stvk", "StVK energy"),
+    ("energy_neo_hookean", "neo-Hookean energy"),
+    ("energy_stable_neo_hookean", "stable NH energy"),
+    ("mesh_new", "TetMesh::new"),
+    ("step_explicit", "step_explicit (stable NH)"),
+    ("relax_step", "relax_step (stable NH)"),
+];
+
+/// The Rust toolchain's copy of the LLVM tool `name` (rustup's `llvm-tools` component), if it
+/// is installed.
+fn llvm_tool(name: &str) -> Option<PathBuf> {
+    let sysroot = Command::new("rustc")
+        .args(["--print", "sysroot"])
+        .output()
+        .ok()?;
+    let rustlib =
+        PathBuf::from(String::from_utf8_lossy(&sysroot.stdout).trim()).join("lib/rustlib");
+    std::fs::read_dir(rustlib)
+        .ok()?
+        .flatten()
+        .map(|entry| entry.path().join("bin").join(name))
+        .find(|path| path.is_file())
+}
+
+/// The image's code as a graph: the functions (by start address; aliases share one) and, for
+/// each, the functions its code calls or branches to directly, from `llvm-objdump -d`.
+struct CallGraph {
+    /// Start address -> size and every name at that address.
+    functions: BTreeMap<u32, (u32, Vec<String>)>,
+    /// Start address -> start addresses of the functions it branches to.
+    edges: BTreeMap<u32, BTreeSet<u32>>,
+    /// Functions containing a call through a register (`blx rN`), which the graph cannot follow.
+    indirect: BTreeSet<u32>,
+}
+
+impl CallGraph {
+    fn new(objdump: &Path, image: &Path, symbols: &[Function]) -> Self {
+        let mut functions: BTreeMap<u32, (u32, Vec<String>)> = BTreeMap::new();
+        for f in symbols {
+            let entry = functions.entry(f.address).or_default();
+            entry.0 = entry.0.max(f.size);
+            entry.1.push(f.name.clone());
+        }
+        let containing = |address: u32| {
+            let (&start, &(size, _)) = functions.range(..=address).next_back()?;
+            (address < start + size).then_some(start)
+        };
+        let output = Command::new(objdump)
+            .args(["-d", "--no-show-raw-insn"])
+            .arg(image)
+            .output()
+            .expect("could not run llvm-objdump");
+        assert!(output.status.success(), "llvm-objdump failed: {output:?}");
+        let mut edges: BTreeMap<u32, BTreeSet<u32>> = BTreeMap::new();
+        let mut indirect = BTreeSet::new();
+        for line in String::from_utf8_lossy(&output.stdout).lines() {
+            // "    c838:      	bl	0x147e8 <_ZN7softfem...E> @ imm = #0x7fac"
+            let Some((address, instruction)) = line.trim_start().split_once(':') else {
+                continue;
+            };
+            let Some(from) = u32::from_str_radix(address, 16).ok().and_then(containing) else {
+                continue;
+            };
+            let tokens: Vec<&str> = instruction.split_whitespace().collect();
+            if tokens.first() == Some(&"blx") && tokens.get(1).is_some_and(|t| t.starts_with('r')) {
+                indirect.insert(from);
+            }
+            for pair in tokens.windows(2) {
+                let target = pair[0]
+                    .strip_prefix("0x")
+                    .filter(|_| pair[1].starts_with('<'))
+                    .and_then(|hex| u32::from_str_radix(hex, 16).ok())
+                    .and_then(containing);
+                if let Some(to) = target.filter(|&to| to != from) {
+                    edges.entry(from).or_default().insert(to);
+                }
+            }
+        }
+        CallGraph {
+            functions,
+            edges,
+            indirect,
+        }
+    }
+
+    /// The start address of the function called `name` (demangled), if there is exactly one.
+    fn find(&self, name: &str) -> Option<u32> {
+        let mut found = self
+            .functions
+            .iter()
+            .filter(|(_, (_, names))| names.iter().any(|n| n == name))
+            .map(|(&address, _)| address);
+        found.next().filter(|_| found.next().is_none())
+    }
+
+    /// `root` and every function reachable from it.
+    fn reachable(&self, root: u32) -> BTreeSet<u32> {
+        let mut seen = BTreeSet::from([root]);
+        let mut stack = vec![root];
+        while let Some(next) = stack.pop() {
+            for &to in self.edges.get(&next).into_iter().flatten() {
+                if seen.insert(to) {
+                    stack.push(to);
+                }
+            }
+        }
+        seen
+    }
+
+    fn size(&self, address: u32) -> u32 {
+        self.functions[&address].0
+    }
+
+    fn name(&self, address: u32) -> &str {
+        &self.functions[&address].1[0]
+    }
+
+    /// Whether the function is compiler-builtins' (soft-float, `memcpy`, `fmaxf`...) or libm's:
+    /// runtime shared by everything that uses it, reported apart from softfem's code. Those are
+    /// the C-named symbols (no Rust path) and the Rust functions of those two crates.
+    fn is_runtime(&self, address: u32) -> bool {
+        self.functions[&address].1.iter().any(|name| {
+            name.starts_with("libm::") || name.contains("compiler_builtins") || !name.contains("::")
+        })
+    }
+}
+
+/// The code size of every piece in both precisions, the code they share and the runtime they
+/// use, as printed by the test.
+fn piece_sizes(graph: &CallGraph) -> String {
+    let mut text = String::from(
+        "code size per piece (bytes): the never-inlined function scenario::<precision>::pieces::<piece>\n\
+         (the library call inlined into it) plus every function it reaches by direct calls and\n\
+         branches; compiler-builtins (soft-float, memcpy) and libm reached are counted apart\n",
+    );
+    writeln!(
+        text,
+        "  {:<32} {:>7} {:>7}   {:>11} {:>11}",
+        "piece", "f32", "f64", "runtime f32", "runtime f64"
+    )
+    .unwrap();
+    // Per precision: the functions each piece reaches.
+    let mut reached: [Vec<(&str, BTreeSet<u32>)>; 2] = [Vec::new(), Vec::new()];
+    let mut missing = Vec::new();
+    for (function, label) in PIECES {
+        let mut sizes = [(0, 0); 2];
+        for (p, module) in ["single", "double"].into_iter().enumerate() {
+            let name = format!("softfem_firmware::scenario::{module}::pieces::{function}");
+            let Some(root) = graph.find(&name) else {
+                missing.push(name);
+                continue;
+            };
+            let code = graph.reachable(root);
+            for &f in &code {
+                if graph.is_runtime(f) {
+                    sizes[p].1 += graph.size(f);
+                } else {
+                    sizes[p].0 += graph.size(f);
+                }
+            }
+            reached[p].push((label, code));
+        }
+        writeln!(
+            text,
+            "  {label:<32} {:>7} {:>7}   {:>11} {:>11}",
+            sizes[0].0, sizes[1].0, sizes[0].1, sizes[1].1
+        )
+        .unwrap();
+    }
+    for (p, precision) in ["f32", "f64"].into_iter().enumerate() {
+        let mut users: BTreeMap<u32, Vec<&str>> = BTreeMap::new();
+        for (label, code) in &reached[p] {
+            for &f in code {
+                users.entry(f).or_default().push(label);
+            }
+        }
+        let (mut own, mut runtime) = (0, 0);
+        for &f in users.keys() {
+            if graph.is_runtime(f) {
+                runtime += graph.size(f);
+            } else {
+                own += graph.size(f);
+            }
+        }
+        writeln!(
+            text,
+            "all {precision} pieces together: {own} B, runtime {runtime} B; functions counted in more \
+             than one {precision} piece:"
+        )
+        .unwrap();
+        for (&f, labels) in users
+            .iter()
+            .filter(|(f, l)| l.len() > 1 && !graph.is_runtime(**f))
+        {
+            writeln!(
+                text,
+                "  {:>7}  {}: {}",
+                graph.size(f),
+                graph.name(f),
+                labels.join(", ")
+            )
+            .unwrap();
+        }
+        let blind: Vec<&str> = users
+            .keys()
+            .filter(|f| graph.indirect.contains(f))
+            .map(|&f| graph.name(f))
+            .collect();
+        if !blind.is_empty() {
+            writeln!(
+                text,
+                "  note: calls through registers (not followed) in: {}",
+                blind.join(", ")
+            )
+            .unwrap();
+        }
+    }
+    for name in missing {
+        writeln!(text, "note: {name} is not in the image").unwrap();
+    }
+    text
 }
 
 #[test]
@@ -364,8 +663,24 @@ fn firmware_reproduces_the_host_bit_for_bit_on_a_cortex_m4f() {
         run_time.as_secs_f64()
     );
     eprintln!("{report}");
-    eprintln!("functions in the image (bytes):");
-    for (name, size) in function_sizes(&bytes).iter().filter(|(_, s)| *s >= 64) {
-        eprintln!("  {size:>7}  {name}");
+    let elf = Elf::new(&bytes);
+    let functions = elf.functions();
+    eprintln!(
+        "image: .text {} B, .rodata {} B; functions of 64 bytes or more (bytes):",
+        elf.section_size(".text").unwrap_or(0),
+        elf.section_size(".rodata").unwrap_or(0)
+    );
+    for function in functions.iter().filter(|f| f.size >= 64) {
+        eprintln!("  {:>7}  {}", function.size, function.name);
+    }
+    match llvm_tool("llvm-objdump") {
+        Some(objdump) => eprintln!(
+            "\n{}",
+            piece_sizes(&CallGraph::new(&objdump, &image, &functions))
+        ),
+        None => eprintln!(
+            "\nno llvm-objdump in the Rust toolchain: `rustup component add llvm-tools` for the \
+             code size of each piece"
+        ),
     }
 }

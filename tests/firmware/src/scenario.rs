@@ -155,6 +155,58 @@ fn jitter(i: u32, salt: u32) -> i32 {
     (h % 2001) as i32 - 1000
 }
 
+/// The four force and energy pieces of one model: never-inlined, non-generic functions named
+/// after the model, so that each is one symbol of its own in the firmware image (see
+/// [`precision`]'s `pieces`). Expanded inside each precision's `pieces` module, whose imports
+/// the types resolve to.
+macro_rules! model_pieces {
+    ($model:ident, $direct:ident, $principal:ident, $clamped:ident, $energy:ident) => {
+        /// [`TetMesh::add_elastic_forces`] of this model.
+        #[inline(never)]
+        pub fn $direct(
+            mesh: &TetMesh<'_>,
+            material: &$model,
+            positions: &[Vec3],
+            forces: &mut [Vec3],
+        ) -> Result<(), MeshError> {
+            mesh.add_elastic_forces(material, positions, forces)
+        }
+
+        /// [`TetMesh::add_elastic_forces_principal`] of this model.
+        #[inline(never)]
+        pub fn $principal(
+            mesh: &TetMesh<'_>,
+            material: &$model,
+            positions: &[Vec3],
+            forces: &mut [Vec3],
+        ) -> Result<(), MeshError> {
+            mesh.add_elastic_forces_principal(material, positions, forces)
+        }
+
+        /// [`TetMesh::add_elastic_forces_clamped`] of this model.
+        #[inline(never)]
+        pub fn $clamped(
+            mesh: &TetMesh<'_>,
+            material: &$model,
+            threshold: Real,
+            positions: &[Vec3],
+            forces: &mut [Vec3],
+        ) -> Result<(), MeshError> {
+            mesh.add_elastic_forces_clamped(material, threshold, positions, forces)
+        }
+
+        /// [`TetMesh::elastic_energy`] of this model.
+        #[inline(never)]
+        pub fn $energy(
+            mesh: &TetMesh<'_>,
+            material: &$model,
+            positions: &[Vec3],
+        ) -> Result<Real, MeshError> {
+            mesh.elastic_energy(material, positions)
+        }
+    };
+}
+
 /// The workload, written once and instantiated per precision.
 macro_rules! precision {
     ($module:ident, $prefix:literal, $($softfem:ident)::+) => {
@@ -164,16 +216,89 @@ macro_rules! precision {
 
             use $($softfem)::+::element::TetRest;
             use $($softfem)::+::generate::{BoxSplit, fill_box};
-            use $($softfem)::+::material::{Material, NeoHookean, StVK, StableNeoHookean};
+            use $($softfem)::+::MeshError;
+            use $($softfem)::+::material::{NeoHookean, StVK, StableNeoHookean};
             use $($softfem)::+::mesh::TetMesh;
             use $($softfem)::+::step::{
                 ExplicitScratch, ExplicitSettings, Ground, RelaxScratch, RelaxSettings,
-                TetElastic, relax_step, stable_time_step, step_explicit,
+                TetElastic, stable_time_step,
             };
-            use $($softfem)::+::svd::{Svd3, svd3, svd3_lanes};
+            use $($softfem)::+::svd::Svd3;
             use $($softfem)::+::types::{Mat3, Real, Vec3};
 
             use super::{Digest, Meter, Record, Records, jitter};
+
+            /// The library calls the workload makes, each in a function of its own that is never
+            /// inlined and is not generic: in the firmware image each is exactly one symbol,
+            /// `softfem_firmware::scenario::<single|double>::pieces::<name>`, whose code is the
+            /// library function (checks included) inlined into it plus what it calls out of line.
+            /// `tests/firmware.rs` reports their code size from the image.
+            pub mod pieces {
+                use $($softfem)::+::material::{NeoHookean, StVK, StableNeoHookean};
+                use $($softfem)::+::mesh::TetMesh;
+                use $($softfem)::+::step::{
+                    ExplicitReport, ExplicitScratch, ExplicitSettings, RelaxReport, RelaxScratch,
+                    RelaxSettings, TetElastic,
+                };
+                use $($softfem)::+::svd::Svd3;
+                use $($softfem)::+::types::{Mat3, Real, Vec3};
+                use $($softfem)::+::element::TetRest;
+                use $($softfem)::+::{MeshError, StepError};
+
+                /// [`svd3`](fn@$($softfem)::+::svd::svd3).
+                #[inline(never)]
+                pub fn svd3(a: Mat3) -> Svd3 {
+                    $($softfem)::+::svd::svd3(a)
+                }
+
+                /// [`svd3_lanes`](fn@$($softfem)::+::svd::svd3_lanes).
+                #[inline(never)]
+                pub fn svd3_lanes(a: &[Mat3; 4]) -> [Svd3; 4] {
+                    $($softfem)::+::svd::svd3_lanes(a)
+                }
+
+                /// [`TetMesh::new`]: mesh validation and rest data.
+                #[inline(never)]
+                pub fn mesh_new<'a>(
+                    rest_positions: &[Vec3],
+                    tets: &'a [[u32; 4]],
+                    rest: &'a mut [TetRest],
+                ) -> Result<TetMesh<'a>, MeshError> {
+                    TetMesh::new(rest_positions, tets, rest)
+                }
+
+                model_pieces!(StVK, forces_stvk_direct, forces_stvk_principal, forces_stvk_clamped, energy_stvk);
+                model_pieces!(NeoHookean, forces_neo_hookean_direct, forces_neo_hookean_principal, forces_neo_hookean_clamped, energy_neo_hookean);
+                model_pieces!(StableNeoHookean, forces_stable_neo_hookean_direct, forces_stable_neo_hookean_principal, forces_stable_neo_hookean_clamped, energy_stable_neo_hookean);
+
+                /// [`step_explicit`](fn@$($softfem)::+::step::step_explicit) of a stable
+                /// neo-Hookean body.
+                #[inline(never)]
+                pub fn step_explicit(
+                    model: &TetElastic<'_, StableNeoHookean>,
+                    masses: &[Real],
+                    settings: &ExplicitSettings<Vec3>,
+                    positions: &mut [Vec3],
+                    velocities: &mut [Vec3],
+                    scratch: &mut ExplicitScratch<'_, Vec3>,
+                ) -> Result<ExplicitReport, StepError> {
+                    $($softfem)::+::step::step_explicit(model, masses, &[], settings, positions, velocities, scratch)
+                }
+
+                /// [`relax_step`](fn@$($softfem)::+::step::relax_step) of a stable neo-Hookean
+                /// body.
+                #[inline(never)]
+                pub fn relax_step(
+                    model: &TetElastic<'_, StableNeoHookean>,
+                    masses: &[Real],
+                    settings: &RelaxSettings<Vec3>,
+                    positions: &mut [Vec3],
+                    velocities: &mut [Vec3],
+                    scratch: &mut RelaxScratch<'_, Vec3>,
+                ) -> Result<RelaxReport, StepError> {
+                    $($softfem)::+::step::relax_step(model, masses, &[], settings, positions, velocities, scratch)
+                }
+            }
 
             /// Everything one body needs, with capacity fixed at compile time: `V` vertices,
             /// `T` tetrahedra (as `tests/firmware_body.rs`).
@@ -299,7 +424,7 @@ macro_rules! precision {
                 let mut scalar = [Svd3 { u: Mat3::ZERO, sigma: Vec3::ZERO, v: Mat3::ZERO }; 12];
                 for ((name, a), out) in cases.iter().zip(&mut scalar) {
                     let a = black_box(*a);
-                    *out = meter.measure(concat!($prefix, " svd3"), || svd3(a));
+                    *out = meter.measure(concat!($prefix, " svd3"), || pieces::svd3(a));
                     meter.units(concat!($prefix, " svd3"), "SVD", 1);
                     let mut digest = Digest::new();
                     svd_digest(&mut digest, out);
@@ -312,7 +437,7 @@ macro_rules! precision {
                 for (group, expected) in cases.chunks_exact(4).zip(scalar.chunks_exact(4)) {
                     let mats: [Mat3; 4] = core::array::from_fn(|i| group.get(i).map_or(Mat3::ZERO, |c| c.1));
                     let mats = black_box(mats);
-                    let lanes = meter.measure(concat!($prefix, " svd3_lanes"), || svd3_lanes(&mats));
+                    let lanes = meter.measure(concat!($prefix, " svd3_lanes"), || pieces::svd3_lanes(&mats));
                     meter.units(concat!($prefix, " svd3_lanes"), "SVD", 4);
                     for (got, want) in lanes.iter().zip(expected) {
                         let (mut a, mut b) = (Digest::new(), Digest::new());
@@ -330,12 +455,21 @@ macro_rules! precision {
             const FORCE_VERTICES: usize = 27;
             const FORCE_TETS: usize = 48;
 
+            /// The [`pieces`] of one model.
+            struct ModelPieces<M> {
+                direct: fn(&TetMesh<'_>, &M, &[Vec3], &mut [Vec3]) -> Result<(), MeshError>,
+                principal: fn(&TetMesh<'_>, &M, &[Vec3], &mut [Vec3]) -> Result<(), MeshError>,
+                clamped: fn(&TetMesh<'_>, &M, Real, &[Vec3], &mut [Vec3]) -> Result<(), MeshError>,
+                energy: fn(&TetMesh<'_>, &M, &[Vec3]) -> Result<Real, MeshError>,
+            }
+
             /// Forces (direct, principal, clamped) and energy of one model on the box.
-            fn model_forces<M: Material>(
+            fn model_forces<M>(
                 meter: &mut impl Meter,
                 records: &mut Records,
                 names: [&'static str; 4],
                 material: M,
+                pieces: ModelPieces<M>,
                 mesh: &TetMesh<'_>,
                 deformed: &[Vec3; FORCE_VERTICES],
             ) {
@@ -343,9 +477,9 @@ macro_rules! precision {
                 for (path, name) in [direct, principal, clamped].into_iter().enumerate() {
                     let mut forces = [Vec3::ZERO; FORCE_VERTICES];
                     let outcome = meter.measure(name, || match path {
-                        0 => mesh.add_elastic_forces(&material, deformed, &mut forces),
-                        1 => mesh.add_elastic_forces_principal(&material, deformed, &mut forces),
-                        _ => mesh.add_elastic_forces_clamped(&material, 0.9, deformed, &mut forces),
+                        0 => (pieces.direct)(mesh, &material, deformed, &mut forces),
+                        1 => (pieces.principal)(mesh, &material, deformed, &mut forces),
+                        _ => (pieces.clamped)(mesh, &material, 0.9, deformed, &mut forces),
                     });
                     meter.units(name, "tet", FORCE_TETS as u64);
                     let mut digest = Digest::new();
@@ -357,7 +491,7 @@ macro_rules! precision {
                     }
                     push(records, name, digest, largest);
                 }
-                let total = meter.measure(energy, || mesh.elastic_energy(&material, deformed));
+                let total = meter.measure(energy, || (pieces.energy)(mesh, &material, deformed));
                 meter.units(energy, "tet", FORCE_TETS as u64);
                 let mut digest = Digest::new();
                 let value = total.unwrap_or(Real::NAN);
@@ -374,7 +508,7 @@ macro_rules! precision {
                     push(records, concat!($prefix, " force box"), Digest::new(), Real::NAN);
                     return;
                 }
-                let Ok(mesh) = TetMesh::new(&rest, &tets, &mut rest_data) else {
+                let Ok(mesh) = pieces::mesh_new(&rest, &tets, &mut rest_data) else {
                     push(records, concat!($prefix, " force box"), Digest::new(), Real::NAN);
                     return;
                 };
@@ -403,19 +537,34 @@ macro_rules! precision {
                             concat!($prefix, " forces StVK principal"),
                             concat!($prefix, " forces StVK clamped"),
                             concat!($prefix, " energy StVK"),
-                        ], stvk, &mesh, &deformed);
+                        ], stvk, ModelPieces {
+                            direct: pieces::forces_stvk_direct,
+                            principal: pieces::forces_stvk_principal,
+                            clamped: pieces::forces_stvk_clamped,
+                            energy: pieces::energy_stvk,
+                        }, &mesh, &deformed);
                         model_forces(meter, records, [
                             concat!($prefix, " forces neo-Hookean direct"),
                             concat!($prefix, " forces neo-Hookean principal"),
                             concat!($prefix, " forces neo-Hookean clamped"),
                             concat!($prefix, " energy neo-Hookean"),
-                        ], neo, &mesh, &deformed);
+                        ], neo, ModelPieces {
+                            direct: pieces::forces_neo_hookean_direct,
+                            principal: pieces::forces_neo_hookean_principal,
+                            clamped: pieces::forces_neo_hookean_clamped,
+                            energy: pieces::energy_neo_hookean,
+                        }, &mesh, &deformed);
                         model_forces(meter, records, [
                             concat!($prefix, " forces stable neo-Hookean direct"),
                             concat!($prefix, " forces stable neo-Hookean principal"),
                             concat!($prefix, " forces stable neo-Hookean clamped"),
                             concat!($prefix, " energy stable neo-Hookean"),
-                        ], stable, &mesh, &deformed);
+                        ], stable, ModelPieces {
+                            direct: pieces::forces_stable_neo_hookean_direct,
+                            principal: pieces::forces_stable_neo_hookean_principal,
+                            clamped: pieces::forces_stable_neo_hookean_clamped,
+                            energy: pieces::energy_stable_neo_hookean,
+                        }, &mesh, &deformed);
                     }
                     _ => push(records, concat!($prefix, " materials"), Digest::new(), Real::NAN),
                 }
@@ -445,7 +594,7 @@ macro_rules! precision {
                     push(records, concat!($prefix, " drop setup"), Digest::new(), Real::NAN);
                     return;
                 };
-                let Ok(mesh) = TetMesh::new(&body.rest, &body.tets, &mut body.rest_data) else {
+                let Ok(mesh) = pieces::mesh_new(&body.rest, &body.tets, &mut body.rest_data) else {
                     push(records, concat!($prefix, " drop mesh"), Digest::new(), Real::NAN);
                     return;
                 };
@@ -474,7 +623,7 @@ macro_rules! precision {
                 for step in 1..=EXPLICIT_STEPS {
                     let (positions, velocities) = (&mut body.positions, &mut body.velocities);
                     let report = meter.measure(concat!($prefix, " step_explicit"), || {
-                        step_explicit(&model, &body.masses, &[], &settings, positions, velocities, &mut scratch)
+                        pieces::step_explicit(&model, &body.masses, &settings, positions, velocities, &mut scratch)
                     });
                     meter.units(concat!($prefix, " step_explicit"), "vertex step", 64);
                     match report {
@@ -512,7 +661,7 @@ macro_rules! precision {
                 for step in 1..=RELAX_STEPS {
                     let (positions, velocities) = (&mut body.positions, &mut body.velocities);
                     let report = meter.measure(concat!($prefix, " relax_step"), || {
-                        relax_step(&model, &body.masses, &[], &relax, positions, velocities, &mut scratch)
+                        pieces::relax_step(&model, &body.masses, &relax, positions, velocities, &mut scratch)
                     });
                     match report {
                         Ok(report) => {
