@@ -27,9 +27,9 @@ pub(crate) mod math {
     /// Whether the mesh kernels batch their SVDs with `svd3_lanes` (see the f32 shim).
     pub const BATCH_SVD: bool = cfg!(any(target_arch = "x86_64", target_arch = "aarch64"));
 
-    /// Whether the direct force kernels evaluate elements in groups (see the f32 shim): not
-    /// here, where [`Lanes`](super::lanes::Lanes) is an array the optimiser handles less well.
-    pub const BATCH_FORCES: bool = false;
+    /// Whether the direct force kernels evaluate [`LANES`] elements at a time (see the f32
+    /// shim): where [`Lanes`](super::lanes::Lanes) are SSE2 registers (x86_64).
+    pub const BATCH_FORCES: bool = cfg!(target_arch = "x86_64");
 
     /// Whether stable neo-Hookean's `ln(1 + y)` uses its own series (see the f32 shim): not in
     /// f64, where the series would need twice the terms; `libm` it is.
@@ -50,33 +50,21 @@ pub(crate) mod math {
         libm::sqrt(x)
     }
 
-    /// The unsigned integer with the bit width of `Real`.
+    /// The unsigned integer with the bit width of `Real` (the portable lanes' masks).
+    #[cfg(not(target_arch = "x86_64"))]
     pub type Bits = u64;
 
-    /// Values per [`Lanes`](super::lanes::Lanes) group: two SSE2 registers of f64 (4 measured faster than 2).
+    /// Values per [`Lanes`](super::lanes::Lanes) group: two SSE2 registers of f64 (4 measured
+    /// faster than 2).
     pub const LANES: usize = 4;
 
-    /// [`sqrt`] of every lane, with the target's packed square root where there is one
-    /// (`sqrtpd` on x86_64: the same correctly rounded result per lane).
+    /// [`sqrt`] of every lane (the portable lanes; on x86_64 they are SSE2 registers and use
+    /// `sqrtpd`, correctly rounded as well).
+    #[cfg(not(target_arch = "x86_64"))]
     #[inline(always)]
     #[must_use]
     pub fn sqrt_lanes(x: [Real; LANES]) -> [Real; LANES] {
-        #[cfg(all(target_arch = "x86_64", target_feature = "sse2"))]
-        {
-            use core::arch::x86_64::{_mm_loadu_pd, _mm_sqrt_pd, _mm_storeu_pd};
-            let mut out = [0.0; LANES];
-            for (src, dst) in x.chunks_exact(2).zip(out.chunks_exact_mut(2)) {
-                // SAFETY: SSE2 is enabled for this build (the cfg above); both pointers
-                // address 2 in-bounds values (chunks_exact(2)), and the unaligned load and
-                // store have no alignment requirement.
-                unsafe { _mm_storeu_pd(dst.as_mut_ptr(), _mm_sqrt_pd(_mm_loadu_pd(src.as_ptr()))) }
-            }
-            out
-        }
-        #[cfg(not(all(target_arch = "x86_64", target_feature = "sse2")))]
-        {
-            x.map(sqrt)
-        }
+        x.map(sqrt)
     }
 
     /// Real cube root (`cbrt(-8) = -2`).
@@ -122,8 +110,11 @@ pub(crate) mod math {
     }
 }
 
-/// How a group of [`lanes::Lanes`] is held: an array (two SSE2 registers of f64 where the
-/// compiler keeps it in registers).
+/// How a group of [`lanes::Lanes`] is held: two SSE2 registers on x86_64, an array elsewhere.
+#[cfg(target_arch = "x86_64")]
+#[path = "lanes_sse2_f64.rs"]
+mod lane_repr;
+#[cfg(not(target_arch = "x86_64"))]
 #[path = "lanes_portable.rs"]
 mod lane_repr;
 
