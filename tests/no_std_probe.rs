@@ -14,6 +14,10 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
+#[path = "common/demangle.rs"]
+mod demangle;
+use demangle::demangle;
+
 /// The probe's exit status when every check passed (`tests/no_std_probe/src/main.rs`).
 const SUCCESS: i32 = 42;
 /// The probe's exit status when its panic handler ran.
@@ -210,33 +214,6 @@ impl Elf<'_> {
             .collect();
         Some(symbols)
     }
-}
-
-/// `softfem::svd::svd3` for a legacy-mangled Rust symbol (`_ZN7softfem3svd4svd317h<hash>E`),
-/// the symbol itself otherwise.
-fn demangle(symbol: &str) -> String {
-    let Some(mut rest) = symbol.strip_prefix("_ZN").and_then(|s| s.strip_suffix('E')) else {
-        return symbol.to_owned();
-    };
-    let mut path = Vec::new();
-    while !rest.is_empty() {
-        let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
-        let Ok(len) = rest[..digits].parse::<usize>() else {
-            return symbol.to_owned();
-        };
-        let Some(component) = rest.get(digits..digits + len) else {
-            return symbol.to_owned();
-        };
-        path.push(component);
-        rest = &rest[digits + len..];
-    }
-    if path
-        .last()
-        .is_some_and(|h| h.len() == 17 && h.starts_with('h'))
-    {
-        path.pop();
-    }
-    path.join("::")
 }
 
 #[test]
