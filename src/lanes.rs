@@ -282,6 +282,13 @@ impl<L: Lane> Sub for LaneMat3<L> {
     }
 }
 
+impl PartialEq for Lanes {
+    /// Lane-wise IEEE equality of all lanes (so a NaN lane is unequal to itself).
+    fn eq(&self, other: &Lanes) -> bool {
+        self.to_array() == other.to_array()
+    }
+}
+
 impl LaneVec3<Lanes> {
     /// The vectors as lanes: lane `i` holds `v[i]`.
     #[inline(always)]

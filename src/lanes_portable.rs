@@ -7,7 +7,7 @@ use super::types::{Real, Vec3};
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
 /// [`LANES`] independent values processed together (structure of arrays).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug)]
 #[repr(C, align(16))]
 pub struct Lanes([Real; LANES]);
 
@@ -34,7 +34,7 @@ impl Lanes {
     /// Combines two groups lane by lane.
     #[inline(always)]
     #[must_use]
-    pub fn zip(self, other: Lanes, f: impl Fn(Real, Real) -> Real) -> Lanes {
+    pub(crate) fn zip(self, other: Lanes, f: impl Fn(Real, Real) -> Real) -> Lanes {
         let mut out = self;
         for (a, b) in out.0.iter_mut().zip(other.0) {
             *a = f(*a, b);

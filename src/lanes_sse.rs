@@ -45,24 +45,6 @@ impl Lanes {
         // the SSE lanes, as `_mm_setr_ps` writes them).
         unsafe { core::mem::transmute::<__m128, [Real; LANES]>(self.0) }
     }
-
-    /// Combines two groups lane by lane.
-    #[inline(always)]
-    #[must_use]
-    pub fn zip(self, other: Lanes, f: impl Fn(Real, Real) -> Real) -> Lanes {
-        let (a, b) = (self.to_array(), other.to_array());
-        Lanes::from_array(core::array::from_fn(|i| match (a.get(i), b.get(i)) {
-            (Some(&a), Some(&b)) => f(a, b),
-            _ => 0.0,
-        }))
-    }
-}
-
-impl PartialEq for Lanes {
-    /// Lane-wise IEEE equality of all lanes (so a NaN lane is unequal to itself).
-    fn eq(&self, other: &Lanes) -> bool {
-        self.to_array() == other.to_array()
-    }
 }
 
 macro_rules! lanes_binary_op {
