@@ -111,6 +111,40 @@ macro_rules! lame_constructors {
     };
 }
 
+/// The methods of [`Material`] that a model written as `W(I_C, J)` forms the same way, from its
+/// own `stress_coefficients(I_C, J)` (`(2 dW/dI_C, dW/dJ)`, generic over [`Lane`]) and
+/// `energy_and_stress(F)` (generic over [`Lane`]): the direct stress, the fused energy and
+/// stress, both for one value and for a group of lanes, and the principal stress.
+macro_rules! invariant_stress_methods {
+    () => {
+        #[inline]
+        fn first_piola(&self, f: Mat3) -> Mat3 {
+            invariant_first_piola(LaneMat3::from(f), |ic, j| self.stress_coefficients(ic, j)).into()
+        }
+
+        #[inline]
+        fn energy_and_first_piola(&self, f: Mat3) -> (Real, Mat3) {
+            let (energy, stress) = self.energy_and_stress(LaneMat3::from(f));
+            (energy, stress.into())
+        }
+
+        #[inline]
+        fn first_piola_lanes(&self, f: LaneMat3<Lanes>) -> LaneMat3<Lanes> {
+            invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
+        }
+
+        #[inline]
+        fn energy_and_first_piola_lanes(&self, f: LaneMat3<Lanes>) -> (Lanes, LaneMat3<Lanes>) {
+            self.energy_and_stress(f)
+        }
+
+        #[inline]
+        fn principal_stress(&self, s: Vec3) -> Vec3 {
+            invariant_principal_stress(s, |ic, j| self.stress_coefficients(ic, j))
+        }
+    };
+}
+
 mod lame;
 mod neo_hookean;
 mod stable_neo_hookean;

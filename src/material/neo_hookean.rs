@@ -124,34 +124,10 @@ impl Material for NeoHookean {
     }
 
     #[inline]
-    fn first_piola(&self, f: Mat3) -> Mat3 {
-        invariant_first_piola(LaneMat3::from(f), |ic, j| self.stress_coefficients(ic, j)).into()
-    }
-
-    #[inline]
-    fn energy_and_first_piola(&self, f: Mat3) -> (Real, Mat3) {
-        let (energy, stress) = self.energy_and_stress(LaneMat3::from(f));
-        (energy, stress.into())
-    }
-
-    #[inline]
-    fn first_piola_lanes(&self, f: LaneMat3<Lanes>) -> LaneMat3<Lanes> {
-        invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
-    }
-
-    #[inline]
-    fn energy_and_first_piola_lanes(&self, f: LaneMat3<Lanes>) -> (Lanes, LaneMat3<Lanes>) {
-        self.energy_and_stress(f)
-    }
-
-    #[inline]
     fn principal_energy(&self, s: Vec3) -> Real {
         let (ic, j) = principal_invariants(s);
         self.energy(ic, j)
     }
 
-    #[inline]
-    fn principal_stress(&self, s: Vec3) -> Vec3 {
-        invariant_principal_stress(s, |ic, j| self.stress_coefficients(ic, j))
-    }
+    invariant_stress_methods!();
 }

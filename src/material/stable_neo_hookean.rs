@@ -146,36 +146,12 @@ impl Material for StableNeoHookean {
     }
 
     #[inline]
-    fn first_piola(&self, f: Mat3) -> Mat3 {
-        invariant_first_piola(LaneMat3::from(f), |ic, j| self.stress_coefficients(ic, j)).into()
-    }
-
-    #[inline]
-    fn energy_and_first_piola(&self, f: Mat3) -> (Real, Mat3) {
-        let (energy, stress) = self.energy_and_stress(LaneMat3::from(f));
-        (energy, stress.into())
-    }
-
-    #[inline]
-    fn first_piola_lanes(&self, f: LaneMat3<Lanes>) -> LaneMat3<Lanes> {
-        invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
-    }
-
-    #[inline]
-    fn energy_and_first_piola_lanes(&self, f: LaneMat3<Lanes>) -> (Lanes, LaneMat3<Lanes>) {
-        self.energy_and_stress(f)
-    }
-
-    #[inline]
     fn principal_energy(&self, s: Vec3) -> Real {
         let (ic_minus_3, j_minus_1) = principal_invariant_deviations(s);
         self.energy(ic_minus_3, j_minus_1)
     }
 
-    #[inline]
-    fn principal_stress(&self, s: Vec3) -> Vec3 {
-        invariant_principal_stress(s, |ic, j| self.stress_coefficients(ic, j))
-    }
+    invariant_stress_methods!();
 }
 
 #[cfg(test)]
