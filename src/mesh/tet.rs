@@ -320,30 +320,14 @@ impl<'a> TetMesh<'a> {
     ) -> Result<(), MeshError> {
         self.check_positions(positions)?;
         check_length(Buffer::Forces, self.vertex_count, forces.len())?;
-        if !BATCH_SVD {
-            for (corners, rest) in self.tets.iter().zip(self.rest) {
-                let svd = svd3(rest.deformation_gradient(gather(positions, corners)));
-                scatter_add(forces, corners, rest.nodal_forces(stress(&svd)));
-            }
-            return Ok(());
-        }
-        let tet_groups = self.tets.chunks_exact(LANES);
-        let rest_groups = self.rest.chunks_exact(LANES);
-        let tail = tet_groups.remainder().iter().zip(rest_groups.remainder());
-        for (tets, rests) in tet_groups.zip(rest_groups) {
-            let (Ok(tets), Ok(rests)) = (
-                <&[[u32; 4]; LANES]>::try_from(tets),
-                <&[TetRest; LANES]>::try_from(rests),
-            ) else {
-                continue; // chunks_exact: never taken
-            };
-            let gradients: [Mat3; LANES] =
-                core::array::from_fn(|lane| match (tets.get(lane), rests.get(lane)) {
-                    (Some(corners), Some(rest)) => {
-                        rest.deformation_gradient(gather(positions, corners))
-                    }
-                    _ => Mat3::ZERO,
-                });
+        let (groups, tail) = self.groups_and_tail(BATCH_SVD);
+        for (tets, rests) in groups {
+            let gradients = core::array::from_fn(|lane| match (tets.get(lane), rests.get(lane)) {
+                (Some(corners), Some(rest)) => {
+                    rest.deformation_gradient(gather(positions, corners))
+                }
+                _ => Mat3::ZERO,
+            });
             let svds = svd3_lanes(&gradients);
             for ((corners, rest), svd) in tets.iter().zip(rests).zip(&svds) {
                 scatter_add(forces, corners, rest.nodal_forces(stress(svd)));
