@@ -85,15 +85,6 @@ pub(crate) mod math {
     /// Values per [`Lanes`](super::lanes::Lanes) group: one SSE register of f32.
     pub const LANES: usize = 4;
 
-    /// [`sqrt`] of every lane (the portable lanes; on x86_64 they are an SSE register and use
-    /// `sqrtps`, correctly rounded as well).
-    #[cfg(not(target_arch = "x86_64"))]
-    #[inline(always)]
-    #[must_use]
-    pub fn sqrt_lanes(x: [Real; LANES]) -> [Real; LANES] {
-        x.map(sqrt)
-    }
-
     /// Real cube root (`cbrt(-8) = -2`).
     #[inline(always)]
     #[must_use]

@@ -58,15 +58,6 @@ pub(crate) mod math {
     /// faster than 2).
     pub const LANES: usize = 4;
 
-    /// [`sqrt`] of every lane (the portable lanes; on x86_64 they are SSE2 registers and use
-    /// `sqrtpd`, correctly rounded as well).
-    #[cfg(not(target_arch = "x86_64"))]
-    #[inline(always)]
-    #[must_use]
-    pub fn sqrt_lanes(x: [Real; LANES]) -> [Real; LANES] {
-        x.map(sqrt)
-    }
-
     /// Real cube root (`cbrt(-8) = -2`).
     #[inline(always)]
     #[must_use]

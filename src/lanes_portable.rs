@@ -1,7 +1,7 @@
 //! [`Lanes`] as a plain array of [`LANES`] values, which the compiler vectorises as it can: the
 //! representation for f64 and for targets without a hand-written one.
 
-use super::lanes::{LANES, Lane, LaneVec3};
+use super::lanes::{LANES, Lane, LaneVec3, each_lane};
 use super::math;
 use super::types::{Real, Vec3};
 use core::ops::{Add, Div, Mul, Neg, Sub};
@@ -77,7 +77,7 @@ impl Lane for Lanes {
 
     #[inline(always)]
     fn sqrt(self) -> Self {
-        Lanes(math::sqrt_lanes(self.0))
+        Lanes(each_lane(self.0, math::sqrt))
     }
 
     #[inline(always)]
