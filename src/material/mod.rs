@@ -344,15 +344,23 @@ fn invariant_first_piola<L: Lane>(
     f: LaneMat3<L>,
     coefficients: impl FnOnce(L, L) -> (L, L),
 ) -> LaneMat3<L> {
-    let cof = cofactor(f);
+    first_piola_with_cofactor(f, cofactor(f), coefficients)
+}
+
+/// [`invariant_first_piola`] given `cof(F)`.
+#[inline(always)]
+fn first_piola_with_cofactor<L: Lane>(
+    f: LaneMat3<L>,
+    cof: LaneMat3<L>,
+    coefficients: impl FnOnce(L, L) -> (L, L),
+) -> LaneMat3<L> {
     let j = f.c0.dot(cof.c0);
     let (a, b) = coefficients(frobenius_squared(f), j);
     f.scale(a) + cof.scale(b)
 }
 
 /// `(W, P)` of a model written as `W(I_C, J)`, sharing `cof(F)`: `energy(F, cof(F)_0)` gives
-/// `W` and `coefficients(I_C, J)` the `(a, b)` of [`invariant_first_piola`], whose stress this
-/// is bit for bit.
+/// `W`, and the stress is that of [`invariant_first_piola`], bit for bit.
 #[inline(always)]
 fn invariant_energy_and_first_piola<L: Lane>(
     f: LaneMat3<L>,
@@ -360,9 +368,10 @@ fn invariant_energy_and_first_piola<L: Lane>(
     coefficients: impl FnOnce(L, L) -> (L, L),
 ) -> (L, LaneMat3<L>) {
     let cof = cofactor(f);
-    let j = f.c0.dot(cof.c0);
-    let (a, b) = coefficients(frobenius_squared(f), j);
-    (energy(f, cof.c0), f.scale(a) + cof.scale(b))
+    (
+        energy(f, cof.c0),
+        first_piola_with_cofactor(f, cof, coefficients),
+    )
 }
 
 /// `dW/ds` of a model written as `W(I_C, J)`: `dI_C/ds_i = 2 s_i` and `dJ/ds_i = p_i`, the
