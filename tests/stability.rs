@@ -11,30 +11,14 @@
 //! relaxation whose report is checked against the force balance; and a sweep of models, states
 //! and steppers in which no NaN ever comes back silently.
 
-use nalgebra::{DMatrix, SymmetricEigen};
-
-/// The eigenvalues (ascending, 1/s^2) of `M^-1/2 K M^-1/2` for a stiffness matrix given as
-/// dense rows in f64 and lumped masses.
-fn frequencies_squared(k: &DMatrix<f64>, masses: &[f64]) -> Vec<f64> {
-    let n = k.nrows();
-    let scaled = DMatrix::from_fn(n, n, |i, j| {
-        let (a, b) = (k[(i, j)], k[(j, i)]);
-        0.5 * (a + b) / (masses[i / 3] * masses[j / 3]).sqrt()
-    });
-    let mut values: Vec<f64> = SymmetricEigen::new(scaled)
-        .eigenvalues
-        .iter()
-        .copied()
-        .collect();
-    values.sort_by(f64::total_cmp);
-    values
-}
+#[path = "common/modes.rs"]
+mod modes;
 
 macro_rules! stability_tests {
     ($precision:ident, $($api:ident)::+) => {
         mod $precision {
-            use super::frequencies_squared;
-            use nalgebra::DMatrix;
+            use crate::modes::squared_frequencies;
+            squared_frequencies!();
             use $($api)::+::element::TetRest;
             use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
             use $($api)::+::material::StVK;
@@ -65,23 +49,7 @@ macro_rules! stability_tests {
 
             /// The true critical step `2 / omega_max` of `body` about its rest shape.
             fn true_limit(body: &impl ElasticModel<Vector = Vec3>, rest: &[Vec3], masses: &[Real]) -> f64 {
-                let n = rest.len();
-                let step = 1e-4 * 0.05;
-                let mut k = DMatrix::<f64>::zeros(3 * n, 3 * n);
-                for col in 0..3 * n {
-                    let mut forces = [vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]];
-                    for (sign, f) in [1.0, -1.0].into_iter().zip(forces.iter_mut()) {
-                        let mut x = rest.to_vec();
-                        x[col / 3][col % 3] += sign * step;
-                        body.add_forces(&x, f).unwrap();
-                    }
-                    for row in 0..3 * n {
-                        let df = forces[0][row / 3][row % 3] - forces[1][row / 3][row % 3];
-                        k[(row, col)] = -(df as f64) / (2.0 * step as f64);
-                    }
-                }
-                let masses: Vec<f64> = masses.iter().map(|&m| m as f64).collect();
-                let omega_max = frequencies_squared(&k, &masses).last().unwrap().sqrt();
+                let omega_max = squared_frequencies(body, rest, masses, 1e-4 * 0.05).last().unwrap().sqrt();
                 2.0 / omega_max
             }
 

@@ -3,28 +3,14 @@
 //! ground without penetrating; pinned vertices never move; a 2D body works through the same
 //! stepper; every bad parameter gives its error and touches nothing.
 
-use nalgebra::{DMatrix, SymmetricEigen};
-
-/// Eigenvalues (ascending, 1/s^2) of `M^-1/2 K M^-1/2` (f64, nalgebra).
-fn frequencies_squared(k: &DMatrix<f64>, masses: &[f64]) -> Vec<f64> {
-    let n = k.nrows();
-    let scaled = DMatrix::from_fn(n, n, |i, j| {
-        0.5 * (k[(i, j)] + k[(j, i)]) / (masses[i / 3] * masses[j / 3]).sqrt()
-    });
-    let mut values: Vec<f64> = SymmetricEigen::new(scaled)
-        .eigenvalues
-        .iter()
-        .copied()
-        .collect();
-    values.sort_by(f64::total_cmp);
-    values
-}
+#[path = "common/modes.rs"]
+mod modes;
 
 macro_rules! step_tests {
     ($precision:ident, $($api:ident)::+) => {
         mod $precision {
-            use super::frequencies_squared;
-            use nalgebra::DMatrix;
+            use crate::modes::squared_frequencies;
+            squared_frequencies!();
             use softfem::{StepBuffer, StepError};
             use $($api)::+::element::{TetRest, TriRest, TriangleStVK};
             use $($api)::+::generate::{BoxSplit, box_counts, fill_box, fill_rectangle, rectangle_counts};
@@ -89,22 +75,7 @@ macro_rules! step_tests {
                 mesh.lumped_masses(1000.0, &mut masses).unwrap();
 
                 // The lowest non-rigid frequency from K (central differences, f64 eigenvalues).
-                let step = 1e-5 as Real;
-                let mut k = DMatrix::<f64>::zeros(3 * n, 3 * n);
-                for col in 0..3 * n {
-                    let mut f = [vec![Vec3::ZERO; n], vec![Vec3::ZERO; n]];
-                    for (sign, f) in [1.0, -1.0].into_iter().zip(f.iter_mut()) {
-                        let mut x = rest.clone();
-                        x[col / 3][col % 3] += sign * step;
-                        body.add_forces(&x, f).unwrap();
-                    }
-                    for row in 0..3 * n {
-                        let df = (f[0][row / 3][row % 3] - f[1][row / 3][row % 3]) as f64;
-                        k[(row, col)] = -df / (2.0 * step as f64);
-                    }
-                }
-                let m64: Vec<f64> = masses.iter().map(|&m| m as f64).collect();
-                let omegas = frequencies_squared(&k, &m64);
+                let omegas = squared_frequencies(&body, &rest, &masses, 1e-5);
                 let omega_max = omegas.last().unwrap().sqrt();
                 let omega_min = omegas.iter().find(|&&w| w > 1e-6 * omega_max * omega_max).unwrap().sqrt();
                 let period = 2.0 * std::f64::consts::PI / omega_min;
