@@ -1,7 +1,7 @@
 //! Tetrahedral meshes.
 
 use super::super::element::TetRest;
-use super::super::lanes::LANES;
+use super::super::lanes::{LANES, Lane, Lanes};
 use super::super::material::Material;
 use super::super::math::{BATCH_FORCES, BATCH_SVD};
 use super::super::svd::{Svd3, svd3, svd3_lanes};
@@ -173,6 +173,11 @@ impl<'a> TetMesh<'a> {
     /// `material` at `positions` (m), from one deformation gradient per element: the fused pass
     /// of the energy-based steppers. Lengths are checked; finiteness is not (a non-finite
     /// position gives a non-finite energy, which a line search rejects).
+    ///
+    /// The energy is summed in a fixed order on every target, grouped or not: element `i` of
+    /// the first `n - n % LANES` adds to partial sum `i % LANES`, the partial sums are added as
+    /// `(s0 + s1) + (s2 + s3)`, then the last `n % LANES` elements in order. Four independent
+    /// sums instead of one chain: the chain cost the grouped stable neo-Hookean pass 5 %.
     pub(crate) fn energy_and_add_forces<M: Material>(
         &self,
         material: &M,
@@ -181,24 +186,33 @@ impl<'a> TetMesh<'a> {
     ) -> Result<Real, MeshError> {
         check_length(Buffer::Positions, self.vertex_count, positions.len())?;
         check_length(Buffer::Forces, self.vertex_count, forces.len())?;
-        let mut energy = 0.0;
+        let whole = self.tets.len() - self.tets.len() % LANES;
         let (groups, tail) = self.groups_and_tail(BATCH_FORCES);
+        let mut grouped = Lanes::splat(0.0);
         for group in groups {
             let gradients = GroupGradients::new(positions, group);
             let (density, p) = material.energy_and_first_piola_lanes(gradients.f);
-            // Summed element by element, as the scalar loop does.
-            for element_energy in (gradients.volume * density).to_array() {
-                energy += element_energy;
-            }
+            grouped = grouped + gradients.volume * density;
             gradients.scatter_forces(group.0, p, forces);
         }
-        for (corners, rest) in tail {
+        // Elements of whole groups evaluated one at a time (all of them without batching), by
+        // the lane they would have had, and the elements after the last whole group.
+        let mut single = [0.0; LANES];
+        let mut last = 0.0;
+        let first = if BATCH_FORCES { whole } else { 0 };
+        for (i, (corners, rest)) in (first..).zip(tail) {
             let f = rest.deformation_gradient(gather(positions, corners));
             let (density, stress) = material.energy_and_first_piola(f);
-            energy += rest.volume * density;
+            let energy = rest.volume * density;
+            match single.get_mut(i % LANES) {
+                Some(partial) if i < whole => *partial += energy,
+                _ => last += energy,
+            }
             scatter_add(forces, corners, rest.nodal_forces(stress));
         }
-        Ok(energy)
+        // One of `grouped` and `single` holds the partial sums, the other zeros.
+        let [s0, s1, s2, s3] = (grouped + Lanes::from_array(single)).to_array();
+        Ok(((s0 + s1) + (s2 + s3)) + last)
     }
 
     /// The total elastic energy `sum V W(F)` (J) of `material` at deformed `positions` (m).
