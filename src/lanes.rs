@@ -56,6 +56,8 @@ pub trait Lane:
     fn sign(self) -> Self;
     /// `self > other`, per lane.
     fn gt(self, other: Self) -> Self::Mask;
+    /// `self >= other`, per lane.
+    fn ge(self, other: Self) -> Self::Mask;
     /// Whether no lane of `mask` is set.
     fn none(mask: Self::Mask) -> bool;
     /// `mask ? a : b`, per lane, without branching.
@@ -96,6 +98,11 @@ impl Lane for Real {
     #[inline(always)]
     fn gt(self, other: Self) -> bool {
         self > other
+    }
+
+    #[inline(always)]
+    fn ge(self, other: Self) -> bool {
+        self >= other
     }
 
     #[inline(always)]

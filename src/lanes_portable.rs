@@ -105,6 +105,15 @@ impl Lane for Lanes {
     }
 
     #[inline(always)]
+    fn ge(self, other: Self) -> LaneMask {
+        let mut mask = LaneMask([0; LANES]);
+        for ((m, a), b) in mask.0.iter_mut().zip(self.0).zip(other.0) {
+            *m = if a >= b { math::Bits::MAX } else { 0 };
+        }
+        mask
+    }
+
+    #[inline(always)]
     fn none(mask: LaneMask) -> bool {
         mask.0.iter().all(|&m| m == 0)
     }

@@ -12,9 +12,10 @@
 use super::lanes::{LANES, Lane, LaneVec3, each_lane};
 use super::types::{Real, Vec3};
 use core::arch::x86_64::{
-    __m128, _mm_add_ps, _mm_and_ps, _mm_andnot_ps, _mm_cmpgt_ps, _mm_cmpunord_ps, _mm_div_ps,
-    _mm_max_ps, _mm_movehl_ps, _mm_movelh_ps, _mm_movemask_ps, _mm_mul_ps, _mm_or_ps, _mm_set1_ps,
-    _mm_setr_ps, _mm_sqrt_ps, _mm_sub_ps, _mm_unpackhi_ps, _mm_unpacklo_ps, _mm_xor_ps,
+    __m128, _mm_add_ps, _mm_and_ps, _mm_andnot_ps, _mm_cmpge_ps, _mm_cmpgt_ps, _mm_cmpunord_ps,
+    _mm_div_ps, _mm_max_ps, _mm_movehl_ps, _mm_movelh_ps, _mm_movemask_ps, _mm_mul_ps, _mm_or_ps,
+    _mm_set1_ps, _mm_setr_ps, _mm_sqrt_ps, _mm_sub_ps, _mm_unpackhi_ps, _mm_unpacklo_ps,
+    _mm_xor_ps,
 };
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -123,6 +124,12 @@ impl Lane for Lanes {
     fn gt(self, other: Self) -> LaneMask {
         // SAFETY: see the module comment. Ordered: false where either lane is NaN.
         LaneMask(unsafe { _mm_cmpgt_ps(self.0, other.0) })
+    }
+
+    #[inline(always)]
+    fn ge(self, other: Self) -> LaneMask {
+        // SAFETY: see the module comment. Ordered: false where either lane is NaN.
+        LaneMask(unsafe { _mm_cmpge_ps(self.0, other.0) })
     }
 
     #[inline(always)]

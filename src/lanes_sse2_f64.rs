@@ -12,9 +12,9 @@
 use super::lanes::{LANES, Lane, LaneVec3, each_lane};
 use super::types::{Real, Vec3};
 use core::arch::x86_64::{
-    __m128d, _mm_add_pd, _mm_and_pd, _mm_andnot_pd, _mm_cmpgt_pd, _mm_cmpunord_pd, _mm_div_pd,
-    _mm_max_pd, _mm_movemask_pd, _mm_mul_pd, _mm_or_pd, _mm_set1_pd, _mm_setr_pd, _mm_sqrt_pd,
-    _mm_sub_pd, _mm_xor_pd,
+    __m128d, _mm_add_pd, _mm_and_pd, _mm_andnot_pd, _mm_cmpge_pd, _mm_cmpgt_pd, _mm_cmpunord_pd,
+    _mm_div_pd, _mm_max_pd, _mm_movemask_pd, _mm_mul_pd, _mm_or_pd, _mm_set1_pd, _mm_setr_pd,
+    _mm_sqrt_pd, _mm_sub_pd, _mm_xor_pd,
 };
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -146,6 +146,14 @@ impl Lane for Lanes {
         // SAFETY: see the module comment. Ordered: false where either lane is NaN.
         LaneMask(pairwise(self.0, other.0, |a, b| unsafe {
             _mm_cmpgt_pd(a, b)
+        }))
+    }
+
+    #[inline(always)]
+    fn ge(self, other: Self) -> LaneMask {
+        // SAFETY: see the module comment. Ordered: false where either lane is NaN.
+        LaneMask(pairwise(self.0, other.0, |a, b| unsafe {
+            _mm_cmpge_pd(a, b)
         }))
     }
 
