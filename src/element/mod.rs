@@ -76,7 +76,9 @@ fn check_measure(measure: Real, scale: Real) -> Result<(), ElementError> {
 }
 
 mod sealed {
-    pub trait Sealed {}
+    /// Implemented by `Vec2` and `Vec3` only; carries the per-vertex lane arithmetic of the
+    /// steppers (`step/points.rs`).
+    pub trait Sealed: super::super::step::points::Grouped {}
     impl Sealed for super::Vec2 {}
     impl Sealed for super::Vec3 {}
 }

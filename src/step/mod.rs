@@ -116,8 +116,10 @@ use crate::error::{MeshError, StepBuffer, StepError};
 
 mod explicit;
 mod ground;
+pub(crate) mod points;
 mod relax;
 mod stability;
+mod vertex_passes;
 
 pub use explicit::{
     DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, explicit_scratch_len,

@@ -7,10 +7,13 @@ use core::mem::swap;
 
 use super::super::math;
 use super::super::types::Real;
+use super::points::Floor;
 use super::stability::vertex_stiffness;
+use super::vertex_passes::{
+    Frames, TrialPoint, Vertices, chebyshev_pass, direction_pass, gradient_pass, trial_pass,
+};
 use super::{
-    ElasticEnergy, Ground, Vector, check_length, check_state, first_non_finite, length,
-    pinned_flags,
+    ElasticEnergy, Ground, Vector, check_length, check_state, first_non_finite, pinned_flags,
 };
 use crate::error::{StepBuffer, StepError};
 
@@ -296,125 +299,58 @@ pub fn relax_quasi_static<F: ElasticEnergy>(
 /// `Phi` and its gradient, without the buffers that change.
 struct Objective<'p, F: ElasticEnergy> {
     model: &'p F,
-    masses: &'p [Real],
-    pinned: &'p [bool],
-    /// `x_n`.
-    start: &'p [F::Vector],
-    /// `v_n` (empty in the quasi-static mode).
-    velocities: &'p [F::Vector],
+    /// Masses, pinned flags, the preconditioner's stiffness, `x_n` and `v_n` (empty in the
+    /// quasi-static mode).
+    vertices: Vertices<'p, F::Vector>,
+    /// `h`, `1 / h^2` (both 0 in the quasi-static mode), gravity and the ground, for the
+    /// vertex passes.
+    frames: Frames<F::Vector>,
     /// `h` (unused in the quasi-static mode).
     h: Real,
-    /// `1 / h^2`, or 0 without inertia.
-    inertia: Real,
     gravity: F::Vector,
-    ground: Option<Ground<F::Vector>>,
 }
 
 impl<F: ElasticEnergy> Objective<'_, F> {
-    /// The Jacobi preconditioner `P_i = k_i + m_i / h^2` (N/m) of every vertex, from the
-    /// stiffness bounds `k_i`.
-    #[inline(always)]
-    fn diagonal<'s>(&'s self, stiffness: &'s [Real]) -> impl Iterator<Item = Real> + 's {
-        stiffness
-            .iter()
-            .zip(self.masses)
-            .map(|(&k, &m)| k + m * self.inertia)
-    }
-
-    /// `y_i = x_n + h v_n` (just `x_n` without inertia).
-    #[inline(always)]
-    fn inertial_target(&self, i: usize, start: F::Vector) -> F::Vector {
-        match self.velocities.get(i) {
-            Some(&v) => start + v * self.h,
-            None => start,
-        }
-    }
-
     /// Writes `y + offset` (`x_n + offset` without inertia) projected on the ground into
-    /// `positions` at free vertices, `x_n` at pinned ones.
-    fn initial_guess(&self, positions: &mut [F::Vector], offset: F::Vector) {
-        for (i, ((x, &x0), pinned)) in positions
-            .iter_mut()
-            .zip(self.start)
-            .zip(pinned_flags(self.pinned))
-            .enumerate()
-        {
+    /// `point.positions` at free vertices, `x_n` at pinned ones, and zeroes `point.gradient`.
+    fn initial_guess(&self, point: TrialPoint<'_, F::Vector>, offset: F::Vector) {
+        let Vertices {
+            start,
+            velocities,
+            pinned,
+            ..
+        } = self.vertices;
+        let rows = point.positions.iter_mut().zip(point.gradient.iter_mut());
+        for (i, (((x, g), &x0), pinned)) in rows.zip(start).zip(pinned_flags(pinned)).enumerate() {
+            *g = F::Vector::ZERO;
+            let target = match velocities.get(i) {
+                Some(&v) => x0 + v * self.h,
+                None => x0,
+            };
             *x = if pinned {
                 x0
             } else {
-                self.on_ground(self.inertial_target(i, x0) + offset)
+                self.frames.floor().project(target + offset)
             };
         }
     }
 
-    /// `x` projected onto the ground, if there is one. Only free vertices are ever projected:
-    /// a pinned vertex keeps its position even inside the ground (the caller's constraint wins).
-    #[inline(always)]
-    fn on_ground(&self, mut x: F::Vector) -> F::Vector {
-        if let Some(ground) = &self.ground {
-            ground.project(&mut x);
-        }
-        x
-    }
-
     /// `Phi(x)`, `E(x)` and the residual at `x`, writing the unprojected gradient (N, zero at
-    /// pinned vertices) into `gradient`. Non-finite if `x` is.
+    /// pinned vertices) into `gradient`, which must be zero on entry (the pass that writes a
+    /// trial point zeroes it, saving a pass of its own). Non-finite if `x` is.
     fn evaluate(
         &self,
         x: &[F::Vector],
         gradient: &mut [F::Vector],
     ) -> Result<Evaluation, StepError> {
-        gradient.fill(F::Vector::ZERO);
         let elastic = self.model.energy_and_add_forces(x, gradient)?;
-        let mut phi = elastic;
-        // |grad Phi|^2 projected on the contact constraints, in the same pass; pinned vertices
-        // add nothing (their gradient is zero).
-        let mut residual_squared: Real = 0.0;
-        let rows = x.iter().zip(gradient.iter_mut()).zip(self.start);
-        for (i, (((&x, g), &start), (&m, pinned))) in rows
-            .zip(self.masses.iter().zip(pinned_flags(self.pinned)))
-            .enumerate()
-        {
-            if pinned {
-                *g = F::Vector::ZERO;
-                continue;
-            }
-            let offset = x - self.inertial_target(i, start);
-            let weight = m * self.inertia;
-            phi += 0.5 * weight * offset.dot(offset) - m * self.gravity.dot(x - start);
-            // The kernel added the forces, -dE/dx: flip them into dE/dx.
-            *g = offset * weight - *g - self.gravity * m;
-            let projected = self.projected(x, *g, 1.0);
-            residual_squared += projected.dot(projected);
-        }
+        let (inertia_and_gravity, residual_squared) =
+            gradient_pass(&self.frames, &self.vertices, x, gradient);
         Ok(Evaluation {
-            phi,
+            phi: elastic + inertia_and_gravity,
             elastic,
             residual: math::sqrt(residual_squared),
         })
-    }
-
-    /// Whether `x` touches the ground (within rounding of the projection).
-    #[inline(always)]
-    fn in_contact(&self, x: F::Vector) -> Option<&Ground<F::Vector>> {
-        in_contact(self.ground.as_ref(), x)
-    }
-
-    /// `v` without its component into the ground at a contact vertex (`sign` +1 for a gradient,
-    /// whose descent is `-g`, -1 for a direction).
-    #[inline(always)]
-    fn projected(&self, x: F::Vector, v: F::Vector, sign: Real) -> F::Vector {
-        match self.in_contact(x) {
-            Some(ground) => {
-                let normal = ground.normal.dot(v) * sign;
-                if normal > 0.0 {
-                    v - ground.normal * (ground.normal.dot(v))
-                } else {
-                    v
-                }
-            }
-            None => v,
-        }
     }
 }
 
@@ -458,7 +394,7 @@ fn minimise<F: ElasticEnergy>(
         scratch.stiffness_ready = true;
     }
     let stiffness: &[Real] = scratch.scalars;
-    start.copy_from_slice(positions);
+    copy(start, positions);
 
     let start: &[F::Vector] = start;
     let (h, inertia) = match velocities {
@@ -467,32 +403,33 @@ fn minimise<F: ElasticEnergy>(
     };
     let objective = Objective {
         model,
-        masses,
-        pinned,
-        start,
-        velocities: velocities.as_deref().unwrap_or(&[]),
+        vertices: Vertices {
+            masses,
+            pinned,
+            stiffness,
+            start,
+            velocities: velocities.as_deref().unwrap_or(&[]),
+        },
+        frames: Frames::new(h, inertia, settings.gravity, ground.as_ref()),
         h,
-        inertia,
         gravity: settings.gravity,
-        ground,
     };
     let buffers = Buffers {
         gradient,
         trial_gradient,
         trial,
         direction,
-        stiffness,
     };
     let outcome = descend(&objective, settings, positions, buffers);
     let (report, gradient, backup) = match outcome {
         Ok(result) => result,
         Err(error) => {
-            positions.copy_from_slice(start);
+            copy(positions, start);
             return Err(error);
         }
     };
     if let Some(vertex) = first_non_finite(positions, &[]) {
-        positions.copy_from_slice(start);
+        copy(positions, start);
         return Err(StepError::NonFiniteState { vertex });
     }
     let Some(velocities) = velocities else {
@@ -500,7 +437,8 @@ fn minimise<F: ElasticEnergy>(
     };
     // v = (x_{n+1} - x_n) / h, then Coulomb friction at the contacts with the normal impulse
     // h R, R the reaction: the gradient's normal component there.
-    backup.copy_from_slice(velocities);
+    copy(backup, velocities);
+    let floor = Floor::new(ground.as_ref());
     let rows = velocities
         .iter_mut()
         .zip(&*positions)
@@ -511,7 +449,7 @@ fn minimise<F: ElasticEnergy>(
             continue;
         }
         *v = (x - x0) * (1.0 / h);
-        if let Some(ground) = in_contact(ground.as_ref(), x) {
+        if let (Some(ground), Some(true)) = (&ground, floor.contact(x)) {
             let normal = ground.normal.dot(*v);
             let reaction = ground.normal.dot(g).max(0.0);
             let normal_change = h * reaction / m + (-normal).max(0.0);
@@ -521,8 +459,8 @@ fn minimise<F: ElasticEnergy>(
         }
     }
     if let Some(vertex) = first_non_finite(velocities, &[]) {
-        positions.copy_from_slice(start);
-        velocities.copy_from_slice(backup);
+        copy(positions, start);
+        copy(velocities, backup);
         return Err(StepError::NonFiniteState { vertex });
     }
     Ok(report)
@@ -534,8 +472,6 @@ struct Buffers<'b, V> {
     trial_gradient: &'b mut [V],
     trial: &'b mut [V],
     direction: &'b mut [V],
-    /// The preconditioner's stiffness part, per vertex (N/m).
-    stiffness: &'b [Real],
 }
 
 /// The relative size of `Phi`'s rounding error the line search tolerates: `sqrt(eps)`
@@ -562,6 +498,11 @@ fn downhill(slope: Real) -> bool {
 
 /// The descent loop from the inertial target. Returns the report, the buffer holding the
 /// final (unprojected) gradient and a free buffer of one vector per vertex.
+///
+/// The iterate lives in `positions` or in `trial`, which trade places on every accepted step
+/// instead of being copied: after the swap the other buffer holds `x_{k-1}`, from which the
+/// next direction pass takes the last step `x_k - x_{k-1}` (for momentum and Chebyshev) before
+/// overwriting it with the next trial point. `positions` receives the result at the end.
 fn descend<'b, F: ElasticEnergy>(
     objective: &Objective<'_, F>,
     settings: &RelaxSettings<F::Vector>,
@@ -573,8 +514,11 @@ fn descend<'b, F: ElasticEnergy>(
         mut trial_gradient,
         trial,
         direction,
-        stiffness,
     } = buffers;
+    let mut current: &mut [F::Vector] = &mut *positions;
+    let mut other: &mut [F::Vector] = &mut *trial;
+    // Whether `current` is the scratch buffer (an odd number of swaps).
+    let mut swapped = false;
     // Initial guess: the better (lower Phi) of the inertial target y and y + h^2 g, both
     // projected on the ground. The second is the predictor of projective dynamics (Bouaziz et
     // al. 2014) and the exact minimiser in free fall, a rigid translation: without it the
@@ -582,47 +526,63 @@ fn descend<'b, F: ElasticEnergy>(
     // For a body resting on the ground it is a poor guess (the ground stops the bottom layer
     // and the drop compresses it): y wins there.
     let drop = objective.gravity * (objective.h * objective.h);
-    objective.initial_guess(positions, drop);
-    let mut current = objective.evaluate(positions, gradient)?;
+    objective.initial_guess(
+        TrialPoint {
+            positions: current,
+            gradient,
+        },
+        drop,
+    );
+    let mut evaluation = objective.evaluate(current, gradient)?;
     let mut energy_evaluations = 1;
     if drop != F::Vector::ZERO {
-        objective.initial_guess(trial, F::Vector::ZERO);
-        let inertial = objective.evaluate(trial, trial_gradient)?;
+        objective.initial_guess(
+            TrialPoint {
+                positions: other,
+                gradient: trial_gradient,
+            },
+            F::Vector::ZERO,
+        );
+        let inertial = objective.evaluate(other, trial_gradient)?;
         energy_evaluations += 1;
         // y also wins when y + h^2 g is not finite (NaN compares false).
-        if inertial.phi < current.phi || !current.phi.is_finite() {
-            positions.copy_from_slice(trial);
+        if inertial.phi < evaluation.phi || !evaluation.phi.is_finite() {
+            swap(&mut current, &mut other);
             swap(&mut gradient, &mut trial_gradient);
-            current = inertial;
+            swapped = !swapped;
+            evaluation = inertial;
         }
     }
-    if !current.phi.is_finite() {
+    if !evaluation.phi.is_finite() {
         // y may invert an element of a barrier model: start from x_n instead.
-        positions.copy_from_slice(objective.start);
-        current = objective.evaluate(positions, gradient)?;
+        copy(current, objective.vertices.start);
+        gradient.fill(F::Vector::ZERO);
+        evaluation = objective.evaluate(current, gradient)?;
         energy_evaluations += 1;
     }
-    if !current.phi.is_finite() {
+    if !evaluation.phi.is_finite() {
         let vertex = first_non_finite(gradient, &[]).unwrap_or(0);
         return Err(StepError::NonFiniteState { vertex });
     }
-    let mut phi = current.phi;
+    let mut phi = evaluation.phi;
 
-    let initial_residual = current.residual;
+    let initial_residual = evaluation.residual;
     let mut residual = initial_residual;
     // Relative to the larger of the initial residual and the gravity load, so that a step
     // starting at (or near) equilibrium, whose initial residual is mostly rounding, is not asked
     // to reduce it further.
     let load_squared: Real = objective
+        .vertices
         .masses
         .iter()
-        .zip(pinned_flags(objective.pinned))
+        .zip(pinned_flags(objective.vertices.pinned))
         .filter(|(_, pinned)| !pinned)
         .map(|(&m, _)| m * m * objective.gravity.dot(objective.gravity))
         .sum();
     let target = settings.tolerance * initial_residual.max(math::sqrt(load_squared));
-    // `direction` holds the last step taken, x_k - x_{k-1} (zero after a restart).
-    direction.fill(F::Vector::ZERO);
+    // Whether `other` holds x_{k-1}, so that the last step is known (false at the start and
+    // after a restart, when it counts as zero).
+    let mut stepped = false;
     let mut iterations = 0;
     let mut restarts = 0;
     let mut backtracks = 0;
@@ -644,39 +604,34 @@ fn descend<'b, F: ElasticEnergy>(
             };
         }
         if omega > 1.0 {
-            // x_{k+1} = omega (x_k + alpha d - x_{k-1}) + x_{k-1}
-            //         = x_k + omega alpha d + (omega - 1) (x_k - x_{k-1}).
-            for ((((t, &x), &g), &s), (p, pinned)) in trial
-                .iter_mut()
-                .zip(&*positions)
-                .zip(&*gradient)
-                .zip(&*direction)
-                .zip(
-                    objective
-                        .diagonal(stiffness)
-                        .zip(pinned_flags(objective.pinned)),
-                )
-            {
-                *t = if pinned {
-                    x
-                } else {
-                    let d = preconditioned(objective, x, g, p);
-                    objective.on_ground(x + d * (omega * alpha) + s * (omega - 1.0))
-                };
-            }
+            let point = TrialPoint {
+                positions: other,
+                gradient: trial_gradient,
+            };
+            chebyshev_pass(
+                &objective.frames,
+                &objective.vertices,
+                (current, gradient),
+                stepped,
+                point,
+                omega * alpha,
+                omega,
+            );
             let Evaluation {
                 phi: trial_phi,
                 elastic: trial_elastic,
                 residual: trial_residual,
-            } = objective.evaluate(trial, trial_gradient)?;
+            } = objective.evaluate(other, trial_gradient)?;
             energy_evaluations += 1;
             // The semi-iteration is not monotone in Phi in general, but an increase (beyond
             // rounding) means the nonlinearity or the contacts broke the linear model it
             // relies on: restart from a plain, line-searched step (Wang and Yang's fallback).
             let noise = ROUNDING * (phi.abs() + trial_phi.abs() + trial_elastic.abs());
             if trial_phi <= phi + noise {
-                accept(positions, trial, direction);
+                swap(&mut current, &mut other);
                 swap(&mut gradient, &mut trial_gradient);
+                swapped = !swapped;
+                stepped = true;
                 phi = trial_phi;
                 iterations += 1;
                 residual = trial_residual;
@@ -687,30 +642,36 @@ fn descend<'b, F: ElasticEnergy>(
             // takes the recurrence's first weight, 2 / (2 - rho^2).
             since_restart = 0;
             omega = 1.0;
-            direction.fill(F::Vector::ZERO);
+            stepped = false;
         }
         // d = -P^-1 g (+ momentum * last step), projected; plain descent if that is not
         // downhill. The same pass writes the first trial point, at the full step.
         alpha = settings.step_length;
-        let mut slope = descent_direction(
-            objective,
-            positions,
-            gradient,
-            stiffness,
+        let momentum = (stepped && settings.momentum > 0.0).then_some(settings.momentum);
+        let mut slope = direction_pass(
+            &objective.frames,
+            &objective.vertices,
+            (current, gradient),
             direction,
-            settings.momentum,
-            (alpha, trial),
+            momentum,
+            TrialPoint {
+                positions: other,
+                gradient: trial_gradient,
+            },
+            alpha,
         );
-        if !downhill(slope) && settings.momentum > 0.0 {
-            direction.fill(F::Vector::ZERO);
-            slope = descent_direction(
-                objective,
-                positions,
-                gradient,
-                stiffness,
+        if !downhill(slope) && momentum.is_some() {
+            slope = direction_pass(
+                &objective.frames,
+                &objective.vertices,
+                (current, gradient),
                 direction,
-                0.0,
-                (alpha, trial),
+                None,
+                TrialPoint {
+                    positions: other,
+                    gradient: trial_gradient,
+                },
+                alpha,
             );
         }
         if !downhill(slope) {
@@ -719,16 +680,18 @@ fn descend<'b, F: ElasticEnergy>(
         let mut accepted = None;
         for attempt in 0..=settings.max_backtracks {
             if attempt > 0 {
-                for (((t, &x), &d), pinned) in trial
-                    .iter_mut()
-                    .zip(&*positions)
-                    .zip(&*direction)
-                    .zip(pinned_flags(objective.pinned))
-                {
-                    *t = trial_point(objective, pinned, x, d, alpha);
-                }
+                trial_pass(
+                    &objective.frames,
+                    objective.vertices.pinned,
+                    (current, direction),
+                    alpha,
+                    TrialPoint {
+                        positions: other,
+                        gradient: trial_gradient,
+                    },
+                );
             }
-            let evaluation = objective.evaluate(trial, trial_gradient)?;
+            let evaluation = objective.evaluate(other, trial_gradient)?;
             energy_evaluations += 1;
             let (trial_phi, trial_elastic) = (evaluation.phi, evaluation.elastic);
             // Armijo on Phi, or, where Phi's change is below its rounding (the energy of a
@@ -750,12 +713,17 @@ fn descend<'b, F: ElasticEnergy>(
         let Some(evaluation) = accepted else {
             break;
         };
-        // Keep the step actually taken (after projection) for the acceleration.
-        accept(positions, trial, direction);
+        swap(&mut current, &mut other);
         swap(&mut gradient, &mut trial_gradient);
+        swapped = !swapped;
+        stepped = true;
         phi = evaluation.phi;
         iterations += 1;
         residual = evaluation.residual;
+    }
+    if swapped {
+        // `other` is `positions`.
+        copy(other, current);
     }
     let report = RelaxReport {
         iterations,
@@ -770,93 +738,14 @@ fn descend<'b, F: ElasticEnergy>(
     Ok((report, gradient, trial))
 }
 
-/// Moves `positions` to `trial`, leaving the step taken in `step`.
-fn accept<V: Vector>(positions: &mut [V], trial: &[V], step: &mut [V]) {
-    for ((s, x), &t) in step.iter_mut().zip(positions.iter_mut()).zip(trial) {
-        *s = t - *x;
-        *x = t;
+/// Copies `source` into `target`, as far as the shorter goes. Every buffer here has one entry
+/// per vertex (checked on entry), but the optimiser loses track of the lengths of those that
+/// trade places in the descent loop, and `copy_from_slice` would keep a panic path for unequal
+/// ones (which the firmware check rejects).
+fn copy<V: Copy>(target: &mut [V], source: &[V]) {
+    for (t, &s) in target.iter_mut().zip(source) {
+        *t = s;
     }
-}
-
-/// The projected preconditioned descent direction `-P^-1 g` at one vertex at `x` with
-/// gradient `g` and preconditioner `p` (zero where `p` is not positive).
-#[inline(always)]
-fn preconditioned<F: ElasticEnergy>(
-    objective: &Objective<'_, F>,
-    x: F::Vector,
-    g: F::Vector,
-    p: Real,
-) -> F::Vector {
-    let g = objective.projected(x, g, 1.0);
-    let plain = if p > 0.0 {
-        g * (-1.0 / p)
-    } else {
-        F::Vector::ZERO
-    };
-    objective.projected(x, plain, -1.0)
-}
-
-/// Writes the projected preconditioned direction into `direction` (which holds the last step)
-/// and, in the same pass, the trial point `x + alpha d` (projected on the ground; `x` at pinned
-/// vertices) into `trial`; returns the slope `grad.d`.
-fn descent_direction<F: ElasticEnergy>(
-    objective: &Objective<'_, F>,
-    positions: &[F::Vector],
-    gradient: &[F::Vector],
-    stiffness: &[Real],
-    direction: &mut [F::Vector],
-    momentum: Real,
-    (alpha, trial): (Real, &mut [F::Vector]),
-) -> Real {
-    let mut slope = 0.0;
-    for ((((d, t), &x), &g), (p, pinned)) in direction
-        .iter_mut()
-        .zip(trial.iter_mut())
-        .zip(positions)
-        .zip(gradient)
-        .zip(
-            objective
-                .diagonal(stiffness)
-                .zip(pinned_flags(objective.pinned)),
-        )
-    {
-        let g = objective.projected(x, g, 1.0);
-        let plain = if p > 0.0 {
-            g * (-1.0 / p)
-        } else {
-            F::Vector::ZERO
-        };
-        *d = objective.projected(x, plain + *d * momentum, -1.0);
-        slope += g.dot(*d);
-        *t = trial_point(objective, pinned, x, *d, alpha);
-    }
-    slope
-}
-
-/// The trial position of one vertex at `x` along `d`: `x + alpha d` projected on the ground, or
-/// `x` if the vertex is pinned.
-#[inline(always)]
-fn trial_point<F: ElasticEnergy>(
-    objective: &Objective<'_, F>,
-    pinned: bool,
-    x: F::Vector,
-    d: F::Vector,
-    alpha: Real,
-) -> F::Vector {
-    if pinned {
-        x
-    } else {
-        objective.on_ground(x + d * alpha)
-    }
-}
-
-/// `ground` if `x` touches it (within rounding of the projection).
-#[inline(always)]
-fn in_contact<V: Vector>(ground: Option<&Ground<V>>, x: V) -> Option<&Ground<V>> {
-    ground.filter(|ground| {
-        let tolerance = 16.0 * Real::EPSILON * (ground.offset.abs() + length(x));
-        ground.height(x) <= tolerance
-    })
 }
 
 /// Checks the scalar settings; returns the ground with a unit normal.

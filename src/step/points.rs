@@ -1,0 +1,346 @@
+//! Per-vertex arithmetic written once for one vertex and for a group of [`LANES`] vertices.
+//!
+//! The relaxation's vertex passes (gradient, direction, trial points) run [`LANES`] vertices at a
+//! time as [`Point`]s with [`Lanes`] coordinates, and the last `n % LANES` one at a time with the
+//! plain vector, through the same generic code: element-wise IEEE operations and selects instead
+//! of branches, so every vertex gets the same bits either way. Sums over vertices are kept per
+//! lane and added at the end in a fixed order (see [`LaneSum`]), on every target alike.
+
+use core::ops::{Add, Neg, Sub};
+
+use super::super::lanes::{LANES, Lane, LaneVec3, Lanes, each_lane};
+use super::super::types::{Real, Vec2, Vec3};
+use super::Ground;
+
+/// One vertex vector, or [`LANES`] of them. Public in a private module: the hidden half of the
+/// sealed [`Vector`](super::Vector) trait.
+pub trait Point: Copy + Add<Output = Self> + Sub<Output = Self> + Neg<Output = Self> {
+    /// [`Real`] or [`Lanes`].
+    type Scalar: Lane;
+    /// The vector type of one vertex.
+    type Vector: Copy;
+    /// `v` in every lane.
+    fn splat(v: Self::Vector) -> Self;
+    /// The zero vector.
+    fn zero() -> Self;
+    /// The dot product, summed in coordinate order (named apart from `Vector::dot`).
+    fn inner(self, other: Self) -> Self::Scalar;
+    /// Every coordinate times `k`.
+    fn scale(self, k: Self::Scalar) -> Self;
+    /// `|x| + |y| (+ |z|)`.
+    fn abs_sum(self) -> Self::Scalar;
+    /// `mask ? a : b`, per lane.
+    fn select(mask: <Self::Scalar as Lane>::Mask, a: Self, b: Self) -> Self;
+}
+
+/// A vector type that also comes in groups of [`LANES`]: `Vec2` and `Vec3`.
+pub trait Grouped: Point<Scalar = Real, Vector = Self> {
+    /// [`LANES`] vectors, coordinate by coordinate.
+    type Group: Point<Scalar = Lanes, Vector = Self>;
+    /// The group of `v`: lane `i` holds `v[i]`.
+    fn group(v: [Self; LANES]) -> Self::Group;
+    /// The vectors of a group, lane by lane.
+    fn ungroup(group: Self::Group) -> [Self; LANES];
+}
+
+/// [`LANES`] 2D vectors, coordinate by coordinate.
+#[derive(Clone, Copy)]
+pub struct LaneVec2 {
+    x: Lanes,
+    y: Lanes,
+}
+
+impl Add for LaneVec2 {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        LaneVec2 {
+            x: self.x + o.x,
+            y: self.y + o.y,
+        }
+    }
+}
+
+impl Sub for LaneVec2 {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        LaneVec2 {
+            x: self.x - o.x,
+            y: self.y - o.y,
+        }
+    }
+}
+
+impl Neg for LaneVec2 {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        LaneVec2 {
+            x: -self.x,
+            y: -self.y,
+        }
+    }
+}
+
+impl Point for Vec2 {
+    type Scalar = Real;
+    type Vector = Vec2;
+    #[inline(always)]
+    fn splat(v: Vec2) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn zero() -> Self {
+        Vec2::ZERO
+    }
+    #[inline(always)]
+    fn inner(self, o: Self) -> Real {
+        Vec2::dot(self, o)
+    }
+    #[inline(always)]
+    fn scale(self, k: Real) -> Self {
+        self * k
+    }
+    #[inline(always)]
+    fn abs_sum(self) -> Real {
+        self.x.abs() + self.y.abs()
+    }
+    #[inline(always)]
+    fn select(mask: bool, a: Self, b: Self) -> Self {
+        if mask { a } else { b }
+    }
+}
+
+impl Point for LaneVec2 {
+    type Scalar = Lanes;
+    type Vector = Vec2;
+    #[inline(always)]
+    fn splat(v: Vec2) -> Self {
+        LaneVec2 {
+            x: Lanes::splat(v.x),
+            y: Lanes::splat(v.y),
+        }
+    }
+    #[inline(always)]
+    fn zero() -> Self {
+        Self::splat(Vec2::ZERO)
+    }
+    #[inline(always)]
+    fn inner(self, o: Self) -> Lanes {
+        self.x * o.x + self.y * o.y
+    }
+    #[inline(always)]
+    fn scale(self, k: Lanes) -> Self {
+        LaneVec2 {
+            x: self.x * k,
+            y: self.y * k,
+        }
+    }
+    #[inline(always)]
+    fn abs_sum(self) -> Lanes {
+        self.x.abs() + self.y.abs()
+    }
+    #[inline(always)]
+    fn select(mask: <Lanes as Lane>::Mask, a: Self, b: Self) -> Self {
+        LaneVec2 {
+            x: Lanes::select(mask, a.x, b.x),
+            y: Lanes::select(mask, a.y, b.y),
+        }
+    }
+}
+
+impl Grouped for Vec2 {
+    type Group = LaneVec2;
+    #[inline(always)]
+    fn group(v: [Vec2; LANES]) -> LaneVec2 {
+        LaneVec2 {
+            x: Lanes::from_array(each_lane(v, |v| v.x)),
+            y: Lanes::from_array(each_lane(v, |v| v.y)),
+        }
+    }
+    #[inline(always)]
+    fn ungroup(group: LaneVec2) -> [Vec2; LANES] {
+        let ([x0, x1, x2, x3], [y0, y1, y2, y3]) = (group.x.to_array(), group.y.to_array());
+        [
+            Vec2::new(x0, y0),
+            Vec2::new(x1, y1),
+            Vec2::new(x2, y2),
+            Vec2::new(x3, y3),
+        ]
+    }
+}
+
+impl Point for Vec3 {
+    type Scalar = Real;
+    type Vector = Vec3;
+    #[inline(always)]
+    fn splat(v: Vec3) -> Self {
+        v
+    }
+    #[inline(always)]
+    fn zero() -> Self {
+        Vec3::ZERO
+    }
+    #[inline(always)]
+    fn inner(self, o: Self) -> Real {
+        Vec3::dot(self, o)
+    }
+    #[inline(always)]
+    fn scale(self, k: Real) -> Self {
+        self * k
+    }
+    #[inline(always)]
+    fn abs_sum(self) -> Real {
+        self.x.abs() + self.y.abs() + self.z.abs()
+    }
+    #[inline(always)]
+    fn select(mask: bool, a: Self, b: Self) -> Self {
+        if mask { a } else { b }
+    }
+}
+
+impl Point for LaneVec3<Lanes> {
+    type Scalar = Lanes;
+    type Vector = Vec3;
+    #[inline(always)]
+    fn splat(v: Vec3) -> Self {
+        LaneVec3::new(Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z))
+    }
+    #[inline(always)]
+    fn zero() -> Self {
+        Self::splat(Vec3::ZERO)
+    }
+    #[inline(always)]
+    fn inner(self, o: Self) -> Lanes {
+        LaneVec3::dot(self, o)
+    }
+    #[inline(always)]
+    fn scale(self, k: Lanes) -> Self {
+        LaneVec3::scale(self, k)
+    }
+    #[inline(always)]
+    fn abs_sum(self) -> Lanes {
+        self.x.abs() + self.y.abs() + self.z.abs()
+    }
+    #[inline(always)]
+    fn select(mask: <Lanes as Lane>::Mask, a: Self, b: Self) -> Self {
+        LaneVec3::select(mask, a, b)
+    }
+}
+
+impl Grouped for Vec3 {
+    type Group = LaneVec3<Lanes>;
+    #[inline(always)]
+    fn group(v: [Vec3; LANES]) -> LaneVec3<Lanes> {
+        LaneVec3::from_vectors(v)
+    }
+    #[inline(always)]
+    fn ungroup(group: LaneVec3<Lanes>) -> [Vec3; LANES] {
+        group.to_vectors()
+    }
+}
+
+/// A sum over vertices: one partial sum per lane for the groups, one for the vertices after
+/// the last whole group, added as `((s0 + s1) + (s2 + s3)) + tail` on every target.
+#[derive(Clone, Copy)]
+pub(crate) struct LaneSum {
+    lanes: Lanes,
+    tail: Real,
+}
+
+impl LaneSum {
+    /// Zero.
+    #[inline(always)]
+    pub fn new() -> Self {
+        LaneSum {
+            lanes: Lanes::splat(0.0),
+            tail: 0.0,
+        }
+    }
+
+    /// Adds one term per lane of a group.
+    #[inline(always)]
+    pub fn add_group(&mut self, terms: Lanes) {
+        self.lanes = self.lanes + terms;
+    }
+
+    /// Adds the term of one vertex after the groups.
+    #[inline(always)]
+    pub fn add_single(&mut self, term: Real) {
+        self.tail += term;
+    }
+
+    /// The total.
+    #[inline(always)]
+    pub fn total(self) -> Real {
+        let [a, b, c, d] = self.lanes.to_array();
+        ((a + b) + (c + d)) + self.tail
+    }
+}
+
+/// The ground as seen by [`Point`]s (or no ground): contact tests and projections, the same bits
+/// for one vertex and for a lane.
+#[derive(Clone, Copy)]
+pub(crate) struct Floor<P: Point> {
+    /// `None` without a ground.
+    plane: Option<(P, P::Scalar)>,
+    /// `16 eps |offset|`, the part of the contact tolerance that does not depend on `x`.
+    slack: P::Scalar,
+}
+
+/// The contact tolerance's factor: `16 eps`.
+const CONTACT_EPS: Real = 16.0 * Real::EPSILON;
+
+impl<P: Point> Floor<P> {
+    /// `ground` (with a unit normal) for points of type `P`.
+    #[inline(always)]
+    pub fn new(ground: Option<&Ground<P::Vector>>) -> Self {
+        Floor {
+            plane: ground.map(|g| (P::splat(g.normal), P::Scalar::splat(g.offset))),
+            slack: P::Scalar::splat(ground.map_or(0.0, |g| CONTACT_EPS * g.offset.abs())),
+        }
+    }
+
+    /// Whether `x` touches the ground within rounding of the projection: height at most
+    /// `16 eps (|offset| + |x|_1)`. Always false without a ground.
+    #[inline(always)]
+    pub fn contact(&self, x: P) -> Option<<P::Scalar as Lane>::Mask> {
+        let (normal, offset) = self.plane?;
+        let height = normal.inner(x) - offset;
+        let tolerance = self.slack + P::Scalar::splat(CONTACT_EPS) * x.abs_sum();
+        Some(tolerance.ge(height))
+    }
+
+    /// `x` projected onto the ground if it is inside.
+    #[inline(always)]
+    pub fn project(&self, x: P) -> P {
+        let Some((normal, offset)) = self.plane else {
+            return x;
+        };
+        let depth = -(normal.inner(x) - offset);
+        let inside = depth.gt(P::Scalar::splat(0.0));
+        // The common case, no lane inside, skips the projection (same result).
+        if P::Scalar::none(inside) {
+            return x;
+        }
+        P::select(inside, x + normal.scale(depth), x)
+    }
+
+    /// `v` without its component into the ground where `contact` (from [`contact`](Self::contact)
+    /// at the vertex) is set: `sign` +1 for a gradient, whose descent is `-g`, -1 for a
+    /// direction.
+    #[inline(always)]
+    pub fn constrain(&self, contact: Option<<P::Scalar as Lane>::Mask>, v: P, sign: Real) -> P {
+        let (Some((normal, _)), Some(contact)) = (self.plane, contact) else {
+            return v;
+        };
+        // The common case, no lane in contact, skips the projection (same result).
+        if P::Scalar::none(contact) {
+            return v;
+        }
+        let along = normal.inner(v);
+        let into = (along * P::Scalar::splat(sign)).gt(P::Scalar::splat(0.0));
+        P::select(contact, P::select(into, v - normal.scale(along), v), v)
+    }
+}

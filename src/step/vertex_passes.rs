@@ -1,0 +1,648 @@
+//! The relaxation's passes over the vertices: the gradient of `Phi` from the elastic forces, the
+//! preconditioned descent direction and the trial points. Each runs [`LANES`] vertices at a time
+//! (`Vector::Group`, see `points.rs`) and the last `n % LANES` one at a time, through the same
+//! generic per-vertex code, so that every vertex gets the same bits either way and every target
+//! the same sums.
+
+use super::super::lanes::{LANES, Lane, Lanes, each_lane};
+use super::super::types::Real;
+use super::Ground;
+use super::points::{Floor, Grouped, LaneSum, Point};
+
+/// What every vertex pass needs besides the buffers, for points of type `P`.
+#[derive(Clone, Copy)]
+struct Frame<P: Point> {
+    /// The time step `h` (0 without inertia).
+    h: P::Scalar,
+    /// `1 / h^2`, or 0 without inertia.
+    inertia: P::Scalar,
+    gravity: P,
+    floor: Floor<P>,
+}
+
+impl<P: Point> Frame<P> {
+    #[inline(always)]
+    fn new(h: Real, inertia: Real, gravity: P::Vector, ground: Option<&Ground<P::Vector>>) -> Self {
+        Frame {
+            h: P::Scalar::splat(h),
+            inertia: P::Scalar::splat(inertia),
+            gravity: P::splat(gravity),
+            floor: Floor::new(ground),
+        }
+    }
+
+    /// The gradient of `Phi` at a free vertex at `x` (`force` the elastic force there, `start`
+    /// its `x_n`, `velocity` its `v_n`, `m` its mass), its term of `Phi` (inertia and gravity;
+    /// the elastic energy is summed by the force kernel) and its term of the squared residual
+    /// `|grad Phi|^2`, projected on the contact constraint. All zero where `free` is not set
+    /// (`None`: every lane free).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn gradient(
+        &self,
+        x: P,
+        force: P,
+        start: P,
+        velocity: P,
+        m: P::Scalar,
+        free: Option<<P::Scalar as Lane>::Mask>,
+    ) -> (P, P::Scalar, P::Scalar) {
+        let offset = x - (start + velocity.scale(self.h));
+        let weight = m * self.inertia;
+        let phi = P::Scalar::splat(0.5) * weight * offset.inner(offset)
+            - m * self.gravity.inner(x - start);
+        // The kernel added the forces, -dE/dx: flip them into dE/dx.
+        let gradient = offset.scale(weight) - force - self.gravity.scale(m);
+        let projected = self.floor.constrain(self.floor.contact(x), gradient, 1.0);
+        let residual = projected.inner(projected);
+        let Some(free) = free else {
+            return (gradient, phi, residual);
+        };
+        let zero = P::Scalar::splat(0.0);
+        (
+            P::select(free, gradient, P::zero()),
+            P::Scalar::select(free, phi, zero),
+            P::Scalar::select(free, residual, zero),
+        )
+    }
+
+    /// The projected preconditioned descent direction `-P^-1 g` at a vertex at `x` with gradient
+    /// `g` and preconditioner `p` (zero where `p` is not positive), plus `momentum` times the
+    /// last step `x - previous` when given, and its term of the slope `g.d`.
+    #[inline(always)]
+    fn direction(
+        &self,
+        x: P,
+        g: P,
+        p: P::Scalar,
+        heavy_ball: Option<(P, P::Scalar)>,
+    ) -> (P, P::Scalar) {
+        let contact = self.floor.contact(x);
+        let g = self.floor.constrain(contact, g, 1.0);
+        let zero = P::Scalar::splat(0.0);
+        let plain = P::select(p.gt(zero), g.scale(P::Scalar::splat(-1.0) / p), P::zero());
+        let direction = match heavy_ball {
+            Some((previous, momentum)) => plain + (x - previous).scale(momentum),
+            None => plain,
+        };
+        let d = self.floor.constrain(contact, direction, -1.0);
+        (d, g.inner(d))
+    }
+
+    /// `target`, projected on the ground, where `free` (everywhere if `None`); `x` elsewhere.
+    #[inline(always)]
+    fn moved(&self, x: P, target: P, free: Option<<P::Scalar as Lane>::Mask>) -> P {
+        let moved = self.floor.project(target);
+        match free {
+            Some(free) => P::select(free, moved, x),
+            None => moved,
+        }
+    }
+}
+
+/// [`Frame`] for single vertices and for groups.
+#[derive(Clone, Copy)]
+pub(super) struct Frames<V: Grouped> {
+    single: Frame<V>,
+    group: Frame<V::Group>,
+}
+
+impl<V: Grouped> Frames<V> {
+    /// The frames of a solve: time step `h` and `inertia = 1 / h^2` (both 0 without inertia),
+    /// `gravity`, and `ground` with a unit normal.
+    pub fn new(h: Real, inertia: Real, gravity: V, ground: Option<&Ground<V>>) -> Self {
+        Frames {
+            single: Frame::new(h, inertia, gravity, ground),
+            group: Frame::new(h, inertia, gravity, ground),
+        }
+    }
+
+    /// The ground, for one vertex.
+    pub fn floor(&self) -> &Floor<V> {
+        &self.single.floor
+    }
+}
+
+/// The per-vertex inputs every pass shares.
+#[derive(Clone, Copy)]
+pub(super) struct Vertices<'a, V> {
+    /// Lumped masses (kg).
+    pub masses: &'a [Real],
+    /// Pinned flags, or empty for none.
+    pub pinned: &'a [bool],
+    /// The preconditioner's stiffness bounds (N/m).
+    pub stiffness: &'a [Real],
+    /// `x_n`.
+    pub start: &'a [V],
+    /// `v_n`, or empty without inertia.
+    pub velocities: &'a [V],
+}
+
+/// The group held by `chunk` (a [`LANES`]-long chunk of `chunks_exact`).
+#[inline(always)]
+fn load<V: Grouped>(chunk: &[V]) -> V::Group {
+    V::group(chunk.first_chunk().copied().unwrap_or([V::zero(); LANES]))
+}
+
+/// The scalars held by `chunk` (a [`LANES`]-long chunk of `chunks_exact`).
+#[inline(always)]
+fn load_scalars(chunk: &[Real]) -> Lanes {
+    Lanes::from_array(chunk.first_chunk().copied().unwrap_or([0.0; LANES]))
+}
+
+/// Writes `group` into `chunk` (a [`LANES`]-long chunk of `chunks_exact_mut`).
+#[inline(always)]
+fn store<V: Grouped>(chunk: &mut [V], group: V::Group) {
+    if let Some(slot) = chunk.first_chunk_mut() {
+        *slot = V::ungroup(group);
+    }
+}
+
+/// Zeroes `chunk`.
+#[inline(always)]
+fn clear<V: Grouped>(chunk: &mut [V]) {
+    chunk.fill(V::zero());
+}
+
+/// The mask of the free (not pinned) vertices of group `k`; `None` if no vertex is pinned.
+#[inline(always)]
+fn free_lanes(pinned: &[bool], k: usize) -> Option<<Lanes as Lane>::Mask> {
+    (!pinned.is_empty()).then(|| free_group(pinned, k))
+}
+
+/// The mask of the free (not pinned) vertices of group `k`.
+#[inline(always)]
+fn free_group(pinned: &[bool], k: usize) -> <Lanes as Lane>::Mask {
+    let flags = pinned
+        .get(k * LANES..)
+        .and_then(<[bool]>::first_chunk::<LANES>)
+        .copied()
+        .unwrap_or([false; LANES]);
+    Lanes::splat(0.5).gt(Lanes::from_array(each_lane(flags, |pinned| {
+        if pinned { 1.0 } else { 0.0 }
+    })))
+}
+
+/// Whether vertex `i` is free.
+#[inline(always)]
+fn free_single(pinned: &[bool], i: usize) -> bool {
+    !pinned.get(i).copied().unwrap_or(false)
+}
+
+/// Whether vertex `i` is free, as [`Frame::moved`] takes it.
+#[inline(always)]
+fn free_one(pinned: &[bool], i: usize) -> Option<bool> {
+    Some(free_single(pinned, i))
+}
+
+impl<'a, V: Grouped> Vertices<'a, V> {
+    /// `v_n`, or (without inertia, when `h = 0`) `x_n` standing in for it: a full-length buffer
+    /// either way, so that the passes need not branch on it.
+    #[inline(always)]
+    fn velocities(&self) -> &'a [V] {
+        if self.velocities.is_empty() {
+            self.start
+        } else {
+            self.velocities
+        }
+    }
+
+    /// The preconditioner `P_i = k_i + m_i / h^2` of the vertices of `stiffness` and `masses`
+    /// (chunks or single entries).
+    #[inline(always)]
+    fn diagonal<L: Lane>(frame_inertia: L, stiffness: L, masses: L) -> L {
+        stiffness + masses * frame_inertia
+    }
+}
+
+/// Turns the elastic forces in `gradient` (N, added by the kernel at `x`) into the gradient of
+/// `Phi` (zero at pinned vertices). Returns the inertia and gravity part of `Phi` (J) and the
+/// squared residual `|grad Phi|^2` (N^2) projected on the contact constraints.
+pub(super) fn gradient_pass<V: Grouped>(
+    frames: &Frames<V>,
+    vertices: &Vertices<'_, V>,
+    x: &[V],
+    gradient: &mut [V],
+) -> (Real, Real) {
+    let (mut phi, mut residual) = (LaneSum::new(), LaneSum::new());
+    let velocities = vertices.velocities();
+    let frame = &frames.group;
+    let groups = gradient
+        .chunks_exact_mut(LANES)
+        .zip(x.chunks_exact(LANES))
+        .zip(vertices.start.chunks_exact(LANES))
+        .zip(velocities.chunks_exact(LANES))
+        .zip(vertices.masses.chunks_exact(LANES));
+    let mut done = 0;
+    for (k, ((((g, x), start), velocity), m)) in groups.enumerate() {
+        let (gradient, phi_term, residual_term) = frame.gradient(
+            load(x),
+            load(g),
+            load(start),
+            load(velocity),
+            load_scalars(m),
+            free_lanes(vertices.pinned, k),
+        );
+        store(g, gradient);
+        phi.add_group(phi_term);
+        residual.add_group(residual_term);
+        done = (k + 1) * LANES;
+    }
+    let frame = &frames.single;
+    let zero = V::zero();
+    let rows = gradient.iter_mut().zip(x).enumerate();
+    for (i, (g, &x)) in rows.skip(done) {
+        let at = |values: &[V]| values.get(i).copied().unwrap_or(zero);
+        let (gradient, phi_term, residual_term) = frame.gradient(
+            x,
+            *g,
+            at(vertices.start),
+            at(velocities),
+            vertices.masses.get(i).copied().unwrap_or(0.0),
+            free_one(vertices.pinned, i),
+        );
+        *g = gradient;
+        phi.add_single(phi_term);
+        residual.add_single(residual_term);
+    }
+    (phi.total(), residual.total())
+}
+
+/// A trial point buffer and the gradient buffer of its evaluation, which the pass writing the
+/// point zeroes for the force kernel to add into.
+pub(super) struct TrialPoint<'t, V> {
+    pub positions: &'t mut [V],
+    pub gradient: &'t mut [V],
+}
+
+/// Writes the projected preconditioned direction at `x` (with gradient `gradient`; plus
+/// `momentum` times the last step `x_k - x_{k-1}`, `x_{k-1}` read from `trial.positions`, when
+/// given) into `direction`, and in the same pass the trial point `x + alpha d` (projected on the
+/// ground; `x` at pinned vertices) into `trial`, zeroing its gradient buffer. Returns the slope
+/// `grad.d`.
+pub(super) fn direction_pass<V: Grouped>(
+    frames: &Frames<V>,
+    vertices: &Vertices<'_, V>,
+    (x, gradient): (&[V], &[V]),
+    direction: &mut [V],
+    momentum: Option<Real>,
+    trial: TrialPoint<'_, V>,
+    alpha: Real,
+) -> Real {
+    let mut slope = LaneSum::new();
+    let frame = &frames.group;
+    let (lanes_alpha, lanes_momentum) = (Lanes::splat(alpha), momentum.map(Lanes::splat));
+    let groups = direction
+        .chunks_exact_mut(LANES)
+        .zip(trial.positions.chunks_exact_mut(LANES))
+        .zip(trial.gradient.chunks_exact_mut(LANES))
+        .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
+        .zip(
+            vertices
+                .stiffness
+                .chunks_exact(LANES)
+                .zip(vertices.masses.chunks_exact(LANES)),
+        );
+    let mut done = 0;
+    for (k, ((((d_slot, t_slot), g_slot), (x, g)), (stiffness, m))) in groups.enumerate() {
+        let position = load(x);
+        let p = Vertices::<V>::diagonal(frame.inertia, load_scalars(stiffness), load_scalars(m));
+        let heavy_ball = lanes_momentum.map(|m| (load(t_slot), m));
+        let (d, slope_term) = frame.direction(position, load(g), p, heavy_ball);
+        store(d_slot, d);
+        let free = free_lanes(vertices.pinned, k);
+        store(
+            t_slot,
+            frame.moved(position, position + d.scale(lanes_alpha), free),
+        );
+        clear(g_slot);
+        slope.add_group(slope_term);
+        done = (k + 1) * LANES;
+    }
+    let frame = &frames.single;
+    let rows = direction
+        .iter_mut()
+        .zip(trial.positions.iter_mut())
+        .zip(trial.gradient.iter_mut())
+        .zip(x.iter().zip(gradient))
+        .enumerate();
+    for (i, (((d_slot, t_slot), g_slot), (&x, &g))) in rows.skip(done) {
+        let at = |values: &[Real]| values.get(i).copied().unwrap_or(0.0);
+        let p = Vertices::<V>::diagonal(frame.inertia, at(vertices.stiffness), at(vertices.masses));
+        let heavy_ball = momentum.map(|m| (*t_slot, m));
+        let (d, slope_term) = frame.direction(x, g, p, heavy_ball);
+        *d_slot = d;
+        *t_slot = frame.moved(x, x + d.scale(alpha), free_one(vertices.pinned, i));
+        *g_slot = V::zero();
+        slope.add_single(slope_term);
+    }
+    slope.total()
+}
+
+/// Writes the trial point `x + alpha d` (projected on the ground; `x` at pinned vertices) into
+/// `trial`, zeroing its gradient buffer: a backtracking step of the line search.
+pub(super) fn trial_pass<V: Grouped>(
+    frames: &Frames<V>,
+    pinned: &[bool],
+    (x, direction): (&[V], &[V]),
+    alpha: Real,
+    trial: TrialPoint<'_, V>,
+) {
+    let frame = &frames.group;
+    let lanes_alpha = Lanes::splat(alpha);
+    let groups = trial
+        .positions
+        .chunks_exact_mut(LANES)
+        .zip(trial.gradient.chunks_exact_mut(LANES))
+        .zip(x.chunks_exact(LANES).zip(direction.chunks_exact(LANES)));
+    let mut done = 0;
+    for (k, ((t_slot, g_slot), (x, d))) in groups.enumerate() {
+        let position = load(x);
+        let target = position + load(d).scale(lanes_alpha);
+        store(t_slot, frame.moved(position, target, free_lanes(pinned, k)));
+        clear(g_slot);
+        done = (k + 1) * LANES;
+    }
+    let frame = &frames.single;
+    let rows = trial
+        .positions
+        .iter_mut()
+        .zip(trial.gradient.iter_mut())
+        .zip(x.iter().zip(direction))
+        .enumerate();
+    for (i, ((t_slot, g_slot), (&x, &d))) in rows.skip(done) {
+        *t_slot = frame.moved(x, x + d.scale(alpha), free_one(pinned, i));
+        *g_slot = V::zero();
+    }
+}
+
+/// Writes the Chebyshev trial `x_k + omega alpha d + (omega - 1) (x_k - x_{k-1})` (Wang and
+/// Yang 2016), `d` the projected preconditioned direction at `x_k` = `x` with `gradient`, into
+/// `trial` (whose positions hold `x_{k-1}` if `stepped`; the last step is zero otherwise),
+/// zeroing its gradient buffer. `step` is `omega alpha`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn chebyshev_pass<V: Grouped>(
+    frames: &Frames<V>,
+    vertices: &Vertices<'_, V>,
+    (x, gradient): (&[V], &[V]),
+    stepped: bool,
+    trial: TrialPoint<'_, V>,
+    step: Real,
+    omega: Real,
+) {
+    let frame = &frames.group;
+    let (lanes_step, lanes_weight) = (Lanes::splat(step), Lanes::splat(omega - 1.0));
+    let groups = trial
+        .positions
+        .chunks_exact_mut(LANES)
+        .zip(trial.gradient.chunks_exact_mut(LANES))
+        .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
+        .zip(
+            vertices
+                .stiffness
+                .chunks_exact(LANES)
+                .zip(vertices.masses.chunks_exact(LANES)),
+        );
+    let mut done = 0;
+    for (k, (((t_slot, g_slot), (x, g)), (stiffness, m))) in groups.enumerate() {
+        let position = load(x);
+        let last_step = if stepped {
+            position - load(t_slot)
+        } else {
+            V::Group::zero()
+        };
+        let p = Vertices::<V>::diagonal(frame.inertia, load_scalars(stiffness), load_scalars(m));
+        let (d, _) = frame.direction(position, load(g), p, None);
+        let target = position + d.scale(lanes_step) + last_step.scale(lanes_weight);
+        store(
+            t_slot,
+            frame.moved(position, target, free_lanes(vertices.pinned, k)),
+        );
+        clear(g_slot);
+        done = (k + 1) * LANES;
+    }
+    let frame = &frames.single;
+    let rows = trial
+        .positions
+        .iter_mut()
+        .zip(trial.gradient.iter_mut())
+        .zip(x.iter().zip(gradient))
+        .enumerate();
+    for (i, ((t_slot, g_slot), (&x, &g))) in rows.skip(done) {
+        let at = |values: &[Real]| values.get(i).copied().unwrap_or(0.0);
+        let last_step = if stepped { x - *t_slot } else { V::zero() };
+        let p = Vertices::<V>::diagonal(frame.inertia, at(vertices.stiffness), at(vertices.masses));
+        let (d, _) = frame.direction(x, g, p, None);
+        let target = x + d.scale(step) + last_step.scale(omega - 1.0);
+        *t_slot = frame.moved(x, target, free_one(vertices.pinned, i));
+        *g_slot = V::zero();
+    }
+}
+
+#[cfg(test)]
+// Compiled for both precisions: the conversions are no-ops in one of them.
+#[allow(clippy::unnecessary_cast)]
+mod tests {
+    extern crate std;
+    use std::format;
+    use std::vec;
+    use std::vec::Vec;
+
+    use super::super::super::types::{Real, Vec2, Vec3};
+    use super::super::Ground;
+    use super::super::points::{Grouped, Point};
+    use super::{
+        Frame, Frames, TrialPoint, Vertices, chebyshev_pass, direction_pass, gradient_pass,
+        trial_pass,
+    };
+
+    /// A repeatable value in `[-1, 1)` for index `i` and stream `s`.
+    fn noise(i: usize, s: usize) -> Real {
+        let h = ((i * 7919 + s * 104_729) as u32).wrapping_mul(2_654_435_761);
+        (h >> 8) as Real / (1u32 << 23) as Real - 1.0
+    }
+
+    /// Every pass, run on `n` vertices (two groups and a tail when `n = 11`), against the
+    /// one-vertex arithmetic applied to each vertex alone: the same bits, and sums in the
+    /// documented order.
+    fn passes_match_one_vertex_at_a_time<V: Grouped + super::super::Vector>(
+        make: impl Fn(usize, usize) -> V,
+        up: V,
+    ) {
+        let n = 11;
+        let zero = <V as Point>::zero();
+        let masses: Vec<Real> = (0..n).map(|i| 1.0 + noise(i, 1).abs()).collect();
+        let stiffness: Vec<Real> = (0..n)
+            .map(|i| if i == 4 { 0.0 } else { 50.0 + noise(i, 2) })
+            .collect();
+        let pinned: Vec<bool> = (0..n).map(|i| i % 5 == 2).collect();
+        // Every third vertex sits on (or just inside) the ground plane `up . x = 0`.
+        let start: Vec<V> = (0..n).map(|i| make(i, 3)).collect();
+        let x: Vec<V> = (0..n)
+            .map(|i| {
+                let p = make(i, 4);
+                if i % 3 == 0 {
+                    p - up.scale(up.inner(p)) - up.scale(1e-3 * (i % 2) as Real)
+                } else {
+                    p
+                }
+            })
+            .collect();
+        let velocities: Vec<V> = (0..n).map(|i| make(i, 5)).collect();
+        let forces: Vec<V> = (0..n).map(|i| make(i, 6).scale(10.0)).collect();
+        let ground = Ground::new(up, 0.0);
+        let (h, inertia, gravity) = (0.01, 1.0e4, up.scale(-9.81));
+        for pinned in [&pinned[..], &[]] {
+            let frames = Frames::new(h, inertia, gravity, Some(&ground));
+            let one = Frame::<V>::new(h, inertia, gravity, Some(&ground));
+            let vertices = Vertices {
+                masses: &masses,
+                pinned,
+                stiffness: &stiffness,
+                start: &start,
+                velocities: &velocities,
+            };
+            let free = |i: usize| !pinned.get(i).copied().unwrap_or(false);
+            let order = |terms: &[Real]| {
+                let mut partial = [0.0; 4];
+                for (i, t) in terms.iter().take(8).enumerate() {
+                    partial[i % 4] += t;
+                }
+                ((partial[0] + partial[1]) + (partial[2] + partial[3]))
+                    + (terms[8] + terms[9] + terms[10])
+            };
+            let bits = |v: &[V]| format!("{v:?}");
+
+            let mut gradient = forces.clone();
+            let (phi, residual) = gradient_pass(&frames, &vertices, &x, &mut gradient);
+            let expected: Vec<_> = (0..n)
+                .map(|i| {
+                    one.gradient(
+                        x[i],
+                        forces[i],
+                        start[i],
+                        velocities[i],
+                        masses[i],
+                        Some(free(i)),
+                    )
+                })
+                .collect();
+            assert_eq!(
+                bits(&gradient),
+                bits(&expected.iter().map(|e| e.0).collect::<Vec<_>>())
+            );
+            assert_eq!(
+                phi.to_bits(),
+                order(&expected.iter().map(|e| e.1).collect::<Vec<_>>()).to_bits()
+            );
+            assert_eq!(
+                residual.to_bits(),
+                order(&expected.iter().map(|e| e.2).collect::<Vec<_>>()).to_bits()
+            );
+
+            let diagonal = |i: usize| stiffness[i] + masses[i] * inertia;
+            for momentum in [None, Some(0.3)] {
+                let mut direction = vec![zero; n];
+                let mut trial = start.clone();
+                let mut next_gradient = forces.clone();
+                let slope = direction_pass(
+                    &frames,
+                    &vertices,
+                    (&x, &gradient),
+                    &mut direction,
+                    momentum,
+                    TrialPoint {
+                        positions: &mut trial,
+                        gradient: &mut next_gradient,
+                    },
+                    0.7,
+                );
+                let expected: Vec<_> = (0..n)
+                    .map(|i| {
+                        one.direction(
+                            x[i],
+                            gradient[i],
+                            diagonal(i),
+                            momentum.map(|m| (start[i], m)),
+                        )
+                    })
+                    .collect();
+                let expected_trial: Vec<V> = (0..n)
+                    .map(|i| one.moved(x[i], x[i] + expected[i].0.scale(0.7), Some(free(i))))
+                    .collect();
+                assert_eq!(
+                    bits(&direction),
+                    bits(&expected.iter().map(|e| e.0).collect::<Vec<_>>())
+                );
+                assert_eq!(
+                    slope.to_bits(),
+                    order(&expected.iter().map(|e| e.1).collect::<Vec<_>>()).to_bits()
+                );
+                assert_eq!(bits(&trial), bits(&expected_trial));
+                assert_eq!(bits(&next_gradient), bits(&vec![zero; n]));
+                // Pinned vertices stay; free ones never end inside the ground.
+                for i in 0..n {
+                    assert!(free(i) || trial[i] == x[i]);
+                    assert!(!free(i) || up.inner(trial[i]) >= 0.0, "vertex {i}");
+                }
+
+                let mut backtracked = start.clone();
+                let mut next_gradient = forces.clone();
+                trial_pass(
+                    &frames,
+                    pinned,
+                    (&x, &direction),
+                    0.25,
+                    TrialPoint {
+                        positions: &mut backtracked,
+                        gradient: &mut next_gradient,
+                    },
+                );
+                let expected: Vec<V> = (0..n)
+                    .map(|i| one.moved(x[i], x[i] + direction[i].scale(0.25), Some(free(i))))
+                    .collect();
+                assert_eq!(bits(&backtracked), bits(&expected));
+                assert_eq!(bits(&next_gradient), bits(&vec![zero; n]));
+            }
+
+            for stepped in [false, true] {
+                let mut trial = start.clone();
+                let mut next_gradient = forces.clone();
+                chebyshev_pass(
+                    &frames,
+                    &vertices,
+                    (&x, &gradient),
+                    stepped,
+                    TrialPoint {
+                        positions: &mut trial,
+                        gradient: &mut next_gradient,
+                    },
+                    1.5,
+                    1.2,
+                );
+                let expected: Vec<V> = (0..n)
+                    .map(|i| {
+                        let last = if stepped { x[i] - start[i] } else { zero };
+                        let (d, _) = one.direction(x[i], gradient[i], diagonal(i), None);
+                        one.moved(
+                            x[i],
+                            x[i] + d.scale(1.5) + last.scale(1.2 - 1.0),
+                            Some(free(i)),
+                        )
+                    })
+                    .collect();
+                assert_eq!(bits(&trial), bits(&expected));
+                assert_eq!(bits(&next_gradient), bits(&vec![zero; n]));
+            }
+        }
+    }
+
+    #[test]
+    fn vertex_passes_give_each_vertex_the_bits_of_the_one_vertex_code() {
+        passes_match_one_vertex_at_a_time(
+            |i, s| Vec3::new(noise(i, s), noise(i, s + 10), noise(i, s + 20)),
+            Vec3::Z,
+        );
+        passes_match_one_vertex_at_a_time(|i, s| Vec2::new(noise(i, s), noise(i, s + 10)), Vec2::Y);
+    }
+}
