@@ -31,6 +31,14 @@ pub(crate) mod math {
     /// measured twice as fast as the scalar loop on a 105k-tet box.
     pub const BATCH_FORCES: bool = cfg!(target_arch = "x86_64");
 
+    /// Whether the relaxation's vertex passes run [`LANES`] vertices at a time (same bits as one
+    /// at a time, and the same sums): on x86_64, where it made a relaxation iteration on a
+    /// 105k-tet box 1.42x -> 1.29x a force evaluation. Not on a Cortex-M4F: there the grouped
+    /// passes took 2.3x the instructions per vertex (4 020 against 1 750 per vertex iteration),
+    /// 3.5x the code (50 258 against 14 460 B) and 2.6x the stack of `relax_step`
+    /// (`tests/firmware.rs`).
+    pub const BATCH_VERTICES: bool = cfg!(target_arch = "x86_64");
+
     /// Whether stable neo-Hookean's `ln(1 + y)` uses its own series for `|y| <= 1/2` (same code
     /// for one value and for a group of lanes, so both give the same bits, within 2 ulp of the
     /// correctly rounded result) instead of `libm` lane by lane.

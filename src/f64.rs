@@ -31,6 +31,10 @@ pub(crate) mod math {
     /// shim): where [`Lanes`](super::lanes::Lanes) are SSE2 registers (x86_64).
     pub const BATCH_FORCES: bool = cfg!(target_arch = "x86_64");
 
+    /// Whether the relaxation's vertex passes run [`LANES`] vertices at a time (see the f32
+    /// shim).
+    pub const BATCH_VERTICES: bool = cfg!(target_arch = "x86_64");
+
     /// Whether stable neo-Hookean's `ln(1 + y)` uses its own series (see the f32 shim): not in
     /// f64, where the series would need twice the terms; `libm` it is.
     pub const SERIES_LN_1P: bool = false;

@@ -241,21 +241,31 @@ impl Grouped for Vec3 {
     }
 }
 
-/// A sum over vertices: one partial sum per lane for the groups, one for the vertices after
-/// the last whole group, added as `((s0 + s1) + (s2 + s3)) + tail` on every target.
+/// A sum over `n` vertices in a fixed order, grouped or not: vertex `i` of the first
+/// `n - n % LANES` adds to partial sum `i % LANES`, the partial sums are added as
+/// `(s0 + s1) + (s2 + s3)`, then the last `n % LANES` terms in order. Groups add one term per
+/// lane to the partial sums, so a grouped pass and a one-at-a-time pass give the same bits.
 #[derive(Clone, Copy)]
 pub(crate) struct LaneSum {
+    /// The partial sums of the groups.
     lanes: Lanes,
+    /// The partial sums of whole-group vertices taken one at a time.
+    single: [Real; LANES],
+    /// The terms after the whole groups.
     tail: Real,
+    /// `n - n % LANES`.
+    whole: usize,
 }
 
 impl LaneSum {
-    /// Zero.
+    /// Zero, for a sum over `n` vertices.
     #[inline(always)]
-    pub fn new() -> Self {
+    pub fn new(n: usize) -> Self {
         LaneSum {
             lanes: Lanes::splat(0.0),
+            single: [0.0; LANES],
             tail: 0.0,
+            whole: n - n % LANES,
         }
     }
 
@@ -265,16 +275,20 @@ impl LaneSum {
         self.lanes = self.lanes + terms;
     }
 
-    /// Adds the term of one vertex after the groups.
+    /// Adds the term of vertex `i`, taken one at a time.
     #[inline(always)]
-    pub fn add_single(&mut self, term: Real) {
-        self.tail += term;
+    pub fn add_single(&mut self, i: usize, term: Real) {
+        match self.single.get_mut(i % LANES) {
+            Some(partial) if i < self.whole => *partial += term,
+            _ => self.tail += term,
+        }
     }
 
     /// The total.
     #[inline(always)]
     pub fn total(self) -> Real {
-        let [a, b, c, d] = self.lanes.to_array();
+        // One of `lanes` and `single` holds the partial sums, the other zeros.
+        let [a, b, c, d] = (self.lanes + Lanes::from_array(self.single)).to_array();
         ((a + b) + (c + d)) + self.tail
     }
 }

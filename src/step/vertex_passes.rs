@@ -1,10 +1,11 @@
 //! The relaxation's passes over the vertices: the gradient of `Phi` from the elastic forces, the
-//! preconditioned descent direction and the trial points. Each runs [`LANES`] vertices at a time
-//! (`Vector::Group`, see `points.rs`) and the last `n % LANES` one at a time, through the same
-//! generic per-vertex code, so that every vertex gets the same bits either way and every target
-//! the same sums.
+//! preconditioned descent direction and the trial points. On x86_64 (`math::BATCH_VERTICES`)
+//! each runs [`LANES`] vertices at a time (`Vector::Group`, see `points.rs`) and the rest one at
+//! a time, elsewhere every vertex one at a time, through the same generic per-vertex code, so
+//! that every vertex gets the same bits either way and every target the same sums.
 
 use super::super::lanes::{LANES, Lane, Lanes, each_lane};
+use super::super::math::BATCH_VERTICES;
 use super::super::types::Real;
 use super::Ground;
 use super::points::{Floor, Grouped, LaneSum, Point};
@@ -224,7 +225,7 @@ pub(super) fn gradient_pass<V: Grouped>(
     x: &[V],
     gradient: &mut [V],
 ) -> (Real, Real) {
-    let (mut phi, mut residual) = (LaneSum::new(), LaneSum::new());
+    let (mut phi, mut residual) = (LaneSum::new(x.len()), LaneSum::new(x.len()));
     let velocities = vertices.velocities();
     let frame = &frames.group;
     let groups = gradient
@@ -234,19 +235,23 @@ pub(super) fn gradient_pass<V: Grouped>(
         .zip(velocities.chunks_exact(LANES))
         .zip(vertices.masses.chunks_exact(LANES));
     let mut done = 0;
-    for (k, ((((g, x), start), velocity), m)) in groups.enumerate() {
-        let (gradient, phi_term, residual_term) = frame.gradient(
-            load(x),
-            load(g),
-            load(start),
-            load(velocity),
-            load_scalars(m),
-            free_lanes(vertices.pinned, k),
-        );
-        store(g, gradient);
-        phi.add_group(phi_term);
-        residual.add_group(residual_term);
-        done = (k + 1) * LANES;
+    // Where grouping pays (see `math::BATCH_VERTICES`); the loop below does every vertex
+    // otherwise, with the same bits.
+    if BATCH_VERTICES {
+        for (k, ((((g, x), start), velocity), m)) in groups.enumerate() {
+            let (gradient, phi_term, residual_term) = frame.gradient(
+                load(x),
+                load(g),
+                load(start),
+                load(velocity),
+                load_scalars(m),
+                free_lanes(vertices.pinned, k),
+            );
+            store(g, gradient);
+            phi.add_group(phi_term);
+            residual.add_group(residual_term);
+            done = (k + 1) * LANES;
+        }
     }
     let frame = &frames.single;
     let zero = V::zero();
@@ -262,8 +267,8 @@ pub(super) fn gradient_pass<V: Grouped>(
             free_one(vertices.pinned, i),
         );
         *g = gradient;
-        phi.add_single(phi_term);
-        residual.add_single(residual_term);
+        phi.add_single(i, phi_term);
+        residual.add_single(i, residual_term);
     }
     (phi.total(), residual.total())
 }
@@ -289,7 +294,7 @@ pub(super) fn direction_pass<V: Grouped>(
     trial: TrialPoint<'_, V>,
     alpha: Real,
 ) -> Real {
-    let mut slope = LaneSum::new();
+    let mut slope = LaneSum::new(x.len());
     let frame = &frames.group;
     let (lanes_alpha, lanes_momentum) = (Lanes::splat(alpha), momentum.map(Lanes::splat));
     let groups = direction
@@ -304,20 +309,25 @@ pub(super) fn direction_pass<V: Grouped>(
                 .zip(vertices.masses.chunks_exact(LANES)),
         );
     let mut done = 0;
-    for (k, ((((d_slot, t_slot), g_slot), (x, g)), (stiffness, m))) in groups.enumerate() {
-        let position = load(x);
-        let p = Vertices::<V>::diagonal(frame.inertia, load_scalars(stiffness), load_scalars(m));
-        let heavy_ball = lanes_momentum.map(|m| (load(t_slot), m));
-        let (d, slope_term) = frame.direction(position, load(g), p, heavy_ball);
-        store(d_slot, d);
-        let free = free_lanes(vertices.pinned, k);
-        store(
-            t_slot,
-            frame.moved(position, position + d.scale(lanes_alpha), free),
-        );
-        clear(g_slot);
-        slope.add_group(slope_term);
-        done = (k + 1) * LANES;
+    // Where grouping pays (see `math::BATCH_VERTICES`); the loop below does every vertex
+    // otherwise, with the same bits.
+    if BATCH_VERTICES {
+        for (k, ((((d_slot, t_slot), g_slot), (x, g)), (stiffness, m))) in groups.enumerate() {
+            let position = load(x);
+            let p =
+                Vertices::<V>::diagonal(frame.inertia, load_scalars(stiffness), load_scalars(m));
+            let heavy_ball = lanes_momentum.map(|m| (load(t_slot), m));
+            let (d, slope_term) = frame.direction(position, load(g), p, heavy_ball);
+            store(d_slot, d);
+            let free = free_lanes(vertices.pinned, k);
+            store(
+                t_slot,
+                frame.moved(position, position + d.scale(lanes_alpha), free),
+            );
+            clear(g_slot);
+            slope.add_group(slope_term);
+            done = (k + 1) * LANES;
+        }
     }
     let frame = &frames.single;
     let rows = direction
@@ -334,7 +344,7 @@ pub(super) fn direction_pass<V: Grouped>(
         *d_slot = d;
         *t_slot = frame.moved(x, x + d.scale(alpha), free_one(vertices.pinned, i));
         *g_slot = V::zero();
-        slope.add_single(slope_term);
+        slope.add_single(i, slope_term);
     }
     slope.total()
 }
@@ -356,12 +366,16 @@ pub(super) fn trial_pass<V: Grouped>(
         .zip(trial.gradient.chunks_exact_mut(LANES))
         .zip(x.chunks_exact(LANES).zip(direction.chunks_exact(LANES)));
     let mut done = 0;
-    for (k, ((t_slot, g_slot), (x, d))) in groups.enumerate() {
-        let position = load(x);
-        let target = position + load(d).scale(lanes_alpha);
-        store(t_slot, frame.moved(position, target, free_lanes(pinned, k)));
-        clear(g_slot);
-        done = (k + 1) * LANES;
+    // Where grouping pays (see `math::BATCH_VERTICES`); the loop below does every vertex
+    // otherwise, with the same bits.
+    if BATCH_VERTICES {
+        for (k, ((t_slot, g_slot), (x, d))) in groups.enumerate() {
+            let position = load(x);
+            let target = position + load(d).scale(lanes_alpha);
+            store(t_slot, frame.moved(position, target, free_lanes(pinned, k)));
+            clear(g_slot);
+            done = (k + 1) * LANES;
+        }
     }
     let frame = &frames.single;
     let rows = trial
@@ -404,22 +418,27 @@ pub(super) fn chebyshev_pass<V: Grouped>(
                 .zip(vertices.masses.chunks_exact(LANES)),
         );
     let mut done = 0;
-    for (k, (((t_slot, g_slot), (x, g)), (stiffness, m))) in groups.enumerate() {
-        let position = load(x);
-        let last_step = if stepped {
-            position - load(t_slot)
-        } else {
-            V::Group::zero()
-        };
-        let p = Vertices::<V>::diagonal(frame.inertia, load_scalars(stiffness), load_scalars(m));
-        let (d, _) = frame.direction(position, load(g), p, None);
-        let target = position + d.scale(lanes_step) + last_step.scale(lanes_weight);
-        store(
-            t_slot,
-            frame.moved(position, target, free_lanes(vertices.pinned, k)),
-        );
-        clear(g_slot);
-        done = (k + 1) * LANES;
+    // Where grouping pays (see `math::BATCH_VERTICES`); the loop below does every vertex
+    // otherwise, with the same bits.
+    if BATCH_VERTICES {
+        for (k, (((t_slot, g_slot), (x, g)), (stiffness, m))) in groups.enumerate() {
+            let position = load(x);
+            let last_step = if stepped {
+                position - load(t_slot)
+            } else {
+                V::Group::zero()
+            };
+            let p =
+                Vertices::<V>::diagonal(frame.inertia, load_scalars(stiffness), load_scalars(m));
+            let (d, _) = frame.direction(position, load(g), p, None);
+            let target = position + d.scale(lanes_step) + last_step.scale(lanes_weight);
+            store(
+                t_slot,
+                frame.moved(position, target, free_lanes(vertices.pinned, k)),
+            );
+            clear(g_slot);
+            done = (k + 1) * LANES;
+        }
     }
     let frame = &frames.single;
     let rows = trial
