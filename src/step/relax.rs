@@ -18,7 +18,8 @@ use super::{
 use crate::error::{StepBuffer, StepError};
 
 /// The length of the vector scratch buffer the relaxation needs for `vertex_count` vertices:
-/// `5 * vertex_count` (the start positions, two gradients, a trial point and the direction).
+/// `5 * vertex_count` (the start positions, two gradients, a second point buffer that trades
+/// places with `positions` as iterate and trial point, and the direction).
 /// The scalar scratch buffer has one entry per vertex.
 #[inline]
 #[must_use]
