@@ -134,6 +134,31 @@ fn run_nalgebra_f32(batch: &[Matrix3<f32>]) -> f32 {
     })
 }
 
+/// A lower bound for any scalar 3x3 Jacobi SVD with exact rotations: only the chain of dependent
+/// operations of `DEFAULT_SWEEPS` sweeps (three rotations each, every rotation needing the
+/// previous one's result), as `jacobi_rotation` and `apply_symmetric` in `src/svd.rs` form it:
+/// `r = sqrt(d^2 + y^2)`, `h = sqrt((|d| + r)^2 + y^2)`, and the next off-diagonal entry
+/// `(|d| + r) (q - t p) / h`. No `v`, no QR, no sorting: the real `svd3` does all of this and
+/// more, so it cannot be faster than this row.
+fn run_rotation_chain(batch: &[Mat3]) -> f32 {
+    let rotations = 3 * softfem::svd::DEFAULT_SWEEPS;
+    batch.iter().fold(0.0, |acc, &m| {
+        let m = black_box(m);
+        let (mut d, mut apq, other) = (m.x_axis.x - m.y_axis.y, m.y_axis.x, m.z_axis.x);
+        for _ in 0..rotations {
+            let y = apq + apq;
+            let r = (d * d + y * y).sqrt();
+            let den = d.abs() + r;
+            let h = (den * den + y * y).sqrt();
+            let t = y / den;
+            let next = den * (other - t * apq) / h;
+            d -= t * apq;
+            apq = next;
+        }
+        acc + apq + d
+    })
+}
+
 /// A benchmarked variant: its table label and one pass over the batch.
 struct Variant<'a> {
     label: String,
@@ -176,6 +201,15 @@ fn variants(inputs: &Inputs) -> Vec<Variant<'_>> {
             run_batch: Box::new(|| run_softfem_f64_lanes(&inputs.f64)),
         },
     ];
+    variants.push(Variant {
+        label: format!(
+            "lower bound: the {} dependent rotations of {} sweeps alone (2 square roots and a \
+             division each, nothing else)",
+            3 * softfem::svd::DEFAULT_SWEEPS,
+            softfem::svd::DEFAULT_SWEEPS
+        ),
+        run_batch: Box::new(|| f64::from(run_rotation_chain(&inputs.f32))),
+    });
     for sweeps in SWEEP_COUNTS {
         variants.push(Variant {
             label: format!(
