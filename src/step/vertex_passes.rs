@@ -184,16 +184,10 @@ fn free_group(pinned: &[bool], k: usize) -> <Lanes as Lane>::Mask {
     })))
 }
 
-/// Whether vertex `i` is free.
-#[inline(always)]
-fn free_single(pinned: &[bool], i: usize) -> bool {
-    !pinned.get(i).copied().unwrap_or(false)
-}
-
-/// Whether vertex `i` is free, as [`Frame::moved`] takes it.
+/// Whether vertex `i` is free, as the one-vertex code takes it.
 #[inline(always)]
 fn free_one(pinned: &[bool], i: usize) -> Option<bool> {
-    Some(free_single(pinned, i))
+    Some(!pinned.get(i).copied().unwrap_or(false))
 }
 
 impl<'a, V: Grouped> Vertices<'a, V> {
@@ -208,11 +202,20 @@ impl<'a, V: Grouped> Vertices<'a, V> {
         }
     }
 
-    /// The preconditioner `P_i = k_i + m_i / h^2` of the vertices of `stiffness` and `masses`
-    /// (chunks or single entries).
+    /// The preconditioners `P_i = k_i + m_i / h^2` of the whole groups, in order.
     #[inline(always)]
-    fn diagonal<L: Lane>(frame_inertia: L, stiffness: L, masses: L) -> L {
-        stiffness + masses * frame_inertia
+    fn diagonal_groups(&self, inertia: Lanes) -> impl Iterator<Item = Lanes> + 'a {
+        let stiffness = self.stiffness.chunks_exact(LANES);
+        stiffness
+            .zip(self.masses.chunks_exact(LANES))
+            .map(move |(k, m)| load_scalars(k) + load_scalars(m) * inertia)
+    }
+
+    /// The preconditioner of vertex `i`.
+    #[inline(always)]
+    fn diagonal_one(&self, inertia: Real, i: usize) -> Real {
+        let at = |values: &[Real]| values.get(i).copied().unwrap_or(0.0);
+        at(self.stiffness) + at(self.masses) * inertia
     }
 }
 
@@ -228,16 +231,14 @@ pub(super) fn gradient_pass<V: Grouped>(
     let (mut phi, mut residual) = (LaneSum::new(x.len()), LaneSum::new(x.len()));
     let velocities = vertices.velocities();
     let frame = &frames.group;
-    let groups = gradient
-        .chunks_exact_mut(LANES)
-        .zip(x.chunks_exact(LANES))
-        .zip(vertices.start.chunks_exact(LANES))
-        .zip(velocities.chunks_exact(LANES))
-        .zip(vertices.masses.chunks_exact(LANES));
     let mut done = 0;
-    // Where grouping pays (see `math::BATCH_VERTICES`); the loop below does every vertex
-    // otherwise, with the same bits.
     if BATCH_VERTICES {
+        let groups = gradient
+            .chunks_exact_mut(LANES)
+            .zip(x.chunks_exact(LANES))
+            .zip(vertices.start.chunks_exact(LANES))
+            .zip(velocities.chunks_exact(LANES))
+            .zip(vertices.masses.chunks_exact(LANES));
         for (k, ((((g, x), start), velocity), m)) in groups.enumerate() {
             let (gradient, phi_term, residual_term) = frame.gradient(
                 load(x),
@@ -280,6 +281,21 @@ pub(super) struct TrialPoint<'t, V> {
     pub gradient: &'t mut [V],
 }
 
+impl<V> TrialPoint<'_, V> {
+    /// The point and gradient chunks of the whole groups.
+    #[inline(always)]
+    fn groups(&mut self) -> impl Iterator<Item = (&mut [V], &mut [V])> {
+        let points = self.positions.chunks_exact_mut(LANES);
+        points.zip(self.gradient.chunks_exact_mut(LANES))
+    }
+
+    /// The point and gradient entries of every vertex.
+    #[inline(always)]
+    fn rows(&mut self) -> impl Iterator<Item = (&mut V, &mut V)> {
+        self.positions.iter_mut().zip(self.gradient.iter_mut())
+    }
+}
+
 /// Writes the projected preconditioned direction at `x` (with gradient `gradient`; plus
 /// `momentum` times the last step `x_k - x_{k-1}`, `x_{k-1}` read from `trial.positions`, when
 /// given) into `direction`, and in the same pass the trial point `x + alpha d` (projected on the
@@ -291,31 +307,21 @@ pub(super) fn direction_pass<V: Grouped>(
     (x, gradient): (&[V], &[V]),
     direction: &mut [V],
     momentum: Option<Real>,
-    trial: TrialPoint<'_, V>,
+    mut trial: TrialPoint<'_, V>,
     alpha: Real,
 ) -> Real {
     let mut slope = LaneSum::new(x.len());
     let frame = &frames.group;
     let (lanes_alpha, lanes_momentum) = (Lanes::splat(alpha), momentum.map(Lanes::splat));
-    let groups = direction
-        .chunks_exact_mut(LANES)
-        .zip(trial.positions.chunks_exact_mut(LANES))
-        .zip(trial.gradient.chunks_exact_mut(LANES))
-        .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
-        .zip(
-            vertices
-                .stiffness
-                .chunks_exact(LANES)
-                .zip(vertices.masses.chunks_exact(LANES)),
-        );
     let mut done = 0;
-    // Where grouping pays (see `math::BATCH_VERTICES`); the loop below does every vertex
-    // otherwise, with the same bits.
     if BATCH_VERTICES {
-        for (k, ((((d_slot, t_slot), g_slot), (x, g)), (stiffness, m))) in groups.enumerate() {
+        let groups = direction
+            .chunks_exact_mut(LANES)
+            .zip(trial.groups())
+            .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
+            .zip(vertices.diagonal_groups(frame.inertia));
+        for (k, (((d_slot, (t_slot, g_slot)), (x, g)), p)) in groups.enumerate() {
             let position = load(x);
-            let p =
-                Vertices::<V>::diagonal(frame.inertia, load_scalars(stiffness), load_scalars(m));
             let heavy_ball = lanes_momentum.map(|m| (load(t_slot), m));
             let (d, slope_term) = frame.direction(position, load(g), p, heavy_ball);
             store(d_slot, d);
@@ -332,13 +338,11 @@ pub(super) fn direction_pass<V: Grouped>(
     let frame = &frames.single;
     let rows = direction
         .iter_mut()
-        .zip(trial.positions.iter_mut())
-        .zip(trial.gradient.iter_mut())
+        .zip(trial.rows())
         .zip(x.iter().zip(gradient))
         .enumerate();
-    for (i, (((d_slot, t_slot), g_slot), (&x, &g))) in rows.skip(done) {
-        let at = |values: &[Real]| values.get(i).copied().unwrap_or(0.0);
-        let p = Vertices::<V>::diagonal(frame.inertia, at(vertices.stiffness), at(vertices.masses));
+    for (i, ((d_slot, (t_slot, g_slot)), (&x, &g))) in rows.skip(done) {
+        let p = vertices.diagonal_one(frame.inertia, i);
         let heavy_ball = momentum.map(|m| (*t_slot, m));
         let (d, slope_term) = frame.direction(x, g, p, heavy_ball);
         *d_slot = d;
@@ -356,19 +360,15 @@ pub(super) fn trial_pass<V: Grouped>(
     pinned: &[bool],
     (x, direction): (&[V], &[V]),
     alpha: Real,
-    trial: TrialPoint<'_, V>,
+    mut trial: TrialPoint<'_, V>,
 ) {
     let frame = &frames.group;
     let lanes_alpha = Lanes::splat(alpha);
-    let groups = trial
-        .positions
-        .chunks_exact_mut(LANES)
-        .zip(trial.gradient.chunks_exact_mut(LANES))
-        .zip(x.chunks_exact(LANES).zip(direction.chunks_exact(LANES)));
     let mut done = 0;
-    // Where grouping pays (see `math::BATCH_VERTICES`); the loop below does every vertex
-    // otherwise, with the same bits.
     if BATCH_VERTICES {
+        let groups = trial
+            .groups()
+            .zip(x.chunks_exact(LANES).zip(direction.chunks_exact(LANES)));
         for (k, ((t_slot, g_slot), (x, d))) in groups.enumerate() {
             let position = load(x);
             let target = position + load(d).scale(lanes_alpha);
@@ -378,12 +378,7 @@ pub(super) fn trial_pass<V: Grouped>(
         }
     }
     let frame = &frames.single;
-    let rows = trial
-        .positions
-        .iter_mut()
-        .zip(trial.gradient.iter_mut())
-        .zip(x.iter().zip(direction))
-        .enumerate();
+    let rows = trial.rows().zip(x.iter().zip(direction)).enumerate();
     for (i, ((t_slot, g_slot), (&x, &d))) in rows.skip(done) {
         *t_slot = frame.moved(x, x + d.scale(alpha), free_one(pinned, i));
         *g_slot = V::zero();
@@ -400,36 +395,25 @@ pub(super) fn chebyshev_pass<V: Grouped>(
     vertices: &Vertices<'_, V>,
     (x, gradient): (&[V], &[V]),
     stepped: bool,
-    trial: TrialPoint<'_, V>,
+    mut trial: TrialPoint<'_, V>,
     step: Real,
     omega: Real,
 ) {
     let frame = &frames.group;
     let (lanes_step, lanes_weight) = (Lanes::splat(step), Lanes::splat(omega - 1.0));
-    let groups = trial
-        .positions
-        .chunks_exact_mut(LANES)
-        .zip(trial.gradient.chunks_exact_mut(LANES))
-        .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
-        .zip(
-            vertices
-                .stiffness
-                .chunks_exact(LANES)
-                .zip(vertices.masses.chunks_exact(LANES)),
-        );
     let mut done = 0;
-    // Where grouping pays (see `math::BATCH_VERTICES`); the loop below does every vertex
-    // otherwise, with the same bits.
     if BATCH_VERTICES {
-        for (k, (((t_slot, g_slot), (x, g)), (stiffness, m))) in groups.enumerate() {
+        let groups = trial
+            .groups()
+            .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
+            .zip(vertices.diagonal_groups(frame.inertia));
+        for (k, (((t_slot, g_slot), (x, g)), p)) in groups.enumerate() {
             let position = load(x);
             let last_step = if stepped {
                 position - load(t_slot)
             } else {
                 V::Group::zero()
             };
-            let p =
-                Vertices::<V>::diagonal(frame.inertia, load_scalars(stiffness), load_scalars(m));
             let (d, _) = frame.direction(position, load(g), p, None);
             let target = position + d.scale(lanes_step) + last_step.scale(lanes_weight);
             store(
@@ -441,16 +425,10 @@ pub(super) fn chebyshev_pass<V: Grouped>(
         }
     }
     let frame = &frames.single;
-    let rows = trial
-        .positions
-        .iter_mut()
-        .zip(trial.gradient.iter_mut())
-        .zip(x.iter().zip(gradient))
-        .enumerate();
+    let rows = trial.rows().zip(x.iter().zip(gradient)).enumerate();
     for (i, ((t_slot, g_slot), (&x, &g))) in rows.skip(done) {
-        let at = |values: &[Real]| values.get(i).copied().unwrap_or(0.0);
         let last_step = if stepped { x - *t_slot } else { V::zero() };
-        let p = Vertices::<V>::diagonal(frame.inertia, at(vertices.stiffness), at(vertices.masses));
+        let p = vertices.diagonal_one(frame.inertia, i);
         let (d, _) = frame.direction(x, g, p, None);
         let target = x + d.scale(step) + last_step.scale(omega - 1.0);
         *t_slot = frame.moved(x, target, free_one(vertices.pinned, i));
