@@ -358,3 +358,47 @@ impl<P: Point> Floor<P> {
         P::select(contact, P::select(into, v - normal.scale(along), v), v)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::super::lanes::{LANES, Lane, LaneVec3, Lanes};
+    use super::super::super::types::{Real, Vec3};
+    use super::super::Ground;
+    use super::{Floor, Grouped};
+
+    /// The contact test holds at equality: a vertex exactly at the origin, on a ground plane
+    /// through it, has height 0 and tolerance 0, and is in contact (one at a time and in every
+    /// lane); just above the tolerance it is not, and a NaN position never is.
+    #[test]
+    fn contact_holds_at_equality_in_every_representation() {
+        let ground = Ground::new(Vec3::Z, 0.0);
+        let one = Floor::<Vec3>::new(Some(&ground));
+        let lanes = Floor::<LaneVec3<Lanes>>::new(Some(&ground));
+        let above = Vec3::new(1.0, 0.0, 1e-3);
+        let cases = [
+            Vec3::ZERO,
+            Vec3::new(0.5, -0.25, 0.0),
+            above,
+            Vec3::splat(Real::NAN),
+        ];
+        let expected = [true, true, false, false];
+        for (x, &contact) in cases.iter().zip(&expected) {
+            assert_eq!(one.contact(*x), Some(contact), "{x}");
+        }
+        let mut group = [Vec3::ZERO; LANES];
+        group.copy_from_slice(&cases[..LANES]);
+        let mask = lanes.contact(Vec3::group(group)).unwrap();
+        let flags = Lanes::select(mask, Lanes::splat(1.0), Lanes::splat(0.0)).to_array();
+        assert_eq!(flags.map(|f| f == 1.0), expected);
+        // Projection moves only the vertices inside.
+        let inside = Vec3::new(0.0, 0.0, -0.5);
+        assert_eq!(one.project(inside), Vec3::ZERO);
+        assert_eq!(one.project(above), above);
+        let projected = Vec3::ungroup(lanes.project(Vec3::group([inside, above, inside, above])));
+        assert_eq!(projected, [Vec3::ZERO, above, Vec3::ZERO, above]);
+        // Without a ground nothing is in contact or moved.
+        let none = Floor::<Vec3>::new(None);
+        assert_eq!(none.contact(Vec3::ZERO), None);
+        assert_eq!(none.project(inside), inside);
+    }
+}
