@@ -104,7 +104,9 @@
 //! on every step after landing.
 //!
 //! Jobs, one file each: [`explicit`](step_explicit) stepping, [`stability`](stable_time_step)
-//! bounds, [`relax`](relax_step)ation and the [`ground`](Ground) contact.
+//! bounds, [`relax`](relax_step)ation, its passes over the vertices (`vertex_passes.rs`, four
+//! vertices at a time on x86_64, with the per-vertex arithmetic of `points.rs`) and the
+//! [`ground`](Ground) contact.
 
 use core::fmt::Debug;
 
