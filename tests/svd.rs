@@ -664,6 +664,49 @@ fn svd3_is_svd3_sweeps_with_default_sweeps() {
     default_is_default_sweeps::<F64>();
 }
 
+/// The sweeps stop once converged: a diagonal matrix needs none, a nearly undeformed element
+/// (`I + 1e-3 noise`, whose singular values are clustered within 1e-3) at most `near_identity`,
+/// and extra sweeps then change no bit; general matrices still use the default count, so the
+/// knob keeps its meaning.
+fn sweeps_stop_once_converged<P: Svd>(near_identity: u32) {
+    let mut rng = Rng::new(0x5eed_c0de);
+    for diagonal in [
+        DVec3::new(3.0, 2.0, 1.0),
+        DVec3::ONE,
+        DVec3::new(2.0, -1.0, 0.5),
+    ] {
+        let a = DMat3::from_diagonal(diagonal);
+        assert_eq!(
+            P::svd_sweeps(a, 0),
+            P::svd_sweeps(a, 8),
+            "{}: {}",
+            P::NAME,
+            P::show(a)
+        );
+    }
+    for _ in 0..200 {
+        let a = DMat3::IDENTITY + rng.entries() * 1e-3;
+        let early = P::svd_sweeps(a, near_identity);
+        assert_eq!(early, P::svd_sweeps(a, 8), "{}: {}", P::NAME, P::show(a));
+    }
+    let needing_all = (0..200)
+        .map(|_| rng.entries())
+        .filter(|&a| P::svd_sweeps(a, P::default_sweeps() - 1) != P::svd(a))
+        .count();
+    assert!(
+        needing_all > 0,
+        "{}: no random matrix used all sweeps",
+        P::NAME
+    );
+}
+
+#[test]
+fn jacobi_sweeps_stop_once_converged() {
+    // f64's criterion (eps = 2.2e-16) takes one sweep more than f32's.
+    sweeps_stop_once_converged::<F32>(3);
+    sweeps_stop_once_converged::<F64>(4);
+}
+
 /// The bits of a decomposition, so that NaN outputs compare equal to themselves.
 fn bits(svd: &Wide) -> [u64; 21] {
     let mut out = [0; 21];
