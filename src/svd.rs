@@ -268,7 +268,7 @@ fn decompose_scaled<L: Lane>(
         // diagonal entries (Demmel and Veselic's relative criterion): no rotation could then
         // change the decomposition beyond rounding. One value stops; a lane that has converged
         // keeps its values through the sweeps the others still need (the select below), which
-        // gives it the bits of the one-value run. The test is squared, with no square root.
+        // gives it the bits of the one-value run.
         let excess = s.convergence_excess();
         let zero = L::splat(0.0);
         let active = excess.gt(zero);
@@ -415,15 +415,22 @@ struct SymmetricEntries<L> {
 }
 
 impl<L: Lane> SymmetricEntries<L> {
-    /// `max over pairs of s_pq^2 - eps^2 s_pp s_qq`: positive where some off-diagonal entry
-    /// exceeds `eps sqrt(s_pp s_qq)` (the lane has not converged).
+    /// `max over pairs of |s_pq| - eps sqrt|s_pp| sqrt|s_qq|`: positive where some off-diagonal
+    /// entry exceeds `eps sqrt(s_pp s_qq)` (the lane has not converged). Formed from square
+    /// roots rather than squared, so that it cannot underflow for the tiny entries of a nearly
+    /// rank-deficient matrix (whose fourth powers would).
     #[inline(always)]
     fn convergence_excess(&self) -> L {
-        let eps_squared = L::splat(Real::EPSILON * Real::EPSILON);
-        let excess = |spq: L, spp: L, sqq: L| spq * spq - eps_squared * (spp * sqq);
-        excess(self.s01, self.s00, self.s11)
-            .max(excess(self.s02, self.s00, self.s22))
-            .max(excess(self.s12, self.s11, self.s22))
+        let eps = L::splat(Real::EPSILON);
+        let (r0, r1, r2) = (
+            self.s00.abs().sqrt(),
+            self.s11.abs().sqrt(),
+            self.s22.abs().sqrt(),
+        );
+        let excess = |spq: L, rp: L, rq: L| spq.abs() - eps * (rp * rq);
+        excess(self.s01, r0, r1)
+            .max(excess(self.s02, r0, r2))
+            .max(excess(self.s12, r1, r2))
     }
 
     /// `mask ? a : b`, per lane.

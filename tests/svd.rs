@@ -664,18 +664,18 @@ fn svd3_is_svd3_sweeps_with_default_sweeps() {
     default_is_default_sweeps::<F64>();
 }
 
-/// The sweeps stop once converged: a diagonal matrix needs none, a nearly undeformed element
+/// The sweeps stop once converged: a nearly diagonal matrix needs none, a nearly undeformed element
 /// (`I + 1e-3 noise`, whose singular values are clustered within 1e-3) at most `near_identity`,
 /// and extra sweeps then change no bit; general matrices still use the default count, so the
 /// knob keeps its meaning.
-fn sweeps_stop_once_converged<P: Svd>(near_identity: u32) {
+fn sweeps_stop_once_converged<P: Svd>(near_identity: u32, tiny: f64) {
     let mut rng = Rng::new(0x5eed_c0de);
-    for diagonal in [
-        DVec3::new(3.0, 2.0, 1.0),
-        DVec3::ONE,
-        DVec3::new(2.0, -1.0, 0.5),
-    ] {
-        let a = DMat3::from_diagonal(diagonal);
+    // Diagonal up to off-diagonal entries `tiny`, far below the criterion (about 1e-4 eps of
+    // the diagonal): converged before the first sweep. A sweep would still rotate by angles of
+    // that size and change bits, so this tells stopping from running.
+    let noise = DMat3::from_cols_array(&[0.0, 1.0, -1.0, 0.5, 0.0, 1.0, -0.5, 1.0, 0.0]);
+    for diagonal in [DVec3::new(3.0, 2.0, 1.0), DVec3::new(2.0, -1.0, 0.5)] {
+        let a = P::round(DMat3::from_diagonal(diagonal) + noise * tiny);
         assert_eq!(
             P::svd_sweeps(a, 0),
             P::svd_sweeps(a, 8),
@@ -703,8 +703,8 @@ fn sweeps_stop_once_converged<P: Svd>(near_identity: u32) {
 #[test]
 fn jacobi_sweeps_stop_once_converged() {
     // f64's criterion (eps = 2.2e-16) takes one sweep more than f32's.
-    sweeps_stop_once_converged::<F32>(3);
-    sweeps_stop_once_converged::<F64>(4);
+    sweeps_stop_once_converged::<F32>(3, 1e-11);
+    sweeps_stop_once_converged::<F64>(4, 1e-20);
 }
 
 /// The bits of a decomposition, so that NaN outputs compare equal to themselves.
