@@ -35,7 +35,7 @@ pub(crate) mod math {
     /// at a time, and the same sums): on x86_64, where it made a relaxation iteration on a
     /// 105k-tet box 1.42x -> 1.29x a force evaluation. Not on a Cortex-M4F: there the grouped
     /// passes took 2.3x the instructions per vertex (4 020 against 1 750 per vertex iteration),
-    /// 3.5x the code (50 258 against 14 460 B) and 2.6x the stack of `relax_step`
+    /// 3.5x the code (50 258 against about 14 500 B) and 2.6x the stack of `relax_step`
     /// (`tests/firmware.rs`).
     pub const BATCH_VERTICES: bool = cfg!(target_arch = "x86_64");
 

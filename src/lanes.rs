@@ -31,6 +31,58 @@ mod sealed {
     impl Sealed for super::Lanes {}
 }
 
+/// A sum over `n` items (vertices, elements) in a fixed order, grouped or not: item `i` of the
+/// first `n - n % LANES` adds to partial sum `i % LANES`, the partial sums are added as
+/// `(s0 + s1) + (s2 + s3)`, then the last `n % LANES` terms in order. Groups add one term per
+/// lane to the partial sums, so a grouped pass and a one-at-a-time pass give the same bits.
+#[derive(Clone, Copy)]
+pub(crate) struct LaneSum {
+    /// The partial sums of the groups.
+    lanes: Lanes,
+    /// The partial sums of whole-group items taken one at a time.
+    single: [Real; LANES],
+    /// The terms after the whole groups.
+    tail: Real,
+    /// `n - n % LANES`.
+    whole: usize,
+}
+
+impl LaneSum {
+    /// Zero, for a sum over `n` items.
+    #[inline(always)]
+    pub fn new(n: usize) -> Self {
+        LaneSum {
+            lanes: Lanes::splat(0.0),
+            single: [0.0; LANES],
+            tail: 0.0,
+            whole: n - n % LANES,
+        }
+    }
+
+    /// Adds one term per lane of a group.
+    #[inline(always)]
+    pub fn add_group(&mut self, terms: Lanes) {
+        self.lanes = self.lanes + terms;
+    }
+
+    /// Adds the term of item `i`, taken one at a time.
+    #[inline(always)]
+    pub fn add_single(&mut self, i: usize, term: Real) {
+        match self.single.get_mut(i % LANES) {
+            Some(partial) if i < self.whole => *partial += term,
+            _ => self.tail += term,
+        }
+    }
+
+    /// The total.
+    #[inline(always)]
+    pub fn total(self) -> Real {
+        // One of `lanes` and `single` holds the partial sums, the other zeros.
+        let [a, b, c, d] = (self.lanes + Lanes::from_array(self.single)).to_array();
+        ((a + b) + (c + d)) + self.tail
+    }
+}
+
 /// A scalar-like number type: [`Real`] itself or a group of [`Lanes`]. Sealed: implemented by
 /// this crate's two types only.
 pub trait Lane:
@@ -369,5 +421,50 @@ impl From<LaneMat3<Real>> for Mat3 {
     #[inline(always)]
     fn from(m: LaneMat3<Real>) -> Self {
         Mat3::from_cols(m.c0.into(), m.c1.into(), m.c2.into())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{LANES, LaneSum, Lanes};
+
+    /// Terms of very different magnitudes and both signs, whose rounded sum depends on the order.
+    fn term(i: usize) -> super::Real {
+        let k = i as super::Real;
+        (1.0 + 0.37 * k)
+            * if i % 3 == 0 { 1.0e6 } else { 1.0e-3 }
+            * if i % 2 == 0 { 1.0 } else { -1.0 }
+    }
+
+    /// Groups plus a tail, and every item one at a time, give the same bits, and both follow the
+    /// documented order, for every remainder.
+    #[test]
+    fn lane_sums_give_the_same_bits_grouped_or_not() {
+        for n in [0, 1, 3, 4, 5, 8, 11, 13] {
+            let whole = n - n % LANES;
+            let mut grouped = LaneSum::new(n);
+            for start in (0..whole).step_by(LANES) {
+                grouped.add_group(Lanes::from_array(core::array::from_fn(|j| term(start + j))));
+            }
+            for i in whole..n {
+                grouped.add_single(i, term(i));
+            }
+            let mut single = LaneSum::new(n);
+            for i in 0..n {
+                single.add_single(i, term(i));
+            }
+            let mut partial = [0.0; LANES];
+            let mut last = 0.0;
+            for i in 0..n {
+                if i < whole {
+                    partial[i % LANES] += term(i);
+                } else {
+                    last += term(i);
+                }
+            }
+            let expected = ((partial[0] + partial[1]) + (partial[2] + partial[3])) + last;
+            assert_eq!(grouped.total().to_bits(), expected.to_bits(), "n = {n}");
+            assert_eq!(single.total().to_bits(), expected.to_bits(), "n = {n}");
+        }
     }
 }

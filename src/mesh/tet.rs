@@ -1,7 +1,7 @@
 //! Tetrahedral meshes.
 
 use super::super::element::TetRest;
-use super::super::lanes::{LANES, Lane, Lanes};
+use super::super::lanes::{LANES, LaneSum};
 use super::super::material::Material;
 use super::super::math::{BATCH_FORCES, BATCH_SVD};
 use super::super::svd::{Svd3, svd3, svd3_lanes};
@@ -186,38 +186,34 @@ impl<'a> TetMesh<'a> {
     ) -> Result<Real, MeshError> {
         check_length(Buffer::Positions, self.vertex_count, positions.len())?;
         check_length(Buffer::Forces, self.vertex_count, forces.len())?;
-        let whole = self.tets.len() - self.tets.len() % LANES;
+        let mut energy = LaneSum::new(self.tets.len());
         let (groups, tail) = self.groups_and_tail(BATCH_FORCES);
-        let mut grouped = Lanes::splat(0.0);
         for group in groups {
             let gradients = GroupGradients::new(positions, group);
             let (density, p) = material.energy_and_first_piola_lanes(gradients.f);
-            grouped = grouped + gradients.volume * density;
+            energy.add_group(gradients.volume * density);
             gradients.scatter_forces(group.0, p, forces);
         }
-        // Elements of whole groups evaluated one at a time (all of them without batching), by
-        // the lane they would have had, and the elements after the last whole group.
-        let mut single = [0.0; LANES];
-        let mut last = 0.0;
-        let first = if BATCH_FORCES { whole } else { 0 };
+        // The elements after the groups (all of them without batching), by index.
+        let first = if BATCH_FORCES {
+            self.tets.len() - self.tets.len() % LANES
+        } else {
+            0
+        };
         for (i, (corners, rest)) in (first..).zip(tail) {
             let f = rest.deformation_gradient(gather(positions, corners));
             let (density, stress) = material.energy_and_first_piola(f);
-            let energy = rest.volume * density;
-            match single.get_mut(i % LANES) {
-                Some(partial) if i < whole => *partial += energy,
-                _ => last += energy,
-            }
+            energy.add_single(i, rest.volume * density);
             scatter_add(forces, corners, rest.nodal_forces(stress));
         }
-        // One of `grouped` and `single` holds the partial sums, the other zeros.
-        let [s0, s1, s2, s3] = (grouped + Lanes::from_array(single)).to_array();
-        Ok(((s0 + s1) + (s2 + s3)) + last)
+        Ok(energy.total())
     }
 
-    /// The total elastic energy `sum V W(F)` (J) of `material` at deformed `positions` (m).
-    /// Infinite or NaN if the material is (e.g. [`NeoHookean`](super::super::material::NeoHookean)
-    /// with a flat element).
+    /// The total elastic energy `sum V W(F)` (J) of `material` at deformed `positions` (m),
+    /// summed element by element in order. Infinite or NaN if the material is (e.g.
+    /// [`NeoHookean`](super::super::material::NeoHookean) with a flat element). The steppers'
+    /// fused energy-and-force pass sums the same terms in four interleaved partial sums, so the
+    /// two totals can differ in the last bits.
     ///
     /// # Errors
     /// As [`add_elastic_forces`](TetMesh::add_elastic_forces) for `positions`.

@@ -1,10 +1,12 @@
 //! Per-vertex arithmetic written once for one vertex and for a group of [`LANES`] vertices.
 //!
-//! The relaxation's vertex passes (gradient, direction, trial points) run [`LANES`] vertices at a
-//! time as [`Point`]s with [`Lanes`] coordinates, and the last `n % LANES` one at a time with the
-//! plain vector, through the same generic code: element-wise IEEE operations and selects instead
-//! of branches, so every vertex gets the same bits either way. Sums over vertices are kept per
-//! lane and added at the end in a fixed order (see [`LaneSum`]), on every target alike.
+//! The relaxation's vertex passes (gradient, direction, trial points; `vertex_passes.rs`) run on
+//! x86_64 [`LANES`] vertices at a time as [`Point`]s with [`Lanes`] coordinates and the rest one at
+//! a time with the plain vector, elsewhere every vertex one at a time, through the same generic
+//! code: element-wise IEEE operations and selects instead of branches, so every vertex gets the
+//! same bits either way. Sums over vertices follow one fixed order on every target (`LaneSum` in
+//! `lanes.rs`). `LaneVec2` lives here rather than next to `LaneVec3`: only the steppers need 2D
+//! lanes.
 
 use core::ops::{Add, Neg, Sub};
 
@@ -241,58 +243,6 @@ impl Grouped for Vec3 {
     }
 }
 
-/// A sum over `n` vertices in a fixed order, grouped or not: vertex `i` of the first
-/// `n - n % LANES` adds to partial sum `i % LANES`, the partial sums are added as
-/// `(s0 + s1) + (s2 + s3)`, then the last `n % LANES` terms in order. Groups add one term per
-/// lane to the partial sums, so a grouped pass and a one-at-a-time pass give the same bits.
-#[derive(Clone, Copy)]
-pub(crate) struct LaneSum {
-    /// The partial sums of the groups.
-    lanes: Lanes,
-    /// The partial sums of whole-group vertices taken one at a time.
-    single: [Real; LANES],
-    /// The terms after the whole groups.
-    tail: Real,
-    /// `n - n % LANES`.
-    whole: usize,
-}
-
-impl LaneSum {
-    /// Zero, for a sum over `n` vertices.
-    #[inline(always)]
-    pub fn new(n: usize) -> Self {
-        LaneSum {
-            lanes: Lanes::splat(0.0),
-            single: [0.0; LANES],
-            tail: 0.0,
-            whole: n - n % LANES,
-        }
-    }
-
-    /// Adds one term per lane of a group.
-    #[inline(always)]
-    pub fn add_group(&mut self, terms: Lanes) {
-        self.lanes = self.lanes + terms;
-    }
-
-    /// Adds the term of vertex `i`, taken one at a time.
-    #[inline(always)]
-    pub fn add_single(&mut self, i: usize, term: Real) {
-        match self.single.get_mut(i % LANES) {
-            Some(partial) if i < self.whole => *partial += term,
-            _ => self.tail += term,
-        }
-    }
-
-    /// The total.
-    #[inline(always)]
-    pub fn total(self) -> Real {
-        // One of `lanes` and `single` holds the partial sums, the other zeros.
-        let [a, b, c, d] = (self.lanes + Lanes::from_array(self.single)).to_array();
-        ((a + b) + (c + d)) + self.tail
-    }
-}
-
 /// The ground as seen by [`Point`]s (or no ground): contact tests and projections, the same bits
 /// for one vertex and for a lane.
 #[derive(Clone, Copy)]
@@ -317,7 +267,7 @@ impl<P: Point> Floor<P> {
     }
 
     /// Whether `x` touches the ground within rounding of the projection: height at most
-    /// `16 eps (|offset| + |x|_1)`. Always false without a ground.
+    /// `16 eps (|offset| + |x|_1)`. `None` without a ground.
     #[inline(always)]
     pub fn contact(&self, x: P) -> Option<<P::Scalar as Lane>::Mask> {
         let (normal, offset) = self.plane?;

@@ -194,8 +194,8 @@ impl<V: Vector> RelaxSettings<V> {
 pub struct RelaxReport {
     /// Accepted descent iterations.
     pub iterations: u32,
-    /// Evaluations of `Phi` and its gradient (one per trial point, plus one or two for the
-    /// initial guess).
+    /// Evaluations of `Phi` and its gradient (one per trial point, plus one to three for the
+    /// initial guess: `y + h^2 g`, `y`, and `x_n` if neither is finite).
     pub energy_evaluations: u32,
     /// `|grad Phi|` (N) at the initial guess (projected on the ground's constraint).
     pub initial_residual: Real,

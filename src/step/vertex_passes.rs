@@ -4,11 +4,11 @@
 //! a time, elsewhere every vertex one at a time, through the same generic per-vertex code, so
 //! that every vertex gets the same bits either way and every target the same sums.
 
-use super::super::lanes::{LANES, Lane, Lanes, each_lane};
+use super::super::lanes::{LANES, Lane, LaneSum, Lanes, each_lane};
 use super::super::math::BATCH_VERTICES;
 use super::super::types::Real;
 use super::Ground;
-use super::points::{Floor, Grouped, LaneSum, Point};
+use super::points::{Floor, Grouped, Point};
 
 /// What every vertex pass needs besides the buffers, for points of type `P`.
 #[derive(Clone, Copy)]
