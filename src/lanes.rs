@@ -35,12 +35,15 @@ mod sealed {
 /// first `n - n % LANES` adds to partial sum `i % LANES`, the partial sums are added as
 /// `(s0 + s1) + (s2 + s3)`, then the last `n % LANES` terms in order. Groups add one term per
 /// lane to the partial sums, so a grouped pass and a one-at-a-time pass give the same bits.
+///
+/// The partial sums are separate fields, not an array indexed by `i % LANES`, which would keep
+/// the whole sum, the grouped loop's running sum included, in memory rather than in registers.
 #[derive(Clone, Copy)]
 pub(crate) struct LaneSum {
     /// The partial sums of the groups.
     lanes: Lanes,
-    /// The partial sums of whole-group items taken one at a time.
-    single: [Real; LANES],
+    /// The partial sums of whole-group items taken one at a time, by lane.
+    single: (Real, Real, Real, Real),
     /// The terms after the whole groups.
     tail: Real,
     /// `n - n % LANES`.
@@ -53,7 +56,7 @@ impl LaneSum {
     pub fn new(n: usize) -> Self {
         LaneSum {
             lanes: Lanes::splat(0.0),
-            single: [0.0; LANES],
+            single: (0.0, 0.0, 0.0, 0.0),
             tail: 0.0,
             whole: n - n % LANES,
         }
@@ -68,9 +71,16 @@ impl LaneSum {
     /// Adds the term of item `i`, taken one at a time.
     #[inline(always)]
     pub fn add_single(&mut self, i: usize, term: Real) {
-        match self.single.get_mut(i % LANES) {
-            Some(partial) if i < self.whole => *partial += term,
-            _ => self.tail += term,
+        if i >= self.whole {
+            self.tail += term;
+            return;
+        }
+        let single = &mut self.single;
+        match i % LANES {
+            0 => single.0 += term,
+            1 => single.1 += term,
+            2 => single.2 += term,
+            _ => single.3 += term,
         }
     }
 
@@ -78,7 +88,8 @@ impl LaneSum {
     #[inline(always)]
     pub fn total(self) -> Real {
         // One of `lanes` and `single` holds the partial sums, the other zeros.
-        let [a, b, c, d] = (self.lanes + Lanes::from_array(self.single)).to_array();
+        let (s0, s1, s2, s3) = self.single;
+        let [a, b, c, d] = (self.lanes + Lanes::from_array([s0, s1, s2, s3])).to_array();
         ((a + b) + (c + d)) + self.tail
     }
 }

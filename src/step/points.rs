@@ -266,6 +266,20 @@ impl<P: Point> Floor<P> {
         }
     }
 
+    /// The same ground for groups of [`LANES`] vectors.
+    #[inline(always)]
+    pub fn grouped(&self) -> Floor<P::Group>
+    where
+        P: Grouped,
+    {
+        Floor {
+            plane: self
+                .plane
+                .map(|(normal, offset)| (P::Group::splat(normal), Lanes::splat(offset))),
+            slack: Lanes::splat(self.slack),
+        }
+    }
+
     /// Whether `x` touches the ground within rounding of the projection: height at most
     /// `16 eps (|offset| + |x|_1)`. `None` without a ground.
     #[inline(always)]

@@ -101,11 +101,11 @@ impl<P: Point> Frame<P> {
     }
 }
 
-/// [`Frame`] for single vertices and for groups.
+/// The [`Frame`] of a solve, for single vertices; [`group`](Frames::group) gives the same for
+/// groups, built only where the passes group (`math::BATCH_VERTICES`).
 #[derive(Clone, Copy)]
 pub(super) struct Frames<V: Grouped> {
     single: Frame<V>,
-    group: Frame<V::Group>,
 }
 
 impl<V: Grouped> Frames<V> {
@@ -114,7 +114,18 @@ impl<V: Grouped> Frames<V> {
     pub fn new(h: Real, inertia: Real, gravity: V, ground: Option<&Ground<V>>) -> Self {
         Frames {
             single: Frame::new(h, inertia, gravity, ground),
-            group: Frame::new(h, inertia, gravity, ground),
+        }
+    }
+
+    /// The frame for groups of [`LANES`] vertices: every value in every lane.
+    #[inline(always)]
+    fn group(&self) -> Frame<V::Group> {
+        let single = &self.single;
+        Frame {
+            h: Lanes::splat(single.h),
+            inertia: Lanes::splat(single.inertia),
+            gravity: V::Group::splat(single.gravity),
+            floor: single.floor.grouped(),
         }
     }
 
@@ -230,9 +241,9 @@ pub(super) fn gradient_pass<V: Grouped>(
 ) -> (Real, Real) {
     let (mut phi, mut residual) = (LaneSum::new(x.len()), LaneSum::new(x.len()));
     let velocities = vertices.velocities();
-    let frame = &frames.group;
     let mut done = 0;
     if BATCH_VERTICES {
+        let frame = &frames.group();
         let groups = gradient
             .chunks_exact_mut(LANES)
             .zip(x.chunks_exact(LANES))
@@ -311,10 +322,10 @@ pub(super) fn direction_pass<V: Grouped>(
     alpha: Real,
 ) -> Real {
     let mut slope = LaneSum::new(x.len());
-    let frame = &frames.group;
-    let (lanes_alpha, lanes_momentum) = (Lanes::splat(alpha), momentum.map(Lanes::splat));
     let mut done = 0;
     if BATCH_VERTICES {
+        let frame = &frames.group();
+        let (lanes_alpha, lanes_momentum) = (Lanes::splat(alpha), momentum.map(Lanes::splat));
         let groups = direction
             .chunks_exact_mut(LANES)
             .zip(trial.groups())
@@ -362,10 +373,10 @@ pub(super) fn trial_pass<V: Grouped>(
     alpha: Real,
     mut trial: TrialPoint<'_, V>,
 ) {
-    let frame = &frames.group;
-    let lanes_alpha = Lanes::splat(alpha);
     let mut done = 0;
     if BATCH_VERTICES {
+        let frame = &frames.group();
+        let lanes_alpha = Lanes::splat(alpha);
         let groups = trial
             .groups()
             .zip(x.chunks_exact(LANES).zip(direction.chunks_exact(LANES)));
@@ -399,10 +410,10 @@ pub(super) fn chebyshev_pass<V: Grouped>(
     step: Real,
     omega: Real,
 ) {
-    let frame = &frames.group;
-    let (lanes_step, lanes_weight) = (Lanes::splat(step), Lanes::splat(omega - 1.0));
     let mut done = 0;
     if BATCH_VERTICES {
+        let frame = &frames.group();
+        let (lanes_step, lanes_weight) = (Lanes::splat(step), Lanes::splat(omega - 1.0));
         let groups = trial
             .groups()
             .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
