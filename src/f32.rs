@@ -34,8 +34,8 @@ pub(crate) mod math {
     /// Whether the relaxation's vertex passes run [`LANES`] vertices at a time (same bits as one
     /// at a time, and the same sums): on x86_64, where it made a relaxation iteration on a
     /// 105k-tet box 1.42x -> 1.29x a force evaluation. Not on a Cortex-M4F: there the grouped
-    /// passes took 2.3x the instructions per vertex (4 020 against 1 750 per vertex iteration),
-    /// 3.5x the code (50 258 against about 14 500 B) and 2.6x the stack of `relax_step`
+    /// passes took 2.3x the instructions per vertex iteration (4 020 against 1 744), 3.5x the
+    /// code (50 258 against 14 340 B) and 3.8x the stack (4 144 against 1 104 B) of `relax_step`
     /// (`tests/firmware.rs`).
     pub const BATCH_VERTICES: bool = cfg!(target_arch = "x86_64");
 
