@@ -7,7 +7,6 @@ use core::mem::swap;
 
 use super::super::math;
 use super::super::types::Real;
-use super::points::Floor;
 use super::stability::vertex_stiffness;
 use super::vertex_passes::{
     Frames, TrialPoint, Vertices, chebyshev_pass, direction_pass, gradient_pass, trial_pass,
@@ -422,6 +421,8 @@ fn minimise<F: ElasticEnergy>(
         direction,
     };
     let outcome = descend(&objective, settings, positions, buffers);
+    // The ground of the solve, for the friction pass below.
+    let floor = *objective.frames.floor();
     let (report, gradient, backup) = match outcome {
         Ok(result) => result,
         Err(error) => {
@@ -439,7 +440,6 @@ fn minimise<F: ElasticEnergy>(
     // v = (x_{n+1} - x_n) / h, then Coulomb friction at the contacts with the normal impulse
     // h R, R the reaction: the gradient's normal component there.
     copy(backup, velocities);
-    let floor = Floor::new(ground.as_ref());
     let rows = velocities
         .iter_mut()
         .zip(&*positions)
