@@ -9,7 +9,7 @@
 //!   smallest singular value), accurate to a few `eps` on every class of input from `1e-30` to
 //!   `1e30`, with the sweep count as a speed/accuracy knob.
 //! * [`polar`]: polar decomposition on top of it.
-//! * [`material`]: hyperelastic models (StVK, the seed's neo-Hookean, stable neo-Hookean) behind
+//! * [`material`]: hyperelastic models (StVK, the isochoric neo-Hookean, stable neo-Hookean) behind
 //!   one [`Material`](material::Material) trait, with energy density, first Piola–Kirchhoff
 //!   stress and their principal-stretch forms; constructors validate parameters
 //!   ([`MaterialError`]).

@@ -1,4 +1,4 @@
-//! Rotation-variant singular value decomposition of 3x3 matrices (`SPEC.md` section 3).
+//! Rotation-variant singular value decomposition of 3x3 matrices (`docs/math.md` section 3).
 //!
 //! `a = u * diag(sigma) * v^T` with `u`, `v` proper rotations (`det = +1`) and the singular values
 //! sorted `sigma.x >= sigma.y >= |sigma.z|`. An inverted `a` (`det a < 0`) carries its sign on the

@@ -21,7 +21,7 @@
 //! and does not check. Callers must not assume either sign: compute each rest volume and swap two
 //! vertices (for example `n3` and `n4`) of every negatively oriented tetrahedron, with the
 //! element module's orientation helper or by hand, before building rest data, which requires
-//! positive volumes (`SPEC.md` section 1).
+//! positive volumes (`docs/math.md` section 1).
 
 use std::path::Path;
 use std::string::String;

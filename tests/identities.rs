@@ -1,4 +1,4 @@
-//! The mesh kernels against the identities of `SPEC.md` section 5, in both precisions: zero
+//! The mesh kernels against the identities of `docs/math.md` section 5, in both precisions: zero
 //! force and energy under rigid motion, balance of force and torque, forces as minus the energy
 //! gradient, direct and principal paths agreeing, rotation invariance, and homogeneous
 //! deformations of whole meshes against hand-derived closed forms (stress, boundary traction,
@@ -234,7 +234,7 @@ macro_rules! identity_tests {
 
             // ---- Homogeneous deformations ---------------------------------------------------
 
-            /// Closed forms of a model (`SPEC.md` section 2) written out by hand for diagonal
+            /// Closed forms of a model (`docs/math.md` section 2) written out by hand for diagonal
             /// `F = diag(s)` (where `P` is diagonal too) and for simple shear.
             trait ClosedForm: Material {
                 /// The diagonal of `P(diag(s))`.
@@ -650,7 +650,7 @@ macro_rules! identity_tests {
 identity_tests!(single, softfem);
 identity_tests!(double, softfem::f64);
 
-/// Forces are minus the gradient of the energy, in f64 (`SPEC.md` section 5), for every model
+/// Forces are minus the gradient of the energy, in f64 (`docs/math.md` section 5), for every model
 /// on tetrahedra and StVK on 2D triangles and membranes.
 ///
 /// Central differences with step `d = 1e-6` (box size 1) have a truncation error of order

@@ -1,4 +1,4 @@
-//! The material models against the identities of `SPEC.md` sections 2 and 5, hand-derived closed
+//! The material models against the identities of `docs/math.md` sections 2 and 5, hand-derived closed
 //! forms, and the failure modes each model is documented to have, in both precisions.
 //!
 //! The test code is written once, in `material_tests!`, and instantiated for the `f32` API at
@@ -49,7 +49,7 @@ macro_rules! material_tests {
                 random_rotation(rng) * Mat3::from_diagonal(s) * random_rotation(rng).transpose()
             }
 
-            /// Random deformations, half of them inverted. The seed neo-Hookean is included in
+            /// Random deformations, half of them inverted. The isochoric neo-Hookean is included in
             /// the inverted half too: its real-cube-root branch is defined and smooth there.
             fn deformations(count: usize) -> impl Iterator<Item = Mat3> {
                 let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
@@ -139,7 +139,7 @@ macro_rules! material_tests {
                 let _: softfem::MaterialError = softfem::f64::MaterialError::Mu;
             }
 
-            // ---- Identities (SPEC.md section 5) -----------------------------------------------
+            // ---- Identities (`docs/math.md` section 5) -----------------------------------------------
 
             /// The energy at small strain against linear elasticity's
             /// `W = mu |eps|^2 + lambda/2 (tr eps)^2`, `eps = sym(H)` for `F = I + H`. The
@@ -169,7 +169,7 @@ macro_rules! material_tests {
 
             #[test]
             fn small_strain_energy_has_no_cancellation_error() {
-                // The seed's neo-Hookean is left out: its isochoric term `J^(-2/3) I_C - 3`
+                // The isochoric neo-Hookean is left out: its isochoric term `J^(-2/3) I_C - 3`
                 // cancels terms of order one, so its energy carries an error of order `eps mu`
                 // (documented on the type).
                 for lame in parameter_sets() {
@@ -410,7 +410,7 @@ macro_rules! material_tests {
                 for_each_model!(linearises_to_lame);
             }
 
-            // ---- Closed forms (SPEC.md section 5, homogeneous deformations) --------------------
+            // ---- Closed forms (`docs/math.md` section 5, homogeneous deformations) --------------------
 
             /// Absolute tolerance (Pa) for a closed form evaluated in the same precision: the
             /// models and the formulas round differently, by a few eps of the moduli.
@@ -498,7 +498,7 @@ macro_rules! material_tests {
                             nh.energy_density(f),
                             nh.first_piola(f),
                         );
-                        // Stable neo-Hookean in the SPEC's own constants (independent of the
+                        // Stable neo-Hookean in the constants of Smith, de Goes and Kim (independent of the
                         // implementation's rearranged form):
                         // W = m/2 (I_C - 3) + l/2 (J - alpha)^2 - m/2 ln(I_C + 1) - W(I),
                         // P = [m (1 - 1/(I_C + 1)) a + l (J - alpha) a^2] I.
@@ -520,7 +520,7 @@ macro_rules! material_tests {
                 }
             }
 
-            // ---- Failure modes (SPEC.md section 2) -------------------------------------------
+            // ---- Failure modes (`docs/math.md` section 2) -------------------------------------------
 
             #[test]
             fn stvk_reflections_are_stress_free() {
@@ -667,7 +667,7 @@ macro_rules! material_tests {
                             stvk.first_piola_principal_clamped(r * inverted * q, threshold);
                         assert!(norm(rotated - r * clamped[0] * q) <= tol);
                     }
-                    // The flat seed neo-Hookean element: non-finite as a model, finite clamped.
+                    // The flat isochoric neo-Hookean element: non-finite as a model, finite clamped.
                     let flat = diag(1.0, 1.0, 0.0);
                     let p = NeoHookean::new(lame).first_piola_principal_clamped(flat, 0.2);
                     assert!(p.is_finite() && p.z_axis.z < 0.0);

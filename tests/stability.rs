@@ -6,7 +6,7 @@
 //!
 //! Then what the charts of `examples/tradeoffs` show (`docs/charts/`), on cases small enough to
 //! run in seconds: where explicit stepping stops being stable relative to the bound for
-//! nu = 0.3, 0.45 and 0.49; each model's behaviour through inversion (`SPEC.md` section 2); the
+//! nu = 0.3, 0.45 and 0.49; each model's behaviour through inversion (`docs/math.md` section 2); the
 //! relaxation stable at 1/30 s where explicit stepping blows up and says so; a near-incompressible
 //! relaxation whose report is checked against the force balance; and a sweep of models, states
 //! and steppers in which no NaN ever comes back silently.
@@ -263,9 +263,9 @@ macro_rules! stability_tests {
                 x[3].z / rest[3].z
             }
 
-            /// `SPEC.md` section 2, one model at a time, on a tetrahedron pushed through its
+            /// `docs/math.md` section 2, one model at a time, on a tetrahedron pushed through its
             /// pinned base to `J = -0.5` and released: StVK settles at the mirror image
-            /// (`F` a reflection, `J = -1`, stress-free), the seed's neo-Hookean stays on the
+            /// (`F` a reflection, `J = -1`, stress-free), the isochoric neo-Hookean stays on the
             /// inverted side of its `J = 0` barrier, stable neo-Hookean comes back to `J = 1`,
             /// and the Irving–Teran–Fedkiw clamp brings StVK and neo-Hookean back.
             #[test]
@@ -295,7 +295,7 @@ macro_rules! stability_tests {
                 }
             }
 
-            /// The seed's neo-Hookean at `J = 0` (the apex in the base plane) has an infinite
+            /// The isochoric neo-Hookean at `J = 0` (the apex in the base plane) has an infinite
             /// energy and a non-finite stress: the explicit stepper and the relaxation both refuse
             /// the step and leave the state as it was; nothing comes back as NaN.
             #[test]

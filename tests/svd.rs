@@ -1,4 +1,4 @@
-//! The contract of the rotation-variant 3x3 SVD (`SPEC.md` section 3), in both precisions.
+//! The contract of the rotation-variant 3x3 SVD (`docs/math.md` section 3), in both precisions.
 //!
 //! For every class of input (random, ill-conditioned, near-singular, exactly rank 1 and 2,
 //! repeated singular values, reflections, zero, scales from `1e-30` to `1e30`, subnormal and the

@@ -92,7 +92,7 @@ pub enum Model {
     /// Saint Venant–Kirchhoff (cheapest; softens under strong compression).
     #[value(name = "stvk")]
     StVK,
-    /// The seed's neo-Hookean (barrier at J = 0).
+    /// The isochoric neo-Hookean (barrier at J = 0).
     NeoHookean,
     /// Stable neo-Hookean (smooth through inversion).
     StableNeoHookean,

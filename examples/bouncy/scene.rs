@@ -173,7 +173,7 @@ pub fn bounds(points: &[Vec3]) -> (Vec3, Vec3) {
 pub enum AnyMaterial {
     /// Saint Venant–Kirchhoff.
     StVK(StVK),
-    /// The seed's neo-Hookean.
+    /// The isochoric neo-Hookean.
     NeoHookean(NeoHookean),
     /// Stable neo-Hookean.
     StableNeoHookean(StableNeoHookean),
@@ -203,7 +203,7 @@ impl AnyMaterial {
     }
 
     /// The dilatational wave speed `sqrt((lambda + 2 mu) / rho)` (m/s) at density `rho`, the
-    /// speed in the SPEC's estimate of the explicit stability bound (section 4).
+    /// speed in the rule-of-thumb explicit stability bound (docs/math.md section 4).
     pub fn wave_speed(&self, density: f32) -> f32 {
         let lame = match self {
             AnyMaterial::StVK(m) => m.lame(),

@@ -1,12 +1,12 @@
 //! Chart `inversion`: what each model does when elements are driven through inversion and
-//! released (`SPEC.md` section 2), stepped explicitly in f32.
+//! released (`docs/math.md` section 2), stepped explicitly in f32.
 //!
 //! * One tetrahedron: the base triangle is pinned, the apex is moved through the base plane to
 //!   half its height on the other side (volume ratio `J = -0.5`) and released.
 //! * A block of 2x2x2 cubes (48 tetrahedra): the bottom face is pinned, the top face is pushed
 //!   down onto the bottom (flat) and released; the middle layer of vertices is free throughout.
 //!
-//! Models: StVK, the seed's neo-Hookean, stable neo-Hookean (direct stress), and the
+//! Models: StVK, the isochoric neo-Hookean, stable neo-Hookean (direct stress), and the
 //! Irving–Teran–Fedkiw clamp (principal stress with stretches clamped at 0.3) on StVK and on
 //! neo-Hookean. A run the stepper refuses (blow-up detected, state restored) stops there and says
 //! so in its legend.

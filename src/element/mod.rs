@@ -1,4 +1,4 @@
-//! Per-element kinematics and forces (`SPEC.md` section 1): rest data, deformation gradient,
+//! Per-element kinematics and forces (`docs/math.md` section 1): rest data, deformation gradient,
 //! nodal forces and energy of one tetrahedron or triangle.
 //!
 //! # Conventions

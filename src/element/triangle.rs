@@ -1,5 +1,5 @@
 //! Linear triangles: 2D solids (positions in the plane) and membranes (positions in space),
-//! with the Saint Venant–Kirchhoff model (`SPEC.md` section 1).
+//! with the Saint Venant–Kirchhoff model (`docs/math.md` section 1).
 //!
 //! The kinematics are written once over the column type (`Vec2` or `Vec3`): a 2D solid's `F`
 //! is 2x2, a membrane's is 3x2 (two `Vec3` columns), and both give the same 2x2 Green strain.
@@ -168,7 +168,7 @@ fn longest_squared<V: Vector>([x0, x1, x2]: [V; 3]) -> Real {
         .fold(0.0, Real::max)
 }
 
-/// Saint Venant–Kirchhoff on triangles (`SPEC.md` section 1): with the 2x2 Green strain
+/// Saint Venant–Kirchhoff on triangles (`docs/math.md` section 1): with the 2x2 Green strain
 /// `G = (F^T F - I)/2`, `W = lambda/2 tr(G)^2 + mu tr(G^2)`, `S = 2 mu G + lambda tr(G) I` and
 /// `P = F S`, for 2D solids (`F` 2x2) and membranes (`F` 3x2).
 ///

@@ -6,7 +6,7 @@ use super::{MaterialError, Real};
 /// stable material: `mu > 0`, bulk modulus `K = lambda + 2 mu / 3 > 0`, both finite.
 ///
 /// Every model in this module linearises to isotropic linear elasticity with exactly these
-/// parameters (`SPEC.md` section 2), so the same `Lame` gives the same small-strain behaviour
+/// parameters (`docs/math.md` section 2), so the same `Lame` gives the same small-strain behaviour
 /// whichever model it builds.
 ///
 /// ```

@@ -1,5 +1,5 @@
 //! Hyperelastic material models: strain energy density and first Piola–Kirchhoff stress
-//! (`SPEC.md` section 2).
+//! (`docs/math.md` section 2).
 //!
 //! # Conventions
 //! * `f` is the deformation gradient `F = Ds Dm^-1` (dimensionless), `J = det F`,
@@ -19,7 +19,7 @@
 //! | model | inverted element (`J <= 0`) | strong compression | cost |
 //! |---|---|---|---|
 //! | [`StVK`] | reflections are stress-free equilibria: an inverted element stays inverted | softens: the uniaxial nominal stress peaks at stretch `1/sqrt(3)`, then collapses | cheapest |
-//! | [`NeoHookean`] (the seed's) | barrier at `J = 0`: energy and stress blow up, and an element pushed through cannot come back | stiffens without bound | a cube root |
+//! | [`NeoHookean`] (isochoric, `(J-1)^2` volume term) | barrier at `J = 0`: energy and stress blow up, and an element pushed through cannot come back | stiffens without bound | a cube root |
 //! | [`StableNeoHookean`] | smooth through `J = 0`, restoring force on inverted elements | stiffens, finite everywhere | a `ln` |
 //!
 //! Small deformations (a few percent): any. Large deformations with implicit (energy-based)

@@ -1,4 +1,4 @@
-//! The seed notes' neo-Hookean model: isochoric shear energy plus a quadratic volume penalty.
+//! Neo-Hookean with an isochoric shear term and a quadratic `(J - 1)^2` volume penalty.
 
 use super::{
     Lame, Lane, LaneMat3, Lanes, Mat3, Material, MaterialError, Real, Vec3, cofactor,
@@ -6,7 +6,7 @@ use super::{
     principal_invariants,
 };
 
-/// The seed's (isochoric) neo-Hookean model (`SPEC.md` section 2): with `I_C = tr(F^T F)`,
+/// The isochoric neo-Hookean model (`docs/math.md` section 2): with `I_C = tr(F^T F)`,
 /// `J = det F` and bulk modulus `K = lambda + 2 mu / 3`,
 /// `W = mu/2 (J^(-2/3) I_C - 3) + K/2 (J - 1)^2` and
 /// `P = mu J^(-2/3) F - (mu/3) J^(-5/3) I_C cof(F) + K (J - 1) cof(F)`.

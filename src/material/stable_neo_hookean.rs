@@ -7,7 +7,7 @@ use super::{
 };
 
 /// Stable neo-Hookean: Smith, de Goes, Kim, "Stable Neo-Hookean Flesh Simulation" (ACM TOG
-/// 2018), as in `SPEC.md` section 2. With `I_C = tr(F^T F)`, `J = det F` and the paper's
+/// 2018), as in `docs/math.md` section 2. With `I_C = tr(F^T F)`, `J = det F` and the paper's
 /// constants `m = 4 mu / 3`, `l = lambda + 5 mu / 6`, `a = 1 + 3 m / (4 l)` (chosen so that the
 /// model linearises to `(lambda, mu)`),
 /// `W = m/2 (I_C - 3) + l/2 (J - a)^2 - m/2 ln(I_C + 1) - W0`, where the constant

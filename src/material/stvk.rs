@@ -2,7 +2,7 @@
 
 use super::{Lame, Lane, LaneMat3, Lanes, Mat3, Material, MaterialError, Real, Vec3};
 
-/// Saint Venant–Kirchhoff (`SPEC.md` section 2): with the Green strain `G = (F^T F - I) / 2`,
+/// Saint Venant–Kirchhoff (`docs/math.md` section 2): with the Green strain `G = (F^T F - I) / 2`,
 /// `W = lambda/2 (tr G)^2 + mu tr(G^2)` and `P = F (2 mu G + lambda tr(G) I)`.
 ///
 /// Rotation-invariant and the cheapest model, but only sound for moderate strains:

@@ -281,7 +281,7 @@ impl<'a> TetMesh<'a> {
     }
 
     /// Writes the lumped mass (kg) of every vertex into `masses` (overwriting): each
-    /// tetrahedron gives `density * V / 4` to each of its corners (`SPEC.md` section 4).
+    /// tetrahedron gives `density * V / 4` to each of its corners (`docs/math.md` section 4).
     /// Vertices in no element get zero.
     ///
     /// # Errors

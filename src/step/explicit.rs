@@ -150,7 +150,7 @@ pub struct ExplicitReport {
 }
 
 /// Advances `positions` (m) and `velocities` (m/s) by `settings.dt` with symplectic Euler
-/// (`SPEC.md` section 4), in `settings.substeps` substeps of `h = dt / substeps`, each:
+/// (`docs/math.md` section 4), in `settings.substeps` substeps of `h = dt / substeps`, each:
 ///
 /// 1. `f = ` the elastic forces of `model` at `x` (N);
 /// 2. `v <- (v + h (f / m + g)) / (1 + c h)` (gravity `g`, damping `c`);

@@ -1,4 +1,4 @@
-//! Time stepping on caller-owned state (`SPEC.md` section 4): explicit symplectic Euler with its
+//! Time stepping on caller-owned state (`docs/math.md` section 4): explicit symplectic Euler with its
 //! stability bound and blow-up detection, and implicit Euler as a minimisation solved by
 //! preconditioned gradient descent (also a quasi-static relaxation to equilibrium).
 //!
@@ -25,7 +25,7 @@
 //!
 //! ## What is computed
 //! Symplectic Euler on `M a = -K u` is stable when `dt < 2 / omega_max`, `omega_max^2` the
-//! largest eigenvalue of `M^-1 K` (`SPEC.md` section 4). Two upper bounds on `omega_max^2`, both
+//! largest eigenvalue of `M^-1 K` (`docs/math.md` section 4). Two upper bounds on `omega_max^2`, both
 //! from per-element bounds `k_e >= lambda_max(K_e)`:
 //!
 //! * Element stiffness. With `g_j = grad N_j` the shape-function gradients (rows of `Dm^-1`,
@@ -45,7 +45,7 @@
 //!   `rho V / N` per corner, `omega_e^2 <= N k_e / (rho V)` and `omega_max <= max_e omega_e`
 //!   (Irons' element eigenvalue inequality), so `dt = min_e 2 sqrt(rho V / (N k_e))`. For a
 //!   regular tetrahedron with `nu = 0.3` this is `0.52 a / c_d` (edge `a`,
-//!   `c_d = sqrt((lambda + 2 mu) / rho)`), SPEC's `0.45..0.5 h / c_d`.
+//!   `c_d = sqrt((lambda + 2 mu) / rho)`), the rule of thumb `0.45..0.5 h / c_d`.
 //!
 //! ## What it guarantees
 //! Both are guaranteed lower bounds on the critical step **of the linearised system at

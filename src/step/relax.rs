@@ -1,5 +1,5 @@
 //! Implicit Euler as a minimisation, solved by Jacobi-preconditioned gradient descent with an
-//! Armijo line search (`SPEC.md` section 4; Wang and Yang, "Descent Methods for Elastic Body
+//! Armijo line search (`docs/math.md` section 4; Wang and Yang, "Descent Methods for Elastic Body
 //! Simulation on the GPU", SIGGRAPH Asia 2016), and the same loop without inertia as a
 //! quasi-static relaxation. The preconditioner is derived in the `step` module documentation.
 
@@ -213,7 +213,7 @@ pub struct RelaxReport {
 
 /// One implicit Euler step of `settings.dt` as the minimisation of
 /// `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`
-/// (`SPEC.md` section 4), by preconditioned descent from the better (lower `Phi`) of `y` and
+/// (`docs/math.md` section 4), by preconditioned descent from the better (lower `Phi`) of `y` and
 /// `y + h^2 g`, both projected onto the ground: `d = -P^-1 grad Phi` (see the
 /// [module documentation](super)), optional momentum or Chebyshev acceleration, Armijo
 /// backtracking, projection of every free trial point onto the ground. Then `v = (x_{n+1} - x_n) / h`, and at vertices resting on the

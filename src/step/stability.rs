@@ -207,7 +207,7 @@ pub(super) fn vertex_stiffness<F: ElasticModel>(model: &F, stiffness: &mut [Real
     });
 }
 
-/// SPEC's per-element bound `min_e 2 / omega_e` (s), each element against its own lumped share
+/// the per-element bound `min_e 2 / omega_e` (s), each element against its own lumped share
 /// `density * measure / N` of mass (`density` in kg/m^3, or kg/m^2 for membranes): needs no
 /// scratch, and is never larger than [`stable_time_step`] with lumped masses. Infinite for a
 /// mesh without elements.
