@@ -269,7 +269,7 @@ macro_rules! stability_tests {
             /// inverted side of its `J = 0` barrier, stable neo-Hookean comes back to `J = 1`,
             /// and the Irving–Teran–Fedkiw clamp brings StVK and neo-Hookean back.
             #[test]
-            fn each_model_does_what_spec_section_2_says_through_inversion() {
+            fn each_model_does_what_math_section_2_says_through_inversion() {
                 let (rest, _) = tet_with_apex_at(0.1);
                 let tets = [[0, 1, 2, 3]];
                 let mut rest_data = [TetRest::default(); 1];
