@@ -27,8 +27,70 @@
 //! * [`svd3_lanes`](svd::svd3_lanes) on [`lanes`]: the SVD of 4 matrices at once, bit-identical to
 //!   `svd3`.
 //!
-//! glam is re-exported as [`glam`] so that callers use the exact version the kernels
-//! are built against.
+//! Vectors and matrices are [glam](https://docs.rs/glam/0.34)'s `Vec3` and `Mat3` (`DVec3`,
+//! `DMat3` in f64); the crate re-exports it as `softfem::glam`, so that callers use the exact
+//! version the kernels are built against.
+//!
+//! ## Stepping a body
+//!
+//! A jelly cube from the box generator, stable neo-Hookean, dropped 0.1 m onto the ground and
+//! stepped explicitly for a second (y up here; see [Axes](#axes)). Every buffer is the caller's:
+//! nothing is allocated.
+//!
+//! ```
+//! use softfem::{element::TetRest, generate::{BoxSplit, fill_box}, glam::Vec3, mesh::TetMesh};
+//! use softfem::material::StableNeoHookean;
+//! use softfem::step::{ExplicitScratch, ExplicitSettings, Ground, TetElastic};
+//! use softfem::step::{explicit_scratch_len, stable_time_step, step_explicit};
+//!
+//! // A 0.2 m cube of 4 x 4 x 4 cells, 5 tets each (`generate::box_counts` gives these counts).
+//! const VERTICES: usize = 5 * 5 * 5;
+//! const TETS: usize = 4 * 4 * 4 * 5;
+//! let (mut rest, mut tets) = ([Vec3::ZERO; VERTICES], [[0u32; 4]; TETS]);
+//! let (low, high) = (Vec3::new(-0.1, 0.1, -0.1), Vec3::new(0.1, 0.3, 0.1)); // m
+//! fill_box(low, high, 4, 4, 4, BoxSplit::Alternating5, &mut rest, &mut tets)?;
+//! let mut rest_data = [TetRest::default(); TETS];
+//! let mesh = TetMesh::new(&rest, &tets, &mut rest_data)?; // checks indices and volumes
+//! let mut masses = [0.0; VERTICES];
+//! mesh.lumped_masses(1000.0, &mut masses)?; // kg/m^3 in, kg per vertex out
+//! let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(5.0e4, 0.45)?); // Pa
+//!
+//! let mut stiffness = [0.0; VERTICES];
+//! let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness)?; // s, half the bound
+//! let settings = ExplicitSettings::new(dt)
+//!     .with_gravity(Vec3::new(0.0, -9.81, 0.0)) // m/s^2
+//!     .with_damping(2.0) // 1/s
+//!     .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5)); // the plane y = 0
+//! let (mut x, mut v) = (rest, [Vec3::ZERO; VERTICES]);
+//! let mut buffer = [Vec3::ZERO; explicit_scratch_len(VERTICES)];
+//! let mut scratch = ExplicitScratch::new(&mut buffer);
+//! let steps = (1.0 / dt) as usize; // one second
+//! for _ in 0..steps {
+//!     step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch)?;
+//! }
+//! let lowest = x.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+//! let highest = x.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);
+//! println!("{steps} steps of {dt:.2e} s: the cube spans y = {lowest:.4}..{highest:.4} m");
+//! assert!(lowest.abs() < 1e-3 && (highest - 0.2).abs() < 0.01); // landed, rests, kept its shape
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! A failed step ([`StepError`], e.g. `EnergyBlowUp` above the stable step) leaves `x` and `v`
+//! as they were. For steps far above the explicit bound (1/60 s on a stiff body),
+//! [`relax_step`](step::relax_step) takes implicit Euler steps by minimising an energy
+//! ([`RelaxSettings`](step::RelaxSettings), scratch sized by
+//! [`relax_scratch_len`](step::relax_scratch_len)): stable at any step, at the price of
+//! numerical damping.
+//!
+//! ## Axes
+//!
+//! The library has no preferred "up": gravity is a vector in the step settings and the ground a
+//! plane given by its normal ([`Ground::new(normal, offset)`](step::Ground::new)), so any axis
+//! convention works. The examples in these docs and the README use **y up** (gravity
+//! `(0, -9.81, 0)`, ground normal `Vec3::Y`); the `bouncy` scene and the `tradeoffs` charts use
+//! **z up** (gravity `(0, 0, -9.81)`, ground normal `Vec3::Z`), as ParaView shows it.
+//!
+//! ## The kernels on their own
 //!
 //! A unit cube in five tetrahedra, squashed by 10%, pushes back:
 //! ```
@@ -61,10 +123,14 @@
 //! ```
 //!
 //! ## Features
-//! * `std`: host-only conveniences; the kernels never need it. Enables the `tetgen` module, a reader for
-//!   TetGen `.node` / `.ele` meshes.
+//! * `std`: host-only conveniences; the kernels never need it. Enables the `tetgen` module, a
+//!   reader for TetGen `.node` / `.ele` meshes (docs.rs builds with every feature, so it is shown
+//!   there, marked as needing `std`).
 //! * `defmt`: derives `defmt::Format` on every public error and report type.
 #![no_std]
+// docs.rs builds with `--cfg docsrs` (Cargo.toml's `[package.metadata.docs.rs]`), on nightly:
+// items behind a feature are then labelled with it.
+#![cfg_attr(docsrs, feature(doc_cfg))]
 #![cfg_attr(
     not(test),
     deny(
@@ -95,6 +161,7 @@ mod single;
 #[cfg(feature = "std")]
 pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 #[cfg(feature = "std")]
+#[cfg_attr(docsrs, doc(cfg(feature = "std")))]
 pub use single::tetgen;
 pub use single::{element, generate, lanes, material, mesh, polar, step, svd, types};
 

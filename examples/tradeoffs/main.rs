@@ -1,7 +1,8 @@
 //! `cargo run --release --example tradeoffs`: speed against accuracy, measured.
 //!
 //! Each chart measures one trade-off and writes an SVG chart and the CSV of the numbers behind it
-//! into the output directory (`docs/charts/` by default, what the README embeds):
+//! into the output directory: `target/tradeoffs/` by default (a scratch folder), or, with
+//! `--update-docs`, the committed `docs/charts/` that the README embeds:
 //!
 //! | chart | what it measures |
 //! |---|---|
@@ -12,8 +13,9 @@
 //! | `inversion` | volume ratio over time of a tet and a block driven through inversion and released, per model |
 //! | `convergence` | cantilever tip deflection against Euler–Bernoulli vs mesh resolution (5/6-tet splits), with its cost |
 //!
-//! `--quick` runs every chart at a reduced size (CI); `--only NAME` runs some of them. The run
-//! prints its progress and, at the end, the findings in numbers.
+//! `--quick` runs every chart at a reduced size (CI) and is refused with `--update-docs` or an
+//! `--out` inside `docs/`, so the reduced run never replaces the committed charts; `--only NAME`
+//! runs some of them. The run prints its progress and, at the end, the findings in numbers.
 
 // `single.rs` and `double.rs` each include `body.rs` against their own precision, as the crate
 // does with its numeric modules.
@@ -30,21 +32,32 @@ mod single;
 mod stability_map;
 mod svd;
 
-use std::path::{Path, PathBuf};
+use std::path::{Component, Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::{Parser, ValueEnum};
 
+/// Where the charts go unless `--out` or `--update-docs` says otherwise, relative to the
+/// repository (not the current directory, which may be `docs/` itself): a scratch folder.
+const DEFAULT_OUT: &str = "target/tradeoffs";
+
 /// Measures speed against accuracy and writes SVG charts and their CSV files.
 #[derive(Clone, Debug, Parser)]
 #[command(name = "tradeoffs")]
 pub struct Args {
-    /// Output directory (created if missing).
-    #[arg(long, default_value = "docs/charts")]
-    pub out: PathBuf,
+    /// Output directory (created if missing) [default: target/tradeoffs of the repository]. The
+    /// committed charts are regenerated only by `--update-docs` (or an explicit
+    /// `--out docs/charts`).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
 
-    /// Reduced sizes and repetitions: a smoke run for CI (well under a minute).
+    /// Write into the repository's docs/charts/, the charts the README embeds (a full run only).
+    #[arg(long, conflicts_with_all = ["out", "quick"])]
+    pub update_docs: bool,
+
+    /// Reduced sizes and repetitions: a smoke run for CI (well under a minute). Refused with an
+    /// output directory inside docs/.
     #[arg(long)]
     pub quick: bool,
 
@@ -126,9 +139,52 @@ fn main() -> ExitCode {
     }
 }
 
+/// The repository's `docs/` directory, which holds the committed charts.
+fn docs_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("docs")
+}
+
+/// `path` made absolute (against `cwd`) with `.` and `..` resolved by name, so that
+/// `docs/../docs/charts` and `./docs/charts` compare equal to `docs/charts`.
+fn absolute(path: &Path, cwd: &Path) -> PathBuf {
+    let mut resolved = PathBuf::new();
+    for component in cwd.join(path).components() {
+        match component {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                resolved.pop();
+            }
+            other => resolved.push(other),
+        }
+    }
+    resolved
+}
+
+impl Args {
+    /// The directory the charts are written into, or why this run may not write anywhere: a
+    /// `--quick` run into `docs/` would replace the committed charts with the reduced ones.
+    fn output_dir(&self, cwd: &Path) -> Result<PathBuf, String> {
+        let out = match (&self.out, self.update_docs) {
+            (_, true) => docs_dir().join("charts"),
+            (Some(out), false) => absolute(out, cwd),
+            (None, false) => Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_OUT),
+        };
+        if self.quick && out.starts_with(absolute(&docs_dir(), cwd)) {
+            return Err(format!(
+                "--quick writes reduced charts; it may not write into {} (the committed charts). \
+                 Leave out --out (it writes into {DEFAULT_OUT}), or make a full run with \
+                 --update-docs",
+                out.display()
+            ));
+        }
+        Ok(out)
+    }
+}
+
 fn tradeoffs(args: &Args) -> Result<(), String> {
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    let cwd = std::env::current_dir().map_err(|e| format!("no current directory: {e}"))?;
+    let out = args.output_dir(&cwd)?;
+    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let size = if args.quick { Size::Quick } else { Size::Full };
     let charts: Vec<ChartName> = if args.only.is_empty() {
         ChartName::ALL.to_vec()
@@ -142,7 +198,7 @@ fn tradeoffs(args: &Args) -> Result<(), String> {
         "tradeoffs: {} chart(s), {} size, writing into {}",
         charts.len(),
         if args.quick { "quick" } else { "full" },
-        args.out.display()
+        out.display()
     );
     let started = Instant::now();
     let mut all = Vec::new();
@@ -150,7 +206,7 @@ fn tradeoffs(args: &Args) -> Result<(), String> {
         let chart_started = Instant::now();
         println!("{chart:?}:");
         let findings = chart
-            .run(size, &args.out)
+            .run(size, &out)
             .map_err(|e| format!("{chart:?}: {e}"))?;
         println!("  done in {:.1} s", chart_started.elapsed().as_secs_f64());
         all.push(findings);
@@ -187,9 +243,56 @@ mod tests {
         .unwrap();
         assert!(args.quick);
         assert_eq!(args.only, vec![ChartName::Svd, ChartName::Inversion]);
-        assert_eq!(args.out, PathBuf::from("x"));
-        let defaults = Args::try_parse_from(["tradeoffs"]).unwrap();
-        assert_eq!(defaults.out, PathBuf::from("docs/charts"));
+        assert_eq!(args.out, Some(PathBuf::from("x")));
         assert!(Args::try_parse_from(["tradeoffs", "--only", "nothing"]).is_err());
+    }
+
+    #[test]
+    fn by_default_nothing_is_written_into_docs() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let docs = root.join("docs");
+        // From the repository root (where `cargo run` is usually typed) and from docs/ itself.
+        for cwd in [root.to_path_buf(), docs.clone()] {
+            for args in [&["tradeoffs"][..], &["tradeoffs", "--quick"]] {
+                let out = Args::try_parse_from(args)
+                    .unwrap()
+                    .output_dir(&cwd)
+                    .unwrap();
+                assert!(
+                    !out.starts_with(&docs),
+                    "{args:?} in {cwd:?} writes into {out:?}"
+                );
+            }
+        }
+        let defaults = Args::try_parse_from(["tradeoffs"]).unwrap();
+        assert_eq!(
+            defaults.output_dir(root).unwrap(),
+            root.join("target/tradeoffs")
+        );
+    }
+
+    #[test]
+    fn only_an_explicit_full_run_regenerates_the_committed_charts() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let charts = root.join("docs/charts");
+        let update = Args::try_parse_from(["tradeoffs", "--update-docs"]).unwrap();
+        assert_eq!(update.output_dir(Path::new("/")).unwrap(), charts);
+        let explicit = Args::try_parse_from(["tradeoffs", "--out", "docs/charts"]).unwrap();
+        assert_eq!(explicit.output_dir(root).unwrap(), charts);
+        // The reduced run is refused wherever it would land inside docs/.
+        for out in [
+            "docs/charts",
+            "./docs/charts/",
+            "target/../docs/charts",
+            "docs",
+        ] {
+            let quick = Args::try_parse_from(["tradeoffs", "--quick", "--out", out]).unwrap();
+            assert!(
+                quick.output_dir(root).is_err(),
+                "--quick --out {out} accepted"
+            );
+        }
+        assert!(Args::try_parse_from(["tradeoffs", "--quick", "--update-docs"]).is_err());
+        assert!(Args::try_parse_from(["tradeoffs", "--out", "x", "--update-docs"]).is_err());
     }
 }

@@ -16,6 +16,10 @@
 //! * `pinned` is a slice of flags, empty (nothing pinned) or one per vertex: a pinned vertex's
 //!   position and velocity are never changed by any stepper.
 //! * The ground is a half-space, see [`Ground`].
+//! * No axis is special: gravity is a vector in the settings and the ground a plane given by its
+//!   normal, so y up, z up or any other convention works. The examples in these docs use y up
+//!   (gravity `(0, -9.81, 0)`, `Ground::new(Vec3::Y, 0.0)`); the `bouncy` scene and the
+//!   `tradeoffs` charts use z up (gravity `(0, 0, -9.81)`, `Ground::new(Vec3::Z, 0.0)`).
 //! * Nothing is allocated: scratch space is a caller buffer sized by [`explicit_scratch_len`]
 //!   or [`relax_scratch_len`].
 //! * Every stepper validates all parameters and buffers **before** touching anything, and
