@@ -358,7 +358,7 @@ mod tests {
     #[test]
     fn svg_has_one_panel_per_snapshot_and_shows_three_sides_of_a_cube() {
         let n = 3;
-        let geometry = Geometry::jelly_cube(0.2, n)
+        let geometry = Geometry::jelly_cube(0.2, n, softfem::generate::BoxSplit::Kuhn6)
             .unwrap()
             .placed_above_ground(0.5);
         let surface = Surface::of_tets(&geometry.tets);

@@ -111,6 +111,8 @@ pub struct Summary {
     pub initial_energies: Energies,
     /// Statistics of the implicit solves, if any.
     pub solves: SolveTotals,
+    /// How far the centre of mass moved from start to end (m, per axis).
+    pub centre_shift: [f64; 3],
 }
 
 impl Summary {
@@ -139,6 +141,10 @@ impl Summary {
                 e.potential,
                 e.elastic,
                 e0.total()
+            ),
+            format!(
+                "centre of mass   moved x {:+.4} m, y {:+.4} m sideways, z {:+.4} m",
+                self.centre_shift[0], self.centre_shift[1], self.centre_shift[2]
             ),
         ];
         let s = &self.solves;
@@ -217,8 +223,13 @@ mod tests {
             energies,
             initial_energies: energies,
             solves: SolveTotals::default(),
+            centre_shift: [0.00004, -0.1, -0.5],
         };
         let text = summary.lines().join("\n");
+        assert!(
+            text.contains("x +0.0000 m, y -0.1000 m sideways, z -0.5000 m"),
+            "{text}"
+        );
         assert!(text.contains("3.000 s in 3000 steps"), "{text}");
         assert!(text.contains("(1500 steps/s)"), "{text}");
         assert!(text.contains("min 0.9000, max 1.1000"), "{text}");
