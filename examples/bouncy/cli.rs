@@ -56,11 +56,11 @@ pub struct Args {
     pub mesh: Option<PathBuf>,
 
     /// Young's modulus (Pa).
-    #[arg(long = "young", default_value_t = 5.0e4, value_parser = positive_finite)]
+    #[arg(long, visible_alias = "young", default_value_t = 5.0e4, value_parser = positive_finite)]
     pub young_modulus: f32,
 
     /// Poisson ratio, in (-1, 0.5).
-    #[arg(long = "poisson", default_value_t = 0.45, value_parser = poisson_ratio)]
+    #[arg(long, visible_alias = "poisson", default_value_t = 0.45, value_parser = poisson_ratio)]
     pub poisson_ratio: f32,
 
     /// Density (kg/m^3).
@@ -247,6 +247,106 @@ mod tests {
         assert_eq!(args.dt, Some(0.01));
         assert_eq!(args.poisson_ratio, -0.2);
         assert_eq!(args.mesh, Some(PathBuf::from("assets/meshes/cube.node")));
+    }
+
+    /// The README's text about the scene, paragraph by paragraph: its section (from "**Run the
+    /// main example scene**" to the next "**Run") and every other paragraph naming `bouncy` or
+    /// "the scene", with each code span or block that is a `cargo` command left out (those hold
+    /// cargo's flags).
+    fn readme_scene_text() -> Vec<String> {
+        let readme = include_str!("../../README.md");
+        let marker = "**Run the main example scene**";
+        let start = readme.find(marker).expect("the README's scene section");
+        let (before, from_section) = readme.split_at(start);
+        let end = from_section[marker.len()..].find("**Run").unwrap() + marker.len();
+        let (section, after) = from_section.split_at(end);
+        let others = before.split("\n\n").chain(after.split("\n\n"));
+        let others = others.filter(|text| text.contains("bouncy") || text.contains("the scene"));
+        section
+            .split("\n\n")
+            .chain(others)
+            .map(|paragraph| {
+                let segments = paragraph.split('`').enumerate().filter(|(i, segment)| {
+                    let code = segment.trim_start().trim_start_matches("sh").trim_start();
+                    i % 2 == 0 || !code.starts_with("cargo")
+                });
+                let kept: Vec<&str> = segments.map(|(_, segment)| segment).collect();
+                kept.join("`").replace('\n', " ")
+            })
+            .collect()
+    }
+
+    /// Every `--flag` the README mentions for the scene is one of the CLI's names or aliases,
+    /// and every `` `--flag value | value` `` span it shows parses, so the two cannot drift
+    /// apart.
+    #[test]
+    fn every_flag_the_readme_names_exists() {
+        use clap::CommandFactory;
+        let mut command = Args::command();
+        command.build();
+        let known: Vec<String> = command
+            .get_arguments()
+            .flat_map(|arg| {
+                let aliases = arg.get_all_aliases().into_iter().flatten();
+                arg.get_long().into_iter().chain(aliases)
+            })
+            .map(|name| format!("--{name}"))
+            .collect();
+        let text = readme_scene_text();
+        let mut flags = Vec::new();
+        for paragraph in &text {
+            let words = paragraph.split(|c: char| c.is_whitespace() || "`(),;".contains(c));
+            flags.extend(words.filter(|word| {
+                word.strip_prefix("--")
+                    .is_some_and(|name| name.starts_with(|c: char| c.is_ascii_lowercase()))
+            }));
+        }
+        for flag in &flags {
+            assert!(
+                known.iter().any(|k| k == flag),
+                "README names {flag}, which the CLI lacks"
+            );
+        }
+        assert!(flags.len() >= 10, "only {flags:?} found in the README");
+        for paragraph in &text {
+            for span in paragraph.split('`').skip(1).step_by(2) {
+                let mut tokens = span.split_whitespace();
+                let Some(flag) = tokens
+                    .next()
+                    .filter(|t| t.starts_with("--") && *t != "--help")
+                else {
+                    continue;
+                };
+                for value in tokens.filter(|token| *token != "|") {
+                    let parsed = parse(&[flag, value]);
+                    assert!(
+                        parsed.is_ok(),
+                        "README: `{flag} {value}`: {}",
+                        parsed.unwrap_err()
+                    );
+                }
+            }
+        }
+    }
+
+    /// clap suggests the nearest flag for a misspelt one.
+    #[test]
+    fn misspelt_flags_get_a_suggestion() {
+        let error = parse(&["--poison-ratio", "0.3"]).unwrap_err().to_string();
+        assert!(
+            error.contains("tip: a similar argument exists: '--poisson-ratio'"),
+            "{error}"
+        );
+        let error = parse(&["--durration", "1"]).unwrap_err().to_string();
+        assert!(error.contains("'--duration'"), "{error}");
+    }
+
+    #[test]
+    fn short_names_are_aliases_of_the_long_ones() {
+        let long = parse(&["--young-modulus", "7e4", "--poisson-ratio", "0.3"]).unwrap();
+        let short = parse(&["--young", "7e4", "--poisson", "0.3"]).unwrap();
+        assert_eq!((long.young_modulus, long.poisson_ratio), (7e4, 0.3));
+        assert_eq!((short.young_modulus, short.poisson_ratio), (7e4, 0.3));
     }
 
     #[test]
