@@ -30,8 +30,8 @@ pub struct Args {
     pub dt: Option<f32>,
 
     /// Simulated time (s).
-    #[arg(long, default_value_t = 3.0, value_parser = positive_finite)]
-    pub duration: f32,
+    #[arg(long, default_value_t = 3.0, value_parser = positive_finite_f64)]
+    pub duration: f64,
 
     /// Cells per axis of the generated jelly cube (5 or 6 tetrahedra per cell, see --split);
     /// ignored with --mesh.
@@ -68,10 +68,11 @@ pub struct Args {
     pub density: f32,
 
     /// Output frames per simulated second (VTK files and filmstrip candidates).
-    #[arg(long, default_value_t = 30.0, value_parser = positive_finite)]
-    pub frame_rate: f32,
+    #[arg(long, default_value_t = 30.0, value_parser = positive_finite_f64)]
+    pub frame_rate: f64,
 
-    /// Write a VTK file every N output frames (0: no VTK files).
+    /// Write a VTK file every N output frames (0: no VTK files). Frame files of an earlier run
+    /// in the output directory that this run did not write are removed.
     #[arg(long, default_value_t = 1)]
     pub vtk_every: u32,
 
@@ -90,6 +91,11 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+
+    /// Run even when the estimate printed before the run exceeds the scene's limits: 2 GiB
+    /// of memory, 1 GiB of VTK files, a million steps or a minute of wall time.
+    #[arg(long)]
+    pub yes: bool,
 }
 
 /// The hyperelastic models of `softfem::material`.
@@ -178,6 +184,13 @@ fn positive_finite(text: &str) -> Result<f32, String> {
     } else {
         Err(format!("must be a positive finite number, got {text}"))
     }
+}
+
+/// As [`positive_finite`], in f64: times are kept in f64 so that `--duration 0.2` ends at 0.2 s,
+/// not at the f32 nearest it.
+fn positive_finite_f64(text: &str) -> Result<f64, String> {
+    positive_finite(text)?;
+    Ok(text.trim().parse::<f64>().unwrap_or(f64::NAN))
 }
 
 fn non_negative_finite(text: &str) -> Result<f32, String> {

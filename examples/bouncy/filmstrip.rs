@@ -48,6 +48,12 @@ impl Recorder {
         }
     }
 
+    /// Frames come `frame_interval` (s) apart from now on (a time step longer than the frame
+    /// interval spaces them wider).
+    pub fn set_frame_interval(&mut self, frame_interval: f64) {
+        self.tolerance = frame_interval / 2.0 * (1.0 + 1e-9);
+    }
+
     /// Offers the frame at `time`; it is kept for every still empty instant it is close to.
     pub fn offer(&mut self, time: f64, positions: &[Vec3]) {
         for (target, slot) in self.targets.iter().zip(&mut self.snapshots) {
