@@ -202,7 +202,9 @@ fn bouncy(args: &Args, console: &mut Console<impl Write>) -> Result<(), String> 
 /// The number of output frames of the run `args` describe (the one at `t = 0` included).
 fn frame_count(args: &Args) -> u64 {
     let config = RunConfig {
-        dt: 1.0, // the frame times do not depend on the step
+        // Only a step longer than the frame interval changes the frame times; the default
+        // steps are shorter.
+        dt: args.dt.unwrap_or(f32::MIN_POSITIVE),
         duration: args.duration,
         frame_rate: args.frame_rate,
     };
@@ -681,6 +683,18 @@ mod tests {
 
         let none = SolveTotals::default();
         assert_eq!(solves_verdict(&none), Ok(()));
+    }
+
+    #[test]
+    fn frame_counts_for_the_estimate() {
+        let parse =
+            |flags: &[&str]| Args::try_parse_from(std::iter::once(&"bouncy").chain(flags)).unwrap();
+        assert_eq!(frame_count(&parse(&[])), 91);
+        assert_eq!(frame_count(&parse(&["--duration", "1.01"])), 32);
+        assert_eq!(
+            frame_count(&parse(&["--dt", "0.5", "--stepper", "relax"])),
+            7
+        );
     }
 
     #[test]
