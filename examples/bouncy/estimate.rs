@@ -1,14 +1,17 @@
 //! What a run will cost, estimated before it starts: memory, VTK output, steps and wall time,
 //! and the limits above which the scene asks for `--yes` instead of starting.
 //!
-//! The rates are measured with this example (release build, one core of a shared AMD EPYC):
-//! peak resident memory 47 MB at 320 000 tetrahedra and 142 MB at 1.08 million (about 110 B per
-//! tetrahedron and 150 B per vertex: mesh, rest data, state, scratch, the filmstrip's snapshots
-//! and the surface's face table while it is built); 66 ns per tetrahedron and step (explicit,
-//! 40 000 tetrahedra) and per tetrahedron and iteration (relaxation), up to 90 ns on a million;
-//! ASCII VTK frames of about 72 B per vertex and 45 B per tetrahedron (35 B per surface
-//! triangle). The estimate takes 90 ns per pass. Relaxation iterations per step grow with the mesh: 21, 47 and 120 on cubes of 6,
-//! 10 and 20 cells per edge, fitted by `6 (tets / 5)^(1/3)`.
+//! The rates are measured with this example (release build, one core of a shared 2-core AMD
+//! EPYC under load): peak resident memory 47 MB at 320 000 tetrahedra, 142 MB at 1.08 million and
+//! 573 MB at 5 million, which 110 B per tetrahedron and 150 B per vertex (mesh, rest data, state,
+//! scratch, the filmstrip's snapshots and the surface's face table while it is built) match
+//! within 25 % (46, 153 and 705 MB estimated); 66 ns per tetrahedron and step (explicit) and per
+//! tetrahedron and iteration (relaxation) at 40 000 tetrahedra, 72 to 76 ns at 320 000 and 1.08
+//! million once the setup is taken off (the estimate takes 90 ns), and 8 to 11 us per tetrahedron
+//! of setup (building, checking, surface, masses, filmstrip); ASCII VTK frames of about 72 B per
+//! vertex and 45 B per tetrahedron (35 B per surface triangle). Relaxation iterations per step
+//! grow with the mesh: 21, 47 and 120 on cubes of 6, 10 and 20 cells per edge, fitted by
+//! `6 (tets / 5)^(1/3)`.
 
 use softfem::generate::{BoxSplit, box_counts};
 
@@ -19,7 +22,7 @@ const MEMORY_BYTES: (f64, f64) = (110.0, 150.0);
 /// Wall time per tetrahedron and step (explicit) or iteration (relaxation), in seconds.
 const SECONDS_PER_TET_PASS: f64 = 9e-8;
 /// Wall time per tetrahedron (s) of building and checking the mesh, its surface and masses,
-/// and drawing the filmstrip: 8.0 us measured at 1.08 million tetrahedra, 11 us at 5 million.
+/// and drawing the filmstrip.
 const SETUP_SECONDS_PER_TET: f64 = 1e-5;
 /// VTK bytes per vertex, per tetrahedron and per surface triangle.
 const VTK_BYTES: (f64, f64, f64) = (72.0, 45.0, 35.0);
