@@ -119,7 +119,7 @@ impl<V: Vector> RelaxSettings<V> {
     /// body, and the tolerance sits above the f32 rounding floor. Measured in f32 on a 0.2 m
     /// jelly cube (stable neo-Hookean, E = 50 kPa, `nu = 0.45`, 1000 kg/m^3) dropped from 0.5 m
     /// onto a ground with friction 0.6, every step from the drop to rest (steps unconverged,
-    /// mean iterations per step, wall time on one core):
+    /// mean iterations per step, wall time on one core of a shared, loaded 2-core machine):
     ///
     /// | mesh, steps | these defaults | tolerance `1e-3`, 200 iterations, plain descent with `alpha = 1` (the old defaults) |
     /// |---|---|---|
