@@ -7,6 +7,7 @@ use std::fmt;
 use std::path::PathBuf;
 
 use clap::{Parser, ValueEnum};
+use softfem::generate::BoxSplit;
 
 /// A soft body dropped onto the ground: it bounces, wobbles and settles.
 ///
@@ -29,12 +30,17 @@ pub struct Args {
     pub dt: Option<f32>,
 
     /// Simulated time (s).
-    #[arg(long, default_value_t = 3.0, value_parser = positive_finite)]
-    pub duration: f32,
+    #[arg(long, default_value_t = 3.0, value_parser = positive_finite_f64)]
+    pub duration: f64,
 
-    /// Cells per axis of the generated jelly cube (6 tetrahedra per cell); ignored with --mesh.
+    /// Cells per axis of the generated jelly cube (5 or 6 tetrahedra per cell, see --split);
+    /// ignored with --mesh.
     #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=200))]
     pub resolution: u32,
+
+    /// How each cell of the jelly cube is split into tetrahedra; ignored with --mesh.
+    #[arg(long, value_enum, default_value_t = Split::Alternating5)]
+    pub split: Split,
 
     /// Edge length of the generated jelly cube (m); ignored with --mesh.
     #[arg(long, default_value_t = 0.2, value_parser = positive_finite)]
@@ -50,11 +56,11 @@ pub struct Args {
     pub mesh: Option<PathBuf>,
 
     /// Young's modulus (Pa).
-    #[arg(long = "young", default_value_t = 5.0e4, value_parser = positive_finite)]
+    #[arg(long, visible_alias = "young", default_value_t = 5.0e4, value_parser = positive_finite)]
     pub young_modulus: f32,
 
     /// Poisson ratio, in (-1, 0.5).
-    #[arg(long = "poisson", default_value_t = 0.45, value_parser = poisson_ratio)]
+    #[arg(long, visible_alias = "poisson", default_value_t = 0.45, value_parser = poisson_ratio)]
     pub poisson_ratio: f32,
 
     /// Density (kg/m^3).
@@ -62,10 +68,11 @@ pub struct Args {
     pub density: f32,
 
     /// Output frames per simulated second (VTK files and filmstrip candidates).
-    #[arg(long, default_value_t = 30.0, value_parser = positive_finite)]
-    pub frame_rate: f32,
+    #[arg(long, default_value_t = 30.0, value_parser = positive_finite_f64)]
+    pub frame_rate: f64,
 
-    /// Write a VTK file every N output frames (0: no VTK files).
+    /// Write a VTK file every N output frames (0: no VTK files). Frame files of an earlier run
+    /// in the output directory that this run did not write are removed.
     #[arg(long, default_value_t = 1)]
     pub vtk_every: u32,
 
@@ -84,6 +91,11 @@ pub struct Args {
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
+
+    /// Run even when the estimate printed before the run exceeds the scene's limits: 2 GiB
+    /// of memory, 1 GiB of VTK files, a million steps or a minute of wall time.
+    #[arg(long)]
+    pub yes: bool,
 }
 
 /// The hyperelastic models of `softfem::material`.
@@ -105,6 +117,30 @@ impl fmt::Display for Model {
             Model::NeoHookean => "neo-Hookean",
             Model::StableNeoHookean => "stable neo-Hookean",
         })
+    }
+}
+
+/// The cell splits of `softfem::generate::BoxSplit`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Split {
+    /// 5 tetrahedra per cell, alternating between neighbours: the mesh keeps the cube's
+    /// half turns (and mirrors at even --resolution), so a flat drop lands where it fell.
+    #[value(name = "alternating5")]
+    Alternating5,
+    /// 6 tetrahedra per cell around the diagonal (1, 1, 1) (Kuhn): not mirror-symmetric, and
+    /// its nearly incompressible response is anisotropic; a flat drop tips it, and with
+    /// friction it walks along (-1, -1) (0.11 m in the default 3 s, 0.44 m at nu = 0.49).
+    #[value(name = "kuhn6")]
+    Kuhn6,
+}
+
+impl Split {
+    /// The library's split.
+    pub fn box_split(self) -> BoxSplit {
+        match self {
+            Split::Alternating5 => BoxSplit::Alternating5,
+            Split::Kuhn6 => BoxSplit::Kuhn6,
+        }
     }
 }
 
@@ -150,6 +186,13 @@ fn positive_finite(text: &str) -> Result<f32, String> {
     }
 }
 
+/// As [`positive_finite`], in f64: times are kept in f64 so that `--duration 0.2` ends at 0.2 s,
+/// not at the f32 nearest it.
+fn positive_finite_f64(text: &str) -> Result<f64, String> {
+    positive_finite(text)?;
+    Ok(text.trim().parse::<f64>().unwrap_or(f64::NAN))
+}
+
 fn non_negative_finite(text: &str) -> Result<f32, String> {
     let value = parse_number(text)?;
     if value.is_finite() && value >= 0.0 {
@@ -185,6 +228,7 @@ mod tests {
         assert_eq!(args.model, Model::StableNeoHookean);
         assert_eq!(args.stepper, Stepper::Explicit);
         assert_eq!(args.resolution, 6);
+        assert_eq!(args.split, Split::Alternating5);
         assert_eq!((args.size, args.drop_height), (0.2, 0.5));
         assert_eq!(
             (args.young_modulus, args.poisson_ratio, args.density),
@@ -216,6 +260,106 @@ mod tests {
         assert_eq!(args.dt, Some(0.01));
         assert_eq!(args.poisson_ratio, -0.2);
         assert_eq!(args.mesh, Some(PathBuf::from("assets/meshes/cube.node")));
+    }
+
+    /// The README's text about the scene, paragraph by paragraph: its section (from "**Run the
+    /// main example scene**" to the next "**Run") and every other paragraph naming `bouncy` or
+    /// "the scene", with each code span or block that is a `cargo` command left out (those hold
+    /// cargo's flags).
+    fn readme_scene_text() -> Vec<String> {
+        let readme = include_str!("../../README.md");
+        let marker = "**Run the main example scene**";
+        let start = readme.find(marker).expect("the README's scene section");
+        let (before, from_section) = readme.split_at(start);
+        let end = from_section[marker.len()..].find("**Run").unwrap() + marker.len();
+        let (section, after) = from_section.split_at(end);
+        let others = before.split("\n\n").chain(after.split("\n\n"));
+        let others = others.filter(|text| text.contains("bouncy") || text.contains("the scene"));
+        section
+            .split("\n\n")
+            .chain(others)
+            .map(|paragraph| {
+                let segments = paragraph.split('`').enumerate().filter(|(i, segment)| {
+                    let code = segment.trim_start().trim_start_matches("sh").trim_start();
+                    i % 2 == 0 || !code.starts_with("cargo")
+                });
+                let kept: Vec<&str> = segments.map(|(_, segment)| segment).collect();
+                kept.join("`").replace('\n', " ")
+            })
+            .collect()
+    }
+
+    /// Every `--flag` the README mentions for the scene is one of the CLI's names or aliases,
+    /// and every `` `--flag value | value` `` span it shows parses, so the two cannot drift
+    /// apart.
+    #[test]
+    fn every_flag_the_readme_names_exists() {
+        use clap::CommandFactory;
+        let mut command = Args::command();
+        command.build();
+        let known: Vec<String> = command
+            .get_arguments()
+            .flat_map(|arg| {
+                let aliases = arg.get_all_aliases().into_iter().flatten();
+                arg.get_long().into_iter().chain(aliases)
+            })
+            .map(|name| format!("--{name}"))
+            .collect();
+        let text = readme_scene_text();
+        let mut flags = Vec::new();
+        for paragraph in &text {
+            let words = paragraph.split(|c: char| c.is_whitespace() || "`(),;".contains(c));
+            flags.extend(words.filter(|word| {
+                word.strip_prefix("--")
+                    .is_some_and(|name| name.starts_with(|c: char| c.is_ascii_lowercase()))
+            }));
+        }
+        for flag in &flags {
+            assert!(
+                known.iter().any(|k| k == flag),
+                "README names {flag}, which the CLI lacks"
+            );
+        }
+        assert!(flags.len() >= 10, "only {flags:?} found in the README");
+        for paragraph in &text {
+            for span in paragraph.split('`').skip(1).step_by(2) {
+                let mut tokens = span.split_whitespace();
+                let Some(flag) = tokens
+                    .next()
+                    .filter(|t| t.starts_with("--") && *t != "--help")
+                else {
+                    continue;
+                };
+                for value in tokens.filter(|token| *token != "|") {
+                    let parsed = parse(&[flag, value]);
+                    assert!(
+                        parsed.is_ok(),
+                        "README: `{flag} {value}`: {}",
+                        parsed.unwrap_err()
+                    );
+                }
+            }
+        }
+    }
+
+    /// clap suggests the nearest flag for a misspelt one.
+    #[test]
+    fn misspelt_flags_get_a_suggestion() {
+        let error = parse(&["--poison-ratio", "0.3"]).unwrap_err().to_string();
+        assert!(
+            error.contains("tip: a similar argument exists: '--poisson-ratio'"),
+            "{error}"
+        );
+        let error = parse(&["--durration", "1"]).unwrap_err().to_string();
+        assert!(error.contains("'--duration'"), "{error}");
+    }
+
+    #[test]
+    fn short_names_are_aliases_of_the_long_ones() {
+        let long = parse(&["--young-modulus", "7e4", "--poisson-ratio", "0.3"]).unwrap();
+        let short = parse(&["--young", "7e4", "--poisson", "0.3"]).unwrap();
+        assert_eq!((long.young_modulus, long.poisson_ratio), (7e4, 0.3));
+        assert_eq!((short.young_modulus, short.poisson_ratio), (7e4, 0.3));
     }
 
     #[test]

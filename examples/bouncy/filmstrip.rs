@@ -48,6 +48,12 @@ impl Recorder {
         }
     }
 
+    /// Frames come `frame_interval` (s) apart from now on (a time step longer than the frame
+    /// interval spaces them wider).
+    pub fn set_frame_interval(&mut self, frame_interval: f64) {
+        self.tolerance = frame_interval / 2.0 * (1.0 + 1e-9);
+    }
+
     /// Offers the frame at `time`; it is kept for every still empty instant it is close to.
     pub fn offer(&mut self, time: f64, positions: &[Vec3]) {
         for (target, slot) in self.targets.iter().zip(&mut self.snapshots) {
@@ -358,7 +364,7 @@ mod tests {
     #[test]
     fn svg_has_one_panel_per_snapshot_and_shows_three_sides_of_a_cube() {
         let n = 3;
-        let geometry = Geometry::jelly_cube(0.2, n)
+        let geometry = Geometry::jelly_cube(0.2, n, softfem::generate::BoxSplit::Kuhn6)
             .unwrap()
             .placed_above_ground(0.5);
         let surface = Surface::of_tets(&geometry.tets);

@@ -105,12 +105,18 @@ pub struct Summary {
     pub steps: u64,
     /// Smallest and largest current/rest volume ratio over the tetrahedra.
     pub volume_ratio: (f32, f32),
+    /// Tetrahedra that end inverted (volume ratio <= 0).
+    pub inverted: usize,
+    /// Tetrahedra in all.
+    pub tets: usize,
     /// Energies of the final state.
     pub energies: Energies,
     /// Energies of the initial state, for comparison.
     pub initial_energies: Energies,
     /// Statistics of the implicit solves, if any.
     pub solves: SolveTotals,
+    /// How far the centre of mass moved from start to end (m, per axis).
+    pub centre_shift: [f64; 3],
 }
 
 impl Summary {
@@ -132,6 +138,13 @@ impl Summary {
             ),
             format!("wall time        {wall:.3} s ({rate} steps/s)"),
             format!("volume ratio     min {min:.4}, max {max:.4} (current / rest, per tet)"),
+            match self.inverted {
+                0 => "inverted         none".to_string(),
+                n => format!(
+                    "inverted         {n} of {} tetrahedra end inside out",
+                    self.tets
+                ),
+            },
             format!(
                 "energy           {:.4} J = kinetic {:.4} + gravity {:.4} + elastic {:.4} (start {:.4} J)",
                 e.total(),
@@ -139,6 +152,10 @@ impl Summary {
                 e.potential,
                 e.elastic,
                 e0.total()
+            ),
+            format!(
+                "centre of mass   moved x {:+.4} m, y {:+.4} m sideways, z {:+.4} m",
+                self.centre_shift[0], self.centre_shift[1], self.centre_shift[2]
             ),
         ];
         let s = &self.solves;
@@ -214,16 +231,30 @@ mod tests {
             wall: Duration::from_secs(2),
             steps: 3000,
             volume_ratio: (0.9, 1.1),
+            inverted: 0,
+            tets: 100,
             energies,
             initial_energies: energies,
             solves: SolveTotals::default(),
+            centre_shift: [0.00004, -0.1, -0.5],
         };
         let text = summary.lines().join("\n");
+        assert!(
+            text.contains("x +0.0000 m, y -0.1000 m sideways, z -0.5000 m"),
+            "{text}"
+        );
         assert!(text.contains("3.000 s in 3000 steps"), "{text}");
         assert!(text.contains("(1500 steps/s)"), "{text}");
         assert!(text.contains("min 0.9000, max 1.1000"), "{text}");
         assert!(text.contains("3.5000 J = kinetic 1.0000"), "{text}");
         assert!(!text.contains("implicit"));
+        assert!(text.contains("inverted         none"), "{text}");
+        summary.inverted = 3;
+        let text = summary.lines().join("\n");
+        assert!(
+            text.contains("3 of 100 tetrahedra end inside out"),
+            "{text}"
+        );
         summary.solves = SolveTotals {
             solves: 2,
             iterations: 30,

@@ -58,6 +58,30 @@ pub fn frame_file_name(index: usize) -> String {
     format!("frame_{index:04}.vtk")
 }
 
+/// Whether `name` is one of [`frame_file_name`]'s names: `frame_`, four or more digits, `.vtk`.
+pub fn is_frame_file_name(name: &str) -> bool {
+    name.strip_prefix("frame_")
+        .and_then(|rest| rest.strip_suffix(".vtk"))
+        .is_some_and(|digits| digits.len() >= 4 && digits.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// Removes from `dir` every frame file ([`is_frame_file_name`]) not named in `keep`: the frames
+/// a longer earlier run left there, which ParaView would otherwise show after the new series.
+/// Nothing else is touched. Returns how many files were removed.
+pub fn remove_stale_frames(dir: &Path, keep: &[&str]) -> io::Result<usize> {
+    let mut removed = 0;
+    for entry in std::fs::read_dir(dir)? {
+        let entry = entry?;
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        if is_frame_file_name(name) && !keep.contains(&name) && entry.file_type()?.is_file() {
+            std::fs::remove_file(entry.path())?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
+}
+
 /// Writes `frame` to the file `path` (replacing it).
 pub fn write_frame_file(path: &Path, frame: &Frame<'_>) -> io::Result<()> {
     let mut out = BufWriter::new(File::create(path)?);
@@ -326,6 +350,47 @@ mod tests {
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.contains("{ \"name\": \"frame_0001.vtk\", \"time\": 0.5 }\n"));
         assert!(text.contains("\"time\": 0 },\n"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn stale_frames_of_a_longer_run_are_removed_and_nothing_else() {
+        assert!(is_frame_file_name("frame_0000.vtk") && is_frame_file_name("frame_12345.vtk"));
+        for name in [
+            "frame_000.vtk",
+            "frame_00a0.vtk",
+            "frame_0000.vtu",
+            "frames.vtk.series",
+        ] {
+            assert!(!is_frame_file_name(name), "{name}");
+        }
+        let dir = std::env::temp_dir().join(format!("bouncy-stale-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let names = [
+            "frame_0000.vtk",
+            "frame_0001.vtk",
+            "frame_0002.vtk",
+            "frame_0003.vtk",
+        ];
+        for name in names
+            .iter()
+            .chain(&["notes.txt", "frame_7.vtk", "filmstrip.svg"])
+        {
+            std::fs::write(dir.join(name), "x").unwrap();
+        }
+        assert_eq!(remove_stale_frames(&dir, &names[..2]).unwrap(), 2);
+        let mut left: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        left.sort();
+        let expected = [
+            "filmstrip.svg",
+            "frame_0000.vtk",
+            "frame_0001.vtk",
+            "frame_7.vtk",
+        ];
+        assert_eq!(left, [&expected[..], &["notes.txt"]].concat());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
