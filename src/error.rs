@@ -556,6 +556,17 @@ pub enum StepBuffer {
     Scratch,
     /// The scalar scratch buffer of the relaxation (one per vertex).
     ScalarScratch,
+    /// The index scratch buffer of Vertex Block Descent (see `vbd_index_scratch_len`).
+    IndexScratch,
+    /// The offsets of a vertex adjacency, `vertex_count + 1` (see `adjacency_offsets_len`).
+    AdjacencyOffsets,
+    /// The incident (element, corner) entries of a vertex adjacency, four per element (see
+    /// `adjacency_incident_len`).
+    AdjacencyIncident,
+    /// The per-vertex colours of a vertex colouring, one per vertex.
+    Colours,
+    /// The vertex order of a colouring, one per vertex.
+    VertexOrder,
 }
 
 impl fmt::Display for StepBuffer {
@@ -567,6 +578,11 @@ impl fmt::Display for StepBuffer {
             StepBuffer::Pinned => "pinned flags",
             StepBuffer::Scratch => "scratch",
             StepBuffer::ScalarScratch => "scalar scratch",
+            StepBuffer::IndexScratch => "index scratch",
+            StepBuffer::AdjacencyOffsets => "adjacency offsets",
+            StepBuffer::AdjacencyIncident => "adjacency incidences",
+            StepBuffer::Colours => "colours",
+            StepBuffer::VertexOrder => "vertex order",
         })
     }
 }
@@ -617,6 +633,20 @@ pub enum StepError {
     /// spectral radius not in `[0, 1)`, step length not finite and positive, or momentum and
     /// Chebyshev acceleration both set.
     RelaxSettings,
+    /// A Vertex Block Descent setting is out of range: tolerance not in `[0, 1)`, Armijo
+    /// constant not in `(0, 1)`, backtracking factor not in `(0, 1)`, or Chebyshev spectral
+    /// radius not in `[0, 1)`.
+    VbdSettings,
+    /// The mesh has more than `u32::MAX / 4` elements, too many for a vertex adjacency's packed
+    /// `(element, corner)` entries.
+    TooManyElements,
+    /// A mesh element names a vertex at or beyond the vertex count.
+    VertexIndex {
+        /// The element.
+        element: usize,
+        /// The vertex index found there.
+        index: u32,
+    },
     /// A given position or velocity is NaN or infinite (before the step).
     NonFiniteInput {
         /// The first such vertex.
@@ -667,6 +697,14 @@ impl fmt::Display for StepError {
                 f.write_str("the blow-up growth limit must be a number greater than 1")
             }
             StepError::RelaxSettings => f.write_str("a relaxation setting is out of range"),
+            StepError::VbdSettings => f.write_str("a Vertex Block Descent setting is out of range"),
+            StepError::TooManyElements => {
+                f.write_str("more than u32::MAX / 4 elements: the adjacency cannot index them")
+            }
+            StepError::VertexIndex { element, index } => write!(
+                f,
+                "element {element} names vertex {index}, beyond the vertex count"
+            ),
             StepError::NonFiniteInput { vertex } => {
                 write!(f, "position or velocity of vertex {vertex} is not finite")
             }

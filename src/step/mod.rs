@@ -116,13 +116,19 @@ use super::mesh::{MembraneMesh, TetMesh, TriMesh};
 use super::types::{Real, Vec2, Vec3};
 use crate::error::{MeshError, StepBuffer, StepError};
 
+mod adjacency;
 mod explicit;
 mod ground;
 pub(crate) mod points;
 mod relax;
 mod stability;
+mod vbd;
 mod vertex_passes;
 
+pub use adjacency::{
+    adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
+    vertex_order,
+};
 pub use explicit::{
     DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, explicit_scratch_len,
     step_explicit,
@@ -132,6 +138,10 @@ pub use relax::{
     RelaxReport, RelaxScratch, RelaxSettings, relax_quasi_static, relax_scratch_len, relax_step,
 };
 pub use stability::{element_stable_time_step, linearised_moduli, stable_time_step};
+pub use vbd::{
+    VbdReport, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_quasi_static, vbd_scratch_len,
+    vbd_step,
+};
 
 pub use super::element::Vector;
 

@@ -1,0 +1,400 @@
+//! Vertex Block Descent: one sweep on a single free vertex is the exact Newton step for it
+//! (against finite differences of the force kernel); the quasi-static cantilever of
+//! tests/relax.rs reaches the relaxation's equilibrium; implicit Euler on a stiff block at
+//! 1/30 s converges without gaining energy; the colouring is valid and greedy; results do not
+//! depend on the scratch's previous contents; bad input is refused with the state untouched.
+//! The `#[ignore]`d `measure_*` tests print the timings of the report (run them in release).
+
+mod common;
+
+use softfem::StepError;
+use softfem::step::{
+    adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
+    vertex_order,
+};
+
+macro_rules! vbd_tests {
+    ($precision:ident, $($api:ident)::+, $newton_tolerance:expr) => {
+        mod $precision {
+            use softfem::StepError;
+            use $($api)::+::element::TetRest;
+            use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
+            use $($api)::+::material::{Material, StableNeoHookean};
+            use $($api)::+::mesh::TetMesh;
+            use $($api)::+::step::{
+                Ground, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len,
+                vbd_quasi_static, vbd_scratch_len, vbd_step,
+            };
+            use $($api)::+::types::{Mat3, Real, Vec3};
+
+            const GRAVITY: Vec3 = Vec3::new(0.0, -9.81, 0.0);
+
+            struct Boxed {
+                rest: Vec<Vec3>,
+                tets: Vec<[u32; 4]>,
+            }
+
+            fn boxed(max: Vec3, cells: [usize; 3]) -> Boxed {
+                let [nx, ny, nz] = cells;
+                let (nv, nt) = box_counts(nx, ny, nz, BoxSplit::Kuhn6).unwrap();
+                let mut rest = vec![Vec3::ZERO; nv];
+                let mut tets = vec![[0; 4]; nt];
+                fill_box(Vec3::ZERO, max, nx, ny, nz, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                Boxed { rest, tets }
+            }
+
+            fn bits(x: &[Vec3]) -> Vec<[u64; 3]> {
+                x.iter().map(|p| p.to_array().map(|c| f64::from(c).to_bits())).collect()
+            }
+
+            /// Scratch buffers for `n` vertices and `t` tetrahedra.
+            fn buffers(n: usize, t: usize) -> (Vec<Vec3>, Vec<u32>) {
+                (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)])
+            }
+
+            /// One sweep on a tetrahedron with one free vertex is one Newton step on `Phi` in
+            /// that vertex: `x = y - H^-1 g`, `g = -f(y)` (the inertia term vanishes at the
+            /// initial guess `y`, without gravity) and `H = m / h^2 I + K`, `K` the 3x3
+            /// stiffness block, here by central differences of the force kernel (step 1e-6 of
+            /// the edge: truncation ~1e-12 and rounding ~1e-10 relative in f64; in f32 the
+            /// rounding of the differences dominates). At 10 % strain the exact block is
+            /// positive definite, so the projected block the solver uses is the exact one.
+            #[test]
+            fn one_sweep_on_a_single_free_vertex_is_its_newton_step() {
+                let rest = [Vec3::ZERO, Vec3::X, Vec3::Z, -Vec3::Y].map(|x| x * 0.1);
+                let tets = [[0, 1, 2, 3]];
+                let mut rest_data = [TetRest::default(); 1];
+                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let material = StableNeoHookean::from_young_poisson(1.0e5, 0.3).unwrap();
+                let body = TetElastic::new(mesh, material);
+                let mut masses = [0.0; 4];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let pinned = [true, true, true, false];
+                let h: Real = 1.0 / 60.0;
+                let velocity = Vec3::new(0.3, -0.5, 0.2);
+                let (mut x, mut v) = (rest, [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity]);
+                let y = rest[3] + velocity * h;
+
+                // The reference Newton step, in f64 whatever the precision under test.
+                let force_at = |p: Vec3| {
+                    let mut corners = rest;
+                    corners[3] = p;
+                    let mut f = [Vec3::ZERO; 4];
+                    mesh.add_elastic_forces(&material, &corners, &mut f).unwrap();
+                    f[3]
+                };
+                let epsilon: Real = 1e-7;
+                let column = |axis: Vec3| {
+                    (force_at(y + axis * epsilon) - force_at(y - axis * epsilon)) * (-0.5 / epsilon)
+                };
+                let stiffness = Mat3::from_cols(column(Vec3::X), column(Vec3::Y), column(Vec3::Z));
+                let hessian = Mat3::from_diagonal(Vec3::splat(masses[3] / (h * h))) + stiffness;
+                let step = hessian.inverse() * force_at(y);
+                let expected = y + step;
+
+                let settings = VbdSettings::new(h).with_tolerance(0.0, 1);
+                let (mut vectors, mut indices) = buffers(4, 1);
+                let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                let report = vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                println!("{}: {report:?}; step {step}, VBD - Newton {}", stringify!($precision), x[3] - expected);
+                assert_eq!((report.iterations, report.backtracks, report.skipped), (1, 0, 0));
+                assert!(step.length() > 1e-3 * 0.1, "a real step: {step}");
+                assert!((x[3] - expected).length() <= $newton_tolerance * step.length(), "{} vs {}", x[3], expected);
+                assert_eq!(&x[..3], &rest[..3]);
+            }
+
+            /// The stiff block of tests/stability.rs (2 x 1 x 1 cubes of 5 cm, E = 1e8 Pa,
+            /// nu = 0.3, 300 times past the explicit limit at this step), perturbed: implicit
+            /// Euler at 1/30 s converges to 1e-4 on every step and never gains energy.
+            #[test]
+            fn implicit_euler_on_a_stiff_block_converges_at_a_thirtieth_of_a_second() {
+                let block = boxed(Vec3::new(0.1, 0.05, 0.05), [2, 1, 1]);
+                let mut rest_data = vec![TetRest::default(); block.tets.len()];
+                let mesh = TetMesh::new(&block.rest, &block.tets, &mut rest_data).unwrap();
+                let n = block.rest.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let material = StableNeoHookean::from_young_poisson(1.0e8, 0.3).unwrap();
+                let body = TetElastic::new(mesh, material);
+                let mut x: Vec<Vec3> = block.rest.iter().enumerate().map(|(i, &p)| {
+                    let (s, c) = ((i as Real * 1.7).sin(), (i as Real * 2.3).cos());
+                    p + Vec3::new(s, c, s * c) * 5e-4
+                }).collect();
+                let mut v = vec![Vec3::ZERO; n];
+                let energy = |x: &[Vec3], v: &[Vec3]| -> f64 {
+                    let kinetic: f64 = v.iter().zip(&masses).map(|(v, m)| 0.5 * f64::from(*m) * f64::from(v.length_squared())).sum();
+                    kinetic + f64::from(mesh.elastic_energy(&material, x).unwrap())
+                };
+                let start = energy(&x, &v);
+                let settings = VbdSettings::new(1.0 / 30.0).with_tolerance(1e-4, 200);
+                let (mut vectors, mut indices) = buffers(n, block.tets.len());
+                let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                let mut sweeps = 0;
+                for step in 0..30 {
+                    let report = vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    sweeps += report.iterations;
+                    assert!(report.converged, "step {step}: {report:?}");
+                    let now = energy(&x, &v);
+                    // Implicit Euler dissipates; the tolerance allows 1e-3 of the start.
+                    assert!(now <= start * 1.001, "step {step}: energy {now} > {start}");
+                }
+                println!("{}: stiff block, 30 steps of 1/30 s: {sweeps} sweeps, energy {start:.3e} -> {:.3e} J",
+                    stringify!($precision), energy(&x, &v));
+            }
+
+            /// The result is a function of the input alone: the same bits from a fresh scratch,
+            /// from a scratch full of garbage (NaN vectors, arbitrary indices) and from a scratch
+            /// kept across steps, with the line search, contacts and Chebyshev all active.
+            #[test]
+            fn results_do_not_depend_on_the_scratch_contents() {
+                let cube = boxed(Vec3::splat(0.1), [2, 2, 2]);
+                let mut rest_data = vec![TetRest::default(); cube.tets.len()];
+                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap());
+                let n = cube.rest.len();
+                let t = cube.tets.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                // Falling onto a ground 1 mm below, at 1 m/s, sideways too (friction acts).
+                let ground = Ground::new(Vec3::Y, -1e-3).with_friction(0.5);
+                let settings = VbdSettings::new(1.0 / 60.0)
+                    .with_gravity(GRAVITY)
+                    .with_ground(ground)
+                    .with_tolerance(0.0, 12)
+                    .with_chebyshev(0.9, 2);
+                let run = |vectors: &mut [Vec3], indices: &mut [u32], steps: usize| {
+                    let (mut x, mut v) = (cube.rest.clone(), vec![Vec3::new(0.3, -1.0, 0.0); n]);
+                    let mut scratch = VbdScratch::new(vectors, indices);
+                    for _ in 0..steps {
+                        vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    }
+                    (bits(&x), bits(&v))
+                };
+                let (mut vectors, mut indices) = buffers(n, t);
+                let fresh = run(&mut vectors, &mut indices, 2);
+                assert_eq!(run(&mut vectors, &mut indices, 2), fresh);
+                let mut garbage = vec![Vec3::splat(Real::NAN); vbd_scratch_len(n)];
+                let mut noise: Vec<u32> = (0..vbd_index_scratch_len(n, t) as u32).map(|i| i.wrapping_mul(2_654_435_761)).collect();
+                assert_eq!(run(&mut garbage, &mut noise, 2), fresh);
+                // One step at a time with fresh scratch each, against two with one scratch.
+                let (mut x, mut v) = (cube.rest.clone(), vec![Vec3::new(0.3, -1.0, 0.0); n]);
+                for _ in 0..2 {
+                    let (mut vectors, mut indices) = buffers(n, t);
+                    let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                    vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                }
+                assert_eq!((bits(&x), bits(&v)), fresh);
+                assert!(x.iter().all(|p| p.y >= -1e-3 - 1e-6), "inside the ground");
+            }
+
+            #[test]
+            fn bad_input_is_refused_with_the_state_untouched() {
+                let cube = boxed(Vec3::splat(0.1), [1, 1, 1]);
+                let mut rest_data = vec![TetRest::default(); cube.tets.len()];
+                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
+                let n = cube.rest.len();
+                let t = cube.tets.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let good = VbdSettings::new(0.01).with_gravity(GRAVITY);
+                let cases = [
+                    (VbdSettings { dt: 0.0, ..good }, StepError::TimeStep),
+                    (VbdSettings { dt: Real::INFINITY, ..good }, StepError::TimeStep),
+                    (good.with_gravity(Vec3::splat(Real::NAN)), StepError::Gravity),
+                    (good.with_tolerance(1.0, 10), StepError::VbdSettings),
+                    (good.with_tolerance(Real::NAN, 10), StepError::VbdSettings),
+                    (VbdSettings { armijo: 1.0, ..good }, StepError::VbdSettings),
+                    (VbdSettings { backtrack: 0.0, ..good }, StepError::VbdSettings),
+                    (good.with_chebyshev(1.0, 0), StepError::VbdSettings),
+                    (good.with_chebyshev(-0.5, 0), StepError::VbdSettings),
+                    (good.with_ground(Ground::new(Vec3::ZERO, 0.0)), StepError::Ground),
+                    (good.with_ground(Ground::new(Vec3::Y, 0.0).with_friction(-1.0)), StepError::Friction),
+                ];
+                let (mut vectors, mut indices) = buffers(n, t);
+                let v0 = vec![Vec3::X; n];
+                for (settings, expected) in cases {
+                    let (mut x, mut v) = (cube.rest.clone(), v0.clone());
+                    let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                    let error = vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap_err();
+                    assert_eq!(error, expected);
+                    assert_eq!((bits(&x), bits(&v)), (bits(&cube.rest), bits(&v0)));
+                }
+                // Buffers and state.
+                let mut bad_masses = masses.clone();
+                bad_masses[3] = 0.0;
+                let mut bad_x = cube.rest.clone();
+                bad_x[5].z = Real::NAN;
+                let mut short = vec![Vec3::ZERO; vbd_scratch_len(n) - 1];
+                let mut short_indices = vec![0; vbd_index_scratch_len(n, t) + 1];
+                let cases: [(&[Real], &[bool], &[Vec3], bool, bool, StepError); 5] = [
+                    (&bad_masses, &[], &cube.rest, false, false, StepError::Mass { vertex: 3 }),
+                    (&masses, &[true], &cube.rest, false, false,
+                        StepError::LengthMismatch { buffer: softfem::StepBuffer::Pinned, expected: n, actual: 1 }),
+                    (&masses, &[], &bad_x, false, false, StepError::NonFiniteInput { vertex: 5 }),
+                    (&masses, &[], &cube.rest, true, false,
+                        StepError::LengthMismatch { buffer: softfem::StepBuffer::Scratch, expected: 5 * n, actual: 5 * n - 1 }),
+                    (&masses, &[], &cube.rest, false, true,
+                        StepError::LengthMismatch { buffer: softfem::StepBuffer::IndexScratch, expected: 3 * n + 1 + 4 * t, actual: 3 * n + 2 + 4 * t }),
+                ];
+                for (masses, pinned, x0, short_vectors, long_indices, expected) in cases {
+                    let (mut x, mut v) = (x0.to_vec(), v0.clone());
+                    let vector_buffer: &mut [Vec3] = if short_vectors { &mut short } else { &mut vectors };
+                    let index_buffer: &mut [u32] = if long_indices { &mut short_indices } else { &mut indices };
+                    let mut scratch = VbdScratch::new(vector_buffer, index_buffer);
+                    let error = vbd_step(&body, masses, pinned, &good, &mut x, &mut v, &mut scratch).unwrap_err();
+                    assert_eq!(error, expected);
+                    assert_eq!((bits(&x), bits(&v)), (bits(x0), bits(&v0)));
+                    let error = vbd_quasi_static(&body, masses, pinned, &good, &mut x, &mut scratch).unwrap_err();
+                    assert_eq!(error, expected);
+                    assert_eq!(bits(&x), bits(x0));
+                }
+            }
+
+            /// The quasi-static solve without gravity from the rest shape is at equilibrium at
+            /// once (zero sweeps), and pinned vertices never move.
+            #[test]
+            fn rest_is_an_equilibrium_without_load() {
+                let cube = boxed(Vec3::splat(0.1), [1, 1, 1]);
+                let mut rest_data = vec![TetRest::default(); cube.tets.len()];
+                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
+                let n = cube.rest.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let (mut vectors, mut indices) = buffers(n, cube.tets.len());
+                let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                let mut x = cube.rest.clone();
+                let report = vbd_quasi_static(&body, &masses, &[], &VbdSettings::new(1.0), &mut x, &mut scratch).unwrap();
+                assert!(report.converged && report.iterations == 0, "{report:?}");
+                assert_eq!(x, cube.rest);
+                let _ = Material::energy_density(&body.material, Mat3::IDENTITY);
+            }
+        }
+    };
+}
+
+// f32: the differences of the reference Hessian lose ~1e-3 of the step to rounding.
+vbd_tests!(single, softfem, 2e-2);
+vbd_tests!(double, softfem::f64, 1e-6);
+
+/// The adjacency lists each vertex's (element, corner) pairs in element order, exactly those of
+/// a brute-force scan; the colouring gives the four corners of every element four different
+/// colours and is the greedy one (each vertex's colour is the smallest its earlier neighbours
+/// leave free: every smaller colour is held by one of them); the order lists every vertex once,
+/// by colour, then index.
+#[test]
+fn adjacency_and_colouring_are_valid_and_greedy() {
+    use softfem::generate::{BoxSplit, box_counts, fill_box};
+    use softfem::glam::Vec3;
+    for (cells, split) in [
+        ([3, 2, 2], BoxSplit::Kuhn6),
+        ([4, 3, 2], BoxSplit::Alternating5),
+    ] {
+        let [nx, ny, nz] = cells;
+        let (nv, nt) = box_counts(nx, ny, nz, split).unwrap();
+        let mut rest = vec![Vec3::ZERO; nv];
+        let mut tets = vec![[0; 4]; nt];
+        fill_box(
+            Vec3::ZERO,
+            Vec3::ONE,
+            nx,
+            ny,
+            nz,
+            split,
+            &mut rest,
+            &mut tets,
+        )
+        .unwrap();
+        // Shuffle the elements (deterministically) so that the order is not the generator's.
+        let mut rng = common::Rng::new(7);
+        for i in (1..nt).rev() {
+            let j = (rng.next_u64() % (i as u64 + 1)) as usize;
+            tets.swap(i, j);
+        }
+        let mut offsets = vec![u32::MAX; adjacency_offsets_len(nv)];
+        let mut incident = vec![u32::MAX; adjacency_incident_len(nt)];
+        build_vertex_adjacency(&tets, nv, &mut offsets, &mut incident).unwrap();
+        for v in 0..nv {
+            let expected: Vec<u32> = (0..nt)
+                .flat_map(|e| (0..4).map(move |c| (e, c)))
+                .filter(|&(e, c)| tets[e][c] as usize == v)
+                .map(|(e, c)| (4 * e + c) as u32)
+                .collect();
+            let row = &incident[offsets[v] as usize..offsets[v + 1] as usize];
+            assert_eq!(row, &expected[..], "vertex {v}");
+        }
+        let mut colours = vec![u32::MAX; nv];
+        let count = colour_vertices(&tets, &offsets, &incident, &mut colours).unwrap();
+        for (e, corners) in tets.iter().enumerate() {
+            for a in 0..4 {
+                for b in a + 1..4 {
+                    assert_ne!(
+                        colours[corners[a] as usize], colours[corners[b] as usize],
+                        "element {e}"
+                    );
+                }
+            }
+        }
+        let neighbours = |v: usize| -> Vec<usize> {
+            let mut all: Vec<usize> = tets
+                .iter()
+                .filter(|t| t.contains(&(v as u32)))
+                .flatten()
+                .map(|&u| u as usize)
+                .filter(|&u| u != v)
+                .collect();
+            all.sort_unstable();
+            all.dedup();
+            all
+        };
+        let mut most = 0;
+        for v in 0..nv {
+            let earlier: Vec<u32> = neighbours(v)
+                .into_iter()
+                .filter(|&u| u < v)
+                .map(|u| colours[u])
+                .collect();
+            for smaller in 0..colours[v] {
+                assert!(
+                    earlier.contains(&smaller),
+                    "vertex {v}: colour {} but {smaller} is free",
+                    colours[v]
+                );
+            }
+            most = most.max(neighbours(v).len());
+        }
+        assert_eq!(count, colours.iter().max().unwrap() + 1);
+        assert!(count as usize <= most + 1);
+        let mut order = vec![u32::MAX; nv];
+        vertex_order(&colours, count, &mut order).unwrap();
+        let keys: Vec<(u32, u32)> = order.iter().map(|&v| (colours[v as usize], v)).collect();
+        let mut sorted = keys.clone();
+        sorted.sort_unstable();
+        assert_eq!(keys, sorted);
+        let mut seen = order.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..nv as u32).collect::<Vec<_>>());
+        println!("{cells:?} {split:?}: {count} colours, at most {most} neighbours");
+    }
+    // Refusals: wrong lengths and an index beyond the vertex count; nothing written.
+    let tets = [[0, 1, 2, 3], [1, 2, 3, 9]];
+    let (mut offsets, mut incident) = (vec![7; 6], vec![7; 8]);
+    assert_eq!(
+        build_vertex_adjacency(&tets, 5, &mut offsets, &mut incident),
+        Err(StepError::VertexIndex {
+            element: 1,
+            index: 9
+        })
+    );
+    assert_eq!((offsets[0], incident[0]), (7, 7));
+    assert!(matches!(
+        build_vertex_adjacency(&tets, 5, &mut offsets[..5], &mut incident),
+        Err(StepError::LengthMismatch { .. })
+    ));
+    let mut colours = [0; 4];
+    assert!(matches!(
+        colour_vertices(&tets, &offsets, &incident, &mut colours),
+        Err(StepError::LengthMismatch { .. })
+    ));
+}
