@@ -408,6 +408,14 @@ pub enum Buffer {
     Energies,
     /// The per-element stresses, one per element.
     Stresses,
+    /// The per-element Hessian cache (`TetHessian`), one per element.
+    Hessians,
+    /// A direction (displacement) the Hessian is applied to, one per vertex.
+    Direction,
+    /// The output of a Hessian product, one per vertex.
+    Products,
+    /// The per-vertex 3x3 Hessian blocks, one per vertex.
+    Blocks,
 }
 
 impl fmt::Display for Buffer {
@@ -419,6 +427,10 @@ impl fmt::Display for Buffer {
             Buffer::Masses => "masses",
             Buffer::Energies => "energies",
             Buffer::Stresses => "stresses",
+            Buffer::Hessians => "Hessian cache",
+            Buffer::Direction => "direction",
+            Buffer::Products => "Hessian product",
+            Buffer::Blocks => "Hessian blocks",
         })
     }
 }
@@ -475,6 +487,11 @@ pub enum MeshError {
     },
     /// The mass density is NaN, infinite, zero or negative.
     Density,
+    /// A direction given to a Hessian product has a NaN or infinite coordinate.
+    NonFiniteDirection {
+        /// The vertex index.
+        vertex: usize,
+    },
 }
 
 impl MeshError {
@@ -532,6 +549,9 @@ impl fmt::Display for MeshError {
                 write!(f, "position of vertex {vertex} is not finite")
             }
             MeshError::Density => f.write_str("the density must be finite and positive"),
+            MeshError::NonFiniteDirection { vertex } => {
+                write!(f, "direction at vertex {vertex} is not finite")
+            }
         }
     }
 }

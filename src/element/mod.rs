@@ -41,9 +41,11 @@ use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 use super::types::{Real, Vec2, Vec3};
 use crate::error::ElementError;
 
+mod hessian;
 mod tet;
 mod triangle;
 
+pub use hessian::{TetHessian, tet_vertex_force_and_block};
 pub use tet::{TetRest, fix_orientation};
 pub use triangle::{TriRest, TriangleStVK};
 
