@@ -105,7 +105,8 @@ macro_rules! vbd_tests {
 
             /// The stiff block of tests/stability.rs (2 x 1 x 1 cubes of 5 cm, E = 1e8 Pa,
             /// nu = 0.3, 300 times past the explicit limit at this step), perturbed: implicit
-            /// Euler at 1/30 s converges to 1e-4 on every step and never gains energy.
+            /// Euler at 1/30 s converges to 1e-4 on every step (f32: or reaches the rounding floor of its
+/// force sums) and never gains energy.
             #[test]
             fn implicit_euler_on_a_stiff_block_converges_at_a_thirtieth_of_a_second() {
                 let block = boxed(Vec3::new(0.1, 0.05, 0.05), [2, 1, 1]);
@@ -133,7 +134,12 @@ macro_rules! vbd_tests {
                 for step in 0..30 {
                     let report = vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
                     sweeps += report.iterations;
-                    assert!(report.converged, "step {step}: {report:?}");
+                    // Converged, or at the rounding floor of the force sums: element forces of
+                    // E L^2 ~ 2.5e5 N cancel to a few eps E L^2 per vertex (0.2 N in f32, above
+                    // 1e-4 of the initial residual once the block has settled; 4e-10 N in f64,
+                    // never reached).
+                    let floor = 2.0 * Real::EPSILON * 1.0e8 * 0.05 * 0.05 * (n as Real).sqrt();
+                    assert!(report.converged || report.final_residual <= floor, "step {step}: {report:?}");
                     let now = energy(&x, &v);
                     // Implicit Euler dissipates; the tolerance allows 1e-3 of the start.
                     assert!(now <= start * 1.001, "step {step}: energy {now} > {start}");
@@ -397,4 +403,96 @@ fn adjacency_and_colouring_are_valid_and_greedy() {
         colour_vertices(&tets, &offsets, &incident, &mut colours),
         Err(StepError::LengthMismatch { .. })
     ));
+}
+
+/// The quasi-static cantilever of tests/relax.rs (0.4 m bar, 4 x 1 x 1 cubes, stable neo-Hookean
+/// E = 1 MPa, nu = 0.3, pinned at x = 0, f64): VBD and the relaxation, both to 1e-8 of the
+/// gravity load, reach the same equilibrium. Both stop at `|grad Phi| <= r = 1e-8 |M g|`; with
+/// `K >= k_min I` near the solution `|x - x*| <= r / k_min` for each, and k_min, the bending
+/// stiffness of the slowest mode (~|M g| / sag), makes this ~1e-8 sag per vertex: 1e-6 sag
+/// leaves a factor 100 for sqrt(n) and the mode shapes.
+#[test]
+fn quasi_static_cantilever_reaches_the_relaxations_equilibrium() {
+    use softfem::f64::element::TetRest;
+    use softfem::f64::generate::{BoxSplit, box_counts, fill_box};
+    use softfem::f64::material::StableNeoHookean;
+    use softfem::f64::mesh::TetMesh;
+    use softfem::f64::step::{
+        RelaxScratch, RelaxSettings, TetElastic, VbdScratch, VbdSettings, relax_quasi_static,
+        relax_scratch_len, vbd_index_scratch_len, vbd_quasi_static, vbd_scratch_len,
+    };
+    use softfem::glam::DVec3 as Vec3;
+    let (nv, nt) = box_counts(4, 1, 1, BoxSplit::Kuhn6).unwrap();
+    let mut rest = vec![Vec3::ZERO; nv];
+    let mut tets = vec![[0; 4]; nt];
+    let max = Vec3::new(0.4, 0.1, 0.1);
+    fill_box(
+        Vec3::ZERO,
+        max,
+        4,
+        1,
+        1,
+        BoxSplit::Kuhn6,
+        &mut rest,
+        &mut tets,
+    )
+    .unwrap();
+    let pinned: Vec<bool> = rest.iter().map(|p| p.x == 0.0).collect();
+    let mut rest_data = vec![TetRest::default(); nt];
+    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+    let body = TetElastic::new(
+        mesh,
+        StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap(),
+    );
+    let mut masses = vec![0.0; nv];
+    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+    let gravity = Vec3::new(0.0, -9.81, 0.0);
+    let tolerance = 1e-8;
+
+    let settings = RelaxSettings::new(1.0)
+        .with_gravity(gravity)
+        .with_tolerance(tolerance, 200_000)
+        .with_chebyshev(0.999, 2.0, 0);
+    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+    let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+    let mut x_relax = rest.clone();
+    let relax = relax_quasi_static(
+        &body,
+        &masses,
+        &pinned,
+        &settings,
+        &mut x_relax,
+        &mut scratch,
+    )
+    .unwrap();
+
+    let settings = VbdSettings::new(1.0)
+        .with_gravity(gravity)
+        .with_tolerance(tolerance, 20_000);
+    let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
+    let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
+    let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+    let mut x_vbd = rest.clone();
+    let vbd =
+        vbd_quasi_static(&body, &masses, &pinned, &settings, &mut x_vbd, &mut scratch).unwrap();
+
+    let sag = rest
+        .iter()
+        .zip(&x_relax)
+        .map(|(r, x)| r.y - x.y)
+        .fold(0.0, f64::max);
+    let difference = x_vbd
+        .iter()
+        .zip(&x_relax)
+        .map(|(a, b)| (*a - *b).length())
+        .fold(0.0, f64::max);
+    println!("relax {relax:?}\nvbd {vbd:?}\nsag {sag:.4e} m, |x_vbd - x_relax| {difference:.2e} m");
+    assert!(relax.converged && vbd.converged);
+    assert!(sag > 0.005 && sag < 0.1);
+    assert!(difference <= 1e-6 * sag, "{difference}");
+    for ((x, r), p) in x_vbd.iter().zip(&rest).zip(&pinned) {
+        if *p {
+            assert_eq!(x, r);
+        }
+    }
 }

@@ -41,7 +41,7 @@
 
 use core::mem::swap;
 
-use super::super::element::TetRest;
+use super::super::element::{TetRest, tet_vertex_force_and_block};
 use super::super::material::Material;
 use super::super::math;
 use super::super::types::{Mat3, Real, Vec3};
@@ -344,6 +344,9 @@ pub fn vbd_quasi_static<M: Material>(
 /// in the relaxation.
 const ROUNDING: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
 
+/// The energy resolution's factor: `64 eps`.
+const RESOLUTION: Real = 64.0 * Real::EPSILON;
+
 /// A Cholesky pivot must exceed this times the block's trace.
 const PIVOT_FLOOR: Real = 64.0 * Real::EPSILON;
 
@@ -446,13 +449,19 @@ impl<M: Material> Sweep<'_, M> {
         let mut gradient = (x - y) * weight - self.gravity * m;
         let mut hessian = Mat3::from_diagonal(Vec3::splat(weight));
         let mut elastic = 0.0;
+        // What the local energy can resolve: 64 eps sum_e V_e W_e-scale, the scale from the
+        // element block, tr(K_e) / |g_a|^2 ~ V_e times the elastic modulus (J).
+        let mut resolution = 0.0;
         for (corners, corner, rest) in self.elements(i) {
             let xs = gather(positions, corners);
-            let (force, block) = vertex_force_and_block(self.material, rest, xs, corner);
+            let (force, block) = tet_vertex_force_and_block(self.material, rest, xs, corner);
             gradient -= force;
             hessian += block;
             if line_search {
                 elastic += rest.elastic_energy(self.material, xs);
+                let g = shape_gradient(rest, corner);
+                let trace = block.x_axis.x + block.y_axis.y + block.z_axis.z;
+                resolution += trace / g.dot(g);
             }
         }
         let Some(factor) = Cholesky::regularised(&hessian) else {
@@ -489,24 +498,38 @@ impl<M: Material> Sweep<'_, M> {
             }
             return;
         }
+        let resolution = RESOLUTION * resolution;
         let mut alpha = 1.0;
         for _ in 0..=self.max_backtracks {
             let trial = project(x + step * alpha);
             let moved = trial - x;
             let mut trial_elastic = 0.0;
+            let mut trial_gradient = (trial - y) * weight - self.gravity * m;
             for (corners, corner, rest) in self.elements(i) {
                 let mut xs = gather(positions, corners);
                 if let Some(slot) = xs.get_mut(corner) {
                     *slot = trial;
                 }
-                trial_elastic += rest.elastic_energy(self.material, xs);
+                let (density, stress) = self
+                    .material
+                    .energy_and_first_piola(rest.deformation_gradient(xs));
+                trial_elastic += rest.volume * density;
+                let forces = rest.nodal_forces(stress);
+                trial_gradient -= forces.get(corner).copied().unwrap_or(Vec3::ZERO);
             }
             // The inertia and gravity change in a form without cancellation.
             let change = 0.5 * weight * moved.dot(moved + (x - y) * 2.0)
                 - m * self.gravity.dot(moved)
                 + (trial_elastic - elastic);
-            let noise = ROUNDING * (elastic.abs() + trial_elastic.abs());
-            if change <= self.armijo * alpha * slope + noise {
+            // Armijo where the energy resolves the predicted decrease; below that, Hager and
+            // Zhang's approximate Armijo test from the two slopes (SIAM J. Optim. 2005), as
+            // the relaxation's line search does.
+            let noise = resolution + ROUNDING * (elastic.abs() + trial_elastic.abs());
+            let sufficient = change <= self.armijo * alpha * slope
+                || (-alpha * slope <= noise
+                    && change <= noise
+                    && trial_gradient.dot(step) <= (2.0 * self.armijo - 1.0) * slope);
+            if sufficient {
                 if let Some(slot) = positions.get_mut(i) {
                     *slot = trial;
                 }
@@ -516,6 +539,17 @@ impl<M: Material> Sweep<'_, M> {
             counts.backtracks += 1;
         }
         counts.skipped += 1;
+    }
+}
+
+/// The gradient `g_a` (m^-1) of corner `a`'s shape function: row `a - 1` of `Dm^-1`, minus
+/// their sum for `a = 0`.
+#[inline(always)]
+fn shape_gradient(rest: &TetRest, corner: usize) -> Vec3 {
+    let rows = [rest.dm_inv.row(0), rest.dm_inv.row(1), rest.dm_inv.row(2)];
+    match corner.checked_sub(1) {
+        Some(k) => rows.get(k).copied().unwrap_or(Vec3::ZERO),
+        None => -(rows.iter().copied().sum::<Vec3>()),
     }
 }
 
@@ -574,37 +608,6 @@ impl Cholesky {
         let x0 = (z0 - self.l10 * x1 - self.l20 * x2) / self.l00;
         Vec3::new(x0, x1, x2)
     }
-}
-
-/// TEMPORARY stand-in for `element::tet_vertex_force_and_block` (hessian branch): the elastic
-/// force on `corner` and its 3x3 Hessian block by central differences of `P`, not projected.
-fn vertex_force_and_block<M: Material>(
-    material: &M,
-    rest: &TetRest,
-    corners: [Vec3; 4],
-    corner: usize,
-) -> (Vec3, Mat3) {
-    let f = rest.deformation_gradient(corners);
-    let rows = [rest.dm_inv.row(0), rest.dm_inv.row(1), rest.dm_inv.row(2)];
-    let b = match corner.checked_sub(1) {
-        Some(k) => rows.get(k).copied().unwrap_or(Vec3::ZERO),
-        None => -(rows[0] + rows[1] + rows[2]),
-    };
-    let force = material.first_piola(f) * b * -rest.volume;
-    let delta = math::cbrt(Real::EPSILON)
-        * (1.0
-            + f.abs()
-                .to_cols_array()
-                .iter()
-                .fold(0.0, |a: Real, &c| a.max(c)));
-    let column = |axis: Vec3| {
-        let df = Mat3::from_cols(axis * b.x, axis * b.y, axis * b.z);
-        let dp = (material.first_piola(f + df * delta) - material.first_piola(f - df * delta))
-            * (1.0 / (2.0 * delta));
-        dp * b * rest.volume
-    };
-    let h = Mat3::from_cols(column(Vec3::X), column(Vec3::Y), column(Vec3::Z));
-    (force, (h + h.transpose()) * 0.5)
 }
 
 /// Copies `source` into `target`, as far as the shorter goes.
