@@ -496,3 +496,364 @@ fn quasi_static_cantilever_reaches_the_relaxations_equilibrium() {
         }
     }
 }
+
+/// Wall time and iterations of VBD against the relaxation with the bouncy example's GD +
+/// Chebyshev settings, each stepper running its own trajectory to the same relative residual
+/// (the two share the stopping test), and the cost of a sweep in force evaluations. Timings,
+/// so not checks: run `cargo test --release --all-features --test vbd measure -- --ignored
+/// --nocapture --test-threads 1`. Columns: scene | solver | steps | converged steps |
+/// iterations | fused energy-and-force evaluations | wall s | s per step.
+#[test]
+#[ignore]
+fn measure_bouncy_cube() {
+    measure::bouncy_cube();
+}
+
+/// See [`measure_bouncy_cube`].
+#[test]
+#[ignore]
+fn measure_stiff_block() {
+    measure::stiff_block();
+}
+
+/// See [`measure_bouncy_cube`].
+#[test]
+#[ignore]
+fn measure_sweep_cost() {
+    measure::sweep_cost();
+}
+
+/// The scenes of the `measure_*` tests.
+mod measure {
+    use std::time::Instant;
+
+    /// One row of the table.
+    pub fn row(
+        scene: &str,
+        solver: &str,
+        steps: usize,
+        converged: usize,
+        iterations: u64,
+        evaluations: u64,
+        seconds: f64,
+    ) {
+        println!(
+            "{scene} | {solver} | {steps} | {converged} | {iterations} | {evaluations} | {seconds:.3} | {:.2e}",
+            seconds / steps as f64
+        );
+    }
+
+    /// The bouncy example's jelly cube (0.2 m, 6^3 cells, 1296 tets, stable neo-Hookean
+    /// E = 5e4 Pa, nu = 0.45, 1000 kg/m^3) dropped from 0.5 m onto z = 0 with friction 0.6,
+    /// 180 steps of 1/60 s, f32; relaxation: tolerance 2e-3, 300 iterations, Chebyshev 0.995,
+    /// step 2 (examples/bouncy/main.rs).
+    pub fn bouncy_cube() {
+        use softfem::element::TetRest;
+        use softfem::generate::{BoxSplit, box_counts, fill_box};
+        use softfem::glam::Vec3;
+        use softfem::material::StableNeoHookean;
+        use softfem::mesh::TetMesh;
+        use softfem::step::*;
+        let (nv, nt) = box_counts(6, 6, 6, BoxSplit::Kuhn6).unwrap();
+        let mut rest = vec![Vec3::ZERO; nv];
+        let mut tets = vec![[0; 4]; nt];
+        let (min, max) = (Vec3::new(-0.1, -0.1, 0.5), Vec3::new(0.1, 0.1, 0.7));
+        fill_box(min, max, 6, 6, 6, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+        let mut rest_data = vec![TetRest::default(); nt];
+        let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+        let body = TetElastic::new(
+            mesh,
+            StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap(),
+        );
+        let mut masses = vec![0.0; nv];
+        mesh.lumped_masses(1000.0, &mut masses).unwrap();
+        let gravity = Vec3::new(0.0, 0.0, -9.81);
+        let ground = Ground::new(Vec3::Z, 0.0).with_friction(0.6);
+        let (dt, tolerance, steps) = (1.0 / 60.0, 2e-3, 180);
+        let scene = format!("bouncy cube {nt} tets 1/60 s f32");
+
+        let settings = RelaxSettings::new(dt)
+            .with_gravity(gravity)
+            .with_ground(ground)
+            .with_tolerance(tolerance, 300)
+            .with_chebyshev(0.995, 2.0, 0);
+        let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+        let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+        let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; nv]);
+        let (mut converged, mut iterations, mut evaluations) = (0, 0u64, 0u64);
+        let start = Instant::now();
+        for _ in 0..steps {
+            let r =
+                relax_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+            converged += usize::from(r.converged);
+            iterations += u64::from(r.iterations);
+            evaluations += u64::from(r.energy_evaluations);
+        }
+        row(
+            &scene,
+            "GD+Chebyshev 0.995",
+            steps,
+            converged,
+            iterations,
+            evaluations,
+            start.elapsed().as_secs_f64(),
+        );
+        let relax_lowest = x.iter().map(|p| p.z).fold(f32::MAX, f32::min);
+
+        for (name, vbd) in variants(
+            VbdSettings::new(dt)
+                .with_gravity(gravity)
+                .with_ground(ground)
+                .with_tolerance(tolerance, 300),
+        ) {
+            let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
+            let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
+            let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+            let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; nv]);
+            let (mut converged, mut iterations, mut evaluations) = (0, 0u64, 0u64);
+            let start = Instant::now();
+            let mut colours = 0;
+            for _ in 0..steps {
+                let r = vbd_step(&body, &masses, &[], &vbd, &mut x, &mut v, &mut scratch).unwrap();
+                converged += usize::from(r.converged);
+                iterations += u64::from(r.iterations);
+                evaluations += u64::from(r.energy_evaluations);
+                colours = r.colours;
+            }
+            row(
+                &scene,
+                &format!("VBD {name} ({colours} colours)"),
+                steps,
+                converged,
+                iterations,
+                evaluations,
+                start.elapsed().as_secs_f64(),
+            );
+            let lowest = x.iter().map(|p| p.z).fold(f32::MAX, f32::min);
+            assert!(lowest >= -1e-5 && relax_lowest >= -1e-5);
+        }
+    }
+
+    /// The VBD settings measured.
+    fn variants<S: Copy>(base: S) -> Vec<(&'static str, S)>
+    where
+        S: VbdLike,
+    {
+        vec![
+            ("line search", base),
+            ("no line search", base.line_search(0)),
+            ("line search + Chebyshev 0.9", base.chebyshev(0.9)),
+            ("line search + Chebyshev 0.95", base.chebyshev(0.95)),
+        ]
+    }
+
+    /// The two precisions' settings, for [`variants`].
+    pub trait VbdLike: Sized {
+        fn line_search(self, backtracks: u32) -> Self;
+        fn chebyshev(self, rho: f64) -> Self;
+    }
+    impl VbdLike for softfem::step::VbdSettings {
+        fn line_search(self, backtracks: u32) -> Self {
+            self.with_line_search(backtracks)
+        }
+        fn chebyshev(self, rho: f64) -> Self {
+            self.with_chebyshev(rho as f32, 2)
+        }
+    }
+    impl VbdLike for softfem::f64::step::VbdSettings {
+        fn line_search(self, backtracks: u32) -> Self {
+            self.with_line_search(backtracks)
+        }
+        fn chebyshev(self, rho: f64) -> Self {
+            self.with_chebyshev(rho, 2)
+        }
+    }
+
+    /// The stability chart's stiff block (0.1 x 0.05 x 0.05 m, 4 x 2 x 2 cubes, 96 tets, stable
+    /// neo-Hookean E = 1e8 Pa, nu = 0.3), perturbed by 1e-3 of a cell, 30 steps of 1/30 s
+    /// without gravity, f64; relaxation: tolerance 1e-4, 500 iterations, Chebyshev 0.995, step 2
+    /// (examples/tradeoffs/stability_map.rs).
+    pub fn stiff_block() {
+        use softfem::f64::element::TetRest;
+        use softfem::f64::generate::{BoxSplit, box_counts, fill_box};
+        use softfem::f64::material::StableNeoHookean;
+        use softfem::f64::mesh::TetMesh;
+        use softfem::f64::step::*;
+        use softfem::glam::DVec3 as Vec3;
+        let (nv, nt) = box_counts(4, 2, 2, BoxSplit::Kuhn6).unwrap();
+        let mut rest = vec![Vec3::ZERO; nv];
+        let mut tets = vec![[0; 4]; nt];
+        fill_box(
+            Vec3::ZERO,
+            Vec3::new(0.1, 0.05, 0.05),
+            4,
+            2,
+            2,
+            BoxSplit::Kuhn6,
+            &mut rest,
+            &mut tets,
+        )
+        .unwrap();
+        let mut rest_data = vec![TetRest::default(); nt];
+        let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+        let body = TetElastic::new(
+            mesh,
+            StableNeoHookean::from_young_poisson(1.0e8, 0.3).unwrap(),
+        );
+        let mut masses = vec![0.0; nv];
+        mesh.lumped_masses(1000.0, &mut masses).unwrap();
+        let mut rng = crate::common::Rng::new(3);
+        let amplitude = 1e-3 * 0.025;
+        let start_x: Vec<Vec3> = rest
+            .iter()
+            .map(|&p| {
+                p + Vec3::new(rng.unit() - 0.5, rng.unit() - 0.5, rng.unit() - 0.5)
+                    * (2.0 * amplitude)
+            })
+            .collect();
+        let (dt, tolerance, steps) = (1.0 / 30.0, 1e-4, 30);
+        let scene = format!("stiff block {nt} tets 1/30 s f64");
+
+        let settings = RelaxSettings::new(dt)
+            .with_tolerance(tolerance, 500)
+            .with_chebyshev(0.995, 2.0, 0);
+        let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+        let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+        let (mut x, mut v) = (start_x.clone(), vec![Vec3::ZERO; nv]);
+        let (mut converged, mut iterations, mut evaluations) = (0, 0u64, 0u64);
+        let start = Instant::now();
+        for _ in 0..steps {
+            let r =
+                relax_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+            converged += usize::from(r.converged);
+            iterations += u64::from(r.iterations);
+            evaluations += u64::from(r.energy_evaluations);
+        }
+        row(
+            &scene,
+            "GD+Chebyshev 0.995",
+            steps,
+            converged,
+            iterations,
+            evaluations,
+            start.elapsed().as_secs_f64(),
+        );
+
+        for (name, vbd) in variants(VbdSettings::new(dt).with_tolerance(tolerance, 500)) {
+            let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
+            let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
+            let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+            let (mut x, mut v) = (start_x.clone(), vec![Vec3::ZERO; nv]);
+            let (mut converged, mut iterations, mut evaluations) = (0, 0u64, 0u64);
+            let start = Instant::now();
+            for _ in 0..steps {
+                let r = vbd_step(&body, &masses, &[], &vbd, &mut x, &mut v, &mut scratch).unwrap();
+                converged += usize::from(r.converged);
+                iterations += u64::from(r.iterations);
+                evaluations += u64::from(r.energy_evaluations);
+            }
+            row(
+                &scene,
+                &format!("VBD {name}"),
+                steps,
+                converged,
+                iterations,
+                evaluations,
+                start.elapsed().as_secs_f64(),
+            );
+        }
+    }
+
+    /// A sweep's cost in force evaluations on the bouncy cube at rest (f32): 200 VBD
+    /// iterations at tolerance 0 (one sweep and one fused energy-and-force pass each) against
+    /// 200 fused passes and 200 force-only passes.
+    pub fn sweep_cost() {
+        use softfem::element::TetRest;
+        use softfem::generate::{BoxSplit, box_counts, fill_box};
+        use softfem::glam::Vec3;
+        use softfem::material::StableNeoHookean;
+        use softfem::mesh::TetMesh;
+        use softfem::step::*;
+        let (nv, nt) = box_counts(6, 6, 6, BoxSplit::Kuhn6).unwrap();
+        let mut rest = vec![Vec3::ZERO; nv];
+        let mut tets = vec![[0; 4]; nt];
+        fill_box(
+            Vec3::splat(-0.1),
+            Vec3::splat(0.1),
+            6,
+            6,
+            6,
+            BoxSplit::Kuhn6,
+            &mut rest,
+            &mut tets,
+        )
+        .unwrap();
+        let mut rest_data = vec![TetRest::default(); nt];
+        let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+        let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
+        let body = TetElastic::new(mesh, material);
+        let mut masses = vec![0.0; nv];
+        mesh.lumped_masses(1000.0, &mut masses).unwrap();
+        let x: Vec<Vec3> = rest
+            .iter()
+            .map(|p| *p * Vec3::new(1.05, 0.97, 1.0))
+            .collect();
+        let rounds = 200;
+        let mut forces = vec![Vec3::ZERO; nv];
+        let start = Instant::now();
+        for _ in 0..rounds {
+            forces.fill(Vec3::ZERO);
+            mesh.add_elastic_forces(&material, &x, &mut forces).unwrap();
+        }
+        let force = start.elapsed().as_secs_f64() / rounds as f64;
+        let start = Instant::now();
+        for _ in 0..rounds {
+            forces.fill(Vec3::ZERO);
+            std::hint::black_box(body.energy_and_add_forces(&x, &mut forces).unwrap());
+        }
+        let fused = start.elapsed().as_secs_f64() / rounds as f64;
+        for (name, settings) in [
+            (
+                "line search",
+                VbdSettings::new(1.0 / 60.0).with_tolerance(0.0, rounds),
+            ),
+            (
+                "no line search",
+                VbdSettings::new(1.0 / 60.0)
+                    .with_tolerance(0.0, rounds)
+                    .with_line_search(0),
+            ),
+        ] {
+            let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
+            let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
+            let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+            let (mut y, mut v) = (x.clone(), vec![Vec3::ZERO; nv]);
+            // Build the topology outside the timing.
+            vbd_step(
+                &body,
+                &masses,
+                &[],
+                &settings.with_tolerance(0.0, 0),
+                &mut y.clone(),
+                &mut v.clone(),
+                &mut scratch,
+            )
+            .unwrap();
+            let start = Instant::now();
+            let report =
+                vbd_step(&body, &masses, &[], &settings, &mut y, &mut v, &mut scratch).unwrap();
+            let per_iteration =
+                (start.elapsed().as_secs_f64() - fused) / f64::from(report.iterations);
+            let sweep = per_iteration - fused;
+            println!(
+                "sweep cost ({nt} tets, f32, {name}): force pass {:.1} us, fused energy+force {:.1} us, \
+                 VBD iteration {:.1} us = sweep {:.1} us + fused pass; sweep = {:.2} force passes",
+                force * 1e6,
+                fused * 1e6,
+                per_iteration * 1e6,
+                sweep * 1e6,
+                sweep / force
+            );
+        }
+    }
+}

@@ -123,6 +123,7 @@ pub(crate) mod points;
 mod relax;
 mod stability;
 mod vbd;
+mod vertex_block;
 mod vertex_passes;
 
 pub use adjacency::{

@@ -41,14 +41,18 @@
 
 use core::mem::swap;
 
-use super::super::element::{TetRest, tet_vertex_force_and_block};
+use super::super::element::TetRest;
+use super::super::lanes::LANES;
 use super::super::material::Material;
 use super::super::math;
+use super::super::math::BATCH_SVD;
+use super::super::svd::{Svd3, svd3, svd3_lanes};
 use super::super::types::{Mat3, Real, Vec3};
 use super::adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
     incident_elements, vertex_order,
 };
+use super::vertex_block::{force_and_projected_block, shape_gradient};
 use super::vertex_passes::{Frames, Vertices, gradient_pass};
 use super::{
     ElasticEnergy, Ground, TetElastic, check_length, check_state, first_non_finite, pinned_flags,
@@ -433,6 +437,42 @@ impl<M: Material> Sweep<'_, M> {
         })
     }
 
+    /// Calls `visit(corner, rest, f, svd)` for every element around `i` in adjacency order:
+    /// the vertex's corner in it, its rest data, its deformation gradient and that gradient's
+    /// SVD, computed [`LANES`] at a time by [`svd3_lanes`] where the target batches SVDs (the
+    /// same bits as [`svd3`], so the result does not depend on it).
+    #[inline(always)]
+    fn for_each_element(
+        &self,
+        positions: &[Vec3],
+        i: usize,
+        mut visit: impl FnMut(usize, &TetRest, Mat3, &Svd3),
+    ) {
+        let mut pending = [(0, TetRest::default(), Mat3::ZERO); LANES];
+        let mut count = 0;
+        for (corners, corner, rest) in self.elements(i) {
+            let f = rest.deformation_gradient(gather(positions, corners));
+            if !BATCH_SVD {
+                visit(corner, rest, f, &svd3(f));
+                continue;
+            }
+            if let Some(slot) = pending.get_mut(count) {
+                *slot = (corner, *rest, f);
+            }
+            count += 1;
+            if count == LANES {
+                let svds = svd3_lanes(&pending.map(|(_, _, f)| f));
+                for ((corner, rest, f), svd) in pending.iter().zip(&svds) {
+                    visit(*corner, rest, *f, svd);
+                }
+                count = 0;
+            }
+        }
+        for (corner, rest, f) in pending.iter().take(count) {
+            visit(*corner, rest, *f, &svd3(*f));
+        }
+    }
+
     /// The local Newton update of vertex `i` (see the module documentation).
     fn update(&self, positions: &mut [Vec3], i: usize, counts: &mut SweepCounts) {
         let Some(&x) = positions.get(i) else {
@@ -452,18 +492,17 @@ impl<M: Material> Sweep<'_, M> {
         // What the local energy can resolve: 64 eps sum_e V_e W_e-scale, the scale from the
         // element block, tr(K_e) / |g_a|^2 ~ V_e times the elastic modulus (J).
         let mut resolution = 0.0;
-        for (corners, corner, rest) in self.elements(i) {
-            let xs = gather(positions, corners);
-            let (force, block) = tet_vertex_force_and_block(self.material, rest, xs, corner);
+        self.for_each_element(positions, i, |corner, rest, f, svd| {
+            let (force, block) = force_and_projected_block(self.material, rest, f, svd, corner);
             gradient -= force;
             hessian += block;
             if line_search {
-                elastic += rest.elastic_energy(self.material, xs);
+                elastic += rest.volume * self.material.energy_density(f);
                 let g = shape_gradient(rest, corner);
                 let trace = block.x_axis.x + block.y_axis.y + block.z_axis.z;
                 resolution += trace / g.dot(g);
             }
-        }
+        });
         let Some(factor) = Cholesky::regularised(&hessian) else {
             counts.skipped += 1;
             return;
@@ -539,17 +578,6 @@ impl<M: Material> Sweep<'_, M> {
             counts.backtracks += 1;
         }
         counts.skipped += 1;
-    }
-}
-
-/// The gradient `g_a` (m^-1) of corner `a`'s shape function: row `a - 1` of `Dm^-1`, minus
-/// their sum for `a = 0`.
-#[inline(always)]
-fn shape_gradient(rest: &TetRest, corner: usize) -> Vec3 {
-    let rows = [rest.dm_inv.row(0), rest.dm_inv.row(1), rest.dm_inv.row(2)];
-    match corner.checked_sub(1) {
-        Some(k) => rows.get(k).copied().unwrap_or(Vec3::ZERO),
-        None => -(rows.iter().copied().sum::<Vec3>()),
     }
 }
 
