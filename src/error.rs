@@ -654,8 +654,9 @@ pub enum StepError {
     /// Chebyshev acceleration both set.
     RelaxSettings,
     /// A Vertex Block Descent setting is out of range: tolerance not in `[0, 1)`, Armijo
-    /// constant not in `(0, 1)`, backtracking factor not in `(0, 1)`, or Chebyshev spectral
-    /// radius not in `[0, 1)`.
+    /// constant not in `(0, 1)`, backtracking factor not in `(0, 1)`, Chebyshev spectral
+    /// radius not in `[0, 1)`, or an estimated radius asked for with a given one or with a
+    /// delay below 2.
     VbdSettings,
     /// The mesh has more than `u32::MAX / 4` elements, too many for a vertex adjacency's packed
     /// `(element, corner)` entries.

@@ -140,8 +140,8 @@ pub use relax::{
 };
 pub use stability::{element_stable_time_step, linearised_moduli, stable_time_step};
 pub use vbd::{
-    VbdReport, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_quasi_static, vbd_scratch_len,
-    vbd_step,
+    MAX_ESTIMATED_RHO, VbdReport, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_quasi_static,
+    vbd_scratch_len, vbd_step,
 };
 
 pub use super::element::Vector;

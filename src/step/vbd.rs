@@ -146,7 +146,16 @@ pub struct VbdSettings {
     pub chebyshev: Real,
     /// Plain sweeps after each (re)start before the Chebyshev weights start.
     pub chebyshev_delay: u32,
+    /// Estimate `rho` instead of taking [`chebyshev`](Self::chebyshev) (which must then be 0):
+    /// the largest residual ratio `r_k / r_(k-1)` of plain sweeps `2..=chebyshev_delay` of the
+    /// solve (`chebyshev_delay >= 2`), at most [`MAX_ESTIMATED_RHO`]. Plain Gauss–Seidel
+    /// contracts the slow modes by about `rho` a sweep once the fast ones are gone; the largest
+    /// early ratio errs high, which Chebyshev tolerates better than low.
+    pub estimate_chebyshev: bool,
 }
+
+/// The largest spectral radius [`VbdSettings::estimate_chebyshev`] uses: 0.99.
+pub const MAX_ESTIMATED_RHO: Real = 0.99;
 
 impl VbdSettings {
     /// Time step `dt` (s), no gravity or ground, relative tolerance `1e-3`, 100 sweeps, line
@@ -165,6 +174,7 @@ impl VbdSettings {
             max_backtracks: 8,
             chebyshev: 0.0,
             chebyshev_delay: 0,
+            estimate_chebyshev: false,
         }
     }
 
@@ -209,6 +219,20 @@ impl VbdSettings {
         }
     }
 
+    /// These settings with Chebyshev acceleration for a `rho` the solver estimates from the
+    /// first `delay` plain sweeps (`delay >= 2`; see
+    /// [`estimate_chebyshev`](VbdSettings::estimate_chebyshev)).
+    #[inline]
+    #[must_use]
+    pub fn with_estimated_chebyshev(self, delay: u32) -> Self {
+        VbdSettings {
+            chebyshev: 0.0,
+            chebyshev_delay: delay,
+            estimate_chebyshev: true,
+            ..self
+        }
+    }
+
     /// These settings with at most `max_backtracks` backtracks per vertex update (0: no line
     /// search).
     #[inline]
@@ -248,6 +272,9 @@ pub struct VbdReport {
     /// Vertex updates skipped: block not positive definite (after regularisation), not finite,
     /// no descent, or no acceptable step within the backtracks.
     pub skipped: u32,
+    /// The Chebyshev `rho` used: the setting, the estimate, or 0 (none, or not yet estimated
+    /// when the solve ended).
+    pub rho: Real,
 }
 
 /// One implicit Euler step of `settings.dt` by Vertex Block Descent (see the
@@ -543,31 +570,26 @@ impl<M: Material> Sweep<'_, M> {
             let trial = project(x + step * alpha);
             let moved = trial - x;
             let mut trial_elastic = 0.0;
-            let mut trial_gradient = (trial - y) * weight - self.gravity * m;
-            for (corners, corner, rest) in self.elements(i) {
-                let mut xs = gather(positions, corners);
-                if let Some(slot) = xs.get_mut(corner) {
-                    *slot = trial;
-                }
-                let (density, stress) = self
-                    .material
-                    .energy_and_first_piola(rest.deformation_gradient(xs));
-                trial_elastic += rest.volume * density;
-                let forces = rest.nodal_forces(stress);
-                trial_gradient -= forces.get(corner).copied().unwrap_or(Vec3::ZERO);
-            }
+            self.for_each_trial_element(positions, i, trial, |_, rest, f| {
+                trial_elastic += rest.volume * self.material.energy_density(f);
+            });
             // The inertia and gravity change in a form without cancellation.
             let change = 0.5 * weight * moved.dot(moved + (x - y) * 2.0)
                 - m * self.gravity.dot(moved)
                 + (trial_elastic - elastic);
             // Armijo where the energy resolves the predicted decrease; below that, Hager and
             // Zhang's approximate Armijo test from the two slopes (SIAM J. Optim. 2005), as
-            // the relaxation's line search does.
+            // the relaxation's line search does, with the trial's gradient computed only then.
             let noise = resolution + ROUNDING * (elastic.abs() + trial_elastic.abs());
             let sufficient = change <= self.armijo * alpha * slope
-                || (-alpha * slope <= noise
-                    && change <= noise
-                    && trial_gradient.dot(step) <= (2.0 * self.armijo - 1.0) * slope);
+                || (-alpha * slope <= noise && change <= noise && {
+                    let mut trial_gradient = (trial - y) * weight - self.gravity * m;
+                    self.for_each_trial_element(positions, i, trial, |corner, rest, f| {
+                        let g = shape_gradient(rest, corner);
+                        trial_gradient += self.material.first_piola(f) * g * rest.volume;
+                    });
+                    trial_gradient.dot(step) <= (2.0 * self.armijo - 1.0) * slope
+                });
             if sufficient {
                 if let Some(slot) = positions.get_mut(i) {
                     *slot = trial;
@@ -578,6 +600,25 @@ impl<M: Material> Sweep<'_, M> {
             counts.backtracks += 1;
         }
         counts.skipped += 1;
+    }
+
+    /// Calls `visit(corner, rest, f)` for every element around `i` with vertex `i` moved to
+    /// `trial`: its corner, rest data and deformation gradient there.
+    #[inline(always)]
+    fn for_each_trial_element(
+        &self,
+        positions: &[Vec3],
+        i: usize,
+        trial: Vec3,
+        mut visit: impl FnMut(usize, &TetRest, Mat3),
+    ) {
+        for (corners, corner, rest) in self.elements(i) {
+            let mut xs = gather(positions, corners);
+            if let Some(slot) = xs.get_mut(corner) {
+                *slot = trial;
+            }
+            visit(corner, rest, rest.deformation_gradient(xs));
+        }
     }
 }
 
@@ -654,7 +695,9 @@ fn validate(settings: &VbdSettings) -> Result<Option<Ground<Vec3>>, StepError> {
     if !((0.0..1.0).contains(&settings.tolerance)
         && in_open_unit(settings.armijo)
         && in_open_unit(settings.backtrack)
-        && (0.0..1.0).contains(&settings.chebyshev))
+        && (0.0..1.0).contains(&settings.chebyshev)
+        && !(settings.estimate_chebyshev
+            && (settings.chebyshev != 0.0 || settings.chebyshev_delay < 2)))
     {
         return Err(StepError::VbdSettings);
     }
@@ -904,7 +947,9 @@ fn descend<'b, M: Material>(
 
     let mut counts = SweepCounts::default();
     let (mut iterations, mut restarts) = (0, 0);
-    let rho_squared = settings.chebyshev * settings.chebyshev;
+    let mut rho = settings.chebyshev;
+    // The largest residual ratio of the plain sweeps 2..=delay, for the estimate.
+    let mut largest_ratio: Real = 0.0;
     // Sweeps since the last (re)start, counting the current one, and the Chebyshev weight.
     let mut since_restart: u32 = 0;
     let mut omega: Real = 1.0;
@@ -912,7 +957,8 @@ fn descend<'b, M: Material>(
     let mut stepped = false;
     while evaluation.residual > target && iterations < settings.max_iterations {
         since_restart = since_restart.saturating_add(1);
-        if settings.chebyshev > 0.0 {
+        if rho > 0.0 {
+            let rho_squared = rho * rho;
             omega = match since_restart.checked_sub(settings.chebyshev_delay + 1) {
                 None | Some(0) => 1.0,
                 Some(1) => 2.0 / (2.0 - rho_squared),
@@ -952,6 +998,19 @@ fn descend<'b, M: Material>(
             let vertex = first_non_finite(positions, &[]).unwrap_or(0);
             return Err(StepError::NonFiniteState { vertex });
         }
+        if settings.estimate_chebyshev && rho == 0.0 {
+            if iterations >= 1 {
+                largest_ratio = largest_ratio.max(next.residual / evaluation.residual);
+            }
+            if iterations + 1 >= settings.chebyshev_delay {
+                // A NaN ratio gives 0: no acceleration.
+                rho = if largest_ratio > 0.0 {
+                    largest_ratio.min(MAX_ESTIMATED_RHO)
+                } else {
+                    0.0
+                };
+            }
+        }
         swap(&mut previous, &mut last);
         stepped = true;
         evaluation = next;
@@ -968,6 +1027,7 @@ fn descend<'b, M: Material>(
         restarts,
         backtracks: counts.backtracks,
         skipped: counts.skipped,
+        rho,
     };
     Ok((report, gradient, unaccelerated))
 }
