@@ -639,10 +639,7 @@ mod measure {
     }
 
     /// The VBD settings measured.
-    fn variants<S: Copy>(base: S) -> Vec<(&'static str, S)>
-    where
-        S: VbdLike,
-    {
+    fn variants<S: Copy + VbdLike>(base: S) -> Vec<(&'static str, S)> {
         vec![
             ("line search", base),
             ("no line search", base.line_search(0)),

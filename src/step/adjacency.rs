@@ -40,9 +40,10 @@ fn check(buffer: StepBuffer, expected: usize, actual: usize) -> Result<(), StepE
 
 /// Builds the vertex-to-element adjacency of the tetrahedra `tets` over `vertex_count`
 /// vertices into `offsets` ([`adjacency_offsets_len`]`(vertex_count)` entries) and `incident`
-/// ([`adjacency_incident_len`]`(tets.len())` entries), in the layout of the
-/// [module documentation](self): entries `4 * element + corner`, each vertex's in increasing
-/// element order. Both buffers are overwritten; their previous contents do not matter.
+/// ([`adjacency_incident_len`]`(tets.len())` entries) in compressed rows: the elements
+/// around vertex `i` are `incident[offsets[i]..offsets[i + 1]]`, each entry packing an
+/// element index and the vertex's corner in it as `4 * element + corner`, in increasing element
+/// order. Both buffers are overwritten; their previous contents do not matter.
 ///
 /// ```
 /// use softfem::step::{adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency};
@@ -132,10 +133,15 @@ pub(crate) fn incident_elements<'a>(
         .map(|&packed| ((packed >> 2) as usize, (packed & 3) as usize))
 }
 
-/// Colours the vertices of the tetrahedra `tets` greedily in index order (see the
-/// [module documentation](self)) into `colours` (one per vertex, overwritten), given their
-/// adjacency from [`build_vertex_adjacency`]. Returns the number of colours (0 without
-/// vertices). Vertices in no element get colour 0.
+/// Colours the vertices of the tetrahedra `tets` into `colours` (one per vertex, overwritten),
+/// given their adjacency from [`build_vertex_adjacency`]; returns the number of colours (0
+/// without vertices). Every vertex gets the smallest colour (0, 1, ...) that no vertex sharing
+/// an element with it and coming earlier in index order has: the greedy colouring in index
+/// order, deterministic and the same on every target. Vertices in no element get colour 0.
+///
+/// Two vertices of one colour never share an element, so the updates of one colour read only
+/// positions of other colours and can run in any order, or in parallel, with the same result:
+/// [`vbd_step`](super::vbd_step) visits the vertices in the order of [`vertex_order`].
 ///
 /// ```
 /// use softfem::step::{build_vertex_adjacency, colour_vertices};

@@ -16,8 +16,8 @@
 //! * `pinned` is a slice of flags, empty (nothing pinned) or one per vertex: a pinned vertex's
 //!   position and velocity are never changed by any stepper.
 //! * The ground is a half-space, see [`Ground`].
-//! * Nothing is allocated: scratch space is a caller buffer sized by [`explicit_scratch_len`]
-//!   or [`relax_scratch_len`].
+//! * Nothing is allocated: scratch space is a caller buffer sized by [`explicit_scratch_len`],
+//!   [`relax_scratch_len`] or [`vbd_scratch_len`] and [`vbd_index_scratch_len`].
 //! * Every stepper validates all parameters and buffers **before** touching anything, and
 //!   restores positions and velocities bit for bit when a step fails ([`StepError`]).
 //!
@@ -105,8 +105,10 @@
 //!
 //! Jobs, one file each: [`explicit`](step_explicit) stepping, [`stability`](stable_time_step)
 //! bounds, [`relax`](relax_step)ation, its passes over the vertices (`vertex_passes.rs`, four
-//! vertices at a time on x86_64, with the per-vertex arithmetic of `points.rs`) and the
-//! [`ground`](Ground) contact.
+//! vertices at a time on x86_64, with the per-vertex arithmetic of `points.rs`), the
+//! [`ground`](Ground) contact, and [Vertex Block Descent](vbd_step) (`vbd.rs`, with the
+//! vertex [adjacency and colouring](build_vertex_adjacency) of `adjacency.rs` and the
+//! per-element block of `vertex_block.rs`).
 
 use core::fmt::Debug;
 
