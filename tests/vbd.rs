@@ -1053,3 +1053,43 @@ fn landing_step_matches_the_relaxation_with_contact_and_friction() {
         .fold(f64::MAX, f64::min);
     assert!(bottom_speed < 0.3, "{bottom_speed}");
 }
+
+/// A step that fails after validation restores the state bit for bit: a tetrahedron stretched
+/// 1e12-fold (finite positions, so the input checks pass) has an StVK energy density of order
+/// `mu |F|^4 ~ 1e5 * 1e52`, infinite in f32, so `Phi` is finite neither at `y` nor at `x_n`.
+#[test]
+fn a_failed_step_restores_the_state() {
+    use softfem::element::TetRest;
+    use softfem::glam::Vec3;
+    use softfem::material::StVK;
+    use softfem::mesh::TetMesh;
+    use softfem::step::{
+        TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_scratch_len, vbd_step,
+    };
+    let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z].map(|p| p * 0.1);
+    let tets = [[0, 1, 2, 3]];
+    let mut rest_data = [TetRest::default(); 1];
+    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+    let body = TetElastic::new(mesh, StVK::from_young_poisson(1.0e5, 0.3).unwrap());
+    let mut masses = [0.0; 4];
+    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+    let stretched = rest.map(|p| p * 1e12);
+    let velocities = [Vec3::new(0.1, 0.2, 0.3); 4];
+    let (mut x, mut v) = (stretched, velocities);
+    let mut vectors = [Vec3::splat(7.0); vbd_scratch_len(4)];
+    let mut indices = [3; vbd_index_scratch_len(4, 1)];
+    let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+    let settings = VbdSettings::new(0.01).with_gravity(Vec3::new(0.0, 0.0, -9.81));
+    let error = vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap_err();
+    assert!(
+        matches!(error, StepError::NonFiniteState { .. }),
+        "{error:?}"
+    );
+    let bits = |a: &[Vec3]| {
+        a.iter()
+            .map(|p| p.to_array().map(f32::to_bits))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(bits(&x), bits(&stretched));
+    assert_eq!(bits(&v), bits(&velocities));
+}
