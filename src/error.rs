@@ -576,6 +576,10 @@ pub enum StepBuffer {
     Scratch,
     /// The scalar scratch buffer of the relaxation (one per vertex).
     ScalarScratch,
+    /// The 3x3 block scratch buffer of Newton's method (one per vertex).
+    BlockScratch,
+    /// The per-element Hessian cache of Newton's method (one per element).
+    HessianScratch,
 }
 
 impl fmt::Display for StepBuffer {
@@ -587,6 +591,8 @@ impl fmt::Display for StepBuffer {
             StepBuffer::Pinned => "pinned flags",
             StepBuffer::Scratch => "scratch",
             StepBuffer::ScalarScratch => "scalar scratch",
+            StepBuffer::BlockScratch => "block scratch",
+            StepBuffer::HessianScratch => "Hessian scratch",
         })
     }
 }
@@ -637,6 +643,9 @@ pub enum StepError {
     /// spectral radius not in `[0, 1)`, step length not finite and positive, or momentum and
     /// Chebyshev acceleration both set.
     RelaxSettings,
+    /// A Newton setting is out of range: tolerance not in `[0, 1)`, Armijo constant not in
+    /// `(0, 1)`, backtracking factor not in `(0, 1)`, or zero Newton or CG iterations allowed.
+    NewtonSettings,
     /// A given position or velocity is NaN or infinite (before the step).
     NonFiniteInput {
         /// The first such vertex.
@@ -687,6 +696,7 @@ impl fmt::Display for StepError {
                 f.write_str("the blow-up growth limit must be a number greater than 1")
             }
             StepError::RelaxSettings => f.write_str("a relaxation setting is out of range"),
+            StepError::NewtonSettings => f.write_str("a Newton setting is out of range"),
             StepError::NonFiniteInput { vertex } => {
                 write!(f, "position or velocity of vertex {vertex} is not finite")
             }

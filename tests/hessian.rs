@@ -392,7 +392,8 @@ macro_rules! hessian_tests {
                         }
                         let (force, fused) = tet_vertex_force_and_block(&model, &tet, x, corner);
                         assert_eq!(force, tet.elastic_forces(&model, x)[corner]);
-                        assert_eq!(fused, block);
+                        let fused_error = (fused - block).to_cols_array().iter().fold(0.0 as Real, |a, x| a.max(x.abs()));
+                        assert!(fused_error as f64 <= 1e3 * EPS as f64 * scale, "{class} corner {corner}: fused block");
                     }
                     assert_eq!(hessian.vertex_block(&tet, 4), Mat3::ZERO);
                 }
