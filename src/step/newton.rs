@@ -3,48 +3,7 @@
 //! (`relax.rs`), with the search direction from the projected Hessian instead of a diagonal
 //! bound.
 //!
-//! # Algorithm
-//! At the iterate `x` with gradient `g = grad Phi(x)`:
-//! 1. The element Hessians are projected onto the positive semi-definite matrices (analytic
-//!    eigensystems, `docs/math.md` section 6) and cached ([`TetHessian`], one SVD per element);
-//!    `A = M / h^2 + H` (without inertia in the quasi-static mode).
-//! 2. Constraints are removed degrees of freedom, applied as a projection `S` per vertex:
-//!    pinned vertices lose all three, vertices on the ground whose gradient pushes into it (the
-//!    active set, the same test as the relaxation's residual) lose the normal one.
-//! 3. `S A S d = -S g` is solved inexactly by matrix-free conjugate gradients with the
-//!    block-Jacobi preconditioner `S B_i^-1 S` (`B_i` the 3x3 diagonal blocks of `A`; a block
-//!    too ill-conditioned to invert is replaced by its diagonal), stopped at
-//!    `|r| <= eta |S g|` with the forcing term `eta = min(1/2, sqrt(|g| / |g_0|))`: loose far
-//!    from the solution, tight near it. A forcing term that tends to zero keeps the local
-//!    convergence superlinear (Dembo, Eisenstat and Steihaug, "Inexact Newton methods", SIAM J.
-//!    Numer. Anal. 1982; Eisenstat and Walker, "Choosing the forcing terms in an inexact Newton
-//!    method", SIAM J. Sci. Comput. 1996). A non-positive curvature `p . A p` (only possible without inertia, at
-//!    vertices with no stiffness) ends the solve; at the first iteration the preconditioned
-//!    gradient is used instead.
-//! 4. Armijo backtracking along `d` from the full step (the relaxation's test, with Hager and
-//!    Zhang's rounding-proof fallback), every trial point projected onto the ground.
-//!
-//! # Stopping and the rounding floor
-//! The solve stops when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` (the
-//! relaxation's test, [`NewtonSettings::tolerance`]). Below some level the residual is
-//! rounding: every coordinate is only known to `eps |x| / 2`, and through the stiffness that
-//! uncertainty is a force, so no representable `x` has a smaller residual than about
-//! `|K| eps |x| / 2` (plus the rounding of the stresses, `eps mu A` per vertex, `A` a face).
-//! Newton's method measures the estimate `eps max|x| (sum_i |B_i|_F^2)^(1/2)`
-//! ([`NewtonReport::rounding_floor`], `B_i` the diagonal blocks of `A` at the free vertices;
-//! from above, measured 3-10x the residual where solves stall) and, when two steps in a row
-//! fail to halve the residual while it is within [`FLOOR_FACTOR`] times that floor, stops
-//! there ([`NewtonReport::stagnated`]) and counts the solve as converged: the answer is as good
-//! as the precision allows. A failed line search or a direction that is not downhill also
-//! stops the solve as stagnated, converged only within the same bound. A tolerance below the
-//! floor thus costs a few iterations and says so, instead of burning the budget.
-//!
-//! What that means in practice: in f64 the floor is far below any useful tolerance (`6e-11` of
-//! the load on the cantilever of `tests/newton.rs`, which reaches `1e-8`); in f32 it is about
-//! `1e-3` of the load for that cantilever (E = 1 MPa, 10 cm cells) and above `1e-2` of the
-//! weight for a stiff block at rest (E = 1e8 Pa, 5 cm cells): ask f32 for `1e-4` and steps far
-//! from their solution reach it, steps that start near rest stop at the floor. Working in
-//! coordinates near the origin (relative to the body's size) keeps `eps |x|` small.
+//! The algorithm and the stopping test are documented on [`newton_step`].
 
 use core::mem::swap;
 
@@ -127,7 +86,7 @@ pub struct NewtonSettings<V> {
     pub ground: Option<Ground<V>>,
     /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)`, the relaxation's
     /// relative residual (in `[0, 1)`), or at the rounding floor (see the
-    /// [module documentation](self)). Reachable: `1e-8` and below in f64; in f32 `1e-4` where a
+    /// [`newton_step`] documentation). Reachable: `1e-8` and below in f64; in f32 `1e-4` where a
     /// step starts far from its solution, about `1e-3` of the load at best otherwise.
     pub tolerance: Real,
     /// The budget of Newton iterations (Hessian evaluations).
@@ -221,7 +180,7 @@ pub struct NewtonReport {
     /// The residual the tolerance asks for (N).
     pub target: Real,
     /// The estimated rounding floor of the residual (N) at the last Hessian evaluation (see
-    /// the [module documentation](self)); 0 if no Newton iteration ran.
+    /// the [`newton_step`] documentation); 0 if no Newton iteration ran.
     pub rounding_floor: Real,
     /// `Phi` (J) at the result, with the gravity potential measured from the start positions.
     pub phi: Real,
@@ -237,9 +196,51 @@ pub struct NewtonReport {
 /// potential `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`,
 /// the relaxation's objective ([`relax_step`](super::relax_step)), from the better of `y` and
 /// `y + h^2 g`; then `v = (x_{n+1} - x_n) / h` with Coulomb friction at the ground contacts.
-/// See the [module documentation](self) for the algorithm. Pinned vertices keep position and
-/// velocity. Not converging within the budget is not an error
-/// ([`NewtonReport::converged`]).
+/// Pinned vertices keep position and velocity. Not converging within the budget is not an
+/// error ([`NewtonReport::converged`]).
+///
+/// # Algorithm
+/// At the iterate `x` with gradient `g = grad Phi(x)`:
+/// 1. The element Hessians are projected onto the positive semi-definite matrices (analytic
+///    eigensystems, `docs/math.md` section 6) and cached ([`TetHessian`], one SVD per element);
+///    `A = M / h^2 + H` (without inertia in the quasi-static mode).
+/// 2. Constraints are removed degrees of freedom, applied as a projection `S` per vertex:
+///    pinned vertices lose all three, vertices on the ground whose gradient pushes into it (the
+///    active set, the same test as the relaxation's residual) lose the normal one.
+/// 3. `S A S d = -S g` is solved inexactly by matrix-free conjugate gradients with the
+///    block-Jacobi preconditioner `S B_i^-1 S` (`B_i` the 3x3 diagonal blocks of `A`; a block
+///    too ill-conditioned to invert is replaced by its diagonal), stopped at
+///    `|r| <= eta |S g|` with the forcing term `eta = min(1/2, sqrt(|g| / |g_0|))`: loose far
+///    from the solution, tight near it. A forcing term that tends to zero keeps the local
+///    convergence superlinear (Dembo, Eisenstat and Steihaug, "Inexact Newton methods", SIAM J.
+///    Numer. Anal. 1982; Eisenstat and Walker, "Choosing the forcing terms in an inexact Newton
+///    method", SIAM J. Sci. Comput. 1996). A non-positive curvature `p . A p` (only possible without inertia, at
+///    vertices with no stiffness) ends the solve; at the first iteration the preconditioned
+///    gradient is used instead.
+/// 4. Armijo backtracking along `d` from the full step (the relaxation's test, with Hager and
+///    Zhang's rounding-proof fallback), every trial point projected onto the ground.
+///
+/// # Stopping and the rounding floor
+/// The solve stops when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` (the
+/// relaxation's test, [`NewtonSettings::tolerance`]). Below some level the residual is
+/// rounding: every coordinate is only known to `eps |x| / 2`, and through the stiffness that
+/// uncertainty is a force, so no representable `x` has a smaller residual than about
+/// `|K| eps |x| / 2` (plus the rounding of the stresses, `eps mu A` per vertex, `A` a face).
+/// Newton's method measures the estimate `eps max|x| (sum_i |B_i|_F^2)^(1/2)`
+/// ([`NewtonReport::rounding_floor`], `B_i` the diagonal blocks of `A` at the free vertices;
+/// from above, measured 3-10x the residual where solves stall) and, when two steps in a row
+/// fail to halve the residual while it is within [`FLOOR_FACTOR`] times that floor, stops
+/// there ([`NewtonReport::stagnated`]) and counts the solve as converged: the answer is as good
+/// as the precision allows. A failed line search or a direction that is not downhill also
+/// stops the solve as stagnated, converged only within the same bound. A tolerance below the
+/// floor thus costs a few iterations and says so, instead of burning the budget.
+///
+/// What that means in practice: in f64 the floor is far below any useful tolerance (`6e-11` of
+/// the load on the cantilever of `tests/newton.rs`, which reaches `1e-8`); in f32 it is about
+/// `1e-3` of the load for that cantilever (E = 1 MPa, 10 cm cells) and above `1e-2` of the
+/// weight for a stiff block at rest (E = 1e8 Pa, 5 cm cells): ask f32 for `1e-4` and steps far
+/// from their solution reach it, steps that start near rest stop at the floor. Working in
+/// coordinates near the origin (relative to the body's size) keeps `eps |x|` small.
 ///
 /// ```
 /// use softfem::element::{TetHessian, TetRest};
