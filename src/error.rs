@@ -587,6 +587,10 @@ pub enum StepBuffer {
     Colours,
     /// The vertex order of a colouring, one per vertex.
     VertexOrder,
+    /// The 3x3 block scratch buffer of Newton's method (one per vertex).
+    BlockScratch,
+    /// The per-element Hessian cache of Newton's method (one per element).
+    HessianScratch,
 }
 
 impl fmt::Display for StepBuffer {
@@ -603,6 +607,8 @@ impl fmt::Display for StepBuffer {
             StepBuffer::AdjacencyIncident => "adjacency incidences",
             StepBuffer::Colours => "colours",
             StepBuffer::VertexOrder => "vertex order",
+            StepBuffer::BlockScratch => "block scratch",
+            StepBuffer::HessianScratch => "Hessian scratch",
         })
     }
 }
@@ -668,6 +674,9 @@ pub enum StepError {
         /// The vertex index found there.
         index: u32,
     },
+    /// A Newton setting is out of range: tolerance not in `[0, 1)`, Armijo constant not in
+    /// `(0, 1)`, backtracking factor not in `(0, 1)`, or zero Newton or CG iterations allowed.
+    NewtonSettings,
     /// A given position or velocity is NaN or infinite (before the step).
     NonFiniteInput {
         /// The first such vertex.
@@ -726,6 +735,7 @@ impl fmt::Display for StepError {
                 f,
                 "element {element} names vertex {index}, beyond the vertex count"
             ),
+            StepError::NewtonSettings => f.write_str("a Newton setting is out of range"),
             StepError::NonFiniteInput { vertex } => {
                 write!(f, "position or velocity of vertex {vertex} is not finite")
             }

@@ -100,28 +100,31 @@ impl StressDerivative {
         Mat3::from_cols_array(&self.apply_array(&df.to_cols_array()))
     }
 
-    /// `self * x` on a `vec(dF)` array (upper triangle row by row, each off-diagonal entry
-    /// used for both of its positions).
+    /// `self * x` on a `vec(dF)` array: row `i` of the upper triangle gives `out_i` its
+    /// diagonal and right-hand terms (a dot product) and adds its entries times `x_i` to the
+    /// later `out_j` (symmetry), rows in order.
     #[inline]
     pub(crate) fn apply_array(&self, x: &[Real; 9]) -> [Real; 9] {
         let mut out = [0.0; 9];
-        let mut entries = self.packed.iter();
+        let mut rows: &[Real] = &self.packed;
         for i in 0..9 {
-            let xi = x.get(i).copied().unwrap_or(0.0);
-            let mut row = 0.0;
-            for j in i..9 {
-                let a = entries.next().copied().unwrap_or(0.0);
-                let xj = x.get(j).copied().unwrap_or(0.0);
-                row += a * xj;
-                if j != i {
-                    if let Some(o) = out.get_mut(j) {
-                        *o += a * xi;
-                    }
-                }
+            let Some((row, rest)) = rows.split_at_checked(9 - i) else {
+                break;
+            };
+            rows = rest;
+            let (Some((&diagonal, right)), Some((&xi, x_right)), Some((oi, out_right))) = (
+                row.split_first(),
+                x.get(i..).and_then(<[Real]>::split_first),
+                out.get_mut(i..).and_then(<[Real]>::split_first_mut),
+            ) else {
+                break;
+            };
+            let mut sum = diagonal * xi;
+            for ((&a, &xj), oj) in right.iter().zip(x_right).zip(out_right.iter_mut()) {
+                sum += a * xj;
+                *oj += a * xi;
             }
-            if let Some(o) = out.get_mut(i) {
-                *o += row;
-            }
+            *oi += sum;
         }
         out
     }
@@ -163,6 +166,82 @@ impl StressDerivative {
             [block[0][1], block[1][1], block[2][1]],
             [block[0][2], block[1][2], block[2][2]],
         ])
+    }
+
+    /// The congruence `factor T^T D T` of this matrix `D` (a 9x9 on `vec(dF)`) with the map
+    /// `T` from three vectors `dv_a` (stacked as `3 a + r`) to `dF = sum_a dv_a m_a^T`, `m_a`
+    /// row `a` of `m`: entry `((a, r), (b, s))` is `factor sum_{c,d} m_ac m_bd D[(c, r), (d, s)]`.
+    /// With `m = Dm^-1` and `factor = V` this is a tetrahedron's stiffness on the edge
+    /// displacements `v_{a+1} - v_0` (see `element/hessian.rs`).
+    pub(crate) fn congruence(&self, m: Mat3, factor: Real) -> StressDerivative {
+        let columns = m.to_cols_array_2d();
+        // m_ac: row a, column c.
+        let g: [[Real; 3]; 3] = core::array::from_fn(|a| {
+            core::array::from_fn(|c| {
+                columns
+                    .get(c)
+                    .and_then(|col| col.get(a))
+                    .copied()
+                    .unwrap_or(0.0)
+            })
+        });
+        let full = self.unpacked();
+        // W[(c, r)][(b, s)] = sum_d m_bd D[(c, r), (d, s)], row by row of D.
+        let w: [[Real; 9]; 9] = full.map(|row| {
+            core::array::from_fn(|j| {
+                let (b, s) = (j / 3, j % 3);
+                let gb = g.get(b).copied().unwrap_or([0.0; 3]);
+                let at = |d: usize| row.get(3 * d + s).copied().unwrap_or(0.0);
+                gb[0] * at(0) + gb[1] * at(1) + gb[2] * at(2)
+            })
+        });
+        let mut out = StressDerivative::default();
+        let mut entries = out.packed.iter_mut();
+        for i in 0..9 {
+            let (a, r) = (i / 3, i % 3);
+            let ga = g.get(a).copied().unwrap_or([0.0; 3]);
+            let rows = |c: usize| w.get(3 * c + r).copied().unwrap_or([0.0; 9]);
+            let (w0, w1, w2) = (rows(0), rows(1), rows(2));
+            for j in i..9 {
+                let at = |row: &[Real; 9]| row.get(j).copied().unwrap_or(0.0);
+                let sum = ga[0] * at(&w0) + ga[1] * at(&w1) + ga[2] * at(&w2);
+                if let Some(entry) = entries.next() {
+                    *entry = factor * sum;
+                }
+            }
+        }
+        out
+    }
+
+    /// The full 9x9 matrix, row by row.
+    #[inline]
+    fn unpacked(&self) -> [[Real; 9]; 9] {
+        let mut full = [[0.0; 9]; 9];
+        let mut entries = self.packed.iter();
+        for i in 0..9 {
+            for j in i..9 {
+                let a = entries.next().copied().unwrap_or(0.0);
+                if let Some(x) = full.get_mut(i).and_then(|row| row.get_mut(j)) {
+                    *x = a;
+                }
+                if let Some(x) = full.get_mut(j).and_then(|row| row.get_mut(i)) {
+                    *x = a;
+                }
+            }
+        }
+        full
+    }
+
+    /// The 3x3 block of rows `3 a .. 3 a + 3` and columns `3 b .. 3 b + 3` (row `r`, column
+    /// `s` at `(3 a + r, 3 b + s)`).
+    #[inline]
+    pub(crate) fn block(&self, a: usize, b: usize) -> Mat3 {
+        let e = |r: usize, s: usize| self.entry(3 * a + r, 3 * b + s);
+        Mat3::from_cols(
+            Vec3::new(e(0, 0), e(1, 0), e(2, 0)),
+            Vec3::new(e(0, 1), e(1, 1), e(2, 1)),
+            Vec3::new(e(0, 2), e(1, 2), e(2, 2)),
+        )
     }
 
     /// Adds `weight * x x^T`.

@@ -1,4 +1,5 @@
-//! The mesh Hessian `d^2 E / dx^2` of a tetrahedral mesh, matrix-free: a per-element cache of
+//! The mesh Hessian `d^2 E / dx^2` of a tetrahedral mesh (and of the triangle meshes),
+//! matrix-free: a per-element cache of
 //! projected stress derivatives ([`TetHessian`]) in a caller buffer, the product `H d` and the
 //! per-vertex 3x3 diagonal blocks (`docs/math.md` section 6).
 //!
@@ -7,10 +8,13 @@
 //! Elements are visited in index order and their contributions added at their corners in corner
 //! order, so results are the same bits on every target.
 
-use super::super::element::TetHessian;
+use super::super::element::{MembraneHessian, TetHessian, TriHessian, TriangleStVK};
 use super::super::material::Material;
-use super::super::types::{Mat3, Vec3};
-use super::{TetMesh, check_finite, check_length, check_positions, gather, scatter_add};
+use super::super::types::{Mat2, Mat3, Vec2, Vec3};
+use super::{
+    MembraneMesh, TetMesh, TriMesh, check_finite, check_length, check_positions, gather,
+    scatter_add,
+};
 use crate::error::{Buffer, MeshError};
 
 impl TetMesh<'_> {
@@ -111,3 +115,76 @@ impl TetMesh<'_> {
         Ok(())
     }
 }
+
+/// Generates the Hessian kernels of a triangle mesh type.
+macro_rules! triangle_mesh_hessian {
+    ($mesh:ident, $vector:ident, $hessian:ident, $block:ident) => {
+        impl $mesh<'_> {
+            /// Writes the projected (SPD) Hessian data of every triangle of `material` at
+            /// deformed `positions` (m) into `cache` (one per element, overwritten).
+            ///
+            /// # Errors
+            /// As [`TetMesh::projected_hessians`]: lengths of `positions` and `cache`, non-finite
+            /// positions; `cache` unchanged then.
+            pub fn projected_hessians(
+                &self,
+                material: &TriangleStVK,
+                positions: &[$vector],
+                cache: &mut [$hessian],
+            ) -> Result<(), MeshError> {
+                check_positions(self.vertex_count(), positions)?;
+                check_length(Buffer::Hessians, self.element_count(), cache.len())?;
+                let elements = self.tris().iter().zip(self.rest());
+                for ((corners, rest), slot) in elements.zip(cache.iter_mut()) {
+                    *slot = $hessian::new(material, rest, gather(positions, corners));
+                }
+                Ok(())
+            }
+
+            /// Adds `H d` into `out` for the Hessian in `cache` and the per-vertex `direction`.
+            ///
+            /// # Errors
+            /// As [`TetMesh::add_hessian_product`]; `out` unchanged then.
+            pub fn add_hessian_product(
+                &self,
+                cache: &[$hessian],
+                direction: &[$vector],
+                out: &mut [$vector],
+            ) -> Result<(), MeshError> {
+                check_length(Buffer::Hessians, self.element_count(), cache.len())?;
+                check_length(Buffer::Direction, self.vertex_count(), direction.len())?;
+                check_length(Buffer::Products, self.vertex_count(), out.len())?;
+                check_finite(direction, |vertex| MeshError::NonFiniteDirection { vertex })?;
+                let elements = self.tris().iter().zip(cache);
+                for (corners, hessian) in elements {
+                    scatter_add(out, corners, hessian.product(gather(direction, corners)));
+                }
+                Ok(())
+            }
+
+            /// Adds the diagonal blocks of the Hessian in `cache` into `blocks`, one per vertex.
+            ///
+            /// # Errors
+            /// As [`TetMesh::add_vertex_hessian_blocks`]; `blocks` unchanged then.
+            pub fn add_vertex_hessian_blocks(
+                &self,
+                cache: &[$hessian],
+                blocks: &mut [$block],
+            ) -> Result<(), MeshError> {
+                check_length(Buffer::Hessians, self.element_count(), cache.len())?;
+                check_length(Buffer::Blocks, self.vertex_count(), blocks.len())?;
+                for (corners, hessian) in self.tris().iter().zip(cache) {
+                    for (corner, &vertex) in corners.iter().enumerate() {
+                        if let Some(block) = blocks.get_mut(vertex as usize) {
+                            *block += hessian.vertex_block(corner);
+                        }
+                    }
+                }
+                Ok(())
+            }
+        }
+    };
+}
+
+triangle_mesh_hessian!(TriMesh, Vec2, TriHessian, Mat2);
+triangle_mesh_hessian!(MembraneMesh, Vec3, MembraneHessian, Mat3);

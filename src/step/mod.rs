@@ -105,22 +105,29 @@
 //!
 //! Jobs, one file each: [`explicit`](step_explicit) stepping, [`stability`](stable_time_step)
 //! bounds, [`relax`](relax_step)ation, its passes over the vertices (`vertex_passes.rs`, four
-//! vertices at a time on x86_64, with the per-vertex arithmetic of `points.rs`), the
-//! [`ground`](Ground) contact, and [Vertex Block Descent](vbd_step) (`vbd.rs`, with the
-//! vertex [adjacency and colouring](build_vertex_adjacency) of `adjacency.rs` and the
-//! per-element block of `vertex_block.rs`).
+//! vertices at a time on x86_64, with the per-vertex arithmetic of `points.rs`) and the
+//! [`ground`](Ground) contact. [`newton`](newton_step)'s method (projected Hessian,
+//! block-Jacobi PCG, `docs/math.md` section 7) minimises the same objective with the same line
+//! search and stopping test (`objective.rs`, `line_search.rs`): pick it for stiff bodies, large
+//! time steps and static solves, where the relaxation needs thousands of iterations.
+//! [Vertex Block Descent](vbd_step) (`vbd.rs`, with the vertex
+//! [adjacency and colouring](build_vertex_adjacency) of `adjacency.rs` and the per-element
+//! block of `vertex_block.rs`) minimises it by per-vertex Newton steps in Gauss–Seidel order.
 
 use core::fmt::Debug;
 
-use super::element::TriangleStVK;
+use super::element::{TetHessian, TriangleStVK};
 use super::material::Material;
 use super::mesh::{MembraneMesh, TetMesh, TriMesh};
-use super::types::{Real, Vec2, Vec3};
+use super::types::{Mat3, Real, Vec2, Vec3};
 use crate::error::{MeshError, StepBuffer, StepError};
 
 mod adjacency;
 mod explicit;
 mod ground;
+mod line_search;
+mod newton;
+mod objective;
 pub(crate) mod points;
 mod relax;
 mod stability;
@@ -137,6 +144,10 @@ pub use explicit::{
     step_explicit,
 };
 pub use ground::Ground;
+pub use newton::{
+    FLOOR_FACTOR, NewtonReport, NewtonScratch, NewtonScratchLen, NewtonSettings,
+    newton_quasi_static, newton_scratch_len, newton_step,
+};
 pub use relax::{
     RelaxReport, RelaxScratch, RelaxSettings, relax_quasi_static, relax_scratch_len, relax_step,
 };
@@ -187,6 +198,45 @@ pub trait ElasticEnergy: ElasticModel {
         positions: &[Self::Vector],
         forces: &mut [Self::Vector],
     ) -> Result<Real, MeshError>;
+}
+
+/// An [`ElasticEnergy`] with second derivatives, as Newton's method ([`newton_step`],
+/// [`newton_quasi_static`]) needs: the projected (SPD) Hessian cached per element in a caller
+/// buffer, its product with a direction and its 3x3 diagonal blocks (`docs/math.md` section 6).
+pub trait ElasticHessian: ElasticEnergy<Vector = Vec3> {
+    /// The number of elements: the length of the Hessian cache.
+    fn element_count(&self) -> usize;
+
+    /// Writes the projected Hessian data of every element at `positions` (m) into `cache`.
+    ///
+    /// # Errors
+    /// As [`TetMesh::projected_hessians`]; `cache` unchanged then.
+    fn projected_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError>;
+
+    /// Adds `H d` (N) into `out` for the Hessian in `cache` and the direction `direction` (m).
+    ///
+    /// # Errors
+    /// As [`TetMesh::add_hessian_product`]; `out` unchanged then.
+    fn add_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError>;
+
+    /// Adds the 3x3 diagonal blocks (N/m) of the Hessian in `cache` into `blocks`.
+    ///
+    /// # Errors
+    /// As [`TetMesh::add_vertex_hessian_blocks`]; `blocks` unchanged then.
+    fn add_vertex_hessian_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &mut [Mat3],
+    ) -> Result<(), MeshError>;
 }
 
 /// A tetrahedral body with the direct stress [`Material::first_piola`]: the forces are the
@@ -276,6 +326,36 @@ impl<M: Material> ElasticEnergy for TetElastic<'_, M> {
     ) -> Result<Real, MeshError> {
         self.mesh
             .energy_and_add_forces(&self.material, positions, forces)
+    }
+}
+
+impl<M: Material> ElasticHessian for TetElastic<'_, M> {
+    #[inline]
+    fn element_count(&self) -> usize {
+        self.mesh.element_count()
+    }
+    fn projected_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError> {
+        self.mesh
+            .projected_hessians(&self.material, positions, cache)
+    }
+    fn add_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        self.mesh.add_hessian_product(cache, direction, out)
+    }
+    fn add_vertex_hessian_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &mut [Mat3],
+    ) -> Result<(), MeshError> {
+        self.mesh.add_vertex_hessian_blocks(cache, blocks)
     }
 }
 
