@@ -295,13 +295,14 @@ pub struct VbdReport {
 /// # When to pick it
 /// Measured with `cargo test --release --all-features --test vbd measure -- --ignored
 /// --nocapture --test-threads 1` (x86_64, one thread, a shared machine): on the bouncy cube's
-/// 1296 tetrahedra (f32) a sweep costs about 100 force passes without the line search and 150
-/// with it: each element is visited once per corner, with an SVD (four at a time) each time,
+/// 1296 tetrahedra (f32) a sweep cost 40-110 force passes without the line search and 65-150
+/// with it (runs at different loads): each element is visited once per corner, with an SVD
+/// (four at a time) each time,
 /// where a force pass evaluates it once, four elements per SIMD register. In iterations VBD
 /// gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s (tolerance 2e-3)
 /// 2135-3343 accelerated sweeps against the relaxation's 5351 iterations (5886 plain sweeps),
 /// on the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 681-1017 against 1798; so
-/// its wall time was 10-40 times the relaxation's there. Pick it for what the count of
+/// its wall time was 10-15 times the relaxation's there accelerated, up to 50 times plain. Pick it for what the count of
 /// iterations cannot show: every accepted vertex update lowers `Phi` (sweeps are monotone,
 /// accelerated ones checked), so a small fixed budget of sweeps is always safe, and its
 /// per-vertex Newton steps resolve stiff local modes the diagonal preconditioner of the
