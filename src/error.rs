@@ -408,6 +408,14 @@ pub enum Buffer {
     Energies,
     /// The per-element stresses, one per element.
     Stresses,
+    /// The per-element Hessian cache (`TetHessian`), one per element.
+    Hessians,
+    /// A direction (displacement) the Hessian is applied to, one per vertex.
+    Direction,
+    /// The output of a Hessian product, one per vertex.
+    Products,
+    /// The per-vertex 3x3 Hessian blocks, one per vertex.
+    Blocks,
 }
 
 impl fmt::Display for Buffer {
@@ -419,6 +427,10 @@ impl fmt::Display for Buffer {
             Buffer::Masses => "masses",
             Buffer::Energies => "energies",
             Buffer::Stresses => "stresses",
+            Buffer::Hessians => "Hessian cache",
+            Buffer::Direction => "direction",
+            Buffer::Products => "Hessian product",
+            Buffer::Blocks => "Hessian blocks",
         })
     }
 }
@@ -475,6 +487,11 @@ pub enum MeshError {
     },
     /// The mass density is NaN, infinite, zero or negative.
     Density,
+    /// A direction given to a Hessian product has a NaN or infinite coordinate.
+    NonFiniteDirection {
+        /// The vertex index.
+        vertex: usize,
+    },
 }
 
 impl MeshError {
@@ -532,6 +549,9 @@ impl fmt::Display for MeshError {
                 write!(f, "position of vertex {vertex} is not finite")
             }
             MeshError::Density => f.write_str("the density must be finite and positive"),
+            MeshError::NonFiniteDirection { vertex } => {
+                write!(f, "direction at vertex {vertex} is not finite")
+            }
         }
     }
 }
@@ -556,6 +576,21 @@ pub enum StepBuffer {
     Scratch,
     /// The scalar scratch buffer of the relaxation (one per vertex).
     ScalarScratch,
+    /// The index scratch buffer of Vertex Block Descent (see `vbd_index_scratch_len`).
+    IndexScratch,
+    /// The offsets of a vertex adjacency, `vertex_count + 1` (see `adjacency_offsets_len`).
+    AdjacencyOffsets,
+    /// The incident (element, corner) entries of a vertex adjacency, four per element (see
+    /// `adjacency_incident_len`).
+    AdjacencyIncident,
+    /// The per-vertex colours of a vertex colouring, one per vertex.
+    Colours,
+    /// The vertex order of a colouring, one per vertex.
+    VertexOrder,
+    /// The 3x3 block scratch buffer of Newton's method (one per vertex).
+    BlockScratch,
+    /// The per-element Hessian cache of Newton's method (one per element).
+    HessianScratch,
 }
 
 impl fmt::Display for StepBuffer {
@@ -567,6 +602,13 @@ impl fmt::Display for StepBuffer {
             StepBuffer::Pinned => "pinned flags",
             StepBuffer::Scratch => "scratch",
             StepBuffer::ScalarScratch => "scalar scratch",
+            StepBuffer::IndexScratch => "index scratch",
+            StepBuffer::AdjacencyOffsets => "adjacency offsets",
+            StepBuffer::AdjacencyIncident => "adjacency incidences",
+            StepBuffer::Colours => "colours",
+            StepBuffer::VertexOrder => "vertex order",
+            StepBuffer::BlockScratch => "block scratch",
+            StepBuffer::HessianScratch => "Hessian scratch",
         })
     }
 }
@@ -617,6 +659,24 @@ pub enum StepError {
     /// spectral radius not in `[0, 1)`, step length not finite and positive, or momentum and
     /// Chebyshev acceleration both set.
     RelaxSettings,
+    /// A Vertex Block Descent setting is out of range: tolerance not in `[0, 1)`, Armijo
+    /// constant not in `(0, 1)`, backtracking factor not in `(0, 1)`, Chebyshev spectral
+    /// radius not in `[0, 1)`, or an estimated radius asked for with a given one or with a
+    /// delay below 2.
+    VbdSettings,
+    /// The mesh has more than `u32::MAX / 4` elements, too many for a vertex adjacency's packed
+    /// `(element, corner)` entries.
+    TooManyElements,
+    /// A mesh element names a vertex at or beyond the vertex count.
+    VertexIndex {
+        /// The element.
+        element: usize,
+        /// The vertex index found there.
+        index: u32,
+    },
+    /// A Newton setting is out of range: tolerance not in `[0, 1)`, Armijo constant not in
+    /// `(0, 1)`, backtracking factor not in `(0, 1)`, or zero Newton or CG iterations allowed.
+    NewtonSettings,
     /// A given position or velocity is NaN or infinite (before the step).
     NonFiniteInput {
         /// The first such vertex.
@@ -667,6 +727,15 @@ impl fmt::Display for StepError {
                 f.write_str("the blow-up growth limit must be a number greater than 1")
             }
             StepError::RelaxSettings => f.write_str("a relaxation setting is out of range"),
+            StepError::VbdSettings => f.write_str("a Vertex Block Descent setting is out of range"),
+            StepError::TooManyElements => {
+                f.write_str("more than u32::MAX / 4 elements: the adjacency cannot index them")
+            }
+            StepError::VertexIndex { element, index } => write!(
+                f,
+                "element {element} names vertex {index}, beyond the vertex count"
+            ),
+            StepError::NewtonSettings => f.write_str("a Newton setting is out of range"),
             StepError::NonFiniteInput { vertex } => {
                 write!(f, "position or velocity of vertex {vertex} is not finite")
             }

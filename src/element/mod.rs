@@ -41,11 +41,15 @@ use core::ops::{Add, AddAssign, Mul, Neg, Sub, SubAssign};
 use super::types::{Real, Vec2, Vec3};
 use crate::error::ElementError;
 
+mod hessian;
 mod tet;
 mod triangle;
+mod triangle_hessian;
 
+pub use hessian::{TetHessian, tet_vertex_force_and_block};
 pub use tet::{TetRest, fix_orientation};
 pub use triangle::{TriRest, TriangleStVK};
+pub use triangle_hessian::{MembraneHessian, SymmetricMatrix, TriHessian};
 
 /// The smallest accepted rest volume of a tetrahedron relative to the cube of its longest edge
 /// (and rest area of a triangle relative to the square of its longest edge):

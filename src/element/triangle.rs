@@ -242,6 +242,13 @@ impl TriangleStVK {
         self.piola(f)
     }
 
+    /// The Lamé parameters `(lambda, mu)` (Pa), for the second derivatives
+    /// (`triangle_hessian.rs`).
+    #[inline(always)]
+    pub(crate) fn lame(&self) -> (Real, Real) {
+        (self.lambda, self.mu)
+    }
+
     /// The Green strain `(g00, g01, g11)` of `F^T F` built from the columns of `f`.
     #[inline(always)]
     fn green<V: Vector>([c0, c1]: [V; 2]) -> (Real, Real, Real) {

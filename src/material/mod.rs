@@ -145,11 +145,48 @@ macro_rules! invariant_stress_methods {
     };
 }
 
+/// The second-derivative methods of [`Material`] for a model written as `W(I_C, J)`, from its
+/// `stress_coefficients(I_C, J)` and `hessian_coefficients(I_C, J)`
+/// (`(W_II, W_IJ, W_JJ)`, scalar): the principal Hessian, the closed-form twist and flip
+/// eigenvalues and the direct stress differential (`material/hessian.rs`).
+macro_rules! invariant_hessian_methods {
+    () => {
+        #[inline]
+        fn principal_hessian(&self, s: Vec3) -> Mat3 {
+            let (ic, j) = super::principal_invariants(s);
+            super::hessian::invariant_principal_hessian(
+                s,
+                self.stress_coefficients(ic, j),
+                self.hessian_coefficients(ic, j),
+            )
+        }
+
+        #[inline]
+        fn principal_pair_eigenvalues(&self, s: Vec3) -> [Vec3; 2] {
+            let (ic, j) = super::principal_invariants(s);
+            super::hessian::invariant_pair_eigenvalues(s, self.stress_coefficients(ic, j))
+        }
+
+        #[inline]
+        fn first_piola_differential(&self, f: Mat3, df: Mat3) -> Mat3 {
+            let (ic, j) = super::invariants(super::LaneMat3::from(f));
+            super::hessian::invariant_first_piola_differential(
+                f,
+                df,
+                self.stress_coefficients(ic, j),
+                self.hessian_coefficients(ic, j),
+            )
+        }
+    };
+}
+
+mod hessian;
 mod lame;
 mod neo_hookean;
 mod stable_neo_hookean;
 mod stvk;
 
+pub use hessian::StressDerivative;
 pub use lame::Lame;
 pub use neo_hookean::NeoHookean;
 pub use stable_neo_hookean::StableNeoHookean;
@@ -265,6 +302,88 @@ pub trait Material: Copy + Debug {
         let clamp = |s: Real| math::select(s < threshold, threshold, s);
         let clamped = Vec3::new(clamp(svd.sigma.x), clamp(svd.sigma.y), clamp(svd.sigma.z));
         svd.u.mul_diagonal_scale(self.principal_stress(clamped)) * svd.v.transpose()
+    }
+
+    /// The principal Hessian `d^2 W / ds^2` (Pa), a symmetric 3x3 matrix, at the signed singular
+    /// values `s`: the derivative of [`principal_stress`](Material::principal_stress).
+    ///
+    /// The models here give it in closed form. The provided method takes central differences of
+    /// `principal_stress` (step `eps^(1/3) max(1, |s|)`, symmetrised), accurate to about
+    /// `eps^(2/3)` relative: override it with the exact form where one is known.
+    #[inline]
+    #[must_use]
+    fn principal_hessian(&self, s: Vec3) -> Mat3 {
+        hessian::difference_principal_hessian(|s| self.principal_stress(s), s)
+    }
+
+    /// The eigenvalues `[flip, twist]` (Pa) of the pair modes of `d^2 W / dF^2` at the signed
+    /// singular values `s`: component `k` belongs to the pair of the other two axes `(i, j)`,
+    /// flip `(psi_i - psi_j) / (s_i - s_j)` and twist `(psi_i + psi_j) / (s_i + s_j)` with
+    /// `psi = dW/ds` (see `docs/math.md` section 6 and [`StressDerivative`]).
+    ///
+    /// The models here give them in closed form, exact at repeated and opposite stretches. The
+    /// provided method forms the quotients and takes their limits `(H_ii + H_jj)/2 -+ H_ij` (of
+    /// [`principal_hessian`](Material::principal_hessian)) where a denominator is below
+    /// `sqrt(eps) max(1, |s|)`.
+    #[inline]
+    #[must_use]
+    fn principal_pair_eigenvalues(&self, s: Vec3) -> [Vec3; 2] {
+        hessian::quotient_pair_eigenvalues(self.principal_stress(s), self.principal_hessian(s), s)
+    }
+
+    /// The exact (unprojected) derivative of the stress in the direction `df`:
+    /// `dP = (dP/dF) : dF` (Pa) at `f`, the action of the symmetric 9x9 `d^2 W / dF^2`.
+    ///
+    /// The models here differentiate their direct stress (no SVD). The provided method uses
+    /// the principal-frame eigensystem ([`stress_derivative`](Material::stress_derivative)).
+    #[inline]
+    #[must_use]
+    fn first_piola_differential(&self, f: Mat3, df: Mat3) -> Mat3 {
+        self.stress_derivative(f).apply(df)
+    }
+
+    /// The exact stress derivative `dP/dF` (Pa) at `f` as a symmetric 9x9 matrix, assembled from
+    /// the analytic eigensystem in the principal frame of [`svd3`]`(f)` without projection (it
+    /// may be indefinite). Agrees with
+    /// [`first_piola_differential`](Material::first_piola_differential) to rounding.
+    #[inline]
+    #[must_use]
+    fn stress_derivative(&self, f: Mat3) -> StressDerivative {
+        let svd = svd3(f);
+        hessian::principal_frame_derivative(
+            &svd,
+            self.principal_hessian(svd.sigma),
+            self.principal_pair_eigenvalues(svd.sigma),
+            false,
+        )
+    }
+
+    /// The stress derivative `dP/dF` (Pa) at `f` projected onto the symmetric positive
+    /// semi-definite matrices: every eigenvalue of the analytic eigensystem (Smith, de Goes,
+    /// Kim, "Analytic Eigensystems for Isotropic Distortion Energies", ACM TOG 2019; scaling
+    /// modes from the 3x3 principal Hessian, twist and flip modes in closed form) clamped at
+    /// zero (`docs/math.md` section 6). Where the exact derivative is already SPD this is it.
+    /// The Hessian that Newton's method and Vertex Block Descent need to always descend.
+    ///
+    /// Finite for every finite `f` where the model is (not [`NeoHookean`] at `J = 0`); NaN
+    /// input gives NaN entries, never a panic.
+    #[inline]
+    #[must_use]
+    fn projected_stress_derivative(&self, f: Mat3) -> StressDerivative {
+        self.projected_stress_derivative_from_svd(&svd3(f))
+    }
+
+    /// [`projected_stress_derivative`](Material::projected_stress_derivative) from an SVD the
+    /// caller already has.
+    #[inline]
+    #[must_use]
+    fn projected_stress_derivative_from_svd(&self, svd: &Svd3) -> StressDerivative {
+        hessian::principal_frame_derivative(
+            svd,
+            self.principal_hessian(svd.sigma),
+            self.principal_pair_eigenvalues(svd.sigma),
+            true,
+        )
     }
 }
 

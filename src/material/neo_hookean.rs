@@ -96,6 +96,20 @@ impl NeoHookean {
         )
     }
 
+    /// `(W_II, W_IJ, W_JJ) = (0, -(mu/3) J^(-5/3), (5 mu / 9) J^(-8/3) I_C + K)`, the second
+    /// derivatives of `W(I_C, J)` with the real cube root (`docs/math.md` section 6); not
+    /// finite at `J = 0`.
+    #[inline(always)]
+    fn hessian_coefficients(&self, ic: Real, j: Real) -> (Real, Real, Real) {
+        let j23: Real = j_pow_minus_two_thirds(j);
+        let mu = self.lame.mu();
+        (
+            0.0,
+            -(mu / 3.0) * j23 / j,
+            (5.0 * mu / 9.0) * ic * j23 / (j * j) + self.bulk_modulus,
+        )
+    }
+
     /// `(W, P)` with one cofactor matrix and one cube root, for one value or a group of lanes.
     #[inline(always)]
     fn energy_and_stress<L: Lane>(&self, f: LaneMat3<L>) -> (L, LaneMat3<L>) {
@@ -130,4 +144,5 @@ impl Material for NeoHookean {
     }
 
     invariant_stress_methods!();
+    invariant_hessian_methods!();
 }

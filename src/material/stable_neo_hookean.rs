@@ -86,6 +86,18 @@ impl StableNeoHookean {
         )
     }
 
+    /// `(W_II, W_IJ, W_JJ) = (m / (2 (I_C + 1)^2), 0, l)` with `m = 4 mu / 3`: the second
+    /// derivatives of `W(I_C, J)` (`docs/math.md` section 6).
+    #[inline(always)]
+    fn hessian_coefficients(&self, ic: Real, _j: Real) -> (Real, Real, Real) {
+        let shifted = ic + 1.0;
+        (
+            (2.0 * self.lame.mu() / 3.0) / (shifted * shifted),
+            0.0,
+            self.volume_stiffness,
+        )
+    }
+
     /// `(W, P)` from one cofactor matrix, for one value or a group of lanes.
     #[inline(always)]
     fn energy_and_stress<L: Lane>(&self, f: LaneMat3<L>) -> (L, LaneMat3<L>) {
@@ -150,6 +162,7 @@ impl Material for StableNeoHookean {
     }
 
     invariant_stress_methods!();
+    invariant_hessian_methods!();
 }
 
 #[cfg(test)]

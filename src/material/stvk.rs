@@ -131,4 +131,43 @@ impl Material for StVK {
         let trace = g.element_sum();
         s * (Vec3::splat(self.lame.lambda() * trace) + g * (2.0 * self.lame.mu()))
     }
+
+    /// `H = diag(c + 3 mu s_i^2) + lambda s s^T` with `c = lambda tr(G) - mu`, from
+    /// `psi_i = c s_i + mu s_i^3`.
+    #[inline]
+    fn principal_hessian(&self, s: Vec3) -> Mat3 {
+        let (lambda, mu) = (self.lame.lambda(), self.lame.mu());
+        let c = lambda * ((s * s - Vec3::ONE) * 0.5).element_sum() - mu;
+        let diagonal = Mat3::from_diagonal(Vec3::splat(c) + s * s * (3.0 * mu));
+        diagonal + Mat3::from_cols(s * (lambda * s.x), s * (lambda * s.y), s * (lambda * s.z))
+    }
+
+    /// From `psi_i = c s_i + mu s_i^3`: flip `c + mu (s_i^2 + s_i s_j + s_j^2)`, twist
+    /// `c + mu (s_i^2 - s_i s_j + s_j^2)`, polynomials exact at repeated stretches.
+    #[inline]
+    fn principal_pair_eigenvalues(&self, s: Vec3) -> [Vec3; 2] {
+        let (lambda, mu) = (self.lame.lambda(), self.lame.mu());
+        let c = lambda * ((s * s - Vec3::ONE) * 0.5).element_sum() - mu;
+        // Pair k is the other two axes (i, j).
+        let (si, sj) = (Vec3::new(s.y, s.x, s.x), Vec3::new(s.z, s.z, s.y));
+        let squares = si * si + sj * sj;
+        let product = si * sj;
+        [
+            Vec3::splat(c) + (squares + product) * mu,
+            Vec3::splat(c) + (squares - product) * mu,
+        ]
+    }
+
+    /// `dP = dF S + F dS` with `dS = 2 mu dG + lambda tr(dG) I`, `dG = (dF^T F + F^T dF) / 2`.
+    #[inline]
+    fn first_piola_differential(&self, f: Mat3, df: Mat3) -> Mat3 {
+        let (lambda, mu) = (self.lame.lambda(), self.lame.mu());
+        let green = (f.transpose() * f - Mat3::IDENTITY) * 0.5;
+        let d_green = (df.transpose() * f + f.transpose() * df) * 0.5;
+        let trace = |m: Mat3| m.x_axis.x + m.y_axis.y + m.z_axis.z;
+        let stress = green * (2.0 * mu) + Mat3::from_diagonal(Vec3::splat(lambda * trace(green)));
+        let d_stress =
+            d_green * (2.0 * mu) + Mat3::from_diagonal(Vec3::splat(lambda * trace(d_green)));
+        df * stress + f * d_stress
+    }
 }

@@ -21,6 +21,7 @@ use super::element::Vector;
 use crate::error::{Buffer, ElementError, MeshError};
 
 mod grouped;
+mod hessian;
 mod tet;
 mod triangle;
 

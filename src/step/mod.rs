@@ -20,8 +20,8 @@
 //!   normal, so y up, z up or any other convention works. The examples in these docs use y up
 //!   (gravity `(0, -9.81, 0)`, `Ground::new(Vec3::Y, 0.0)`); the `bouncy` scene and the
 //!   `tradeoffs` charts use z up (gravity `(0, 0, -9.81)`, `Ground::new(Vec3::Z, 0.0)`).
-//! * Nothing is allocated: scratch space is a caller buffer sized by [`explicit_scratch_len`]
-//!   or [`relax_scratch_len`].
+//! * Nothing is allocated: scratch space is a caller buffer sized by [`explicit_scratch_len`],
+//!   [`relax_scratch_len`] or [`vbd_scratch_len`] and [`vbd_index_scratch_len`].
 //! * Every stepper validates all parameters and buffers **before** touching anything, and
 //!   restores positions and velocities bit for bit when a step fails ([`StepError`]).
 //!
@@ -110,32 +110,56 @@
 //! Jobs, one file each: [`explicit`](step_explicit) stepping, [`stability`](stable_time_step)
 //! bounds, [`relax`](relax_step)ation, its passes over the vertices (`vertex_passes.rs`, four
 //! vertices at a time on x86_64, with the per-vertex arithmetic of `points.rs`) and the
-//! [`ground`](Ground) contact.
+//! [`ground`](Ground) contact. [`newton`](newton_step)'s method (projected Hessian,
+//! block-Jacobi PCG, `docs/math.md` section 7) minimises the same objective with the same line
+//! search and stopping test (`objective.rs`, `line_search.rs`): pick it for stiff bodies, large
+//! time steps and static solves, where the relaxation needs thousands of iterations.
+//! [Vertex Block Descent](vbd_step) (`vbd.rs`, with the vertex
+//! [adjacency and colouring](build_vertex_adjacency) of `adjacency.rs` and the per-element
+//! block of `vertex_block.rs`) minimises it by per-vertex Newton steps in Gauss–Seidel order.
 
 use core::fmt::Debug;
 
-use super::element::TriangleStVK;
+use super::element::{TetHessian, TriangleStVK};
 use super::material::Material;
 use super::mesh::{MembraneMesh, TetMesh, TriMesh};
-use super::types::{Real, Vec2, Vec3};
+use super::types::{Mat3, Real, Vec2, Vec3};
 use crate::error::{MeshError, StepBuffer, StepError};
 
+mod adjacency;
 mod explicit;
 mod ground;
+mod line_search;
+mod newton;
+mod objective;
 pub(crate) mod points;
 mod relax;
 mod stability;
+mod vbd;
+mod vertex_block;
 mod vertex_passes;
 
+pub use adjacency::{
+    adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
+    vertex_order,
+};
 pub use explicit::{
     DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, explicit_scratch_len,
     step_explicit,
 };
 pub use ground::Ground;
+pub use newton::{
+    FLOOR_FACTOR, NewtonReport, NewtonScratch, NewtonScratchLen, NewtonSettings,
+    newton_quasi_static, newton_scratch_len, newton_step,
+};
 pub use relax::{
     RelaxReport, RelaxScratch, RelaxSettings, relax_quasi_static, relax_scratch_len, relax_step,
 };
 pub use stability::{element_stable_time_step, linearised_moduli, stable_time_step};
+pub use vbd::{
+    MAX_ESTIMATED_RHO, VbdReport, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_quasi_static,
+    vbd_scratch_len, vbd_step,
+};
 
 pub use super::element::Vector;
 
@@ -178,6 +202,45 @@ pub trait ElasticEnergy: ElasticModel {
         positions: &[Self::Vector],
         forces: &mut [Self::Vector],
     ) -> Result<Real, MeshError>;
+}
+
+/// An [`ElasticEnergy`] with second derivatives, as Newton's method ([`newton_step`],
+/// [`newton_quasi_static`]) needs: the projected (SPD) Hessian cached per element in a caller
+/// buffer, its product with a direction and its 3x3 diagonal blocks (`docs/math.md` section 6).
+pub trait ElasticHessian: ElasticEnergy<Vector = Vec3> {
+    /// The number of elements: the length of the Hessian cache.
+    fn element_count(&self) -> usize;
+
+    /// Writes the projected Hessian data of every element at `positions` (m) into `cache`.
+    ///
+    /// # Errors
+    /// As [`TetMesh::projected_hessians`]; `cache` unchanged then.
+    fn projected_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError>;
+
+    /// Adds `H d` (N) into `out` for the Hessian in `cache` and the direction `direction` (m).
+    ///
+    /// # Errors
+    /// As [`TetMesh::add_hessian_product`]; `out` unchanged then.
+    fn add_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError>;
+
+    /// Adds the 3x3 diagonal blocks (N/m) of the Hessian in `cache` into `blocks`.
+    ///
+    /// # Errors
+    /// As [`TetMesh::add_vertex_hessian_blocks`]; `blocks` unchanged then.
+    fn add_vertex_hessian_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &mut [Mat3],
+    ) -> Result<(), MeshError>;
 }
 
 /// A tetrahedral body with the direct stress [`Material::first_piola`]: the forces are the
@@ -267,6 +330,36 @@ impl<M: Material> ElasticEnergy for TetElastic<'_, M> {
     ) -> Result<Real, MeshError> {
         self.mesh
             .energy_and_add_forces(&self.material, positions, forces)
+    }
+}
+
+impl<M: Material> ElasticHessian for TetElastic<'_, M> {
+    #[inline]
+    fn element_count(&self) -> usize {
+        self.mesh.element_count()
+    }
+    fn projected_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError> {
+        self.mesh
+            .projected_hessians(&self.material, positions, cache)
+    }
+    fn add_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        self.mesh.add_hessian_product(cache, direction, out)
+    }
+    fn add_vertex_hessian_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &mut [Mat3],
+    ) -> Result<(), MeshError> {
+        self.mesh.add_vertex_hessian_blocks(cache, blocks)
     }
 }
 

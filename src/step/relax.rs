@@ -5,15 +5,14 @@
 
 use core::mem::swap;
 
-use super::super::math;
 use super::super::types::Real;
+use super::line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
+use super::objective::{Evaluation, Objective, implicit_velocities};
 use super::stability::vertex_stiffness;
 use super::vertex_passes::{
-    Frames, TrialPoint, Vertices, chebyshev_pass, direction_pass, gradient_pass, trial_pass,
+    Frames, TrialPoint, Vertices, chebyshev_pass, direction_pass, trial_pass,
 };
-use super::{
-    ElasticEnergy, Ground, Vector, check_length, check_state, first_non_finite, pinned_flags,
-};
+use super::{ElasticEnergy, Ground, Vector, check_length, check_state, first_non_finite};
 use crate::error::{StepBuffer, StepError};
 
 /// The length of the vector scratch buffer the relaxation needs for `vertex_count` vertices:
@@ -323,75 +322,6 @@ pub fn relax_quasi_static<F: ElasticEnergy>(
     minimise(model, masses, pinned, settings, positions, None, scratch)
 }
 
-/// `Phi` and its gradient, without the buffers that change.
-struct Objective<'p, F: ElasticEnergy> {
-    model: &'p F,
-    /// Masses, pinned flags, the preconditioner's stiffness, `x_n` and `v_n` (empty in the
-    /// quasi-static mode).
-    vertices: Vertices<'p, F::Vector>,
-    /// `h`, `1 / h^2` (both 0 in the quasi-static mode), gravity and the ground, for the
-    /// vertex passes.
-    frames: Frames<F::Vector>,
-    /// `h` (unused in the quasi-static mode).
-    h: Real,
-    gravity: F::Vector,
-}
-
-impl<F: ElasticEnergy> Objective<'_, F> {
-    /// Writes `y + offset` (`x_n + offset` without inertia) projected on the ground into
-    /// `point.positions` at free vertices, `x_n` at pinned ones, and zeroes `point.gradient`.
-    fn initial_guess(&self, point: TrialPoint<'_, F::Vector>, offset: F::Vector) {
-        let Vertices {
-            start,
-            velocities,
-            pinned,
-            ..
-        } = self.vertices;
-        let rows = point.positions.iter_mut().zip(point.gradient.iter_mut());
-        for (i, (((x, g), &x0), pinned)) in rows.zip(start).zip(pinned_flags(pinned)).enumerate() {
-            *g = F::Vector::ZERO;
-            let target = match velocities.get(i) {
-                Some(&v) => x0 + v * self.h,
-                None => x0,
-            };
-            *x = if pinned {
-                x0
-            } else {
-                self.frames.floor().project(target + offset)
-            };
-        }
-    }
-
-    /// `Phi(x)`, `E(x)` and the residual at `x`, writing the unprojected gradient (N, zero at
-    /// pinned vertices) into `gradient`, which must be zero on entry (the pass that writes a
-    /// trial point zeroes it, saving a pass of its own). Non-finite if `x` is.
-    fn evaluate(
-        &self,
-        x: &[F::Vector],
-        gradient: &mut [F::Vector],
-    ) -> Result<Evaluation, StepError> {
-        let elastic = self.model.energy_and_add_forces(x, gradient)?;
-        let (inertia_and_gravity, residual_squared) =
-            gradient_pass(&self.frames, &self.vertices, x, gradient);
-        Ok(Evaluation {
-            phi: elastic + inertia_and_gravity,
-            elastic,
-            residual: math::sqrt(residual_squared),
-        })
-    }
-}
-
-/// What one evaluation of `Phi` gives.
-#[derive(Clone, Copy)]
-struct Evaluation {
-    /// `Phi(x)` (J).
-    phi: Real,
-    /// The elastic energy `E(x)` (J), part of `phi`.
-    elastic: Real,
-    /// `|grad Phi(x)|` (N) projected on the contact constraints.
-    residual: Real,
-}
-
 /// The shared loop of [`relax_step`] (`velocities` given) and [`relax_quasi_static`].
 fn minimise<F: ElasticEnergy>(
     model: &F,
@@ -464,28 +394,16 @@ fn minimise<F: ElasticEnergy>(
     let Some(velocities) = velocities else {
         return Ok(report);
     };
-    // v = (x_{n+1} - x_n) / h, then Coulomb friction at the contacts with the normal impulse
-    // h R, R the reaction: the gradient's normal component there.
+    // v = (x_{n+1} - x_n) / h, then Coulomb friction at the contacts.
     copy(backup, velocities);
-    let rows = velocities
-        .iter_mut()
-        .zip(&*positions)
-        .zip(start)
-        .zip(&*gradient);
-    for ((((v, &x), &x0), &g), (&m, pinned)) in rows.zip(masses.iter().zip(pinned_flags(pinned))) {
-        if pinned {
-            continue;
-        }
-        *v = (x - x0) * (1.0 / h);
-        if let (Some(ground), Some(true)) = (&ground, floor.contact(x)) {
-            let normal = ground.normal.dot(*v);
-            let reaction = ground.normal.dot(g).max(0.0);
-            let normal_change = h * reaction / m + (-normal).max(0.0);
-            let tangential = *v - ground.normal * normal;
-            *v = ground.friction_applied(tangential, normal_change)
-                + ground.normal * normal.max(0.0);
-        }
-    }
+    implicit_velocities(
+        ground.as_ref(),
+        &floor,
+        h,
+        (masses, pinned),
+        (positions, start, gradient),
+        velocities,
+    );
     if let Some(vertex) = first_non_finite(velocities, &[]) {
         copy(positions, start);
         copy(velocities, backup);
@@ -502,27 +420,8 @@ struct Buffers<'b, V> {
     direction: &'b mut [V],
 }
 
-/// The relative size of `Phi`'s rounding error the line search tolerates: `sqrt(eps)`
-/// (`2.4e-4` in f32, `1.5e-8` in f64).
-const ROUNDING: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
-
-/// `g . d` over all vertices.
-fn slope_along<V: Vector>(gradient: &[V], direction: &[V]) -> Real {
-    gradient
-        .iter()
-        .zip(direction)
-        .map(|(&g, &d)| g.dot(d))
-        .sum()
-}
-
 /// What the descent loop hands back: the report, the final gradient, a free buffer.
 type Descent<'b, V> = (RelaxReport, &'b mut [V], &'b mut [V]);
-
-/// Whether a slope `grad.d` is negative (false for NaN).
-#[inline(always)]
-fn downhill(slope: Real) -> bool {
-    slope < 0.0
-}
 
 /// The descent loop from the inertial target. Returns the report, the buffer holding the
 /// final (unprojected) gradient and a free buffer of one vector per vertex.
@@ -599,15 +498,7 @@ fn descend<'b, F: ElasticEnergy>(
     // Relative to the larger of the initial residual and the gravity load, so that a step
     // starting at (or near) equilibrium, whose initial residual is mostly rounding, is not asked
     // to reduce it further.
-    let load_squared: Real = objective
-        .vertices
-        .masses
-        .iter()
-        .zip(pinned_flags(objective.vertices.pinned))
-        .filter(|(_, pinned)| !pinned)
-        .map(|(&m, _)| m * m * objective.gravity.dot(objective.gravity))
-        .sum();
-    let target = settings.tolerance * initial_residual.max(math::sqrt(load_squared));
+    let target = settings.tolerance * initial_residual.max(objective.gravity_load());
     // Whether `other` holds x_{k-1}, so that the last step is known (false at the start and
     // after a restart, when it counts as zero).
     let mut stepped = false;
@@ -726,11 +617,13 @@ fn descend<'b, F: ElasticEnergy>(
             // nearly undeformed element is a difference of O(mu V) terms), Hager and Zhang's
             // approximate Armijo test (SIAM J. Optim. 2005): the trapezoidal estimate of the
             // decrease from the two slopes, which has no cancellation.
-            let noise = ROUNDING * (phi.abs() + trial_phi.abs() + trial_elastic.abs());
-            let sufficient = trial_phi <= phi + settings.armijo * alpha * slope
-                || (trial_phi <= phi + noise
-                    && slope_along(trial_gradient, direction)
-                        <= (2.0 * settings.armijo - 1.0) * slope);
+            let sufficient = sufficient_decrease(
+                (phi, trial_phi, trial_elastic),
+                settings.armijo,
+                alpha,
+                slope,
+                || slope_along(trial_gradient, direction),
+            );
             if sufficient {
                 accepted = Some(evaluation);
                 break;
@@ -764,16 +657,6 @@ fn descend<'b, F: ElasticEnergy>(
         restarts,
     };
     Ok((report, gradient, trial))
-}
-
-/// Copies `source` into `target`, as far as the shorter goes. Every buffer here has one entry
-/// per vertex (checked on entry), but the optimiser loses track of the lengths of those that
-/// trade places in the descent loop, and `copy_from_slice` would keep a panic path for unequal
-/// ones (which the firmware check rejects).
-fn copy<V: Copy>(target: &mut [V], source: &[V]) {
-    for (t, &s) in target.iter_mut().zip(source) {
-        *t = s;
-    }
 }
 
 /// Checks the scalar settings; returns the ground with a unit normal.

@@ -1,0 +1,190 @@
+//! The mesh Hessian `d^2 E / dx^2` of a tetrahedral mesh (and of the triangle meshes),
+//! matrix-free: a per-element cache of
+//! projected stress derivatives ([`TetHessian`]) in a caller buffer, the product `H d` and the
+//! per-vertex 3x3 diagonal blocks (`docs/math.md` section 6).
+//!
+//! The cache costs one SVD per element to build ([`TetMesh::projected_hessians`]) and 180
+//! bytes per element in f32 (360 in f64); products and blocks then read it without any SVD.
+//! Elements are visited in index order and their contributions added at their corners in corner
+//! order, so results are the same bits on every target.
+
+use super::super::element::{MembraneHessian, TetHessian, TriHessian, TriangleStVK};
+use super::super::material::Material;
+use super::super::types::{Mat2, Mat3, Vec2, Vec3};
+use super::{
+    MembraneMesh, TetMesh, TriMesh, check_finite, check_length, check_positions, gather,
+    scatter_add,
+};
+use crate::error::{Buffer, MeshError};
+
+impl TetMesh<'_> {
+    /// Writes the projected (SPD) Hessian data of every tetrahedron of `material` at deformed
+    /// `positions` (m) into `cache` (one [`TetHessian`] per element, overwritten).
+    ///
+    /// # Errors
+    /// [`MeshError::LengthMismatch`] naming [`Buffer::Positions`] (one per vertex) or
+    /// [`Buffer::Hessians`] (one per element); [`MeshError::NonFinitePosition`] naming the first
+    /// non-finite vertex. On error, `cache` is unchanged.
+    ///
+    /// ```
+    /// use softfem::element::{TetHessian, TetRest};
+    /// use softfem::glam::{Mat3, Vec3};
+    /// use softfem::material::StableNeoHookean;
+    /// use softfem::mesh::TetMesh;
+    ///
+    /// let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE];
+    /// let tets = [[0, 1, 2, 3], [1, 2, 3, 4]];
+    /// let mut rest_data = [TetRest::default(); 2];
+    /// let mesh = TetMesh::new(&rest, &tets, &mut rest_data)?;
+    /// let rubber = StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap();
+    /// let mut cache = [TetHessian::default(); 2];
+    /// mesh.projected_hessians(&rubber, &rest, &mut cache)?;
+    /// // A rigid translation is in the kernel of the Hessian.
+    /// let mut out = [Vec3::ZERO; 5];
+    /// mesh.add_hessian_product(&cache, &[Vec3::Y; 5], &mut out)?;
+    /// assert!(out.iter().all(|f| f.length() < 1e-1));
+    /// let mut blocks = [Mat3::ZERO; 5];
+    /// mesh.add_vertex_hessian_blocks(&cache, &mut blocks)?;
+    /// assert!(blocks[1].x_axis.x > 0.0);
+    /// # Ok::<(), softfem::MeshError>(())
+    /// ```
+    pub fn projected_hessians<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError> {
+        check_positions(self.vertex_count(), positions)?;
+        check_length(Buffer::Hessians, self.element_count(), cache.len())?;
+        let elements = self.tets().iter().zip(self.rest());
+        for ((corners, rest), slot) in elements.zip(cache.iter_mut()) {
+            *slot = TetHessian::new(material, rest, gather(positions, corners));
+        }
+        Ok(())
+    }
+
+    /// Adds `H d` (N) into `out`: the mesh Hessian represented by `cache` (from
+    /// [`projected_hessians`](TetMesh::projected_hessians), or [`TetHessian::exact`] per element)
+    /// times the per-vertex `direction` (m).
+    ///
+    /// # Errors
+    /// [`MeshError::LengthMismatch`] naming [`Buffer::Hessians`], [`Buffer::Direction`] or
+    /// [`Buffer::Products`]; [`MeshError::NonFiniteDirection`] naming the first non-finite
+    /// vertex of `direction`. On error, `out` is unchanged.
+    pub fn add_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        check_length(Buffer::Hessians, self.element_count(), cache.len())?;
+        check_length(Buffer::Direction, self.vertex_count(), direction.len())?;
+        check_length(Buffer::Products, self.vertex_count(), out.len())?;
+        check_finite(direction, |vertex| MeshError::NonFiniteDirection { vertex })?;
+        let elements = self.tets().iter().zip(self.rest());
+        for ((corners, rest), hessian) in elements.zip(cache) {
+            let product = hessian.product(rest, gather(direction, corners));
+            scatter_add(out, corners, product);
+        }
+        Ok(())
+    }
+
+    /// Adds the 3x3 diagonal blocks of the mesh Hessian represented by `cache` (N/m; the sum of
+    /// every element's block for the vertex, symmetric PSD for projected data) into `blocks`,
+    /// one per vertex: the block-Jacobi preconditioner of Newton's method and the local systems
+    /// of Vertex Block Descent.
+    ///
+    /// # Errors
+    /// [`MeshError::LengthMismatch`] naming [`Buffer::Hessians`] or [`Buffer::Blocks`]. On
+    /// error, `blocks` is unchanged.
+    pub fn add_vertex_hessian_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &mut [Mat3],
+    ) -> Result<(), MeshError> {
+        check_length(Buffer::Hessians, self.element_count(), cache.len())?;
+        check_length(Buffer::Blocks, self.vertex_count(), blocks.len())?;
+        let elements = self.tets().iter().zip(self.rest());
+        for ((corners, rest), hessian) in elements.zip(cache) {
+            for (corner, &vertex) in corners.iter().enumerate() {
+                if let Some(block) = blocks.get_mut(vertex as usize) {
+                    *block += hessian.vertex_block(rest, corner);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Generates the Hessian kernels of a triangle mesh type.
+macro_rules! triangle_mesh_hessian {
+    ($mesh:ident, $vector:ident, $hessian:ident, $block:ident) => {
+        impl $mesh<'_> {
+            /// Writes the projected (SPD) Hessian data of every triangle of `material` at
+            /// deformed `positions` (m) into `cache` (one per element, overwritten).
+            ///
+            /// # Errors
+            /// As [`TetMesh::projected_hessians`]: lengths of `positions` and `cache`, non-finite
+            /// positions; `cache` unchanged then.
+            pub fn projected_hessians(
+                &self,
+                material: &TriangleStVK,
+                positions: &[$vector],
+                cache: &mut [$hessian],
+            ) -> Result<(), MeshError> {
+                check_positions(self.vertex_count(), positions)?;
+                check_length(Buffer::Hessians, self.element_count(), cache.len())?;
+                let elements = self.tris().iter().zip(self.rest());
+                for ((corners, rest), slot) in elements.zip(cache.iter_mut()) {
+                    *slot = $hessian::new(material, rest, gather(positions, corners));
+                }
+                Ok(())
+            }
+
+            /// Adds `H d` into `out` for the Hessian in `cache` and the per-vertex `direction`.
+            ///
+            /// # Errors
+            /// As [`TetMesh::add_hessian_product`]; `out` unchanged then.
+            pub fn add_hessian_product(
+                &self,
+                cache: &[$hessian],
+                direction: &[$vector],
+                out: &mut [$vector],
+            ) -> Result<(), MeshError> {
+                check_length(Buffer::Hessians, self.element_count(), cache.len())?;
+                check_length(Buffer::Direction, self.vertex_count(), direction.len())?;
+                check_length(Buffer::Products, self.vertex_count(), out.len())?;
+                check_finite(direction, |vertex| MeshError::NonFiniteDirection { vertex })?;
+                let elements = self.tris().iter().zip(cache);
+                for (corners, hessian) in elements {
+                    scatter_add(out, corners, hessian.product(gather(direction, corners)));
+                }
+                Ok(())
+            }
+
+            /// Adds the diagonal blocks of the Hessian in `cache` into `blocks`, one per vertex.
+            ///
+            /// # Errors
+            /// As [`TetMesh::add_vertex_hessian_blocks`]; `blocks` unchanged then.
+            pub fn add_vertex_hessian_blocks(
+                &self,
+                cache: &[$hessian],
+                blocks: &mut [$block],
+            ) -> Result<(), MeshError> {
+                check_length(Buffer::Hessians, self.element_count(), cache.len())?;
+                check_length(Buffer::Blocks, self.vertex_count(), blocks.len())?;
+                for (corners, hessian) in self.tris().iter().zip(cache) {
+                    for (corner, &vertex) in corners.iter().enumerate() {
+                        if let Some(block) = blocks.get_mut(vertex as usize) {
+                            *block += hessian.vertex_block(corner);
+                        }
+                    }
+                }
+                Ok(())
+            }
+        }
+    };
+}
+
+triangle_mesh_hessian!(TriMesh, Vec2, TriHessian, Mat2);
+triangle_mesh_hessian!(MembraneMesh, Vec3, MembraneHessian, Mat3);

@@ -1,0 +1,129 @@
+//! The objective every implicit solver here minimises (`docs/math.md` section 4): the incremental
+//! potential `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)` of an implicit Euler
+//! step (`y = x_n + h v_n`), or without inertia the static energy `E(x) - sum m g.(x - x_0)`;
+//! its evaluation with the residual every solver stops on, and the velocity update with Coulomb
+//! friction after a step. Shared by the relaxation (`relax.rs`) and Newton's method
+//! (`newton.rs`).
+
+use super::super::math;
+use super::super::types::Real;
+use super::points::Floor;
+use super::vertex_passes::{Frames, TrialPoint, Vertices, gradient_pass};
+use super::{ElasticEnergy, Ground, Vector, pinned_flags};
+use crate::error::StepError;
+
+/// `Phi` and its gradient, without the buffers that change.
+pub(super) struct Objective<'p, F: ElasticEnergy> {
+    pub model: &'p F,
+    /// Masses, pinned flags, the preconditioner's stiffness (the relaxation's; empty for
+    /// solvers that do not use it), `x_n` and `v_n` (empty in the quasi-static mode).
+    pub vertices: Vertices<'p, F::Vector>,
+    /// `h`, `1 / h^2` (both 0 in the quasi-static mode), gravity and the ground, for the
+    /// vertex passes.
+    pub frames: Frames<F::Vector>,
+    /// `h` (unused in the quasi-static mode).
+    pub h: Real,
+    pub gravity: F::Vector,
+}
+
+impl<F: ElasticEnergy> Objective<'_, F> {
+    /// Writes `y + offset` (`x_n + offset` without inertia) projected on the ground into
+    /// `point.positions` at free vertices, `x_n` at pinned ones, and zeroes `point.gradient`.
+    pub fn initial_guess(&self, point: TrialPoint<'_, F::Vector>, offset: F::Vector) {
+        let Vertices {
+            start,
+            velocities,
+            pinned,
+            ..
+        } = self.vertices;
+        let rows = point.positions.iter_mut().zip(point.gradient.iter_mut());
+        for (i, (((x, g), &x0), pinned)) in rows.zip(start).zip(pinned_flags(pinned)).enumerate() {
+            *g = F::Vector::ZERO;
+            let target = match velocities.get(i) {
+                Some(&v) => x0 + v * self.h,
+                None => x0,
+            };
+            *x = if pinned {
+                x0
+            } else {
+                self.frames.floor().project(target + offset)
+            };
+        }
+    }
+
+    /// `Phi(x)`, `E(x)` and the residual at `x`, writing the unprojected gradient (N, zero at
+    /// pinned vertices) into `gradient`, which must be zero on entry (the pass that writes a
+    /// trial point zeroes it, saving a pass of its own). Non-finite if `x` is.
+    pub fn evaluate(
+        &self,
+        x: &[F::Vector],
+        gradient: &mut [F::Vector],
+    ) -> Result<Evaluation, StepError> {
+        let elastic = self.model.energy_and_add_forces(x, gradient)?;
+        let (inertia_and_gravity, residual_squared) =
+            gradient_pass(&self.frames, &self.vertices, x, gradient);
+        Ok(Evaluation {
+            phi: elastic + inertia_and_gravity,
+            elastic,
+            residual: math::sqrt(residual_squared),
+        })
+    }
+
+    /// `|M g|` (N), the norm of the gravity load on the free vertices: the scale the stopping
+    /// test measures a residual against when the initial residual is smaller.
+    pub fn gravity_load(&self) -> Real {
+        let load_squared: Real = self
+            .vertices
+            .masses
+            .iter()
+            .zip(pinned_flags(self.vertices.pinned))
+            .filter(|(_, pinned)| !pinned)
+            .map(|(&m, _)| m * m * self.gravity.dot(self.gravity))
+            .sum();
+        math::sqrt(load_squared)
+    }
+}
+
+/// What one evaluation of `Phi` gives.
+#[derive(Clone, Copy)]
+pub(super) struct Evaluation {
+    /// `Phi(x)` (J).
+    pub phi: Real,
+    /// The elastic energy `E(x)` (J), part of `phi`.
+    pub elastic: Real,
+    /// `|grad Phi(x)|` (N) projected on the contact constraints.
+    pub residual: Real,
+}
+
+/// The velocities after an implicit Euler step from `start` to `positions`:
+/// `v = (x_{n+1} - x_n) / h` at free vertices, then at vertices resting on the ground Coulomb
+/// friction with the normal impulse `h R`, `R` the reaction (the normal component of
+/// `gradient`, the gradient of `Phi` at the result). Pinned vertices keep their velocity.
+pub(super) fn implicit_velocities<V: Vector>(
+    ground: Option<&Ground<V>>,
+    floor: &Floor<V>,
+    h: Real,
+    (masses, pinned): (&[Real], &[bool]),
+    (positions, start, gradient): (&[V], &[V], &[V]),
+    velocities: &mut [V],
+) {
+    let rows = velocities
+        .iter_mut()
+        .zip(positions)
+        .zip(start)
+        .zip(gradient);
+    for ((((v, &x), &x0), &g), (&m, pinned)) in rows.zip(masses.iter().zip(pinned_flags(pinned))) {
+        if pinned {
+            continue;
+        }
+        *v = (x - x0) * (1.0 / h);
+        if let (Some(ground), Some(true)) = (ground, floor.contact(x)) {
+            let normal = ground.normal.dot(*v);
+            let reaction = ground.normal.dot(g).max(0.0);
+            let normal_change = h * reaction / m + (-normal).max(0.0);
+            let tangential = *v - ground.normal * normal;
+            *v = ground.friction_applied(tangential, normal_change)
+                + ground.normal * normal.max(0.0);
+        }
+    }
+}
