@@ -29,6 +29,10 @@ mod sealed {
     pub trait Sealed {}
     impl Sealed for super::Real {}
     impl Sealed for super::Lanes {}
+    #[cfg(target_arch = "x86_64")]
+    impl Sealed for super::super::lanes_avx2::Avx2Lanes {}
+    #[cfg(target_arch = "x86_64")]
+    impl Sealed for super::super::lanes_avx512::Avx512Lanes {}
 }
 
 /// A sum over `n` items (vertices, elements) in a fixed order, grouped or not: item `i` of the
@@ -181,6 +185,37 @@ impl Lane for Real {
     #[inline(always)]
     fn map(self, f: impl Fn(Real) -> Real) -> Self {
         f(self)
+    }
+}
+
+/// A [`Lane`] type as a fixed array of its values: how batched kernels load and store a group of
+/// any width (4 for [`Lanes`], more for the AVX lanes of `simd`'s wider widths).
+pub(crate) trait LaneArray: Lane {
+    /// Values per group.
+    const WIDTH: usize;
+    /// `[Real; WIDTH]`.
+    type Array: Copy + AsRef<[Real]> + AsMut<[Real]>;
+    /// An array of zeros.
+    const ZEROS: Self::Array;
+    /// The group holding `values`, lane `i` = `values[i]`.
+    fn from_lane_array(values: Self::Array) -> Self;
+    /// The values of the lanes, in order.
+    fn to_lane_array(self) -> Self::Array;
+}
+
+impl LaneArray for Lanes {
+    const WIDTH: usize = LANES;
+    type Array = [Real; LANES];
+    const ZEROS: Self::Array = [0.0; LANES];
+
+    #[inline(always)]
+    fn from_lane_array(values: Self::Array) -> Self {
+        Lanes::from_array(values)
+    }
+
+    #[inline(always)]
+    fn to_lane_array(self) -> Self::Array {
+        self.to_array()
     }
 }
 

@@ -26,6 +26,8 @@
 //!   minimisation by preconditioned descent (also quasi-static relaxation) ([`StepError`]).
 //! * [`svd3_lanes`](svd::svd3_lanes) on [`lanes`]: the SVD of 4 matrices at once, bit-identical to
 //!   `svd3`.
+//! * [`svd3_batch`](svd::svd3_batch): the SVDs of a whole slice at the widest SIMD width the CPU
+//!   has (AVX-512F, AVX2, SSE, chosen at run time by [`simd`]), bit-identical to `svd3`.
 //!
 //! glam is re-exported as [`glam`] so that callers use the exact version the kernels
 //! are built against.
@@ -85,10 +87,13 @@ extern crate std;
 pub use glam;
 
 pub mod error;
+pub use error::SvdBatchError;
 pub use error::{
     Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError, StepBuffer,
     StepError,
 };
+
+pub mod simd;
 
 #[path = "f32.rs"]
 mod single;
