@@ -14,7 +14,7 @@
 // AVX2 and the OS's support of the YMM state. The intrinsics have no memory operands or other
 // preconditions.
 
-use super::lanes::{Lane, LaneArray};
+use super::lanes::{Lane, LaneArray, array_lane_value, set_array_lane_value};
 use super::types::Real;
 use super::wide_ops::{
     AVX2_WIDTH, Reg256, add256, and256, andnot256, blendv256, cmp256, div256, max256, movemask256,
@@ -154,5 +154,15 @@ impl LaneArray for Avx2Lanes {
     fn to_lane_array(self) -> Self::Array {
         // SAFETY: as in `from_lane_array`.
         unsafe { core::mem::transmute::<Reg256, Self::Array>(self.0) }
+    }
+
+    #[inline(always)]
+    fn lane_value(values: &Self::Array, lane: usize) -> Real {
+        array_lane_value(values, lane)
+    }
+
+    #[inline(always)]
+    fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
+        set_array_lane_value(values, lane, value);
     }
 }

@@ -15,7 +15,7 @@
 // `simd::detected_width` found AVX-512F and the OS's support of the ZMM and mask state. The
 // intrinsics have no memory operands or other preconditions.
 
-use super::lanes::{Lane, LaneArray};
+use super::lanes::{Lane, LaneArray, array_lane_value, set_array_lane_value};
 use super::types::Real;
 use super::wide_ops::{
     AVX512_WIDTH, Mask512, Reg512, abs512, add512, blend512, cmp512, div512, from_bits512, max512,
@@ -164,5 +164,15 @@ impl LaneArray for Avx512Lanes {
     fn to_lane_array(self) -> Self::Array {
         // SAFETY: as in `from_lane_array`.
         unsafe { core::mem::transmute::<Reg512, Self::Array>(self.0) }
+    }
+
+    #[inline(always)]
+    fn lane_value(values: &Self::Array, lane: usize) -> Real {
+        array_lane_value(values, lane)
+    }
+
+    #[inline(always)]
+    fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
+        set_array_lane_value(values, lane, value);
     }
 }

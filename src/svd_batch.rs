@@ -7,7 +7,7 @@
 //! has converged keeps its values while others sweep on), so neither the grouping nor the
 //! padding changes any result.
 
-use super::super::lanes::{LaneArray, LaneMat3, LaneVec3, Lanes};
+use super::super::lanes::{LaneArray, LaneMat3, LanePair, LaneVec3, Lanes};
 use super::super::math;
 use super::super::types::{Mat3, Real, Vec3};
 use super::{DEFAULT_SWEEPS, Prescale, Svd3, decompose_scaled, svd3_sweeps};
@@ -87,14 +87,17 @@ impl WidthKernel for Batch<'_> {
 
     #[inline(always)]
     fn sse(self) {
-        padded_groups::<Lanes>(self.matrices, self.out, self.sweeps);
+        let (matrices, out) = whole_groups::<LanePair<Lanes>>(self.matrices, self.out, self.sweeps);
+        padded_groups::<Lanes>(matrices, out, self.sweeps);
     }
 
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn avx2(self) {
         use super::super::lanes_avx2::Avx2Lanes;
-        let (matrices, out) = whole_groups::<Avx2Lanes>(self.matrices, self.out, self.sweeps);
+        let (matrices, out) =
+            whole_groups::<LanePair<Avx2Lanes>>(self.matrices, self.out, self.sweeps);
+        let (matrices, out) = whole_groups::<Avx2Lanes>(matrices, out, self.sweeps);
         padded_groups::<Lanes>(matrices, out, self.sweeps);
     }
 
@@ -103,7 +106,9 @@ impl WidthKernel for Batch<'_> {
     unsafe fn avx512(self) {
         use super::super::lanes_avx2::Avx2Lanes;
         use super::super::lanes_avx512::Avx512Lanes;
-        let (matrices, out) = whole_groups::<Avx512Lanes>(self.matrices, self.out, self.sweeps);
+        let (matrices, out) =
+            whole_groups::<LanePair<Avx512Lanes>>(self.matrices, self.out, self.sweeps);
+        let (matrices, out) = whole_groups::<Avx512Lanes>(matrices, out, self.sweeps);
         let (matrices, out) = whole_groups::<Avx2Lanes>(matrices, out, self.sweeps);
         padded_groups::<Lanes>(matrices, out, self.sweeps);
     }
@@ -133,32 +138,28 @@ fn padded_groups<L: LaneArray>(matrices: &[Mat3], out: &mut [Svd3], sweeps: u32)
     }
 }
 
-/// The widest group any lane type has (16 f32 in an AVX-512 register).
-const MAX_GROUP: usize = 16;
+/// The widest group any lane type has (32 f32 in a pair of AVX-512 registers).
+const MAX_GROUP: usize = 32;
 
 /// The value of `lane` in each of `columns`.
 #[inline(always)]
-fn lane_values<A: AsRef<[Real]>, const N: usize>(columns: &[A; N], lane: usize) -> [Real; N] {
+fn lane_values<L: LaneArray, const N: usize>(columns: &[L::Array; N], lane: usize) -> [Real; N] {
     core::array::from_fn(|k| {
         columns
             .get(k)
-            .and_then(|column| column.as_ref().get(lane))
-            .copied()
-            .unwrap_or(0.0)
+            .map_or(0.0, |column| L::lane_value(column, lane))
     })
 }
 
 /// Sets the value of `lane` in each of `columns`.
 #[inline(always)]
-fn set_lane<A: AsMut<[Real]>, const N: usize>(
-    columns: &mut [A; N],
+fn set_lane<L: LaneArray, const N: usize>(
+    columns: &mut [L::Array; N],
     lane: usize,
     values: [Real; N],
 ) {
     for (column, value) in columns.iter_mut().zip(values) {
-        if let Some(slot) = column.as_mut().get_mut(lane) {
-            *slot = value;
-        }
+        L::set_lane_value(column, lane, value);
     }
 }
 
@@ -193,33 +194,49 @@ fn decompose_group<L: LaneArray>(matrices: &[Mat3], out: &mut [Svd3], sweeps: u3
             ),
             _ => (Mat3::IDENTITY, [1.0; 4]),
         };
-        set_lane(&mut entries, lane, matrix.to_cols_array());
-        set_lane(&mut factors, lane, lane_factors);
+        set_lane::<L, 9>(&mut entries, lane, matrix.to_cols_array());
+        set_lane::<L, 4>(&mut factors, lane, lane_factors);
     }
-    let [down_lo, down_hi, up_lo, up_hi] = factors.map(L::from_lane_array);
-    let [a00, a10, a20, a01, a11, a21, a02, a12, a22] =
-        entries.map(|column| L::from_lane_array(column) * down_lo * down_hi);
+    // Destructured rather than `<[_; N]>::map`, which is not always inlined: a call would run
+    // its lane operations outside the function compiled for the wide registers.
+    let [down_lo, down_hi, up_lo, up_hi] = factors;
+    let (down_lo, down_hi) = (L::from_lane_array(down_lo), L::from_lane_array(down_hi));
+    let (up_lo, up_hi) = (L::from_lane_array(up_lo), L::from_lane_array(up_hi));
+    let down = |column: L::Array| L::from_lane_array(column) * down_lo * down_hi;
+    let [a00, a10, a20, a01, a11, a21, a02, a12, a22] = entries;
     let scaled = LaneMat3 {
-        c0: LaneVec3::new(a00, a10, a20),
-        c1: LaneVec3::new(a01, a11, a21),
-        c2: LaneVec3::new(a02, a12, a22),
+        c0: LaneVec3::new(down(a00), down(a10), down(a20)),
+        c1: LaneVec3::new(down(a01), down(a11), down(a21)),
+        c2: LaneVec3::new(down(a02), down(a12), down(a22)),
     };
     let (u, sigma, v) = decompose_scaled(scaled, sweeps);
     let up = |s: L| (s * up_lo * up_hi).to_lane_array();
     let sigma = [up(sigma.x), up(sigma.y), up(sigma.z)];
     let matrix_entries = |m: LaneMat3<L>| {
+        let (c0, c1, c2) = (m.c0, m.c1, m.c2);
         [
-            m.c0.x, m.c0.y, m.c0.z, m.c1.x, m.c1.y, m.c1.z, m.c2.x, m.c2.y, m.c2.z,
+            c0.x.to_lane_array(),
+            c0.y.to_lane_array(),
+            c0.z.to_lane_array(),
+            c1.x.to_lane_array(),
+            c1.y.to_lane_array(),
+            c1.z.to_lane_array(),
+            c2.x.to_lane_array(),
+            c2.y.to_lane_array(),
+            c2.z.to_lane_array(),
         ]
-        .map(L::to_lane_array)
     };
     let (u, v) = (matrix_entries(u), matrix_entries(v));
     for (lane, (a, svd)) in matrices.iter().zip(out).enumerate() {
+        // Hidden from the optimiser, which would otherwise turn the lanes' stores into
+        // scatter instructions (one per entry, across the matrices), several times slower on
+        // current AMD processors than plain stores of each matrix's 21 values.
+        let lane = core::hint::black_box(lane);
         *svd = match prescales.get(lane) {
             Some(Some(_)) => Svd3 {
-                u: Mat3::from_cols_array(&lane_values(&u, lane)),
-                sigma: Vec3::from_array(lane_values(&sigma, lane)),
-                v: Mat3::from_cols_array(&lane_values(&v, lane)),
+                u: Mat3::from_cols_array(&lane_values::<L, 9>(&u, lane)),
+                sigma: Vec3::from_array(lane_values::<L, 3>(&sigma, lane)),
+                v: Mat3::from_cols_array(&lane_values::<L, 9>(&v, lane)),
             },
             _ => Svd3::without_decomposition(*a),
         };
