@@ -642,8 +642,8 @@ mod tests {
     fn term(i: usize) -> super::Real {
         let k = i as super::Real;
         (1.0 + 0.37 * k)
-            * if i % 3 == 0 { 1.0e6 } else { 1.0e-3 }
-            * if i % 2 == 0 { 1.0 } else { -1.0 }
+            * if i.is_multiple_of(3) { 1.0e6 } else { 1.0e-3 }
+            * if i.is_multiple_of(2) { 1.0 } else { -1.0 }
     }
 
     /// Groups plus a tail, and every item one at a time, give the same bits, and both follow the
