@@ -48,7 +48,8 @@ impl Width {
     /// Every width, narrow to wide.
     pub const ALL: [Width; 4] = [Width::Scalar, Width::Sse, Width::Avx2, Width::Avx512];
 
-    /// f32 values processed at once at this width.
+    /// f32 values per SIMD register at this width (the batched SVD keeps two registers' worth
+    /// in flight, see [`svd3_batch`](crate::svd::svd3_batch)).
     #[must_use]
     pub const fn lanes_f32(self) -> usize {
         match self {
@@ -59,8 +60,10 @@ impl Width {
         }
     }
 
-    /// f64 values processed at once at this width (the 4-lane f64 group is two SSE2
-    /// registers).
+    /// f64 values per SIMD register (or register group: the 4-lane f64 [`Lanes`] are two SSE2
+    /// registers) at this width.
+    ///
+    /// [`Lanes`]: crate::f64::lanes::Lanes
     #[must_use]
     pub const fn lanes_f64(self) -> usize {
         match self {

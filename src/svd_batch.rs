@@ -2,10 +2,16 @@
 //! ([`simd`](crate::simd)), each bit for bit [`svd3`](super::svd3) of its matrix.
 //!
 //! The matrices go through the algorithm of [`svd3`](super::svd3) in groups, one matrix per
-//! lane: AVX-512 groups first, then narrower ones for what is left, the last group padded with
-//! identity matrices. Lanes never interact (every operation is element-wise, and a lane that
-//! has converged keeps its values while others sweep on), so neither the grouping nor the
-//! padding changes any result.
+//! lane: pairs of registers at the active width first (two independent chains of operations
+//! per group, which the processor overlaps: the sweeps are a long chain of dependent square
+//! roots and divisions), then single registers and narrower ones for what is left, the last
+//! group padded with identity matrices. Lanes never interact (every operation is element-wise,
+//! and a lane that has converged keeps its values while others sweep on), so neither the
+//! grouping nor the padding changes any result.
+//!
+//! On an AMD EPYC (Zen 4), f32 batches of 1024 ran 1.25x (SSE), 1.2x (AVX2) and 1.0x (AVX-512,
+//! where the divide and square-root unit is already busy) faster in pairs of registers than in
+//! single ones; `cargo bench --bench svd` gives the times per width.
 
 use super::super::lanes::{LaneArray, LaneMat3, LanePair, LaneVec3, Lanes};
 use super::super::math;
