@@ -254,6 +254,8 @@ impl LaneArray for Lanes {
 /// scalar code; the point is speed: the two halves are independent chains of operations that
 /// the processor overlaps, which hides the latency of a long dependent chain (the SVD's sweeps)
 /// when one register's worth of lanes cannot.
+// Unoptimised builds of the batched SVD use single registers (see src/svd_batch.rs).
+#[cfg_attr(debug_assertions, allow(dead_code))]
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct LanePair<L>(L, L);
 

@@ -13,7 +13,9 @@
 //! where the divide and square-root unit is already busy) faster in pairs of registers than in
 //! single ones; `cargo bench --bench svd` gives the times per width.
 
-use super::super::lanes::{LaneArray, LaneMat3, LanePair, LaneVec3, Lanes};
+#[cfg(not(debug_assertions))]
+use super::super::lanes::LanePair;
+use super::super::lanes::{LaneArray, LaneMat3, LaneVec3, Lanes};
 use super::super::math;
 use super::super::types::{Mat3, Real, Vec3};
 use super::{DEFAULT_SWEEPS, Prescale, Svd3, decompose_scaled, svd3_sweeps};
@@ -81,6 +83,12 @@ struct Batch<'a> {
     sweeps: u32,
 }
 
+// Optimised builds run pairs of registers, then single registers and narrower lanes for the
+// rest. Unoptimised (debug) builds run single registers of the width only, the last group
+// padded: there every operation of the inlined decomposition keeps its own stack slot, and the
+// full cascade of four lane types in one function took a 2.5 MiB stack frame (AVX-512), more
+// than a thread's default stack; one lane type takes about a quarter of that. Both give the
+// bits of `svd3`; tests/simd.rs checks the debug path and, with `--release`, the other.
 impl WidthKernel for Batch<'_> {
     type Output = ();
 
@@ -93,7 +101,10 @@ impl WidthKernel for Batch<'_> {
 
     #[inline(always)]
     fn sse(self) {
+        #[cfg(not(debug_assertions))]
         let (matrices, out) = whole_groups::<LanePair<Lanes>>(self.matrices, self.out, self.sweeps);
+        #[cfg(debug_assertions)]
+        let (matrices, out) = (self.matrices, self.out);
         padded_groups::<Lanes>(matrices, out, self.sweeps);
     }
 
@@ -101,25 +112,36 @@ impl WidthKernel for Batch<'_> {
     #[inline(always)]
     unsafe fn avx2(self) {
         use super::super::lanes_avx2::Avx2Lanes;
-        let (matrices, out) =
-            whole_groups::<LanePair<Avx2Lanes>>(self.matrices, self.out, self.sweeps);
-        let (matrices, out) = whole_groups::<Avx2Lanes>(matrices, out, self.sweeps);
-        padded_groups::<Lanes>(matrices, out, self.sweeps);
+        #[cfg(not(debug_assertions))]
+        {
+            let (matrices, out) =
+                whole_groups::<LanePair<Avx2Lanes>>(self.matrices, self.out, self.sweeps);
+            let (matrices, out) = whole_groups::<Avx2Lanes>(matrices, out, self.sweeps);
+            padded_groups::<Lanes>(matrices, out, self.sweeps);
+        }
+        #[cfg(debug_assertions)]
+        padded_groups::<Avx2Lanes>(self.matrices, self.out, self.sweeps);
     }
 
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn avx512(self) {
-        use super::super::lanes_avx2::Avx2Lanes;
         use super::super::lanes_avx512::Avx512Lanes;
-        let (matrices, out) =
-            whole_groups::<LanePair<Avx512Lanes>>(self.matrices, self.out, self.sweeps);
-        let (matrices, out) = whole_groups::<Avx512Lanes>(matrices, out, self.sweeps);
-        let (matrices, out) = whole_groups::<Avx2Lanes>(matrices, out, self.sweeps);
-        padded_groups::<Lanes>(matrices, out, self.sweeps);
+        #[cfg(not(debug_assertions))]
+        {
+            use super::super::lanes_avx2::Avx2Lanes;
+            let (matrices, out) =
+                whole_groups::<LanePair<Avx512Lanes>>(self.matrices, self.out, self.sweeps);
+            let (matrices, out) = whole_groups::<Avx512Lanes>(matrices, out, self.sweeps);
+            let (matrices, out) = whole_groups::<Avx2Lanes>(matrices, out, self.sweeps);
+            padded_groups::<Lanes>(matrices, out, self.sweeps);
+        }
+        #[cfg(debug_assertions)]
+        padded_groups::<Avx512Lanes>(self.matrices, self.out, self.sweeps);
     }
 }
 
+#[cfg(not(debug_assertions))]
 /// Decomposes the matrices in whole groups of `L::WIDTH`; returns the rest (fewer than
 /// `L::WIDTH`) and their outputs.
 #[inline(always)]
