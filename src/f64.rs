@@ -40,6 +40,11 @@ pub(crate) mod math {
     /// f64, where the series would need twice the terms; `libm` it is.
     pub const SERIES_LN_1P: bool = false;
 
+    /// Whether `svd3_batch` at the SSE width runs pairs of [`Lanes`](super::lanes::Lanes): not in
+    /// f64, whose group is already two SSE2 registers; a pair (four) measured 1.1x slower than
+    /// single groups on an AMD EPYC.
+    pub const SSE_PAIRS: bool = false;
+
     /// Jacobi sweeps used by [`svd3`](super::svd::svd3) in this precision.
     pub const DEFAULT_SVD_SWEEPS: u32 = 4;
 

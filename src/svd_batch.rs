@@ -102,7 +102,11 @@ impl WidthKernel for Batch<'_> {
     #[inline(always)]
     fn sse(self) {
         #[cfg(not(debug_assertions))]
-        let (matrices, out) = whole_groups::<LanePair<Lanes>>(self.matrices, self.out, self.sweeps);
+        let (matrices, out) = if math::SSE_PAIRS {
+            whole_groups::<LanePair<Lanes>>(self.matrices, self.out, self.sweeps)
+        } else {
+            (self.matrices, self.out)
+        };
         #[cfg(debug_assertions)]
         let (matrices, out) = (self.matrices, self.out);
         padded_groups::<Lanes>(matrices, out, self.sweeps);
