@@ -43,6 +43,7 @@ pub(crate) mod math {
     /// Whether `svd3_batch` at the SSE width runs pairs of [`Lanes`](super::lanes::Lanes): not in
     /// f64, whose group is already two SSE2 registers; a pair (four) measured 1.1x slower than
     /// single groups on an AMD EPYC.
+    #[cfg_attr(debug_assertions, allow(dead_code))] // Unoptimised builds use no pairs.
     pub const SSE_PAIRS: bool = false;
 
     /// Jacobi sweeps used by [`svd3`](super::svd::svd3) in this precision.
