@@ -28,6 +28,8 @@
 //!   with the projected Hessian ([`newton_step`](step::newton_step)) ([`StepError`]).
 //! * [`svd3_lanes`](svd::svd3_lanes) on [`lanes`]: the SVD of 4 matrices at once, bit-identical to
 //!   `svd3`.
+//! * [`svd3_batch`](svd::svd3_batch): the SVDs of a whole slice at the widest SIMD width the CPU
+//!   has (AVX-512F, AVX2, SSE, chosen at run time by [`simd`]), bit-identical to `svd3`.
 //!
 //! Vectors and matrices are [glam](https://docs.rs/glam/0.34)'s `Vec3` and `Mat3` (`DVec3`,
 //! `DMat3` in f64); the crate re-exports it as `softfem::glam`, so that callers use the exact
@@ -153,10 +155,13 @@ extern crate std;
 pub use glam;
 
 pub mod error;
+pub use error::SvdBatchError;
 pub use error::{
     Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError, StepBuffer,
     StepError,
 };
+
+pub mod simd;
 
 #[path = "f32.rs"]
 mod single;
