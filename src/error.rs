@@ -691,3 +691,8 @@ impl core::error::Error for StepError {
         }
     }
 }
+
+// The asset pipeline's errors (voxel meshing, embedding, surface buffers, Gmsh and OBJ files).
+#[path = "asset_error.rs"]
+mod asset_error;
+pub use asset_error::*;

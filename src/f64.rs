@@ -69,6 +69,13 @@ pub(crate) mod math {
         libm::cbrt(x)
     }
 
+    /// The angle of `(x, y)` from the positive x axis, in `[-pi, pi]` (radians).
+    #[inline(always)]
+    #[must_use]
+    pub fn atan2(y: Real, x: Real) -> Real {
+        libm::atan2(y, x)
+    }
+
     /// `ln(1 + x)`, accurate for small `x`.
     #[inline(always)]
     #[must_use]
@@ -140,3 +147,6 @@ pub mod mesh;
 
 #[path = "step/mod.rs"]
 pub mod step;
+
+#[path = "voxel.rs"]
+pub mod voxel;
