@@ -181,3 +181,6 @@ pub mod step;
 
 #[path = "voxel.rs"]
 pub mod voxel;
+
+#[path = "embed.rs"]
+pub mod embed;

@@ -150,3 +150,6 @@ pub mod step;
 
 #[path = "voxel.rs"]
 pub mod voxel;
+
+#[path = "embed.rs"]
+pub mod embed;

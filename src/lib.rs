@@ -99,6 +99,7 @@ pub use single::tetgen;
 pub use single::{element, generate, lanes, material, mesh, polar, step, svd, types};
 // The asset pipeline: a triangle surface to a soft body and back.
 pub use error::{EmbedBuffer, EmbedError, SurfaceError, VoxelBuffer, VoxelError};
+pub use single::embed;
 pub use single::voxel;
 
 pub mod f64;
