@@ -138,9 +138,7 @@ impl<'a> TetLookup<'a> {
         for tet in 0..tets.len() {
             let [[x0, y0, z0], [x1, y1, z1]] = plan.cell_range(corners(positions, tets, tet)?);
             let listed = (x1 - x0 + 1) * (y1 - y0 + 1) * (z1 - z0 + 1);
-            entries = entries
-                .checked_add(listed)
-                .ok_or(EmbedError::TooLarge)?;
+            entries = entries.checked_add(listed).ok_or(EmbedError::TooLarge)?;
         }
         if u32::try_from(entries).is_err() {
             return Err(EmbedError::TooLarge);

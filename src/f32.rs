@@ -184,3 +184,6 @@ pub mod voxel;
 
 #[path = "embed.rs"]
 pub mod embed;
+
+#[path = "surface.rs"]
+pub mod surface;

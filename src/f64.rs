@@ -153,3 +153,6 @@ pub mod voxel;
 
 #[path = "embed.rs"]
 pub mod embed;
+
+#[path = "surface.rs"]
+pub mod surface;

@@ -100,6 +100,7 @@ pub use single::{element, generate, lanes, material, mesh, polar, step, svd, typ
 // The asset pipeline: a triangle surface to a soft body and back.
 pub use error::{EmbedBuffer, EmbedError, SurfaceError, VoxelBuffer, VoxelError};
 pub use single::embed;
+pub use single::surface;
 pub use single::voxel;
 
 pub mod f64;
