@@ -289,3 +289,270 @@ impl fmt::Display for SurfaceError {
 }
 
 impl core::error::Error for SurfaceError {}
+
+/// What is wrong with a line of a Wavefront OBJ file (see [`ObjFormatError`]).
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ObjProblem {
+    /// A `v` line has fewer than three coordinates.
+    MissingCoordinates,
+    /// Field `field` (counting from 1 after the keyword) is not a number or not a vertex
+    /// reference.
+    BadField {
+        /// The field.
+        field: usize,
+    },
+    /// A coordinate is NaN or infinite.
+    NonFiniteCoordinate,
+    /// A face has fewer than three vertices.
+    FaceTooSmall {
+        /// How many it has.
+        vertices: usize,
+    },
+    /// A face uses vertex index 0 (OBJ numbers vertices from 1; negative indices count back).
+    ZeroIndex,
+    /// A face refers to a vertex that does not exist.
+    IndexOutOfRange {
+        /// The index as written.
+        index: i64,
+        /// The number of vertices (defined so far, for a negative index).
+        vertices: usize,
+    },
+    /// The file has no faces.
+    NoFaces,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for ObjProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ObjProblem::MissingCoordinates => f.write_str("a vertex needs three coordinates"),
+            ObjProblem::BadField { field } => write!(f, "field {field} is not valid"),
+            ObjProblem::NonFiniteCoordinate => f.write_str("a coordinate is not finite"),
+            ObjProblem::FaceTooSmall { vertices } => {
+                write!(
+                    f,
+                    "a face needs at least 3 vertices, this one has {vertices}"
+                )
+            }
+            ObjProblem::ZeroIndex => f.write_str("vertex index 0 (OBJ numbers vertices from 1)"),
+            ObjProblem::IndexOutOfRange { index, vertices } => {
+                write!(
+                    f,
+                    "vertex index {index} is out of range ({vertices} vertices)"
+                )
+            }
+            ObjProblem::NoFaces => f.write_str("the file has no faces"),
+        }
+    }
+}
+
+/// A Wavefront OBJ text is malformed: the line (1-based) and the problem.
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ObjFormatError {
+    /// The line, counting from 1 (the last line for [`ObjProblem::NoFaces`]).
+    pub line: usize,
+    /// What is wrong.
+    pub problem: ObjProblem,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for ObjFormatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "line {}: {}", self.line, self.problem)
+    }
+}
+
+#[cfg(feature = "std")]
+impl core::error::Error for ObjFormatError {}
+
+/// A section of a Gmsh `.msh` file (see [`GmshProblem`]).
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum GmshSection {
+    /// `$MeshFormat`.
+    MeshFormat,
+    /// `$Nodes`.
+    Nodes,
+    /// `$Elements`.
+    Elements,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for GmshSection {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            GmshSection::MeshFormat => "$MeshFormat",
+            GmshSection::Nodes => "$Nodes",
+            GmshSection::Elements => "$Elements",
+        })
+    }
+}
+
+/// What is wrong with a line of a Gmsh `.msh` file (see [`GmshFormatError`]).
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum GmshProblem {
+    /// A required section is missing (or the file ended inside it).
+    MissingSection(GmshSection),
+    /// The file ended before a section's `$End...` line.
+    UnterminatedSection(GmshSection),
+    /// The format version is not 4.1.
+    UnsupportedVersion,
+    /// The file is binary (`file-type` 1); only ASCII is read.
+    Binary,
+    /// The line has the wrong number of fields.
+    FieldCount {
+        /// How many it must have.
+        expected: usize,
+        /// How many it has.
+        found: usize,
+    },
+    /// Field `field` (counting from 1) is not a number of the expected kind.
+    BadField {
+        /// The field.
+        field: usize,
+    },
+    /// A coordinate is NaN or infinite.
+    NonFiniteCoordinate,
+    /// A node tag appears twice.
+    DuplicateNode {
+        /// The tag.
+        tag: u64,
+    },
+    /// An element refers to a node tag that no node has.
+    UnknownNode {
+        /// The tag.
+        tag: u64,
+    },
+    /// A count in a header does not match the records that follow.
+    CountMismatch {
+        /// The count the header gives.
+        expected: usize,
+        /// The count found.
+        found: usize,
+    },
+    /// An element type this reader does not convert (higher-order or non-simplex surface and
+    /// volume elements; points and lines are skipped, 3-node triangles and 4-node tetrahedra
+    /// read).
+    UnsupportedElement {
+        /// The Gmsh element type number.
+        element_type: u32,
+    },
+    /// A line other than the expected `$End...` closes a section.
+    ExpectedEnd(GmshSection),
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for GmshProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            GmshProblem::MissingSection(section) => write!(f, "the {section} section is missing"),
+            GmshProblem::UnterminatedSection(section) => {
+                write!(f, "the file ends inside the {section} section")
+            }
+            GmshProblem::UnsupportedVersion => f.write_str("only MSH version 4.1 is read"),
+            GmshProblem::Binary => f.write_str("binary MSH files are not read (save as ASCII)"),
+            GmshProblem::FieldCount { expected, found } => {
+                write!(f, "expected {expected} fields, found {found}")
+            }
+            GmshProblem::BadField { field } => write!(f, "field {field} is not a valid number"),
+            GmshProblem::NonFiniteCoordinate => f.write_str("a coordinate is not finite"),
+            GmshProblem::DuplicateNode { tag } => write!(f, "node tag {tag} appears twice"),
+            GmshProblem::UnknownNode { tag } => write!(f, "node tag {tag} does not exist"),
+            GmshProblem::CountMismatch { expected, found } => {
+                write!(f, "the header announces {expected} records, found {found}")
+            }
+            GmshProblem::UnsupportedElement { element_type } => write!(
+                f,
+                "element type {element_type} is not read (only 3-node triangles and 4-node \
+                 tetrahedra; points and lines are skipped)"
+            ),
+            GmshProblem::ExpectedEnd(section) => write!(f, "expected the end of {section}"),
+        }
+    }
+}
+
+/// A Gmsh `.msh` text is malformed: the line (1-based) and the problem.
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GmshFormatError {
+    /// The line, counting from 1 (one past the last line when the file ends too early).
+    pub line: usize,
+    /// What is wrong.
+    pub problem: GmshProblem,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for GmshFormatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "line {}: {}", self.line, self.problem)
+    }
+}
+
+#[cfg(feature = "std")]
+impl core::error::Error for GmshFormatError {}
+
+/// Reading or writing an asset file failed: which file, and why (`path:line: problem` when
+/// displayed).
+#[cfg(feature = "std")]
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum AssetFileError {
+    /// The file could not be read or written.
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// An OBJ file is malformed.
+    Obj {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Where and what.
+        error: ObjFormatError,
+    },
+    /// A Gmsh file is malformed.
+    Gmsh {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Where and what.
+        error: GmshFormatError,
+    },
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for AssetFileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            AssetFileError::Io { path, source } => write!(f, "{}: {source}", path.display()),
+            AssetFileError::Obj { path, error } => {
+                write!(f, "{}:{}: {}", path.display(), error.line, error.problem)
+            }
+            AssetFileError::Gmsh { path, error } => {
+                write!(f, "{}:{}: {}", path.display(), error.line, error.problem)
+            }
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl core::error::Error for AssetFileError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            AssetFileError::Io { source, .. } => Some(source),
+            AssetFileError::Obj { error, .. } => Some(error),
+            AssetFileError::Gmsh { error, .. } => Some(error),
+        }
+    }
+}

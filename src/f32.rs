@@ -187,3 +187,11 @@ pub mod embed;
 
 #[path = "surface.rs"]
 pub mod surface;
+
+#[cfg(feature = "std")]
+#[path = "obj.rs"]
+pub mod obj;
+
+#[cfg(feature = "std")]
+#[path = "gmsh.rs"]
+pub mod gmsh;

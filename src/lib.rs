@@ -98,10 +98,16 @@ pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 pub use single::tetgen;
 pub use single::{element, generate, lanes, material, mesh, polar, step, svd, types};
 // The asset pipeline: a triangle surface to a soft body and back.
+#[cfg(feature = "std")]
+pub use error::{
+    AssetFileError, GmshFormatError, GmshProblem, GmshSection, ObjFormatError, ObjProblem,
+};
 pub use error::{EmbedBuffer, EmbedError, SurfaceError, VoxelBuffer, VoxelError};
 pub use single::embed;
 pub use single::surface;
 pub use single::voxel;
+#[cfg(feature = "std")]
+pub use single::{gmsh, obj};
 
 pub mod f64;
 
