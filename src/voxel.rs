@@ -3,7 +3,7 @@
 //! A game or robotics asset is a triangle surface; a soft body needs tetrahedra. This module
 //! covers the surface's bounding box with a regular grid of cubes ([`VoxelGrid`]), keeps the
 //! cubes that lie inside, and splits each kept cube into the five tetrahedra of
-//! [`BoxSplit::Alternating5`](super::generate::BoxSplit::Alternating5) (the same tables as
+//! [`BoxSplit::Alternating5`] (the same tables as
 //! [`fill_box`](super::generate::fill_box), so the faces of neighbouring cubes conform). Grid
 //! corners shared by kept cubes become one vertex, numbered through the grid's own indexing, so
 //! no search or hash map is needed.
