@@ -317,6 +317,16 @@ pub fn embed_points(
         let mut best: Option<(Real, Real, u32, [Real; 4])> = None;
         for &tet in lookup.candidates(x) {
             let corners = corners(positions, tets, tet as usize)?;
+            // The distance to the tetrahedron's bounding box is a cheap lower bound of the
+            // distance to the tetrahedron: skip candidates that cannot beat the best so far or
+            // that lie beyond the margin.
+            let [a, b, c, d] = corners;
+            let (low, high) = (a.min(b).min(c).min(d), a.max(b).max(c).max(d));
+            let box_distance = (low - x).max(x - high).max(Vec3::ZERO).length();
+            let best_distance = best.map_or(margin, |(distance, ..)| distance.min(margin));
+            if box_distance > best_distance {
+                continue;
+            }
             let weights =
                 barycentric(corners, x).ok_or(EmbedError::DegenerateTet { tet: tet as usize })?;
             let smallest = weights.iter().copied().fold(Real::INFINITY, Real::min);

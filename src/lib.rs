@@ -26,6 +26,10 @@
 //!   minimisation by preconditioned descent (also quasi-static relaxation) ([`StepError`]).
 //! * [`svd3_lanes`](svd::svd3_lanes) on [`lanes`]: the SVD of 4 matrices at once, bit-identical to
 //!   `svd3`.
+//! * From a game asset to a soft body and back: [`voxel`] tet meshing of a closed triangle surface
+//!   (generalised winding number), [`embed`] to drive a detailed render mesh by the simulated one,
+//!   [`surface`] buffers (outward boundary triangles, vertex normals), and with `std` the Gmsh 4.1
+//!   (`gmsh`) and OBJ (`obj`) readers and a per-frame OBJ writer.
 //!
 //! glam is re-exported as [`glam`] so that callers use the exact version the kernels
 //! are built against.
@@ -64,6 +68,8 @@
 //! * `std`: host-only conveniences; the kernels never need it. Enables the `tetgen` module, a reader for
 //!   TetGen `.node` / `.ele` meshes.
 //! * `defmt`: derives `defmt::Format` on every public error and report type.
+//! * `bytemuck`: derives `bytemuck::Pod` on the render-buffer types of [`surface`] (and enables
+//!   glam's `bytemuck`), so vertex and index buffers cast to bytes for a GPU upload.
 #![no_std]
 #![cfg_attr(
     not(test),

@@ -38,7 +38,8 @@
 //!
 //! Cost: a full evaluation is one `atan2` per triangle. Sample points are visited along lines
 //! parallel to x; where no triangle's bounding box meets the segment between two consecutive
-//! samples, the segment does not cross the surface, and because the winding number of a closed
+//! samples (or whose two ends lie on the same side of the plane of every triangle whose box it
+//! meets), the segment does not cross the surface, and because the winding number of a closed
 //! surface is constant off the surface, the second sample takes the first one's answer. Samples
 //! outside the surface's bounding box are outside. The triangles that can meet a row of cells are
 //! listed once per row (in the edge scratch, free after the closedness check), so only samples
@@ -318,7 +319,8 @@ fn half_solid_angle(a: Vec3, b: Vec3, c: Vec3) -> Real {
 ///
 /// The surface (`positions` in metres, `triangles` counter-clockwise seen from outside) must be
 /// closed; this is checked first with [`check_closed`], using `edge_scratch`
-/// ([`closed_check_scratch_len`] entries).
+/// ([`closed_check_scratch_len`] entries), which afterwards holds the triangles near each row of
+/// cells and is overwritten.
 ///
 /// # Errors
 /// [`VoxelError::Coverage`] for bad options; those of [`check_closed`];
@@ -452,8 +454,9 @@ fn triangle_boxes<'a>(
     })
 }
 
-/// Whether the padded bounding box of one of the `candidates` (triangle indices in the first
-/// entry) meets the segment `[x0, x1] x {y} x {z}`.
+/// Whether the segment `[x0, x1] x {y} x {z}` may meet one of the `candidates` (triangle indices
+/// in the first entry): their padded bounding box meets it, and its ends are not both on the same
+/// side of the triangle's plane (conservative: a zero-area triangle always counts).
 fn segment_meets_a_triangle(
     positions: &[Vec3],
     triangles: &[[u32; 3]],
@@ -471,7 +474,21 @@ fn segment_meets_a_triangle(
             Some([Some(xa), Some(xb), Some(xc)]) => {
                 let min = xa.min(xb).min(xc) - Vec3::splat(pad);
                 let max = xa.max(xb).max(xc) + Vec3::splat(pad);
-                min.x <= x1 && max.x >= x0 && min.y <= y && max.y >= y && min.z <= z && max.z >= z
+                let box_meets = min.x <= x1
+                    && max.x >= x0
+                    && min.y <= y
+                    && max.y >= y
+                    && min.z <= z
+                    && max.z >= z;
+                // A segment whose two ends lie on the same side of the triangle's plane, farther
+                // than `pad` from it, cannot cross the triangle.
+                box_meets && {
+                    let normal = (xb - xa).cross(xc - xa);
+                    let reach = pad * sqrt(normal.dot(normal));
+                    let side = |x: Real| normal.dot(Vec3::new(x, y, z) - xa);
+                    let (d0, d1) = (side(x0), side(x1));
+                    !((d0 > reach && d1 > reach) || (d0 < -reach && d1 < -reach))
+                }
             }
             // Unreachable after `check_closed`; counting it as a hit only costs time.
             _ => true,

@@ -334,3 +334,25 @@ fn print_volume_table() {
         );
     }
 }
+
+/// The f64 API (same source) meshes the aligned cube the same way, and its winding number is 1
+/// inside to f64 rounding.
+#[test]
+fn the_f64_api_meshes_the_same_cube() {
+    use softfem::f64::voxel as voxel64;
+    use softfem::glam::DVec3;
+    let (positions, triangles) = cube();
+    let positions64: Vec<DVec3> = positions.iter().map(|x| x.as_dvec3()).collect();
+    let grid = voxel64::VoxelGrid::with_resolution(&positions64, 3).unwrap();
+    let mesh = voxel64::voxel_mesh(
+        &positions64,
+        &triangles,
+        &grid,
+        &voxel64::VoxelOptions::default(),
+    )
+    .unwrap();
+    let single = mesh_at(&positions, &triangles, 3);
+    assert_eq!(mesh.tets, single.tets);
+    let w = voxel64::winding_number(&positions64, &triangles, DVec3::splat(0.3));
+    assert!((w - 1.0).abs() < 1e-12, "{w}");
+}
