@@ -5,7 +5,8 @@
 //! vertices in the tetrahedra (`softfem::embed`), drops the body on the ground with the jelly of
 //! the bouncy scene (stable neo-Hookean, E = 50 kPa, nu = 0.45, 1000 kg/m^3, explicit steps at
 //! half the stable bound), and every frame deforms the detailed surface from the simulated one:
-//! OBJ files with normals (`frame_0000.obj`, ...) and a filmstrip SVG of the render surface.
+//! OBJ files with normals (`frame_0000.obj`, ...) and a filmstrip SVG of the render surface,
+//! plus the undeformed asset as `surface.obj`.
 
 mod creature;
 // The bouncy scene's filmstrip drawing, shared as is.
@@ -108,6 +109,11 @@ fn run(args: &Args) -> Result<(), String> {
             ("procedural creature".to_string(), positions, triangles)
         }
     };
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    // The asset as meshed, before it is placed: `assets/meshes/creature.obj` is this file.
+    write_obj_file(args.out.join("surface.obj"), &surface, &triangles, None)
+        .map_err(|e| e.to_string())?;
     // Lift the surface so that its lowest point is at the drop height.
     let lowest = surface.iter().map(|x| x.z).fold(f32::INFINITY, f32::min);
     surface
@@ -179,8 +185,6 @@ fn run(args: &Args) -> Result<(), String> {
     );
     println!("stepper   explicit, dt {dt:.3e} s (stable bound {bound:.3e} s)");
 
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
     let settings = ExplicitSettings::new(dt)
         .with_gravity(GRAVITY)
         .with_damping(DAMPING)
