@@ -17,9 +17,12 @@
 //! [`TetLookup::plan`] sizes them, [`TetLookup::build`] fills them, [`embed_points`] queries it.
 //! Each frame, [`Embedding::deform`] is a loop of four multiply-adds per render point, with no
 //! search and no allocation. Normals of the deformed render surface come from its triangles
-//! (see the `surface` module's `vertex_normals`).
+//! (see the `surface` module's `vertex_normals`), or, without a pass over the triangles, from the
+//! rest normals carried by each tetrahedron's deformation gradient
+//! ([`Embedding::deform_normals`]).
 
-use super::math::cbrt;
+use super::element::TetRest;
+use super::math::{cbrt, sqrt};
 use super::types::{Mat3, Real, Vec3};
 use crate::error::{EmbedBuffer, EmbedError};
 
@@ -434,6 +437,55 @@ impl<'a> Embedding<'a> {
             };
             let [w0, w1, w2, w3] = entry.weights;
             *slot = corner(0) * w0 + corner(1) * w1 + corner(2) * w2 + corner(3) * w3;
+        }
+        Ok(())
+    }
+}
+
+impl Embedding<'_> {
+    /// Writes deformed unit normals for render points with rest normals `rest_normals` (one per
+    /// render point) into `out`: each normal is carried by the deformation gradient `F` of its
+    /// point's tetrahedron (`rest` is that mesh's rest data, one entry per tetrahedron, for
+    /// example from `TetMesh::new`) as `cof(F) n = det(F) F^-T n`, normalised (Nanson's
+    /// formula: how an area element's normal deforms). Exact for affine motions; a cheaper
+    /// alternative to recomputing normals from the deformed triangles
+    /// (`surface::vertex_normals`), at the price of being piecewise constant per tetrahedron.
+    /// A normal that maps to zero (a collapsed tetrahedron) is written as zero.
+    ///
+    /// # Errors
+    /// [`EmbedError::BufferLength`] if `positions`, `rest` (one per tetrahedron), `rest_normals`
+    /// or `out` has the wrong length; nothing is written then.
+    pub fn deform_normals(
+        &self,
+        rest: &[TetRest],
+        positions: &[Vec3],
+        rest_normals: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), EmbedError> {
+        check_length(EmbedBuffer::Positions, self.vertex_count, positions.len())?;
+        check_length(EmbedBuffer::Embedding, self.tets.len(), rest.len())?;
+        check_length(EmbedBuffer::Output, self.embedded.len(), rest_normals.len())?;
+        check_length(EmbedBuffer::Output, self.embedded.len(), out.len())?;
+        for ((slot, entry), &normal) in out.iter_mut().zip(self.embedded).zip(rest_normals) {
+            let tet = self
+                .tets
+                .get(entry.tet as usize)
+                .copied()
+                .unwrap_or_default();
+            let x = tet.map(|v| positions.get(v as usize).copied().unwrap_or_default());
+            let f = rest
+                .get(entry.tet as usize)
+                .map_or(Mat3::IDENTITY, |r| r.deformation_gradient(x));
+            // cof(F) = [f1 x f2, f2 x f0, f0 x f1] as rows, so cof(F) n = sum_i n_i (f_j x f_k).
+            let (f0, f1, f2) = (f.x_axis, f.y_axis, f.z_axis);
+            let mapped =
+                f1.cross(f2) * normal.x + f2.cross(f0) * normal.y + f0.cross(f1) * normal.z;
+            let length = sqrt(mapped.dot(mapped));
+            *slot = if length > 0.0 && length.is_finite() {
+                mapped * (1.0 / length)
+            } else {
+                Vec3::ZERO
+            };
         }
         Ok(())
     }

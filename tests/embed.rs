@@ -215,3 +215,40 @@ fn print_deform_cost() {
         build.as_secs_f64() * 1e9 / render.len() as f64
     );
 }
+
+/// Nanson's formula: under an affine map `x -> A x + t` a normal becomes `A^-T n` (normalised),
+/// whatever the tetrahedron; the render normals follow it to rounding.
+#[test]
+fn normals_follow_the_inverse_transpose_of_an_affine_map() {
+    use softfem::element::TetRest;
+    use softfem::mesh::TetMesh;
+    let (rest, tets) = unit_box(3);
+    let render = points(500, 0.0, 1.0);
+    let normals: Vec<Vec3> = points(500, -1.0, 1.0)
+        .iter()
+        .map(|n| (*n + Vec3::new(0.01, 0.0, 0.0)).normalize())
+        .collect();
+    let embedded = embed_points_vec(&rest, &tets, &render, 0.0).unwrap();
+    let embedding = Embedding::new(&embedded, &tets, rest.len()).unwrap();
+    let mut rest_data = vec![TetRest::default(); tets.len()];
+    TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+    let (a, t) = affine();
+    let moved: Vec<Vec3> = rest.iter().map(|&x| a * x + t).collect();
+    let mut out = vec![Vec3::ZERO; render.len()];
+    embedding
+        .deform_normals(&rest_data, &moved, &normals, &mut out)
+        .unwrap();
+    let inverse_transpose = a.inverse().transpose();
+    for (n, deformed) in normals.iter().zip(&out) {
+        let expected = (inverse_transpose * *n).normalize();
+        // Unit vectors: a few ulp of F's rounding, amplified by A's condition number (~3).
+        assert!(
+            (*deformed - expected).length() < 1e-5,
+            "{n}: {deformed} vs {expected}"
+        );
+    }
+    assert!(matches!(
+        embedding.deform_normals(&rest_data[1..], &moved, &normals, &mut out),
+        Err(EmbedError::BufferLength { .. })
+    ));
+}
