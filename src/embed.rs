@@ -293,8 +293,9 @@ impl LookupPlan {
 /// (`positions`, `tets`, the same the `lookup` was built from), writing `out` (one entry per
 /// point).
 ///
-/// A point inside the mesh gets the containing tetrahedron (the one where its smallest weight is
-/// largest, where it lies on a shared face or edge) and weights in `[0, 1]`; a point outside gets
+/// A point inside the mesh gets a containing tetrahedron (the first listed with every weight
+/// positive, or where it lies on a shared face or edge, the one where its smallest weight is
+/// largest) and weights in `[0, 1]`; a point outside gets
 /// the nearest tetrahedron, if it is within the lookup's margin, and its (extrapolating)
 /// barycentric coordinates there.
 ///
@@ -347,6 +348,10 @@ pub fn embed_points(
             };
             if better {
                 best = Some((distance, smallest, tet, weights));
+            }
+            // Strictly inside: no other tetrahedron of a conforming mesh contains the point.
+            if smallest > 0.0 {
+                break;
             }
         }
         match best {
