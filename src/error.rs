@@ -789,3 +789,8 @@ impl fmt::Display for SvdBatchError {
 }
 
 impl core::error::Error for SvdBatchError {}
+
+// The asset pipeline's errors (voxel meshing, embedding, surface buffers, Gmsh and OBJ files).
+#[path = "asset_error.rs"]
+mod asset_error;
+pub use asset_error::*;

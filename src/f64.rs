@@ -76,6 +76,13 @@ pub(crate) mod math {
         libm::cbrt(x)
     }
 
+    /// The angle of `(x, y)` from the positive x axis, in `[-pi, pi]` (radians).
+    #[inline(always)]
+    #[must_use]
+    pub fn atan2(y: Real, x: Real) -> Real {
+        libm::atan2(y, x)
+    }
+
     /// `ln(1 + x)`, accurate for small `x`.
     #[inline(always)]
     #[must_use]
@@ -179,3 +186,20 @@ pub mod mesh;
 
 #[path = "step/mod.rs"]
 pub mod step;
+
+#[path = "voxel.rs"]
+pub mod voxel;
+
+#[path = "embed.rs"]
+pub mod embed;
+
+#[path = "surface.rs"]
+pub mod surface;
+
+#[cfg(feature = "std")]
+#[path = "obj.rs"]
+pub mod obj;
+
+#[cfg(feature = "std")]
+#[path = "gmsh.rs"]
+pub mod gmsh;
