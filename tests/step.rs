@@ -17,8 +17,8 @@ macro_rules! step_tests {
             use $($api)::+::material::{StVK, StableNeoHookean};
             use $($api)::+::mesh::{TetMesh, TriMesh};
             use $($api)::+::step::{
-                ElasticModel, ExplicitScratch, ExplicitSettings, Ground, TetElastic, TriElastic,
-                explicit_scratch_len, stable_time_step, step_explicit,
+                ElasticModel, ExplicitScratch, ExplicitSettings, Ground, MAX_SUBSTEPS, TetElastic,
+                TriElastic, explicit_scratch_len, stable_time_step, step_explicit,
             };
             use $($api)::+::types::{Real, Vec2, Vec3};
 
@@ -242,6 +242,9 @@ macro_rules! step_tests {
                     (ExplicitSettings { dt: nan, ..good }, StepError::TimeStep),
                     (ExplicitSettings { dt: Real::INFINITY, ..good }, StepError::TimeStep),
                     (good.with_substeps(0), StepError::Substeps),
+                    // Issue 16 D7: u32::MAX substeps would run for hours.
+                    (good.with_substeps(u32::MAX), StepError::Substeps),
+                    (good.with_substeps(MAX_SUBSTEPS + 1), StepError::Substeps),
                     (good.with_gravity(Vec3::new(0.0, nan, 0.0)), StepError::Gravity),
                     (good.with_damping(-1.0), StepError::Damping),
                     (good.with_damping(nan), StepError::Damping),
@@ -268,6 +271,9 @@ macro_rules! step_tests {
                 }
                 // Buffers and masses.
                 let mut bad_masses = masses.clone();
+                // Issue 16 D8: a subnormal mass (1e-39 kg in f32) has an infinite reciprocal.
+                bad_masses[3] = Real::MIN_POSITIVE / 2.0;
+                check(&good, &bad_masses, &[], &mut x0.clone(), &mut v0.clone(), &mut buffer, StepError::Mass { vertex: 3 });
                 bad_masses[3] = 0.0;
                 check(&good, &bad_masses, &[], &mut x0.clone(), &mut v0.clone(), &mut buffer, StepError::Mass { vertex: 3 });
                 bad_masses[3] = nan;

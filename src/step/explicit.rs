@@ -5,7 +5,7 @@ use super::super::types::Real;
 use super::{
     ElasticModel, Ground, Vector, check_length, check_state, first_non_finite, pinned_flags,
 };
-use crate::error::{StepBuffer, StepError};
+use crate::error::{MeshError, StepBuffer, StepError};
 
 /// The default [`ExplicitSettings::max_energy_growth`]: 100.
 ///
@@ -16,12 +16,19 @@ use crate::error::{StepBuffer, StepError};
 /// the critical step, multiplies it by about `(4 k^2 - 2)^2` per step: 1156 at 3x.
 pub const DEFAULT_ENERGY_GROWTH: Real = 100.0;
 
+/// The most substeps one [`step_explicit`] call takes: `65536`. More is refused with
+/// [`StepError::Substeps`] before anything runs (a call of `u32::MAX` substeps would otherwise
+/// run for hours without a chance to stop it); take several calls instead.
+pub const MAX_SUBSTEPS: u32 = 1 << 16;
+
 /// The length of the scratch buffer [`step_explicit`] needs for `vertex_count` vertices:
-/// `3 * vertex_count` (forces, and a backup of the positions and velocities).
+/// `3 * vertex_count` (forces, and a backup of the positions and velocities). Saturates at
+/// `usize::MAX` for counts whose triple does not fit (no such buffer can exist, so the stepper's
+/// length check then refuses any buffer given).
 #[inline]
 #[must_use]
 pub const fn explicit_scratch_len(vertex_count: usize) -> usize {
-    3 * vertex_count
+    vertex_count.saturating_mul(3)
 }
 
 /// The parameters of one [`step_explicit`] call.
@@ -31,7 +38,7 @@ pub struct ExplicitSettings<V> {
     /// and positive; for stability each substep must stay below
     /// [`stable_time_step`](super::stable_time_step).
     pub dt: Real,
-    /// The number of substeps (at least 1).
+    /// The number of substeps (at least 1, at most [`MAX_SUBSTEPS`]).
     pub substeps: u32,
     /// The gravitational acceleration (m/s^2), e.g. `(0, -9.81, 0)`.
     pub gravity: V,
@@ -210,8 +217,11 @@ pub struct ExplicitReport {
 /// [`StepError::Ground`], [`StepError::Restitution`], [`StepError::Friction`], then
 /// [`StepError::LengthMismatch`] (positions, velocities, masses, pinned, scratch),
 /// [`StepError::Mass`] and [`StepError::NonFiniteInput`] (first vertex). After a substep:
-/// [`StepError::EnergyBlowUp`], [`StepError::NonFiniteState`] (first vertex), or a
-/// [`StepError::Mesh`] from a custom model, with the state restored.
+/// [`StepError::EnergyBlowUp`] (also for positions of its own making that the kernel finds
+/// beyond the material's finite range, [`MeshError::DeformationRange`]),
+/// [`StepError::NonFiniteState`] (first vertex), or a [`StepError::Mesh`] from the kernel (the
+/// clamp threshold, the caller's positions beyond the material's range) or a custom model, with
+/// the state restored.
 pub fn step_explicit<F: ElasticModel>(
     model: &F,
     masses: &[Real],
@@ -282,7 +292,7 @@ fn validate<V: Vector>(settings: &ExplicitSettings<V>) -> Result<Option<Ground<V
     if !(settings.dt > 0.0 && settings.dt.is_finite()) {
         return Err(StepError::TimeStep);
     }
-    if settings.substeps == 0 {
+    if settings.substeps == 0 || settings.substeps > MAX_SUBSTEPS {
         return Err(StepError::Substeps);
     }
     if !settings.gravity.is_finite() {
@@ -313,7 +323,15 @@ fn substep<F: ElasticModel>(
     history: &mut Option<(Real, Real)>,
 ) -> Result<usize, StepError> {
     forces.fill(F::Vector::ZERO);
-    model.add_forces(positions, forces)?;
+    model
+        .add_forces(positions, forces)
+        .map_err(|error| match error {
+            // Positions this stepper produced (its detector accepted the substep before) that are
+            // beyond the material's range are the blow-up itself, caught before the stress
+            // overflows; the caller's own positions keep the kernel's error.
+            MeshError::DeformationRange { .. } if history.is_some() => StepError::EnergyBlowUp,
+            other => StepError::Mesh(other),
+        })?;
 
     let gravity = settings.gravity;
     let gravity_squared = gravity.dot(gravity);
