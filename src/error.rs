@@ -659,8 +659,10 @@ pub enum StepError {
         /// The first such vertex.
         vertex: usize,
     },
-    /// The energy indicator grew by more than the allowed factor in one (sub)step: the explicit
-    /// step is past its stability limit. The state was restored.
+    /// The explicit step is past its stability limit: the elastic forces reversed and grew for
+    /// `step::FLIP_STREAK` substeps in a row (the unstable mode of symplectic Euler, caught
+    /// early), or the energy indicator grew by more than the allowed factor in one substep. The
+    /// state was restored to what it was before the call.
     EnergyBlowUp,
     /// The force or energy kernel refused the input.
     Mesh(MeshError),
@@ -721,8 +723,8 @@ impl fmt::Display for StepError {
                 "the step made vertex {vertex} non-finite (blow-up); the state was restored"
             ),
             StepError::EnergyBlowUp => f.write_str(
-                "the energy grew beyond the allowed factor in one step (time step above the \
-                 stability limit); the state was restored",
+                "the step blew up (time step above the stability limit: an unstable mode or an \
+                 energy jump); the state was restored",
             ),
             StepError::Mesh(error) => write!(f, "{error}"),
             StepError::Stiffness { vertex } => write!(

@@ -124,8 +124,8 @@ mod stability;
 mod vertex_passes;
 
 pub use explicit::{
-    DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, MAX_SUBSTEPS,
-    explicit_scratch_len, step_explicit,
+    DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, FLIP_GROWTH,
+    FLIP_STREAK, MAX_SUBSTEPS, explicit_scratch_len, step_explicit,
 };
 pub use ground::Ground;
 pub use relax::{
