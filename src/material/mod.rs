@@ -286,8 +286,9 @@ pub trait Material: Copy + Debug {
 /// model whose energy density and stress grow at most like `modulus max(1, s)^power` with
 /// `s = max |F_ij|` (with the constant 256 covering the sums of up to nine products of entries
 /// in `I_C`, `det F`, `cof F` and the principal stretches, all bounded by `3 s`). `power` is
-/// 2, 4 or 6 (taken as 6 otherwise). Below 1 for a modulus near `Real::MAX`: then even an
-/// undeformed element is refused, as its stresses at any strain would overflow.
+/// 2, 4 or 6 (taken as 6 otherwise). Below 1 for a modulus above `Real::MAX / 2^32` (8e28 Pa
+/// in f32, 4e298 Pa in f64): then even an undeformed element is refused, as such a material
+/// leaves no headroom at any strain.
 #[must_use]
 pub fn deformation_limit_for(modulus: Real, power: u32) -> Real {
     let headroom = Real::MAX / 16_777_216.0;
