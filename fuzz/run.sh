@@ -61,7 +61,8 @@ for target in "${targets[@]}"; do
     done_line=$(grep -E '^#[0-9]+[[:space:]]+DONE' "$log" | tail -n 1 || true)
     if [[ $status -ne 0 ]]; then
         failed+=("$target (exit status $status; the crashing input is under fuzz/artifacts/$target/)")
-        summary+=("$target: FAILED ${done_line:-(no DONE line: stopped at a crash)}")
+        last_line=$(grep -E '^#[0-9]+[[:space:]]' "$log" | tail -n 1 || true)
+        summary+=("$target: FAILED, stopped at a crash after ${last_line:-the first input}")
     else
         summary+=("$target: ${done_line:-(no DONE line)}")
     fi
