@@ -124,8 +124,8 @@ mod stability;
 mod vertex_passes;
 
 pub use explicit::{
-    DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, explicit_scratch_len,
-    step_explicit,
+    DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, FLIP_GROWTH,
+    FLIP_STREAK, MAX_SUBSTEPS, explicit_scratch_len, step_explicit,
 };
 pub use ground::Ground;
 pub use relax::{
@@ -209,7 +209,9 @@ pub struct TetClamped<'a, M: Material> {
 }
 
 impl<'a, M: Material> TetClamped<'a, M> {
-    /// `material` on `mesh`, stretches clamped from below at `threshold`.
+    /// `material` on `mesh`, stretches clamped from below at `threshold`. Not checked here: a
+    /// `threshold` outside `(0, 1]` makes every force evaluation (and so every step) fail with
+    /// [`MeshError::ClampThreshold`]; [`checked`](Self::checked) refuses it up front.
     #[inline]
     #[must_use]
     pub fn new(mesh: TetMesh<'a>, material: M, threshold: Real) -> Self {
@@ -218,6 +220,16 @@ impl<'a, M: Material> TetClamped<'a, M> {
             material,
             threshold,
         }
+    }
+
+    /// As [`new`](Self::new), checking `threshold`.
+    ///
+    /// # Errors
+    /// [`MeshError::ClampThreshold`] if `threshold` is not in `(0, 1]`.
+    #[inline]
+    pub fn checked(mesh: TetMesh<'a>, material: M, threshold: Real) -> Result<Self, MeshError> {
+        super::mesh::check_clamp_threshold(threshold)?;
+        Ok(Self::new(mesh, material, threshold))
     }
 }
 
@@ -345,11 +357,18 @@ fn check_state<V: Vector>(
     if !pinned.is_empty() {
         check_length(StepBuffer::Pinned, vertex_count, pinned.len())?;
     }
-    if let Some(vertex) = masses.iter().position(|&m| !(m > 0.0 && m.is_finite())) {
+    if let Some(vertex) = masses.iter().position(|&m| !mass_in_range(m)) {
         return Err(StepError::Mass { vertex });
     }
     first_non_finite(positions, velocities.unwrap_or(&[]))
         .map_or(Ok(()), |vertex| Err(StepError::NonFiniteInput { vertex }))
+}
+
+/// Whether `m` (kg) is a mass the steppers accept: a finite normal positive number, so that
+/// `1 / m` is finite too (a subnormal mass such as `1e-39` in f32 has an infinite reciprocal).
+#[inline]
+fn mass_in_range(m: Real) -> bool {
+    m >= Real::MIN_POSITIVE && m.is_finite()
 }
 
 /// The first vertex whose position or velocity (if given) is not finite.

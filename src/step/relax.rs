@@ -19,11 +19,12 @@ use crate::error::{StepBuffer, StepError};
 /// The length of the vector scratch buffer the relaxation needs for `vertex_count` vertices:
 /// `5 * vertex_count` (the start positions, two gradients, a second point buffer that trades
 /// places with `positions` as iterate and trial point, and the direction).
-/// The scalar scratch buffer has one entry per vertex.
+/// The scalar scratch buffer has one entry per vertex. Saturates at `usize::MAX` for counts
+/// whose product does not fit (no such buffer can exist, so the length check refuses any).
 #[inline]
 #[must_use]
 pub const fn relax_scratch_len(vertex_count: usize) -> usize {
-    5 * vertex_count
+    vertex_count.saturating_mul(5)
 }
 
 /// Scratch space of [`relax_step`] and [`relax_quasi_static`]: `vectors` of
@@ -249,7 +250,9 @@ pub struct RelaxReport {
 /// ```
 ///
 /// # Errors
-/// Before anything is touched: [`StepError::TimeStep`], [`StepError::Gravity`],
+/// Before anything is touched: [`StepError::TimeStep`], [`StepError::TimeStepTooSmall`] (a
+/// step whose `1 / dt^2` overflows: below about `1e-19` s in f32, `1e-154` s in f64),
+/// [`StepError::Gravity`],
 /// [`StepError::RelaxSettings`], the ground's errors, [`StepError::LengthMismatch`],
 /// [`StepError::Mass`], [`StepError::NonFiniteInput`]. [`StepError::NonFiniteState`] if `Phi`
 /// is not finite at both `y` and `x_n` or the result is not finite; the state is then
@@ -265,6 +268,11 @@ pub fn relax_step<F: ElasticEnergy>(
 ) -> Result<RelaxReport, StepError> {
     if !(settings.dt > 0.0 && settings.dt.is_finite()) {
         return Err(StepError::TimeStep);
+    }
+    // The inertia term `m / (2 h^2) |x - y|^2` needs `1 / h^2`: below about 1e-19 s (f32) or
+    // 1e-154 s (f64) it overflows and every evaluation of Phi would be infinite.
+    if !(1.0 / (settings.dt * settings.dt)).is_finite() {
+        return Err(StepError::TimeStepTooSmall);
     }
     minimise(
         model,
@@ -491,6 +499,13 @@ fn slope_along<V: Vector>(gradient: &[V], direction: &[V]) -> Real {
 /// What the descent loop hands back: the report, the final gradient, a free buffer.
 type Descent<'b, V> = (RelaxReport, &'b mut [V], &'b mut [V]);
 
+/// Whether `residual` meets `target`. Never for an overflowed (infinite) or NaN residual or
+/// target: a measure that overflowed says nothing about convergence.
+#[inline(always)]
+fn reached(residual: Real, target: Real) -> bool {
+    residual <= target && residual.is_finite() && target.is_finite()
+}
+
 /// Whether a slope `grad.d` is negative (false for NaN).
 #[inline(always)]
 fn downhill(slope: Real) -> bool {
@@ -572,15 +587,24 @@ fn descend<'b, F: ElasticEnergy>(
     // Relative to the larger of the initial residual and the gravity load, so that a step
     // starting at (or near) equilibrium, whose initial residual is mostly rounding, is not asked
     // to reduce it further.
-    let load_squared: Real = objective
-        .vertices
-        .masses
-        .iter()
-        .zip(pinned_flags(objective.vertices.pinned))
-        .filter(|(_, pinned)| !pinned)
-        .map(|(&m, _)| m * m * objective.gravity.dot(objective.gravity))
-        .sum();
-    let target = settings.tolerance * initial_residual.max(math::sqrt(load_squared));
+    // `|M g|` formed relative to the largest free mass, so that heavy bodies (masses of 1e19 kg
+    // in f32) do not overflow the squares.
+    let free_masses = || {
+        let vertices = &objective.vertices;
+        let flags = pinned_flags(vertices.pinned);
+        vertices
+            .masses
+            .iter()
+            .zip(flags)
+            .filter(|(_, p)| !p)
+            .map(|(&m, _)| m)
+    };
+    let heaviest = free_masses().fold(0.0, Real::max);
+    let relative_squared: Real = free_masses().map(|m| (m / heaviest) * (m / heaviest)).sum();
+    let load = heaviest
+        * math::sqrt(relative_squared)
+        * math::sqrt(objective.gravity.dot(objective.gravity));
+    let target = settings.tolerance * initial_residual.max(load);
     // Whether `other` holds x_{k-1}, so that the last step is known (false at the start and
     // after a restart, when it counts as zero).
     let mut stepped = false;
@@ -593,7 +617,7 @@ fn descend<'b, F: ElasticEnergy>(
     // Iterations since the last (re)start of the acceleration, and the Chebyshev weight.
     let mut since_restart: u32 = 0;
     let mut omega: Real = 1.0;
-    while residual > target && iterations < settings.max_iterations {
+    while !reached(residual, target) && iterations < settings.max_iterations {
         since_restart = since_restart.saturating_add(1);
         if settings.chebyshev > 0.0 {
             // Wang and Yang 2016, eq. 9-10: omega = 1 for the first S iterations, then
@@ -732,7 +756,7 @@ fn descend<'b, F: ElasticEnergy>(
         initial_residual,
         final_residual: residual,
         phi,
-        converged: residual <= target,
+        converged: reached(residual, target),
         backtracks,
         restarts,
     };
