@@ -94,18 +94,21 @@ pub fn check(data: &[u8]) {
         )
     };
     match draw.up_to(2) {
-        0 => match StVK::from_lame(lambda, mu) {
-            Ok(m) => with_material(&mut draw, mesh, m, &rest, "StVK"),
-            Err(_) => {}
-        },
-        1 => match NeoHookean::from_lame(lambda, mu) {
-            Ok(m) => with_material(&mut draw, mesh, m, &rest, "NeoHookean"),
-            Err(_) => {}
-        },
-        _ => match StableNeoHookean::from_lame(lambda, mu) {
-            Ok(m) => with_material(&mut draw, mesh, m, &rest, "StableNeoHookean"),
-            Err(_) => {}
-        },
+        0 => {
+            if let Ok(m) = StVK::from_lame(lambda, mu) {
+                with_material(&mut draw, mesh, m, &rest, "StVK");
+            }
+        }
+        1 => {
+            if let Ok(m) = NeoHookean::from_lame(lambda, mu) {
+                with_material(&mut draw, mesh, m, &rest, "NeoHookean");
+            }
+        }
+        _ => {
+            if let Ok(m) = StableNeoHookean::from_lame(lambda, mu) {
+                with_material(&mut draw, mesh, m, &rest, "StableNeoHookean");
+            }
+        }
     }
 }
 
