@@ -25,6 +25,7 @@ if ! cargo +nightly fuzz --version >/dev/null 2>&1; then
     cargo install cargo-fuzz --locked
 fi
 cargo +nightly fuzz --version
+cargo fmt --check --manifest-path fuzz/Cargo.toml
 
 # No sanitizer: the library's only `unsafe` is SSE intrinsics on registers (src/lanes_sse*.rs),
 # which AddressSanitizer has nothing to check in, and it would halve the executions per minute.
