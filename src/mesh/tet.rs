@@ -379,6 +379,14 @@ impl<'a> TetMesh<'a> {
         if (high - low).max_element() * self.gradient_gain <= limit {
             return Ok(());
         }
+        self.check_each_deformation(limit, positions)
+    }
+
+    /// The slow path of [`check_deformation`](Self::check_deformation), element by element:
+    /// kept out of line so that its frame does not add to the stack of every force call.
+    #[cold]
+    #[inline(never)]
+    fn check_each_deformation(&self, limit: Real, positions: &[Vec3]) -> Result<(), MeshError> {
         let within = |f: Mat3| {
             let largest = f.x_axis.abs().max(f.y_axis.abs()).max(f.z_axis.abs());
             largest.max_element() <= limit && f.is_finite()

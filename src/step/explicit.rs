@@ -419,7 +419,7 @@ fn substep<F: ElasticModel>(
             return Err(StepError::EnergyBlowUp);
         }
         if reversal < -FLIP_GROWTH * previous.force_norm {
-            streak = previous.streak + 1;
+            streak = previous.streak.saturating_add(1);
         }
         if streak >= FLIP_STREAK {
             return Err(StepError::EnergyBlowUp);

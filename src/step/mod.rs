@@ -21,6 +21,27 @@
 //! * Every stepper validates all parameters and buffers **before** touching anything, and
 //!   restores positions and velocities bit for bit when a step fails ([`StepError`]).
 //!
+//! # Accepted ranges
+//! Everything outside these is refused with the error named, before anything is written:
+//!
+//! | input | accepted | error |
+//! |---|---|---|
+//! | `dt` (both steppers) | finite, `> 0` | [`StepError::TimeStep`] |
+//! | relaxation `dt` | `1 / dt^2` finite: `dt >~ 1e-19` s (f32), `1e-154` s (f64) | [`StepError::TimeStepTooSmall`] |
+//! | substeps | `1..=`[`MAX_SUBSTEPS`] (65536) | [`StepError::Substeps`] |
+//! | masses | finite normal numbers `>= Real::MIN_POSITIVE` | [`StepError::Mass`] |
+//! | positions, velocities | finite | [`StepError::NonFiniteInput`] |
+//! | gravity / damping | finite / finite `>= 0` | [`StepError::Gravity`] / [`StepError::Damping`] |
+//! | ground normal, offset | any finite non-zero vector (any length), finite offset | [`StepError::Ground`] |
+//! | restitution / friction | `[0, 1]` / finite `>= 0` | [`StepError::Restitution`] / [`StepError::Friction`] |
+//! | clamp threshold ([`TetClamped`]) | `(0, 1]` | [`MeshError::ClampThreshold`] |
+//! | deformation (tet kernels) | largest entry of each `F` at most [`Material::deformation_limit`] | [`MeshError::DeformationRange`] |
+//! | density ([`TetMesh::lumped_masses`]) | finite `> 0`, each element's share `density V / 4` normal and `<= Real::MAX / elements` | [`MeshError::Density`], [`MeshError::MassRange`] |
+//! | stiffness bounds ([`stable_time_step`]) | finite `k_i`, finite `k_i / m_i` | [`StepError::Stiffness`] |
+//!
+//! Scratch lengths ([`explicit_scratch_len`], [`relax_scratch_len`]) saturate at `usize::MAX`,
+//! which no buffer can match.
+//!
 //! # The stability bound
 //!
 //! ## What is computed
