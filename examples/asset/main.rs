@@ -9,8 +9,10 @@
 //! plus the undeformed asset as `surface.obj`.
 
 mod creature;
-// The bouncy scene's filmstrip drawing, shared as is.
+// The bouncy scene's filmstrip drawing, shared as is; this scene records at a fixed frame
+// interval, so the bouncy scene's frame-interval setter goes unused here.
 #[path = "../bouncy/filmstrip.rs"]
+#[allow(dead_code)]
 mod filmstrip;
 
 use std::path::PathBuf;
