@@ -177,6 +177,16 @@ macro_rules! invariant_hessian_methods {
                 self.hessian_coefficients(ic, j),
             )
         }
+
+        #[inline]
+        fn first_piola_and_corner_stiffness(&self, f: Mat3, g: Vec3) -> (Mat3, Mat3) {
+            super::invariant_first_piola_and_corner_stiffness(
+                f,
+                g,
+                |ic, j| self.stress_coefficients(ic, j),
+                |ic, j| self.hessian_coefficients(ic, j),
+            )
+        }
     };
 }
 
@@ -373,6 +383,30 @@ pub trait Material: Copy + Debug {
         self.projected_stress_derivative_from_svd(&svd3(f))
     }
 
+    /// The stress `P` (Pa, bit for bit [`first_piola`](Material::first_piola)) and the
+    /// same-corner stiffness `K(g) = sum_(a,b) g_a g_b (d^2 W / dF^2)[(., a), (., b)]` (Pa/m^2),
+    /// the symmetric 3x3 with `K(g) u = dP(u g^T) g`: a tetrahedron of rest volume `V` whose
+    /// corner has shape-function gradient `g` (m^-1) has the force `-V P g` and the exact
+    /// (unprojected, possibly indefinite) diagonal Hessian block `V K(g)` on that corner. What
+    /// Vertex Block Descent needs per element and corner (`docs/math.md` section 7).
+    ///
+    /// The models here give it in closed form without an SVD: for `W(I_C, J)`, with `p = F g`
+    /// and `q = cof(F) g`, `K = 2 W_I |g|^2 I + 4 W_II p p^T + 2 W_IJ (p q^T + q p^T) +
+    /// W_JJ q q^T` (the `W_J d^2 J / dF^2` term vanishes on one corner: `d cof(F)[u g^T] g` is a
+    /// sum of `g_a g_b (u x F_c + F_c x u)` = 0); for [`StVK`],
+    /// `K = (g^T S g) I + mu |g|^2 F F^T + (lambda + mu) p p^T`. The provided method takes three
+    /// [`first_piola_differential`](Material::first_piola_differential)s.
+    #[inline]
+    #[must_use]
+    fn first_piola_and_corner_stiffness(&self, f: Mat3, g: Vec3) -> (Mat3, Mat3) {
+        let column = |u: Vec3| {
+            let df = Mat3::from_cols(u * g.x, u * g.y, u * g.z);
+            self.first_piola_differential(f, df) * g
+        };
+        let k = Mat3::from_cols(column(Vec3::X), column(Vec3::Y), column(Vec3::Z));
+        (self.first_piola(f), (k + k.transpose()) * 0.5)
+    }
+
     /// [`projected_stress_derivative`](Material::projected_stress_derivative) from an SVD the
     /// caller already has.
     #[inline]
@@ -491,6 +525,37 @@ fn invariant_energy_and_first_piola<L: Lane>(
         energy(f, cof.c0),
         first_piola_with_cofactor(f, cof, coefficients),
     )
+}
+
+/// [`Material::first_piola_and_corner_stiffness`] of a model written as `W(I_C, J)`: `P` as
+/// [`invariant_first_piola`] forms it (the same bits), and with `p = F g`, `q = cof(F) g`,
+/// `K = a |g|^2 I + 4 W_II p p^T + 2 W_IJ (p q^T + q p^T) + W_JJ q q^T`, `a = 2 W_I`, from
+/// `dP = a dF + F da + cof(F) db + b d cof(F)` with `dF = u g^T` (`d cof(F)[u g^T] g = 0`).
+#[inline(always)]
+fn invariant_first_piola_and_corner_stiffness(
+    f: Mat3,
+    g: Vec3,
+    stress_coefficients: impl FnOnce(Real, Real) -> (Real, Real),
+    hessian_coefficients: impl FnOnce(Real, Real) -> (Real, Real, Real),
+) -> (Mat3, Mat3) {
+    let lanes = LaneMat3::from(f);
+    let cof_lanes = cofactor(lanes);
+    let (ic, j) = (frobenius_squared(lanes), lanes.c0.dot(cof_lanes.c0));
+    let (a, b) = stress_coefficients(ic, j);
+    let (w_ii, w_ij, w_jj) = hessian_coefficients(ic, j);
+    let stress: Mat3 = (lanes.scale(a) + cof_lanes.scale(b)).into();
+    let cof: Mat3 = cof_lanes.into();
+    let (p, q) = (f * g, cof * g);
+    let (pp, pq, qq) = (4.0 * w_ii, 2.0 * w_ij, w_jj);
+    // Column k of the rank-two part: p (pp p_k + pq q_k) + q (pq p_k + qq q_k).
+    let column = |pk: Real, qk: Real| p * (pp * pk + pq * qk) + q * (pq * pk + qq * qk);
+    let diagonal = a * g.dot(g);
+    let k = Mat3::from_cols(
+        column(p.x, q.x) + Vec3::X * diagonal,
+        column(p.y, q.y) + Vec3::Y * diagonal,
+        column(p.z, q.z) + Vec3::Z * diagonal,
+    );
+    (stress, k)
 }
 
 /// `dW/ds` of a model written as `W(I_C, J)`: `dI_C/ds_i = 2 s_i` and `dJ/ds_i = p_i`, the

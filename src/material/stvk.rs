@@ -170,4 +170,25 @@ impl Material for StVK {
             d_green * (2.0 * mu) + Mat3::from_diagonal(Vec3::splat(lambda * trace(d_green)));
         df * stress + f * d_stress
     }
+
+    /// With `p = F g`: `K = (g^T S g) I + mu |g|^2 F F^T + (lambda + mu) p p^T` from
+    /// `dP = dF S + F dS` at `dF = u g^T`, where `g^T S g = mu (|p|^2 - |g|^2) +
+    /// lambda / 2 (I_C - 3) |g|^2` (`2 G = F^T F - I`).
+    #[inline]
+    fn first_piola_and_corner_stiffness(&self, f: Mat3, g: Vec3) -> (Mat3, Mat3) {
+        let (lambda, mu) = (self.lame.lambda(), self.lame.mu());
+        let (a, b, c) = (f.x_axis, f.y_axis, f.z_axis);
+        let p = f * g;
+        let g2 = g.dot(g);
+        let ic_minus_3 = (a.dot(a) - 1.0) + (b.dot(b) - 1.0) + (c.dot(c) - 1.0);
+        let diagonal = mu * (p.dot(p) - g2) + 0.5 * lambda * ic_minus_3 * g2;
+        let (shear, volume) = (mu * g2, lambda + mu);
+        // Column k: shear (F F^T)_k + volume p p_k + diagonal e_k.
+        let column = |k: usize, axis: Vec3| {
+            let row = |v: Vec3| v.to_array().get(k).copied().unwrap_or(0.0);
+            (a * row(a) + b * row(b) + c * row(c)) * shear + p * (volume * row(p)) + axis * diagonal
+        };
+        let k = Mat3::from_cols(column(0, Vec3::X), column(1, Vec3::Y), column(2, Vec3::Z));
+        (self.first_piola(f), k)
+    }
 }
