@@ -509,8 +509,8 @@ impl<M: Material> Sweep<'_, M> {
         for (corners, corner, rest) in self.elements(i) {
             let f = rest.deformation_gradient(gather(positions, corners));
             let g = shape_gradient(rest, corner);
-            let (stress, stiffness) = self.material.first_piola_and_corner_stiffness(f, g);
-            gradient += stress * g * rest.volume;
+            let (stress, stiffness) = self.material.corner_stress_and_stiffness(f, g);
+            gradient += stress * rest.volume;
             hessian += stiffness * rest.volume;
             if line_search {
                 elastic += rest.volume * self.material.energy_density(f);
