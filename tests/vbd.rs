@@ -563,18 +563,35 @@ mod measure {
     /// row per solver with the sum over steps of each step's least time over the repeats (the
     /// trajectories are deterministic, so every repeat does the same work, and interference
     /// only adds time), and the ratio to the first solver's.
+    ///
+    /// A step longer than a time slice of a loaded machine is preempted in every repeat, so the
+    /// least wall time still counts other processes' time, the more the longer the step. The
+    /// rows therefore also give the thread's CPU time (Linux: the first field of
+    /// `/proc/thread-self/schedstat`, updated at the scheduler's ticks and switches, so one
+    /// reading can lag by a tick, which averages out over the steps), summed over the steps and
+    /// divided by the repeats.
     pub fn interleaved(scene: &str, steps: usize, repeats: usize, solvers: &mut [Solver<'_>]) {
+        let cpu = || {
+            std::fs::read_to_string("/proc/thread-self/schedstat")
+                .ok()
+                .and_then(|s| s.split_whitespace().next()?.parse::<f64>().ok())
+                .map_or(f64::NAN, |ns| ns * 1e-9)
+        };
         let mut least = vec![vec![f64::MAX; steps]; solvers.len()];
+        let mut cpu_time = vec![0.0; solvers.len()];
         let mut counts = vec![(0usize, 0u64, 0u64, 0.0f64); solvers.len()];
         for _ in 0..repeats {
             counts.iter_mut().for_each(|c| *c = (0, 0, 0, 0.0));
             for k in 0..steps {
-                for ((_, step), (least, count)) in
-                    solvers.iter_mut().zip(least.iter_mut().zip(&mut counts))
+                for (((_, step), (least, count)), cpu_time) in solvers
+                    .iter_mut()
+                    .zip(least.iter_mut().zip(&mut counts))
+                    .zip(&mut cpu_time)
                 {
-                    let start = Instant::now();
+                    let (start, cpu_start) = (Instant::now(), cpu());
                     let outcome = step(k);
                     least[k] = least[k].min(start.elapsed().as_secs_f64());
+                    *cpu_time += (cpu() - cpu_start) / repeats as f64;
                     count.0 += usize::from(outcome.converged);
                     count.1 += u64::from(outcome.iterations);
                     count.2 += u64::from(outcome.evaluations);
@@ -583,13 +600,18 @@ mod measure {
             }
         }
         let totals: Vec<f64> = least.iter().map(|l| l.iter().sum()).collect();
-        for (((name, _), total), count) in solvers.iter().zip(&totals).zip(&counts) {
+        let cpu_time_first = cpu_time[0];
+        let rows = solvers.iter().zip(&totals).zip(&counts).zip(&cpu_time);
+        for ((((name, _), total), count), cpu_time) in rows {
             row(
                 scene,
                 &format!(
-                    "{name} (largest rho {:.3}; {:.2}x the first's time)",
+                    "{name} (largest rho {:.3}; {:.2}x the first's wall time; CPU {:.3} s, \
+                     {:.2}x the first's)",
                     count.3,
-                    total / totals[0]
+                    total / totals[0],
+                    cpu_time,
+                    cpu_time / cpu_time_first
                 ),
                 steps,
                 count.0,
