@@ -105,6 +105,13 @@ pub struct VbdSettings {
     /// (every Newton step is taken whole, as the paper does, saving two energy densities per
     /// element and corner).
     pub max_backtracks: u32,
+    /// Take every Newton step whole and run the line search only in a sweep that raised `Phi`:
+    /// the evaluation after each sweep (which the stopping test needs anyway) detects the
+    /// increase, and the sweep is then redone from its start with the line search
+    /// ([`max_backtracks`](Self::max_backtracks) > 0), and the Chebyshev weights restart. Sweeps
+    /// stay monotone at the cost of the plain sweep where the full steps are safe. Ignored when
+    /// `max_backtracks` is 0.
+    pub line_search_on_increase: bool,
     /// Chebyshev acceleration over sweeps: `rho` in `[0, 1)`, the estimated spectral radius of
     /// the plain sweep; 0 turns it off (see [`vbd_step`](vbd_step#acceleration)).
     pub chebyshev: Real,
@@ -136,6 +143,7 @@ impl VbdSettings {
             armijo: 1e-4,
             backtrack: 0.5,
             max_backtracks: 8,
+            line_search_on_increase: false,
             chebyshev: 0.0,
             chebyshev_delay: 0,
             estimate_chebyshev: false,
@@ -197,6 +205,17 @@ impl VbdSettings {
         }
     }
 
+    /// These settings with the line search only in sweeps that raised `Phi` (see
+    /// [`line_search_on_increase`](VbdSettings::line_search_on_increase)).
+    #[inline]
+    #[must_use]
+    pub fn with_line_search_on_increase(self) -> Self {
+        VbdSettings {
+            line_search_on_increase: true,
+            ..self
+        }
+    }
+
     /// These settings with at most `max_backtracks` backtracks per vertex update (0: no line
     /// search).
     #[inline]
@@ -217,7 +236,7 @@ pub struct VbdReport {
     /// Sweeps over the vertices.
     pub iterations: u32,
     /// Evaluations of `Phi` and its gradient: one or two for the initial guess (as the
-    /// relaxation's), one per sweep, one per restart.
+    /// relaxation's), one per sweep, one per restart and one per redone sweep.
     pub energy_evaluations: u32,
     /// `|grad Phi|` (N) at the initial guess (projected on the ground's constraint).
     pub initial_residual: Real,
@@ -233,6 +252,9 @@ pub struct VbdReport {
     pub restarts: u32,
     /// Per-vertex line-search trials rejected.
     pub backtracks: u32,
+    /// Sweeps redone with the line search because `Phi` increased (with
+    /// [`VbdSettings::line_search_on_increase`]).
+    pub redone_sweeps: u32,
     /// Vertex updates skipped: block not positive definite (after regularisation), not finite,
     /// no descent, or no acceptable step within the backtracks.
     pub skipped: u32,
@@ -475,13 +497,13 @@ fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
 
 impl<M: Material> Sweep<'_, M> {
     /// One Gauss–Seidel sweep over the free vertices in colour order, in place.
-    fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts) {
+    fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) {
         for &vertex in self.order {
             let i = vertex as usize;
             if self.pinned.get(i).copied().unwrap_or(false) {
                 continue;
             }
-            self.update(positions, i, counts);
+            self.update(positions, i, counts, line_search);
         }
     }
 
@@ -495,7 +517,13 @@ impl<M: Material> Sweep<'_, M> {
     }
 
     /// The local Newton update of vertex `i` (see the module documentation).
-    fn update(&self, positions: &mut [Vec3], i: usize, counts: &mut SweepCounts) {
+    fn update(
+        &self,
+        positions: &mut [Vec3],
+        i: usize,
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) {
         let Some(&x) = positions.get(i) else {
             return;
         };
@@ -506,7 +534,7 @@ impl<M: Material> Sweep<'_, M> {
             None => x0,
         };
         let weight = m * self.inertia;
-        let line_search = self.max_backtracks > 0;
+        let line_search = line_search && self.max_backtracks > 0;
         let mut gradient = (x - y) * weight - self.gravity * m;
         let mut hessian = Mat3::ZERO;
         let mut elastic = 0.0;
@@ -891,7 +919,7 @@ fn descend<'b, M: Material>(
     let target = settings.tolerance * initial_residual.max(math::sqrt(load_squared));
 
     let mut counts = SweepCounts::default();
-    let (mut iterations, mut restarts) = (0, 0);
+    let (mut iterations, mut restarts, mut redone_sweeps) = (0, 0, 0);
     let mut rho = settings.chebyshev;
     // The largest residual ratio of the plain sweeps 2..=delay, for the estimate.
     let mut largest_ratio: Real = 0.0;
@@ -911,7 +939,8 @@ fn descend<'b, M: Material>(
             };
         }
         copy(previous, positions);
-        sweep.run(positions, &mut counts);
+        let lazy = settings.line_search_on_increase && settings.max_backtracks > 0;
+        sweep.run(positions, &mut counts, !lazy);
         let accelerated = omega > 1.0 && stepped;
         if accelerated {
             copy(unaccelerated, positions);
@@ -938,6 +967,21 @@ fn descend<'b, M: Material>(
                 since_restart = 1;
                 omega = 1.0;
             }
+        }
+        if lazy
+            && !(next.phi
+                <= evaluation.phi
+                    + ROUNDING * (evaluation.phi.abs() + next.phi.abs() + next.elastic.abs()))
+        {
+            // The full steps raised Phi (or gave NaN): redo the sweep from its start with the
+            // line search, which makes it monotone.
+            redone_sweeps += 1;
+            copy(positions, previous);
+            sweep.run(positions, &mut counts, true);
+            next = evaluate(model, frames, vertices, positions, gradient)?;
+            energy_evaluations += 1;
+            since_restart = 1;
+            omega = 1.0;
         }
         if !next.phi.is_finite() {
             let vertex = first_non_finite(positions, &[]).unwrap_or(0);
@@ -971,6 +1015,7 @@ fn descend<'b, M: Material>(
         colours: 0,
         restarts,
         backtracks: counts.backtracks,
+        redone_sweeps,
         skipped: counts.skipped,
         projected: counts.projected,
         rho,
