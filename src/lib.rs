@@ -11,7 +11,8 @@
 //! * [`polar`]: polar decomposition on top of it.
 //! * [`material`]: hyperelastic models (StVK, the isochoric neo-Hookean, stable neo-Hookean) behind
 //!   one [`Material`](material::Material) trait, with energy density, first Piola–Kirchhoff
-//!   stress and their principal-stretch forms; constructors validate parameters
+//!   stress and their principal-stretch forms, and second derivatives with their SPD projection
+//!   ([`StressDerivative`](material::StressDerivative)); constructors validate parameters
 //!   ([`MaterialError`]).
 //! * [`generate`]: structured meshes written into caller buffers — a box of tetrahedra
 //!   ([`fill_box`](generate::fill_box)) and a rectangle of triangles in 2D or 3D — positively
@@ -23,9 +24,16 @@
 //!   energies, stresses and lumped masses.
 //! * [`step`]: time stepping on caller-owned state — explicit symplectic Euler with a stable time
 //!   step proven for the linearised system and blow-up detection that restores the state, and implicit Euler as energy
-//!   minimisation by preconditioned descent (also quasi-static relaxation) ([`StepError`]).
+//!   minimisation by preconditioned descent (also quasi-static relaxation) or by Newton's method
+//!   with the projected Hessian ([`newton_step`](step::newton_step)) ([`StepError`]).
 //! * [`svd3_lanes`](svd::svd3_lanes) on [`lanes`]: the SVD of 4 matrices at once, bit-identical to
 //!   `svd3`.
+//! * [`svd3_batch`](svd::svd3_batch): the SVDs of a whole slice at the widest SIMD width the CPU
+//!   has (AVX-512F, AVX2, SSE, chosen at run time by [`simd`]), bit-identical to `svd3`.
+//! * From a game asset to a soft body and back: [`voxel`] tet meshing of a closed triangle surface
+//!   (generalised winding number), [`embed`] to drive a detailed render mesh by the simulated one,
+//!   [`surface`] buffers (outward boundary triangles, vertex normals), and with `std` the Gmsh 4.1
+//!   (`gmsh`) and OBJ (`obj`) readers and a per-frame OBJ writer.
 //!
 //! Vectors and matrices are [glam](https://docs.rs/glam/0.34)'s `Vec3` and `Mat3` (`DVec3`,
 //! `DMat3` in f64); the crate re-exports it as `softfem::glam`, so that callers use the exact
@@ -127,6 +135,8 @@
 //!   reader for TetGen `.node` / `.ele` meshes (docs.rs builds with every feature, so it is shown
 //!   there, marked as needing `std`).
 //! * `defmt`: derives `defmt::Format` on every public error and report type.
+//! * `bytemuck`: derives `bytemuck::Pod` on the render-buffer types of [`surface`] (and enables
+//!   glam's `bytemuck`), so vertex and index buffers cast to bytes for a GPU upload.
 #![no_std]
 // docs.rs builds with `--cfg docsrs` (Cargo.toml's `[package.metadata.docs.rs]`), on nightly:
 // items behind a feature are then labelled with it.
@@ -151,10 +161,13 @@ extern crate std;
 pub use glam;
 
 pub mod error;
+pub use error::SvdBatchError;
 pub use error::{
     Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError, StepBuffer,
     StepError,
 };
+
+pub mod simd;
 
 #[path = "f32.rs"]
 mod single;
@@ -164,6 +177,17 @@ pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 #[cfg_attr(docsrs, doc(cfg(feature = "std")))]
 pub use single::tetgen;
 pub use single::{element, generate, lanes, material, mesh, polar, step, svd, types};
+// The asset pipeline: a triangle surface to a soft body and back.
+#[cfg(feature = "std")]
+pub use error::{
+    AssetFileError, GmshFormatError, GmshProblem, GmshSection, ObjFormatError, ObjProblem,
+};
+pub use error::{EmbedBuffer, EmbedError, SurfaceError, VoxelBuffer, VoxelError};
+pub use single::embed;
+pub use single::surface;
+pub use single::voxel;
+#[cfg(feature = "std")]
+pub use single::{gmsh, obj};
 
 pub mod f64;
 
