@@ -108,13 +108,13 @@ pub fn boundary_faces<'a>(
         while end < scratch.len() && scratch.get(end).map(|face| sorted(face.triangle)) == key {
             end += 1;
         }
-        if end == start + 1 {
-            if let Some(&face) = scratch.get(start) {
-                if let Some(slot) = scratch.get_mut(kept) {
-                    *slot = face;
-                }
-                kept += 1;
+        if end == start + 1
+            && let Some(&face) = scratch.get(start)
+        {
+            if let Some(slot) = scratch.get_mut(kept) {
+                *slot = face;
             }
+            kept += 1;
         }
         start = end;
     }

@@ -256,14 +256,15 @@ pub fn check_closed(
     edges.sort_unstable();
     let edges: &[[u32; 3]] = edges;
     for pair in edges.windows(2) {
-        if let [[a0, b0, _], [a1, b1, t1]] = *pair {
-            if a0 == a1 && b0 == b1 {
-                return Err(VoxelError::RepeatedEdge {
-                    triangle: t1 as usize,
-                    from: a1,
-                    to: b1,
-                });
-            }
+        if let [[a0, b0, _], [a1, b1, t1]] = *pair
+            && a0 == a1
+            && b0 == b1
+        {
+            return Err(VoxelError::RepeatedEdge {
+                triangle: t1 as usize,
+                from: a1,
+                to: b1,
+            });
         }
     }
     for &[from, to, triangle] in edges {
@@ -372,12 +373,10 @@ pub fn classify_cells(
                     && max.y >= row_min_y
                     && min.z <= row_max_z
                     && max.z >= row_min_z;
-                if meets {
-                    if let Some(slot) = edge_scratch.get_mut(candidates) {
-                        // Triangle counts fit in u32: `check_closed` indexed them that way.
-                        slot[0] = triangle as u32;
-                        candidates += 1;
-                    }
+                if meets && let Some(slot) = edge_scratch.get_mut(candidates) {
+                    // Triangle counts fit in u32: `check_closed` indexed them that way.
+                    slot[0] = triangle as u32;
+                    candidates += 1;
                 }
             }
             let row_triangles = edge_scratch.get(..candidates).unwrap_or_default();
@@ -520,11 +519,11 @@ fn remove_hanging_cells(grid: &VoxelGrid, occupied: &mut [bool]) -> usize {
                     k.checked_sub(1).map(|c| [i, j, c]),
                     Some([i, j, k + 1]),
                 ];
-                if !neighbours.into_iter().any(kept) {
-                    if let Some(slot) = occupied.get_mut(index) {
-                        *slot = false;
-                        removed += 1;
-                    }
+                if !neighbours.into_iter().any(kept)
+                    && let Some(slot) = occupied.get_mut(index)
+                {
+                    *slot = false;
+                    removed += 1;
                 }
             }
         }
