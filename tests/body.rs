@@ -107,7 +107,7 @@ fn explicit_body_matches_the_low_level_calls_bit_for_bit() {
     let mut reference = Reference::new();
     let mut body = small_body();
     assert_eq!(body.masses(), &reference.masses[..]);
-    assert_eq!(body.rest_positions(), &reference.rest[..]);
+    assert_eq!(body.rest_positions(), reference.rest);
     pin_wall(&mut body, &mut reference);
     let model = reference.model;
     let stable =

@@ -411,10 +411,8 @@ impl<S: Storage, M: Material> Body<S, M> {
             // The stable step is taken over the free vertices.
             self.stable_step = None;
         }
-        if !pinned {
-            if let Some(kinematic) = self.kinematic.slice_mut().get_mut(vertex) {
-                *kinematic = false;
-            }
+        if !pinned && let Some(kinematic) = self.kinematic.slice_mut().get_mut(vertex) {
+            *kinematic = false;
         }
         Ok(())
     }
