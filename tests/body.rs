@@ -591,3 +591,17 @@ mod alloc_storage {
         assert!(body.positions().iter().all(|x| x.is_finite()));
     }
 }
+
+#[test]
+fn fixed_storage_takes_the_memory_its_documentation_states() {
+    // 214 bytes per vertex and 304 per tetrahedron in f32 (see `FixedStorage`), plus the
+    // lengths, the material, the solver settings and the caches: under 1 KB.
+    type Bar = Body<FixedStorage<54, 120>, StableNeoHookean>;
+    let size = core::mem::size_of::<Bar>();
+    let buffers = 54 * 214 + 120 * 304;
+    println!("Body<FixedStorage<54, 120>, StableNeoHookean>: {size} bytes");
+    assert!(
+        size >= buffers && size < buffers + 1024,
+        "{size} against {buffers}"
+    );
+}

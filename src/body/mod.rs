@@ -84,6 +84,26 @@ use crate::error::{BodyBuffer, BodyError, StepError};
 ///   step then sees it at its end-of-step position (the boundary condition of implicit Euler).
 /// * A failed step returns the [`StepError`] with positions, velocities and targets as they
 ///   were before the call, bit for bit.
+///
+/// One tetrahedron from the caller's arrays, its base pinned and its apex pulled up 1 cm,
+/// relaxed by implicit Euler steps:
+/// ```
+/// use softfem::body::{Body, FixedStorage, Solver};
+/// use softfem::{glam::Vec3, material::NeoHookean};
+///
+/// let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z].map(|x| x * 0.1); // m
+/// let rubber = NeoHookean::from_young_poisson(1.0e6, 0.3)?; // Pa
+/// let mut body = Body::<FixedStorage<4, 1>, _>::from_arrays(&rest, &[[0, 1, 2, 3]], 1100.0, rubber)?;
+/// body.set_solver(Solver::relax())?;
+/// (0..3).try_for_each(|vertex| body.set_pinned(vertex, true))?;
+/// body.set_target(3, rest[3] + Vec3::new(0.0, 0.0, 0.01))?; // the apex follows its target
+/// for _ in 0..10 {
+///     body.step(0.01)?;
+/// }
+/// assert_eq!(body.positions()[3], body.target(3).unwrap()); // rest[3] + 1 cm, exactly
+/// assert_eq!(&body.positions()[..3], &rest[..3]);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub struct Body<S: Storage, M: Material> {
     rest_positions: S::Vectors,
     tets: S::Tets,
