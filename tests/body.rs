@@ -486,6 +486,21 @@ fn a_failed_step_restores_positions_velocities_and_targets() {
         assert_eq!(bits(body.positions()), x);
     }
 
+    // A stable fraction that is no fraction: refused before anything runs.
+    let mut body = small_body();
+    body.set_target(0, Vec3::new(-0.1, 0.0, 0.0)).unwrap();
+    let (x, v) = (bits(body.positions()), bits(body.velocities()));
+    for fraction in [0.0, -1.0, f32::NAN] {
+        body.set_solver(Solver::Explicit {
+            settings: ExplicitSettings::new(1.0),
+            stable_fraction: Some(fraction),
+        })
+        .unwrap();
+        assert_eq!(body.step(0.01), Err(StepError::Substeps), "{fraction}");
+        assert_eq!(bits(body.positions()), x);
+        assert_eq!(bits(body.velocities()), v);
+    }
+
     // An explicit step far past the stability limit blows up; the state handed back is the one
     // the failing call started from.
     let mut body = small_body();

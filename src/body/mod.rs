@@ -63,8 +63,8 @@ use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
 use super::mesh::TetMesh;
 use super::step::{
-    ExplicitMemory, ExplicitScratch, Ground, MAX_SUBSTEPS, NewtonScratch, RelaxScratch, TetElastic,
-    VbdScratch, VbdTopology, newton_step, relax_step, stable_time_step, step_explicit, vbd_step,
+    ExplicitMemory, ExplicitScratch, Ground, NewtonScratch, RelaxScratch, TetElastic, VbdScratch,
+    VbdTopology, newton_step, relax_step, stable_time_step, step_explicit, vbd_step,
 };
 use super::types::{Real, Vec3};
 use crate::error::{BodyBuffer, BodyError, StepError};
@@ -270,7 +270,8 @@ impl<S: Storage, M: Material> Body<S, M> {
             && body.targets.resize(vertices, Vec3::ZERO)
             && body.held_velocities.resize(vertices, Vec3::ZERO)
             && body.positions.resize(vertices, Vec3::ZERO)
-            && body.velocities.resize(vertices, Vec3::ZERO);
+            && body.velocities.resize(vertices, Vec3::ZERO)
+            && body.scalars.resize(vertices, 0.0);
         capacity(fits, BodyBuffer::Vertices, vertices)?;
         let fits =
             body.tets.resize(tets, [0; 4]) && body.rest_data.resize(tets, TetRest::default());
@@ -294,9 +295,24 @@ impl<S: Storage, M: Material> Body<S, M> {
         Ok(())
     }
 
-    /// Sizes the scratch `solver` needs.
+    /// Sizes the scratch `solver` needs. The buffers of the solver in use are left as they
+    /// were if this fails: Newton's and VBD's own buffers come first, and the shared vector
+    /// scratch, last, is unchanged when it does not fit.
     fn size_scratch(&mut self, solver: &Solver) -> Result<(), BodyError> {
-        let n = self.vertex_count();
+        let (n, t) = (self.vertex_count(), self.tet_count());
+        if let Solver::Newton(_) = solver {
+            let fits = self.blocks.resize(n, super::types::Mat3::ZERO)
+                && self.hessians.resize(t, Default::default());
+            capacity(fits, BodyBuffer::Tetrahedra, t)?;
+        }
+        if let Solver::Vbd(_) = solver {
+            let needed = super::step::vbd_index_scratch_len(n, t);
+            capacity(
+                self.indices.resize(needed, 0),
+                BodyBuffer::IndexScratch,
+                needed,
+            )?;
+        }
         let vectors = match solver {
             Solver::Explicit { .. } => 4,
             Solver::Relax(_) | Solver::Vbd(_) => 5,
@@ -307,23 +323,7 @@ impl<S: Storage, M: Material> Body<S, M> {
             self.vectors.resize(needed, Vec3::ZERO),
             BodyBuffer::Scratch,
             needed,
-        )?;
-        capacity(self.scalars.resize(n, 0.0), BodyBuffer::Vertices, n)?;
-        if let Solver::Newton(_) = solver {
-            let t = self.tet_count();
-            let fits = self.blocks.resize(n, super::types::Mat3::ZERO)
-                && self.hessians.resize(t, Default::default());
-            capacity(fits, BodyBuffer::Tetrahedra, t)?;
-        }
-        if let Solver::Vbd(_) = solver {
-            let needed = super::step::vbd_index_scratch_len(n, self.tet_count());
-            capacity(
-                self.indices.resize(needed, 0),
-                BodyBuffer::IndexScratch,
-                needed,
-            )?;
-        }
-        Ok(())
+        )
     }
 
     /// The number of vertices.
@@ -537,12 +537,7 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// keeps its solver then).
     pub fn set_solver(&mut self, solver: Solver) -> Result<(), BodyError> {
         if !solver.same_kind(&self.solver) {
-            if let Err(error) = self.size_scratch(&solver) {
-                // Back to the scratch of the solver kept (it fitted before).
-                let kept = self.solver;
-                self.size_scratch(&kept)?;
-                return Err(error);
-            }
+            self.size_scratch(&solver)?;
             self.forget_history();
             self.preconditioner_ready = false;
             self.topology = None;
@@ -590,7 +585,9 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// targets, then one call of the solver's stepper with the body's gravity and ground.
     ///
     /// # Errors
-    /// [`StepError::TimeStep`] if `dt` is not finite and positive (nothing touched), or the
+    /// [`StepError::TimeStep`] if `dt` is not finite and positive, [`StepError::Substeps`] if
+    /// the explicit solver's `stable_fraction` is not positive or asks for more than
+    /// [`MAX_SUBSTEPS`](super::step::MAX_SUBSTEPS) substeps (nothing touched in both cases), or the
     /// stepper's error, with positions, velocities and targets restored bit for bit.
     pub fn step(&mut self, dt: Real) -> Result<StepReport, StepError> {
         if !(dt > 0.0 && dt.is_finite()) {
@@ -744,11 +741,15 @@ fn capacity(fits: bool, buffer: BodyBuffer, needed: usize) -> Result<(), BodyErr
 }
 
 /// The fewest substeps, at least `minimum` (and 1), that split `dt` into steps of at most
-/// `limit` (s); above [`MAX_SUBSTEPS`] (the stepper then refuses it) when `limit` is too small.
+/// `limit` (s); above [`MAX_SUBSTEPS`](super::step::MAX_SUBSTEPS) (the stepper then refuses it) when `limit` is too small
+/// (zero or NaN included).
 fn substeps(dt: Real, limit: Real, minimum: u32) -> u32 {
     // `as` saturates: a zero or NaN limit gives u32::MAX or 0, both refused or raised below.
+    if limit.is_nan() || limit <= 0.0 {
+        return u32::MAX;
+    }
     let mut count = (dt / limit) as u32;
-    if count < MAX_SUBSTEPS && dt / count as Real > limit {
+    if count < u32::MAX && dt / count as Real > limit {
         count += 1;
     }
     count.max(minimum).max(1)
