@@ -136,7 +136,7 @@
 //! * `std`: host-only conveniences; the kernels never need it. Enables the `tetgen` module, a
 //!   reader for TetGen `.node` / `.ele` meshes (docs.rs builds with every feature, so it is shown
 //!   there, marked as needing `std`).
-//! * `alloc`: the growable storage of [`body`] ([`VecStorage`](body::VecStorage)).
+//! * `alloc`: the growable storage of [`body`] (`body::VecStorage`).
 //! * `defmt`: derives `defmt::Format` on every public error and report type.
 //! * `bytemuck`: derives `bytemuck::Pod` on the render-buffer types of [`surface`] (and enables
 //!   glam's `bytemuck`), so vertex and index buffers cast to bytes for a GPU upload.

@@ -1,7 +1,7 @@
 //! An owning soft body: rest shape, tetrahedra, rest data, masses, pins, state, material, the
 //! chosen solver and its scratch, in one value an engine can hold, stepped by
 //! [`Body::step`]. The storage is chosen at the type level: [`FixedStorage`] (fixed capacity,
-//! no heap: firmware) or [`VecStorage`] (feature `alloc`).
+//! no heap: firmware) or `VecStorage` (feature `alloc`).
 //!
 //! The mesh is validated once, when the body is built; each step rebuilds the borrowed views of
 //! the low-level kernels ([`TetMesh`], [`TetElastic`], the scratch types) from that data without
@@ -73,7 +73,7 @@ use crate::error::{BodyBuffer, BodyError, StepError};
 /// [module documentation](self).
 ///
 /// `S` is the [`Storage`] ([`FixedStorage<V, T>`](FixedStorage) or
-/// [`VecStorage`]), `M` the [`Material`]. Built by [`from_box`](Self::from_box),
+/// `VecStorage`), `M` the [`Material`]. Built by [`from_box`](Self::from_box),
 /// [`from_arrays`](Self::from_arrays) or (feature `std`) `from_tetgen`; then
 /// [`step`](Self::step) with the [`Solver`] chosen by [`set_solver`](Self::set_solver)
 /// (explicit by default).

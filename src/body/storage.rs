@@ -1,5 +1,5 @@
 //! Where a [`Body`](super::Body) keeps its buffers, chosen at the type level: fixed arrays
-//! ([`FixedStorage`], no heap) or, with the `alloc` feature, growable vectors ([`VecStorage`]).
+//! ([`FixedStorage`], no heap) or, with the `alloc` feature, growable vectors (`VecStorage`).
 
 use super::super::element::{TetHessian, TetRest};
 use super::super::types::{Mat3, Real, Vec3};
@@ -26,7 +26,7 @@ pub trait Slots<X: Copy> {
 }
 
 /// The buffer types of a body: per vertex, per tetrahedron and the solvers' scratch.
-/// Implemented by [`FixedStorage`] and [`VecStorage`]; implement it to place the buffers
+/// Implemented by [`FixedStorage`] and `VecStorage`; implement it to place the buffers
 /// elsewhere.
 pub trait Storage {
     /// One vector per vertex (positions, velocities, targets).
