@@ -850,3 +850,121 @@ impl core::error::Error for SvdBatchError {}
 #[path = "asset_error.rs"]
 mod asset_error;
 pub use asset_error::*;
+
+/// A buffer of an owning [`Body`](crate::body::Body), named in [`BodyError::Capacity`] and
+/// [`BodyError::Length`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum BodyBuffer {
+    /// A per-vertex buffer (rest and current positions, velocities, masses, pins, targets).
+    Vertices,
+    /// A per-tetrahedron buffer (indices, rest data, Newton's Hessian cache).
+    Tetrahedra,
+    /// The solvers' vector scratch, nine vectors per vertex.
+    Scratch,
+    /// Vertex Block Descent's index scratch (adjacency, colours, order).
+    IndexScratch,
+}
+
+impl fmt::Display for BodyBuffer {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            BodyBuffer::Vertices => "per-vertex",
+            BodyBuffer::Tetrahedra => "per-tetrahedron",
+            BodyBuffer::Scratch => "solver scratch",
+            BodyBuffer::IndexScratch => "index scratch",
+        })
+    }
+}
+
+/// An owning [`Body`](crate::body::Body) could not be built or changed; the body (if any) is
+/// unchanged. Errors of a step are [`StepError`]s.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum BodyError {
+    /// The storage cannot hold the body: a fixed capacity too small, or an allocation refused.
+    Capacity {
+        /// The buffer that does not fit.
+        buffer: BodyBuffer,
+        /// The entries it needs.
+        needed: usize,
+    },
+    /// A slice given to replace the body's state does not have one entry per vertex.
+    Length {
+        /// The buffer replaced.
+        buffer: BodyBuffer,
+        /// The length it must have (the vertex count).
+        expected: usize,
+        /// The length given.
+        actual: usize,
+    },
+    /// A vertex index at or beyond the vertex count, or a NaN or infinite position, velocity
+    /// or target given for it.
+    Vertex {
+        /// The vertex index.
+        vertex: usize,
+    },
+    /// The box generator refused the box.
+    Generate(GenerateError),
+    /// The mesh or its masses were refused (indices, volumes, density).
+    Mesh(MeshError),
+    /// The masses or the stable time step were refused.
+    Step(StepError),
+}
+
+impl From<GenerateError> for BodyError {
+    fn from(error: GenerateError) -> BodyError {
+        BodyError::Generate(error)
+    }
+}
+
+impl From<MeshError> for BodyError {
+    fn from(error: MeshError) -> BodyError {
+        BodyError::Mesh(error)
+    }
+}
+
+impl From<StepError> for BodyError {
+    fn from(error: StepError) -> BodyError {
+        BodyError::Step(error)
+    }
+}
+
+impl fmt::Display for BodyError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            BodyError::Capacity { buffer, needed } => write!(
+                f,
+                "the body's {buffer} storage cannot hold {needed} entries"
+            ),
+            BodyError::Length {
+                buffer,
+                expected,
+                actual,
+            } => write!(
+                f,
+                "a {buffer} slice of length {actual} was given, expected {expected}"
+            ),
+            BodyError::Vertex { vertex } => write!(
+                f,
+                "vertex {vertex} is beyond the vertex count, or its value is not finite"
+            ),
+            BodyError::Generate(error) => write!(f, "{error}"),
+            BodyError::Mesh(error) => write!(f, "{error}"),
+            BodyError::Step(error) => write!(f, "{error}"),
+        }
+    }
+}
+
+impl core::error::Error for BodyError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            BodyError::Generate(error) => Some(error),
+            BodyError::Mesh(error) => Some(error),
+            BodyError::Step(error) => Some(error),
+            _ => None,
+        }
+    }
+}

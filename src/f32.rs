@@ -216,6 +216,9 @@ pub mod mesh;
 #[path = "step/mod.rs"]
 pub mod step;
 
+#[path = "body/mod.rs"]
+pub mod body;
+
 #[path = "voxel.rs"]
 pub mod voxel;
 

@@ -4,6 +4,7 @@
 //! (see `src/f32.rs`). The error types do not depend on the precision and are the crate root's.
 
 pub use crate::error::SvdBatchError;
+pub use crate::error::{BodyBuffer, BodyError};
 pub use crate::error::{
     Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError, StepBuffer,
     StepError,
@@ -186,6 +187,9 @@ pub mod mesh;
 
 #[path = "step/mod.rs"]
 pub mod step;
+
+#[path = "body/mod.rs"]
+pub mod body;
 
 #[path = "voxel.rs"]
 pub mod voxel;

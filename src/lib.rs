@@ -22,6 +22,8 @@
 //! * [`mesh`]: validated meshes borrowing the caller's buffers ([`MeshError`] names the first bad
 //!   element or vertex), with the mesh-level kernels: elastic forces (direct, principal, clamped),
 //!   energies, stresses and lumped masses.
+//! * [`body`]: one owning [`Body`](body::Body) (rest shape, state, masses, pins, solver and its
+//!   scratch) over fixed-capacity or (feature `alloc`) growable storage, stepped by `body.step(dt)`.
 //! * [`step`]: time stepping on caller-owned state — explicit symplectic Euler with a stable time
 //!   step proven for the linearised system and blow-up detection that restores the state, and implicit Euler as energy
 //!   minimisation by preconditioned descent (also quasi-static relaxation) or by Newton's method
@@ -134,6 +136,7 @@
 //! * `std`: host-only conveniences; the kernels never need it. Enables the `tetgen` module, a
 //!   reader for TetGen `.node` / `.ele` meshes (docs.rs builds with every feature, so it is shown
 //!   there, marked as needing `std`).
+//! * `alloc`: the growable storage of [`body`] (`body::VecStorage`).
 //! * `defmt`: derives `defmt::Format` on every public error and report type.
 //! * `bytemuck`: derives `bytemuck::Pod` on the render-buffer types of [`surface`] (and enables
 //!   glam's `bytemuck`), so vertex and index buffers cast to bytes for a GPU upload.
@@ -155,6 +158,8 @@
 // modules (`svd.rs`, `polar.rs`, ...) against their own `Real`/`Vec3`/`Mat3` aliases.
 #![allow(clippy::duplicate_mod)]
 
+#[cfg(feature = "alloc")]
+extern crate alloc;
 #[cfg(feature = "std")]
 extern crate std;
 
@@ -171,8 +176,10 @@ pub mod simd;
 
 #[path = "f32.rs"]
 mod single;
+pub use error::{BodyBuffer, BodyError};
 #[cfg(feature = "std")]
 pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
+pub use single::body;
 #[cfg(feature = "std")]
 #[cfg_attr(docsrs, doc(cfg(feature = "std")))]
 pub use single::tetgen;

@@ -80,6 +80,36 @@ impl<'a> TetMesh<'a> {
         })
     }
 
+    /// The mesh over `tets` and `rest` as [`new`](Self::new) built it before, without validating
+    /// again: `vertex_count` and `gradient_gain` must be those of a mesh that [`new`](Self::new)
+    /// accepted with exactly these buffers (its [`vertex_count`](Self::vertex_count) and
+    /// [`gradient_gain`](Self::gradient_gain)). For owners of already validated data (the
+    /// [`Body`](super::super::body::Body)) that rebuild the view every step. Nothing unsound
+    /// follows from wrong arguments (every access stays checked), only wrong results.
+    #[inline]
+    #[must_use]
+    pub(crate) fn from_validated(
+        tets: &'a [[u32; 4]],
+        rest: &'a [TetRest],
+        vertex_count: usize,
+        gradient_gain: Real,
+    ) -> TetMesh<'a> {
+        TetMesh {
+            tets,
+            rest,
+            vertex_count,
+            gradient_gain,
+        }
+    }
+
+    /// The largest column sum of any element's `Dm^-1` (1/m), computed by [`new`](Self::new):
+    /// what [`from_validated`](Self::from_validated) needs back.
+    #[inline]
+    #[must_use]
+    pub(crate) fn gradient_gain(&self) -> Real {
+        self.gradient_gain
+    }
+
     /// The number of vertices (the length every position, force and mass buffer must have).
     #[inline]
     #[must_use]

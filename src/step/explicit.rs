@@ -175,6 +175,45 @@ impl<'a, V: Vector> ExplicitScratch<'a, V> {
     }
 }
 
+/// What an [`ExplicitScratch`] remembers between calls besides its buffer: kept by an owner of
+/// the buffer (the [`Body`](super::super::body::Body)) while no scratch view is alive.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ExplicitMemory {
+    history: Option<History>,
+    latest_first: bool,
+}
+
+impl ExplicitMemory {
+    /// The memory of a new scratch: no history.
+    pub(crate) const FRESH: ExplicitMemory = ExplicitMemory {
+        history: None,
+        latest_first: true,
+    };
+}
+
+impl<'a, V: Vector> ExplicitScratch<'a, V> {
+    /// Scratch over `buffer` (as [`new`](Self::new)) that goes on from `memory`.
+    #[inline]
+    #[must_use]
+    pub(crate) fn resume(buffer: &'a mut [V], memory: ExplicitMemory) -> Self {
+        ExplicitScratch {
+            buffer,
+            history: memory.history,
+            latest_first: memory.latest_first,
+        }
+    }
+
+    /// What [`resume`](Self::resume) needs to go on from here.
+    #[inline]
+    #[must_use]
+    pub(crate) fn memory(&self) -> ExplicitMemory {
+        ExplicitMemory {
+            history: self.history,
+            latest_first: self.latest_first,
+        }
+    }
+}
+
 /// What one [`step_explicit`] call did.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

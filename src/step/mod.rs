@@ -184,6 +184,10 @@ pub use vbd::{
 
 pub use super::element::Vector;
 
+// The owning body keeps what the scratch views remember between steps.
+pub(crate) use explicit::ExplicitMemory;
+pub(crate) use vbd::VbdTopology;
+
 /// An elastic body the explicit stepper can advance: a validated mesh, a material and a force
 /// path. Implement it to plug in other force models (extra springs, a different element).
 pub trait ElasticModel {

@@ -64,6 +64,31 @@ impl<'a, V: Vector> RelaxScratch<'a, V> {
     }
 }
 
+impl<'a, V: Vector> RelaxScratch<'a, V> {
+    /// Scratch over the caller's buffers (as [`new`](Self::new)) whose `scalars` already hold
+    /// the preconditioner's stiffness part when `stiffness_ready`.
+    #[inline]
+    #[must_use]
+    pub(crate) fn resume(
+        vectors: &'a mut [V],
+        scalars: &'a mut [Real],
+        stiffness_ready: bool,
+    ) -> Self {
+        RelaxScratch {
+            vectors,
+            scalars,
+            stiffness_ready,
+        }
+    }
+
+    /// Whether `scalars` holds the preconditioner's stiffness part (for [`resume`](Self::resume)).
+    #[inline]
+    #[must_use]
+    pub(crate) fn stiffness_ready(&self) -> bool {
+        self.stiffness_ready
+    }
+}
+
 /// The parameters of the relaxation.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RelaxSettings<V> {

@@ -79,6 +79,34 @@ impl<'a> VbdScratch<'a> {
     }
 }
 
+/// The vertex, element and colour counts of the topology a [`VbdScratch`] holds in `indices`.
+pub(crate) type VbdTopology = Option<(usize, usize, u32)>;
+
+impl<'a> VbdScratch<'a> {
+    /// Scratch over the caller's buffers (as [`new`](Self::new)) whose `indices` already hold
+    /// `topology`, as [`topology`](Self::topology) reported it.
+    #[inline]
+    #[must_use]
+    pub(crate) fn resume(
+        vectors: &'a mut [Vec3],
+        indices: &'a mut [u32],
+        topology: VbdTopology,
+    ) -> Self {
+        VbdScratch {
+            vectors,
+            indices,
+            topology,
+        }
+    }
+
+    /// The topology in `indices` (for [`resume`](Self::resume)).
+    #[inline]
+    #[must_use]
+    pub(crate) fn topology(&self) -> VbdTopology {
+        self.topology
+    }
+}
+
 /// The parameters of Vertex Block Descent.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VbdSettings {

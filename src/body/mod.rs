@@ -1,0 +1,756 @@
+//! An owning soft body: rest shape, tetrahedra, rest data, masses, pins, state, material, the
+//! chosen solver and its scratch, in one value an engine can hold, stepped by
+//! [`Body::step`]. The storage is chosen at the type level: [`FixedStorage`] (fixed capacity,
+//! no heap: firmware) or `VecStorage` (feature `alloc`).
+//!
+//! The mesh is validated once, when the body is built; each step rebuilds the borrowed views of
+//! the low-level kernels ([`TetMesh`], [`TetElastic`], the scratch types) from that data without
+//! a second validation pass, and keeps what the solvers remember between steps (the explicit
+//! stepper's blow-up history, the relaxation's preconditioner, Vertex Block Descent's
+//! colouring). The results are those of the low-level calls, bit for bit.
+//!
+//! A jelly cube dropped onto the ground and stepped explicitly for a second (y up), no heap:
+//! ```
+//! use softfem::body::{Body, FixedStorage};
+//! use softfem::{glam::Vec3, material::StableNeoHookean, step::Ground};
+//!
+//! let jelly = StableNeoHookean::from_young_poisson(5.0e4, 0.45)?; // Pa
+//! let (low, high) = (Vec3::new(-0.1, 0.1, -0.1), Vec3::new(0.1, 0.3, 0.1)); // m
+//! // 4 x 4 x 4 cells: 125 vertices, 320 tetrahedra, 1000 kg/m^3.
+//! let mut body = Body::<FixedStorage<125, 320>, _>::from_box(low, high, [4; 3], 1000.0, jelly)?;
+//! body.set_gravity(Vec3::new(0.0, -9.81, 0.0)); // m/s^2
+//! body.set_ground(Some(Ground::new(Vec3::Y, 0.0).with_friction(0.5))); // the plane y = 0
+//! for _ in 0..60 {
+//!     body.step(1.0 / 60.0)?; // substeps of half the stable step, computed once
+//! }
+//! assert!(body.positions().iter().all(|x| x.y > -1e-3 && x.y < 0.25)); // landed
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! A cantilever pinned at one end, stepped by implicit Euler at 60 Hz (Newton's method),
+//! growable storage:
+//! ```
+//! # #[cfg(feature = "alloc")] {
+//! use softfem::body::{Body, Solver, VecStorage};
+//! use softfem::{glam::Vec3, material::StableNeoHookean};
+//!
+//! let rubber = StableNeoHookean::from_young_poisson(1.0e6, 0.4)?; // Pa
+//! let high = Vec3::new(0.5, 0.1, 0.1); // m
+//! let mut body = Body::<VecStorage, _>::from_box(Vec3::ZERO, high, [5, 1, 1], 1100.0, rubber)?;
+//! body.set_solver(Solver::newton())?;
+//! body.set_gravity(Vec3::new(0.0, -9.81, 0.0));
+//! let wall: Vec<usize> = (0..body.vertex_count()).filter(|&i| body.rest_positions()[i].x == 0.0).collect();
+//! for &vertex in &wall { body.set_pinned(vertex, true)?; }
+//! for _ in 0..60 { body.step(1.0 / 60.0)?; }
+//! let tip = body.positions().iter().map(|x| x.y).fold(f32::INFINITY, f32::min);
+//! assert!(tip < -0.001 && tip > -0.1, "{tip}"); // sagged, not fallen
+//! # }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod solver;
+mod storage;
+
+pub use solver::{Solver, StepReport};
+#[cfg(feature = "alloc")]
+pub use storage::VecStorage;
+pub use storage::{Fixed, FixedStorage, Slots, Storage};
+
+use core::fmt;
+
+use super::element::TetRest;
+use super::generate::{BoxSplit, box_counts, fill_box};
+use super::material::Material;
+use super::mesh::TetMesh;
+use super::step::{
+    ExplicitMemory, ExplicitScratch, Ground, NewtonScratch, RelaxScratch, TetElastic, VbdScratch,
+    VbdTopology, newton_step, relax_step, stable_time_step, step_explicit, vbd_step,
+};
+use super::types::{Real, Vec3};
+use crate::error::{BodyBuffer, BodyError, StepError};
+
+/// An elastic tetrahedral body that owns everything a step needs; see the
+/// [module documentation](self).
+///
+/// `S` is the [`Storage`] ([`FixedStorage<V, T>`](FixedStorage) or
+/// `VecStorage`), `M` the [`Material`]. Built by [`from_box`](Self::from_box),
+/// [`from_arrays`](Self::from_arrays) or (feature `std`) `from_tetgen`; then
+/// [`step`](Self::step) with the [`Solver`] chosen by [`set_solver`](Self::set_solver)
+/// (explicit by default).
+///
+/// * Pinned vertices ([`set_pinned`](Self::set_pinned)) keep their position and velocity.
+/// * A kinematic vertex ([`set_target`](Self::set_target)) is pinned and moved to its target at
+///   the start of every step, with the velocity `(target - x) / dt` that takes it there; the
+///   step then sees it at its end-of-step position (the boundary condition of implicit Euler).
+/// * A failed step returns the [`StepError`] with positions, velocities and targets as they
+///   were before the call, bit for bit.
+///
+/// One tetrahedron from the caller's arrays, its base pinned and its apex pulled up 1 cm,
+/// relaxed by implicit Euler steps:
+/// ```
+/// use softfem::body::{Body, FixedStorage, Solver};
+/// use softfem::{glam::Vec3, material::NeoHookean};
+///
+/// let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z].map(|x| x * 0.1); // m
+/// let rubber = NeoHookean::from_young_poisson(1.0e6, 0.3)?; // Pa
+/// let mut body = Body::<FixedStorage<4, 1>, _>::from_arrays(&rest, &[[0, 1, 2, 3]], 1100.0, rubber)?;
+/// body.set_solver(Solver::relax())?;
+/// (0..3).try_for_each(|vertex| body.set_pinned(vertex, true))?;
+/// body.set_target(3, rest[3] + Vec3::new(0.0, 0.0, 0.01))?; // the apex follows its target
+/// for _ in 0..10 {
+///     body.step(0.01)?;
+/// }
+/// assert_eq!(body.positions()[3], body.target(3).unwrap()); // rest[3] + 1 cm, exactly
+/// assert_eq!(&body.positions()[..3], &rest[..3]);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub struct Body<S: Storage, M: Material> {
+    rest_positions: S::Vectors,
+    tets: S::Tets,
+    rest_data: S::Rests,
+    /// From the validating [`TetMesh::new`], for the views rebuilt every step.
+    gradient_gain: Real,
+    masses: S::Reals,
+    pinned: S::Flags,
+    /// Which pinned vertices move to `targets` at each step.
+    kinematic: S::Flags,
+    targets: S::Vectors,
+    /// The kinematic vertices' velocities before the step, restored if it fails.
+    held_velocities: S::Vectors,
+    positions: S::Vectors,
+    velocities: S::Vectors,
+    /// Vector scratch of the solver (4, 5, 9 or 5 vectors per vertex).
+    vectors: S::Scratch,
+    /// The relaxation's preconditioner stiffness, or the stable step's stiffness buffer.
+    scalars: S::Reals,
+    blocks: S::Blocks,
+    hessians: S::Hessians,
+    indices: S::Indices,
+    material: M,
+    solver: Solver,
+    gravity: Vec3,
+    ground: Option<Ground<Vec3>>,
+    explicit_memory: ExplicitMemory,
+    preconditioner_ready: bool,
+    topology: VbdTopology,
+    stable_step: Option<Real>,
+}
+
+impl<S: Storage, M: Material> Body<S, M> {
+    /// A box `[min, max]` (m) of `cells[0] x cells[1] x cells[2]` cubes, five tetrahedra each
+    /// ([`BoxSplit::Alternating5`]), of `material` with `density` (kg/m^3), at rest at its rest
+    /// shape, nothing pinned, no gravity or ground, the explicit [`Solver::explicit`].
+    ///
+    /// # Errors
+    /// [`BodyError::Generate`] for the box (see [`fill_box`]), [`BodyError::Capacity`] if the
+    /// storage cannot hold it, [`BodyError::Mesh`] for the density.
+    pub fn from_box(
+        min: Vec3,
+        max: Vec3,
+        cells: [usize; 3],
+        density: Real,
+        material: M,
+    ) -> Result<Self, BodyError> {
+        Self::from_box_split(min, max, cells, BoxSplit::Alternating5, density, material)
+    }
+
+    /// As [`from_box`](Self::from_box), each cube split by `split`.
+    ///
+    /// # Errors
+    /// As [`from_box`](Self::from_box).
+    pub fn from_box_split(
+        min: Vec3,
+        max: Vec3,
+        cells: [usize; 3],
+        split: BoxSplit,
+        density: Real,
+        material: M,
+    ) -> Result<Self, BodyError> {
+        let [nx, ny, nz] = cells;
+        let (vertices, tets) = box_counts(nx, ny, nz, split)?;
+        let mut body = Self::sized(vertices, tets, material)?;
+        fill_box(
+            min,
+            max,
+            nx,
+            ny,
+            nz,
+            split,
+            body.rest_positions.slice_mut(),
+            body.tets.slice_mut(),
+        )?;
+        body.validate(density)?;
+        Ok(body)
+    }
+
+    /// A body of the caller's rest positions (m) and tetrahedra (positively oriented: see
+    /// [`fix_orientation`](super::element::fix_orientation)), otherwise as [`from_box`](Self::from_box).
+    ///
+    /// # Errors
+    /// [`BodyError::Capacity`] if the storage cannot hold it; [`BodyError::Mesh`] for the mesh
+    /// ([`TetMesh::new`]) or the density.
+    pub fn from_arrays(
+        rest_positions: &[Vec3],
+        tets: &[[u32; 4]],
+        density: Real,
+        material: M,
+    ) -> Result<Self, BodyError> {
+        let mut body = Self::sized(rest_positions.len(), tets.len(), material)?;
+        body.rest_positions
+            .slice_mut()
+            .copy_from_slice(rest_positions);
+        body.tets.slice_mut().copy_from_slice(tets);
+        body.validate(density)?;
+        Ok(body)
+    }
+
+    /// A body of a TetGen mesh, each negatively oriented tetrahedron flipped
+    /// ([`fix_orientation`](super::element::fix_orientation); TetGen files may hold either orientation), otherwise as
+    /// [`from_arrays`](Self::from_arrays).
+    ///
+    /// # Errors
+    /// As [`from_arrays`](Self::from_arrays).
+    #[cfg(feature = "std")]
+    #[cfg_attr(docsrs, doc(cfg(feature = "std")))]
+    pub fn from_tetgen(
+        mesh: &super::tetgen::TetgenMesh,
+        density: Real,
+        material: M,
+    ) -> Result<Self, BodyError> {
+        let mut body = Self::sized(mesh.positions.len(), mesh.tets.len(), material)?;
+        body.rest_positions
+            .slice_mut()
+            .copy_from_slice(&mesh.positions);
+        for (slot, &tet) in body.tets.slice_mut().iter_mut().zip(&mesh.tets) {
+            let corner = |i: u32| mesh.positions.get(i as usize).copied();
+            *slot = match tet.map(corner) {
+                [Some(a), Some(b), Some(c), Some(d)] => {
+                    super::element::fix_orientation(tet, [a, b, c, d])
+                }
+                // Out of range: left for the validation to name.
+                _ => tet,
+            };
+        }
+        body.validate(density)?;
+        Ok(body)
+    }
+
+    /// An unvalidated body with buffers of `vertices` and `tets` entries.
+    fn sized(vertices: usize, tets: usize, material: M) -> Result<Self, BodyError> {
+        let mut body: Self = Body {
+            rest_positions: S::Vectors::empty(),
+            tets: S::Tets::empty(),
+            rest_data: S::Rests::empty(),
+            gradient_gain: 0.0,
+            masses: S::Reals::empty(),
+            pinned: S::Flags::empty(),
+            kinematic: S::Flags::empty(),
+            targets: S::Vectors::empty(),
+            held_velocities: S::Vectors::empty(),
+            positions: S::Vectors::empty(),
+            velocities: S::Vectors::empty(),
+            vectors: S::Scratch::empty(),
+            scalars: S::Reals::empty(),
+            blocks: S::Blocks::empty(),
+            hessians: S::Hessians::empty(),
+            indices: S::Indices::empty(),
+            material,
+            solver: Solver::explicit(),
+            gravity: Vec3::ZERO,
+            ground: None,
+            explicit_memory: ExplicitMemory::FRESH,
+            preconditioner_ready: false,
+            topology: None,
+            stable_step: None,
+        };
+        let fits = body.rest_positions.resize(vertices, Vec3::ZERO)
+            && body.masses.resize(vertices, 0.0)
+            && body.pinned.resize(vertices, false)
+            && body.kinematic.resize(vertices, false)
+            && body.targets.resize(vertices, Vec3::ZERO)
+            && body.held_velocities.resize(vertices, Vec3::ZERO)
+            && body.positions.resize(vertices, Vec3::ZERO)
+            && body.velocities.resize(vertices, Vec3::ZERO)
+            && body.scalars.resize(vertices, 0.0);
+        capacity(fits, BodyBuffer::Vertices, vertices)?;
+        let fits =
+            body.tets.resize(tets, [0; 4]) && body.rest_data.resize(tets, TetRest::default());
+        capacity(fits, BodyBuffer::Tetrahedra, tets)?;
+        body.size_scratch(&Solver::explicit())?;
+        Ok(body)
+    }
+
+    /// Validates the mesh once ([`TetMesh::new`]) and computes the masses.
+    fn validate(&mut self, density: Real) -> Result<(), BodyError> {
+        let mesh = TetMesh::new(
+            self.rest_positions.slice(),
+            self.tets.slice(),
+            self.rest_data.slice_mut(),
+        )?;
+        mesh.lumped_masses(density, self.masses.slice_mut())?;
+        self.gradient_gain = mesh.gradient_gain();
+        self.positions
+            .slice_mut()
+            .copy_from_slice(self.rest_positions.slice());
+        Ok(())
+    }
+
+    /// Sizes the scratch `solver` needs. The buffers of the solver in use are left as they
+    /// were if this fails: Newton's and VBD's own buffers come first, and the shared vector
+    /// scratch, last, is unchanged when it does not fit.
+    fn size_scratch(&mut self, solver: &Solver) -> Result<(), BodyError> {
+        let (n, t) = (self.vertex_count(), self.tet_count());
+        if let Solver::Newton(_) = solver {
+            let fits = self.blocks.resize(n, super::types::Mat3::ZERO)
+                && self.hessians.resize(t, Default::default());
+            capacity(fits, BodyBuffer::Tetrahedra, t)?;
+        }
+        if let Solver::Vbd(_) = solver {
+            let needed = super::step::vbd_index_scratch_len(n, t);
+            capacity(
+                self.indices.resize(needed, 0),
+                BodyBuffer::IndexScratch,
+                needed,
+            )?;
+        }
+        let vectors = match solver {
+            Solver::Explicit { .. } => 4,
+            Solver::Relax(_) | Solver::Vbd(_) => 5,
+            Solver::Newton(_) => 9,
+        };
+        let needed = n.saturating_mul(vectors);
+        capacity(
+            self.vectors.resize(needed, Vec3::ZERO),
+            BodyBuffer::Scratch,
+            needed,
+        )
+    }
+
+    /// The number of vertices.
+    #[inline]
+    #[must_use]
+    pub fn vertex_count(&self) -> usize {
+        self.positions.slice().len()
+    }
+
+    /// The number of tetrahedra.
+    #[inline]
+    #[must_use]
+    pub fn tet_count(&self) -> usize {
+        self.tets.slice().len()
+    }
+
+    /// The validated mesh over the body's own buffers, for the low-level kernels (energies,
+    /// stresses). Built without validating again.
+    #[inline]
+    #[must_use]
+    pub fn mesh(&self) -> TetMesh<'_> {
+        TetMesh::from_validated(
+            self.tets.slice(),
+            self.rest_data.slice(),
+            self.vertex_count(),
+            self.gradient_gain,
+        )
+    }
+
+    /// The rest positions (m).
+    #[inline]
+    #[must_use]
+    pub fn rest_positions(&self) -> &[Vec3] {
+        self.rest_positions.slice()
+    }
+
+    /// The tetrahedra's vertex indices.
+    #[inline]
+    #[must_use]
+    pub fn tets(&self) -> &[[u32; 4]] {
+        self.tets.slice()
+    }
+
+    /// The lumped masses (kg), one per vertex.
+    #[inline]
+    #[must_use]
+    pub fn masses(&self) -> &[Real] {
+        self.masses.slice()
+    }
+
+    /// The positions (m), one per vertex.
+    #[inline]
+    #[must_use]
+    pub fn positions(&self) -> &[Vec3] {
+        self.positions.slice()
+    }
+
+    /// The positions (m), writable. Forgets the explicit stepper's blow-up history
+    /// ([`forget_history`](Self::forget_history)), so that a teleport is not taken for a
+    /// blow-up. A non-finite entry makes the next step fail with
+    /// [`StepError::NonFiniteInput`]; a kinematic vertex goes back to its target at the next
+    /// step.
+    #[inline]
+    #[must_use]
+    pub fn positions_mut(&mut self) -> &mut [Vec3] {
+        self.forget_history();
+        self.positions.slice_mut()
+    }
+
+    /// The velocities (m/s), one per vertex.
+    #[inline]
+    #[must_use]
+    pub fn velocities(&self) -> &[Vec3] {
+        self.velocities.slice()
+    }
+
+    /// The velocities (m/s), writable; forgets the blow-up history as
+    /// [`positions_mut`](Self::positions_mut).
+    #[inline]
+    #[must_use]
+    pub fn velocities_mut(&mut self) -> &mut [Vec3] {
+        self.forget_history();
+        self.velocities.slice_mut()
+    }
+
+    /// The pinned flags, one per vertex (kinematic vertices are pinned).
+    #[inline]
+    #[must_use]
+    pub fn pinned(&self) -> &[bool] {
+        self.pinned.slice()
+    }
+
+    /// Pins (`true`) or frees `vertex`. Freeing also drops its target.
+    ///
+    /// # Errors
+    /// [`BodyError::Vertex`] if `vertex` is not below [`vertex_count`](Self::vertex_count).
+    pub fn set_pinned(&mut self, vertex: usize, pinned: bool) -> Result<(), BodyError> {
+        let flag = self
+            .pinned
+            .slice_mut()
+            .get_mut(vertex)
+            .ok_or(BodyError::Vertex { vertex })?;
+        if *flag != pinned {
+            *flag = pinned;
+            // The stable step is taken over the free vertices.
+            self.stable_step = None;
+        }
+        if !pinned && let Some(kinematic) = self.kinematic.slice_mut().get_mut(vertex) {
+            *kinematic = false;
+        }
+        Ok(())
+    }
+
+    /// Makes `vertex` kinematic: pinned, and moved to `target` (m) at the start of every step
+    /// until the target changes or is cleared.
+    ///
+    /// # Errors
+    /// [`BodyError::Vertex`] if `vertex` is not below [`vertex_count`](Self::vertex_count) or
+    /// `target` is not finite.
+    pub fn set_target(&mut self, vertex: usize, target: Vec3) -> Result<(), BodyError> {
+        let slot = self.targets.slice_mut().get_mut(vertex);
+        match slot {
+            Some(slot) if target.is_finite() => *slot = target,
+            _ => return Err(BodyError::Vertex { vertex }),
+        }
+        if let Some(kinematic) = self.kinematic.slice_mut().get_mut(vertex) {
+            *kinematic = true;
+        }
+        self.set_pinned(vertex, true)
+    }
+
+    /// The target of a kinematic `vertex` (m); `None` if it has none or is out of range.
+    #[inline]
+    #[must_use]
+    pub fn target(&self, vertex: usize) -> Option<Vec3> {
+        match self.kinematic.slice().get(vertex) {
+            Some(true) => self.targets.slice().get(vertex).copied(),
+            _ => None,
+        }
+    }
+
+    /// Drops the target of `vertex`: it stays pinned where it is (free it with
+    /// [`set_pinned`](Self::set_pinned)).
+    ///
+    /// # Errors
+    /// [`BodyError::Vertex`] if `vertex` is not below [`vertex_count`](Self::vertex_count).
+    pub fn clear_target(&mut self, vertex: usize) -> Result<(), BodyError> {
+        let kinematic = self
+            .kinematic
+            .slice_mut()
+            .get_mut(vertex)
+            .ok_or(BodyError::Vertex { vertex })?;
+        *kinematic = false;
+        Ok(())
+    }
+
+    /// The gravitational acceleration (m/s^2).
+    #[inline]
+    #[must_use]
+    pub fn gravity(&self) -> Vec3 {
+        self.gravity
+    }
+
+    /// Sets the gravitational acceleration (m/s^2), e.g. `(0, -9.81, 0)`; checked by the step.
+    #[inline]
+    pub fn set_gravity(&mut self, gravity: Vec3) {
+        self.gravity = gravity;
+    }
+
+    /// The ground half-space, if any.
+    #[inline]
+    #[must_use]
+    pub fn ground(&self) -> Option<Ground<Vec3>> {
+        self.ground
+    }
+
+    /// Sets (or, with `None`, removes) the ground half-space; checked by the step.
+    #[inline]
+    pub fn set_ground(&mut self, ground: Option<Ground<Vec3>>) {
+        self.ground = ground;
+    }
+
+    /// The material.
+    #[inline]
+    #[must_use]
+    pub fn material(&self) -> &M {
+        &self.material
+    }
+
+    /// Replaces the material; the stable step and the relaxation's preconditioner are computed
+    /// again at the next step that needs them.
+    #[inline]
+    pub fn set_material(&mut self, material: M) {
+        self.material = material;
+        self.stable_step = None;
+        self.preconditioner_ready = false;
+    }
+
+    /// The solver and its settings.
+    #[inline]
+    #[must_use]
+    pub fn solver(&self) -> &Solver {
+        &self.solver
+    }
+
+    /// Chooses the solver and its settings. Changing only the settings keeps what the solver
+    /// remembers; changing the solver sizes its scratch and starts it afresh.
+    ///
+    /// # Errors
+    /// [`BodyError::Capacity`] if the storage cannot hold the new solver's scratch (the body
+    /// keeps its solver then).
+    pub fn set_solver(&mut self, solver: Solver) -> Result<(), BodyError> {
+        if !solver.same_kind(&self.solver) {
+            self.size_scratch(&solver)?;
+            self.forget_history();
+            self.preconditioner_ready = false;
+            self.topology = None;
+        }
+        self.solver = solver;
+        Ok(())
+    }
+
+    /// Forgets the explicit stepper's blow-up history: the next step is not compared with the
+    /// ones before (see [`ExplicitScratch::forget_history`]).
+    #[inline]
+    pub fn forget_history(&mut self) {
+        self.explicit_memory = ExplicitMemory::FRESH;
+    }
+
+    /// The stable explicit time step (s) of the body at rest ([`stable_time_step`] over the
+    /// free vertices), computed once and cached until the pins or the material change.
+    ///
+    /// # Errors
+    /// As [`stable_time_step`].
+    pub fn stable_time_step(&mut self) -> Result<Real, StepError> {
+        if let Some(dt) = self.stable_step {
+            return Ok(dt);
+        }
+        let mesh = TetMesh::from_validated(
+            self.tets.slice(),
+            self.rest_data.slice(),
+            self.positions.slice().len(),
+            self.gradient_gain,
+        );
+        let model = TetElastic::new(mesh, self.material);
+        let dt = stable_time_step(
+            &model,
+            self.masses.slice(),
+            self.pinned.slice(),
+            self.scalars.slice_mut(),
+        )?;
+        // The buffer it used holds the relaxation's preconditioner otherwise.
+        self.preconditioner_ready = false;
+        self.stable_step = Some(dt);
+        Ok(dt)
+    }
+
+    /// Advances the body by `dt` (s) with its [`Solver`]: kinematic vertices are moved to their
+    /// targets, then one call of the solver's stepper with the body's gravity and ground.
+    ///
+    /// # Errors
+    /// [`StepError::TimeStep`] if `dt` is not finite and positive, [`StepError::Substeps`] if
+    /// the explicit solver's `stable_fraction` is not positive or asks for more than
+    /// [`MAX_SUBSTEPS`](super::step::MAX_SUBSTEPS) substeps (nothing touched in both cases), or the
+    /// stepper's error, with positions, velocities and targets restored bit for bit.
+    pub fn step(&mut self, dt: Real) -> Result<StepReport, StepError> {
+        if !(dt > 0.0 && dt.is_finite()) {
+            return Err(StepError::TimeStep);
+        }
+        let substeps = match self.solver {
+            Solver::Explicit {
+                settings,
+                stable_fraction: Some(fraction),
+            } => substeps(dt, fraction * self.stable_time_step()?, settings.substeps),
+            Solver::Explicit { settings, .. } => settings.substeps,
+            _ => 1,
+        };
+        self.move_kinematic(dt);
+        let outcome = self.run_solver(dt, substeps);
+        self.settle_kinematic(outcome.is_ok());
+        outcome
+    }
+
+    /// Moves the kinematic vertices to their targets with the velocity that takes them there;
+    /// `targets` then holds their positions before, `held_velocities` their velocities.
+    fn move_kinematic(&mut self, dt: Real) {
+        let rows = self
+            .positions
+            .slice_mut()
+            .iter_mut()
+            .zip(self.velocities.slice_mut())
+            .zip(self.targets.slice_mut())
+            .zip(self.held_velocities.slice_mut())
+            .zip(self.kinematic.slice());
+        for ((((x, v), target), held), &kinematic) in rows {
+            if kinematic {
+                *held = *v;
+                *v = (*target - *x) / dt;
+                core::mem::swap(x, target);
+            }
+        }
+    }
+
+    /// After the step: on success the targets are the kinematic vertices' positions again; on
+    /// failure (the stepper restored the state of after [`move_kinematic`]) the vertices go
+    /// back.
+    fn settle_kinematic(&mut self, succeeded: bool) {
+        let rows = self
+            .positions
+            .slice_mut()
+            .iter_mut()
+            .zip(self.velocities.slice_mut())
+            .zip(self.targets.slice_mut())
+            .zip(self.held_velocities.slice())
+            .zip(self.kinematic.slice());
+        for ((((x, v), target), held), &kinematic) in rows {
+            if kinematic {
+                if succeeded {
+                    *target = *x;
+                } else {
+                    core::mem::swap(x, target);
+                    *v = *held;
+                }
+            }
+        }
+    }
+
+    /// One call of the solver's stepper.
+    fn run_solver(&mut self, dt: Real, substeps: u32) -> Result<StepReport, StepError> {
+        let n = self.vertex_count();
+        let mesh = TetMesh::from_validated(
+            self.tets.slice(),
+            self.rest_data.slice(),
+            n,
+            self.gradient_gain,
+        );
+        let model = TetElastic::new(mesh, self.material);
+        let (masses, pinned) = (self.masses.slice(), self.pinned.slice());
+        let (x, v) = (self.positions.slice_mut(), self.velocities.slice_mut());
+        let (gravity, ground) = (self.gravity, self.ground);
+        let vectors = self.vectors.slice_mut();
+        match self.solver {
+            Solver::Explicit { mut settings, .. } => {
+                settings.dt = dt;
+                settings.substeps = substeps;
+                settings.gravity = gravity;
+                settings.ground = ground;
+                let buffer = vectors.get_mut(..n.saturating_mul(4)).unwrap_or(&mut []);
+                let mut scratch = ExplicitScratch::resume(buffer, self.explicit_memory);
+                let outcome = step_explicit(&model, masses, pinned, &settings, x, v, &mut scratch);
+                self.explicit_memory = scratch.memory();
+                outcome.map(StepReport::Explicit)
+            }
+            Solver::Relax(mut settings) => {
+                settings.dt = dt;
+                settings.gravity = gravity;
+                settings.ground = ground;
+                let buffer = vectors.get_mut(..n.saturating_mul(5)).unwrap_or(&mut []);
+                let mut scratch = RelaxScratch::resume(
+                    buffer,
+                    self.scalars.slice_mut(),
+                    self.preconditioner_ready,
+                );
+                let outcome = relax_step(&model, masses, pinned, &settings, x, v, &mut scratch);
+                self.preconditioner_ready = scratch.stiffness_ready();
+                outcome.map(StepReport::Relax)
+            }
+            Solver::Newton(mut settings) => {
+                settings.dt = dt;
+                settings.gravity = gravity;
+                settings.ground = ground;
+                let buffer = vectors.get_mut(..n.saturating_mul(9)).unwrap_or(&mut []);
+                let mut scratch =
+                    NewtonScratch::new(buffer, self.blocks.slice_mut(), self.hessians.slice_mut());
+                newton_step(&model, masses, pinned, &settings, x, v, &mut scratch)
+                    .map(StepReport::Newton)
+            }
+            Solver::Vbd(mut settings) => {
+                settings.dt = dt;
+                settings.gravity = gravity;
+                settings.ground = ground;
+                let buffer = vectors.get_mut(..n.saturating_mul(5)).unwrap_or(&mut []);
+                let mut scratch =
+                    VbdScratch::resume(buffer, self.indices.slice_mut(), self.topology);
+                let outcome = vbd_step(&model, masses, pinned, &settings, x, v, &mut scratch);
+                self.topology = scratch.topology();
+                outcome.map(StepReport::Vbd)
+            }
+        }
+    }
+}
+
+impl<S: Storage, M: Material> fmt::Debug for Body<S, M> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Body")
+            .field("vertices", &self.vertex_count())
+            .field("tets", &self.tet_count())
+            .field("material", &self.material)
+            .field("solver", &self.solver)
+            .field("gravity", &self.gravity)
+            .field("ground", &self.ground)
+            .field("stable_step", &self.stable_step)
+            .finish_non_exhaustive()
+    }
+}
+
+/// `Ok` if `fits`, else the capacity error for `needed` entries of `buffer`.
+#[inline]
+fn capacity(fits: bool, buffer: BodyBuffer, needed: usize) -> Result<(), BodyError> {
+    if fits {
+        Ok(())
+    } else {
+        Err(BodyError::Capacity { buffer, needed })
+    }
+}
+
+/// The fewest substeps, at least `minimum` (and 1), that split `dt` into steps of at most
+/// `limit` (s); above [`MAX_SUBSTEPS`](super::step::MAX_SUBSTEPS) (the stepper then refuses it) when `limit` is too small
+/// (zero or NaN included).
+fn substeps(dt: Real, limit: Real, minimum: u32) -> u32 {
+    // `as` saturates: a zero or NaN limit gives u32::MAX or 0, both refused or raised below.
+    if limit.is_nan() || limit <= 0.0 {
+        return u32::MAX;
+    }
+    let mut count = (dt / limit) as u32;
+    if count < u32::MAX && dt / count as Real > limit {
+        count += 1;
+    }
+    count.max(minimum).max(1)
+}

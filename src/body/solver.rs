@@ -1,0 +1,108 @@
+//! Which stepper a [`Body`](super::Body) runs, with its settings, and what a step reports.
+
+use super::super::step::{
+    ExplicitReport, ExplicitSettings, NewtonReport, NewtonSettings, RelaxReport, RelaxSettings,
+    VbdReport, VbdSettings,
+};
+use super::super::types::{Real, Vec3};
+
+/// The stepper of a [`Body`](super::Body) and its settings.
+///
+/// The settings' own `dt`, `gravity` and `ground` fields are ignored: every step uses the `dt`
+/// given to [`Body::step`](super::Body::step) and the body's
+/// [`gravity`](super::Body::set_gravity) and [`ground`](super::Body::set_ground). Every other
+/// field (damping, tolerances, budgets, accelerations, and whatever the settings types gain)
+/// is passed on as it is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum Solver {
+    /// Explicit symplectic Euler ([`step_explicit`](super::super::step::step_explicit)).
+    Explicit {
+        /// Damping, growth limit and the substeps when `stable_fraction` is `None`.
+        settings: ExplicitSettings<Vec3>,
+        /// `Some(f)`: each step of `dt` takes the fewest substeps (at least
+        /// `settings.substeps`) of at most `f` times the body's
+        /// [`stable_time_step`](super::Body::stable_time_step), computed once and cached until
+        /// the pins or the material change. `f` in `(0, 1)` leaves the margin the bound's
+        /// documentation asks for; 0.5 is the default. `None`: exactly `settings.substeps`.
+        stable_fraction: Option<Real>,
+    },
+    /// Implicit Euler by preconditioned descent ([`relax_step`](super::super::step::relax_step));
+    /// the preconditioner is kept across steps.
+    Relax(RelaxSettings<Vec3>),
+    /// Implicit Euler by Newton's method ([`newton_step`](super::super::step::newton_step)).
+    Newton(NewtonSettings<Vec3>),
+    /// Implicit Euler by Vertex Block Descent ([`vbd_step`](super::super::step::vbd_step)); the
+    /// adjacency and colouring are kept across steps.
+    Vbd(VbdSettings),
+}
+
+impl Solver {
+    /// Explicit, undamped, one substep per half the stable time step.
+    #[inline]
+    #[must_use]
+    pub fn explicit() -> Solver {
+        Solver::Explicit {
+            settings: ExplicitSettings::new(1.0),
+            stable_fraction: Some(0.5),
+        }
+    }
+
+    /// The relaxation with the defaults of [`RelaxSettings::new`].
+    #[inline]
+    #[must_use]
+    pub fn relax() -> Solver {
+        Solver::Relax(RelaxSettings::new(1.0))
+    }
+
+    /// Newton's method with the defaults of [`NewtonSettings::new`].
+    #[inline]
+    #[must_use]
+    pub fn newton() -> Solver {
+        Solver::Newton(NewtonSettings::new(1.0))
+    }
+
+    /// Vertex Block Descent with the defaults of [`VbdSettings::new`].
+    #[inline]
+    #[must_use]
+    pub fn vbd() -> Solver {
+        Solver::Vbd(VbdSettings::new(1.0))
+    }
+
+    /// Whether `self` and `other` run the same stepper (whatever their settings).
+    #[inline]
+    pub(crate) fn same_kind(&self, other: &Solver) -> bool {
+        core::mem::discriminant(self) == core::mem::discriminant(other)
+    }
+}
+
+/// What one [`Body::step`](super::Body::step) did: the report of the stepper that ran.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum StepReport {
+    /// From [`Solver::Explicit`].
+    Explicit(ExplicitReport),
+    /// From [`Solver::Relax`].
+    Relax(RelaxReport),
+    /// From [`Solver::Newton`].
+    Newton(NewtonReport),
+    /// From [`Solver::Vbd`].
+    Vbd(VbdReport),
+}
+
+impl StepReport {
+    /// Whether the step reached its solver's tolerance (always `true` for an explicit step,
+    /// which has none). A step that did not still advanced the state: implicit Euler with the
+    /// iterate the budget ended at.
+    #[inline]
+    #[must_use]
+    pub fn converged(&self) -> bool {
+        match self {
+            StepReport::Explicit(_) => true,
+            StepReport::Relax(report) => report.converged,
+            StepReport::Newton(report) => report.converged,
+            StepReport::Vbd(report) => report.converged,
+        }
+    }
+}
