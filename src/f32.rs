@@ -216,6 +216,11 @@ pub mod mesh;
 #[path = "step/mod.rs"]
 pub mod step;
 
+#[cfg(feature = "rayon")]
+#[cfg_attr(docsrs, doc(cfg(feature = "rayon")))]
+#[path = "parallel.rs"]
+pub mod parallel;
+
 #[path = "voxel.rs"]
 pub mod voxel;
 
