@@ -251,10 +251,7 @@ impl<'a, M: Material + Sync> ParallelTetElastic<'a, M> {
     }
 
     /// `run` with the scratch buffers, on the pool if one was given.
-    fn run<T: Send>(
-        &self,
-        run: impl FnOnce(&mut [ElementForces], &mut [Real]) -> T + Send,
-    ) -> T {
+    fn run<T: Send>(&self, run: impl FnOnce(&mut [ElementForces], &mut [Real]) -> T + Send) -> T {
         let mut scratch = self.scratch.lock().unwrap_or_else(PoisonError::into_inner);
         let (element_forces, energies) = &mut *scratch;
         match self.pool {

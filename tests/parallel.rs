@@ -8,7 +8,6 @@
 macro_rules! precision_tests {
     ($name:ident, $root:path, $real:ty) => {
         mod $name {
-            use $root as sf;
             use sf::element::TetRest;
             use sf::generate::{BoxSplit, box_counts, fill_box};
             use sf::material::{Material, StVK, StableNeoHookean};
@@ -18,6 +17,7 @@ macro_rules! precision_tests {
             };
             use sf::step::{ElasticEnergy, TetElastic};
             use sf::types::Vec3;
+            use $root as sf;
 
             type Real = $real;
 
@@ -26,8 +26,17 @@ macro_rules! precision_tests {
                 let (vertices, tets) = box_counts(cells, cells, cells, BoxSplit::Kuhn6).unwrap();
                 let (mut rest, mut elements) = (vec![Vec3::ZERO; vertices], vec![[0; 4]; tets]);
                 let (low, high) = (Vec3::ZERO, Vec3::splat(0.1) + Vec3::Y * 0.05);
-                fill_box(low, high, cells, cells, cells, BoxSplit::Kuhn6, &mut rest, &mut elements)
-                    .unwrap();
+                fill_box(
+                    low,
+                    high,
+                    cells,
+                    cells,
+                    cells,
+                    BoxSplit::Kuhn6,
+                    &mut rest,
+                    &mut elements,
+                )
+                .unwrap();
                 (rest, elements)
             }
 
@@ -88,7 +97,8 @@ macro_rules! precision_tests {
                 let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
 
                 let mut expected = initial_forces(nv);
-                mesh.add_elastic_forces(material, &x, &mut expected).unwrap();
+                mesh.add_elastic_forces(material, &x, &mut expected)
+                    .unwrap();
                 let expected_energy = mesh.elastic_energy(material, &x).unwrap();
                 let body = TetElastic::new(mesh, *material);
                 let mut expected_fused = initial_forces(nv);
@@ -129,7 +139,9 @@ macro_rules! precision_tests {
                     assert_eq!(slices.len(), partition.vertex_piece_count());
                     for slot in shuffled(slices.len(), seed ^ 0x5555) {
                         let (piece, out) = slices[slot].take().unwrap();
-                        partition.gather_forces(&element_forces, piece, out).unwrap();
+                        partition
+                            .gather_forces(&element_forces, piece, out)
+                            .unwrap();
                     }
                     assert_eq!(bits(&forces), bits(&expected), "forces, {pieces} pieces");
 
@@ -148,7 +160,11 @@ macro_rules! precision_tests {
                             .unwrap();
                     }
                     let energy = partition.total_energy(&energies).unwrap();
-                    assert_eq!(energy.to_bits(), expected_energy.to_bits(), "{pieces} pieces");
+                    assert_eq!(
+                        energy.to_bits(),
+                        expected_energy.to_bits(),
+                        "{pieces} pieces"
+                    );
 
                     let mut forces = initial_forces(nv);
                     assert!(
@@ -174,7 +190,11 @@ macro_rules! precision_tests {
                             .gather_forces(&element_forces, piece, &mut forces[range])
                             .unwrap();
                     }
-                    assert_eq!(bits(&forces), bits(&expected_fused), "fused, {pieces} pieces");
+                    assert_eq!(
+                        bits(&forces),
+                        bits(&expected_fused),
+                        "fused, {pieces} pieces"
+                    );
                     let fused = partition.fused_total_energy(&energies).unwrap();
                     assert_eq!(fused.to_bits(), expected_fused_energy.to_bits());
                 }
@@ -212,7 +232,10 @@ macro_rules! precision_tests {
                 let pieces = partition.element_piece_count();
                 assert_eq!(
                     partition.element_forces(&material, &rest, pieces, &mut out),
-                    Err(sf::MeshError::PieceIndex { piece: pieces, pieces })
+                    Err(sf::MeshError::PieceIndex {
+                        piece: pieces,
+                        pieces
+                    })
                 );
                 let element_forces = vec![[Vec3::ZERO; 4]; ne - 1];
                 let forces = vec![Vec3::ZERO; nv];
@@ -259,7 +282,8 @@ macro_rules! precision_tests {
                     let material = StableNeoHookean::from_young_poisson(1.0e5, 0.45).unwrap();
                     let x = deformed(&rest);
                     let mut expected = initial_forces(nv);
-                    mesh.add_elastic_forces(&material, &x, &mut expected).unwrap();
+                    mesh.add_elastic_forces(&material, &x, &mut expected)
+                        .unwrap();
                     let expected_energy = mesh.elastic_energy(&material, &x).unwrap();
                     let mut expected_fused = initial_forces(nv);
                     let expected_fused_energy = TetElastic::new(mesh, material)
@@ -352,9 +376,16 @@ macro_rules! precision_tests {
                     let mut scratch = ExplicitScratch::new(&mut buffer);
                     let mut contacts = 0;
                     for _ in 0..100 {
-                        let report =
-                            step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch)
-                                .unwrap();
+                        let report = step_explicit(
+                            &body,
+                            &masses,
+                            &[],
+                            &settings,
+                            &mut x,
+                            &mut v,
+                            &mut scratch,
+                        )
+                        .unwrap();
                         contacts += report.ground_contacts;
                     }
                     assert!(contacts > 0, "no contact in 100 steps");

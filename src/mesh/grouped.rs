@@ -66,21 +66,23 @@ impl GroupGradients {
         }
     }
 
-    /// The nodal forces (N) of the stresses `p` (Pa), lane by lane, corner by corner: the
-    /// vectors [`scatter_forces`](Self::scatter_forces) adds, as [`TetRest::nodal_forces`]
-    /// forms them.
+    /// Writes the nodal forces (N) of the stresses `p` (Pa) into `out`, one entry per lane,
+    /// corner by corner: the vectors [`scatter_forces`](Self::scatter_forces) adds, as
+    /// [`TetRest::nodal_forces`] forms them.
     #[inline(always)]
-    pub fn nodal_forces(&self, p: LaneMat3<Lanes>) -> [[Vec3; 4]; LANES] {
+    pub fn write_forces(&self, p: LaneMat3<Lanes>, out: &mut [[Vec3; 4]]) {
         let h = p.scale(-self.volume) * self.dm_inv.transpose();
-        let [c0, c1, c2, c3] = each_lane(
+        let corners = each_lane(
             [-(h.c0 + h.c1 + h.c2), h.c0, h.c1, h.c2],
             LaneVec3::to_vectors,
         );
-        let mut out = [[Vec3::ZERO; 4]; LANES];
-        for ((((slot, a), b), c), d) in out.iter_mut().zip(c0).zip(c1).zip(c2).zip(c3) {
-            *slot = [a, b, c, d];
+        for (lane, slot) in out.iter_mut().enumerate() {
+            for (value, corner) in slot.iter_mut().zip(&corners) {
+                if let Some(&force) = corner.get(lane) {
+                    *value = force;
+                }
+            }
         }
-        out
     }
 
     /// Adds the nodal forces of the stresses `p` (Pa) into `forces`, element by element and

@@ -153,8 +153,8 @@ impl<'a> TetPartition<'a> {
         incident: &'a mut [u32],
     ) -> Result<Self, MeshError> {
         let (elements, vertices) = (mesh.element_count(), mesh.vertex_count());
-        build_vertex_adjacency(mesh.tets(), vertices, offsets, incident).map_err(
-            |error| match error {
+        build_vertex_adjacency(mesh.tets(), vertices, offsets, incident).map_err(|error| {
+            match error {
                 StepError::LengthMismatch {
                     buffer,
                     expected,
@@ -170,8 +170,8 @@ impl<'a> TetPartition<'a> {
                 },
                 // The mesh validated its indices: only the element count is left.
                 _ => MeshError::TooManyElements,
-            },
-        )?;
+            }
+        })?;
         let pieces = pieces.max(1);
         let element_chunk = elements.div_ceil(pieces).div_ceil(LANES).max(1) * LANES;
         Ok(TetPartition {
@@ -274,10 +274,12 @@ impl<'a> TetPartition<'a> {
         let (tets_tail, rests_tail) = (tets.get(grouped..), rests.get(grouped..));
         for (group, slots) in tet_groups(tets, rests).zip(out_groups.chunks_exact_mut(LANES)) {
             let gradients = GroupGradients::new(positions, group);
-            let forces = gradients.nodal_forces(material.first_piola_lanes(gradients.f));
-            slots.copy_from_slice(&forces);
+            gradients.write_forces(material.first_piola_lanes(gradients.f), slots);
         }
-        let tail = tets_tail.unwrap_or(&[]).iter().zip(rests_tail.unwrap_or(&[]));
+        let tail = tets_tail
+            .unwrap_or(&[])
+            .iter()
+            .zip(rests_tail.unwrap_or(&[]));
         for ((corners, rest), slot) in tail.zip(out_tail) {
             let f = rest.deformation_gradient(gather(positions, corners));
             *slot = rest.nodal_forces(material.first_piola(f));
@@ -300,7 +302,8 @@ impl<'a> TetPartition<'a> {
         out: &mut [Vec3],
     ) -> Result<(), MeshError> {
         self.check_element_buffer(element_forces.len())?;
-        let vertices = self.check_piece(piece, self.vertex_piece_count(), self.vertex_piece(piece))?;
+        let vertices =
+            self.check_piece(piece, self.vertex_piece_count(), self.vertex_piece(piece))?;
         check_length(Buffer::Forces, vertices.len(), out.len())?;
         for (vertex, slot) in vertices.zip(out) {
             let start = self.offsets.get(vertex).copied().unwrap_or(0) as usize;
@@ -414,11 +417,13 @@ impl<'a> TetPartition<'a> {
             let gradients = GroupGradients::new(positions, group);
             let (density, p) = material.energy_and_first_piola_lanes(gradients.f);
             energy_slots.copy_from_slice(&(gradients.volume * density).to_array());
-            force_slots.copy_from_slice(&gradients.nodal_forces(p));
+            gradients.write_forces(p, force_slots);
         }
-        let tail = tets_tail.unwrap_or(&[]).iter().zip(rests_tail.unwrap_or(&[]));
-        for ((corners, rest), (force, energy)) in tail.zip(force_tail.iter_mut().zip(energy_tail))
-        {
+        let tail = tets_tail
+            .unwrap_or(&[])
+            .iter()
+            .zip(rests_tail.unwrap_or(&[]));
+        for ((corners, rest), (force, energy)) in tail.zip(force_tail.iter_mut().zip(energy_tail)) {
             let f = rest.deformation_gradient(gather(positions, corners));
             let (density, stress) = material.energy_and_first_piola(f);
             *energy = rest.volume * density;
@@ -510,7 +515,8 @@ impl<'a> TetPartition<'a> {
         positions: &[Vec3],
         out_len: usize,
     ) -> Result<(&'a [[u32; 4]], &'a [TetRest]), MeshError> {
-        let range = self.check_piece(piece, self.element_piece_count(), self.element_piece(piece))?;
+        let range =
+            self.check_piece(piece, self.element_piece_count(), self.element_piece(piece))?;
         check_length(Buffer::ElementForces, range.len(), out_len)?;
         check_length(Buffer::Positions, self.mesh.vertex_count(), positions.len())?;
         let tets = self.mesh.tets().get(range.clone()).unwrap_or(&[]);
