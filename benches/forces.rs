@@ -75,6 +75,9 @@ const LARGE_MESH_TETS: usize = 500_000;
 const YOUNG: f32 = 1.0e6;
 const POISSON: f32 = 0.45;
 
+/// One `step_explicit` call on positions, velocities and scratch.
+type StepFn<'s> = dyn Fn(&mut [Vec3], &mut [Vec3], &mut ExplicitScratch<'_, Vec3>) + 's;
+
 /// Pieces of the partitioned variants.
 const PIECES: usize = 8;
 
@@ -407,11 +410,10 @@ impl<'a> Variant<'a> {
         let settings = ExplicitSettings::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; n]);
         let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
-        let mut step =
-            move |model: &dyn Fn(&mut [Vec3], &mut [Vec3], &mut ExplicitScratch<'_, Vec3>)| {
-                let mut scratch = ExplicitScratch::new(&mut buffer);
-                model(&mut x, &mut v, &mut scratch);
-            };
+        let mut step = move |model: &StepFn<'_>| {
+            let mut scratch = ExplicitScratch::new(&mut buffer);
+            model(&mut x, &mut v, &mut scratch);
+        };
         let run: Box<dyn FnMut() + 'a> = match partition {
             None => Box::new(move || {
                 step(&|x, v, scratch| {
