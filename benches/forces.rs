@@ -27,6 +27,15 @@
 //!    the ratios come from the same machine state, which criterion's separate runs do not
 //!    guarantee.
 //!
+//! Threads: `stvk_direct_partitioned_f32` is the deterministic partitioned scheme
+//! (`mesh::TetPartition`: element pieces into a buffer, then a gather by vertex) run on this
+//! thread, its cost against `stvk_direct_f32`; `explicit_step_f32` is one `step_explicit` of stable
+//! neo-Hookean at half the proven stable step (the body falling from rest). With
+//! `--features rayon` the same passes run on rayon pools of 1 and 2 threads
+//! (`softfem::parallel`, `ParallelTetElastic`), and the tables are followed by the one-thread cost
+//! and the 2-thread speed-ups. `SOFTFEM_BENCH_CSV=<path>` appends every row (Mtets/s, with its
+//! thread count) to a CSV file.
+//!
 //! `SOFTFEM_BENCH_QUICK=1` skips criterion and the 1M mesh and runs the table pass with few
 //! repetitions: a smoke test that finishes in seconds.
 
@@ -41,7 +50,15 @@ use softfem::MeshError;
 use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::{DVec3, Mat3, Vec3};
 use softfem::material::{NeoHookean, StVK, StableNeoHookean};
-use softfem::mesh::TetMesh;
+use softfem::mesh::{
+    TetMesh, TetPartition, element_forces_len, partition_incident_len, partition_offsets_len,
+};
+#[cfg(feature = "rayon")]
+use softfem::parallel::ParallelTetElastic;
+use softfem::step::{
+    ExplicitScratch, ExplicitSettings, TetElastic, explicit_scratch_len, stable_time_step,
+    step_explicit,
+};
 
 /// Cubes per axis of the benchmarked boxes, 6 tetrahedra per cube: 10 368, 105 456 and 998 250
 /// tetrahedra.
@@ -57,6 +74,16 @@ const LARGE_MESH_TETS: usize = 500_000;
 /// Young's modulus (Pa) and Poisson ratio of every material: a soft rubber.
 const YOUNG: f32 = 1.0e6;
 const POISSON: f32 = 0.45;
+
+/// One `step_explicit` call on positions, velocities and scratch.
+type StepFn<'s> = dyn Fn(&mut [Vec3], &mut [Vec3], &mut ExplicitScratch<'_, Vec3>) + 's;
+
+/// Pieces of the partitioned variants.
+const PIECES: usize = 8;
+
+/// Thread counts of the rayon variants (feature `rayon`).
+#[cfg(feature = "rayon")]
+const THREADS: [usize; 2] = [1, 2];
 
 /// Stretch threshold of the clamped variant.
 const CLAMP_THRESHOLD: f32 = 0.3;
@@ -75,6 +102,9 @@ struct DeformedBox {
     positions_f64: Vec<DVec3>,
     rest: Vec<softfem::element::TetRest>,
     rest_f64: Vec<softfem::f64::element::TetRest>,
+    /// The vertex-to-element adjacency of the partitioned variants.
+    offsets: Vec<u32>,
+    incident: Vec<u32>,
     /// Smallest and largest `J = det F` over the elements.
     j_range: (f32, f32),
 }
@@ -149,6 +179,8 @@ impl DeformedBox {
             positions_f64: positions.iter().map(|x| x.as_dvec3()).collect(),
             rest: vec![softfem::element::TetRest::default(); tet_count],
             rest_f64: vec![softfem::f64::element::TetRest::default(); tet_count],
+            offsets: vec![0; partition_offsets_len(vertex_count)],
+            incident: vec![0; partition_incident_len(tet_count)],
             tets,
             rest_positions,
             positions,
@@ -175,6 +207,8 @@ impl DeformedBox {
             positions_f64,
             rest,
             rest_f64,
+            offsets,
+            incident,
             ..
         } = self;
         let mesh = TetMesh::new(rest_positions, tets, rest).unwrap();
@@ -191,7 +225,9 @@ impl DeformedBox {
 
         // Each force variant zeroes its own buffer, then runs one kernel over the whole mesh.
         let n = mesh.vertex_count();
-        vec![
+        // Eight pieces: a few per thread of the two-core machine (the bits do not depend on it).
+        let partition = TetPartition::new(mesh, PIECES, offsets, incident).unwrap();
+        let mut variants = vec![
             Variant::forces(
                 "StVK, direct, f32",
                 "stvk_direct_f32",
@@ -242,8 +278,43 @@ impl DeformedBox {
                 run: Box::new(move || {
                     black_box(mesh.elastic_energy(&stvk, black_box(positions)).unwrap());
                 }),
+                threads: 1,
             },
-        ]
+        ];
+        let mut element_forces = vec![[Vec3::ZERO; 4]; element_forces_len(mesh.element_count())];
+        variants.push(Variant::forces(
+            "StVK, direct, partitioned (pieces + gather, this thread), f32",
+            "stvk_direct_partitioned_f32",
+            n,
+            move |f: &mut [Vec3]| {
+                partition.add_elastic_forces(&stvk, positions, f, &mut element_forces)
+            },
+        ));
+        variants.push(Variant::explicit_step(
+            "stable neo-Hookean explicit step, sequential, f32",
+            "explicit_step_f32",
+            mesh,
+            None,
+            rest_positions,
+            1,
+        ));
+        #[cfg(feature = "rayon")]
+        for threads in THREADS {
+            variants.push(Variant::rayon_forces(partition, stvk, positions, threads));
+            variants.push(Variant::explicit_step(
+                [
+                    "",
+                    "stable neo-Hookean explicit step, rayon 1 thread, f32",
+                    "stable neo-Hookean explicit step, rayon 2 threads, f32",
+                ][threads],
+                ["", "explicit_step_rayon1_f32", "explicit_step_rayon2_f32"][threads],
+                mesh,
+                Some(partition),
+                rest_positions,
+                threads,
+            ));
+        }
+        variants
     }
 }
 
@@ -252,6 +323,8 @@ struct Variant<'a> {
     label: &'static str,
     id: &'static str,
     run: Box<dyn FnMut() + 'a>,
+    /// Threads the variant runs on.
+    threads: usize,
 }
 
 impl<'a> Variant<'a> {
@@ -261,7 +334,7 @@ impl<'a> Variant<'a> {
         label: &'static str,
         id: &'static str,
         vertex_count: usize,
-        add: impl Fn(&mut [V]) -> Result<(), MeshError> + 'a,
+        mut add: impl FnMut(&mut [V]) -> Result<(), MeshError> + 'a,
     ) -> Self {
         let mut forces = vec![V::default(); vertex_count];
         Variant {
@@ -272,6 +345,108 @@ impl<'a> Variant<'a> {
                 add(black_box(&mut forces)).unwrap();
                 black_box(&forces);
             }),
+            threads: 1,
+        }
+    }
+
+    /// `softfem::parallel::add_elastic_forces` (StVK direct) on a pool of `threads` threads.
+    #[cfg(feature = "rayon")]
+    fn rayon_forces(
+        partition: TetPartition<'a>,
+        stvk: StVK,
+        positions: &'a [Vec3],
+        threads: usize,
+    ) -> Self {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let mut element_forces = vec![[Vec3::ZERO; 4]; partition.mesh().element_count()];
+        let mut forces = vec![Vec3::ZERO; partition.mesh().vertex_count()];
+        Variant {
+            label: [
+                "",
+                "StVK, direct, rayon 1 thread, f32",
+                "StVK, direct, rayon 2 threads, f32",
+            ][threads],
+            id: ["", "stvk_direct_rayon1_f32", "stvk_direct_rayon2_f32"][threads],
+            run: Box::new(move || {
+                forces.fill(Vec3::ZERO);
+                pool.install(|| {
+                    softfem::parallel::add_elastic_forces(
+                        &partition,
+                        &stvk,
+                        black_box(positions),
+                        &mut forces,
+                        &mut element_forces,
+                    )
+                })
+                .unwrap();
+                black_box(&forces);
+            }),
+            threads,
+        }
+    }
+
+    /// One explicit step (stable neo-Hookean, half the proven stable step, gravity) of the box
+    /// falling from rest, sequential or (with `partition`) on a rayon pool of `threads`.
+    fn explicit_step(
+        label: &'static str,
+        id: &'static str,
+        mesh: TetMesh<'a>,
+        partition: Option<TetPartition<'a>>,
+        rest: &'a [Vec3],
+        threads: usize,
+    ) -> Self {
+        let body = TetElastic::new(
+            mesh,
+            StableNeoHookean::from_young_poisson(YOUNG, POISSON).unwrap(),
+        );
+        let n = mesh.vertex_count();
+        let mut masses = vec![0.0; n];
+        mesh.lumped_masses(1000.0, &mut masses).unwrap();
+        let mut stiffness = vec![0.0; n];
+        let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
+        let settings = ExplicitSettings::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+        let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; n]);
+        let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+        let mut step = move |model: &StepFn<'_>| {
+            let mut scratch = ExplicitScratch::new(&mut buffer);
+            model(&mut x, &mut v, &mut scratch);
+        };
+        let run: Box<dyn FnMut() + 'a> = match partition {
+            None => Box::new(move || {
+                step(&|x, v, scratch| {
+                    step_explicit(&body, &masses, &[], &settings, x, v, scratch).unwrap();
+                });
+            }),
+            #[cfg(feature = "rayon")]
+            Some(partition) => {
+                let pool = Box::leak(Box::new(
+                    rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap(),
+                ));
+                let element_forces = vec![[Vec3::ZERO; 4]; mesh.element_count()].leak();
+                let energies = vec![0.0; mesh.element_count()].leak();
+                let parallel = ParallelTetElastic::new(body, partition, element_forces, energies)
+                    .unwrap()
+                    .with_pool(pool);
+                Box::new(move || {
+                    step(&|x, v, scratch| {
+                        step_explicit(&parallel, &masses, &[], &settings, x, v, scratch).unwrap();
+                    });
+                })
+            }
+            #[cfg(not(feature = "rayon"))]
+            Some(_) => unreachable!("the rayon variants need the rayon feature"),
+        };
+        Variant {
+            label,
+            id,
+            run,
+            threads,
         }
     }
 }
@@ -343,6 +518,50 @@ fn print_table(info: &MeshInfo, variants: &mut [Variant<'_>], plan: &TablePlan) 
                 format!("{:.2}x", reference_ns / ns),
             ]
         }),
+    );
+    let by_id = |id: &str| {
+        variants
+            .iter()
+            .zip(&ns)
+            .find(|(variant, _)| variant.id == id)
+            .map(|(_, &ns)| ns)
+    };
+    let ratio = |slow: &str, fast: &str| by_id(slow).zip(by_id(fast)).map(|(s, f)| s / f);
+    let percent = |ratio: Option<f64>| {
+        ratio.map_or("-".to_owned(), |r| format!("{:+.1} %", (r - 1.0) * 100.0))
+    };
+    println!();
+    println!(
+        "Deterministic scheme, one-thread cost against the sequential pass: StVK forces {}          (pieces on this thread), {} (rayon, 1 thread); explicit step {} (rayon, 1 thread).",
+        percent(ratio("stvk_direct_partitioned_f32", "stvk_direct_f32")),
+        percent(ratio("stvk_direct_rayon1_f32", "stvk_direct_f32")),
+        percent(ratio("explicit_step_rayon1_f32", "explicit_step_f32")),
+    );
+    let speed_up = |r: Option<f64>| r.map_or("-".to_owned(), |r| format!("{r:.2}x"));
+    println!(
+        "Speed-up, 2 threads against 1 (rayon, same bits): StVK forces {}, explicit step {};          2 threads against the sequential code: forces {}, explicit step {}.",
+        speed_up(ratio("stvk_direct_rayon1_f32", "stvk_direct_rayon2_f32")),
+        speed_up(ratio(
+            "explicit_step_rayon1_f32",
+            "explicit_step_rayon2_f32"
+        )),
+        speed_up(ratio("stvk_direct_f32", "stvk_direct_rayon2_f32")),
+        speed_up(ratio("explicit_step_f32", "explicit_step_rayon2_f32")),
+    );
+    common::append_csv_rows(
+        &variants
+            .iter()
+            .zip(&ns)
+            .map(|(variant, ns)| common::CsvRow {
+                bench: "forces",
+                workload: variant.label.to_owned(),
+                size: tets,
+                lanes: softfem::lanes::LANES,
+                threads: variant.threads,
+                value: 1e3 / ns,
+                unit: "Mtets/s",
+            })
+            .collect::<Vec<_>>(),
     );
 }
 

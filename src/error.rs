@@ -416,6 +416,13 @@ pub enum Buffer {
     Products,
     /// The per-vertex 3x3 Hessian blocks, one per vertex.
     Blocks,
+    /// The vertex-to-element adjacency offsets of a `TetPartition`, one per vertex plus one.
+    AdjacencyOffsets,
+    /// The vertex-to-element adjacency entries of a `TetPartition`, four per element.
+    AdjacencyIncident,
+    /// The per-element nodal forces of a partitioned pass, one entry (four vectors) per element
+    /// (or per element of the piece).
+    ElementForces,
 }
 
 impl fmt::Display for Buffer {
@@ -431,6 +438,9 @@ impl fmt::Display for Buffer {
             Buffer::Direction => "direction",
             Buffer::Products => "Hessian product",
             Buffer::Blocks => "Hessian blocks",
+            Buffer::AdjacencyOffsets => "adjacency offsets",
+            Buffer::AdjacencyIncident => "adjacency entries",
+            Buffer::ElementForces => "element forces",
         })
     }
 }
@@ -510,6 +520,16 @@ pub enum MeshError {
         /// The element index.
         element: usize,
     },
+    /// A `TetPartition` was asked for on a mesh with more than `u32::MAX / 4` elements, which
+    /// its vertex-to-element adjacency (packed `u32` entries) cannot index.
+    TooManyElements,
+    /// A piece index of a `TetPartition` at or beyond its piece count.
+    PieceIndex {
+        /// The piece asked for.
+        piece: usize,
+        /// The number of pieces of that kind.
+        pieces: usize,
+    },
 }
 
 impl MeshError {
@@ -583,6 +603,13 @@ impl fmt::Display for MeshError {
                 "element {element}: density times volume gives a mass this precision cannot \
                  represent (underflow or overflow)"
             ),
+            MeshError::TooManyElements => write!(
+                f,
+                "a partition's adjacency indexes at most u32::MAX / 4 elements"
+            ),
+            MeshError::PieceIndex { piece, pieces } => {
+                write!(f, "piece {piece} asked for, the partition has {pieces}")
+            }
         }
     }
 }

@@ -191,6 +191,11 @@ pub mod step;
 #[path = "body/mod.rs"]
 pub mod body;
 
+#[cfg(feature = "rayon")]
+#[cfg_attr(docsrs, doc(cfg(feature = "rayon")))]
+#[path = "parallel.rs"]
+pub mod parallel;
+
 #[path = "voxel.rs"]
 pub mod voxel;
 

@@ -140,6 +140,9 @@
 //! * `defmt`: derives `defmt::Format` on every public error and report type.
 //! * `bytemuck`: derives `bytemuck::Pod` on the render-buffer types of [`surface`] (and enables
 //!   glam's `bytemuck`), so vertex and index buffers cast to bytes for a GPU upload.
+//! * `rayon` (implies `std`): `parallel`, the partitioned passes of
+//!   [`TetPartition`](mesh::TetPartition) run on rayon's pool, bit-identical to the sequential
+//!   code for any thread count.
 #![no_std]
 // docs.rs builds with `--cfg docsrs` (Cargo.toml's `[package.metadata.docs.rs]`), on nightly:
 // items behind a feature are then labelled with it.
@@ -195,6 +198,10 @@ pub use single::surface;
 pub use single::voxel;
 #[cfg(feature = "std")]
 pub use single::{gmsh, obj};
+
+#[cfg(feature = "rayon")]
+#[cfg_attr(docsrs, doc(cfg(feature = "rayon")))]
+pub use single::parallel;
 
 pub mod f64;
 

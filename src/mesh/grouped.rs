@@ -66,6 +66,25 @@ impl GroupGradients {
         }
     }
 
+    /// Writes the nodal forces (N) of the stresses `p` (Pa) into `out`, one entry per lane,
+    /// corner by corner: the vectors [`scatter_forces`](Self::scatter_forces) adds, as
+    /// [`TetRest::nodal_forces`] forms them.
+    #[inline(always)]
+    pub fn write_forces(&self, p: LaneMat3<Lanes>, out: &mut [[Vec3; 4]]) {
+        let h = p.scale(-self.volume) * self.dm_inv.transpose();
+        let corners = each_lane(
+            [-(h.c0 + h.c1 + h.c2), h.c0, h.c1, h.c2],
+            LaneVec3::to_vectors,
+        );
+        for (lane, slot) in out.iter_mut().enumerate() {
+            for (value, corner) in slot.iter_mut().zip(&corners) {
+                if let Some(&force) = corner.get(lane) {
+                    *value = force;
+                }
+            }
+        }
+    }
+
     /// Adds the nodal forces of the stresses `p` (Pa) into `forces`, element by element and
     /// corner by corner in order, as [`TetRest::nodal_forces`] forms them.
     #[inline(always)]

@@ -22,9 +22,13 @@ use crate::error::{Buffer, ElementError, MeshError};
 
 mod grouped;
 mod hessian;
+mod partition;
 mod tet;
 mod triangle;
 
+pub use partition::{
+    ElementForces, TetPartition, element_forces_len, partition_incident_len, partition_offsets_len,
+};
 pub use tet::TetMesh;
 pub(crate) use tet::check_clamp_threshold;
 pub use triangle::{MembraneMesh, TriMesh};

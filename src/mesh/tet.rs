@@ -393,7 +393,7 @@ impl<'a> TetMesh<'a> {
     /// pass over the positions settles the common case: no entry of any `F` exceeds the largest
     /// extent of the positions along an axis times `gradient_gain`. Only when that bound is
     /// above the limit (or not finite) are the elements' gradients computed one by one.
-    fn check_deformation<M: Material>(
+    pub(crate) fn check_deformation<M: Material>(
         &self,
         material: &M,
         positions: &[Vec3],

@@ -1,0 +1,304 @@
+//! The partitioned passes of [`TetPartition`] on [rayon](https://docs.rs/rayon)'s thread pool
+//! (feature `rayon`): the elastic forces, the energy, the fused energy-and-force pass and, through
+//! [`ParallelTetElastic`], the explicit stepper, **bit for bit** the results of the sequential
+//! code for any number of threads and any schedule (see [`TetPartition`] for why).
+//!
+//! The functions run on the pool they are called from: the global pool, or a pool of your own
+//! through [`rayon::ThreadPool::install`], which picks the thread count. [`ParallelTetElastic`]
+//! takes an optional pool and installs it around every force evaluation.
+//!
+//! ```
+//! use softfem::element::TetRest;
+//! use softfem::generate::{BoxSplit, box_counts, fill_box};
+//! use softfem::glam::Vec3;
+//! use softfem::material::StVK;
+//! use softfem::mesh::{TetMesh, TetPartition, element_forces_len};
+//! use softfem::mesh::{partition_incident_len, partition_offsets_len};
+//!
+//! let (vertices, tets) = box_counts(4, 4, 4, BoxSplit::Kuhn6)?;
+//! let (mut rest, mut elements) = (vec![Vec3::ZERO; vertices], vec![[0; 4]; tets]);
+//! fill_box(Vec3::ZERO, Vec3::ONE, 4, 4, 4, BoxSplit::Kuhn6, &mut rest, &mut elements)?;
+//! let mut rest_data = vec![TetRest::default(); tets];
+//! let mesh = TetMesh::new(&rest, &elements, &mut rest_data)?;
+//! let (mut offsets, mut incident) =
+//!     (vec![0; partition_offsets_len(vertices)], vec![0; partition_incident_len(tets)]);
+//! let partition = TetPartition::new(mesh, 8, &mut offsets, &mut incident)?;
+//! let material = StVK::from_young_poisson(1.0e6, 0.3)?;
+//! let x: Vec<Vec3> = rest.iter().map(|p| *p * 1.1).collect();
+//!
+//! let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build()?;
+//! let mut element_forces = vec![[Vec3::ZERO; 4]; element_forces_len(tets)];
+//! let mut forces = vec![Vec3::ZERO; vertices];
+//! pool.install(|| {
+//!     softfem::parallel::add_elastic_forces(&partition, &material, &x, &mut forces,
+//!         &mut element_forces)
+//! })?;
+//! let mut sequential = vec![Vec3::ZERO; vertices];
+//! mesh.add_elastic_forces(&material, &x, &mut sequential)?;
+//! assert_eq!(forces, sequential); // and bit for bit
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+use std::sync::{Mutex, PoisonError};
+
+use rayon::ThreadPool;
+use rayon::prelude::*;
+
+use super::element::TetRest;
+use super::material::Material;
+use super::mesh::{ElementForces, TetMesh, TetPartition};
+use super::step::{ElasticEnergy, ElasticModel, TetElastic};
+use super::types::{Real, Vec3};
+use crate::error::MeshError;
+
+/// [`TetMesh::add_elastic_forces`] on the current rayon pool, through `partition`: adds the
+/// elastic forces (N) of `material` at `positions` (m) into `forces`, with the sequential bits.
+/// `element_forces` is scratch of [`element_forces_len`](super::mesh::element_forces_len)
+/// entries.
+///
+/// # Errors
+/// As [`TetPartition::check_forces`]; on error, `forces` is unchanged.
+pub fn add_elastic_forces<M: Material + Sync>(
+    partition: &TetPartition<'_>,
+    material: &M,
+    positions: &[Vec3],
+    forces: &mut [Vec3],
+    element_forces: &mut [ElementForces],
+) -> Result<(), MeshError> {
+    partition.check_forces(material, positions, forces, element_forces)?;
+    element_forces
+        .par_chunks_mut(partition.element_chunk())
+        .enumerate()
+        .try_for_each(|(piece, out)| partition.element_forces(material, positions, piece, out))?;
+    gather(partition, element_forces, forces)
+}
+
+/// [`TetMesh::elastic_energy`] on the current rayon pool, through `partition`: the total elastic
+/// energy (J), with the sequential bits. `energies` is scratch of one entry per element (it
+/// receives every element's energy).
+///
+/// # Errors
+/// As [`TetPartition::check_energy`].
+pub fn elastic_energy<M: Material + Sync>(
+    partition: &TetPartition<'_>,
+    material: &M,
+    positions: &[Vec3],
+    energies: &mut [Real],
+) -> Result<Real, MeshError> {
+    partition.check_energy(material, positions, energies)?;
+    energies
+        .par_chunks_mut(partition.element_chunk())
+        .enumerate()
+        .try_for_each(|(piece, out)| partition.element_energies(material, positions, piece, out))?;
+    partition.total_energy(energies)
+}
+
+/// The fused energy-and-force pass of the energy-based steppers
+/// ([`ElasticEnergy::energy_and_add_forces`] of a [`TetElastic`]) on the current rayon pool:
+/// returns the energy (J) and adds the forces (N) into `forces`, with the sequential bits.
+/// Beyond the material's range the energy is infinite and `forces` is left alone, as there.
+///
+/// # Errors
+/// As [`TetPartition::check_fused`].
+pub fn energy_and_add_forces<M: Material + Sync>(
+    partition: &TetPartition<'_>,
+    material: &M,
+    positions: &[Vec3],
+    forces: &mut [Vec3],
+    element_forces: &mut [ElementForces],
+    energies: &mut [Real],
+) -> Result<Real, MeshError> {
+    if !partition.check_fused(material, positions, forces, element_forces, energies)? {
+        return Ok(Real::INFINITY);
+    }
+    let chunk = partition.element_chunk();
+    element_forces
+        .par_chunks_mut(chunk)
+        .zip(energies.par_chunks_mut(chunk))
+        .enumerate()
+        .try_for_each(|(piece, (forces, energies))| {
+            partition.element_energies_and_forces(material, positions, piece, energies, forces)
+        })?;
+    gather(partition, element_forces, forces)?;
+    partition.fused_total_energy(energies)
+}
+
+/// The vertex phase of every force pass on the current pool.
+fn gather(
+    partition: &TetPartition<'_>,
+    element_forces: &[ElementForces],
+    forces: &mut [Vec3],
+) -> Result<(), MeshError> {
+    forces
+        .par_chunks_mut(partition.vertex_chunk())
+        .enumerate()
+        .try_for_each(|(piece, out)| partition.gather_forces(element_forces, piece, out))
+}
+
+/// A [`TetElastic`] body whose force (and fused energy-and-force) passes run in parallel through
+/// a [`TetPartition`], with the bits of the sequential body: hand it to
+/// [`step_explicit`](super::step::step_explicit) (or any stepper taking an [`ElasticModel`] or
+/// [`ElasticEnergy`]) for a parallel step whose result does not depend on the thread count.
+/// The steppers' passes over the vertices stay sequential.
+///
+/// The scratch buffers sit behind a mutex (force evaluations of one body do not overlap); the
+/// optional pool is installed around every evaluation (else the caller's current pool runs it).
+///
+/// ```
+/// use softfem::element::TetRest;
+/// use softfem::generate::{BoxSplit, box_counts, fill_box};
+/// use softfem::glam::Vec3;
+/// use softfem::material::StableNeoHookean;
+/// use softfem::mesh::{TetMesh, TetPartition, element_forces_len};
+/// use softfem::mesh::{partition_incident_len, partition_offsets_len};
+/// use softfem::parallel::ParallelTetElastic;
+/// use softfem::step::{ExplicitScratch, ExplicitSettings, TetElastic, explicit_scratch_len};
+/// use softfem::step::step_explicit;
+///
+/// let (vertices, tets) = box_counts(3, 3, 3, BoxSplit::Kuhn6)?;
+/// let (mut rest, mut elements) = (vec![Vec3::ZERO; vertices], vec![[0; 4]; tets]);
+/// fill_box(Vec3::ZERO, Vec3::ONE * 0.1, 3, 3, 3, BoxSplit::Kuhn6, &mut rest, &mut elements)?;
+/// let mut rest_data = vec![TetRest::default(); tets];
+/// let mesh = TetMesh::new(&rest, &elements, &mut rest_data)?;
+/// let (mut offsets, mut incident) =
+///     (vec![0; partition_offsets_len(vertices)], vec![0; partition_incident_len(tets)]);
+/// let partition = TetPartition::new(mesh, 8, &mut offsets, &mut incident)?;
+/// let (mut element_forces, mut energies) =
+///     (vec![[Vec3::ZERO; 4]; element_forces_len(tets)], vec![0.0; tets]);
+/// let material = StableNeoHookean::from_young_poisson(1.0e5, 0.3)?;
+/// let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build()?;
+/// let body = ParallelTetElastic::new(
+///     TetElastic::new(mesh, material), partition, &mut element_forces, &mut energies,
+/// )?.with_pool(&pool);
+///
+/// let mut masses = vec![0.0; vertices];
+/// mesh.lumped_masses(1000.0, &mut masses)?;
+/// let settings = ExplicitSettings::new(1.0e-4).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+/// let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; vertices]);
+/// let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(vertices)];
+/// let mut scratch = ExplicitScratch::new(&mut buffer);
+/// step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch)?;
+/// assert!(v.iter().all(|v| v.y < 0.0)); // falling
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug)]
+pub struct ParallelTetElastic<'a, M: Material> {
+    body: TetElastic<'a, M>,
+    partition: TetPartition<'a>,
+    scratch: Mutex<(&'a mut [ElementForces], &'a mut [Real])>,
+    pool: Option<&'a ThreadPool>,
+}
+
+impl<'a, M: Material + Sync> ParallelTetElastic<'a, M> {
+    /// `body` evaluated through `partition` (of the same mesh), with scratch `element_forces`
+    /// ([`element_forces_len`](super::mesh::element_forces_len) entries) and `energies` (one
+    /// per element), on the caller's current pool.
+    ///
+    /// # Errors
+    /// [`MeshError::LengthMismatch`] for a scratch buffer of the wrong length or a partition of
+    /// another size of mesh ([`Buffer::RestData`](crate::Buffer::RestData)).
+    pub fn new(
+        body: TetElastic<'a, M>,
+        partition: TetPartition<'a>,
+        element_forces: &'a mut [ElementForces],
+        energies: &'a mut [Real],
+    ) -> Result<Self, MeshError> {
+        let (mesh, partition_mesh) = (body.mesh, partition.mesh());
+        let same = |a: &TetMesh<'_>, b: &TetMesh<'_>| {
+            a.element_count() == b.element_count() && a.vertex_count() == b.vertex_count()
+        };
+        if !same(&mesh, &partition_mesh) || !same_rest(mesh.rest(), partition_mesh.rest()) {
+            return Err(MeshError::LengthMismatch {
+                buffer: crate::Buffer::RestData,
+                expected: mesh.element_count(),
+                actual: partition_mesh.element_count(),
+            });
+        }
+        let length = |buffer, actual| {
+            if actual == mesh.element_count() {
+                Ok(())
+            } else {
+                Err(MeshError::LengthMismatch {
+                    buffer,
+                    expected: mesh.element_count(),
+                    actual,
+                })
+            }
+        };
+        length(crate::Buffer::ElementForces, element_forces.len())?;
+        length(crate::Buffer::Energies, energies.len())?;
+        Ok(ParallelTetElastic {
+            body,
+            partition,
+            scratch: Mutex::new((element_forces, energies)),
+            pool: None,
+        })
+    }
+
+    /// This body with its evaluations run on `pool` (its thread count).
+    #[must_use]
+    pub fn with_pool(self, pool: &'a ThreadPool) -> Self {
+        ParallelTetElastic {
+            pool: Some(pool),
+            ..self
+        }
+    }
+
+    /// The sequential body.
+    #[must_use]
+    pub fn body(&self) -> &TetElastic<'a, M> {
+        &self.body
+    }
+
+    /// `run` with the scratch buffers, on the pool if one was given.
+    fn run<T: Send>(&self, run: impl FnOnce(&mut [ElementForces], &mut [Real]) -> T + Send) -> T {
+        let mut scratch = self.scratch.lock().unwrap_or_else(PoisonError::into_inner);
+        let (element_forces, energies) = &mut *scratch;
+        match self.pool {
+            Some(pool) => pool.install(|| run(element_forces, energies)),
+            None => run(element_forces, energies),
+        }
+    }
+}
+
+/// Whether two rest buffers are the same memory (the same mesh).
+fn same_rest(a: &[TetRest], b: &[TetRest]) -> bool {
+    core::ptr::eq(a, b)
+}
+
+impl<M: Material + Sync> ElasticModel for ParallelTetElastic<'_, M> {
+    type Vector = Vec3;
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.body.mesh.vertex_count()
+    }
+    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
+        let (partition, material) = (&self.partition, &self.body.material);
+        self.run(|element_forces, _| {
+            add_elastic_forces(partition, material, positions, forces, element_forces)
+        })
+    }
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
+        self.body.for_each_element_stiffness(visit);
+    }
+}
+
+impl<M: Material + Sync> ElasticEnergy for ParallelTetElastic<'_, M> {
+    fn energy_and_add_forces(
+        &self,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<Real, MeshError> {
+        let (partition, material) = (&self.partition, &self.body.material);
+        self.run(|element_forces, energies| {
+            energy_and_add_forces(
+                partition,
+                material,
+                positions,
+                forces,
+                element_forces,
+                energies,
+            )
+        })
+    }
+}

@@ -1,0 +1,422 @@
+//! Determinism of the partitioned passes (`mesh::TetPartition`) and of their rayon runs
+//! (`softfem::parallel`, feature `rayon`): the forces, energies and whole explicit runs must have
+//! the bits of the sequential code for every piece count, thread count and piece order, in both
+//! precisions. The reference is the sequential kernel itself: the claim tested is equality of
+//! bits, not accuracy.
+
+/// The tests of one precision, over its `softfem` module path.
+macro_rules! precision_tests {
+    ($name:ident, $root:path, $real:ty) => {
+        mod $name {
+            use sf::element::TetRest;
+            use sf::generate::{BoxSplit, box_counts, fill_box};
+            use sf::material::{Material, StVK, StableNeoHookean};
+            use sf::mesh::{
+                ElementForces, TetMesh, TetPartition, element_forces_len, partition_incident_len,
+                partition_offsets_len,
+            };
+            use sf::step::{ElasticEnergy, TetElastic};
+            use sf::types::Vec3;
+            use $root as sf;
+
+            type Real = $real;
+
+            /// A box of `cells^3` Kuhn cells (6 tets each), its rest positions and tets.
+            pub(super) fn box_mesh(cells: usize) -> (Vec<Vec3>, Vec<[u32; 4]>) {
+                let (vertices, tets) = box_counts(cells, cells, cells, BoxSplit::Kuhn6).unwrap();
+                let (mut rest, mut elements) = (vec![Vec3::ZERO; vertices], vec![[0; 4]; tets]);
+                let (low, high) = (Vec3::ZERO, Vec3::splat(0.1) + Vec3::Y * 0.05);
+                fill_box(
+                    low,
+                    high,
+                    cells,
+                    cells,
+                    cells,
+                    BoxSplit::Kuhn6,
+                    &mut rest,
+                    &mut elements,
+                )
+                .unwrap();
+                (rest, elements)
+            }
+
+            /// Deformed positions: an affine map plus a deterministic jitter (LCG), so that
+            /// every element has its own `F`.
+            fn deformed(rest: &[Vec3]) -> Vec<Vec3> {
+                let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
+                let mut next = || {
+                    state = state
+                        .wrapping_mul(6_364_136_223_846_793_005)
+                        .wrapping_add(1_442_695_040_888_963_407);
+                    ((state >> 40) as Real / (1u64 << 24) as Real - 0.5) * 2.0e-3
+                };
+                rest.iter()
+                    .map(|p| {
+                        Vec3::new(
+                            1.1 * p.x + 0.05 * p.y + next(),
+                            0.92 * p.y - 0.03 * p.z + next(),
+                            0.97 * p.z + 0.02 * p.x + next(),
+                        )
+                    })
+                    .collect()
+            }
+
+            /// Non-zero starting forces, so the gather must add to the caller's values.
+            fn initial_forces(n: usize) -> Vec<Vec3> {
+                (0..n)
+                    .map(|i| Vec3::new(0.5, -0.25, 0.125) * (i % 7) as Real)
+                    .collect()
+            }
+
+            fn bits(v: &[Vec3]) -> Vec<[u64; 3]> {
+                v.iter()
+                    .map(|p| p.to_array().map(|c| (c as f64).to_bits()))
+                    .collect()
+            }
+
+            /// A permutation of `0..n` from a seed (Fisher-Yates on an LCG).
+            fn shuffled(n: usize, seed: u64) -> Vec<usize> {
+                let mut order: Vec<usize> = (0..n).collect();
+                let mut state = seed;
+                for i in (1..n).rev() {
+                    state = state
+                        .wrapping_mul(6_364_136_223_846_793_005)
+                        .wrapping_add(1_442_695_040_888_963_407);
+                    order.swap(i, (state >> 33) as usize % (i + 1));
+                }
+                order
+            }
+
+            /// Forces, energy and fused pass of `material` through partitions of several piece
+            /// counts, pieces in shuffled order on one thread, against the sequential kernels.
+            fn shuffled_matches<M: Material>(material: &M, cells: usize) {
+                let (rest, tets) = box_mesh(cells);
+                let mut rest_data = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let x = deformed(&rest);
+                let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+
+                let mut expected = initial_forces(nv);
+                mesh.add_elastic_forces(material, &x, &mut expected)
+                    .unwrap();
+                let expected_energy = mesh.elastic_energy(material, &x).unwrap();
+                let body = TetElastic::new(mesh, *material);
+                let mut expected_fused = initial_forces(nv);
+                let expected_fused_energy =
+                    body.energy_and_add_forces(&x, &mut expected_fused).unwrap();
+                assert!(expected_energy > 0.0 && expected_fused_energy > 0.0);
+
+                for (pieces, seed) in [(1, 1), (2, 2), (3, 3), (7, 4), (64, 5), (ne + 5, 6)] {
+                    let mut offsets = vec![0; partition_offsets_len(nv)];
+                    let mut incident = vec![0; partition_incident_len(ne)];
+                    let partition =
+                        TetPartition::new(mesh, pieces, &mut offsets, &mut incident).unwrap();
+                    assert_eq!(partition.element_chunk() % sf::lanes::LANES, 0);
+
+                    let mut element_forces: Vec<ElementForces> =
+                        vec![[Vec3::ZERO; 4]; element_forces_len(ne)];
+                    let mut forces = initial_forces(nv);
+                    partition
+                        .check_forces(material, &x, &forces, &element_forces)
+                        .unwrap();
+                    // The slices as a caller hands them out: `chunks_mut`, run shuffled.
+                    let mut slices: Vec<_> = element_forces
+                        .chunks_mut(partition.element_chunk())
+                        .enumerate()
+                        .map(Some)
+                        .collect();
+                    assert_eq!(slices.len(), partition.element_piece_count());
+                    for slot in shuffled(slices.len(), seed) {
+                        let (piece, out) = slices[slot].take().unwrap();
+                        assert_eq!(out.len(), partition.element_piece(piece).len());
+                        partition.element_forces(material, &x, piece, out).unwrap();
+                    }
+                    let mut slices: Vec<_> = forces
+                        .chunks_mut(partition.vertex_chunk())
+                        .enumerate()
+                        .map(Some)
+                        .collect();
+                    assert_eq!(slices.len(), partition.vertex_piece_count());
+                    for slot in shuffled(slices.len(), seed ^ 0x5555) {
+                        let (piece, out) = slices[slot].take().unwrap();
+                        partition
+                            .gather_forces(&element_forces, piece, out)
+                            .unwrap();
+                    }
+                    assert_eq!(bits(&forces), bits(&expected), "forces, {pieces} pieces");
+
+                    let mut one_thread = initial_forces(nv);
+                    partition
+                        .add_elastic_forces(material, &x, &mut one_thread, &mut element_forces)
+                        .unwrap();
+                    assert_eq!(bits(&one_thread), bits(&expected));
+
+                    let mut energies = vec![0.0; ne];
+                    partition.check_energy(material, &x, &energies).unwrap();
+                    for piece in shuffled(partition.element_piece_count(), seed + 10) {
+                        let range = partition.element_piece(piece);
+                        partition
+                            .element_energies(material, &x, piece, &mut energies[range])
+                            .unwrap();
+                    }
+                    let energy = partition.total_energy(&energies).unwrap();
+                    assert_eq!(
+                        energy.to_bits(),
+                        expected_energy.to_bits(),
+                        "{pieces} pieces"
+                    );
+
+                    let mut forces = initial_forces(nv);
+                    assert!(
+                        partition
+                            .check_fused(material, &x, &forces, &element_forces, &energies)
+                            .unwrap()
+                    );
+                    for piece in shuffled(partition.element_piece_count(), seed + 20) {
+                        let range = partition.element_piece(piece);
+                        partition
+                            .element_energies_and_forces(
+                                material,
+                                &x,
+                                piece,
+                                &mut energies[range.clone()],
+                                &mut element_forces[range],
+                            )
+                            .unwrap();
+                    }
+                    for piece in shuffled(partition.vertex_piece_count(), seed + 30) {
+                        let range = partition.vertex_piece(piece);
+                        partition
+                            .gather_forces(&element_forces, piece, &mut forces[range])
+                            .unwrap();
+                    }
+                    assert_eq!(
+                        bits(&forces),
+                        bits(&expected_fused),
+                        "fused, {pieces} pieces"
+                    );
+                    let fused = partition.fused_total_energy(&energies).unwrap();
+                    assert_eq!(fused.to_bits(), expected_fused_energy.to_bits());
+                }
+            }
+
+            #[test]
+            fn shuffled_pieces_on_one_thread_give_the_sequential_bits() {
+                // 5^3 cells: 750 tets (750 % 4 = 2, so the scalar tail after the last group
+                // is exercised), odd vertex count 216.
+                let snh = StableNeoHookean::from_young_poisson(1.0e5, 0.45).unwrap();
+                shuffled_matches(&snh, 5);
+                shuffled_matches(&StVK::from_young_poisson(1.0e6, 0.3).unwrap(), 4);
+            }
+
+            #[test]
+            fn partition_refuses_bad_buffers_and_pieces() {
+                let (rest, tets) = box_mesh(2);
+                let mut rest_data = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+                let mut short = vec![0; partition_offsets_len(nv) - 1];
+                let mut incident = vec![0; partition_incident_len(ne)];
+                assert_eq!(
+                    TetPartition::new(mesh, 2, &mut short, &mut incident).unwrap_err(),
+                    sf::MeshError::LengthMismatch {
+                        buffer: sf::Buffer::AdjacencyOffsets,
+                        expected: nv + 1,
+                        actual: nv,
+                    }
+                );
+                let mut offsets = vec![0; partition_offsets_len(nv)];
+                let partition = TetPartition::new(mesh, 2, &mut offsets, &mut incident).unwrap();
+                let material = StVK::from_young_poisson(1.0e6, 0.3).unwrap();
+                let mut out = vec![[Vec3::ZERO; 4]; partition.element_chunk()];
+                let pieces = partition.element_piece_count();
+                assert_eq!(
+                    partition.element_forces(&material, &rest, pieces, &mut out),
+                    Err(sf::MeshError::PieceIndex {
+                        piece: pieces,
+                        pieces
+                    })
+                );
+                let element_forces = vec![[Vec3::ZERO; 4]; ne - 1];
+                let forces = vec![Vec3::ZERO; nv];
+                assert!(matches!(
+                    partition.check_forces(&material, &rest, &forces, &element_forces),
+                    Err(sf::MeshError::LengthMismatch {
+                        buffer: sf::Buffer::ElementForces,
+                        ..
+                    })
+                ));
+                let mut bad = rest.clone();
+                bad[3].y = Real::NAN;
+                let element_forces = vec![[Vec3::ZERO; 4]; ne];
+                assert_eq!(
+                    partition.check_forces(&material, &bad, &forces, &element_forces),
+                    Err(sf::MeshError::NonFinitePosition { vertex: 3 })
+                );
+            }
+
+            #[cfg(feature = "rayon")]
+            mod threads {
+                use super::*;
+                use sf::parallel::{self, ParallelTetElastic};
+                use sf::step::{
+                    ExplicitScratch, ExplicitSettings, Ground, explicit_scratch_len,
+                    stable_time_step, step_explicit,
+                };
+
+                const THREADS: [usize; 4] = [1, 2, 3, 8];
+
+                fn pool(threads: usize) -> rayon::ThreadPool {
+                    rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap()
+                }
+
+                #[test]
+                fn forces_and_energies_on_1_2_3_8_threads_give_the_sequential_bits() {
+                    let (rest, tets) = box_mesh(8); // 3072 tets
+                    let mut rest_data = vec![TetRest::default(); tets.len()];
+                    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                    let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+                    let material = StableNeoHookean::from_young_poisson(1.0e5, 0.45).unwrap();
+                    let x = deformed(&rest);
+                    let mut expected = initial_forces(nv);
+                    mesh.add_elastic_forces(&material, &x, &mut expected)
+                        .unwrap();
+                    let expected_energy = mesh.elastic_energy(&material, &x).unwrap();
+                    let mut expected_fused = initial_forces(nv);
+                    let expected_fused_energy = TetElastic::new(mesh, material)
+                        .energy_and_add_forces(&x, &mut expected_fused)
+                        .unwrap();
+                    for threads in THREADS {
+                        // Many pieces per thread: work stealing reorders them.
+                        let mut offsets = vec![0; partition_offsets_len(nv)];
+                        let mut incident = vec![0; partition_incident_len(ne)];
+                        let partition =
+                            TetPartition::new(mesh, 4 * threads + 1, &mut offsets, &mut incident)
+                                .unwrap();
+                        let mut element_forces = vec![[Vec3::ZERO; 4]; ne];
+                        let mut energies = vec![0.0; ne];
+                        let pool = pool(threads);
+                        let mut forces = initial_forces(nv);
+                        pool.install(|| {
+                            parallel::add_elastic_forces(
+                                &partition,
+                                &material,
+                                &x,
+                                &mut forces,
+                                &mut element_forces,
+                            )
+                        })
+                        .unwrap();
+                        assert_eq!(bits(&forces), bits(&expected), "{threads} threads");
+                        let energy = pool
+                            .install(|| {
+                                parallel::elastic_energy(&partition, &material, &x, &mut energies)
+                            })
+                            .unwrap();
+                        assert_eq!(energy.to_bits(), expected_energy.to_bits());
+                        let mut forces = initial_forces(nv);
+                        let fused = pool
+                            .install(|| {
+                                parallel::energy_and_add_forces(
+                                    &partition,
+                                    &material,
+                                    &x,
+                                    &mut forces,
+                                    &mut element_forces,
+                                    &mut energies,
+                                )
+                            })
+                            .unwrap();
+                        assert_eq!(bits(&forces), bits(&expected_fused), "{threads} threads");
+                        assert_eq!(fused.to_bits(), expected_fused_energy.to_bits());
+                    }
+                }
+
+                /// 100 explicit steps of a box dropped onto the ground, sequential against the
+                /// parallel body on 1, 2, 3 and 8 threads: every position and velocity bit.
+                #[test]
+                fn explicit_box_drop_on_1_2_3_8_threads_gives_the_sequential_bits() {
+                    let (rest, tets) = box_mesh(6);
+                    let lifted: Vec<Vec3> = rest.iter().map(|p| *p + Vec3::Y * 0.002).collect();
+                    let mut rest_data = vec![TetRest::default(); tets.len()];
+                    let mesh = TetMesh::new(&lifted, &tets, &mut rest_data).unwrap();
+                    let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+                    let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
+                    let body = TetElastic::new(mesh, material);
+                    let mut masses = vec![0.0; nv];
+                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                    let mut stiffness = vec![0.0; nv];
+                    let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
+                    let settings = ExplicitSettings::new(dt)
+                        .with_gravity(Vec3::new(0.0, -9.81, 0.0))
+                        .with_damping(2.0)
+                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                    let run = |model: &dyn Fn(
+                        &mut [Vec3],
+                        &mut [Vec3],
+                        &mut ExplicitScratch<'_, Vec3>,
+                    )| {
+                        let (mut x, mut v) = (lifted.clone(), vec![Vec3::ZERO; nv]);
+                        let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(nv)];
+                        let mut scratch = ExplicitScratch::new(&mut buffer);
+                        for _ in 0..100 {
+                            model(&mut x, &mut v, &mut scratch);
+                        }
+                        (bits(&x), bits(&v))
+                    };
+                    let expected = run(&|x, v, scratch| {
+                        step_explicit(&body, &masses, &[], &settings, x, v, scratch).unwrap();
+                    });
+                    // The box has landed: the run exercised contacts, not only free fall.
+                    let (mut x, mut v) = (lifted.clone(), vec![Vec3::ZERO; nv]);
+                    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(nv)];
+                    let mut scratch = ExplicitScratch::new(&mut buffer);
+                    let mut contacts = 0;
+                    for _ in 0..100 {
+                        let report = step_explicit(
+                            &body,
+                            &masses,
+                            &[],
+                            &settings,
+                            &mut x,
+                            &mut v,
+                            &mut scratch,
+                        )
+                        .unwrap();
+                        contacts += report.ground_contacts;
+                    }
+                    assert!(contacts > 0, "no contact in 100 steps");
+                    for threads in THREADS {
+                        let mut offsets = vec![0; partition_offsets_len(nv)];
+                        let mut incident = vec![0; partition_incident_len(ne)];
+                        let partition =
+                            TetPartition::new(mesh, 3 * threads, &mut offsets, &mut incident)
+                                .unwrap();
+                        let mut element_forces = vec![[Vec3::ZERO; 4]; ne];
+                        let mut energies = vec![0.0; ne];
+                        let pool = pool(threads);
+                        let parallel_body = ParallelTetElastic::new(
+                            body,
+                            partition,
+                            &mut element_forces,
+                            &mut energies,
+                        )
+                        .unwrap()
+                        .with_pool(&pool);
+                        let got = run(&|x, v, scratch| {
+                            step_explicit(&parallel_body, &masses, &[], &settings, x, v, scratch)
+                                .unwrap();
+                        });
+                        assert!(got == expected, "{threads} threads: explicit run differs");
+                    }
+                }
+            }
+        }
+    };
+}
+
+precision_tests!(single, softfem, f32);
+precision_tests!(double, softfem::f64, f64);
