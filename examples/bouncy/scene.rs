@@ -554,8 +554,8 @@ pub enum RunError {
         time: f64,
         /// The stepper's message.
         message: String,
-        /// Statistics up to the failure.
-        stats: RunStats,
+        /// Statistics up to the failure (boxed: they would make every `Result` large).
+        stats: Box<RunStats>,
     },
     /// Writing a frame failed.
     Output(String),
@@ -631,7 +631,7 @@ where
                         step: stats.steps,
                         time: stats.simulated,
                         message,
-                        stats,
+                        stats: Box::new(stats),
                     });
                 }
             }
