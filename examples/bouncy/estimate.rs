@@ -21,12 +21,12 @@ use crate::cli::{Args, Stepper, VtkContent};
 const MEMORY_BYTES: (f64, f64) = (110.0, 150.0);
 /// Wall time per tetrahedron and step (explicit) or iteration (relaxation), in seconds.
 const SECONDS_PER_TET_PASS: f64 = 9e-8;
-/// Newton's cost per step in tetrahedron passes at [`SECONDS_PER_TET_PASS`]: 2.2 ms per step
-/// on the default jelly cube (1296 tets, 1.4 Newton and 7 CG iterations per step) is 19 of
-/// them; rounded up.
-const NEWTON_PASSES_PER_STEP: f64 = 25.0;
-/// VBD's, likewise: 7.2 ms per step on the default cube (6.6 sweeps per step) is 62 passes.
-const VBD_PASSES_PER_STEP: f64 = 70.0;
+/// Newton's cost per step in tetrahedron passes at [`SECONDS_PER_TET_PASS`]: 2.2 to 3.2 ms per
+/// step on the default jelly cube (1080 tets, 1.4 Newton and 7 CG iterations per step; two
+/// runs at different loads) is 23 to 33 of them.
+const NEWTON_PASSES_PER_STEP: f64 = 30.0;
+/// VBD's, likewise: 3.6 ms per step on the default cube (6.6 sweeps per step) is 37 passes.
+const VBD_PASSES_PER_STEP: f64 = 40.0;
 /// Wall time per tetrahedron (s) of building and checking the mesh, its surface and masses,
 /// and drawing the filmstrip.
 const SETUP_SECONDS_PER_TET: f64 = 1e-5;
