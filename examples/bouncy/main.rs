@@ -391,6 +391,7 @@ fn simulate<M: Material>(
                                 relative_residual: report.final_residual
                                     / report.initial_residual.max(weight),
                                 converged: report.converged,
+                                at_floor: false,
                             }),
                         })
                         .map_err(|e| e.to_string())
@@ -429,6 +430,7 @@ fn simulate<M: Material>(
                                 relative_residual: report.residual
                                     / report.initial_residual.max(weight),
                                 converged: report.converged,
+                                at_floor: report.stagnated && report.residual > report.target,
                             }),
                         })
                         .map_err(|e| e.to_string())
@@ -469,6 +471,7 @@ fn simulate<M: Material>(
                                 relative_residual: report.final_residual
                                     / report.initial_residual.max(weight),
                                 converged: report.converged,
+                                at_floor: false,
                             }),
                         })
                         .map_err(|e| e.to_string())

@@ -179,6 +179,13 @@ impl Summary {
                     s.inner_iterations as f64 / s.iterations.max(1) as f64
                 ));
             }
+            if s.at_floor > 0 {
+                lines.push(format!(
+                    "                 {} converged at the rounding floor, above the tolerance \
+                     (the precision allows no smaller residual)",
+                    s.at_floor
+                ));
+            }
             let converged = s.solves - s.not_converged;
             lines.push(format!(
                 "                 {converged} of {} converged ({:.1} %), {} did not; worst final \
@@ -281,6 +288,7 @@ mod tests {
             inner_iterations: 600,
             line_search_steps: 3,
             not_converged: 1,
+            at_floor: 1,
             worst_residual: 0.01,
         };
         let text = summary.lines().join("\n");
@@ -297,6 +305,7 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("0.67 ms of wall time per step"), "{text}");
+        assert!(text.contains("1 converged at the rounding floor"), "{text}");
     }
 
     #[test]

@@ -403,6 +403,9 @@ pub struct SolveInfo {
     pub relative_residual: f32,
     /// Whether the residual reached the tolerance.
     pub converged: bool,
+    /// Whether the solve counted as converged at the rounding floor, above the tolerance
+    /// (Newton's `NewtonReport::stagnated`); false for the other steppers.
+    pub at_floor: bool,
 }
 
 /// Solver statistics over a run.
@@ -420,6 +423,8 @@ pub struct SolveTotals {
     pub line_search_steps: u64,
     /// Solves that did not converge.
     pub not_converged: u64,
+    /// Solves that converged at the rounding floor, above the tolerance.
+    pub at_floor: u64,
     /// The largest final relative residual.
     pub worst_residual: f32,
 }
@@ -432,6 +437,7 @@ impl SolveTotals {
         self.inner_iterations += u64::from(solve.inner_iterations);
         self.line_search_steps += u64::from(solve.line_search_steps);
         self.not_converged += u64::from(!solve.converged);
+        self.at_floor += u64::from(solve.converged && solve.at_floor);
         self.worst_residual = self.worst_residual.max(solve.relative_residual);
     }
 }
@@ -910,6 +916,7 @@ mod tests {
                     line_search_steps: 1,
                     relative_residual: 1e-3 * n as f32,
                     converged: n != 2,
+                    at_floor: n >= 2,
                 }),
             })
         };
@@ -927,7 +934,7 @@ mod tests {
             (4, 100, 40)
         );
         assert_eq!((totals.line_search_steps, totals.not_converged), (4, 1));
-        assert_eq!(totals.inner_iterations, 1000);
+        assert_eq!((totals.inner_iterations, totals.at_floor), (1000, 2));
         assert!((totals.worst_residual - 4e-3).abs() < 1e-9);
     }
 }

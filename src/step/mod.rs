@@ -132,7 +132,8 @@
 //!   and whenever the answer must converge. The static cantilever (400 tets) reached `1e-6` in
 //!   9 Newton iterations (265 CG), 7.5 ms, where Chebyshev relaxation needed 73 000 iterations
 //!   (1.06 s); on a stiff cube (E = 1e8 Pa) dropped at 1/30 s in f32 it converged on 30 of 30
-//!   steps (within its rounding floor) where the relaxation converged on 2 and VBD on 3. An
+//!   steps (26 of them stopped at its rounding floor, up to 0.29 of the weight: see
+//!   [`newton_step`]) where the relaxation converged on 2 and VBD on 3. An
 //!   iteration costs 40 to 60 force evaluations (element Hessians and CG).
 //! * [`vbd_step`]: fewer iterations than the relaxation (111 sweeps on the bouncy cube's
 //!   landing step against Chebyshev's 183) and monotone sweeps, so a small fixed budget of
