@@ -21,11 +21,12 @@ pub struct Args {
     pub model: Model,
 
     /// Time stepper: explicit symplectic Euler, or implicit Euler solved by preconditioned
-    /// gradient descent ("relax").
+    /// gradient descent ("relax"), Newton's method ("newton") or Vertex Block Descent ("vbd").
     #[arg(long, value_enum, default_value_t = Stepper::Explicit)]
     pub stepper: Stepper,
 
-    /// Time step (s). Default: a safe fraction of the stable bound for explicit, 1/60 s for relax.
+    /// Time step (s). Default: a safe fraction of the stable bound for explicit, 1/60 s for the
+    /// implicit steppers (relax, newton, vbd).
     #[arg(long, value_parser = positive_finite)]
     pub dt: Option<f32>,
 
@@ -151,6 +152,10 @@ pub enum Stepper {
     Explicit,
     /// Implicit Euler by preconditioned gradient descent.
     Relax,
+    /// Implicit Euler by Newton's method (projected Hessian, conjugate gradients).
+    Newton,
+    /// Implicit Euler by Vertex Block Descent (per-vertex Newton steps, Gauss–Seidel order).
+    Vbd,
 }
 
 impl fmt::Display for Stepper {
@@ -158,6 +163,8 @@ impl fmt::Display for Stepper {
         f.write_str(match self {
             Stepper::Explicit => "explicit",
             Stepper::Relax => "relax",
+            Stepper::Newton => "newton",
+            Stepper::Vbd => "vbd",
         })
     }
 }
@@ -262,10 +269,26 @@ mod tests {
         assert_eq!(args.mesh, Some(PathBuf::from("assets/meshes/cube.node")));
     }
 
+    #[test]
+    fn every_stepper_parses_and_prints_its_flag_name() {
+        for (name, stepper) in [
+            ("explicit", Stepper::Explicit),
+            ("relax", Stepper::Relax),
+            ("newton", Stepper::Newton),
+            ("vbd", Stepper::Vbd),
+        ] {
+            let args = parse(&["--stepper", name]).unwrap();
+            assert_eq!(args.stepper, stepper);
+            assert_eq!(stepper.to_string(), name);
+        }
+        let error = parse(&["--stepper", "newtons"]).unwrap_err().to_string();
+        assert!(error.contains("newton") && error.contains("vbd"), "{error}");
+    }
+
     /// The README's text about the scene, paragraph by paragraph: its section (from "**Run the
     /// main example scene**" to the next "**Run") and every other paragraph naming `bouncy` or
-    /// "the scene", with each code span or block that is a `cargo` command left out (those hold
-    /// cargo's flags).
+    /// "the scene", with each fenced block and each code span that is a command of another
+    /// program left out (`cargo`, `sudo`, `apt-get`, `rustup`: those hold that program's flags).
     fn readme_scene_text() -> Vec<String> {
         let readme = include_str!("../../README.md");
         let marker = "**Run the main example scene**";
@@ -279,9 +302,15 @@ mod tests {
             .split("\n\n")
             .chain(others)
             .map(|paragraph| {
-                let segments = paragraph.split('`').enumerate().filter(|(i, segment)| {
+                // Fenced blocks are either commands (cargo's flags) or listings (the layout's
+                // file names), never the scene's flags.
+                let unfenced: String = paragraph.split("```").step_by(2).collect();
+                let segments = unfenced.split('`').enumerate().filter(|(i, segment)| {
                     let code = segment.trim_start().trim_start_matches("sh").trim_start();
-                    i % 2 == 0 || !code.starts_with("cargo")
+                    let command = ["cargo", "sudo", "apt-get", "rustup"]
+                        .iter()
+                        .any(|program| code.starts_with(program));
+                    i % 2 == 0 || !command
                 });
                 let kept: Vec<&str> = segments.map(|(_, segment)| segment).collect();
                 kept.join("`").replace('\n', " ")

@@ -21,6 +21,12 @@ use crate::cli::{Args, Stepper, VtkContent};
 const MEMORY_BYTES: (f64, f64) = (110.0, 150.0);
 /// Wall time per tetrahedron and step (explicit) or iteration (relaxation), in seconds.
 const SECONDS_PER_TET_PASS: f64 = 9e-8;
+/// Newton's cost per step in tetrahedron passes at [`SECONDS_PER_TET_PASS`]: 2.2 to 3.2 ms per
+/// step on the default jelly cube (1080 tets, 1.4 Newton and 7 CG iterations per step; two
+/// runs at different loads) is 23 to 33 of them.
+const NEWTON_PASSES_PER_STEP: f64 = 30.0;
+/// VBD's, likewise: 3.6 ms per step on the default cube (6.6 sweeps per step) is 37 passes.
+const VBD_PASSES_PER_STEP: f64 = 40.0;
 /// Wall time per tetrahedron (s) of building and checking the mesh, its surface and masses,
 /// and drawing the filmstrip.
 const SETUP_SECONDS_PER_TET: f64 = 1e-5;
@@ -103,6 +109,8 @@ impl Estimate {
         let passes_per_step = match args.stepper {
             Stepper::Explicit => 1.0,
             Stepper::Relax => 6.0 * (tets / 5.0).cbrt(),
+            Stepper::Newton => NEWTON_PASSES_PER_STEP,
+            Stepper::Vbd => VBD_PASSES_PER_STEP,
         };
         Estimate {
             memory_bytes: MEMORY_BYTES.0 * tets + MEMORY_BYTES.1 * vertices,

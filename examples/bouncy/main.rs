@@ -3,7 +3,8 @@
 //!
 //! Builds the scene from the flags, validates the mesh and material, steps it with
 //! `softfem::step` (explicit symplectic Euler at half the computed stable time step, or implicit
-//! Euler solved by preconditioned descent), and writes VTK frames (ParaView), a filmstrip SVG and
+//! Euler solved by preconditioned gradient descent, Newton's method or Vertex Block Descent),
+//! and writes VTK frames (ParaView), a filmstrip SVG and
 //! a summary. Bad flags or a bad mesh give a readable error and a non-zero exit status; so do
 //! implicit solves that did not converge (after the output is written). Before building the
 //! body and before the first step it prints an estimate of memory, output and wall time, and
@@ -32,12 +33,14 @@ use scene::{
     AnyMaterial, Body, FrameView, Geometry, RunConfig, RunStats, SolveInfo, SolveTotals, State,
     StepInfo,
 };
-use softfem::element::TetRest;
-use softfem::glam::Vec3;
+use softfem::element::{TetHessian, TetRest};
+use softfem::glam::{Mat3, Vec3};
 use softfem::material::Material;
 use softfem::step::{
-    ExplicitScratch, ExplicitSettings, Ground, RelaxScratch, RelaxSettings, TetElastic,
-    explicit_scratch_len, relax_scratch_len, relax_step, stable_time_step, step_explicit,
+    ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonSettings, RelaxScratch,
+    RelaxSettings, TetElastic, VbdScratch, VbdSettings, explicit_scratch_len, newton_scratch_len,
+    newton_step, relax_scratch_len, relax_step, stable_time_step, step_explicit,
+    vbd_index_scratch_len, vbd_scratch_len, vbd_step,
 };
 
 /// Mass-proportional damping (1/s) of the explicit stepper: a little, so the wobble settles
@@ -45,6 +48,15 @@ use softfem::step::{
 const DAMPING: f32 = 0.5;
 /// Coulomb friction coefficient of the ground.
 const FRICTION: f32 = 0.6;
+/// The relative tolerance of the Newton and VBD solves: the relaxation's default, measured on
+/// this scene (see `RelaxSettings::new`), so that the three implicit steppers solve to the
+/// same residual and their iteration counts and wall times compare.
+const TOLERANCE: f32 = 2e-3;
+/// Newton's budgets: Newton iterations per step and CG iterations per Newton iteration.
+const NEWTON_BUDGET: (u32, u32) = (30, 200);
+/// VBD's budget of sweeps per step, and the plain sweeps from which it estimates Chebyshev's
+/// `rho` (`VbdSettings::with_estimated_chebyshev`).
+const VBD_BUDGET: (u32, u32) = (300, 4);
 
 fn main() -> ExitCode {
     let args = Args::parse(); // bad flags: clap prints the reason and exits with status 2
@@ -169,6 +181,11 @@ fn bouncy(args: &Args, console: &mut Console<impl Write>) -> Result<(), String> 
         energies: body.energies(&material, &state.positions, &state.velocities)?,
         initial_energies,
         solves: stats.solves,
+        iteration_name: match args.stepper {
+            Stepper::Newton => "Newton iterations",
+            Stepper::Vbd => "sweeps",
+            Stepper::Explicit | Stepper::Relax => "iterations",
+        },
         centre_shift: {
             let end = body.centre_of_mass(&state.positions);
             [0, 1, 2].map(|axis| end[axis] - initial_centre[axis])
@@ -301,13 +318,20 @@ fn simulate<M: Material>(
     let hint = match args.stepper {
         Stepper::Explicit if args.dt.is_none() => format!(
             " (the explicit step is {} of the stable bound, which shrinks with the mesh size \
-             and as nu nears 0.5; --stepper relax takes 1/60 s steps)",
+             and as nu nears 0.5; --stepper relax, newton or vbd take 1/60 s steps)",
             scene::EXPLICIT_SAFETY_FRACTION
         ),
         _ => String::new(),
     };
     estimate.check(args.yes, &hint).map_err(Failure::Refused)?;
     let ground = Ground::new(Vec3::Z, 0.0).with_friction(FRICTION);
+    // The implicit solvers' common scale for their tolerance: max(|grad Phi(x_0)|, |M g|) (N).
+    let weight = body
+        .masses
+        .iter()
+        .map(|m| (m * scene::G).powi(2))
+        .sum::<f32>()
+        .sqrt();
     let mut progress = Progress::new(args.quiet);
     let on_frame = |frame: &FrameView<'_>| {
         writer.write(frame)?;
@@ -341,13 +365,14 @@ fn simulate<M: Material>(
             let settings = RelaxSettings::new(dt)
                 .with_gravity(scene::GRAVITY)
                 .with_ground(ground);
-            // The solver's own scale for its tolerance: max(|grad Phi(x_0)|, |M g|) (N).
-            let weight = body
-                .masses
-                .iter()
-                .map(|m| (m * scene::G).powi(2))
-                .sum::<f32>()
-                .sqrt();
+            console.line(format_args!(
+                "solver    gradient descent, P = diagonal bound, step {}, Chebyshev rho {}; \
+                 tolerance {:.0e} of the load, at most {} iterations",
+                settings.step_length,
+                settings.chebyshev,
+                settings.tolerance,
+                settings.max_iterations
+            ));
             let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
             let mut scalars = vec![0.0; n];
             let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
@@ -361,10 +386,92 @@ fn simulate<M: Material>(
                         .map(|report| StepInfo {
                             solve: Some(SolveInfo {
                                 iterations: report.iterations,
+                                inner_iterations: 0,
                                 line_search_steps: report.backtracks,
                                 relative_residual: report.final_residual
                                     / report.initial_residual.max(weight),
                                 converged: report.converged,
+                                at_floor: false,
+                            }),
+                        })
+                        .map_err(|e| e.to_string())
+                },
+                on_frame,
+            )
+        }
+        Stepper::Newton => {
+            let settings = NewtonSettings::new(dt)
+                .with_gravity(scene::GRAVITY)
+                .with_ground(ground)
+                .with_tolerance(TOLERANCE, NEWTON_BUDGET.0)
+                .with_cg_iterations(NEWTON_BUDGET.1);
+            console.line(format_args!(
+                "solver    Newton, P = projected Hessian, block-Jacobi CG; tolerance {:.0e} of \
+                 the load (or the rounding floor), at most {} Newton and {} CG iterations each",
+                settings.tolerance, settings.max_iterations, settings.max_cg_iterations
+            ));
+            let len = newton_scratch_len(n, body.mesh.element_count());
+            let mut vectors = vec![Vec3::ZERO; len.vectors];
+            let mut blocks = vec![Mat3::ZERO; len.blocks];
+            let mut hessians = vec![TetHessian::default(); len.hessians];
+            let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
+            scene::run(
+                state,
+                &config,
+                &mut progress,
+                |x, v, h| {
+                    let settings = NewtonSettings { dt: h, ..settings };
+                    newton_step(&model, &body.masses, &[], &settings, x, v, &mut scratch)
+                        .map(|report| StepInfo {
+                            solve: Some(SolveInfo {
+                                iterations: report.newton_iterations,
+                                inner_iterations: report.cg_iterations,
+                                line_search_steps: report.backtracks,
+                                relative_residual: report.residual
+                                    / report.initial_residual.max(weight),
+                                converged: report.converged,
+                                at_floor: report.stagnated && report.residual > report.target,
+                            }),
+                        })
+                        .map_err(|e| e.to_string())
+                },
+                on_frame,
+            )
+        }
+        Stepper::Vbd => {
+            // No per-vertex line search (the blocks of this soft cube are well behaved, and
+            // it saves two energy densities per element and corner), Chebyshev with the rho
+            // the solver estimates: the faster variants measured in `tests/vbd.rs`.
+            let settings = VbdSettings::new(dt)
+                .with_gravity(scene::GRAVITY)
+                .with_ground(ground)
+                .with_tolerance(TOLERANCE, VBD_BUDGET.0)
+                .with_line_search(0)
+                .with_estimated_chebyshev(VBD_BUDGET.1);
+            console.line(format_args!(
+                "solver    Vertex Block Descent, no line search, Chebyshev rho estimated from \
+                 {} plain sweeps; tolerance {:.0e} of the load, at most {} sweeps",
+                settings.chebyshev_delay, settings.tolerance, settings.max_iterations
+            ));
+            let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(n)];
+            let mut indices = vec![0; vbd_index_scratch_len(n, body.mesh.element_count())];
+            let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+            scene::run(
+                state,
+                &config,
+                &mut progress,
+                |x, v, h| {
+                    let settings = VbdSettings { dt: h, ..settings };
+                    vbd_step(&model, &body.masses, &[], &settings, x, v, &mut scratch)
+                        .map(|report| StepInfo {
+                            solve: Some(SolveInfo {
+                                iterations: report.iterations,
+                                inner_iterations: 0,
+                                line_search_steps: report.backtracks,
+                                relative_residual: report.final_residual
+                                    / report.initial_residual.max(weight),
+                                converged: report.converged,
+                                at_floor: false,
                             }),
                         })
                         .map_err(|e| e.to_string())
@@ -683,6 +790,73 @@ mod tests {
 
         let none = SolveTotals::default();
         assert_eq!(solves_verdict(&none), Ok(()));
+    }
+
+    /// The vertical shift of the centre of mass that the summary `printed` reports (m).
+    fn centre_drop(printed: &str) -> f64 {
+        let line = printed
+            .lines()
+            .find(|line| line.starts_with("centre of mass"))
+            .unwrap();
+        line.rsplit("z ")
+            .next()
+            .unwrap()
+            .trim_end_matches(" m")
+            .parse()
+            .unwrap()
+    }
+
+    /// Newton and VBD drop the cube onto the ground and every solve converges: the run succeeds
+    /// (unconverged solves would fail it, as `failed_relax_solves_fail_the_run` shows), the
+    /// summary says so, and the centre of mass ends where a resting cube's is. The cube's
+    /// centre starts 0.6 m up and rests 0.1 m up (its half size) less the sag under its own
+    /// weight: mg / (k A) ~ rho g size^2 / E = 1000 * 9.81 * 0.04 / 5e4 = 8e-3 of its size, so
+    /// the drop is 0.500..0.502 m once the bounce has died out; after 0.8 s (landing at 0.32 s)
+    /// the wobble is still a few mm.
+    #[test]
+    fn newton_and_vbd_runs_land_and_converge() {
+        for (stepper, solver) in [("newton", "Newton"), ("vbd", "Vertex Block Descent")] {
+            let dir = scratch_dir(stepper);
+            let flags = [
+                "--resolution",
+                "2",
+                "--stepper",
+                stepper,
+                "--duration",
+                "0.8",
+                "--vtk-every",
+                "0",
+            ];
+            let (result, printed) = bouncy_in(&dir, &flags);
+            assert_eq!(result, Ok(()), "{stepper}: {printed}");
+            assert!(
+                printed.contains(&format!("solver    {solver}")),
+                "{printed}"
+            );
+            assert!(printed.contains("48 steps of 1.667e-2 s"), "{printed}");
+            assert!(
+                printed.contains("48 of 48 converged (100.0 %), 0 did not"),
+                "{printed}"
+            );
+            let drop = centre_drop(&printed);
+            assert!((-0.51..=-0.49).contains(&drop), "{stepper}: {drop} m");
+            if stepper == "newton" {
+                assert!(printed.contains("CG iterations"), "{printed}");
+                assert!(
+                    printed.contains("Newton iterations on average"),
+                    "{printed}"
+                );
+            } else {
+                assert!(printed.contains("sweeps on average"), "{printed}");
+            }
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
+    }
+
+    /// Newton and VBD solve to the relaxation's default tolerance, so that the steppers compare.
+    #[test]
+    fn the_implicit_steppers_share_one_tolerance() {
+        assert_eq!(RelaxSettings::<Vec3>::new(0.01).tolerance, TOLERANCE);
     }
 
     #[test]

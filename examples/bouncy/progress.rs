@@ -115,6 +115,9 @@ pub struct Summary {
     pub initial_energies: Energies,
     /// Statistics of the implicit solves, if any.
     pub solves: SolveTotals,
+    /// What one iteration of the solver is called ("iterations", "Newton iterations",
+    /// "sweeps").
+    pub iteration_name: &'static str,
     /// How far the centre of mass moved from start to end (m, per axis).
     pub centre_shift: [f64; 3],
 }
@@ -161,15 +164,37 @@ impl Summary {
         let s = &self.solves;
         if s.solves > 0 {
             lines.push(format!(
-                "implicit solves  {} ({:.1} iterations on average, at most {}; {} line-search reductions)",
+                "implicit solves  {} ({:.1} {} on average, at most {}; {} line-search reductions)",
                 s.solves,
                 s.iterations as f64 / s.solves as f64,
+                self.iteration_name,
                 s.max_iterations,
                 s.line_search_steps
             ));
+            if s.inner_iterations > 0 {
+                lines.push(format!(
+                    "                 {} CG iterations ({:.1} per solve, {:.1} per Newton iteration)",
+                    s.inner_iterations,
+                    s.inner_iterations as f64 / s.solves as f64,
+                    s.inner_iterations as f64 / s.iterations.max(1) as f64
+                ));
+            }
+            if s.at_floor > 0 {
+                lines.push(format!(
+                    "                 {} converged at the rounding floor, above the tolerance \
+                     (the precision allows no smaller residual)",
+                    s.at_floor
+                ));
+            }
+            let converged = s.solves - s.not_converged;
             lines.push(format!(
-                "                 {} did not converge; worst final relative residual {:.2e}",
-                s.not_converged, s.worst_residual
+                "                 {converged} of {} converged ({:.1} %), {} did not; worst final \
+                 relative residual {:.2e}; {:.2} ms of wall time per step",
+                s.solves,
+                100.0 * converged as f64 / s.solves as f64,
+                s.not_converged,
+                s.worst_residual,
+                1e3 * wall / self.steps.max(1) as f64
             ));
         }
         lines
@@ -236,6 +261,7 @@ mod tests {
             energies,
             initial_energies: energies,
             solves: SolveTotals::default(),
+            iteration_name: "Newton iterations",
             centre_shift: [0.00004, -0.1, -0.5],
         };
         let text = summary.lines().join("\n");
@@ -259,13 +285,27 @@ mod tests {
             solves: 2,
             iterations: 30,
             max_iterations: 20,
+            inner_iterations: 600,
             line_search_steps: 3,
             not_converged: 1,
+            at_floor: 1,
             worst_residual: 0.01,
         };
         let text = summary.lines().join("\n");
-        assert!(text.contains("implicit solves  2 (15.0 iterations on average, at most 20"));
-        assert!(text.contains("1 did not converge"));
+        assert!(
+            text.contains("implicit solves  2 (15.0 Newton iterations on average, at most 20"),
+            "{text}"
+        );
+        assert!(
+            text.contains("600 CG iterations (300.0 per solve, 20.0 per Newton iteration)"),
+            "{text}"
+        );
+        assert!(
+            text.contains("1 of 2 converged (50.0 %), 1 did not"),
+            "{text}"
+        );
+        assert!(text.contains("0.67 ms of wall time per step"), "{text}");
+        assert!(text.contains("1 converged at the rounding floor"), "{text}");
     }
 
     #[test]

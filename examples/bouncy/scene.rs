@@ -25,7 +25,7 @@ pub const G: f32 = 9.81;
 pub const GRAVITY: Vec3 = Vec3::new(0.0, 0.0, -G);
 /// The explicit stepper's default time step as a fraction of the stable bound.
 pub const EXPLICIT_SAFETY_FRACTION: f32 = 0.5;
-/// The relaxation stepper's default time step (s): one display frame at 60 Hz.
+/// The implicit steppers' default time step (s): one display frame at 60 Hz.
 pub const RELAX_DEFAULT_DT: f32 = 1.0 / 60.0;
 
 /// The rest shape of the body, already placed above the ground.
@@ -365,11 +365,11 @@ impl State {
 
 /// The time step (s) for `args`: `--dt` if given; otherwise, for the explicit stepper,
 /// [`EXPLICIT_SAFETY_FRACTION`] of `stable_bound` (the stepper's stable time step, s), and for
-/// relaxation [`RELAX_DEFAULT_DT`].
+/// the implicit steppers [`RELAX_DEFAULT_DT`].
 pub fn time_step(args: &Args, stable_bound: Option<f32>) -> Result<f32, String> {
     match (args.dt, args.stepper, stable_bound) {
         (Some(dt), _, _) => Ok(dt),
-        (None, Stepper::Relax, _) => Ok(RELAX_DEFAULT_DT),
+        (None, Stepper::Relax | Stepper::Newton | Stepper::Vbd, _) => Ok(RELAX_DEFAULT_DT),
         (None, Stepper::Explicit, Some(bound)) if bound.is_finite() && bound > 0.0 => {
             Ok(EXPLICIT_SAFETY_FRACTION * bound)
         }
@@ -385,15 +385,17 @@ pub fn time_step(args: &Args, stable_bound: Option<f32>) -> Result<f32, String> 
 /// What one step of the stepper reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StepInfo {
-    /// The implicit solve of this step (relaxation stepper); `None` for explicit steps.
+    /// The implicit solve of this step (relax, newton, vbd); `None` for explicit steps.
     pub solve: Option<SolveInfo>,
 }
 
 /// The report of one implicit solve.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SolveInfo {
-    /// Descent iterations.
+    /// Descent iterations (Newton iterations, VBD sweeps).
     pub iterations: u32,
+    /// Inner iterations: Newton's conjugate-gradient iterations; 0 for the other steppers.
+    pub inner_iterations: u32,
     /// Backtracking line-search reductions, over all iterations.
     pub line_search_steps: u32,
     /// Final residual relative to the solver's scale, the larger of the first residual and
@@ -401,6 +403,9 @@ pub struct SolveInfo {
     pub relative_residual: f32,
     /// Whether the residual reached the tolerance.
     pub converged: bool,
+    /// Whether the solve counted as converged at the rounding floor, above the tolerance
+    /// (Newton's `NewtonReport::stagnated`); false for the other steppers.
+    pub at_floor: bool,
 }
 
 /// Solver statistics over a run.
@@ -412,10 +417,14 @@ pub struct SolveTotals {
     pub iterations: u64,
     /// The most iterations of one solve.
     pub max_iterations: u32,
+    /// Inner (conjugate-gradient) iterations over all solves.
+    pub inner_iterations: u64,
     /// Line-search reductions over all solves.
     pub line_search_steps: u64,
     /// Solves that did not converge.
     pub not_converged: u64,
+    /// Solves that converged at the rounding floor, above the tolerance.
+    pub at_floor: u64,
     /// The largest final relative residual.
     pub worst_residual: f32,
 }
@@ -425,8 +434,10 @@ impl SolveTotals {
         self.solves += 1;
         self.iterations += u64::from(solve.iterations);
         self.max_iterations = self.max_iterations.max(solve.iterations);
+        self.inner_iterations += u64::from(solve.inner_iterations);
         self.line_search_steps += u64::from(solve.line_search_steps);
         self.not_converged += u64::from(!solve.converged);
+        self.at_floor += u64::from(solve.converged && solve.at_floor);
         self.worst_residual = self.worst_residual.max(solve.relative_residual);
     }
 }
@@ -549,8 +560,8 @@ pub enum RunError {
         time: f64,
         /// The stepper's message.
         message: String,
-        /// Statistics up to the failure.
-        stats: RunStats,
+        /// Statistics up to the failure (boxed: they would make every `Result` large).
+        stats: Box<RunStats>,
     },
     /// Writing a frame failed.
     Output(String),
@@ -626,7 +637,7 @@ where
                         step: stats.steps,
                         time: stats.simulated,
                         message,
-                        stats,
+                        stats: Box::new(stats),
                     });
                 }
             }
@@ -766,10 +777,12 @@ mod tests {
 
     #[test]
     fn default_time_steps() {
-        assert_eq!(
-            time_step(&args(&["--stepper", "relax"]), None),
-            Ok(RELAX_DEFAULT_DT)
-        );
+        for stepper in ["relax", "newton", "vbd"] {
+            assert_eq!(
+                time_step(&args(&["--stepper", stepper]), None),
+                Ok(RELAX_DEFAULT_DT)
+            );
+        }
         assert_eq!(time_step(&args(&["--dt", "0.002"]), None), Ok(0.002));
         assert_eq!(time_step(&args(&[]), Some(0.004)), Ok(0.002));
         assert!(time_step(&args(&[]), None).unwrap_err().contains("--dt"));
@@ -899,9 +912,11 @@ mod tests {
             Ok(StepInfo {
                 solve: Some(SolveInfo {
                     iterations: 10 * n,
+                    inner_iterations: 100 * n,
                     line_search_steps: 1,
                     relative_residual: 1e-3 * n as f32,
                     converged: n != 2,
+                    at_floor: n >= 2,
                 }),
             })
         };
@@ -919,6 +934,7 @@ mod tests {
             (4, 100, 40)
         );
         assert_eq!((totals.line_search_steps, totals.not_converged), (4, 1));
+        assert_eq!((totals.inner_iterations, totals.at_floor), (1000, 2));
         assert!((totals.worst_residual - 4e-3).abs() < 1e-9);
     }
 }

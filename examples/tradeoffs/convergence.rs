@@ -50,7 +50,7 @@ const G: f64 = 9.81;
 /// 1e-7 on the meshes measured), Chebyshev estimate (0.9999 needed a third of the iterations of
 /// 0.999 here) and budget.
 const TOLERANCE: f64 = 1e-5;
-const RHO: f64 = 0.9999;
+pub const RHO: f64 = 0.9999;
 const BUDGET: u32 = 400_000;
 
 /// Euler–Bernoulli's tip deflection (m) for the end load `LOAD`.
@@ -85,24 +85,49 @@ struct Solved {
     seconds: f64,
 }
 
+/// The cantilever with `n` cells through the thickness (`10 n` along), its end load given as
+/// the weight of masses on the end face, clamped at `x = 0`.
+pub struct Cantilever {
+    pub mesh: BoxMesh,
+    pub masses: Vec<f64>,
+    pub pinned: Vec<bool>,
+}
+
+impl Cantilever {
+    pub fn new(split: BoxSplit, n: usize) -> Result<Cantilever, String> {
+        let along = 10 * n;
+        let mesh = BoxMesh::new(DVec3::new(LENGTH, HEIGHT, HEIGHT), [along, n, n], split)?;
+        let pinned = mesh.flags(|x| x.x == 0.0);
+        // Vertex (i, j, k) has index i + (along + 1) (j + (n + 1) k): the end face is i = along.
+        let mut masses = vec![1e-12; mesh.rest.len()];
+        for k in 0..=n {
+            for j in 0..=n {
+                masses[along + (along + 1) * (j + (n + 1) * k)] =
+                    LOAD * tributary(j, n) * tributary(k, n) / G;
+            }
+        }
+        Ok(Cantilever {
+            mesh,
+            masses,
+            pinned,
+        })
+    }
+}
+
+/// The beam's material: stable neo-Hookean, E = 1 MPa, nu = 0.3.
+pub fn material() -> Result<StableNeoHookean, String> {
+    StableNeoHookean::from_young_poisson(YOUNG, POISSON).map_err(|e| e.to_string())
+}
+
 fn solve(split: BoxSplit, n: usize, rho: f64, repeats: u32) -> Result<Solved, String> {
-    let along = 10 * n;
-    let beam = BoxMesh::new(DVec3::new(LENGTH, HEIGHT, HEIGHT), [along, n, n], split)?;
+    let Cantilever {
+        mesh: beam,
+        masses,
+        pinned,
+    } = Cantilever::new(split, n)?;
     let mut rest_data = Vec::new();
     let mesh = beam.mesh(&mut rest_data)?;
-    let pinned = beam.flags(|x| x.x == 0.0);
-    // Vertex (i, j, k) has index i + (along + 1) (j + (n + 1) k): the end face is i = along.
-    let mut masses = vec![1e-12; beam.rest.len()];
-    for k in 0..=n {
-        for j in 0..=n {
-            masses[along + (along + 1) * (j + (n + 1) * k)] =
-                LOAD * tributary(j, n) * tributary(k, n) / G;
-        }
-    }
-    let model = TetElastic::new(
-        mesh,
-        StableNeoHookean::from_young_poisson(YOUNG, POISSON).map_err(|e| e.to_string())?,
-    );
+    let model = TetElastic::new(mesh, material()?);
     let settings = RelaxSettings::new(1.0)
         .with_gravity(DVec3::new(0.0, 0.0, -G))
         .with_tolerance(TOLERANCE, BUDGET)

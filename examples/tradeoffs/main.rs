@@ -12,6 +12,7 @@
 //! | `stability` | largest stable explicit step (bisection and eigenvalues) over the bound across E and nu; relaxation at the same steps |
 //! | `inversion` | volume ratio over time of a tet and a block driven through inversion and released, per model |
 //! | `convergence` | cantilever tip deflection against Euler–Bernoulli vs mesh resolution (5/6-tet splits), with its cost |
+//! | `descent` | residual against wall time and iterations for GD plain, GD + Chebyshev, VBD and Newton on three scenes |
 //!
 //! `--quick` runs every chart at a reduced size (CI) and is refused with `--update-docs` or an
 //! `--out` inside `docs/`, so the reduced run never replaces the committed charts; `--only NAME`
@@ -23,6 +24,7 @@
 
 mod chart;
 mod convergence;
+mod descent;
 mod double;
 mod forces;
 mod integrators;
@@ -75,16 +77,18 @@ pub enum ChartName {
     Stability,
     Inversion,
     Convergence,
+    Descent,
 }
 
 impl ChartName {
-    const ALL: [ChartName; 6] = [
+    const ALL: [ChartName; 7] = [
         ChartName::Svd,
         ChartName::Forces,
         ChartName::Integrators,
         ChartName::Stability,
         ChartName::Inversion,
         ChartName::Convergence,
+        ChartName::Descent,
     ];
 
     fn run(self, size: Size, out: &Path) -> Result<Findings, String> {
@@ -95,6 +99,7 @@ impl ChartName {
             ChartName::Stability => stability_map::run(size, out),
             ChartName::Inversion => inversion::run(size, out),
             ChartName::Convergence => convergence::run(size, out),
+            ChartName::Descent => descent::run(size, out),
         }
     }
 }

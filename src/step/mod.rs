@@ -138,6 +138,30 @@
 //! [Vertex Block Descent](vbd_step) (`vbd.rs`, with the vertex
 //! [adjacency and colouring](build_vertex_adjacency) of `adjacency.rs` and the per-element
 //! block of `vertex_block.rs`) minimises it by per-vertex Newton steps in Gauss–Seidel order.
+//!
+//! # Which solver to pick
+//! Measured by the `tradeoffs` example's `descent` chart (f64, one thread; relative residual
+//! `1e-4`, `1e-6` for the static solve) and the `bouncy` example:
+//! * [`step_explicit`]: soft bodies and small steps (one force pass a step, the least work per
+//!   simulated second while the step stays under [`stable_time_step`]); no solve to converge.
+//! * [`relax_step`] with Chebyshev (the defaults): soft bodies at display-rate steps. Its
+//!   iterations are the cheapest (1 to 4 force evaluations each): over the whole bouncy run it
+//!   is the fastest implicit stepper (21.5 iterations a step in f32), and on a small stiff block
+//!   one step to `1e-4` took 0.31 ms against Newton's 0.74 ms. Without acceleration it needs
+//!   about 10 times the iterations; avoid that.
+//! * [`newton_step`] / [`newton_quasi_static`]: stiff bodies, large steps and static solves,
+//!   and whenever the answer must converge. The static cantilever (400 tets) reached `1e-6` in
+//!   9 Newton iterations (265 CG), 7.5 ms, where Chebyshev relaxation needed 73 000 iterations
+//!   (1.06 s); on a stiff cube (E = 1e8 Pa) dropped at 1/30 s in f32 it converged on 30 of 30
+//!   steps (26 of them stopped at its rounding floor, up to 0.29 of the weight: see
+//!   [`newton_step`]) where the relaxation converged on 2 and VBD on 3. An
+//!   iteration costs 40 to 60 force evaluations (element Hessians and CG).
+//! * [`vbd_step`]: fewer iterations than the relaxation (111 sweeps on the bouncy cube's
+//!   landing step against Chebyshev's 183) and monotone sweeps, so a small fixed budget of
+//!   sweeps is safe; but a sweep costs 6 to 9 force evaluations, so it was 1.5 to 5.6 times
+//!   slower than the relaxation on one core, and it stalls on slender static problems (not
+//!   `1e-6` in 20 000 sweeps on the cantilever). Pick it for a fixed per-frame budget, or where
+//!   a parallel, colour-by-colour sweep pays.
 
 use core::fmt::Debug;
 
