@@ -209,6 +209,20 @@ pub trait Material: Copy + Debug {
     #[must_use]
     fn first_piola(&self, f: Mat3) -> Mat3;
 
+    /// The largest entry `max |F_ij|` (dimensionless) of a deformation gradient up to which this
+    /// model's energy density and stresses (direct, principal and clamped) are guaranteed finite
+    /// in this precision, with room for the element-level products: below it they stay under
+    /// `Real::MAX / 2^24` in magnitude (see [`deformation_limit_for`]). The mesh kernels refuse
+    /// deformations beyond it with
+    /// [`MeshError::DeformationRange`](crate::MeshError::DeformationRange) instead of returning
+    /// infinite or NaN forces. The provided method returns infinity: no limit is known, and a
+    /// custom model's own overflow is not detected.
+    #[inline]
+    #[must_use]
+    fn deformation_limit(&self) -> Real {
+        Real::INFINITY
+    }
+
     /// `(energy_density(f), first_piola(f))` in one call, bit for bit: the per-element work
     /// of the energy-based steppers (a line search needs both at every trial point). The
     /// models here override it to compute the invariants, `cof(F)` and any cube root or
@@ -384,6 +398,24 @@ pub trait Material: Copy + Debug {
             self.principal_pair_eigenvalues(svd.sigma),
             true,
         )
+    }
+}
+
+/// `(Real::MAX / 2^24 / (256 modulus))^(1 / power)`: the [`Material::deformation_limit`] of a
+/// model whose energy density and stress grow at most like `modulus max(1, s)^power` with
+/// `s = max |F_ij|` (with the constant 256 covering the sums of up to nine products of entries
+/// in `I_C`, `det F`, `cof F` and the principal stretches, all bounded by `3 s`). `power` is
+/// 2, 4 or 6 (taken as 6 otherwise). Below 1 for a modulus above `Real::MAX / 2^32` (8e28 Pa
+/// in f32, 4e298 Pa in f64): then even an undeformed element is refused, as such a material
+/// leaves no headroom at any strain.
+#[must_use]
+pub fn deformation_limit_for(modulus: Real, power: u32) -> Real {
+    let headroom = Real::MAX / 16_777_216.0;
+    let x = headroom / (256.0 * modulus);
+    match power {
+        2 => math::sqrt(x),
+        4 => math::sqrt(math::sqrt(x)),
+        _ => math::sqrt(math::cbrt(x)),
     }
 }
 
