@@ -151,6 +151,7 @@ mod adjacency;
 mod explicit;
 mod ground;
 mod line_search;
+mod loads;
 mod newton;
 mod objective;
 pub(crate) mod points;
@@ -169,6 +170,7 @@ pub use explicit::{
     FLIP_STREAK, MAX_SUBSTEPS, explicit_scratch_len, step_explicit,
 };
 pub use ground::Ground;
+pub use loads::{FIXED_X, FIXED_Y, FIXED_Z};
 pub use newton::{
     FLOOR_FACTOR, NewtonReport, NewtonScratch, NewtonScratchLen, NewtonSettings,
     newton_quasi_static, newton_scratch_len, newton_step,

@@ -6,6 +6,7 @@
 use core::mem::swap;
 
 use super::super::types::Real;
+use super::loads::Loads;
 use super::line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
 use super::objective::{Evaluation, Objective, implicit_velocities};
 use super::stability::vertex_stiffness;
@@ -66,7 +67,7 @@ impl<'a, V: Vector> RelaxScratch<'a, V> {
 
 /// The parameters of the relaxation.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RelaxSettings<V> {
+pub struct RelaxSettings<'a, V> {
     /// The time step `h` (s) of [`relax_step`]; ignored by [`relax_quasi_static`]. Finite and
     /// positive; any size is stable (implicit Euler), larger steps damp more.
     pub dt: Real,
@@ -108,9 +109,19 @@ pub struct RelaxSettings<V> {
     pub chebyshev: Real,
     /// Plain iterations after each (re)start before the Chebyshev weights start (`S`).
     pub chebyshev_delay: u32,
+    /// External forces (N), one per vertex, or empty (the default) for none: constant loads
+    /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
+    /// `- sum f_ext . (x - x_n)`. Ignored at pinned vertices and along fixed axes. Checked
+    /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
+    pub external_forces: &'a [V],
+    /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
+    /// ([`FIXED_X`](super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
+    /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
+    /// bits.
+    pub fixed_axes: &'a [u8],
 }
 
-impl<V: Vector> RelaxSettings<V> {
+impl<'a, V: Vector> RelaxSettings<'a, V> {
     /// Time step `dt` (s), no gravity or ground, relative tolerance `2e-3`, 300 iterations,
     /// Chebyshev acceleration with `rho = 0.995` from the first iteration (delay 0) and first
     /// trial step `2`, Armijo `c = 1e-4`, `beta = 0.5`, 30 backtracks, no momentum.
@@ -144,6 +155,8 @@ impl<V: Vector> RelaxSettings<V> {
     #[must_use]
     pub fn new(dt: Real) -> Self {
         RelaxSettings {
+            external_forces: &[],
+            fixed_axes: &[],
             dt,
             gravity: V::ZERO,
             ground: None,
@@ -210,6 +223,36 @@ impl<V: Vector> RelaxSettings<V> {
             chebyshev_delay: delay,
             momentum: 0.0,
             ..self
+        }
+    }
+
+    /// These settings with external forces `forces` (N, one per vertex; see
+    /// [`external_forces`](Self::external_forces)).
+    #[inline]
+    #[must_use]
+    pub fn with_external_forces<'b>(self, forces: &'b [V]) -> RelaxSettings<'b, V>
+    where
+        'a: 'b,
+    {
+        let shorter: RelaxSettings<'b, V> = self;
+        RelaxSettings {
+            external_forces: forces,
+            ..shorter
+        }
+    }
+
+    /// These settings with per-vertex fixed-axis masks `fixed_axes` (see
+    /// [`fixed_axes`](Self::fixed_axes)).
+    #[inline]
+    #[must_use]
+    pub fn with_fixed_axes<'b>(self, fixed_axes: &'b [u8]) -> RelaxSettings<'b, V>
+    where
+        'a: 'b,
+    {
+        let shorter: RelaxSettings<'b, V> = self;
+        RelaxSettings {
+            fixed_axes,
+            ..shorter
         }
     }
 }
@@ -287,7 +330,7 @@ pub fn relax_step<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &RelaxSettings<F::Vector>,
+    settings: &RelaxSettings<'_, F::Vector>,
     positions: &mut [F::Vector],
     velocities: &mut [F::Vector],
     scratch: &mut RelaxScratch<'_, F::Vector>,
@@ -323,7 +366,7 @@ pub fn relax_quasi_static<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &RelaxSettings<F::Vector>,
+    settings: &RelaxSettings<'_, F::Vector>,
     positions: &mut [F::Vector],
     scratch: &mut RelaxScratch<'_, F::Vector>,
 ) -> Result<RelaxReport, StepError> {
@@ -335,7 +378,7 @@ fn minimise<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &RelaxSettings<F::Vector>,
+    settings: &RelaxSettings<'_, F::Vector>,
     positions: &mut [F::Vector],
     velocities: Option<&mut [F::Vector]>,
     scratch: &mut RelaxScratch<'_, F::Vector>,
@@ -343,6 +386,11 @@ fn minimise<F: ElasticEnergy>(
     let n = model.vertex_count();
     let ground = validate(settings)?;
     check_state(n, masses, pinned, positions, velocities.as_deref())?;
+    let loads = Loads {
+        forces: settings.external_forces,
+        fixed_axes: settings.fixed_axes,
+    };
+    loads.check(n)?;
     check_length(
         StepBuffer::Scratch,
         relax_scratch_len(n),
@@ -378,6 +426,7 @@ fn minimise<F: ElasticEnergy>(
         frames: Frames::new(h, inertia, settings.gravity, ground.as_ref()),
         h,
         gravity: settings.gravity,
+        loads,
     };
     let buffers = Buffers {
         gradient,
@@ -447,7 +496,7 @@ fn reached(residual: Real, target: Real) -> bool {
 /// overwriting it with the next trial point. `positions` receives the result at the end.
 fn descend<'b, F: ElasticEnergy>(
     objective: &Objective<'_, F>,
-    settings: &RelaxSettings<F::Vector>,
+    settings: &RelaxSettings<'_, F::Vector>,
     positions: &mut [F::Vector],
     buffers: Buffers<'b, F::Vector>,
 ) -> Result<Descent<'b, F::Vector>, StepError> {
@@ -675,7 +724,7 @@ fn descend<'b, F: ElasticEnergy>(
 }
 
 /// Checks the scalar settings; returns the ground with a unit normal.
-fn validate<V: Vector>(settings: &RelaxSettings<V>) -> Result<Option<Ground<V>>, StepError> {
+fn validate<V: Vector>(settings: &RelaxSettings<'_, V>) -> Result<Option<Ground<V>>, StepError> {
     if !settings.gravity.is_finite() {
         return Err(StepError::Gravity);
     }
