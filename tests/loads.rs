@@ -134,7 +134,7 @@ macro_rules! load_tests {
                 let delta = 1e-7;
                 let mut k = [[0.0; 3]; 3];
                 for j in 0..3 {
-                    let mut force = |sign: f64| {
+                    let force = |sign: f64| {
                         let mut x = rest;
                         x[3][j] += sign * delta;
                         let mut f = [d::types::Vec3::ZERO; 4];
@@ -364,5 +364,23 @@ macro_rules! load_tests {
     };
 }
 
-load_tests!(single, softfem, [1e-4, 3e-3, 1e-3], [1e-4, 2e-2, 2e-3], [1e-2, 3e-2, 1e-2], 1e-3, 2e-2, 1e-2);
-load_tests!(double, softfem::f64, [1e-9, 1e-7, 1e-7], [1e-9, 1e-7, 1e-7], [2e-3, 2e-3, 2e-3], 1e-4, 1e-4, 2e-3);
+load_tests!(
+    single,
+    softfem,
+    [1e-4, 3e-3, 1e-3],
+    [1e-4, 2e-2, 2e-3],
+    [1e-2, 3e-2, 1e-2],
+    1e-3,
+    2e-2,
+    1e-2
+);
+load_tests!(
+    double,
+    softfem::f64,
+    [1e-9, 1e-7, 1e-7],
+    [1e-9, 1e-7, 1e-7],
+    [2e-3, 2e-3, 2e-3],
+    1e-4,
+    1e-4,
+    2e-3
+);

@@ -665,7 +665,7 @@ mod measure {
         fn chebyshev(self, rho: f64) -> Self;
         fn estimated(self) -> Self;
     }
-    impl VbdLike for softfem::step::VbdSettings {
+    impl VbdLike for softfem::step::VbdSettings<'_> {
         fn line_search(self, backtracks: u32) -> Self {
             self.with_line_search(backtracks)
         }
@@ -676,7 +676,7 @@ mod measure {
             self.with_estimated_chebyshev(4)
         }
     }
-    impl VbdLike for softfem::f64::step::VbdSettings {
+    impl VbdLike for softfem::f64::step::VbdSettings<'_> {
         fn line_search(self, backtracks: u32) -> Self {
             self.with_line_search(backtracks)
         }

@@ -2,10 +2,10 @@
 //! blow-up detection.
 
 use super::super::types::Real;
+use super::loads::Loads;
 use super::{
     ElasticModel, Ground, Vector, check_length, check_state, first_non_finite, pinned_flags,
 };
-use super::loads::Loads;
 use crate::error::{MeshError, StepBuffer, StepError};
 
 /// The default [`ExplicitSettings::max_energy_growth`]: 100.

@@ -104,7 +104,11 @@ impl<V: Grouped> Loads<'_, V> {
         gradient: &mut [V],
     ) -> (Real, Real) {
         let (mut phi, mut residual) = (0.0, 0.0);
-        let rows = gradient.iter_mut().zip(x).zip(start).zip(pinned_flags(pinned));
+        let rows = gradient
+            .iter_mut()
+            .zip(x)
+            .zip(start)
+            .zip(pinned_flags(pinned));
         for (i, (((g, &x), &x0), pinned)) in rows.enumerate() {
             if pinned {
                 continue;

@@ -68,9 +68,12 @@ impl<F: ElasticEnergy> Objective<'_, F> {
             gradient_pass(&self.frames, &self.vertices, x, gradient);
         if !self.loads.is_none() {
             let vertices = &self.vertices;
-            let (loads_phi, loaded_residual) =
-                self.loads
-                    .apply(self.frames.floor(), (vertices.pinned, vertices.start), x, gradient);
+            let (loads_phi, loaded_residual) = self.loads.apply(
+                self.frames.floor(),
+                (vertices.pinned, vertices.start),
+                x,
+                gradient,
+            );
             inertia_and_gravity += loads_phi;
             residual_squared = loaded_residual;
         }

@@ -6,8 +6,8 @@
 use core::mem::swap;
 
 use super::super::types::Real;
-use super::loads::Loads;
 use super::line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
+use super::loads::Loads;
 use super::objective::{Evaluation, Objective, implicit_velocities};
 use super::stability::vertex_stiffness;
 use super::vertex_passes::{

@@ -19,13 +19,13 @@ use super::adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
     incident_elements, vertex_order,
 };
+use super::loads::Loads;
+use super::points::Grouped;
 use super::vertex_block::{force_and_projected_block, shape_gradient};
 use super::vertex_passes::{Frames, Vertices, gradient_pass};
 use super::{
     ElasticEnergy, Ground, TetElastic, check_length, check_state, first_non_finite, pinned_flags,
 };
-use super::loads::Loads;
-use super::points::Grouped;
 use crate::error::{StepBuffer, StepError};
 
 /// The length of the vector scratch buffer of [`vbd_step`] and [`vbd_quasi_static`] for
@@ -469,8 +469,12 @@ fn evaluate<M: Material>(
     let (mut inertia_and_gravity, mut residual_squared) =
         gradient_pass(frames, vertices, x, gradient);
     if !loads.is_none() {
-        let (loads_phi, loaded_residual) =
-            loads.apply(frames.floor(), (vertices.pinned, vertices.start), x, gradient);
+        let (loads_phi, loaded_residual) = loads.apply(
+            frames.floor(),
+            (vertices.pinned, vertices.start),
+            x,
+            gradient,
+        );
         inertia_and_gravity += loads_phi;
         residual_squared = loaded_residual;
     }
@@ -614,7 +618,11 @@ impl<M: Material> Sweep<'_, M> {
             let keep = Vec3::ONE.axes_from(Vec3::ZERO, fixed);
             let unit = Vec3::ONE - keep;
             // Rows, then columns.
-            hessian = Mat3::from_cols(hessian.x_axis * keep, hessian.y_axis * keep, hessian.z_axis * keep);
+            hessian = Mat3::from_cols(
+                hessian.x_axis * keep,
+                hessian.y_axis * keep,
+                hessian.z_axis * keep,
+            );
             hessian = Mat3::from_cols(
                 hessian.x_axis * keep.x + Vec3::X * unit.x,
                 hessian.y_axis * keep.y + Vec3::Y * unit.y,
@@ -988,7 +996,9 @@ fn initial_guess(
         *x = if pinned {
             x0
         } else {
-            sweep.loads.keep_fixed(i, frames.floor().project(target), x0)
+            sweep
+                .loads
+                .keep_fixed(i, frames.floor().project(target), x0)
         };
     }
 }
