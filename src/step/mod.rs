@@ -149,6 +149,7 @@ use crate::error::{MeshError, StepBuffer, StepError};
 
 mod adjacency;
 mod explicit;
+mod frequency;
 mod ground;
 mod line_search;
 mod loads;
@@ -168,6 +169,9 @@ pub use adjacency::{
 pub use explicit::{
     DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, FLIP_GROWTH,
     FLIP_STREAK, MAX_SUBSTEPS, explicit_scratch_len, step_explicit,
+};
+pub use frequency::{
+    FREQUENCY_MARGIN, FrequencyEstimate, estimate_max_frequency, frequency_scratch_len,
 };
 pub use ground::Ground;
 pub use loads::{FIXED_X, FIXED_Y, FIXED_Z};
