@@ -10,7 +10,7 @@ use core::mem::swap;
 use super::super::element::TetHessian;
 use super::super::math;
 use super::super::types::{Mat3, Real, Vec3};
-use super::line_search::{copy, downhill, slope_along, sufficient_decrease};
+use super::line_search::{self, copy, downhill, slope_along, sufficient_decrease};
 use super::loads::Loads;
 use super::objective::{Evaluation, Objective, implicit_velocities};
 use super::points::{Floor, Grouped};
@@ -601,7 +601,7 @@ fn iterate<'b, F: ElasticHessian>(
         model.projected_hessians(x, hessians)?;
         let stiffness_squared =
             invert_blocks(model, hessians, (masses, pinned, system.inertia), blocks)?;
-        rounding_floor = 0.5 * Real::EPSILON * reach * math::sqrt(stiffness_squared);
+        rounding_floor = line_search::rounding_floor(reach, stiffness_squared);
         let constraints = Constraints {
             pinned: objective.vertices.pinned,
             fixed_axes: objective.loads.fixed_axes,

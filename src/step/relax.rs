@@ -6,14 +6,19 @@
 use core::mem::swap;
 
 use super::super::types::Real;
-use super::line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
+use super::line_search::{
+    ROUNDING, Stagnation, copy, downhill, rounding_floor, slope_along, sufficient_decrease,
+};
 use super::loads::Loads;
+use super::newton::FLOOR_FACTOR;
 use super::objective::{Evaluation, Objective, implicit_velocities};
 use super::stability::vertex_stiffness;
 use super::vertex_passes::{
     Frames, TrialPoint, Vertices, chebyshev_pass, direction_pass, trial_pass,
 };
-use super::{ElasticEnergy, Ground, Vector, check_length, check_state, first_non_finite};
+use super::{
+    ElasticEnergy, Ground, Vector, check_length, check_state, first_non_finite, pinned_flags,
+};
 use crate::error::{StepBuffer, StepError};
 
 /// The length of the vector scratch buffer the relaxation needs for `vertex_count` vertices:
@@ -279,6 +284,17 @@ pub struct RelaxReport {
     /// Accelerated trials rejected because `Phi` increased, each followed by a restart of the
     /// acceleration with a plain step.
     pub restarts: u32,
+    /// Whether the solve stopped because the residual stopped falling: its best value fell by
+    /// less than 1 % over the last 100 iterations while within [`FLOOR_FACTOR`](super::FLOOR_FACTOR)
+    /// times [`rounding_floor`](Self::rounding_floor) (then the solve also counts as
+    /// converged: the answer is as good as the precision allows), or did not fall at all over
+    /// 1000 iterations (a plateau above the estimated floor; not converged). Either way the
+    /// budget is not burnt.
+    pub stagnated: bool,
+    /// The estimated rounding floor of the residual (N): `eps/2 max_i |x_i| (3 sum_i P_i^2)^(1/2)`
+    /// over the free vertices, `P_i` the preconditioner (a bound on the diagonal block of the
+    /// Hessian), the rule Newton's method uses ([`NewtonReport::rounding_floor`](super::NewtonReport::rounding_floor)).
+    pub rounding_floor: Real,
 }
 
 /// One implicit Euler step of `settings.dt` as the minimisation of
@@ -563,6 +579,9 @@ fn descend<'b, F: ElasticEnergy>(
     // starting at (or near) equilibrium, whose initial residual is mostly rounding, is not asked
     // to reduce it further.
     let target = settings.tolerance * initial_residual.max(objective.gravity_load());
+    let rounding_floor = relax_rounding_floor(objective, current);
+    let mut stagnation = Stagnation::new(residual);
+    let mut stagnated = false;
     // Whether `other` holds x_{k-1}, so that the last step is known (false at the start and
     // after a restart, when it counts as zero).
     let mut stepped = false;
@@ -576,6 +595,10 @@ fn descend<'b, F: ElasticEnergy>(
     let mut since_restart: u32 = 0;
     let mut omega: Real = 1.0;
     while !reached(residual, target) && iterations < settings.max_iterations {
+        if iterations > 0 && stagnation.stalled(residual, FLOOR_FACTOR * rounding_floor) {
+            stagnated = true;
+            break;
+        }
         since_restart = since_restart.saturating_add(1);
         if settings.chebyshev > 0.0 {
             // Wang and Yang 2016, eq. 9-10: omega = 1 for the first S iterations, then
@@ -716,11 +739,38 @@ fn descend<'b, F: ElasticEnergy>(
         initial_residual,
         final_residual: residual,
         phi,
-        converged: reached(residual, target),
+        converged: reached(residual, target)
+            || (stagnated && residual <= FLOOR_FACTOR * rounding_floor),
         backtracks,
         restarts,
+        stagnated,
+        rounding_floor,
     };
     Ok((report, gradient, trial))
+}
+
+/// The relaxation's estimate of the rounding floor of the residual at `x` (see
+/// [`RelaxReport::rounding_floor`]).
+fn relax_rounding_floor<F: ElasticEnergy>(objective: &Objective<'_, F>, x: &[F::Vector]) -> Real {
+    let vertices = &objective.vertices;
+    let inertia = if objective.h > 0.0 {
+        1.0 / (objective.h * objective.h)
+    } else {
+        0.0
+    };
+    let reach = x.iter().fold(0.0, |a: Real, p| a.max(super::length(*p)));
+    let stiffness_squared: Real = vertices
+        .stiffness
+        .iter()
+        .zip(vertices.masses)
+        .zip(pinned_flags(vertices.pinned))
+        .filter(|(_, pinned)| !pinned)
+        .map(|((&k, &m), _)| {
+            let diagonal = k + m * inertia;
+            3.0 * diagonal * diagonal
+        })
+        .sum();
+    rounding_floor(reach, stiffness_squared)
 }
 
 /// Checks the scalar settings; returns the ground with a unit normal.
