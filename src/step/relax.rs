@@ -6,6 +6,7 @@
 use core::mem::swap;
 
 use super::super::types::Real;
+use super::chebyshev::RhoEstimate;
 use super::line_search::{
     ROUNDING, Stagnation, copy, downhill, rounding_floor, slope_along, sufficient_decrease,
 };
@@ -114,6 +115,12 @@ pub struct RelaxSettings<'a, V> {
     pub chebyshev: Real,
     /// Plain iterations after each (re)start before the Chebyshev weights start (`S`).
     pub chebyshev_delay: u32,
+    /// Estimate `rho` instead of taking [`chebyshev`](Self::chebyshev) (which must then be 0,
+    /// with no momentum): the largest residual ratio `r_k / r_(k-1)` of the plain iterations
+    /// `2..=chebyshev_delay` of the solve (`chebyshev_delay >= 2`), at most
+    /// [`MAX_ESTIMATED_RELAX_RHO`], the estimator Vertex Block Descent uses
+    /// ([`VbdSettings::estimate_chebyshev`](super::VbdSettings::estimate_chebyshev)).
+    pub estimate_chebyshev: bool,
     /// External forces (N), one per vertex, or empty (the default) for none: constant loads
     /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
     /// `- sum f_ext . (x - x_n)`. Ignored at pinned vertices and along fixed axes. Checked
@@ -174,6 +181,7 @@ impl<'a, V: Vector> RelaxSettings<'a, V> {
             momentum: 0.0,
             chebyshev: 0.995,
             chebyshev_delay: 0,
+            estimate_chebyshev: false,
         }
     }
 
@@ -216,6 +224,23 @@ impl<'a, V: Vector> RelaxSettings<'a, V> {
         }
     }
 
+    /// These settings with Chebyshev acceleration for a `rho` the solver estimates from the
+    /// first `delay` plain iterations (`delay >= 2`; see
+    /// [`estimate_chebyshev`](Self::estimate_chebyshev)), no momentum, and the first trial
+    /// step `step_length`.
+    #[inline]
+    #[must_use]
+    pub fn with_estimated_chebyshev(self, step_length: Real, delay: u32) -> Self {
+        RelaxSettings {
+            chebyshev: 0.0,
+            step_length,
+            chebyshev_delay: delay,
+            estimate_chebyshev: true,
+            momentum: 0.0,
+            ..self
+        }
+    }
+
     /// These settings with Chebyshev acceleration for the spectral radius estimate `rho`
     /// (and no momentum), the first trial step `step_length` and a delay of `delay`
     /// iterations.
@@ -226,6 +251,7 @@ impl<'a, V: Vector> RelaxSettings<'a, V> {
             chebyshev: rho,
             step_length,
             chebyshev_delay: delay,
+            estimate_chebyshev: false,
             momentum: 0.0,
             ..self
         }
@@ -295,7 +321,13 @@ pub struct RelaxReport {
     /// over the free vertices, `P_i` the preconditioner (a bound on the diagonal block of the
     /// Hessian), the rule Newton's method uses ([`NewtonReport::rounding_floor`](super::NewtonReport::rounding_floor)).
     pub rounding_floor: Real,
+    /// The Chebyshev `rho` used: the setting, the estimate, or 0 (none, or not yet estimated
+    /// when the solve stopped).
+    pub rho: Real,
 }
+
+/// The largest spectral radius [`RelaxSettings::estimate_chebyshev`] uses: `0.9999`.
+pub const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 
 /// One implicit Euler step of `settings.dt` as the minimisation of
 /// `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`
@@ -590,7 +622,10 @@ fn descend<'b, F: ElasticEnergy>(
     let mut backtracks = 0;
     // The step length of the accelerated trials: the one the last plain line search accepted.
     let mut alpha = settings.step_length;
-    let rho_squared = settings.chebyshev * settings.chebyshev;
+    let mut rho = settings.chebyshev;
+    let mut rho_squared = rho * rho;
+    let mut estimate = RhoEstimate::default();
+    let mut previous_residual = residual;
     // Iterations since the last (re)start of the acceleration, and the Chebyshev weight.
     let mut since_restart: u32 = 0;
     let mut omega: Real = 1.0;
@@ -599,8 +634,18 @@ fn descend<'b, F: ElasticEnergy>(
             stagnated = true;
             break;
         }
+        if settings.estimate_chebyshev && rho == 0.0 {
+            if iterations >= 2 {
+                estimate.observe(previous_residual, residual);
+            }
+            if iterations >= settings.chebyshev_delay {
+                rho = estimate.rho(MAX_ESTIMATED_RELAX_RHO);
+                rho_squared = rho * rho;
+            }
+        }
+        previous_residual = residual;
         since_restart = since_restart.saturating_add(1);
-        if settings.chebyshev > 0.0 {
+        if rho > 0.0 {
             // Wang and Yang 2016, eq. 9-10: omega = 1 for the first S iterations, then
             // omega_{S+1} = 2 / (2 - rho^2), omega_{k+1} = 4 / (4 - rho^2 omega_k).
             omega = match since_restart.checked_sub(settings.chebyshev_delay) {
@@ -745,6 +790,7 @@ fn descend<'b, F: ElasticEnergy>(
         restarts,
         stagnated,
         rounding_floor,
+        rho,
     };
     Ok((report, gradient, trial))
 }
@@ -785,6 +831,10 @@ fn validate<V: Vector>(settings: &RelaxSettings<'_, V>) -> Result<Option<Ground<
         && (0.0..1.0).contains(&settings.momentum)
         && (0.0..1.0).contains(&settings.chebyshev)
         && !(settings.momentum > 0.0 && settings.chebyshev > 0.0)
+        && !(settings.estimate_chebyshev
+            && (settings.chebyshev > 0.0
+                || settings.momentum > 0.0
+                || settings.chebyshev_delay < 2))
         && settings.step_length > 0.0
         && settings.step_length.is_finite())
     {

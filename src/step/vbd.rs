@@ -19,6 +19,7 @@ use super::adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
     incident_elements, vertex_order,
 };
+use super::chebyshev::RhoEstimate;
 use super::loads::Loads;
 use super::points::Grouped;
 use super::vertex_block::{force_and_projected_block, shape_gradient};
@@ -1065,7 +1066,7 @@ fn descend<'b, M: Material>(
     let (mut iterations, mut restarts) = (0, 0);
     let mut rho = settings.chebyshev;
     // The largest residual ratio of the plain sweeps 2..=delay, for the estimate.
-    let mut largest_ratio: Real = 0.0;
+    let mut estimate = RhoEstimate::default();
     // Sweeps since the last (re)start, counting the current one, and the Chebyshev weight.
     let mut since_restart: u32 = 0;
     let mut omega: Real = 1.0;
@@ -1116,15 +1117,11 @@ fn descend<'b, M: Material>(
         }
         if settings.estimate_chebyshev && rho == 0.0 {
             if iterations >= 1 {
-                largest_ratio = largest_ratio.max(next.residual / evaluation.residual);
+                estimate.observe(evaluation.residual, next.residual);
             }
             if iterations + 1 >= settings.chebyshev_delay {
                 // A NaN ratio gives 0: no acceleration.
-                rho = if largest_ratio > 0.0 {
-                    largest_ratio.min(MAX_ESTIMATED_RHO)
-                } else {
-                    0.0
-                };
+                rho = estimate.rho(MAX_ESTIMATED_RHO);
             }
         }
         swap(&mut previous, &mut last);
