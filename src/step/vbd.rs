@@ -9,11 +9,8 @@
 use core::mem::swap;
 
 use super::super::element::TetRest;
-use super::super::lanes::LANES;
 use super::super::material::Material;
 use super::super::math;
-use super::super::math::BATCH_SVD;
-use super::super::svd::{Svd3, svd3, svd3_lanes};
 use super::super::types::{Mat3, Real, Vec3};
 use super::adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
@@ -22,7 +19,7 @@ use super::adjacency::{
 use super::chebyshev::RhoEstimate;
 use super::loads::Loads;
 use super::points::Grouped;
-use super::vertex_block::{force_and_projected_block, shape_gradient};
+use super::vertex_block::{VertexFactor, shape_gradient};
 use super::vertex_passes::{Frames, Vertices, gradient_pass};
 use super::{
     ElasticEnergy, Ground, TetElastic, check_length, check_state, first_non_finite, pinned_flags,
@@ -111,6 +108,13 @@ pub struct VbdSettings<'a> {
     /// (every Newton step is taken whole, as the paper does, saving two energy densities per
     /// element and corner).
     pub max_backtracks: u32,
+    /// Take every Newton step whole and run the line search only in a sweep that raised `Phi`:
+    /// the evaluation after each sweep (which the stopping test needs anyway) detects the
+    /// increase, and the sweep is then redone from its start with the line search
+    /// ([`max_backtracks`](Self::max_backtracks) > 0), and the Chebyshev weights restart. Sweeps
+    /// stay monotone at the cost of the plain sweep where the full steps are safe. Ignored when
+    /// `max_backtracks` is 0.
+    pub line_search_on_increase: bool,
     /// Chebyshev acceleration over sweeps: `rho` in `[0, 1)`, the estimated spectral radius of
     /// the plain sweep; 0 turns it off (see [`vbd_step`](vbd_step#acceleration)).
     pub chebyshev: Real,
@@ -154,6 +158,7 @@ impl<'a> VbdSettings<'a> {
             armijo: 1e-4,
             backtrack: 0.5,
             max_backtracks: 8,
+            line_search_on_increase: false,
             chebyshev: 0.0,
             chebyshev_delay: 0,
             estimate_chebyshev: false,
@@ -215,6 +220,17 @@ impl<'a> VbdSettings<'a> {
         }
     }
 
+    /// These settings with the line search only in sweeps that raised `Phi` (see
+    /// [`line_search_on_increase`](VbdSettings::line_search_on_increase)).
+    #[inline]
+    #[must_use]
+    pub fn with_line_search_on_increase(self) -> Self {
+        VbdSettings {
+            line_search_on_increase: true,
+            ..self
+        }
+    }
+
     /// These settings with at most `max_backtracks` backtracks per vertex update (0: no line
     /// search).
     #[inline]
@@ -265,7 +281,7 @@ pub struct VbdReport {
     /// Sweeps over the vertices.
     pub iterations: u32,
     /// Evaluations of `Phi` and its gradient: one or two for the initial guess (as the
-    /// relaxation's), one per sweep, one per restart.
+    /// relaxation's), one per sweep, one per restart and one per redone sweep.
     pub energy_evaluations: u32,
     /// `|grad Phi|` (N) at the initial guess (projected on the ground's constraint).
     pub initial_residual: Real,
@@ -281,9 +297,16 @@ pub struct VbdReport {
     pub restarts: u32,
     /// Per-vertex line-search trials rejected.
     pub backtracks: u32,
+    /// Sweeps redone with the line search because `Phi` increased (with
+    /// [`VbdSettings::line_search_on_increase`]).
+    pub redone_sweeps: u32,
     /// Vertex updates skipped: block not positive definite (after regularisation), not finite,
     /// no descent, or no acceptable step within the backtracks.
     pub skipped: u32,
+    /// Vertex updates whose exact block (inertia plus the exact element blocks) was not
+    /// positive definite and was replaced by the inertia plus the positive part of its elastic
+    /// sum (see [`vbd_step`](vbd_step#one-sweep)).
+    pub projected: u32,
     /// The Chebyshev `rho` used: the setting, the estimate, or 0 (none, or not yet estimated
     /// when the solve ended).
     pub rho: Real,
@@ -307,9 +330,16 @@ pub struct VbdReport {
 /// that depend on `x_i`,
 /// `g_i = m_i / h^2 (x_i - y_i) - m_i g - sum_e f_e,i(x)` and
 /// `H_i = m_i / h^2 I + sum_e H_e,ii(x)` over the elements `e` around `i`, `f_e,i` the elastic
-/// force of `e` on `i` and `H_e,ii` the SPD-projected 3x3 diagonal block of its Hessian
-/// (`docs/math.md` section 6), then the step `d = -H_i^-1 g_i` (Cholesky; see
-/// [`VbdSettings`] for the guards), a backtracking line search on the vertex's local energy
+/// force of `e` on `i` and `H_e,ii` the exact 3x3 diagonal block of its Hessian, both from
+/// one deformation gradient per element by
+/// [`Material::corner_stress_and_stiffness`] (closed forms, no SVD; `docs/math.md` section
+/// 7.2). `H_i` is factored by Cholesky where it is positive definite (always for
+/// [`StableNeoHookean`](super::super::material::StableNeoHookean), whose element blocks all
+/// are); elsewhere the elastic sum is replaced by its positive semi-definite part (one 3x3
+/// eigen-decomposition for that vertex, counted in [`VbdReport::projected`]) and regularised
+/// where singular, so the matrix solved with is always symmetric positive definite and the step
+/// `d = -H_i^-1 g_i` a descent direction of the local energy (see [`VbdSettings`] for the
+/// guards). Then a backtracking line search on the vertex's local energy
 /// `m_i / (2 h^2) |x_i - y_i|^2 - m_i g.x_i + sum_e V_e W(F_e)`, and the update. Each accepted
 /// update lowers `Phi` (every term of `Phi` that depends on `x_i` is in the local energy), so a
 /// sweep is monotone.
@@ -334,8 +364,9 @@ pub struct VbdReport {
 /// After every sweep `Phi` and its gradient are evaluated with the relaxation's own passes,
 /// so the residual (`|grad Phi|` projected on the contacts) and the test
 /// `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` are exactly the relaxation's. An
-/// iteration costs a sweep (per element and corner one SVD and one projected block, and with
-/// the line search one or two energy densities) plus one fused energy-and-force pass.
+/// iteration costs a sweep (per element and corner one deformation gradient, `P g` and the
+/// exact block, and with the line search one or two energy densities per trial) plus one fused
+/// energy-and-force pass.
 ///
 /// # When to pick it
 /// Measured with `cargo test --release --all-features --test vbd measure -- --ignored
@@ -418,12 +449,13 @@ pub fn vbd_step<M: Material>(
 /// inertia term, minimising `E(x) - sum m g.(x - x_0)` from the given `positions`, as
 /// [`relax_quasi_static`](super::relax_quasi_static). `settings.dt` is ignored.
 ///
-/// Without inertia a vertex block is only positive semi-definite (the projected element blocks
-/// may have zero eigenvalues, and a vertex in no element has none): a block whose Cholesky
-/// factorisation finds a pivot at or below `64 eps tr(H)` is regularised once by
-/// `sqrt(eps) tr(H) / 3` on the diagonal (a Levenberg–Marquardt step, still a descent
-/// direction), and the vertex is skipped for this sweep if that fails too or `tr(H)` is not
-/// positive. Vertices in no element therefore never move.
+/// Without inertia a vertex block is only as definite as its elements' exact blocks (which
+/// may be indefinite or singular, and a vertex in no element has none): a block whose Cholesky
+/// factorisation finds a pivot at or below `64 eps tr(H)` is replaced by its positive
+/// semi-definite part, which is regularised once by `sqrt(eps) tr(H) / 3` on the diagonal
+/// where that is singular too (a Levenberg–Marquardt step, still a descent direction), and the
+/// vertex is skipped for this sweep if that fails too or `tr(H)` is not positive. Vertices in
+/// no element therefore never move.
 ///
 /// # Errors
 /// As [`vbd_step`] (without [`StepError::TimeStep`]).
@@ -444,9 +476,6 @@ const ROUNDING: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
 
 /// The energy resolution's factor: `64 eps`.
 const RESOLUTION: Real = 64.0 * Real::EPSILON;
-
-/// A Cholesky pivot must exceed this times the block's trace.
-const PIVOT_FLOOR: Real = 64.0 * Real::EPSILON;
 
 /// What one evaluation of `Phi` gives.
 #[derive(Clone, Copy)]
@@ -515,6 +544,7 @@ struct Sweep<'s, M: Material> {
 struct SweepCounts {
     backtracks: u32,
     skipped: u32,
+    projected: u32,
 }
 
 /// The corner positions of `corners`.
@@ -525,13 +555,13 @@ fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
 
 impl<M: Material> Sweep<'_, M> {
     /// One Gauss–Seidel sweep over the free vertices in colour order, in place.
-    fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts) {
+    fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) {
         for &vertex in self.order {
             let i = vertex as usize;
             if self.pinned.get(i).copied().unwrap_or(false) {
                 continue;
             }
-            self.update(positions, i, counts);
+            self.update(positions, i, counts, line_search);
         }
     }
 
@@ -544,44 +574,14 @@ impl<M: Material> Sweep<'_, M> {
         })
     }
 
-    /// Calls `visit(corner, rest, f, svd)` for every element around `i` in adjacency order:
-    /// the vertex's corner in it, its rest data, its deformation gradient and that gradient's
-    /// SVD, computed [`LANES`] at a time by [`svd3_lanes`] where the target batches SVDs (the
-    /// same bits as [`svd3`], so the result does not depend on it).
-    #[inline(always)]
-    fn for_each_element(
-        &self,
-        positions: &[Vec3],
-        i: usize,
-        mut visit: impl FnMut(usize, &TetRest, Mat3, &Svd3),
-    ) {
-        let mut pending = [(0, TetRest::default(), Mat3::ZERO); LANES];
-        let mut count = 0;
-        for (corners, corner, rest) in self.elements(i) {
-            let f = rest.deformation_gradient(gather(positions, corners));
-            if !BATCH_SVD {
-                visit(corner, rest, f, &svd3(f));
-                continue;
-            }
-            if let Some(slot) = pending.get_mut(count) {
-                *slot = (corner, *rest, f);
-            }
-            count += 1;
-            if count == LANES {
-                let svds = svd3_lanes(&pending.map(|(_, _, f)| f));
-                for ((corner, rest, f), svd) in pending.iter().zip(&svds) {
-                    visit(*corner, rest, *f, svd);
-                }
-                count = 0;
-            }
-        }
-        for (corner, rest, f) in pending.iter().take(count) {
-            visit(*corner, rest, *f, &svd3(*f));
-        }
-    }
-
     /// The local Newton update of vertex `i` (see the module documentation).
-    fn update(&self, positions: &mut [Vec3], i: usize, counts: &mut SweepCounts) {
+    fn update(
+        &self,
+        positions: &mut [Vec3],
+        i: usize,
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) {
         let Some(&x) = positions.get(i) else {
             return;
         };
@@ -592,26 +592,29 @@ impl<M: Material> Sweep<'_, M> {
             None => x0,
         };
         let weight = m * self.inertia;
-        let line_search = self.max_backtracks > 0;
+        let line_search = line_search && self.max_backtracks > 0;
         let external = self.loads.force(i);
         let fixed = self.loads.fixed(i);
         let mut gradient = (x - y) * weight - self.gravity * m - external;
-        let mut hessian = Mat3::from_diagonal(Vec3::splat(weight));
+        let mut hessian = Mat3::ZERO;
         let mut elastic = 0.0;
         // What the local energy can resolve: 64 eps sum_e V_e W_e-scale, the scale from the
         // element block, tr(K_e) / |g_a|^2 ~ V_e times the elastic modulus (J).
         let mut resolution = 0.0;
-        self.for_each_element(positions, i, |corner, rest, f, svd| {
-            let (force, block) = force_and_projected_block(self.material, rest, f, svd, corner);
-            gradient -= force;
-            hessian += block;
+        // One deformation gradient, stress and exact corner block per element: the force
+        // -V P g and the block V K(g) (no SVD; see `vertex_block`).
+        for (corners, corner, rest) in self.elements(i) {
+            let f = rest.deformation_gradient(gather(positions, corners));
+            let g = shape_gradient(rest, corner);
+            let (stress, stiffness) = self.material.corner_stress_and_stiffness(f, g);
+            gradient += stress * rest.volume;
+            hessian += stiffness * rest.volume;
             if line_search {
                 elastic += rest.volume * self.material.energy_density(f);
-                let g = shape_gradient(rest, corner);
-                let trace = block.x_axis.x + block.y_axis.y + block.z_axis.z;
-                resolution += trace / g.dot(g);
+                let trace = stiffness.x_axis.x + stiffness.y_axis.y + stiffness.z_axis.z;
+                resolution += (trace * rest.volume).abs() / g.dot(g);
             }
-        });
+        }
         if fixed != 0 {
             // The step on the free subspace exactly: the reduced system, its fixed rows and
             // columns replaced by the identity and its fixed gradient components by zero.
@@ -630,10 +633,15 @@ impl<M: Material> Sweep<'_, M> {
                 hessian.z_axis * keep.z + Vec3::Z * unit.z,
             );
         }
-        let Some(factor) = Cholesky::regularised(&hessian) else {
+        let Some(VertexFactor {
+            cholesky: factor,
+            projected,
+        }) = VertexFactor::new(weight, &hessian)
+        else {
             counts.skipped += 1;
             return;
         };
+        counts.projected += u32::from(projected);
         let mut step = factor.solve(-gradient);
         if let Some(ground) = &self.ground {
             if ground.height(x + step) < 0.0 {
@@ -721,63 +729,6 @@ impl<M: Material> Sweep<'_, M> {
             }
             visit(corner, rest, rest.deformation_gradient(xs));
         }
-    }
-}
-
-/// The Cholesky factor `L` of a symmetric 3x3 matrix (`H = L L^T`), lower triangle by rows.
-struct Cholesky {
-    l00: Real,
-    l10: Real,
-    l11: Real,
-    l20: Real,
-    l21: Real,
-    l22: Real,
-}
-
-impl Cholesky {
-    /// The factor of `h` (its lower triangle is read), if every pivot exceeds `floor`.
-    fn new(h: &Mat3, floor: Real) -> Option<Cholesky> {
-        let (a00, a10, a20) = (h.x_axis.x, h.x_axis.y, h.x_axis.z);
-        let (a11, a21, a22) = (h.y_axis.y, h.y_axis.z, h.z_axis.z);
-        let pivot = |d: Real| (d > floor).then(|| math::sqrt(d));
-        let l00 = pivot(a00)?;
-        let (l10, l20) = (a10 / l00, a20 / l00);
-        let l11 = pivot(a11 - l10 * l10)?;
-        let l21 = (a21 - l20 * l10) / l11;
-        let l22 = pivot(a22 - l20 * l20 - l21 * l21)?;
-        Some(Cholesky {
-            l00,
-            l10,
-            l11,
-            l20,
-            l21,
-            l22,
-        })
-    }
-
-    /// The factor of `h`, or of `h + sqrt(eps) tr(h) / 3 I` if `h` has a pivot at or below
-    /// `64 eps tr(h)`; `None` if that fails too, or `tr(h)` is not finite and positive.
-    fn regularised(h: &Mat3) -> Option<Cholesky> {
-        let trace = h.x_axis.x + h.y_axis.y + h.z_axis.z;
-        if !(trace > 0.0 && trace.is_finite()) {
-            return None;
-        }
-        let floor = PIVOT_FLOOR * trace;
-        Cholesky::new(h, floor).or_else(|| {
-            let shift = Mat3::from_diagonal(Vec3::splat(ROUNDING * trace / 3.0));
-            Cholesky::new(&(*h + shift), floor)
-        })
-    }
-
-    /// `H^-1 r`.
-    fn solve(&self, r: Vec3) -> Vec3 {
-        let z0 = r.x / self.l00;
-        let z1 = (r.y - self.l10 * z0) / self.l11;
-        let z2 = (r.z - self.l20 * z0 - self.l21 * z1) / self.l22;
-        let x2 = z2 / self.l22;
-        let x1 = (z1 - self.l21 * x2) / self.l11;
-        let x0 = (z0 - self.l10 * x1 - self.l20 * x2) / self.l00;
-        Vec3::new(x0, x1, x2)
     }
 }
 
@@ -1063,7 +1014,7 @@ fn descend<'b, M: Material>(
     let target = settings.tolerance * initial_residual.max(load);
 
     let mut counts = SweepCounts::default();
-    let (mut iterations, mut restarts) = (0, 0);
+    let (mut iterations, mut restarts, mut redone_sweeps) = (0, 0, 0);
     let mut rho = settings.chebyshev;
     // The largest residual ratio of the plain sweeps 2..=delay, for the estimate.
     let mut estimate = RhoEstimate::default();
@@ -1083,7 +1034,8 @@ fn descend<'b, M: Material>(
             };
         }
         copy(previous, positions);
-        sweep.run(positions, &mut counts);
+        let lazy = settings.line_search_on_increase && settings.max_backtracks > 0;
+        sweep.run(positions, &mut counts, !lazy);
         let accelerated = omega > 1.0 && stepped;
         if accelerated {
             copy(unaccelerated, positions);
@@ -1110,6 +1062,21 @@ fn descend<'b, M: Material>(
                 since_restart = 1;
                 omega = 1.0;
             }
+        }
+        if lazy
+            && !(next.phi
+                <= evaluation.phi
+                    + ROUNDING * (evaluation.phi.abs() + next.phi.abs() + next.elastic.abs()))
+        {
+            // The full steps raised Phi (or gave NaN): redo the sweep from its start with the
+            // line search, which makes it monotone.
+            redone_sweeps += 1;
+            copy(positions, previous);
+            sweep.run(positions, &mut counts, true);
+            next = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
+            energy_evaluations += 1;
+            since_restart = 1;
+            omega = 1.0;
         }
         if !next.phi.is_finite() {
             let vertex = first_non_finite(positions, &[]).unwrap_or(0);
@@ -1139,7 +1106,9 @@ fn descend<'b, M: Material>(
         colours: 0,
         restarts,
         backtracks: counts.backtracks,
+        redone_sweeps,
         skipped: counts.skipped,
+        projected: counts.projected,
         rho,
     };
     Ok((report, gradient, unaccelerated))
