@@ -369,22 +369,34 @@ pub struct VbdReport {
 /// energy-and-force pass.
 ///
 /// # When to pick it
-/// Measured with `cargo test --release --all-features --test vbd measure -- --ignored
-/// --nocapture --test-threads 1` (x86_64, one thread, a shared machine): on the bouncy cube's
-/// 1296 tetrahedra (f32) a sweep cost 40-110 force passes without the line search and 65-150
-/// with it (runs at different loads): each element is visited once per corner, with an SVD
-/// (four at a time) each time,
-/// where a force pass evaluates it once, four elements per SIMD register. In iterations VBD
-/// gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s (tolerance 2e-3)
-/// 2135-3343 accelerated sweeps against the relaxation's 5351 iterations (5886 plain sweeps),
-/// on the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 681-1017 against 1798; so
-/// its wall time was 10-15 times the relaxation's there accelerated, up to 50 times plain. Pick it for what the count of
-/// iterations cannot show: every accepted vertex update lowers `Phi` (sweeps are monotone,
-/// accelerated ones checked), so a small fixed budget of sweeps is always safe, and its
-/// per-vertex Newton steps resolve stiff local modes the diagonal preconditioner of the
-/// relaxation does not. Turn the line search off ([`VbdSettings::with_line_search`]`(0)`) for
-/// speed where the blocks are well behaved, and let the solver estimate Chebyshev's `rho`
-/// ([`VbdSettings::with_estimated_chebyshev`]).
+/// Measured with `cargo test --release --all-features --test vbd measure_ -- --ignored
+/// --nocapture --test-threads 1` (x86_64, one thread, a shared 2-core machine at a load of
+/// about 8; the solvers interleaved step by step, each step's least wall time over three
+/// repeats, and the thread's CPU time). On the bouncy cube's 1296 tetrahedra (f32) a sweep cost
+/// 11.3-12.9 force passes without the line search (35-40 ns per element visit: `F`, `P g` and
+/// the exact 3x3 block, no SVD; with the SVD-projected blocks it was 40-110) and 32-33 with it:
+/// each element is visited once per corner, scalar, where a force pass evaluates it once,
+/// four elements per SIMD register. The target of 3 force passes per sweep is not met. In
+/// iterations VBD gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s
+/// (tolerance 2e-3) 2151 sweeps with Chebyshev 0.95 against the relaxation's 5351 iterations
+/// (5876 plain sweeps), 3.0-3.4 times the relaxation's CPU time (3.8-4.5 times its wall
+/// time); on the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 681 sweeps (rho
+/// estimated) against 1798 iterations, 1.3-2.2 times its CPU time (1.5-2.6 times its wall
+/// time; the relaxation's whole run there is 7-10 ms, so these ratios vary most).
+/// On the free stiff block, where both sit at the rounding floor and use their budget (6 and
+/// 4 of 30 steps converge), VBD without line search took 0.22-0.27 of the relaxation's time,
+/// whose line search spends 283 000 evaluations there. So the target of half the
+/// relaxation's wall time at the same residual is met only on the free stiff block, not on
+/// the bouncy cube or the clamped block. Pick it for what the count of iterations cannot
+/// show: every accepted vertex update lowers `Phi` (sweeps are monotone, accelerated ones
+/// checked), so a small fixed budget of sweeps is always safe, and its per-vertex Newton steps
+/// (with the exact local Hessian) resolve stiff local modes the diagonal preconditioner of the
+/// relaxation does not. For speed take the full steps with the line search only in sweeps
+/// that raised `Phi` ([`VbdSettings::with_line_search_on_increase`]: the cost of no line
+/// search, 1.0-1.02 of it on the bouncy cube, and still monotone) or no line search at all
+/// ([`VbdSettings::with_line_search`]`(0)`), with Chebyshev acceleration
+/// ([`VbdSettings::with_chebyshev`]`(0.95, 2)` was best on the bouncy cube, the estimate
+/// [`VbdSettings::with_estimated_chebyshev`] on the clamped block).
 ///
 /// ```
 /// use softfem::element::TetRest;
@@ -1063,11 +1075,9 @@ fn descend<'b, M: Material>(
                 omega = 1.0;
             }
         }
-        if lazy
-            && !(next.phi
-                <= evaluation.phi
-                    + ROUNDING * (evaluation.phi.abs() + next.phi.abs() + next.elastic.abs()))
-        {
+        let noise = ROUNDING * (evaluation.phi.abs() + next.phi.abs() + next.elastic.abs());
+        let lowered = next.phi <= evaluation.phi + noise;
+        if lazy && !lowered {
             // The full steps raised Phi (or gave NaN): redo the sweep from its start with the
             // line search, which makes it monotone.
             redone_sweeps += 1;
