@@ -16,8 +16,8 @@ use super::{
 ///
 /// Finite and smooth for every `F` with `max |F_ij|` up to
 /// [`deformation_limit`](Material::deformation_limit),
-/// `((Real::MAX / 2^24) / (256 (|lambda| + mu)))^(1/6)` (its energy grows like `|F|^6`): about
-/// `6e3` in f32 and `1e49` in f64 for `E = 1 MPa`, including flat (`J = 0`) and inverted
+/// `((Real::MAX / 2^24) / (256 (|lambda| + mu)))^(1/6)` rounded down to a power of two (its
+/// energy grows like `|F|^6`): `4096` in f32 and `5.8e48` in f64 for `E = 1 MPa`, `nu = 0.3`, including flat (`J = 0`) and inverted
 /// (`J < 0`) elements, which it pushes back towards `J > 0`: the model to use whenever elements
 /// may invert, and with energy-based solvers. Beyond the limit (`F = 1e20 I` in f32) the values
 /// overflow, and the mesh kernels refuse such deformations with an error.

@@ -13,8 +13,8 @@ use super::{Lame, Lane, LaneMat3, Lanes, Mat3, Material, MaterialError, Real, Ve
 ///   returns to zero at `s = 0`, so a hard push flattens the element.
 ///
 /// Finite for every `F` with `max |F_ij|` up to [`deformation_limit`](Material::deformation_limit),
-/// `((Real::MAX / 2^24) / (256 (|lambda| + mu)))^(1/4)` (its energy grows like `|F|^4`): about
-/// `1.4e5` in f32 and `1e74` in f64 for `E = 1 MPa`. Beyond it (`F = 1e20 I` in f32) the values
+/// `((Real::MAX / 2^24) / (256 (|lambda| + mu)))^(1/4)` rounded down to a power of two (its
+/// energy grows like `|F|^4`): `5.2e5` in f32 and `1.4e73` in f64 for `E = 1 MPa`, `nu = 0.3`. Beyond it (`F = 1e20 I` in f32) the values
 /// overflow, and the mesh kernels refuse such deformations with an error.
 ///
 /// ```
