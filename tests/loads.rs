@@ -339,6 +339,61 @@ macro_rules! load_tests {
                 assert!(x[0].x > rest[0].x);
             }
 
+            /// One implicit Euler step of 1/60 s by `solver` from rest, with gravity `gravity` and
+            /// external forces `forces`; returns positions and velocities.
+            fn implicit_step(solver: Solver, (rest, tets): (&[Vec3], &[[u32; 4]]), pinned: &[bool], (gravity, forces): (Vec3, &[Vec3])) -> (Vec<Vec3>, Vec<Vec3>) {
+                use $($api)::+::step::{newton_step, relax_step, vbd_step};
+                let mut rest_data = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(rest, tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StVK::from_young_poisson(YOUNG, POISSON).unwrap());
+                let m = masses(rest, tets);
+                let (n, t, dt) = (rest.len(), tets.len(), 1.0 / 60.0);
+                let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; n]);
+                match solver {
+                    Solver::Newton => {
+                        let len = newton_scratch_len(n, t);
+                        let (mut a, mut b, mut h) = (vec![Vec3::ZERO; len.vectors], vec![Mat3::ZERO; len.blocks], vec![TetHessian::default(); len.hessians]);
+                        let settings = NewtonSettings::new(dt).with_gravity(gravity).with_tolerance(TOLERANCES[0], 50).with_external_forces(forces);
+                        let report = newton_step(&body, &m, pinned, &settings, &mut x, &mut v, &mut NewtonScratch::new(&mut a, &mut b, &mut h)).unwrap();
+                        assert!(report.converged, "{report:?}");
+                    }
+                    Solver::Relax => {
+                        let (mut a, mut s) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                        let settings = RelaxSettings::new(dt).with_gravity(gravity).with_tolerance(TOLERANCES[1], 100_000).with_external_forces(forces);
+                        let report = relax_step(&body, &m, pinned, &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
+                        assert!(report.converged, "{report:?}");
+                    }
+                    Solver::Vbd => {
+                        let (mut a, mut i) = (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)]);
+                        let settings = VbdSettings::new(dt).with_gravity(gravity).with_tolerance(TOLERANCES[2], 100_000).with_external_forces(forces);
+                        let report = vbd_step(&body, &m, pinned, &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
+                        assert!(report.converged, "{report:?}");
+                    }
+                }
+                (x, v)
+            }
+
+            #[test]
+            fn an_implicit_step_under_a_force_buffer_of_weights_equals_the_gravity_step() {
+                let (rest, tets) = block((4, 1, 1), Vec3::new(0.4, 0.1, 0.1));
+                let pinned: Vec<bool> = rest.iter().map(|x| x.x == 0.0).collect();
+                // Heavier than gravity so that the step moves well above rounding.
+                let gravity = Vec3::new(0.0, 0.0, -200.0);
+                let weights: Vec<Vec3> = masses(&rest, &tets).iter().map(|&m| gravity * m).collect();
+                for solver in SOLVERS {
+                    let (x_gravity, v_gravity) = implicit_step(solver, (&rest, &tets), &pinned, (gravity, &[]));
+                    let (x_forces, v_forces) = implicit_step(solver, (&rest, &tets), &pinned, (Vec3::ZERO, &weights));
+                    let speed = v_gravity.iter().map(|v| v.length()).fold(0.0, Real::max) as f64;
+                    assert!(speed > 0.0);
+                    for (a, b) in v_gravity.iter().zip(&v_forces) {
+                        assert!(relative(*a, *b, speed) < ACCURACY, "{solver:?}: {a} against {b}");
+                    }
+                    for (a, b) in x_gravity.iter().zip(&x_forces) {
+                        assert!(relative(*a, *b, speed / 60.0) < ACCURACY, "{solver:?}: {a} against {b}");
+                    }
+                }
+            }
+
             #[test]
             fn loads_are_validated_and_name_the_buffer_and_vertex() {
                 let (rest, tets) = tetrahedron();

@@ -1,8 +1,8 @@
 //! What a user applies to a body besides gravity, for every solver: external forces (N, one per
 //! vertex) and per-axis constraints (a vertex fixed along some coordinate axes only: rollers and
-//! symmetry planes). The objective gains `- sum f_ext . (x - x_n)` (`docs/math.md` section 4:
-//! a constant force is the gradient of a linear potential, measured from the start positions as
-//! gravity is), and the fixed coordinates are removed degrees of freedom: the gradient, every
+//! symmetry planes). The objective of `docs/math.md` section 4 gains `- sum f_ext . (x - x_n)`
+//! (a constant force is minus the gradient of a linear potential, measured from the start
+//! positions as gravity's is), and the fixed coordinates are removed degrees of freedom: the gradient, every
 //! step and every velocity lose those components, so a fixed coordinate keeps its bits.
 
 use super::super::types::Real;

@@ -15,6 +15,12 @@
 //!   triangle models [`TriElastic`] (2D) and [`MembraneElastic`].
 //! * `pinned` is a slice of flags, empty (nothing pinned) or one per vertex: a pinned vertex's
 //!   position and velocity are never changed by any stepper.
+//! * External loads and partial constraints live in every solver's settings
+//!   (`with_external_forces`, `with_fixed_axes`, see `loads.rs`): a force (N) per vertex added
+//!   to gravity, and a mask per vertex fixing some coordinate axes ([`FIXED_X`], [`FIXED_Y`],
+//!   [`FIXED_Z`]; rollers, symmetry planes). A fixed coordinate keeps its bits exactly (with a
+//!   ground whose normal is not a coordinate axis, the contact projection is applied first and
+//!   the fixed coordinates restored after it).
 //! * The ground is a half-space, see [`Ground`].
 //! * No axis is special: gravity is a vector in the settings and the ground a plane given by its
 //!   normal, so y up, z up or any other convention works. The examples in these docs use y up

@@ -312,10 +312,11 @@ pub struct RelaxReport {
     pub restarts: u32,
     /// Whether the solve stopped because the residual stopped falling: its best value fell by
     /// less than 1 % over the last 100 iterations while within [`FLOOR_FACTOR`](super::FLOOR_FACTOR)
-    /// times [`rounding_floor`](Self::rounding_floor) (then the solve also counts as
-    /// converged: the answer is as good as the precision allows), or did not fall at all over
-    /// 1000 iterations (a plateau above the estimated floor; not converged). Either way the
-    /// budget is not burnt.
+    /// times [`rounding_floor`](Self::rounding_floor) (the answer is as good as the precision
+    /// allows), or did not fall at all over 1000 iterations (a plateau above the estimated
+    /// floor). Either way the budget is not burnt; [`converged`](Self::converged) still says
+    /// only whether the tolerance was reached (unlike Newton's method, which counts a stall at
+    /// the floor as converged), and `final_residual` is the floor reached.
     pub stagnated: bool,
     /// The estimated rounding floor of the residual (N): `eps/2 max_i |x_i| (3 sum_i P_i^2)^(1/2)`
     /// over the free vertices, `P_i` the preconditioner (a bound on the diagonal block of the
@@ -784,8 +785,7 @@ fn descend<'b, F: ElasticEnergy>(
         initial_residual,
         final_residual: residual,
         phi,
-        converged: reached(residual, target)
-            || (stagnated && residual <= FLOOR_FACTOR * rounding_floor),
+        converged: reached(residual, target),
         backtracks,
         restarts,
         stagnated,
