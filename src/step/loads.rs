@@ -6,8 +6,8 @@
 //! step and every velocity lose those components, so a fixed coordinate keeps its bits.
 
 use super::super::types::Real;
-use super::points::{Floor, Grouped};
-use super::{check_length, pinned_flags};
+use super::points::Floor;
+use super::{Vector, check_length, pinned_flags};
 use crate::error::{StepBuffer, StepError};
 
 /// Bit of a fixed-axis mask: the x coordinate is fixed.
@@ -26,7 +26,7 @@ pub(super) struct Loads<'a, V> {
     pub fixed_axes: &'a [u8],
 }
 
-impl<V: Grouped> Loads<'_, V> {
+impl<V: Vector> Loads<'_, V> {
     /// Whether there is nothing to apply (then every solver takes its unloaded path, bit for bit).
     #[inline(always)]
     pub fn is_none(&self) -> bool {
@@ -42,8 +42,7 @@ impl<V: Grouped> Loads<'_, V> {
         if !self.fixed_axes.is_empty() {
             check_length(StepBuffer::FixedAxes, vertex_count, self.fixed_axes.len())?;
         }
-        let non_finite = |f: &V| !(f.inner(*f).is_finite() && f.abs_sum().is_finite());
-        if let Some(vertex) = self.forces.iter().position(non_finite) {
+        if let Some(vertex) = self.forces.iter().position(|f| !f.is_finite()) {
             return Err(StepError::ExternalForce { vertex });
         }
         if let Some(vertex) = self.fixed_axes.iter().position(|&m| m & !V::ALL_AXES != 0) {
