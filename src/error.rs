@@ -840,3 +840,37 @@ impl core::error::Error for StepError {
         }
     }
 }
+
+/// [`svd3_batch`](crate::svd::svd3_batch) (either precision) was given an output slice whose
+/// length differs from the input's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum SvdBatchError {
+    /// The output buffer `out` does not have one decomposition per input matrix.
+    OutputLength {
+        /// The length required: the number of input matrices.
+        expected: usize,
+        /// The length of `out`.
+        actual: usize,
+    },
+}
+
+impl fmt::Display for SvdBatchError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SvdBatchError::OutputLength { expected, actual } => write!(
+                f,
+                "the SVD output buffer holds {actual} decompositions, but there are {expected} \
+                 matrices"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for SvdBatchError {}
+
+// The asset pipeline's errors (voxel meshing, embedding, surface buffers, Gmsh and OBJ files).
+#[path = "asset_error.rs"]
+mod asset_error;
+pub use asset_error::*;

@@ -44,6 +44,10 @@ use super::lanes::{LANES, Lane, LaneMat3, LaneVec3};
 use super::math;
 use super::types::{Mat3, Real, Vec3};
 
+#[path = "svd_batch.rs"]
+mod batch;
+pub use batch::{svd3_batch, svd3_batch_sweeps};
+
 /// The most Jacobi sweeps [`svd3`] runs: 4 in both precisions (each sweep is three rotations;
 /// fewer run when the matrix has converged before, see the module documentation). With 3,
 /// f32 reconstruction errors reach 1e-5 on some random matrices; with 4 the worst seen over
