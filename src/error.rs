@@ -649,6 +649,10 @@ pub enum StepBuffer {
     BlockScratch,
     /// The per-element Hessian cache of Newton's method (one per element).
     HessianScratch,
+    /// The external forces of a solver's settings: empty (no loads) or one per vertex.
+    ExternalForces,
+    /// The per-vertex fixed-axis masks of a solver's settings: empty (none) or one per vertex.
+    FixedAxes,
 }
 
 impl fmt::Display for StepBuffer {
@@ -667,6 +671,8 @@ impl fmt::Display for StepBuffer {
             StepBuffer::VertexOrder => "vertex order",
             StepBuffer::BlockScratch => "block scratch",
             StepBuffer::HessianScratch => "Hessian scratch",
+            StepBuffer::ExternalForces => "external forces",
+            StepBuffer::FixedAxes => "fixed axes",
         })
     }
 }
@@ -762,6 +768,17 @@ pub enum StepError {
     /// The relaxation's time step is so small that `1 / dt^2` overflows this precision (below
     /// about `1e-19` s in f32, `1e-154` s in f64).
     TimeStepTooSmall,
+    /// An external force (N) has a NaN or infinite component.
+    ExternalForce {
+        /// The vertex index.
+        vertex: usize,
+    },
+    /// A fixed-axis mask sets a bit beyond the space's axes (bit 0 x, 1 y, 2 z; only bits 0
+    /// and 1 for 2D bodies).
+    FixedAxes {
+        /// The vertex index.
+        vertex: usize,
+    },
 }
 
 impl From<MeshError> for StepError {
@@ -831,6 +848,13 @@ impl fmt::Display for StepError {
             StepError::TimeStepTooSmall => {
                 f.write_str("the time step is so small that 1 / dt^2 overflows this precision")
             }
+            StepError::ExternalForce { vertex } => {
+                write!(f, "the external force on vertex {vertex} is not finite")
+            }
+            StepError::FixedAxes { vertex } => write!(
+                f,
+                "the fixed-axis mask of vertex {vertex} names an axis this space does not have"
+            ),
         }
     }
 }

@@ -89,7 +89,7 @@ macro_rules! step_tests {
                     StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap()
                 }
 
-                fn settings(dt: Real, substeps: u32) -> ExplicitSettings<Vec3> {
+                fn settings(dt: Real, substeps: u32) -> ExplicitSettings<'static, Vec3> {
                     ExplicitSettings::new(dt)
                         .with_substeps(substeps)
                         .with_gravity(Vec3::new(0.0, 0.0, -9.81))

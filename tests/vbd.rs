@@ -803,7 +803,7 @@ mod measure {
         fn estimated(self) -> Self;
         fn guarded(self) -> Self;
     }
-    impl VbdLike for softfem::step::VbdSettings {
+    impl VbdLike for softfem::step::VbdSettings<'_> {
         fn line_search(self, backtracks: u32) -> Self {
             self.with_line_search(backtracks)
         }
@@ -817,7 +817,7 @@ mod measure {
             self.with_line_search_on_increase()
         }
     }
-    impl VbdLike for softfem::f64::step::VbdSettings {
+    impl VbdLike for softfem::f64::step::VbdSettings<'_> {
         fn line_search(self, backtracks: u32) -> Self {
             self.with_line_search(backtracks)
         }

@@ -2,6 +2,7 @@
 //! blow-up detection.
 
 use super::super::types::Real;
+use super::loads::Loads;
 use super::{
     ElasticModel, Ground, Vector, check_length, check_state, first_non_finite, pinned_flags,
 };
@@ -44,7 +45,7 @@ pub const FLIP_STREAK: u32 = 3;
 
 /// The parameters of one [`step_explicit`] call.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ExplicitSettings<V> {
+pub struct ExplicitSettings<'a, V> {
     /// The time step (s) of the whole call, split into `substeps` equal substeps. Must be finite
     /// and positive; for stability each substep must stay below
     /// [`stable_time_step`](super::stable_time_step).
@@ -63,14 +64,26 @@ pub struct ExplicitSettings<V> {
     /// times the previous substep's is refused with [`StepError::EnergyBlowUp`]. See
     /// [`DEFAULT_ENERGY_GROWTH`].
     pub max_energy_growth: Real,
+    /// External forces (N), one per vertex, or empty (the default) for none: constant loads
+    /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
+    /// `- sum f_ext . (x - x_n)`. Ignored at pinned vertices and along fixed axes. Checked
+    /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
+    pub external_forces: &'a [V],
+    /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
+    /// ([`FIXED_X`](super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
+    /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
+    /// bits (its velocity component is zeroed).
+    pub fixed_axes: &'a [u8],
 }
 
-impl<V: Vector> ExplicitSettings<V> {
+impl<'a, V: Vector> ExplicitSettings<'a, V> {
     /// One substep of `dt` (s), no gravity, damping or ground, the default growth limit.
     #[inline]
     #[must_use]
     pub fn new(dt: Real) -> Self {
         ExplicitSettings {
+            external_forces: &[],
+            fixed_axes: &[],
             dt,
             substeps: 1,
             gravity: V::ZERO,
@@ -109,6 +122,36 @@ impl<V: Vector> ExplicitSettings<V> {
     #[must_use]
     pub fn with_substeps(self, substeps: u32) -> Self {
         ExplicitSettings { substeps, ..self }
+    }
+
+    /// These settings with external forces `forces` (N, one per vertex; see
+    /// [`external_forces`](Self::external_forces)).
+    #[inline]
+    #[must_use]
+    pub fn with_external_forces<'b>(self, forces: &'b [V]) -> ExplicitSettings<'b, V>
+    where
+        'a: 'b,
+    {
+        let shorter: ExplicitSettings<'b, V> = self;
+        ExplicitSettings {
+            external_forces: forces,
+            ..shorter
+        }
+    }
+
+    /// These settings with per-vertex fixed-axis masks `fixed_axes` (see
+    /// [`fixed_axes`](Self::fixed_axes)).
+    #[inline]
+    #[must_use]
+    pub fn with_fixed_axes<'b>(self, fixed_axes: &'b [u8]) -> ExplicitSettings<'b, V>
+    where
+        'a: 'b,
+    {
+        let shorter: ExplicitSettings<'b, V> = self;
+        ExplicitSettings {
+            fixed_axes,
+            ..shorter
+        }
     }
 }
 
@@ -320,7 +363,7 @@ pub fn step_explicit<F: ElasticModel>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &ExplicitSettings<F::Vector>,
+    settings: &ExplicitSettings<'_, F::Vector>,
     positions: &mut [F::Vector],
     velocities: &mut [F::Vector],
     scratch: &mut ExplicitScratch<'_, F::Vector>,
@@ -328,6 +371,11 @@ pub fn step_explicit<F: ElasticModel>(
     let n = model.vertex_count();
     let ground = validate(settings)?;
     check_state(n, masses, pinned, positions, Some(velocities))?;
+    let loads = Loads {
+        forces: settings.external_forces,
+        fixed_axes: settings.fixed_axes,
+    };
+    loads.check(n)?;
     check_length(
         StepBuffer::Scratch,
         explicit_scratch_len(n),
@@ -387,7 +435,7 @@ pub fn step_explicit<F: ElasticModel>(
 }
 
 /// Checks the scalar settings; returns the ground with a unit normal.
-fn validate<V: Vector>(settings: &ExplicitSettings<V>) -> Result<Option<Ground<V>>, StepError> {
+fn validate<V: Vector>(settings: &ExplicitSettings<'_, V>) -> Result<Option<Ground<V>>, StepError> {
     if !(settings.dt > 0.0 && settings.dt.is_finite()) {
         return Err(StepError::TimeStep);
     }
@@ -413,7 +461,7 @@ fn substep<F: ElasticModel>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &ExplicitSettings<F::Vector>,
+    settings: &ExplicitSettings<'_, F::Vector>,
     ground: Option<&Ground<F::Vector>>,
     h: Real,
     positions: &mut [F::Vector],
@@ -474,15 +522,28 @@ fn substep<F: ElasticModel>(
     let drag = 1.0 / (1.0 + settings.damping * h);
     let resting_speed = 2.0 * h * super::super::math::sqrt(gravity_squared);
     let mut contacts = 0;
+    let loads = Loads {
+        forces: settings.external_forces,
+        fixed_axes: settings.fixed_axes,
+    };
     let state = positions.iter_mut().zip(velocities.iter_mut());
-    for ((((x, v), f), &m), pinned) in state.zip(&*forces).zip(masses).zip(pinned_flags(pinned)) {
+    let rows = state.zip(&*forces).zip(masses).zip(pinned_flags(pinned));
+    for (i, ((((x, v), f), &m), pinned)) in rows.enumerate() {
         if pinned {
             continue;
         }
-        *v = (*v + (*f * (1.0 / m) + gravity) * h) * drag;
+        let mut acceleration = *f * (1.0 / m) + gravity;
+        if !loads.forces.is_empty() {
+            acceleration += loads.force(i) * (1.0 / m);
+        }
+        // Fixed axes: no velocity along them, so the coordinate keeps its bits.
+        *v = loads.free_part(i, (*v + acceleration * h) * drag);
+        let before = *x;
         *x += *v * h;
         if let Some(ground) = ground {
             contacts += usize::from(ground.resolve(x, v, resting_speed));
+            *x = loads.keep_fixed(i, *x, before);
+            *v = loads.free_part(i, *v);
         }
     }
     match first_non_finite(positions, velocities) {

@@ -10,9 +10,10 @@ use core::mem::swap;
 use super::super::element::TetHessian;
 use super::super::math;
 use super::super::types::{Mat3, Real, Vec3};
-use super::line_search::{copy, downhill, slope_along, sufficient_decrease};
+use super::line_search::{self, copy, downhill, slope_along, sufficient_decrease};
+use super::loads::Loads;
 use super::objective::{Evaluation, Objective, implicit_velocities};
-use super::points::Floor;
+use super::points::{Floor, Grouped};
 use super::vertex_passes::{Frames, TrialPoint, Vertices, trial_pass};
 use super::{
     ElasticHessian, Ground, Vector, check_length, check_state, first_non_finite, pinned_flags,
@@ -75,7 +76,7 @@ impl<'a> NewtonScratch<'a> {
 
 /// The parameters of Newton's method.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NewtonSettings<V> {
+pub struct NewtonSettings<'a, V> {
     /// The time step `h` (s) of [`newton_step`]; ignored by [`newton_quasi_static`]. Finite and
     /// positive.
     pub dt: Real,
@@ -99,15 +100,27 @@ pub struct NewtonSettings<V> {
     pub backtrack: Real,
     /// Rejections allowed per line search before the solve stops as stagnated.
     pub max_backtracks: u32,
+    /// External forces (N), one per vertex, or empty (the default) for none: constant loads
+    /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
+    /// `- sum f_ext . (x - x_n)`. Ignored at pinned vertices and along fixed axes. Checked
+    /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
+    pub external_forces: &'a [V],
+    /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
+    /// ([`FIXED_X`](super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
+    /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
+    /// bits.
+    pub fixed_axes: &'a [u8],
 }
 
-impl<V: Vector> NewtonSettings<V> {
+impl<'a, V: Vector> NewtonSettings<'a, V> {
     /// Time step `dt` (s), no gravity or ground, relative tolerance `1e-4`, 50 Newton and 200
     /// CG iterations, Armijo `c = 1e-4`, `beta = 0.5`, 30 backtracks.
     #[inline]
     #[must_use]
     pub fn new(dt: Real) -> Self {
         NewtonSettings {
+            external_forces: &[],
+            fixed_axes: &[],
             dt,
             gravity: V::ZERO,
             ground: None,
@@ -156,6 +169,36 @@ impl<V: Vector> NewtonSettings<V> {
         NewtonSettings {
             max_cg_iterations,
             ..self
+        }
+    }
+
+    /// These settings with external forces `forces` (N, one per vertex; see
+    /// [`external_forces`](Self::external_forces)).
+    #[inline]
+    #[must_use]
+    pub fn with_external_forces<'b>(self, forces: &'b [V]) -> NewtonSettings<'b, V>
+    where
+        'a: 'b,
+    {
+        let shorter: NewtonSettings<'b, V> = self;
+        NewtonSettings {
+            external_forces: forces,
+            ..shorter
+        }
+    }
+
+    /// These settings with per-vertex fixed-axis masks `fixed_axes` (see
+    /// [`fixed_axes`](Self::fixed_axes)).
+    #[inline]
+    #[must_use]
+    pub fn with_fixed_axes<'b>(self, fixed_axes: &'b [u8]) -> NewtonSettings<'b, V>
+    where
+        'a: 'b,
+    {
+        let shorter: NewtonSettings<'b, V> = self;
+        NewtonSettings {
+            fixed_axes,
+            ..shorter
         }
     }
 }
@@ -284,7 +327,7 @@ pub fn newton_step<F: ElasticHessian>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &NewtonSettings<Vec3>,
+    settings: &NewtonSettings<'_, Vec3>,
     positions: &mut [Vec3],
     velocities: &mut [Vec3],
     scratch: &mut NewtonScratch<'_>,
@@ -315,7 +358,7 @@ pub fn newton_quasi_static<F: ElasticHessian>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &NewtonSettings<Vec3>,
+    settings: &NewtonSettings<'_, Vec3>,
     positions: &mut [Vec3],
     scratch: &mut NewtonScratch<'_>,
 ) -> Result<NewtonReport, StepError> {
@@ -323,7 +366,7 @@ pub fn newton_quasi_static<F: ElasticHessian>(
 }
 
 /// Checks the scalar settings; returns the ground with a unit normal.
-fn validate(settings: &NewtonSettings<Vec3>) -> Result<Option<Ground<Vec3>>, StepError> {
+fn validate(settings: &NewtonSettings<'_, Vec3>) -> Result<Option<Ground<Vec3>>, StepError> {
     if !settings.gravity.is_finite() {
         return Err(StepError::Gravity);
     }
@@ -343,7 +386,7 @@ fn solve<F: ElasticHessian>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &NewtonSettings<Vec3>,
+    settings: &NewtonSettings<'_, Vec3>,
     positions: &mut [Vec3],
     velocities: Option<&mut [Vec3]>,
     scratch: &mut NewtonScratch<'_>,
@@ -351,6 +394,11 @@ fn solve<F: ElasticHessian>(
     let n = model.vertex_count();
     let ground = validate(settings)?;
     check_state(n, masses, pinned, positions, velocities.as_deref())?;
+    let loads = Loads {
+        forces: settings.external_forces,
+        fixed_axes: settings.fixed_axes,
+    };
+    loads.check(n)?;
     let lengths = newton_scratch_len(n, model.element_count());
     check_length(StepBuffer::Scratch, lengths.vectors, scratch.vectors.len())?;
     check_length(
@@ -390,6 +438,7 @@ fn solve<F: ElasticHessian>(
         frames: Frames::new(h, inertia, settings.gravity, ground.as_ref()),
         h,
         gravity: settings.gravity,
+        loads,
     };
     let buffers = Buffers {
         gradient,
@@ -473,6 +522,8 @@ struct System<'s> {
 /// pushes into it lose the normal one (the relaxation's residual projects the same way).
 struct Constraints<'c> {
     pinned: &'c [bool],
+    /// The fixed-axis masks (empty for none): those components are removed too.
+    fixed_axes: &'c [u8],
     floor: &'c Floor<Vec3>,
     normal: Option<Vec3>,
     x: &'c [Vec3],
@@ -486,6 +537,8 @@ impl Constraints<'_> {
         if self.pinned.get(i).copied().unwrap_or(false) {
             return Vec3::ZERO;
         }
+        let fixed = self.fixed_axes.get(i).copied().unwrap_or(0);
+        let v = v.axes_from(Vec3::ZERO, fixed);
         let Some(normal) = self.normal else {
             return v;
         };
@@ -493,7 +546,7 @@ impl Constraints<'_> {
         let active =
             self.floor.contact(at(self.x)) == Some(true) && normal.dot(at(self.gradient)) > 0.0;
         if active {
-            v - normal * normal.dot(v)
+            (v - normal * normal.dot(v)).axes_from(Vec3::ZERO, fixed)
         } else {
             v
         }
@@ -514,7 +567,7 @@ type Outcome<'b> = (NewtonReport, &'b mut [Vec3], &'b mut [Vec3]);
 fn iterate<'b, F: ElasticHessian>(
     objective: &Objective<'_, F>,
     system: &System<'_>,
-    settings: &NewtonSettings<Vec3>,
+    settings: &NewtonSettings<'_, Vec3>,
     positions: &mut [Vec3],
     buffers: Buffers<'b>,
 ) -> Result<Outcome<'b>, StepError> {
@@ -548,9 +601,10 @@ fn iterate<'b, F: ElasticHessian>(
         model.projected_hessians(x, hessians)?;
         let stiffness_squared =
             invert_blocks(model, hessians, (masses, pinned, system.inertia), blocks)?;
-        rounding_floor = 0.5 * Real::EPSILON * reach * math::sqrt(stiffness_squared);
+        rounding_floor = line_search::rounding_floor(reach, stiffness_squared);
         let constraints = Constraints {
             pinned: objective.vertices.pinned,
+            fixed_axes: objective.loads.fixed_axes,
             floor: objective.frames.floor(),
             normal: system.ground.map(|g| g.normal),
             x,

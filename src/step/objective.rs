@@ -7,6 +7,7 @@
 
 use super::super::math;
 use super::super::types::Real;
+use super::loads::Loads;
 use super::points::Floor;
 use super::vertex_passes::{Frames, TrialPoint, Vertices, gradient_pass};
 use super::{ElasticEnergy, Ground, Vector, pinned_flags};
@@ -24,6 +25,8 @@ pub(super) struct Objective<'p, F: ElasticEnergy> {
     /// `h` (unused in the quasi-static mode).
     pub h: Real,
     pub gravity: F::Vector,
+    /// External forces and fixed axes (both empty for none).
+    pub loads: Loads<'p, F::Vector>,
 }
 
 impl<F: ElasticEnergy> Objective<'_, F> {
@@ -46,7 +49,8 @@ impl<F: ElasticEnergy> Objective<'_, F> {
             *x = if pinned {
                 x0
             } else {
-                self.frames.floor().project(target + offset)
+                let guess = self.frames.floor().project(target + offset);
+                self.loads.keep_fixed(i, guess, x0)
             };
         }
     }
@@ -60,8 +64,19 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         gradient: &mut [F::Vector],
     ) -> Result<Evaluation, StepError> {
         let elastic = self.model.energy_and_add_forces(x, gradient)?;
-        let (inertia_and_gravity, residual_squared) =
+        let (mut inertia_and_gravity, mut residual_squared) =
             gradient_pass(&self.frames, &self.vertices, x, gradient);
+        if !self.loads.is_none() {
+            let vertices = &self.vertices;
+            let (loads_phi, loaded_residual) = self.loads.apply(
+                self.frames.floor(),
+                (vertices.pinned, vertices.start),
+                x,
+                gradient,
+            );
+            inertia_and_gravity += loads_phi;
+            residual_squared = loaded_residual;
+        }
         Ok(Evaluation {
             phi: elastic + inertia_and_gravity,
             elastic,
@@ -69,9 +84,16 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         })
     }
 
-    /// `|M g|` (N), the norm of the gravity load on the free vertices: the scale the stopping
+    /// `|M g|` (N), the norm of the gravity load on the free vertices (`|M g + f_ext|` over the
+    /// free components with external loads or fixed axes): the scale the stopping
     /// test measures a residual against when the initial residual is smaller.
     pub fn gravity_load(&self) -> Real {
+        if !self.loads.is_none() {
+            let vertices = &self.vertices;
+            return self
+                .loads
+                .load(vertices.masses, vertices.pinned, self.gravity);
+        }
         // Formed relative to the largest free mass, so that heavy bodies (masses of 1e19 kg in
         // f32) do not overflow the squares.
         let free_masses = || {

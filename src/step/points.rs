@@ -43,6 +43,17 @@ pub trait Grouped: Point<Scalar = Real, Vector = Self> {
     fn group(v: [Self; LANES]) -> Self::Group;
     /// The vectors of a group, lane by lane.
     fn ungroup(group: Self::Group) -> [Self; LANES];
+    /// The mask of every axis: `0b11` in 2D, `0b111` in 3D.
+    const ALL_AXES: u8;
+    /// `self` with the coordinates whose bit is set in `fixed` (bit 0 x, 1 y, 2 z) taken from
+    /// `source`: a select, so they keep `source`'s bits exactly.
+    fn axes_from(self, source: Self, fixed: u8) -> Self;
+}
+
+/// `source`'s coordinate where `bit` is set in `fixed`, else `own`.
+#[inline(always)]
+fn pick(own: Real, source: Real, fixed: u8, bit: u8) -> Real {
+    if fixed & bit != 0 { source } else { own }
 }
 
 /// [`LANES`] 2D vectors, coordinate by coordinate.
@@ -161,6 +172,14 @@ impl Grouped for Vec2 {
             y: Lanes::from_array(each_lane(v, |v| v.y)),
         }
     }
+    const ALL_AXES: u8 = 0b11;
+    #[inline(always)]
+    fn axes_from(self, source: Vec2, fixed: u8) -> Vec2 {
+        Vec2::new(
+            pick(self.x, source.x, fixed, 1),
+            pick(self.y, source.y, fixed, 2),
+        )
+    }
     #[inline(always)]
     fn ungroup(group: LaneVec2) -> [Vec2; LANES] {
         let ([x0, x1, x2, x3], [y0, y1, y2, y3]) = (group.x.to_array(), group.y.to_array());
@@ -236,6 +255,15 @@ impl Grouped for Vec3 {
     #[inline(always)]
     fn group(v: [Vec3; LANES]) -> LaneVec3<Lanes> {
         LaneVec3::from_vectors(v)
+    }
+    const ALL_AXES: u8 = 0b111;
+    #[inline(always)]
+    fn axes_from(self, source: Vec3, fixed: u8) -> Vec3 {
+        Vec3::new(
+            pick(self.x, source.x, fixed, 1),
+            pick(self.y, source.y, fixed, 2),
+            pick(self.z, source.z, fixed, 4),
+        )
     }
     #[inline(always)]
     fn ungroup(group: LaneVec3<Lanes>) -> [Vec3; LANES] {

@@ -6,13 +6,20 @@
 use core::mem::swap;
 
 use super::super::types::Real;
-use super::line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
+use super::chebyshev::RhoEstimate;
+use super::line_search::{
+    ROUNDING, Stagnation, copy, downhill, rounding_floor, slope_along, sufficient_decrease,
+};
+use super::loads::Loads;
+use super::newton::FLOOR_FACTOR;
 use super::objective::{Evaluation, Objective, implicit_velocities};
 use super::stability::vertex_stiffness;
 use super::vertex_passes::{
     Frames, TrialPoint, Vertices, chebyshev_pass, direction_pass, trial_pass,
 };
-use super::{ElasticEnergy, Ground, Vector, check_length, check_state, first_non_finite};
+use super::{
+    ElasticEnergy, Ground, Vector, check_length, check_state, first_non_finite, pinned_flags,
+};
 use crate::error::{StepBuffer, StepError};
 
 /// The length of the vector scratch buffer the relaxation needs for `vertex_count` vertices:
@@ -91,7 +98,7 @@ impl<'a, V: Vector> RelaxScratch<'a, V> {
 
 /// The parameters of the relaxation.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RelaxSettings<V> {
+pub struct RelaxSettings<'a, V> {
     /// The time step `h` (s) of [`relax_step`]; ignored by [`relax_quasi_static`]. Finite and
     /// positive; any size is stable (implicit Euler), larger steps damp more.
     pub dt: Real,
@@ -133,9 +140,25 @@ pub struct RelaxSettings<V> {
     pub chebyshev: Real,
     /// Plain iterations after each (re)start before the Chebyshev weights start (`S`).
     pub chebyshev_delay: u32,
+    /// Estimate `rho` instead of taking [`chebyshev`](Self::chebyshev) (which must then be 0,
+    /// with no momentum): the largest residual ratio `r_k / r_(k-1)` of the plain iterations
+    /// `2..=chebyshev_delay` of the solve (`chebyshev_delay >= 2`), at most
+    /// [`MAX_ESTIMATED_RELAX_RHO`], the estimator Vertex Block Descent uses
+    /// ([`VbdSettings::estimate_chebyshev`](super::VbdSettings::estimate_chebyshev)).
+    pub estimate_chebyshev: bool,
+    /// External forces (N), one per vertex, or empty (the default) for none: constant loads
+    /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
+    /// `- sum f_ext . (x - x_n)`. Ignored at pinned vertices and along fixed axes. Checked
+    /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
+    pub external_forces: &'a [V],
+    /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
+    /// ([`FIXED_X`](super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
+    /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
+    /// bits.
+    pub fixed_axes: &'a [u8],
 }
 
-impl<V: Vector> RelaxSettings<V> {
+impl<'a, V: Vector> RelaxSettings<'a, V> {
     /// Time step `dt` (s), no gravity or ground, relative tolerance `2e-3`, 300 iterations,
     /// Chebyshev acceleration with `rho = 0.995` from the first iteration (delay 0) and first
     /// trial step `2`, Armijo `c = 1e-4`, `beta = 0.5`, 30 backtracks, no momentum.
@@ -169,6 +192,8 @@ impl<V: Vector> RelaxSettings<V> {
     #[must_use]
     pub fn new(dt: Real) -> Self {
         RelaxSettings {
+            external_forces: &[],
+            fixed_axes: &[],
             dt,
             gravity: V::ZERO,
             ground: None,
@@ -181,6 +206,7 @@ impl<V: Vector> RelaxSettings<V> {
             momentum: 0.0,
             chebyshev: 0.995,
             chebyshev_delay: 0,
+            estimate_chebyshev: false,
         }
     }
 
@@ -223,6 +249,23 @@ impl<V: Vector> RelaxSettings<V> {
         }
     }
 
+    /// These settings with Chebyshev acceleration for a `rho` the solver estimates from the
+    /// first `delay` plain iterations (`delay >= 2`; see
+    /// [`estimate_chebyshev`](Self::estimate_chebyshev)), no momentum, and the first trial
+    /// step `step_length`.
+    #[inline]
+    #[must_use]
+    pub fn with_estimated_chebyshev(self, step_length: Real, delay: u32) -> Self {
+        RelaxSettings {
+            chebyshev: 0.0,
+            step_length,
+            chebyshev_delay: delay,
+            estimate_chebyshev: true,
+            momentum: 0.0,
+            ..self
+        }
+    }
+
     /// These settings with Chebyshev acceleration for the spectral radius estimate `rho`
     /// (and no momentum), the first trial step `step_length` and a delay of `delay`
     /// iterations.
@@ -233,8 +276,39 @@ impl<V: Vector> RelaxSettings<V> {
             chebyshev: rho,
             step_length,
             chebyshev_delay: delay,
+            estimate_chebyshev: false,
             momentum: 0.0,
             ..self
+        }
+    }
+
+    /// These settings with external forces `forces` (N, one per vertex; see
+    /// [`external_forces`](Self::external_forces)).
+    #[inline]
+    #[must_use]
+    pub fn with_external_forces<'b>(self, forces: &'b [V]) -> RelaxSettings<'b, V>
+    where
+        'a: 'b,
+    {
+        let shorter: RelaxSettings<'b, V> = self;
+        RelaxSettings {
+            external_forces: forces,
+            ..shorter
+        }
+    }
+
+    /// These settings with per-vertex fixed-axis masks `fixed_axes` (see
+    /// [`fixed_axes`](Self::fixed_axes)).
+    #[inline]
+    #[must_use]
+    pub fn with_fixed_axes<'b>(self, fixed_axes: &'b [u8]) -> RelaxSettings<'b, V>
+    where
+        'a: 'b,
+    {
+        let shorter: RelaxSettings<'b, V> = self;
+        RelaxSettings {
+            fixed_axes,
+            ..shorter
         }
     }
 }
@@ -261,7 +335,25 @@ pub struct RelaxReport {
     /// Accelerated trials rejected because `Phi` increased, each followed by a restart of the
     /// acceleration with a plain step.
     pub restarts: u32,
+    /// Whether the solve stopped because the residual stopped falling: its best value fell by
+    /// less than 1 % over the last 100 iterations while within [`FLOOR_FACTOR`](super::FLOOR_FACTOR)
+    /// times [`rounding_floor`](Self::rounding_floor) (the answer is as good as the precision
+    /// allows), or did not fall at all over 1000 iterations (a plateau above the estimated
+    /// floor). Either way the budget is not burnt; [`converged`](Self::converged) still says
+    /// only whether the tolerance was reached (unlike Newton's method, which counts a stall at
+    /// the floor as converged), and `final_residual` is the floor reached.
+    pub stagnated: bool,
+    /// The estimated rounding floor of the residual (N): `eps/2 max_i |x_i| (3 sum_i P_i^2)^(1/2)`
+    /// over the free vertices, `P_i` the preconditioner (a bound on the diagonal block of the
+    /// Hessian), the rule Newton's method uses ([`NewtonReport::rounding_floor`](super::NewtonReport::rounding_floor)).
+    pub rounding_floor: Real,
+    /// The Chebyshev `rho` used: the setting, the estimate, or 0 (none, or not yet estimated
+    /// when the solve stopped).
+    pub rho: Real,
 }
+
+/// The largest spectral radius [`RelaxSettings::estimate_chebyshev`] uses: `0.9999`.
+pub const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 
 /// One implicit Euler step of `settings.dt` as the minimisation of
 /// `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`
@@ -312,7 +404,7 @@ pub fn relax_step<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &RelaxSettings<F::Vector>,
+    settings: &RelaxSettings<'_, F::Vector>,
     positions: &mut [F::Vector],
     velocities: &mut [F::Vector],
     scratch: &mut RelaxScratch<'_, F::Vector>,
@@ -348,7 +440,7 @@ pub fn relax_quasi_static<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &RelaxSettings<F::Vector>,
+    settings: &RelaxSettings<'_, F::Vector>,
     positions: &mut [F::Vector],
     scratch: &mut RelaxScratch<'_, F::Vector>,
 ) -> Result<RelaxReport, StepError> {
@@ -360,7 +452,7 @@ fn minimise<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &RelaxSettings<F::Vector>,
+    settings: &RelaxSettings<'_, F::Vector>,
     positions: &mut [F::Vector],
     velocities: Option<&mut [F::Vector]>,
     scratch: &mut RelaxScratch<'_, F::Vector>,
@@ -368,6 +460,11 @@ fn minimise<F: ElasticEnergy>(
     let n = model.vertex_count();
     let ground = validate(settings)?;
     check_state(n, masses, pinned, positions, velocities.as_deref())?;
+    let loads = Loads {
+        forces: settings.external_forces,
+        fixed_axes: settings.fixed_axes,
+    };
+    loads.check(n)?;
     check_length(
         StepBuffer::Scratch,
         relax_scratch_len(n),
@@ -403,6 +500,7 @@ fn minimise<F: ElasticEnergy>(
         frames: Frames::new(h, inertia, settings.gravity, ground.as_ref()),
         h,
         gravity: settings.gravity,
+        loads,
     };
     let buffers = Buffers {
         gradient,
@@ -472,7 +570,7 @@ fn reached(residual: Real, target: Real) -> bool {
 /// overwriting it with the next trial point. `positions` receives the result at the end.
 fn descend<'b, F: ElasticEnergy>(
     objective: &Objective<'_, F>,
-    settings: &RelaxSettings<F::Vector>,
+    settings: &RelaxSettings<'_, F::Vector>,
     positions: &mut [F::Vector],
     buffers: Buffers<'b, F::Vector>,
 ) -> Result<Descent<'b, F::Vector>, StepError> {
@@ -539,6 +637,9 @@ fn descend<'b, F: ElasticEnergy>(
     // starting at (or near) equilibrium, whose initial residual is mostly rounding, is not asked
     // to reduce it further.
     let target = settings.tolerance * initial_residual.max(objective.gravity_load());
+    let rounding_floor = relax_rounding_floor(objective, current);
+    let mut stagnation = Stagnation::new(residual);
+    let mut stagnated = false;
     // Whether `other` holds x_{k-1}, so that the last step is known (false at the start and
     // after a restart, when it counts as zero).
     let mut stepped = false;
@@ -547,13 +648,30 @@ fn descend<'b, F: ElasticEnergy>(
     let mut backtracks = 0;
     // The step length of the accelerated trials: the one the last plain line search accepted.
     let mut alpha = settings.step_length;
-    let rho_squared = settings.chebyshev * settings.chebyshev;
+    let mut rho = settings.chebyshev;
+    let mut rho_squared = rho * rho;
+    let mut estimate = RhoEstimate::default();
+    let mut previous_residual = residual;
     // Iterations since the last (re)start of the acceleration, and the Chebyshev weight.
     let mut since_restart: u32 = 0;
     let mut omega: Real = 1.0;
     while !reached(residual, target) && iterations < settings.max_iterations {
+        if iterations > 0 && stagnation.stalled(residual, FLOOR_FACTOR * rounding_floor) {
+            stagnated = true;
+            break;
+        }
+        if settings.estimate_chebyshev && rho == 0.0 {
+            if iterations >= 2 {
+                estimate.observe(previous_residual, residual);
+            }
+            if iterations >= settings.chebyshev_delay {
+                rho = estimate.rho(MAX_ESTIMATED_RELAX_RHO);
+                rho_squared = rho * rho;
+            }
+        }
+        previous_residual = residual;
         since_restart = since_restart.saturating_add(1);
-        if settings.chebyshev > 0.0 {
+        if rho > 0.0 {
             // Wang and Yang 2016, eq. 9-10: omega = 1 for the first S iterations, then
             // omega_{S+1} = 2 / (2 - rho^2), omega_{k+1} = 4 / (4 - rho^2 omega_k).
             omega = match since_restart.checked_sub(settings.chebyshev_delay) {
@@ -695,12 +813,39 @@ fn descend<'b, F: ElasticEnergy>(
         converged: reached(residual, target),
         backtracks,
         restarts,
+        stagnated,
+        rounding_floor,
+        rho,
     };
     Ok((report, gradient, trial))
 }
 
+/// The relaxation's estimate of the rounding floor of the residual at `x` (see
+/// [`RelaxReport::rounding_floor`]).
+fn relax_rounding_floor<F: ElasticEnergy>(objective: &Objective<'_, F>, x: &[F::Vector]) -> Real {
+    let vertices = &objective.vertices;
+    let inertia = if objective.h > 0.0 {
+        1.0 / (objective.h * objective.h)
+    } else {
+        0.0
+    };
+    let reach = x.iter().fold(0.0, |a: Real, p| a.max(super::length(*p)));
+    let stiffness_squared: Real = vertices
+        .stiffness
+        .iter()
+        .zip(vertices.masses)
+        .zip(pinned_flags(vertices.pinned))
+        .filter(|(_, pinned)| !pinned)
+        .map(|((&k, &m), _)| {
+            let diagonal = k + m * inertia;
+            3.0 * diagonal * diagonal
+        })
+        .sum();
+    rounding_floor(reach, stiffness_squared)
+}
+
 /// Checks the scalar settings; returns the ground with a unit normal.
-fn validate<V: Vector>(settings: &RelaxSettings<V>) -> Result<Option<Ground<V>>, StepError> {
+fn validate<V: Vector>(settings: &RelaxSettings<'_, V>) -> Result<Option<Ground<V>>, StepError> {
     if !settings.gravity.is_finite() {
         return Err(StepError::Gravity);
     }
@@ -711,6 +856,10 @@ fn validate<V: Vector>(settings: &RelaxSettings<V>) -> Result<Option<Ground<V>>,
         && (0.0..1.0).contains(&settings.momentum)
         && (0.0..1.0).contains(&settings.chebyshev)
         && !(settings.momentum > 0.0 && settings.chebyshev > 0.0)
+        && !(settings.estimate_chebyshev
+            && (settings.chebyshev > 0.0
+                || settings.momentum > 0.0
+                || settings.chebyshev_delay < 2))
         && settings.step_length > 0.0
         && settings.step_length.is_finite())
     {

@@ -16,6 +16,9 @@ use super::adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
     incident_elements, vertex_order,
 };
+use super::chebyshev::RhoEstimate;
+use super::loads::Loads;
+use super::points::Grouped;
 use super::vertex_block::{VertexFactor, shape_gradient};
 use super::vertex_passes::{Frames, Vertices, gradient_pass};
 use super::{
@@ -109,7 +112,7 @@ impl<'a> VbdScratch<'a> {
 
 /// The parameters of Vertex Block Descent.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VbdSettings {
+pub struct VbdSettings<'a> {
     /// The time step `h` (s) of [`vbd_step`]; ignored by [`vbd_quasi_static`]. Finite and
     /// positive.
     pub dt: Real,
@@ -151,18 +154,30 @@ pub struct VbdSettings {
     /// contracts the slow modes by about `rho` a sweep once the fast ones are gone; the largest
     /// early ratio errs high, which Chebyshev tolerates better than low.
     pub estimate_chebyshev: bool,
+    /// External forces (N), one per vertex, or empty (the default) for none: constant loads
+    /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
+    /// `- sum f_ext . (x - x_n)`. Ignored at pinned vertices and along fixed axes. Checked
+    /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
+    pub external_forces: &'a [Vec3],
+    /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
+    /// ([`FIXED_X`](super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
+    /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
+    /// bits.
+    pub fixed_axes: &'a [u8],
 }
 
 /// The largest spectral radius [`VbdSettings::estimate_chebyshev`] uses: 0.99.
 pub const MAX_ESTIMATED_RHO: Real = 0.99;
 
-impl VbdSettings {
+impl<'a> VbdSettings<'a> {
     /// Time step `dt` (s), no gravity or ground, relative tolerance `1e-3`, 100 sweeps, line
     /// search with `c = 1e-4`, `beta = 0.5` and 8 backtracks, no acceleration.
     #[inline]
     #[must_use]
     pub fn new(dt: Real) -> Self {
         VbdSettings {
+            external_forces: &[],
+            fixed_axes: &[],
             dt,
             gravity: Vec3::ZERO,
             ground: None,
@@ -252,6 +267,36 @@ impl VbdSettings {
         VbdSettings {
             max_backtracks,
             ..self
+        }
+    }
+
+    /// These settings with external forces `forces` (N, one per vertex; see
+    /// [`external_forces`](Self::external_forces)).
+    #[inline]
+    #[must_use]
+    pub fn with_external_forces<'b>(self, forces: &'b [Vec3]) -> VbdSettings<'b>
+    where
+        'a: 'b,
+    {
+        let shorter: VbdSettings<'b> = self;
+        VbdSettings {
+            external_forces: forces,
+            ..shorter
+        }
+    }
+
+    /// These settings with per-vertex fixed-axis masks `fixed_axes` (see
+    /// [`fixed_axes`](Self::fixed_axes)).
+    #[inline]
+    #[must_use]
+    pub fn with_fixed_axes<'b>(self, fixed_axes: &'b [u8]) -> VbdSettings<'b>
+    where
+        'a: 'b,
+    {
+        let shorter: VbdSettings<'b> = self;
+        VbdSettings {
+            fixed_axes,
+            ..shorter
         }
     }
 }
@@ -421,7 +466,7 @@ pub fn vbd_step<M: Material>(
     model: &TetElastic<'_, M>,
     masses: &[Real],
     pinned: &[bool],
-    settings: &VbdSettings,
+    settings: &VbdSettings<'_>,
     positions: &mut [Vec3],
     velocities: &mut [Vec3],
     scratch: &mut VbdScratch<'_>,
@@ -458,7 +503,7 @@ pub fn vbd_quasi_static<M: Material>(
     model: &TetElastic<'_, M>,
     masses: &[Real],
     pinned: &[bool],
-    settings: &VbdSettings,
+    settings: &VbdSettings<'_>,
     positions: &mut [Vec3],
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
@@ -484,14 +529,25 @@ struct Evaluation {
 /// projected residual, by the relaxation's own passes.
 fn evaluate<M: Material>(
     model: &TetElastic<'_, M>,
-    frames: &Frames<Vec3>,
+    (frames, loads): (&Frames<Vec3>, &Loads<'_, Vec3>),
     vertices: &Vertices<'_, Vec3>,
     x: &[Vec3],
     gradient: &mut [Vec3],
 ) -> Result<Evaluation, StepError> {
     gradient.fill(Vec3::ZERO);
     let elastic = model.energy_and_add_forces(x, gradient)?;
-    let (inertia_and_gravity, residual_squared) = gradient_pass(frames, vertices, x, gradient);
+    let (mut inertia_and_gravity, mut residual_squared) =
+        gradient_pass(frames, vertices, x, gradient);
+    if !loads.is_none() {
+        let (loads_phi, loaded_residual) = loads.apply(
+            frames.floor(),
+            (vertices.pinned, vertices.start),
+            x,
+            gradient,
+        );
+        inertia_and_gravity += loads_phi;
+        residual_squared = loaded_residual;
+    }
     Ok(Evaluation {
         phi: elastic + inertia_and_gravity,
         elastic,
@@ -515,6 +571,8 @@ struct Sweep<'s, M: Material> {
     h: Real,
     inertia: Real,
     gravity: Vec3,
+    /// External forces and fixed axes (both empty for none).
+    loads: Loads<'s, Vec3>,
     ground: Option<Ground<Vec3>>,
     armijo: Real,
     backtrack: Real,
@@ -575,7 +633,9 @@ impl<M: Material> Sweep<'_, M> {
         };
         let weight = m * self.inertia;
         let line_search = line_search && self.max_backtracks > 0;
-        let mut gradient = (x - y) * weight - self.gravity * m;
+        let external = self.loads.force(i);
+        let fixed = self.loads.fixed(i);
+        let mut gradient = (x - y) * weight - self.gravity * m - external;
         let mut hessian = Mat3::ZERO;
         let mut elastic = 0.0;
         // What the local energy can resolve: 64 eps sum_e V_e W_e-scale, the scale from the
@@ -594,6 +654,24 @@ impl<M: Material> Sweep<'_, M> {
                 let trace = stiffness.x_axis.x + stiffness.y_axis.y + stiffness.z_axis.z;
                 resolution += (trace * rest.volume).abs() / g.dot(g);
             }
+        }
+        if fixed != 0 {
+            // The step on the free subspace exactly: the reduced system, its fixed rows and
+            // columns replaced by the identity and its fixed gradient components by zero.
+            gradient = gradient.axes_from(Vec3::ZERO, fixed);
+            let keep = Vec3::ONE.axes_from(Vec3::ZERO, fixed);
+            let unit = Vec3::ONE - keep;
+            // Rows, then columns.
+            hessian = Mat3::from_cols(
+                hessian.x_axis * keep,
+                hessian.y_axis * keep,
+                hessian.z_axis * keep,
+            );
+            hessian = Mat3::from_cols(
+                hessian.x_axis * keep.x + Vec3::X * unit.x,
+                hessian.y_axis * keep.y + Vec3::Y * unit.y,
+                hessian.z_axis * keep.z + Vec3::Z * unit.z,
+            );
         }
         let Some(VertexFactor {
             cholesky: factor,
@@ -615,6 +693,7 @@ impl<M: Material> Sweep<'_, M> {
             let excess = ground.normal.dot(step) + ground.height(x);
             step -= towards * (excess / curvature);
         }
+        let step = step.axes_from(Vec3::ZERO, fixed);
         let slope = gradient.dot(step);
         if !(slope < 0.0 && step.is_finite()) {
             // Stationary (g = 0) or no descent: nothing to gain here this sweep.
@@ -626,7 +705,7 @@ impl<M: Material> Sweep<'_, M> {
             if let Some(ground) = &self.ground {
                 ground.project(&mut p);
             }
-            p
+            p.axes_from(x, fixed)
         };
         if !line_search {
             if let Some(slot) = positions.get_mut(i) {
@@ -646,6 +725,7 @@ impl<M: Material> Sweep<'_, M> {
             // The inertia and gravity change in a form without cancellation.
             let change = 0.5 * weight * moved.dot(moved + (x - y) * 2.0)
                 - m * self.gravity.dot(moved)
+                - external.dot(moved)
                 + (trial_elastic - elastic);
             // Armijo where the energy resolves the predicted decrease; below that, Hager and
             // Zhang's approximate Armijo test from the two slopes (SIAM J. Optim. 2005), as
@@ -653,7 +733,7 @@ impl<M: Material> Sweep<'_, M> {
             let noise = resolution + ROUNDING * (elastic.abs() + trial_elastic.abs());
             let sufficient = change <= self.armijo * alpha * slope
                 || (-alpha * slope <= noise && change <= noise && {
-                    let mut trial_gradient = (trial - y) * weight - self.gravity * m;
+                    let mut trial_gradient = (trial - y) * weight - self.gravity * m - external;
                     self.for_each_trial_element(positions, i, trial, |corner, rest, f| {
                         let g = shape_gradient(rest, corner);
                         trial_gradient += self.material.first_piola(f) * g * rest.volume;
@@ -700,7 +780,7 @@ fn copy(target: &mut [Vec3], source: &[Vec3]) {
 }
 
 /// Checks the scalar settings; returns the ground with a unit normal.
-fn validate(settings: &VbdSettings) -> Result<Option<Ground<Vec3>>, StepError> {
+fn validate(settings: &VbdSettings<'_>) -> Result<Option<Ground<Vec3>>, StepError> {
     if !settings.gravity.is_finite() {
         return Err(StepError::Gravity);
     }
@@ -750,7 +830,7 @@ fn minimise<M: Material>(
     model: &TetElastic<'_, M>,
     masses: &[Real],
     pinned: &[bool],
-    settings: &VbdSettings,
+    settings: &VbdSettings<'_>,
     positions: &mut [Vec3],
     velocities: Option<&mut [Vec3]>,
     scratch: &mut VbdScratch<'_>,
@@ -759,6 +839,11 @@ fn minimise<M: Material>(
     let tets = model.mesh.tets();
     let ground = validate(settings)?;
     check_state(n, masses, pinned, positions, velocities.as_deref())?;
+    let loads = Loads {
+        forces: settings.external_forces,
+        fixed_axes: settings.fixed_axes,
+    };
+    loads.check(n)?;
     check_length(
         StepBuffer::Scratch,
         vbd_scratch_len(n),
@@ -812,6 +897,7 @@ fn minimise<M: Material>(
         h,
         inertia,
         gravity: settings.gravity,
+        loads,
         ground,
         armijo: settings.armijo,
         backtrack: settings.backtrack,
@@ -903,7 +989,9 @@ fn initial_guess(
         *x = if pinned {
             x0
         } else {
-            frames.floor().project(target)
+            sweep
+                .loads
+                .keep_fixed(i, frames.floor().project(target), x0)
         };
     }
 }
@@ -914,7 +1002,7 @@ fn descend<'b, M: Material>(
     frames: &Frames<Vec3>,
     vertices: &Vertices<'_, Vec3>,
     sweep: &Sweep<'_, M>,
-    settings: &VbdSettings,
+    settings: &VbdSettings<'_>,
     positions: &mut [Vec3],
     buffers: Buffers<'b>,
 ) -> Result<Descent<'b>, StepError> {
@@ -928,11 +1016,11 @@ fn descend<'b, M: Material>(
     // finite.
     let drop = settings.gravity * (sweep.h * sweep.h);
     initial_guess(sweep, frames, positions, drop);
-    let mut evaluation = evaluate(model, frames, vertices, positions, gradient)?;
+    let mut evaluation = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
     let mut energy_evaluations = 1;
     if drop != Vec3::ZERO {
         initial_guess(sweep, frames, previous, Vec3::ZERO);
-        let inertial = evaluate(model, frames, vertices, previous, last)?;
+        let inertial = evaluate(model, (frames, &sweep.loads), vertices, previous, last)?;
         energy_evaluations += 1;
         if inertial.phi < evaluation.phi || !evaluation.phi.is_finite() {
             copy(positions, previous);
@@ -942,7 +1030,7 @@ fn descend<'b, M: Material>(
     }
     if !evaluation.phi.is_finite() {
         copy(positions, sweep.start);
-        evaluation = evaluate(model, frames, vertices, positions, gradient)?;
+        evaluation = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
         energy_evaluations += 1;
     }
     if !evaluation.phi.is_finite() {
@@ -950,20 +1038,27 @@ fn descend<'b, M: Material>(
         return Err(StepError::NonFiniteState { vertex });
     }
     let initial_residual = evaluation.residual;
-    let load_squared: Real = vertices
-        .masses
-        .iter()
-        .zip(pinned_flags(vertices.pinned))
-        .filter(|(_, pinned)| !pinned)
-        .map(|(&m, _)| m * m * settings.gravity.dot(settings.gravity))
-        .sum();
-    let target = settings.tolerance * initial_residual.max(math::sqrt(load_squared));
+    let load = if sweep.loads.is_none() {
+        let load_squared: Real = vertices
+            .masses
+            .iter()
+            .zip(pinned_flags(vertices.pinned))
+            .filter(|(_, pinned)| !pinned)
+            .map(|(&m, _)| m * m * settings.gravity.dot(settings.gravity))
+            .sum();
+        math::sqrt(load_squared)
+    } else {
+        sweep
+            .loads
+            .load(vertices.masses, vertices.pinned, settings.gravity)
+    };
+    let target = settings.tolerance * initial_residual.max(load);
 
     let mut counts = SweepCounts::default();
     let (mut iterations, mut restarts, mut redone_sweeps) = (0, 0, 0);
     let mut rho = settings.chebyshev;
     // The largest residual ratio of the plain sweeps 2..=delay, for the estimate.
-    let mut largest_ratio: Real = 0.0;
+    let mut estimate = RhoEstimate::default();
     // Sweeps since the last (re)start, counting the current one, and the Chebyshev weight.
     let mut since_restart: u32 = 0;
     let mut omega: Real = 1.0;
@@ -995,7 +1090,7 @@ fn descend<'b, M: Material>(
                 }
             }
         }
-        let mut next = evaluate(model, frames, vertices, positions, gradient)?;
+        let mut next = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
         energy_evaluations += 1;
         if accelerated {
             let noise = ROUNDING * (evaluation.phi.abs() + next.phi.abs() + next.elastic.abs());
@@ -1003,7 +1098,7 @@ fn descend<'b, M: Material>(
             if !kept {
                 restarts += 1;
                 copy(positions, unaccelerated);
-                next = evaluate(model, frames, vertices, positions, gradient)?;
+                next = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
                 energy_evaluations += 1;
                 since_restart = 1;
                 omega = 1.0;
@@ -1017,7 +1112,7 @@ fn descend<'b, M: Material>(
             redone_sweeps += 1;
             copy(positions, previous);
             sweep.run(positions, &mut counts, true);
-            next = evaluate(model, frames, vertices, positions, gradient)?;
+            next = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
             energy_evaluations += 1;
             since_restart = 1;
             omega = 1.0;
@@ -1028,15 +1123,11 @@ fn descend<'b, M: Material>(
         }
         if settings.estimate_chebyshev && rho == 0.0 {
             if iterations >= 1 {
-                largest_ratio = largest_ratio.max(next.residual / evaluation.residual);
+                estimate.observe(evaluation.residual, next.residual);
             }
             if iterations + 1 >= settings.chebyshev_delay {
                 // A NaN ratio gives 0: no acceleration.
-                rho = if largest_ratio > 0.0 {
-                    largest_ratio.min(MAX_ESTIMATED_RHO)
-                } else {
-                    0.0
-                };
+                rho = estimate.rho(MAX_ESTIMATED_RHO);
             }
         }
         swap(&mut previous, &mut last);

@@ -1,0 +1,183 @@
+//! An estimate of the highest natural frequency of a body, for a tighter explicit time step than
+//! the proven bound of [`stable_time_step`](super::stable_time_step).
+//!
+//! Symplectic Euler is stable for `dt < 2 / omega_max`, `omega_max^2` the largest eigenvalue of
+//! `M^-1 H` (`docs/math.md` section 4). The proven bound majorises `omega_max` element by element,
+//! which is safe but loose: on the Kuhn boxes of [`generate`](crate::generate) it allows only
+//! about 0.6 of the true limit (measured in `tests/frequency.rs`: 0.632 on one cube, 0.599 on a
+//! 3x2x2 bar pinned at one end; 0.59 on the issue's larger boxes, `0.397` against
+//! `0.671 h / c_d`). Here `omega_max^2` is computed
+//! by power iteration on `M^-1 H` (pinned degrees of freedom removed) with the projected Hessian
+//! `H` at the given positions, through [`ElasticHessian`] products (`docs/math.md` section 6):
+//! `v <- M^-1 H v / |M^-1 H v|_M`, `omega^2 = v.Hv / v.Mv` (the Rayleigh quotient in the
+//! mass inner product, where `M^-1 H` is symmetric). The Rayleigh quotient never exceeds the
+//! largest eigenvalue and converges to it from below, so the step it implies is **not** a
+//! guarantee: use [`FrequencyEstimate::time_step`], which applies [`FREQUENCY_MARGIN`], and keep
+//! the stepper's blow-up detection on. At rest the projected Hessian is the exact one (it is
+//! positive semi-definite there), so the estimate is the linearised system's.
+
+use super::super::element::TetHessian;
+use super::super::math;
+use super::super::types::{Real, Vec3};
+use super::{ElasticHessian, check_length, pinned_flags};
+use crate::error::{StepBuffer, StepError};
+
+/// The fraction of the estimated limit `2 / omega_max` that [`FrequencyEstimate::time_step`]
+/// takes: `0.9`, room for the power iteration's shortfall (it approaches `omega_max` from
+/// below) and for stiffening under deformation.
+pub const FREQUENCY_MARGIN: Real = 0.9;
+
+/// The vector scratch [`estimate_max_frequency`] needs: `2 * vertex_count` (the iterate and
+/// its product).
+#[inline]
+#[must_use]
+pub const fn frequency_scratch_len(vertex_count: usize) -> usize {
+    2 * vertex_count
+}
+
+/// What [`estimate_max_frequency`] found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FrequencyEstimate {
+    /// The estimated highest angular frequency `omega_max` (rad/s), a lower bound on the true
+    /// one that converges to it.
+    pub omega_max: Real,
+    /// Power iterations done.
+    pub iterations: u32,
+    /// The relative change of `omega_max^2` in the last iteration (the convergence measure).
+    pub change: Real,
+}
+
+impl FrequencyEstimate {
+    /// The explicit step `FREQUENCY_MARGIN * 2 / omega_max` (s); infinite if `omega_max` is 0
+    /// (nothing free, or no stiffness).
+    #[inline]
+    #[must_use]
+    pub fn time_step(&self) -> Real {
+        self.time_step_with_margin(FREQUENCY_MARGIN)
+    }
+
+    /// The explicit step `margin * 2 / omega_max` (s), for a margin of your choosing.
+    #[inline]
+    #[must_use]
+    pub fn time_step_with_margin(&self, margin: Real) -> Real {
+        margin * 2.0 / self.omega_max
+    }
+}
+
+/// Estimates the highest natural frequency of `model` linearised at `positions` (m, usually the
+/// rest shape) with lumped `masses` (kg) and `pinned` vertices removed: at most
+/// `max_iterations` power iterations, stopping once `omega^2` changes by at most `tolerance`
+/// (relative) in one iteration. `hessians` ([`ElasticHessian::element_count`] entries) receives
+/// the projected Hessian at `positions`; `vectors` is scratch of [`frequency_scratch_len`].
+/// Deterministic: the start vector is a fixed pseudo-random pattern.
+///
+/// ```
+/// use softfem::element::{TetHessian, TetRest};
+/// use softfem::glam::Vec3;
+/// use softfem::material::StableNeoHookean;
+/// use softfem::mesh::TetMesh;
+/// use softfem::step::{TetElastic, estimate_max_frequency, frequency_scratch_len, stable_time_step};
+///
+/// let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z].map(|x| x * 0.1);
+/// let tets = [[0, 1, 2, 3]];
+/// let mut rest_data = [TetRest::default(); 1];
+/// let mesh = TetMesh::new(&rest, &tets, &mut rest_data)?;
+/// let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.3)?);
+/// let mut masses = [0.0; 4];
+/// mesh.lumped_masses(1000.0, &mut masses)?;
+/// let (mut hessians, mut vectors) = ([TetHessian::default(); 1], [Vec3::ZERO; frequency_scratch_len(4)]);
+/// let estimate = estimate_max_frequency(&body, &masses, &[], &rest, (200, 1e-6), &mut hessians, &mut vectors)?;
+/// let proven = stable_time_step(&body, &masses, &[], &mut [0.0; 4])?;
+/// assert!(estimate.time_step_with_margin(1.0) >= proven);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
+/// # Errors
+/// [`StepError::LengthMismatch`] for a buffer of the wrong length, [`StepError::Mass`] for a
+/// mass that is not finite and positive, and the Hessian kernels' errors (non-finite
+/// positions) as [`StepError::Mesh`].
+pub fn estimate_max_frequency<F: ElasticHessian>(
+    model: &F,
+    masses: &[Real],
+    pinned: &[bool],
+    positions: &[Vec3],
+    (max_iterations, tolerance): (u32, Real),
+    hessians: &mut [TetHessian],
+    vectors: &mut [Vec3],
+) -> Result<FrequencyEstimate, StepError> {
+    let n = model.vertex_count();
+    check_length(StepBuffer::Masses, n, masses.len())?;
+    if !pinned.is_empty() {
+        check_length(StepBuffer::Pinned, n, pinned.len())?;
+    }
+    check_length(StepBuffer::Positions, n, positions.len())?;
+    check_length(StepBuffer::Scratch, frequency_scratch_len(n), vectors.len())?;
+    check_length(
+        StepBuffer::HessianScratch,
+        model.element_count(),
+        hessians.len(),
+    )?;
+    if let Some(vertex) = masses.iter().position(|&m| !(m > 0.0 && m.is_finite())) {
+        return Err(StepError::Mass { vertex });
+    }
+    model.projected_hessians(positions, hessians)?;
+    let (v, product) = vectors.split_at_mut(n);
+    // A fixed pseudo-random start (Knuth's MMIX linear congruential generator): no symmetry
+    // of the mesh can make it orthogonal to the top mode.
+    let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut draw = || {
+        state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        ((state >> 40) as Real) / ((1u64 << 24) as Real) - 0.5
+    };
+    for (x, pinned) in v.iter_mut().zip(pinned_flags(pinned)) {
+        let random = Vec3::new(draw(), draw(), draw());
+        *x = if pinned { Vec3::ZERO } else { random };
+    }
+    normalise(v, masses);
+    let mut omega_squared: Real = 0.0;
+    let mut change = Real::INFINITY;
+    let mut iterations = 0;
+    while iterations < max_iterations {
+        product.fill(Vec3::ZERO);
+        model.add_hessian_product(hessians, v, product)?;
+        // v.Hv with |v|_M = 1: the Rayleigh quotient.
+        let quotient: Real = v.iter().zip(&*product).map(|(a, b)| a.dot(*b)).sum();
+        iterations += 1;
+        change = (quotient - omega_squared).abs() / quotient.abs().max(Real::MIN_POSITIVE);
+        omega_squared = quotient;
+        // v <- M^-1 H v, pinned components removed, normalised in the mass norm.
+        for (((x, &p), &m), pinned) in v
+            .iter_mut()
+            .zip(&*product)
+            .zip(masses)
+            .zip(pinned_flags(pinned))
+        {
+            *x = if pinned { Vec3::ZERO } else { p * (1.0 / m) };
+        }
+        if !normalise(v, masses) || change <= tolerance {
+            break;
+        }
+    }
+    Ok(FrequencyEstimate {
+        omega_max: math::sqrt(omega_squared.max(0.0)),
+        iterations,
+        change,
+    })
+}
+
+/// Scales `v` to unit mass norm `sqrt(sum m |v|^2)`; false (and `v` unchanged) if it is zero
+/// or not finite.
+fn normalise(v: &mut [Vec3], masses: &[Real]) -> bool {
+    let norm_squared: Real = v.iter().zip(masses).map(|(x, &m)| m * x.dot(*x)).sum();
+    if !(norm_squared > 0.0 && norm_squared.is_finite()) {
+        return false;
+    }
+    let scale = 1.0 / math::sqrt(norm_squared);
+    for x in v.iter_mut() {
+        *x *= scale;
+    }
+    true
+}
