@@ -12,14 +12,16 @@ use super::super::types::{Real, Vec3};
 /// given to [`Body::step`](super::Body::step) and the body's
 /// [`gravity`](super::Body::set_gravity) and [`ground`](super::Body::set_ground). Every other
 /// field (damping, tolerances, budgets, accelerations, and whatever the settings types gain)
-/// is passed on as it is.
+/// is passed on as it is. The settings borrow for `'static`: per-vertex external forces and
+/// per-axis constraints (`with_external_forces`, `with_fixed_axes`) reach a body only from
+/// `'static` buffers for now.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
 pub enum Solver {
     /// Explicit symplectic Euler ([`step_explicit`](super::super::step::step_explicit)).
     Explicit {
         /// Damping, growth limit and the substeps when `stable_fraction` is `None`.
-        settings: ExplicitSettings<Vec3>,
+        settings: ExplicitSettings<'static, Vec3>,
         /// `Some(f)`: each step of `dt` takes the fewest substeps (at least
         /// `settings.substeps`) of at most `f` times the body's
         /// [`stable_time_step`](super::Body::stable_time_step), computed once and cached until
@@ -29,12 +31,12 @@ pub enum Solver {
     },
     /// Implicit Euler by preconditioned descent ([`relax_step`](super::super::step::relax_step));
     /// the preconditioner is kept across steps.
-    Relax(RelaxSettings<Vec3>),
+    Relax(RelaxSettings<'static, Vec3>),
     /// Implicit Euler by Newton's method ([`newton_step`](super::super::step::newton_step)).
-    Newton(NewtonSettings<Vec3>),
+    Newton(NewtonSettings<'static, Vec3>),
     /// Implicit Euler by Vertex Block Descent ([`vbd_step`](super::super::step::vbd_step)); the
     /// adjacency and colouring are kept across steps.
-    Vbd(VbdSettings),
+    Vbd(VbdSettings<'static>),
 }
 
 impl Solver {
