@@ -2,8 +2,12 @@
 //!
 //! `a = u * diag(sigma) * v^T` with `u`, `v` proper rotations (`det = +1`) and the singular values
 //! sorted `sigma.x >= sigma.y >= |sigma.z|`. An inverted `a` (`det a < 0`) carries its sign on the
-//! smallest value: `sigma.z < 0` exactly when `det a < 0`. This is the convention elasticity needs:
-//! the principal stretches of an inverted element stay continuous and the rotation stays a rotation.
+//! smallest value: `sigma.z < 0` when `det a < 0` and `sigma.z >= 0` when `det a > 0`, wherever
+//! `|sigma.z|` exceeds the decomposition's rounding error (a few `eps * ||a||`); closer to a
+//! singular matrix the sign of `sigma.z`, like `det a` computed in floating point, can come out
+//! either way (an exactly singular f64 matrix can give `sigma.z = -6e-33`). This is the
+//! convention elasticity needs: the principal stretches of an inverted element stay continuous and
+//! the rotation stays a rotation.
 //!
 //! # Algorithm
 //! 1. Scale `a` by a power of two so its largest entry lies in `[1, 2)` (exact; keeps `a^T a` clear
