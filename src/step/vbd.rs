@@ -864,10 +864,10 @@ fn minimise<M: Material>(
         .unwrap_or_default();
     let order = rest.get(n..).unwrap_or(&[]);
 
-    let (start, rest) = scratch.vectors.split_at_mut(n);
-    let (gradient, rest) = rest.split_at_mut(n);
-    let (previous, rest) = rest.split_at_mut(n);
-    let (last, unaccelerated) = rest.split_at_mut(n);
+    let (start, rest) = scratch.vectors.split_at_mut_checked(n).unwrap_or_default();
+    let (gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (previous, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (last, unaccelerated) = rest.split_at_mut_checked(n).unwrap_or_default();
     copy(start, positions);
     let start: &[Vec3] = start;
 
