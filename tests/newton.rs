@@ -289,20 +289,36 @@ macro_rules! newton_tests {
                     mesh.lumped_masses(1000.0, &mut masses).unwrap();
                     let tolerance = 1e-6;
                     let mut buffers = Buffers::new(n, bar.tets.len());
-                    let mut x = bar.rest.clone();
                     let settings = NewtonSettings::new(1.0).with_gravity(GRAVITY).with_tolerance(tolerance, 50);
-                    let clock = std::time::Instant::now();
-                    let newton = newton_quasi_static(&model, &masses, &pinned, &settings, &mut x, &mut buffers.scratch()).unwrap();
-                    let newton_time = clock.elapsed().as_secs_f64();
+                    // The fastest of several runs: the machine is shared, and the minimum is the
+                    // run least disturbed.
+                    let mut newton_time = f64::INFINITY;
+                    let mut newton = None;
+                    for _ in 0..7 {
+                        let mut x = bar.rest.clone();
+                        let clock = std::time::Instant::now();
+                        let report = newton_quasi_static(&model, &masses, &pinned, &settings, &mut x, &mut buffers.scratch()).unwrap();
+                        newton_time = newton_time.min(clock.elapsed().as_secs_f64());
+                        newton = Some(report);
+                    }
+                    let newton = newton.unwrap();
+                    // f32 cannot reach 1e-6 by relaxation (its floor is about 1e-3): a capped budget.
+                    let budget = if core::mem::size_of::<Real>() == 4 { 100_000 } else { 2_000_000 };
                     let relax_settings = RelaxSettings::new(1.0)
                         .with_gravity(GRAVITY)
-                        .with_tolerance(tolerance, 2_000_000)
+                        .with_tolerance(tolerance, budget)
                         .with_chebyshev(0.999, 2.0, 0);
                     let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
-                    let mut y = bar.rest.clone();
-                    let clock = std::time::Instant::now();
-                    let relax = relax_quasi_static(&model, &masses, &pinned, &relax_settings, &mut y, &mut RelaxScratch::new(&mut vectors, &mut scalars)).unwrap();
-                    let relax_time = clock.elapsed().as_secs_f64();
+                    let mut relax_time = f64::INFINITY;
+                    let mut relax = None;
+                    for _ in 0..3 {
+                        let mut y = bar.rest.clone();
+                        let clock = std::time::Instant::now();
+                        let report = relax_quasi_static(&model, &masses, &pinned, &relax_settings, &mut y, &mut RelaxScratch::new(&mut vectors, &mut scalars)).unwrap();
+                        relax_time = relax_time.min(clock.elapsed().as_secs_f64());
+                        relax = Some(report);
+                    }
+                    let relax = relax.unwrap();
                     println!(
                         "{} {cells:?}, {} tets, tolerance {tolerance:e}: Newton {} iterations ({} CG) {:.4} s, converged {}, residual {:.2e}; \
                          relax {} iterations {:.4} s, converged {}; ratio {:.1}x",

@@ -247,13 +247,15 @@ impl StressDerivative {
     /// Adds `weight * x x^T`.
     #[inline(always)]
     fn add_outer(&mut self, weight: Real, x: &[Real; 9]) {
-        let mut entries = self.packed.iter_mut();
-        for i in 0..9 {
-            let wxi = weight * x.get(i).copied().unwrap_or(0.0);
-            for j in i..9 {
-                if let Some(a) = entries.next() {
-                    *a += wxi * x.get(j).copied().unwrap_or(0.0);
-                }
+        let mut rows: &mut [Real] = &mut self.packed;
+        for (i, &xi) in x.iter().enumerate() {
+            let Some((row, rest)) = core::mem::take(&mut rows).split_at_mut_checked(9 - i) else {
+                break;
+            };
+            rows = rest;
+            let wxi = weight * xi;
+            for (a, &xj) in row.iter_mut().zip(x.get(i..).unwrap_or(&[])) {
+                *a += wxi * xj;
             }
         }
     }
@@ -261,20 +263,19 @@ impl StressDerivative {
     /// Adds `weight * (x y^T + y x^T)`.
     #[inline(always)]
     fn add_symmetric_outer(&mut self, weight: Real, x: &[Real; 9], y: &[Real; 9]) {
-        let mut entries = self.packed.iter_mut();
-        for i in 0..9 {
-            let (xi, yi) = (
-                x.get(i).copied().unwrap_or(0.0),
-                y.get(i).copied().unwrap_or(0.0),
-            );
-            for j in i..9 {
-                let (xj, yj) = (
-                    x.get(j).copied().unwrap_or(0.0),
-                    y.get(j).copied().unwrap_or(0.0),
-                );
-                if let Some(a) = entries.next() {
-                    *a += weight * (xi * yj + yi * xj);
-                }
+        let mut rows: &mut [Real] = &mut self.packed;
+        for (i, (&xi, &yi)) in x.iter().zip(y).enumerate() {
+            let Some((row, rest)) = core::mem::take(&mut rows).split_at_mut_checked(9 - i) else {
+                break;
+            };
+            rows = rest;
+            let tails = x
+                .get(i..)
+                .unwrap_or(&[])
+                .iter()
+                .zip(y.get(i..).unwrap_or(&[]));
+            for (a, (&xj, &yj)) in row.iter_mut().zip(tails) {
+                *a += weight * (xi * yj + yi * xj);
             }
         }
     }
@@ -283,11 +284,17 @@ impl StressDerivative {
 /// `vec(u v^T)` in column-major order: entry `3 c + r` is `u_r v_c`.
 #[inline(always)]
 fn vec_outer(u: Vec3, v: Vec3) -> [Real; 9] {
-    let (u, v) = (u.to_array(), v.to_array());
-    core::array::from_fn(|index| {
-        let (r, c) = (index % 3, index / 3);
-        u.get(r).copied().unwrap_or(0.0) * v.get(c).copied().unwrap_or(0.0)
-    })
+    [
+        u.x * v.x,
+        u.y * v.x,
+        u.z * v.x,
+        u.x * v.y,
+        u.y * v.y,
+        u.z * v.y,
+        u.x * v.z,
+        u.y * v.z,
+        u.z * v.z,
+    ]
 }
 
 /// `max(x, 0)` that keeps NaN (a NaN eigenvalue must not become a finite zero).

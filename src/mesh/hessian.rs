@@ -10,6 +10,8 @@
 
 use super::super::element::{MembraneHessian, TetHessian, TriHessian, TriangleStVK};
 use super::super::material::Material;
+use super::super::math::BATCH_SVD;
+use super::super::svd::svd3_lanes;
 use super::super::types::{Mat2, Mat3, Vec2, Vec3};
 use super::{
     MembraneMesh, TetMesh, TriMesh, check_finite, check_length, check_positions, gather,
@@ -56,8 +58,26 @@ impl TetMesh<'_> {
     ) -> Result<(), MeshError> {
         check_positions(self.vertex_count(), positions)?;
         check_length(Buffer::Hessians, self.element_count(), cache.len())?;
-        let elements = self.tets().iter().zip(self.rest());
-        for ((corners, rest), slot) in elements.zip(cache.iter_mut()) {
+        // The SVDs of consecutive tetrahedra LANES at a time where that is faster (the same
+        // bits as one at a time, see `svd3_lanes`), as the principal force path does.
+        let (groups, tail) = self.groups_and_tail(BATCH_SVD);
+        let mut slots = cache.iter_mut();
+        for (tets, rests) in groups {
+            let gradients = core::array::from_fn(|lane| match (tets.get(lane), rests.get(lane)) {
+                (Some(corners), Some(rest)) => {
+                    rest.deformation_gradient(gather(positions, corners))
+                }
+                _ => Mat3::ZERO,
+            });
+            let svds = svd3_lanes(&gradients);
+            for (rest, svd) in rests.iter().zip(&svds) {
+                if let Some(slot) = slots.next() {
+                    let derivative = material.projected_stress_derivative_from_svd(svd);
+                    *slot = TetHessian::from_stress_derivative(&derivative, rest);
+                }
+            }
+        }
+        for ((corners, rest), slot) in tail.zip(slots) {
             *slot = TetHessian::new(material, rest, gather(positions, corners));
         }
         Ok(())

@@ -210,8 +210,9 @@ pub struct NewtonReport {
 /// 3. `S A S d = -S g` is solved inexactly by matrix-free conjugate gradients with the
 ///    block-Jacobi preconditioner `S B_i^-1 S` (`B_i` the 3x3 diagonal blocks of `A`; a block
 ///    too ill-conditioned to invert is replaced by its diagonal), stopped at
-///    `|r| <= eta |S g|` with the forcing term `eta = min(1/2, sqrt(|g| / |g_0|))`: loose far
-///    from the solution, tight near it. A forcing term that tends to zero keeps the local
+///    `|r| <= eta |S g|` with the forcing term `eta = min(1/2, sqrt(|g| / |g_0|))` (but not
+///    below `target / (2 |g|)`, which no step needs): loose far from the solution, tight near
+///    it. A forcing term that tends to zero keeps the local
 ///    convergence superlinear (Dembo, Eisenstat and Steihaug, "Inexact Newton methods", SIAM J.
 ///    Numer. Anal. 1982; Eisenstat and Walker, "Choosing the forcing terms in an inexact Newton
 ///    method", SIAM J. Sci. Comput. 1996). A non-positive curvature `p . A p` (only possible without inertia, at
@@ -226,19 +227,20 @@ pub struct NewtonReport {
 /// rounding: every coordinate is only known to `eps |x| / 2`, and through the stiffness that
 /// uncertainty is a force, so no representable `x` has a smaller residual than about
 /// `|K| eps |x| / 2` (plus the rounding of the stresses, `eps mu A` per vertex, `A` a face).
-/// Newton's method measures the estimate `eps max|x| (sum_i |B_i|_F^2)^(1/2)`
+/// Newton's method measures the estimate `eps/2 max|x| (sum_i |B_i|_F^2)^(1/2)`
 /// ([`NewtonReport::rounding_floor`], `B_i` the diagonal blocks of `A` at the free vertices;
-/// from above, measured 3-10x the residual where solves stall) and, when two steps in a row
+/// from above, measured 1.5-5x the residual where solves stall) and, when two steps in a row
 /// fail to halve the residual while it is within [`FLOOR_FACTOR`] times that floor, stops
 /// there ([`NewtonReport::stagnated`]) and counts the solve as converged: the answer is as good
 /// as the precision allows. A failed line search or a direction that is not downhill also
 /// stops the solve as stagnated, converged only within the same bound. A tolerance below the
 /// floor thus costs a few iterations and says so, instead of burning the budget.
 ///
-/// What that means in practice: in f64 the floor is far below any useful tolerance (`6e-11` of
-/// the load on the cantilever of `tests/newton.rs`, which reaches `1e-8`); in f32 it is about
-/// `1e-3` of the load for that cantilever (E = 1 MPa, 10 cm cells) and above `1e-2` of the
-/// weight for a stiff block at rest (E = 1e8 Pa, 5 cm cells): ask f32 for `1e-4` and steps far
+/// What that means in practice (measured in `tests/newton.rs`): in f64 the floor is far below
+/// any useful tolerance (`3e-12` of the load on the quasi-static cantilever, which reaches
+/// `1e-8`); in f32 it is about `2e-3` of the load on that cantilever (E = 1 MPa, 10 cm cells;
+/// the solve stalls at `4e-4`) and about `0.2` of the weight of a stiff block at rest
+/// (E = 1e8 Pa, 5 cm cells; stalls at `0.05..0.1`): ask f32 for `1e-4` and steps that start far
 /// from their solution reach it, steps that start near rest stop at the floor. Working in
 /// coordinates near the origin (relative to the body's size) keeps `eps |x|` small.
 ///
@@ -538,7 +540,7 @@ fn iterate<'b, F: ElasticHessian>(
     let mut rounding_floor: Real = 0.0;
     let model = objective.model;
     let (masses, pinned) = (objective.vertices.masses, objective.vertices.pinned);
-    // Every coordinate is known to its rounding, `eps max |x|` at most.
+    // Every coordinate is known to its rounding, half an ulp: `eps max |x| / 2` at most.
     let reach = x
         .iter()
         .fold(0.0, |a: Real, p| a.max(p.abs().max_element()));
@@ -546,7 +548,7 @@ fn iterate<'b, F: ElasticHessian>(
         model.projected_hessians(x, hessians)?;
         let stiffness_squared =
             invert_blocks(model, hessians, (masses, pinned, system.inertia), blocks)?;
-        rounding_floor = Real::EPSILON * reach * math::sqrt(stiffness_squared);
+        rounding_floor = 0.5 * Real::EPSILON * reach * math::sqrt(stiffness_squared);
         let constraints = Constraints {
             pinned: objective.vertices.pinned,
             floor: objective.frames.floor(),
@@ -554,7 +556,11 @@ fn iterate<'b, F: ElasticHessian>(
             x,
             gradient,
         };
-        let eta = math::sqrt(residual / initial_residual).min(0.5);
+        // The forcing term, never asking the linear solve for more than the Newton step can use:
+        // a linear residual below half the target.
+        let eta = math::sqrt(residual / initial_residual)
+            .max(0.5 * target / residual)
+            .min(0.5);
         cg_iterations += conjugate_gradients(
             model,
             (hessians, blocks, masses, system.inertia),
