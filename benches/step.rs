@@ -28,6 +28,15 @@
 //!
 //! * **stiffness bounds**: `stable_time_step`, which computes the same per-vertex stiffness
 //!   bounds as the relaxation's preconditioner: the one-off cost of a scratch's first solve.
+//! * **Hessian product**: zero an output buffer, then `TetMesh::add_hessian_product` with a
+//!   cache of projected element Hessians built once (untimed) at the sagged state, in the
+//!   direction of the sag (`sagged - rest`);
+//! * **VBD**: `vbd_step` (dt = 1/60 s, gravity, ground, no line search, no acceleration) from
+//!   rest, tolerance 0 so that it runs its whole budget of sweeps (2, and 4), state reset before
+//!   each call and one `VbdScratch` kept across calls (the adjacency and colouring are built by
+//!   the first, untimed call). An iteration is one sweep plus one fused energy-and-force pass
+//!   (the stopping test); the marginal iteration `(T_4 - T_2) / 2` minus the fused pass is the
+//!   sweep alone.
 //!
 //! The force evaluations run at the positions the 20-iteration relaxation reaches (the box sagged
 //! under gravity for 1/60 s), so every element is deformed.
@@ -47,6 +56,7 @@ use std::time::{Duration, Instant};
 
 use common::TablePass;
 use criterion::{Criterion, SamplingMode};
+use softfem::element::TetHessian;
 use softfem::element::TetRest;
 use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::Vec3;
@@ -54,8 +64,8 @@ use softfem::material::{Material, StVK, StableNeoHookean};
 use softfem::mesh::TetMesh;
 use softfem::step::{
     ElasticEnergy, ExplicitScratch, ExplicitSettings, Ground, RelaxReport, RelaxScratch,
-    RelaxSettings, TetElastic, explicit_scratch_len, relax_scratch_len, relax_step,
-    stable_time_step, step_explicit,
+    RelaxSettings, TetElastic, VbdScratch, VbdSettings, explicit_scratch_len, relax_scratch_len,
+    relax_step, stable_time_step, step_explicit, vbd_index_scratch_len, vbd_scratch_len, vbd_step,
 };
 
 /// Cubes per axis of the benchmarked box: 105 456 tetrahedra.
@@ -86,6 +96,9 @@ const RELAX_DT: f32 = 1.0 / 60.0;
 
 /// The relaxation's iteration budgets (tolerance 0: each call runs its whole budget).
 const RELAX_BUDGETS: [u32; 2] = [20, 40];
+
+/// VBD's sweep budgets (tolerance 0: each call runs its whole budget).
+const VBD_BUDGETS: [u32; 2] = [2, 4];
 
 /// Warp's figure from the issue: explicit steps per second and the mesh size it was measured on.
 const WARP_STEPS_PER_SECOND: f64 = 458.0;
@@ -145,6 +158,9 @@ const EXPLICIT: usize = 2;
 const RELAX_SHORT: usize = 3;
 const RELAX_LONG: usize = 4;
 const PRECONDITIONER: usize = 5;
+const HESSIAN_PRODUCT: usize = 6;
+const VBD_SHORT: usize = 7;
+const VBD_LONG: usize = 8;
 
 /// One benchmarked operation: its criterion id and one call.
 struct Operation<'a> {
@@ -175,6 +191,8 @@ struct Case<'a> {
     contacts: usize,
     /// What the two relaxation calls report (the same every call: the state is reset).
     relax: [RelaxReport; 2],
+    /// The sweeps the two VBD calls report.
+    vbd_sweeps: [u32; 2],
     operations: Vec<Operation<'a>>,
 }
 
@@ -281,6 +299,52 @@ fn case<'a, M: Material + 'a>(
     };
     let contacts = step().ground_contacts;
 
+    // VBD from rest, state reset before each call, one scratch (topology built once).
+    let vbd = |budget: u32| {
+        let settings = VbdSettings::new(RELAX_DT)
+            .with_gravity(GRAVITY)
+            .with_ground(ground)
+            .with_tolerance(0.0, budget)
+            .with_line_search(0);
+        let mut positions = rest_positions.to_vec();
+        let mut velocities = vec![Vec3::ZERO; n];
+        let vectors: &'a mut [Vec3] =
+            Box::leak(vec![Vec3::ZERO; vbd_scratch_len(n)].into_boxed_slice());
+        let indices: &'a mut [u32] =
+            Box::leak(vec![0; vbd_index_scratch_len(n, mesh.element_count())].into_boxed_slice());
+        let mut scratch = VbdScratch::new(vectors, indices);
+        move || {
+            positions.copy_from_slice(rest_positions);
+            velocities.fill(Vec3::ZERO);
+            let report = vbd_step(
+                &body,
+                masses,
+                &[],
+                &settings,
+                &mut positions,
+                &mut velocities,
+                &mut scratch,
+            )
+            .unwrap();
+            black_box(&positions);
+            report.iterations
+        }
+    };
+    let mut vbd_short = vbd(VBD_BUDGETS[0]);
+    let mut vbd_long = vbd(VBD_BUDGETS[1]);
+    let vbd_sweeps = [vbd_short(), vbd_long()];
+
+    // The Hessian product with a cache built once at the sagged state.
+    let mut cache = vec![TetHessian::default(); mesh.element_count()];
+    mesh.projected_hessians(&material, &sagged, &mut cache)
+        .unwrap();
+    let direction: Vec<Vec3> = sagged
+        .iter()
+        .zip(rest_positions)
+        .map(|(x, r)| *x - *r)
+        .collect();
+    let mut products = vec![Vec3::ZERO; n];
+
     let mut forces = vec![Vec3::ZERO; n];
     let mut fused_forces = vec![Vec3::ZERO; n];
     let fused_positions = sagged.clone();
@@ -291,6 +355,7 @@ fn case<'a, M: Material + 'a>(
         dt,
         contacts,
         relax: [short_report, long_report],
+        vbd_sweeps,
         operations: vec![
             Operation::new("force_evaluation", move || {
                 forces.fill(Vec3::ZERO);
@@ -316,6 +381,18 @@ fn case<'a, M: Material + 'a>(
             }),
             Operation::new("stiffness_bounds", move || {
                 black_box(stable_time_step(&body, masses, &[], &mut stiffness).unwrap());
+            }),
+            Operation::new("hessian_product", move || {
+                products.fill(Vec3::ZERO);
+                mesh.add_hessian_product(&cache, black_box(&direction), &mut products)
+                    .unwrap();
+                black_box(&products);
+            }),
+            Operation::new("vbd_2_sweeps", move || {
+                black_box(vbd_short());
+            }),
+            Operation::new("vbd_4_sweeps", move || {
+                black_box(vbd_long());
             }),
         ],
     }
@@ -476,6 +553,28 @@ fn print_tables(geometry: &Geometry, cases: &mut [Case<'_>], plan: &TablePlan) {
              computed once per scratch)",
             ns[PRECONDITIONER],
             "evaluations/s",
+        ));
+        rows.push(row(
+            "Hessian product (zero + `add_hessian_product`, cached projected element Hessians)",
+            ns[HESSIAN_PRODUCT],
+            "products/s",
+        ));
+        let [vbd_short, vbd_long] = case.vbd_sweeps;
+        let vbd_extra = f64::from(vbd_long.saturating_sub(vbd_short).max(1));
+        let vbd_iteration = (ns[VBD_LONG] - ns[VBD_SHORT]) / vbd_extra;
+        rows.push(row(
+            &format!(
+                "VBD iteration, marginal (({}-sweep call - {}-sweep call) / extra sweeps; a \
+                 sweep + a fused pass)",
+                VBD_BUDGETS[1], VBD_BUDGETS[0]
+            ),
+            vbd_iteration,
+            "iterations/s",
+        ));
+        rows.push(row(
+            "**VBD sweep** (marginal iteration - fused pass; no line search)",
+            vbd_iteration - ns[FUSED],
+            "sweeps/s",
         ));
     }
     common::print_markdown_table(

@@ -941,6 +941,50 @@ mod measure {
                 sweep * 1e6,
                 sweep / force
             );
+            // The same from short blocks, interleaved, the least of many: a block of about a
+            // millisecond fits in one time slice of a loaded machine, where the 20-iteration
+            // blocks above are often preempted. The marginal iteration `T(3) - T(1)` over two
+            // sweeps drops the call's fixed cost.
+            let mut single = |budget: u32| {
+                let (mut y, mut v) = (x.clone(), vec![Vec3::ZERO; nv]);
+                let start = Instant::now();
+                let r = vbd_step(
+                    &body,
+                    &masses,
+                    &[],
+                    &settings.with_tolerance(0.0, budget),
+                    &mut y,
+                    &mut v,
+                    &mut scratch,
+                )
+                .unwrap();
+                assert_eq!(r.iterations, budget);
+                start.elapsed().as_secs_f64()
+            };
+            let (mut one, mut three, mut pass, mut fused_pass) =
+                (f64::MAX, f64::MAX, f64::MAX, f64::MAX);
+            for _ in 0..60 {
+                one = one.min(single(1));
+                three = three.min(single(3));
+                let start = Instant::now();
+                forces.fill(Vec3::ZERO);
+                mesh.add_elastic_forces(&material, &x, &mut forces).unwrap();
+                pass = pass.min(start.elapsed().as_secs_f64());
+                let start = Instant::now();
+                forces.fill(Vec3::ZERO);
+                std::hint::black_box(body.energy_and_add_forces(&x, &mut forces).unwrap());
+                fused_pass = fused_pass.min(start.elapsed().as_secs_f64());
+            }
+            let sweep = (three - one) / 2.0 - fused_pass;
+            println!(
+                "sweep cost, short blocks ({nt} tets, f32, {name}): force pass {:.1} us, fused {:.1} us, \
+                 sweep {:.1} us = {:.2} force passes ({:.0} ns per element visit)",
+                pass * 1e6,
+                fused_pass * 1e6,
+                sweep * 1e6,
+                sweep / pass,
+                sweep * 1e9 / (4 * nt) as f64
+            );
         }
     }
 }

@@ -177,6 +177,16 @@ macro_rules! invariant_hessian_methods {
                 self.hessian_coefficients(ic, j),
             )
         }
+
+        #[inline]
+        fn corner_stress_and_stiffness(&self, f: Mat3, g: Vec3) -> (Vec3, Mat3) {
+            super::invariant_corner_stress_and_stiffness(
+                f,
+                g,
+                |ic, j| self.stress_coefficients(ic, j),
+                |ic, j| self.hessian_coefficients(ic, j),
+            )
+        }
     };
 }
 
@@ -373,6 +383,31 @@ pub trait Material: Copy + Debug {
         self.projected_stress_derivative_from_svd(&svd3(f))
     }
 
+    /// The stress on one corner, `P g` (Pa/m), and the same-corner stiffness
+    /// `K(g) = sum_(a,b) g_a g_b (d^2 W / dF^2)[(., a), (., b)]` (Pa/m^2), the symmetric 3x3
+    /// with `K(g) u = dP(u g^T) g`, at deformation gradient `f` for the shape-function gradient
+    /// `g` (m^-1): a tetrahedron of rest volume `V` has the force `-V P g` on that corner and
+    /// the exact (unprojected, possibly indefinite) diagonal Hessian block `V K(g)` there. What
+    /// Vertex Block Descent needs per element and corner (`docs/math.md` section 7).
+    ///
+    /// The models here give both in closed form without an SVD: for `W(I_C, J)`, with
+    /// `p = F g` and `q = cof(F) g`, `P g = 2 W_I p + W_J q` and `K = 2 W_I |g|^2 I +
+    /// 4 W_II p p^T + 2 W_IJ (p q^T + q p^T) + W_JJ q q^T` (the `W_J d^2 J / dF^2` term vanishes
+    /// on one corner: `d cof(F)[u g^T] g` is a sum of `g_a g_b (u x F_c + F_c x u)` = 0); for
+    /// [`StVK`], `K = (g^T S g) I + mu |g|^2 F F^T + (lambda + mu) p p^T`. The provided method
+    /// takes [`first_piola`](Material::first_piola) and three
+    /// [`first_piola_differential`](Material::first_piola_differential)s.
+    #[inline]
+    #[must_use]
+    fn corner_stress_and_stiffness(&self, f: Mat3, g: Vec3) -> (Vec3, Mat3) {
+        let column = |u: Vec3| {
+            let df = Mat3::from_cols(u * g.x, u * g.y, u * g.z);
+            self.first_piola_differential(f, df) * g
+        };
+        let k = Mat3::from_cols(column(Vec3::X), column(Vec3::Y), column(Vec3::Z));
+        (self.first_piola(f) * g, (k + k.transpose()) * 0.5)
+    }
+
     /// [`projected_stress_derivative`](Material::projected_stress_derivative) from an SVD the
     /// caller already has.
     #[inline]
@@ -490,6 +525,54 @@ fn invariant_energy_and_first_piola<L: Lane>(
     (
         energy(f, cof.c0),
         first_piola_with_cofactor(f, cof, coefficients),
+    )
+}
+
+/// [`Material::corner_stress_and_stiffness`] of a model written as `W(I_C, J)`: with
+/// `p = F g`, `q = cof(F) g`, `P g = a p + b q` and
+/// `K = a |g|^2 I + 4 W_II p p^T + 2 W_IJ (p q^T + q p^T) + W_JJ q q^T` (`a = 2 W_I`,
+/// `b = W_J`), from `dP = a dF + F da + cof(F) db + b d cof(F)` at `dF = u g^T`
+/// (`d cof(F)[u g^T] g = 0`). Six entries of the symmetric `K` are formed, then mirrored.
+#[inline(always)]
+fn invariant_corner_stress_and_stiffness(
+    f: Mat3,
+    g: Vec3,
+    stress_coefficients: impl FnOnce(Real, Real) -> (Real, Real),
+    hessian_coefficients: impl FnOnce(Real, Real) -> (Real, Real, Real),
+) -> (Vec3, Mat3) {
+    let (c0, c1, c2) = (f.x_axis, f.y_axis, f.z_axis);
+    let cof = Mat3::from_cols(c1.cross(c2), c2.cross(c0), c0.cross(c1));
+    let (ic, j) = (c0.dot(c0) + c1.dot(c1) + c2.dot(c2), c0.dot(cof.x_axis));
+    let (a, b) = stress_coefficients(ic, j);
+    let (w_ii, w_ij, w_jj) = hessian_coefficients(ic, j);
+    let (p, q) = (f * g, cof * g);
+    let (pp, pq, qq) = (4.0 * w_ii, 2.0 * w_ij, w_jj);
+    // K = a |g|^2 I + p r^T + q s^T with r = pp p + pq q, s = pq p + qq q.
+    let (r, s) = (p * pp + q * pq, p * pq + q * qq);
+    let diagonal = a * g.dot(g);
+    let k = symmetric(
+        Vec3::new(
+            p.x * r.x + q.x * s.x + diagonal,
+            p.y * r.y + q.y * s.y + diagonal,
+            p.z * r.z + q.z * s.z + diagonal,
+        ),
+        Vec3::new(
+            p.x * r.y + q.x * s.y,
+            p.x * r.z + q.x * s.z,
+            p.y * r.z + q.y * s.z,
+        ),
+    );
+    (p * a + q * b, k)
+}
+
+/// The symmetric 3x3 with diagonal `d` and off-diagonal `(o.x, o.y, o.z)` at `(0, 1)`, `(0, 2)`,
+/// `(1, 2)`.
+#[inline(always)]
+fn symmetric(d: Vec3, o: Vec3) -> Mat3 {
+    Mat3::from_cols(
+        Vec3::new(d.x, o.x, o.y),
+        Vec3::new(o.x, d.y, o.z),
+        Vec3::new(o.y, o.z, d.z),
     )
 }
 

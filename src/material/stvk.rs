@@ -170,4 +170,37 @@ impl Material for StVK {
             d_green * (2.0 * mu) + Mat3::from_diagonal(Vec3::splat(lambda * trace(d_green)));
         df * stress + f * d_stress
     }
+
+    /// With `p = F g`: `P g = F S g`, `S g = mu (F^T p - g) + lambda / 2 (I_C - 3) g`, and
+    /// `K = (g^T S g) I + mu |g|^2 F F^T + (lambda + mu) p p^T` from `dP = dF S + F dS` at
+    /// `dF = u g^T`, where `g^T S g = mu (|p|^2 - |g|^2) + lambda / 2 (I_C - 3) |g|^2`
+    /// (`2 G = F^T F - I`).
+    #[inline]
+    fn corner_stress_and_stiffness(&self, f: Mat3, g: Vec3) -> (Vec3, Mat3) {
+        let (lambda, mu) = (self.lame.lambda(), self.lame.mu());
+        let (a, b, c) = (f.x_axis, f.y_axis, f.z_axis);
+        let p = f * g;
+        let g2 = g.dot(g);
+        let volumetric = 0.5 * lambda * ((a.dot(a) - 1.0) + (b.dot(b) - 1.0) + (c.dot(c) - 1.0));
+        let s_g = (f.transpose() * p - g) * mu + g * volumetric;
+        let diagonal = mu * (p.dot(p) - g2) + volumetric * g2;
+        let (shear, volume) = (mu * g2, lambda + mu);
+        // (F F^T)_xy = a_x a_y + b_x b_y + c_x c_y.
+        let ff = |x: usize, y: usize| {
+            let at = |v: Vec3, k: usize| v.to_array().get(k).copied().unwrap_or(0.0);
+            at(a, x) * at(a, y) + at(b, x) * at(b, y) + at(c, x) * at(c, y)
+        };
+        let entry = |x: usize, y: usize| {
+            let at = |v: Vec3, k: usize| v.to_array().get(k).copied().unwrap_or(0.0);
+            shear * ff(x, y) + volume * at(p, x) * at(p, y)
+        };
+        let d = Vec3::new(entry(0, 0), entry(1, 1), entry(2, 2)) + Vec3::splat(diagonal);
+        let (o01, o02, o12) = (entry(0, 1), entry(0, 2), entry(1, 2));
+        let k = Mat3::from_cols(
+            Vec3::new(d.x, o01, o02),
+            Vec3::new(o01, d.y, o12),
+            Vec3::new(o02, o12, d.z),
+        );
+        (f * s_g, k)
+    }
 }

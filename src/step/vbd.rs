@@ -9,17 +9,14 @@
 use core::mem::swap;
 
 use super::super::element::TetRest;
-use super::super::lanes::LANES;
 use super::super::material::Material;
 use super::super::math;
-use super::super::math::BATCH_SVD;
-use super::super::svd::{Svd3, svd3, svd3_lanes};
 use super::super::types::{Mat3, Real, Vec3};
 use super::adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
     incident_elements, vertex_order,
 };
-use super::vertex_block::{force_and_projected_block, shape_gradient};
+use super::vertex_block::{VertexFactor, shape_gradient};
 use super::vertex_passes::{Frames, Vertices, gradient_pass};
 use super::{
     ElasticEnergy, Ground, TetElastic, check_length, check_state, first_non_finite, pinned_flags,
@@ -239,6 +236,10 @@ pub struct VbdReport {
     /// Vertex updates skipped: block not positive definite (after regularisation), not finite,
     /// no descent, or no acceptable step within the backtracks.
     pub skipped: u32,
+    /// Vertex updates whose exact block (inertia plus the exact element blocks) was not
+    /// positive definite and was replaced by the inertia plus the positive part of its elastic
+    /// sum (see [`vbd_step`](vbd_step#one-sweep)).
+    pub projected: u32,
     /// The Chebyshev `rho` used: the setting, the estimate, or 0 (none, or not yet estimated
     /// when the solve ended).
     pub rho: Real,
@@ -400,9 +401,6 @@ const ROUNDING: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
 /// The energy resolution's factor: `64 eps`.
 const RESOLUTION: Real = 64.0 * Real::EPSILON;
 
-/// A Cholesky pivot must exceed this times the block's trace.
-const PIVOT_FLOOR: Real = 64.0 * Real::EPSILON;
-
 /// What one evaluation of `Phi` gives.
 #[derive(Clone, Copy)]
 struct Evaluation {
@@ -457,6 +455,7 @@ struct Sweep<'s, M: Material> {
 struct SweepCounts {
     backtracks: u32,
     skipped: u32,
+    projected: u32,
 }
 
 /// The corner positions of `corners`.
@@ -486,42 +485,6 @@ impl<M: Material> Sweep<'_, M> {
         })
     }
 
-    /// Calls `visit(corner, rest, f, svd)` for every element around `i` in adjacency order:
-    /// the vertex's corner in it, its rest data, its deformation gradient and that gradient's
-    /// SVD, computed [`LANES`] at a time by [`svd3_lanes`] where the target batches SVDs (the
-    /// same bits as [`svd3`], so the result does not depend on it).
-    #[inline(always)]
-    fn for_each_element(
-        &self,
-        positions: &[Vec3],
-        i: usize,
-        mut visit: impl FnMut(usize, &TetRest, Mat3, &Svd3),
-    ) {
-        let mut pending = [(0, TetRest::default(), Mat3::ZERO); LANES];
-        let mut count = 0;
-        for (corners, corner, rest) in self.elements(i) {
-            let f = rest.deformation_gradient(gather(positions, corners));
-            if !BATCH_SVD {
-                visit(corner, rest, f, &svd3(f));
-                continue;
-            }
-            if let Some(slot) = pending.get_mut(count) {
-                *slot = (corner, *rest, f);
-            }
-            count += 1;
-            if count == LANES {
-                let svds = svd3_lanes(&pending.map(|(_, _, f)| f));
-                for ((corner, rest, f), svd) in pending.iter().zip(&svds) {
-                    visit(*corner, rest, *f, svd);
-                }
-                count = 0;
-            }
-        }
-        for (corner, rest, f) in pending.iter().take(count) {
-            visit(*corner, rest, *f, &svd3(*f));
-        }
-    }
-
     /// The local Newton update of vertex `i` (see the module documentation).
     fn update(&self, positions: &mut [Vec3], i: usize, counts: &mut SweepCounts) {
         let Some(&x) = positions.get(i) else {
@@ -536,26 +499,34 @@ impl<M: Material> Sweep<'_, M> {
         let weight = m * self.inertia;
         let line_search = self.max_backtracks > 0;
         let mut gradient = (x - y) * weight - self.gravity * m;
-        let mut hessian = Mat3::from_diagonal(Vec3::splat(weight));
+        let mut hessian = Mat3::ZERO;
         let mut elastic = 0.0;
         // What the local energy can resolve: 64 eps sum_e V_e W_e-scale, the scale from the
         // element block, tr(K_e) / |g_a|^2 ~ V_e times the elastic modulus (J).
         let mut resolution = 0.0;
-        self.for_each_element(positions, i, |corner, rest, f, svd| {
-            let (force, block) = force_and_projected_block(self.material, rest, f, svd, corner);
-            gradient -= force;
-            hessian += block;
+        // One deformation gradient, stress and exact corner block per element: the force
+        // -V P g and the block V K(g) (no SVD; see `vertex_block`).
+        for (corners, corner, rest) in self.elements(i) {
+            let f = rest.deformation_gradient(gather(positions, corners));
+            let g = shape_gradient(rest, corner);
+            let (stress, stiffness) = self.material.corner_stress_and_stiffness(f, g);
+            gradient += stress * rest.volume;
+            hessian += stiffness * rest.volume;
             if line_search {
                 elastic += rest.volume * self.material.energy_density(f);
-                let g = shape_gradient(rest, corner);
-                let trace = block.x_axis.x + block.y_axis.y + block.z_axis.z;
-                resolution += trace / g.dot(g);
+                let trace = stiffness.x_axis.x + stiffness.y_axis.y + stiffness.z_axis.z;
+                resolution += (trace * rest.volume).abs() / g.dot(g);
             }
-        });
-        let Some(factor) = Cholesky::regularised(&hessian) else {
+        }
+        let Some(VertexFactor {
+            cholesky: factor,
+            projected,
+        }) = VertexFactor::new(weight, &hessian)
+        else {
             counts.skipped += 1;
             return;
         };
+        counts.projected += u32::from(projected);
         let mut step = factor.solve(-gradient);
         if let Some(ground) = &self.ground {
             if ground.height(x + step) < 0.0 {
@@ -641,63 +612,6 @@ impl<M: Material> Sweep<'_, M> {
             }
             visit(corner, rest, rest.deformation_gradient(xs));
         }
-    }
-}
-
-/// The Cholesky factor `L` of a symmetric 3x3 matrix (`H = L L^T`), lower triangle by rows.
-struct Cholesky {
-    l00: Real,
-    l10: Real,
-    l11: Real,
-    l20: Real,
-    l21: Real,
-    l22: Real,
-}
-
-impl Cholesky {
-    /// The factor of `h` (its lower triangle is read), if every pivot exceeds `floor`.
-    fn new(h: &Mat3, floor: Real) -> Option<Cholesky> {
-        let (a00, a10, a20) = (h.x_axis.x, h.x_axis.y, h.x_axis.z);
-        let (a11, a21, a22) = (h.y_axis.y, h.y_axis.z, h.z_axis.z);
-        let pivot = |d: Real| (d > floor).then(|| math::sqrt(d));
-        let l00 = pivot(a00)?;
-        let (l10, l20) = (a10 / l00, a20 / l00);
-        let l11 = pivot(a11 - l10 * l10)?;
-        let l21 = (a21 - l20 * l10) / l11;
-        let l22 = pivot(a22 - l20 * l20 - l21 * l21)?;
-        Some(Cholesky {
-            l00,
-            l10,
-            l11,
-            l20,
-            l21,
-            l22,
-        })
-    }
-
-    /// The factor of `h`, or of `h + sqrt(eps) tr(h) / 3 I` if `h` has a pivot at or below
-    /// `64 eps tr(h)`; `None` if that fails too, or `tr(h)` is not finite and positive.
-    fn regularised(h: &Mat3) -> Option<Cholesky> {
-        let trace = h.x_axis.x + h.y_axis.y + h.z_axis.z;
-        if !(trace > 0.0 && trace.is_finite()) {
-            return None;
-        }
-        let floor = PIVOT_FLOOR * trace;
-        Cholesky::new(h, floor).or_else(|| {
-            let shift = Mat3::from_diagonal(Vec3::splat(ROUNDING * trace / 3.0));
-            Cholesky::new(&(*h + shift), floor)
-        })
-    }
-
-    /// `H^-1 r`.
-    fn solve(&self, r: Vec3) -> Vec3 {
-        let z0 = r.x / self.l00;
-        let z1 = (r.y - self.l10 * z0) / self.l11;
-        let z2 = (r.z - self.l20 * z0 - self.l21 * z1) / self.l22;
-        let x2 = z2 / self.l22;
-        let x1 = (z1 - self.l21 * x2) / self.l11;
-        let x0 = (z0 - self.l10 * x1 - self.l20 * x2) / self.l00;
-        Vec3::new(x0, x1, x2)
     }
 }
 
@@ -1049,6 +963,7 @@ fn descend<'b, M: Material>(
         restarts,
         backtracks: counts.backtracks,
         skipped: counts.skipped,
+        projected: counts.projected,
         rho,
     };
     Ok((report, gradient, unaccelerated))

@@ -1,30 +1,34 @@
-//! The per-element work of a Vertex Block Descent update: the elastic force on one corner and
-//! that corner's SPD-projected 3x3 Hessian block, from one SVD, without assembling the 9x9
-//! stress derivative.
+//! The per-vertex Newton system of a Vertex Block Descent update: the shape gradient of a
+//! corner, and the SPD factor of a vertex's accumulated 3x3 block.
 //!
-//! With `F = U diag(s) V^T` the projected derivative is `sum_m lambda_m+ vec(Q_m) vec(Q_m)^T`
-//! over the nine modes of Smith, de Goes and Kim ("Analytic eigensystems for isotropic
-//! distortion energies", ACM TOG 2019; `docs/math.md` section 6): the scaling modes
-//! `Q_i = u_i v_i^T` coupled by the principal Hessian `S = d^2 W / ds^2` (projected as a whole),
-//! and per pair `(i, j)` the flip `(u_i v_j^T + u_j v_i^T) / sqrt 2` and the twist
-//! `(u_i v_j^T - u_j v_i^T) / sqrt 2`. Corner `a` with shape gradient `g` sees `dF = dx g^T`,
-//! so its block is `V sum_m lambda_m+ (Q_m g)(Q_m g)^T`, and with `h = V^T g`,
-//! `Q_i g = u_i h_i` and `(u_i v_j^T +- u_j v_i^T) g = u_i h_j +- u_j h_i`. In the frame of `U`
-//! the block is therefore `V U M U^T` with
-//! `M = S+ o (h h^T)` plus, per pair, `(f + t) / 2 h_j^2` at `(i, i)`, `(f + t) / 2 h_i^2` at
-//! `(j, j)` and `(f - t) / 2 h_i h_j` at `(i, j)` and `(j, i)` (`f`, `t` the clamped flip and
-//! twist eigenvalues): some 60 operations on top of the SVD instead of the 9x9's 800. The same
-//! block as [`TetHessian::vertex_block`](super::super::element::TetHessian::vertex_block) to
-//! rounding (checked by the tests below).
+//! Per element and corner the sweep takes the force `-V P g` and the exact diagonal block
+//! `V K(g)` of [`Material::corner_stress_and_stiffness`]: closed forms in the invariants
+//! (no SVD, some 60 operations on top of the stress). The exact blocks are summed per vertex
+//! with the inertia `m / h^2 I`, and only that sum is made positive definite (the approach of
+//! Chen et al., "Vertex Block Descent", TOG 2024, which use the local Hessian as is and guard
+//! its definiteness): [`VertexFactor::new`] factors it by Cholesky where it is positive
+//! definite, which it is for [`StableNeoHookean`](super::super::material::StableNeoHookean)
+//! always (every element term is, see below) and for the other models unless elements are
+//! strongly compressed with little inertia; otherwise it factors
+//! `m / h^2 I + (sum_e V_e K_e)+`, the positive semi-definite part of the elastic sum from its
+//! eigen-decomposition (one 3x3 symmetric SVD for that vertex, not one per element), with the
+//! Levenberg–Marquardt shift of [`Cholesky::regularised`] where even that is singular. Either
+//! way the factored matrix `H` is symmetric positive definite, so `d = -H^-1 grad` satisfies
+//! `grad . d = -grad^T H^-1 grad < 0`: a descent direction of the vertex's local energy, and
+//! with the line search every accepted update lowers `Phi`.
+//!
+//! Why the exact block is mostly definite already: for `W(I_C, J)` the block is
+//! `2 W_I |g|^2 I + [p q] [[4 W_II, 2 W_IJ], [2 W_IJ, W_JJ]] [p q]^T` (`p = F g`,
+//! `q = cof(F) g`), the indefinite `W_J d^2 J / dF^2` part of the full Hessian vanishing on one
+//! corner. Stable neo-Hookean has `W_I > 0`, `W_II > 0`, `W_IJ = 0`, `W_JJ > 0`: every element
+//! term is positive definite. Neo-Hookean's `W_IJ < 0` and StVK's `g^T S g < 0` under
+//! compression can make a term indefinite; the inertia and the other elements usually
+//! outweigh it.
 
 use super::super::element::TetRest;
-use super::super::material::Material;
-use super::super::svd::{Svd3, svd3};
+use super::super::math;
+use super::super::svd::svd3;
 use super::super::types::{Mat3, Real, Vec3};
-
-/// The pairs `(i, j)` of the flip and twist modes, in the order of
-/// [`Material::principal_pair_eigenvalues`].
-const PAIRS: [(usize, usize); 3] = [(1, 2), (0, 2), (0, 1)];
 
 /// The gradient `g_a` (m^-1) of corner `a`'s shape function: row `a - 1` of `Dm^-1` for
 /// `a = 1, 2, 3`, minus their sum for `a = 0` (zero out of range).
@@ -37,97 +41,246 @@ pub(super) fn shape_gradient(rest: &TetRest, corner: usize) -> Vec3 {
     }
 }
 
-/// `max(x, 0)`, NaN kept.
-#[inline(always)]
-fn clamp_negative(x: Real) -> Real {
-    if x < 0.0 { 0.0 } else { x }
-}
-
-/// The positive semi-definite part of the symmetric `s`: `s` itself when every principal minor
-/// is non-negative, else `(s + |s|) / 2` with `|s| = B diag(sigma) B^T` from the SVD
-/// `s = A diag(sigma) B^T` (for a symmetric matrix the right singular vectors are its
-/// eigenvectors and the singular values the moduli of its eigenvalues). NaN fails the test
-/// and propagates.
+/// The positive semi-definite part of the symmetric `s`: `(s + |s|) / 2` with
+/// `|s| = B diag(sigma) B^T` from the SVD `s = A diag(sigma) B^T` (for a symmetric matrix the
+/// right singular vectors are its eigenvectors and the singular values the moduli of its
+/// eigenvalues). NaN propagates.
 fn positive_part(s: Mat3) -> Mat3 {
-    let (a, b, c) = (s.x_axis.x, s.y_axis.y, s.z_axis.z);
-    let (ab, ac, bc) = (s.y_axis.x, s.z_axis.x, s.z_axis.y);
-    let psd = a >= 0.0
-        && b >= 0.0
-        && c >= 0.0
-        && a * b - ab * ab >= 0.0
-        && a * c - ac * ac >= 0.0
-        && b * c - bc * bc >= 0.0
-        && s.determinant() >= 0.0;
-    if psd {
-        return s;
-    }
     let svd = svd3(s);
     let modulus = svd.v * Mat3::from_diagonal(svd.sigma.abs()) * svd.v.transpose();
     let half = (s + modulus) * 0.5;
     (half + half.transpose()) * 0.5
 }
 
-/// The elastic force (N) on `corner` of the tetrahedron `rest` with deformation gradient `f`
-/// (whose SVD is `svd`) and that corner's SPD-projected Hessian block (N/m): see the
-/// [module documentation](self). The force is `-V P g_a` with the direct stress
-/// [`Material::first_piola`].
-#[inline]
-pub(super) fn force_and_projected_block<M: Material>(
-    material: &M,
-    rest: &TetRest,
-    f: Mat3,
-    svd: &Svd3,
-    corner: usize,
-) -> (Vec3, Mat3) {
-    let g = shape_gradient(rest, corner);
-    let force = material.first_piola(f) * g * -rest.volume;
-    let h = svd.v.transpose() * g;
-    let scaling = positive_part(material.principal_hessian(svd.sigma));
-    let [flip, twist] = material.principal_pair_eigenvalues(svd.sigma);
-    let outer = Mat3::from_cols(h * h.x, h * h.y, h * h.z);
-    let mut m = [
-        (scaling.x_axis * outer.x_axis).to_array(),
-        (scaling.y_axis * outer.y_axis).to_array(),
-        (scaling.z_axis * outer.z_axis).to_array(),
-    ];
-    let hs = h.to_array();
-    let (flips, twists) = (flip.to_array(), twist.to_array());
-    for (k, &(i, j)) in PAIRS.iter().enumerate() {
-        let f = clamp_negative(flips.get(k).copied().unwrap_or(0.0));
-        let t = clamp_negative(twists.get(k).copied().unwrap_or(0.0));
-        let (hi, hj) = (
-            hs.get(i).copied().unwrap_or(0.0),
-            hs.get(j).copied().unwrap_or(0.0),
-        );
-        let (sum, difference) = (0.5 * (f + t), 0.5 * (f - t));
-        let mut add = |column: usize, row: usize, value: Real| {
-            if let Some(entry) = m.get_mut(column).and_then(|c| c.get_mut(row)) {
-                *entry += value;
-            }
-        };
-        add(i, i, sum * hj * hj);
-        add(j, j, sum * hi * hi);
-        add(j, i, difference * hi * hj);
-        add(i, j, difference * hi * hj);
+/// A Cholesky pivot must exceed this times the block's trace.
+const PIVOT_FLOOR: Real = 64.0 * Real::EPSILON;
+
+/// `sqrt(eps)`: the relative Levenberg–Marquardt shift of [`Cholesky::regularised`].
+const SHIFT: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
+
+/// The Cholesky factor `L` of a symmetric 3x3 matrix (`H = L L^T`), lower triangle by rows.
+pub(super) struct Cholesky {
+    l00: Real,
+    l10: Real,
+    l11: Real,
+    l20: Real,
+    l21: Real,
+    l22: Real,
+}
+
+impl Cholesky {
+    /// The factor of `h` (its lower triangle is read), if every pivot exceeds `floor`.
+    #[inline]
+    fn new(h: &Mat3, floor: Real) -> Option<Cholesky> {
+        let (a00, a10, a20) = (h.x_axis.x, h.x_axis.y, h.x_axis.z);
+        let (a11, a21, a22) = (h.y_axis.y, h.y_axis.z, h.z_axis.z);
+        let pivot = |d: Real| (d > floor).then(|| math::sqrt(d));
+        let l00 = pivot(a00)?;
+        let (l10, l20) = (a10 / l00, a20 / l00);
+        let l11 = pivot(a11 - l10 * l10)?;
+        let l21 = (a21 - l20 * l10) / l11;
+        let l22 = pivot(a22 - l20 * l20 - l21 * l21)?;
+        Some(Cholesky {
+            l00,
+            l10,
+            l11,
+            l20,
+            l21,
+            l22,
+        })
     }
-    let principal = Mat3::from_cols_array_2d(&m);
-    let block = svd.u * principal * svd.u.transpose() * rest.volume;
-    (force, (block + block.transpose()) * 0.5)
+
+    /// The factor of `h`, or of `h + sqrt(eps) tr(h) / 3 I` if `h` has a pivot at or below
+    /// `64 eps tr(h)`; `None` if that fails too, or `tr(h)` is not finite and positive.
+    #[inline]
+    pub(super) fn regularised(h: &Mat3) -> Option<Cholesky> {
+        let trace = h.x_axis.x + h.y_axis.y + h.z_axis.z;
+        if !(trace > 0.0 && trace.is_finite()) {
+            return None;
+        }
+        let floor = PIVOT_FLOOR * trace;
+        Cholesky::new(h, floor).or_else(|| {
+            let shift = Mat3::from_diagonal(Vec3::splat(SHIFT * trace / 3.0));
+            Cholesky::new(&(*h + shift), floor)
+        })
+    }
+
+    /// `H^-1 r`.
+    #[inline]
+    pub(super) fn solve(&self, r: Vec3) -> Vec3 {
+        let z0 = r.x / self.l00;
+        let z1 = (r.y - self.l10 * z0) / self.l11;
+        let z2 = (r.z - self.l20 * z0 - self.l21 * z1) / self.l22;
+        let x2 = z2 / self.l22;
+        let x1 = (z1 - self.l21 * x2) / self.l11;
+        let x0 = (z0 - self.l10 * x1 - self.l20 * x2) / self.l00;
+        Vec3::new(x0, x1, x2)
+    }
+}
+
+/// The SPD system of one vertex update, see the [module documentation](self).
+pub(super) struct VertexFactor {
+    /// The factor of the matrix solved with.
+    pub(super) cholesky: Cholesky,
+    /// Whether the elastic sum had to be replaced by its positive part.
+    pub(super) projected: bool,
+}
+
+impl VertexFactor {
+    /// The factor of `inertia I + elastic` where that is positive definite (pivots above
+    /// `64 eps` of the trace), else of `inertia I + elastic+` (regularised where singular);
+    /// `None` where even that fails (a vertex in no element without inertia, or NaN).
+    #[inline]
+    pub(super) fn new(inertia: Real, elastic: &Mat3) -> Option<VertexFactor> {
+        let diagonal = Mat3::from_diagonal(Vec3::splat(inertia));
+        let exact = *elastic + diagonal;
+        let trace = exact.x_axis.x + exact.y_axis.y + exact.z_axis.z;
+        if let Some(cholesky) = Cholesky::new(&exact, PIVOT_FLOOR * trace) {
+            if trace.is_finite() {
+                return Some(VertexFactor {
+                    cholesky,
+                    projected: false,
+                });
+            }
+        }
+        let cholesky = Cholesky::regularised(&(positive_part(*elastic) + diagonal))?;
+        Some(VertexFactor {
+            cholesky,
+            projected: true,
+        })
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::super::super::element::{TetRest, tet_vertex_force_and_block};
     use super::super::super::material::{Material, NeoHookean, StVK, StableNeoHookean};
-    use super::super::super::svd::svd3;
+    use super::super::super::math;
     use super::super::super::types::{Mat3, Real, Vec3};
-    use super::force_and_projected_block;
+    use super::{VertexFactor, shape_gradient};
 
-    /// The contraction equals the element block of the 9x9 assembly for every model, at rest,
-    /// stretched, compressed (indefinite principal Hessian), sheared, and inverted, to a few
-    /// hundred eps of the block's scale; the forces are the same bits.
+    /// The largest entry's modulus.
+    fn largest(m: Mat3) -> Real {
+        m.abs().to_cols_array().iter().fold(0.0, |a, &b| a.max(b))
+    }
+
+    /// A deterministic stream in `[-1, 1)` (xorshift64*).
+    struct Stream(u64);
+    impl Stream {
+        fn next(&mut self) -> Real {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            let bits = self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11;
+            (bits as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) as Real
+        }
+        fn vector(&mut self) -> Vec3 {
+            Vec3::new(self.next(), self.next(), self.next())
+        }
+    }
+
+    /// Deformation gradients: `I + 0.4 R` for random `R`, half of them with a column negated
+    /// (inverted), and a few flat and strongly stretched ones.
+    fn gradients() -> [Mat3; 42] {
+        let mut stream = Stream(0x9e37_79b9_7f4a_7c15);
+        core::array::from_fn(|k| match k {
+            40 => Mat3::from_diagonal(Vec3::new(1.0, 1.0, 0.0)),
+            41 => Mat3::from_diagonal(Vec3::new(3.0, 0.5, 0.8)),
+            _ => {
+                let r = Mat3::from_cols(stream.vector(), stream.vector(), stream.vector());
+                let f = Mat3::IDENTITY + r * 0.4;
+                if k % 2 == 0 {
+                    f
+                } else {
+                    Mat3::from_cols(f.x_axis, f.y_axis, -f.z_axis)
+                }
+            }
+        })
+    }
+
+    /// The closed-form `K(g)` equals central differences of the corner's stress contraction
+    /// `P(F + t u g^T) g` in `t`, column by column, for every model and random `F` including
+    /// inverted ones (neo-Hookean only at `J > 0.2`, away from its barrier). Step
+    /// `eps^(1/3) / |g|`: truncation and rounding both `O(eps^(2/3))` relative to the stress
+    /// scale, so the tolerance is `100 eps^(2/3)` of the largest stress derivative
+    /// (`|K| |g|^-2` times the modulus scale).
     #[test]
-    fn contraction_equals_the_assembled_block() {
+    fn corner_stiffness_equals_central_differences_of_the_corner_force() {
+        fn check<M: Material>(material: &M, f: Mat3, g: Vec3) {
+            let (stress, k) = material.corner_stress_and_stiffness(f, g);
+            let direct = material.first_piola(f);
+            let scale = largest(direct) * g.length();
+            assert!(
+                (stress - direct * g).abs().max_element() <= 16.0 * Real::EPSILON * scale,
+                "the corner stress is P g: {stress} vs {}",
+                direct * g
+            );
+            let step = math::cbrt(Real::EPSILON) / g.length();
+            let columns = [Vec3::X, Vec3::Y, Vec3::Z].map(|u| {
+                let df = Mat3::from_cols(u * g.x, u * g.y, u * g.z) * step;
+                (material.first_piola(f + df) * g - material.first_piola(f - df) * g) / (2.0 * step)
+            });
+            let difference = Mat3::from_cols(columns[0], columns[1], columns[2]);
+            let scale = largest(k).max(largest(direct) * g.length_squared());
+            let tolerance = 100.0 * math::cbrt(Real::EPSILON * Real::EPSILON) * scale;
+            assert!(
+                largest(k - difference) <= tolerance,
+                "{material:?} F = {f}: {k} vs differences {difference}"
+            );
+            assert!(largest(k - k.transpose()) <= 8.0 * Real::EPSILON * largest(k));
+        }
+        let mut stream = Stream(17);
+        for f in gradients() {
+            let g = stream.vector() * 20.0;
+            check(&StVK::from_young_poisson(1e6, 0.3).unwrap(), f, g);
+            check(
+                &StableNeoHookean::from_young_poisson(1e6, 0.45).unwrap(),
+                f,
+                g,
+            );
+            if f.determinant() > 0.2 {
+                check(&NeoHookean::from_young_poisson(1e6, 0.3).unwrap(), f, g);
+            }
+        }
+    }
+
+    /// The closed forms equal the provided method of [`Material`] (three stress
+    /// differentials), to rounding of the largest term.
+    #[test]
+    fn corner_stiffness_equals_three_stress_differentials() {
+        fn check<M: Material>(material: &M, f: Mat3, g: Vec3) {
+            let (_, k) = material.corner_stress_and_stiffness(f, g);
+            let column = |u: Vec3| {
+                let df = Mat3::from_cols(u * g.x, u * g.y, u * g.z);
+                material.first_piola_differential(f, df) * g
+            };
+            let provided = Mat3::from_cols(column(Vec3::X), column(Vec3::Y), column(Vec3::Z));
+            let scale = largest(provided).max(largest(material.first_piola(f)) * g.dot(g));
+            assert!(
+                largest(k - provided) <= 256.0 * Real::EPSILON * scale,
+                "{material:?} F = {f}: {k} vs {provided}"
+            );
+        }
+        let mut stream = Stream(5);
+        for f in gradients() {
+            let g = stream.vector();
+            check(&StVK::from_young_poisson(1e6, 0.3).unwrap(), f, g);
+            check(
+                &StableNeoHookean::from_young_poisson(1e6, 0.45).unwrap(),
+                f,
+                g,
+            );
+            if f.determinant() > 0.2 {
+                check(&NeoHookean::from_young_poisson(1e6, 0.3).unwrap(), f, g);
+            }
+        }
+    }
+
+    /// Where the element's exact 9x9 stress derivative is positive semi-definite already (its
+    /// projection changes nothing), `V K(g)` is the projected element block of
+    /// [`tet_vertex_force_and_block`], and the force is its force.
+    #[test]
+    fn exact_block_equals_the_projected_block_where_the_hessian_is_definite() {
         let rest_positions = [
             Vec3::ZERO,
             Vec3::new(1.0, 0.1, 0.0),
@@ -135,67 +288,109 @@ mod tests {
             Vec3::new(0.1, 0.2, 1.1),
         ];
         let rest = TetRest::new(rest_positions).unwrap();
+        let rotation = Mat3::from_axis_angle(Vec3::new(1.0, 2.0, 2.0).normalize(), 0.7);
         let gradients = [
             Mat3::IDENTITY,
-            Mat3::from_diagonal(Vec3::new(1.3, 0.9, 1.05)),
-            Mat3::from_diagonal(Vec3::new(0.5, 0.6, 0.7)),
-            Mat3::from_cols(
-                Vec3::new(1.0, 0.4, -0.1),
-                Vec3::new(0.3, 0.8, 0.2),
-                Vec3::new(-0.2, 0.1, 1.2),
-            ),
-            Mat3::from_diagonal(Vec3::new(1.1, 0.9, -0.3)),
-            Mat3::from_diagonal(Vec3::new(1.0, 1.0, 1.0 + 1e-3)),
+            Mat3::from_diagonal(Vec3::new(1.3, 1.2, 1.1)),
+            rotation * Mat3::from_diagonal(Vec3::new(1.25, 1.1, 1.05)),
+            rotation * Mat3::from_diagonal(Vec3::new(1.02, 1.01, 1.03)),
         ];
-        fn check<M: Material>(material: &M, rest: &TetRest, positions: [Vec3; 4], f: Mat3) {
+        fn check<M: Material>(material: &M, rest: &TetRest, positions: [Vec3; 4], f: Mat3) -> bool {
+            // Definite: projection leaves every entry of dP/dF as it is.
+            let (exact, projected) = (
+                material.stress_derivative(f),
+                material.projected_stress_derivative(f),
+            );
+            let scale = (0..9)
+                .flat_map(|i| (0..9).map(move |j| (i, j)))
+                .fold(0.0 as Real, |a, (i, j)| a.max(exact.entry(i, j).abs()));
+            let definite = (0..9).all(|i| {
+                (0..9).all(|j| {
+                    (exact.entry(i, j) - projected.entry(i, j)).abs()
+                        <= 64.0 * Real::EPSILON * scale
+                })
+            });
+            if !definite {
+                return false;
+            }
             let x = positions.map(|p| f * p);
             let fx = rest.deformation_gradient(x);
             for corner in 0..4 {
                 let (force, block) = tet_vertex_force_and_block(material, rest, x, corner);
-                let (mine, my_block) =
-                    force_and_projected_block(material, rest, fx, &svd3(fx), corner);
-                let scale = block
-                    .abs()
-                    .to_cols_array()
-                    .iter()
-                    .fold(0.0 as Real, |a, &b| a.max(b));
-                let error = (my_block - block)
-                    .abs()
-                    .to_cols_array()
-                    .iter()
-                    .fold(0.0 as Real, |a, &b| a.max(b));
+                let g = shape_gradient(rest, corner);
+                let (stress, k) = material.corner_stress_and_stiffness(fx, g);
+                let mine = k * rest.volume;
                 assert!(
-                    error <= 512.0 * Real::EPSILON * scale,
-                    "{f} corner {corner}: {my_block} vs {block}"
+                    largest(mine - block) <= 512.0 * Real::EPSILON * largest(block),
+                    "{f} corner {corner}: {mine} vs {block}"
                 );
-                let force_error = (mine - force).length();
+                // `P g` is formed as `a F g + b cof(F) g`, whose terms are of the size of the
+                // block over `|g|` (`V mu |g|`) and cancel: rounding relative to that.
+                let my_force = stress * -rest.volume;
+                let term = largest(block) / g.length();
                 assert!(
-                    force_error <= 64.0 * Real::EPSILON * force.length().max(1.0),
-                    "{mine} vs {force}"
+                    (my_force - force).length() <= 64.0 * Real::EPSILON * force.length().max(term),
+                    "{my_force} vs {force}"
                 );
             }
+            true
         }
+        let mut compared = 0;
         for f in gradients {
-            check(
+            compared += usize::from(check(
                 &StVK::from_young_poisson(1e6, 0.3).unwrap(),
                 &rest,
                 rest_positions,
                 f,
-            );
-            check(
+            ));
+            compared += usize::from(check(
                 &StableNeoHookean::from_young_poisson(1e6, 0.45).unwrap(),
                 &rest,
                 rest_positions,
                 f,
-            );
-            if f.determinant() > 0.0 {
-                check(
-                    &NeoHookean::from_young_poisson(1e6, 0.3).unwrap(),
-                    &rest,
-                    rest_positions,
-                    f,
-                );
-            }
+            ));
+            compared += usize::from(check(
+                &NeoHookean::from_young_poisson(1e6, 0.3).unwrap(),
+                &rest,
+                rest_positions,
+                f,
+            ));
         }
+        // Stretches above 1 are definite for all three models: most cases compare.
+        assert!(compared >= 8, "only {compared} definite cases");
+    }
+
+    /// The vertex factor solves with the exact block where that is definite, and with a
+    /// positive definite replacement (every solve a descent direction) where it is not.
+    #[test]
+    fn vertex_factor_is_exact_where_definite_and_descends_where_not() {
+        let definite = Mat3::from_cols(
+            Vec3::new(4.0, 1.0, 0.5),
+            Vec3::new(1.0, 3.0, 0.2),
+            Vec3::new(0.5, 0.2, 2.0),
+        );
+        let factor = VertexFactor::new(0.5, &definite).unwrap();
+        assert!(!factor.projected);
+        let r = Vec3::new(1.0, -2.0, 0.5);
+        let h = definite + Mat3::from_diagonal(Vec3::splat(0.5));
+        assert!((h * factor.cholesky.solve(r) - r).length() <= 64.0 * Real::EPSILON * 4.0);
+        // Eigenvalues 3, -2, 1 (in a rotated frame) with inertia 1: indefinite.
+        let rotation = Mat3::from_axis_angle(Vec3::new(1.0, 1.0, 0.0).normalize(), 0.4);
+        let indefinite =
+            rotation * Mat3::from_diagonal(Vec3::new(3.0, -2.0, 1.0)) * rotation.transpose();
+        let factor = VertexFactor::new(1.0, &indefinite).unwrap();
+        assert!(factor.projected);
+        // The positive part plus inertia: eigenvalues 4, 1, 2.
+        let expected =
+            rotation * Mat3::from_diagonal(Vec3::new(4.0, 1.0, 2.0)) * rotation.transpose();
+        let mut stream = Stream(3);
+        for _ in 0..20 {
+            let g = stream.vector();
+            let d = factor.cholesky.solve(-g);
+            assert!(g.dot(d) < 0.0);
+            assert!((expected * d + g).length() <= 1e3 * Real::EPSILON * g.length());
+        }
+        assert!(VertexFactor::new(0.0, &Mat3::ZERO).is_none());
+        assert!(VertexFactor::new(1.0, &Mat3::from_diagonal(Vec3::splat(Real::NAN))).is_none());
     }
 }
