@@ -546,6 +546,60 @@ mod measure {
         );
     }
 
+    /// What one step of a solver reports.
+    pub struct Outcome {
+        pub converged: bool,
+        pub iterations: u32,
+        pub evaluations: u32,
+        pub rho: f64,
+    }
+
+    /// A solver of a scene: its name and one step (`step(k)` runs step `k`, resetting the state
+    /// at `k = 0`).
+    pub type Solver<'a> = (String, Box<dyn FnMut(usize) -> Outcome + 'a>);
+
+    /// Runs every solver's trajectory `repeats` times, interleaved step by step (step `k` of
+    /// every solver, then step `k + 1`), so that all see the same machine load, and prints one
+    /// row per solver with the sum over steps of each step's least time over the repeats (the
+    /// trajectories are deterministic, so every repeat does the same work, and interference
+    /// only adds time), and the ratio to the first solver's.
+    pub fn interleaved(scene: &str, steps: usize, repeats: usize, solvers: &mut [Solver<'_>]) {
+        let mut least = vec![vec![f64::MAX; steps]; solvers.len()];
+        let mut counts = vec![(0usize, 0u64, 0u64, 0.0f64); solvers.len()];
+        for _ in 0..repeats {
+            counts.iter_mut().for_each(|c| *c = (0, 0, 0, 0.0));
+            for k in 0..steps {
+                for ((_, step), (least, count)) in
+                    solvers.iter_mut().zip(least.iter_mut().zip(&mut counts))
+                {
+                    let start = Instant::now();
+                    let outcome = step(k);
+                    least[k] = least[k].min(start.elapsed().as_secs_f64());
+                    count.0 += usize::from(outcome.converged);
+                    count.1 += u64::from(outcome.iterations);
+                    count.2 += u64::from(outcome.evaluations);
+                    count.3 = count.3.max(outcome.rho);
+                }
+            }
+        }
+        let totals: Vec<f64> = least.iter().map(|l| l.iter().sum()).collect();
+        for (((name, _), total), count) in solvers.iter().zip(&totals).zip(&counts) {
+            row(
+                scene,
+                &format!(
+                    "{name} (largest rho {:.3}; {:.2}x the first's time)",
+                    count.3,
+                    total / totals[0]
+                ),
+                steps,
+                count.0,
+                count.1,
+                count.2,
+                *total,
+            );
+        }
+    }
+
     /// The bouncy example's jelly cube (0.2 m, 6^3 cells, 1296 tets, stable neo-Hookean
     /// E = 5e4 Pa, nu = 0.45, 1000 kg/m^3) dropped from 0.5 m onto z = 0 with friction 0.6,
     /// 180 steps of 1/60 s, f32; relaxation: tolerance 2e-3, 300 iterations, Chebyshev 0.995,
@@ -580,29 +634,34 @@ mod measure {
             .with_ground(ground)
             .with_tolerance(tolerance, 300)
             .with_chebyshev(0.995, 2.0, 0);
-        let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
-        let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-        let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; nv]);
-        let (mut converged, mut iterations, mut evaluations) = (0, 0u64, 0u64);
-        let start = Instant::now();
-        for _ in 0..steps {
-            let r =
-                relax_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
-            converged += usize::from(r.converged);
-            iterations += u64::from(r.iterations);
-            evaluations += u64::from(r.energy_evaluations);
+        let (body, masses, rest) = (&body, &masses, &rest);
+        let mut solvers: Vec<Solver<'_>> = Vec::new();
+        {
+            let (mut vectors, mut scalars) =
+                (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+            let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; nv]);
+            solvers.push((
+                "GD+Chebyshev 0.995".into(),
+                Box::new(move |k| {
+                    if k == 0 {
+                        x.copy_from_slice(rest);
+                        v.fill(Vec3::ZERO);
+                    }
+                    let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+                    let r = relax_step(body, masses, &[], &settings, &mut x, &mut v, &mut scratch)
+                        .unwrap();
+                    if k + 1 == steps {
+                        assert!(x.iter().all(|p| p.z >= -1e-5));
+                    }
+                    Outcome {
+                        converged: r.converged,
+                        iterations: r.iterations,
+                        evaluations: r.energy_evaluations,
+                        rho: 0.0,
+                    }
+                }),
+            ));
         }
-        row(
-            &scene,
-            "GD+Chebyshev 0.995",
-            steps,
-            converged,
-            iterations,
-            evaluations,
-            start.elapsed().as_secs_f64(),
-        );
-        let relax_lowest = x.iter().map(|p| p.z).fold(f32::MAX, f32::min);
-
         for (name, vbd) in variants(
             VbdSettings::new(dt)
                 .with_gravity(gravity)
@@ -611,31 +670,30 @@ mod measure {
         ) {
             let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
             let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
-            let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
             let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; nv]);
-            let (mut converged, mut iterations, mut evaluations) = (0, 0u64, 0u64);
-            let start = Instant::now();
-            let (mut colours, mut rho) = (0, 0.0f32);
-            for _ in 0..steps {
-                let r = vbd_step(&body, &masses, &[], &vbd, &mut x, &mut v, &mut scratch).unwrap();
-                converged += usize::from(r.converged);
-                iterations += u64::from(r.iterations);
-                evaluations += u64::from(r.energy_evaluations);
-                colours = r.colours;
-                rho = rho.max(r.rho);
-            }
-            row(
-                &scene,
-                &format!("VBD {name} ({colours} colours, largest rho {rho:.3})"),
-                steps,
-                converged,
-                iterations,
-                evaluations,
-                start.elapsed().as_secs_f64(),
-            );
-            let lowest = x.iter().map(|p| p.z).fold(f32::MAX, f32::min);
-            assert!(lowest >= -1e-5 && relax_lowest >= -1e-5);
+            solvers.push((
+                format!("VBD {name}"),
+                Box::new(move |k| {
+                    if k == 0 {
+                        x.copy_from_slice(rest);
+                        v.fill(Vec3::ZERO);
+                    }
+                    let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                    let r =
+                        vbd_step(body, masses, &[], &vbd, &mut x, &mut v, &mut scratch).unwrap();
+                    if k + 1 == steps {
+                        assert!(x.iter().all(|p| p.z >= -1e-5));
+                    }
+                    Outcome {
+                        converged: r.converged,
+                        iterations: r.iterations,
+                        evaluations: r.energy_evaluations,
+                        rho: f64::from(r.rho),
+                    }
+                }),
+            ));
         }
+        interleaved(&scene, steps, 3, &mut solvers);
     }
 
     /// The VBD settings measured.
@@ -762,42 +820,46 @@ mod measure {
             .with_gravity(gravity)
             .with_tolerance(tolerance, 500)
             .with_chebyshev(0.995, 2.0, 0);
-        let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
-        let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-        let (mut x, mut v) = (start_x.clone(), vec![Vec3::ZERO; nv]);
-        let (mut converged, mut iterations, mut evaluations) = (0, 0u64, 0u64);
-        let start = Instant::now();
-        for _ in 0..steps {
-            let r = relax_step(
-                &body,
-                &masses,
-                &pinned,
-                &settings,
-                &mut x,
-                &mut v,
-                &mut scratch,
-            )
-            .unwrap();
-            if std::env::var("VBD_TRACE").is_ok() {
-                println!(
-                    "  relax: {} iterations, residual {:.3e} -> {:.3e}",
-                    r.iterations, r.initial_residual, r.final_residual
-                );
-            }
-            converged += usize::from(r.converged);
-            iterations += u64::from(r.iterations);
-            evaluations += u64::from(r.energy_evaluations);
+        let (body, masses, pinned, start_x) = (&body, &masses, &pinned, &start_x);
+        let trace = std::env::var("VBD_TRACE").is_ok();
+        let mut solvers: Vec<Solver<'_>> = Vec::new();
+        {
+            let (mut vectors, mut scalars) =
+                (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+            let (mut x, mut v) = (start_x.clone(), vec![Vec3::ZERO; nv]);
+            solvers.push((
+                "GD+Chebyshev 0.995".into(),
+                Box::new(move |k| {
+                    if k == 0 {
+                        x.copy_from_slice(start_x);
+                        v.fill(Vec3::ZERO);
+                    }
+                    let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+                    let r = relax_step(
+                        body,
+                        masses,
+                        pinned,
+                        &settings,
+                        &mut x,
+                        &mut v,
+                        &mut scratch,
+                    )
+                    .unwrap();
+                    if trace {
+                        println!(
+                            "  relax: {} iterations, residual {:.3e} -> {:.3e}",
+                            r.iterations, r.initial_residual, r.final_residual
+                        );
+                    }
+                    Outcome {
+                        converged: r.converged,
+                        iterations: r.iterations,
+                        evaluations: r.energy_evaluations,
+                        rho: 0.0,
+                    }
+                }),
+            ));
         }
-        row(
-            &scene,
-            "GD+Chebyshev 0.995",
-            steps,
-            converged,
-            iterations,
-            evaluations,
-            start.elapsed().as_secs_f64(),
-        );
-
         for (name, vbd) in variants(
             VbdSettings::new(dt)
                 .with_gravity(gravity)
@@ -805,35 +867,33 @@ mod measure {
         ) {
             let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
             let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
-            let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
             let (mut x, mut v) = (start_x.clone(), vec![Vec3::ZERO; nv]);
-            let (mut converged, mut iterations, mut evaluations) = (0, 0u64, 0u64);
-            let start = Instant::now();
-            let mut rho = 0.0f64;
-            for _ in 0..steps {
-                let r =
-                    vbd_step(&body, &masses, &pinned, &vbd, &mut x, &mut v, &mut scratch).unwrap();
-                rho = rho.max(r.rho);
-                if std::env::var("VBD_TRACE").is_ok() {
-                    println!(
-                        "  {name}: {} sweeps, residual {:.3e} -> {:.3e}",
-                        r.iterations, r.initial_residual, r.final_residual
-                    );
-                }
-                converged += usize::from(r.converged);
-                iterations += u64::from(r.iterations);
-                evaluations += u64::from(r.energy_evaluations);
-            }
-            row(
-                &scene,
-                &format!("VBD {name} (largest rho {rho:.3})"),
-                steps,
-                converged,
-                iterations,
-                evaluations,
-                start.elapsed().as_secs_f64(),
-            );
+            solvers.push((
+                format!("VBD {name}"),
+                Box::new(move |k| {
+                    if k == 0 {
+                        x.copy_from_slice(start_x);
+                        v.fill(Vec3::ZERO);
+                    }
+                    let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                    let r =
+                        vbd_step(body, masses, pinned, &vbd, &mut x, &mut v, &mut scratch).unwrap();
+                    if trace {
+                        println!(
+                            "  {name}: {} sweeps, residual {:.3e} -> {:.3e}",
+                            r.iterations, r.initial_residual, r.final_residual
+                        );
+                    }
+                    Outcome {
+                        converged: r.converged,
+                        iterations: r.iterations,
+                        evaluations: r.energy_evaluations,
+                        rho: r.rho,
+                    }
+                }),
+            ));
         }
+        interleaved(&scene, steps, 3, &mut solvers);
     }
 
     /// A sweep's cost in force evaluations on the bouncy cube's mesh (f32), released from a

@@ -263,9 +263,16 @@ pub struct VbdReport {
 /// that depend on `x_i`,
 /// `g_i = m_i / h^2 (x_i - y_i) - m_i g - sum_e f_e,i(x)` and
 /// `H_i = m_i / h^2 I + sum_e H_e,ii(x)` over the elements `e` around `i`, `f_e,i` the elastic
-/// force of `e` on `i` and `H_e,ii` the SPD-projected 3x3 diagonal block of its Hessian
-/// (`docs/math.md` section 6), then the step `d = -H_i^-1 g_i` (Cholesky; see
-/// [`VbdSettings`] for the guards), a backtracking line search on the vertex's local energy
+/// force of `e` on `i` and `H_e,ii` the exact 3x3 diagonal block of its Hessian, both from
+/// one deformation gradient per element by
+/// [`Material::corner_stress_and_stiffness`] (closed forms, no SVD; `docs/math.md` section
+/// 7.2). `H_i` is factored by Cholesky where it is positive definite (always for
+/// [`StableNeoHookean`](super::super::material::StableNeoHookean), whose element blocks all
+/// are); elsewhere the elastic sum is replaced by its positive semi-definite part (one 3x3
+/// eigen-decomposition for that vertex, counted in [`VbdReport::projected`]) and regularised
+/// where singular, so the matrix solved with is always symmetric positive definite and the step
+/// `d = -H_i^-1 g_i` a descent direction of the local energy (see [`VbdSettings`] for the
+/// guards). Then a backtracking line search on the vertex's local energy
 /// `m_i / (2 h^2) |x_i - y_i|^2 - m_i g.x_i + sum_e V_e W(F_e)`, and the update. Each accepted
 /// update lowers `Phi` (every term of `Phi` that depends on `x_i` is in the local energy), so a
 /// sweep is monotone.
@@ -290,8 +297,9 @@ pub struct VbdReport {
 /// After every sweep `Phi` and its gradient are evaluated with the relaxation's own passes,
 /// so the residual (`|grad Phi|` projected on the contacts) and the test
 /// `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` are exactly the relaxation's. An
-/// iteration costs a sweep (per element and corner one SVD and one projected block, and with
-/// the line search one or two energy densities) plus one fused energy-and-force pass.
+/// iteration costs a sweep (per element and corner one deformation gradient, `P g` and the
+/// exact block, and with the line search one or two energy densities per trial) plus one fused
+/// energy-and-force pass.
 ///
 /// # When to pick it
 /// Measured with `cargo test --release --all-features --test vbd measure -- --ignored
@@ -374,12 +382,13 @@ pub fn vbd_step<M: Material>(
 /// inertia term, minimising `E(x) - sum m g.(x - x_0)` from the given `positions`, as
 /// [`relax_quasi_static`](super::relax_quasi_static). `settings.dt` is ignored.
 ///
-/// Without inertia a vertex block is only positive semi-definite (the projected element blocks
-/// may have zero eigenvalues, and a vertex in no element has none): a block whose Cholesky
-/// factorisation finds a pivot at or below `64 eps tr(H)` is regularised once by
-/// `sqrt(eps) tr(H) / 3` on the diagonal (a Levenberg–Marquardt step, still a descent
-/// direction), and the vertex is skipped for this sweep if that fails too or `tr(H)` is not
-/// positive. Vertices in no element therefore never move.
+/// Without inertia a vertex block is only as definite as its elements' exact blocks (which
+/// may be indefinite or singular, and a vertex in no element has none): a block whose Cholesky
+/// factorisation finds a pivot at or below `64 eps tr(H)` is replaced by its positive
+/// semi-definite part, which is regularised once by `sqrt(eps) tr(H) / 3` on the diagonal
+/// where that is singular too (a Levenberg–Marquardt step, still a descent direction), and the
+/// vertex is skipped for this sweep if that fails too or `tr(H)` is not positive. Vertices in
+/// no element therefore never move.
 ///
 /// # Errors
 /// As [`vbd_step`] (without [`StepError::TimeStep`]).
