@@ -11,7 +11,8 @@
 //! * [`polar`]: polar decomposition on top of it.
 //! * [`material`]: hyperelastic models (StVK, the isochoric neo-Hookean, stable neo-Hookean) behind
 //!   one [`Material`](material::Material) trait, with energy density, first Piola–Kirchhoff
-//!   stress and their principal-stretch forms; constructors validate parameters
+//!   stress and their principal-stretch forms, and second derivatives with their SPD projection
+//!   ([`StressDerivative`](material::StressDerivative)); constructors validate parameters
 //!   ([`MaterialError`]).
 //! * [`generate`]: structured meshes written into caller buffers — a box of tetrahedra
 //!   ([`fill_box`](generate::fill_box)) and a rectangle of triangles in 2D or 3D — positively
@@ -23,7 +24,8 @@
 //!   energies, stresses and lumped masses.
 //! * [`step`]: time stepping on caller-owned state — explicit symplectic Euler with a stable time
 //!   step proven for the linearised system and blow-up detection that restores the state, and implicit Euler as energy
-//!   minimisation by preconditioned descent (also quasi-static relaxation) ([`StepError`]).
+//!   minimisation by preconditioned descent (also quasi-static relaxation) or by Newton's method
+//!   with the projected Hessian ([`newton_step`](step::newton_step)) ([`StepError`]).
 //! * [`svd3_lanes`](svd::svd3_lanes) on [`lanes`]: the SVD of 4 matrices at once, bit-identical to
 //!   `svd3`.
 //!
