@@ -1,11 +1,11 @@
 //! softfem on a Cortex-M4F: the firmware check.
 //!
 //! Runs the workload of `scenario.rs` (SVDs of fixed matrices, forces and energies of every
-//! model on a small box, explicit and implicit steps of a heapless body dropped on the ground)
-//! in both precisions on QEMU's `mps2-an386` board, compares every result with the values the
-//! host computed from the same source (`$OUT_DIR/expected.rs`, bit for bit), measures
-//! instructions and stack, prints a report over semihosting and exits with status 0 only if
-//! every record matched.
+//! model on a small box, explicit, relaxation, Newton and VBD steps of a heapless body dropped
+//! on the ground) in both precisions on QEMU's `mps2-an386` board, compares every result with
+//! the values the host computed from the same source (`$OUT_DIR/expected.rs`, bit for bit),
+//! measures instructions and stack, prints a report over semihosting and exits with status 0
+//! only if every record matched.
 //!
 //! Panic-freedom is checked at link time: the panic handler calls a function that is defined
 //! nowhere, so the release build links only if the optimiser removed every panic path from

@@ -8,7 +8,8 @@
 //! the host's does nothing, the firmware's counts instructions and stack.
 //!
 //! Everything here is `no_std` and allocation-free: the drop body lives in a caller-owned
-//! [`DropBody`] of each precision (a static in the firmware).
+//! `DropBody` of each precision and the descent solvers' scratch in a `DescentScratch` (statics
+//! in the firmware), Newton's cached element Hessians on the stack.
 
 /// The most records one run produces (both precisions).
 pub const MAX_RECORDS: usize = 128;
@@ -883,7 +884,7 @@ macro_rules! precision {
                         Ok(report) => {
                             sweeps += u64::from(report.iterations);
                             meter.units(concat!($prefix, " vbd_step"), "vertex sweep", DROP_VERTICES as u64 * u64::from(report.iterations));
-                            for count in [report.iterations, report.energy_evaluations, report.colours, report.restarts, report.backtracks, report.skipped] {
+                            for count in [report.iterations, report.energy_evaluations, report.colours, report.restarts, report.backtracks, report.skipped, report.projected] {
                                 digest.u64(u64::from(count));
                             }
                             digest.u64(u64::from(report.converged));
