@@ -19,7 +19,7 @@ macro_rules! vbd_tests {
             use softfem::StepError;
             use $($api)::+::element::TetRest;
             use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
-            use $($api)::+::material::{Material, StableNeoHookean};
+            use $($api)::+::material::{Material, StVK, StableNeoHookean};
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
                 Ground, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len,
@@ -146,6 +146,55 @@ macro_rules! vbd_tests {
                 }
                 println!("{}: stiff block, 30 steps of 1/30 s: {sweeps} sweeps, energy {start:.3e} -> {:.3e} J",
                     stringify!($precision), energy(&x, &v));
+            }
+
+            /// With full steps and the line search only in sweeps that raised `Phi`, sweeps are
+            /// still monotone: `Phi` after `k < 30` sweeps (each solve rerun from the same start with
+            /// a budget of `k`, tolerance 0, no acceleration) never rises with `k` beyond the
+            /// solver's own rounding bound (`sqrt(eps)` of `|Phi|` twice and of the elastic
+            /// energy), from a start stretched to three times its height and twisted (stable
+            /// neo-Hookean) and one squashed to 0.4 of it (StVK, whose compressed blocks are
+            /// indefinite), at a step of 1 s (little inertia), where whole Newton steps can
+            /// overshoot; and the solves converge.
+            #[test]
+            fn line_search_on_increase_keeps_sweeps_monotone() {
+                fn check<M: Material>(material: M, height: Real, twist: Real) -> u32 {
+                    let cube = boxed(Vec3::splat(0.1), [2, 2, 2]);
+                    let mut rest_data = vec![TetRest::default(); cube.tets.len()];
+                    let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                    let n = cube.rest.len();
+                    let mut masses = vec![0.0; n];
+                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                    let body = TetElastic::new(mesh, material);
+                    let start: Vec<Vec3> = cube.rest.iter().map(|p| {
+                        let (s, c) = ((twist * p.z).sin(), (twist * p.z).cos());
+                        Vec3::new(c * p.x - s * p.y, s * p.x + c * p.y, height * p.z)
+                    }).collect();
+                    let settings = VbdSettings::new(1.0).with_line_search_on_increase();
+                    let (mut vectors, mut indices) = buffers(n, cube.tets.len());
+                    let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                    let mut last = Real::INFINITY;
+                    let mut redone = 0;
+                    // 30 sweeps: in f32 the stretched cube reaches its rounding floor after
+                    // about 35, where the per-vertex line search accepts changes within each
+                    // vertex's energy resolution, whose sum can exceed the global bound.
+                    for k in 0..30 {
+                        let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; n]);
+                        let report = vbd_step(&body, &masses, &[], &settings.with_tolerance(0.0, k), &mut x, &mut v, &mut scratch).unwrap();
+                        let elastic = mesh.elastic_energy(&material, &x).unwrap();
+                        let rounding = Real::EPSILON.sqrt() * (2.0 * report.phi.abs() + elastic.abs());
+                        assert!(report.phi <= last + rounding, "{material:?} sweep {k}: {} after {last}", report.phi);
+                        last = report.phi;
+                        redone = redone.max(report.redone_sweeps);
+                    }
+                    let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; n]);
+                    let report = vbd_step(&body, &masses, &[], &settings.with_tolerance(1e-3, 400), &mut x, &mut v, &mut scratch).unwrap();
+                    assert!(report.converged, "{material:?}: {report:?}");
+                    redone
+                }
+                let stretched = check(StableNeoHookean::from_young_poisson(1.0e6, 0.45).unwrap(), 3.0, 30.0);
+                let squashed = check(StVK::from_young_poisson(1.0e6, 0.3).unwrap(), 0.4, 10.0);
+                println!("{}: line search on increase: {stretched} and {squashed} of 30 sweeps redone", stringify!($precision));
             }
 
             /// The result is a function of the input alone: the same bits from a fresh scratch,
@@ -563,18 +612,35 @@ mod measure {
     /// row per solver with the sum over steps of each step's least time over the repeats (the
     /// trajectories are deterministic, so every repeat does the same work, and interference
     /// only adds time), and the ratio to the first solver's.
+    ///
+    /// A step longer than a time slice of a loaded machine is preempted in every repeat, so the
+    /// least wall time still counts other processes' time, the more the longer the step. The
+    /// rows therefore also give the thread's CPU time (Linux: the first field of
+    /// `/proc/thread-self/schedstat`, updated at the scheduler's ticks and switches, so one
+    /// reading can lag by a tick, which averages out over the steps), summed over the steps and
+    /// divided by the repeats.
     pub fn interleaved(scene: &str, steps: usize, repeats: usize, solvers: &mut [Solver<'_>]) {
+        let cpu = || {
+            std::fs::read_to_string("/proc/thread-self/schedstat")
+                .ok()
+                .and_then(|s| s.split_whitespace().next()?.parse::<f64>().ok())
+                .map_or(f64::NAN, |ns| ns * 1e-9)
+        };
         let mut least = vec![vec![f64::MAX; steps]; solvers.len()];
+        let mut cpu_time = vec![0.0; solvers.len()];
         let mut counts = vec![(0usize, 0u64, 0u64, 0.0f64); solvers.len()];
         for _ in 0..repeats {
             counts.iter_mut().for_each(|c| *c = (0, 0, 0, 0.0));
             for k in 0..steps {
-                for ((_, step), (least, count)) in
-                    solvers.iter_mut().zip(least.iter_mut().zip(&mut counts))
+                for (((_, step), (least, count)), cpu_time) in solvers
+                    .iter_mut()
+                    .zip(least.iter_mut().zip(&mut counts))
+                    .zip(&mut cpu_time)
                 {
-                    let start = Instant::now();
+                    let (start, cpu_start) = (Instant::now(), cpu());
                     let outcome = step(k);
                     least[k] = least[k].min(start.elapsed().as_secs_f64());
+                    *cpu_time += (cpu() - cpu_start) / repeats as f64;
                     count.0 += usize::from(outcome.converged);
                     count.1 += u64::from(outcome.iterations);
                     count.2 += u64::from(outcome.evaluations);
@@ -583,13 +649,18 @@ mod measure {
             }
         }
         let totals: Vec<f64> = least.iter().map(|l| l.iter().sum()).collect();
-        for (((name, _), total), count) in solvers.iter().zip(&totals).zip(&counts) {
+        let cpu_time_first = cpu_time[0];
+        let rows = solvers.iter().zip(&totals).zip(&counts).zip(&cpu_time);
+        for ((((name, _), total), count), cpu_time) in rows {
             row(
                 scene,
                 &format!(
-                    "{name} (largest rho {:.3}; {:.2}x the first's time)",
+                    "{name} (largest rho {:.3}; {:.2}x the first's wall time; CPU {:.3} s, \
+                     {:.2}x the first's)",
                     count.3,
-                    total / totals[0]
+                    total / totals[0],
+                    cpu_time,
+                    cpu_time / cpu_time_first
                 ),
                 steps,
                 count.0,
@@ -714,6 +785,14 @@ mod measure {
                 base.line_search(0).estimated(),
             ),
             ("line search + estimated rho", base.estimated()),
+            (
+                "full steps, line search on increase + Chebyshev 0.95",
+                base.guarded().chebyshev(0.95),
+            ),
+            (
+                "full steps, line search on increase + estimated rho",
+                base.guarded().estimated(),
+            ),
         ]
     }
 
@@ -722,6 +801,7 @@ mod measure {
         fn line_search(self, backtracks: u32) -> Self;
         fn chebyshev(self, rho: f64) -> Self;
         fn estimated(self) -> Self;
+        fn guarded(self) -> Self;
     }
     impl VbdLike for softfem::step::VbdSettings {
         fn line_search(self, backtracks: u32) -> Self {
@@ -733,6 +813,9 @@ mod measure {
         fn estimated(self) -> Self {
             self.with_estimated_chebyshev(4)
         }
+        fn guarded(self) -> Self {
+            self.with_line_search_on_increase()
+        }
     }
     impl VbdLike for softfem::f64::step::VbdSettings {
         fn line_search(self, backtracks: u32) -> Self {
@@ -743,6 +826,9 @@ mod measure {
         }
         fn estimated(self) -> Self {
             self.with_estimated_chebyshev(4)
+        }
+        fn guarded(self) -> Self {
+            self.with_line_search_on_increase()
         }
     }
 

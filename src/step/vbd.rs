@@ -105,6 +105,13 @@ pub struct VbdSettings {
     /// (every Newton step is taken whole, as the paper does, saving two energy densities per
     /// element and corner).
     pub max_backtracks: u32,
+    /// Take every Newton step whole and run the line search only in a sweep that raised `Phi`:
+    /// the evaluation after each sweep (which the stopping test needs anyway) detects the
+    /// increase, and the sweep is then redone from its start with the line search
+    /// ([`max_backtracks`](Self::max_backtracks) > 0), and the Chebyshev weights restart. Sweeps
+    /// stay monotone at the cost of the plain sweep where the full steps are safe. Ignored when
+    /// `max_backtracks` is 0.
+    pub line_search_on_increase: bool,
     /// Chebyshev acceleration over sweeps: `rho` in `[0, 1)`, the estimated spectral radius of
     /// the plain sweep; 0 turns it off (see [`vbd_step`](vbd_step#acceleration)).
     pub chebyshev: Real,
@@ -136,6 +143,7 @@ impl VbdSettings {
             armijo: 1e-4,
             backtrack: 0.5,
             max_backtracks: 8,
+            line_search_on_increase: false,
             chebyshev: 0.0,
             chebyshev_delay: 0,
             estimate_chebyshev: false,
@@ -197,6 +205,17 @@ impl VbdSettings {
         }
     }
 
+    /// These settings with the line search only in sweeps that raised `Phi` (see
+    /// [`line_search_on_increase`](VbdSettings::line_search_on_increase)).
+    #[inline]
+    #[must_use]
+    pub fn with_line_search_on_increase(self) -> Self {
+        VbdSettings {
+            line_search_on_increase: true,
+            ..self
+        }
+    }
+
     /// These settings with at most `max_backtracks` backtracks per vertex update (0: no line
     /// search).
     #[inline]
@@ -217,7 +236,7 @@ pub struct VbdReport {
     /// Sweeps over the vertices.
     pub iterations: u32,
     /// Evaluations of `Phi` and its gradient: one or two for the initial guess (as the
-    /// relaxation's), one per sweep, one per restart.
+    /// relaxation's), one per sweep, one per restart and one per redone sweep.
     pub energy_evaluations: u32,
     /// `|grad Phi|` (N) at the initial guess (projected on the ground's constraint).
     pub initial_residual: Real,
@@ -233,6 +252,9 @@ pub struct VbdReport {
     pub restarts: u32,
     /// Per-vertex line-search trials rejected.
     pub backtracks: u32,
+    /// Sweeps redone with the line search because `Phi` increased (with
+    /// [`VbdSettings::line_search_on_increase`]).
+    pub redone_sweeps: u32,
     /// Vertex updates skipped: block not positive definite (after regularisation), not finite,
     /// no descent, or no acceptable step within the backtracks.
     pub skipped: u32,
@@ -302,22 +324,34 @@ pub struct VbdReport {
 /// energy-and-force pass.
 ///
 /// # When to pick it
-/// Measured with `cargo test --release --all-features --test vbd measure -- --ignored
-/// --nocapture --test-threads 1` (x86_64, one thread, a shared machine): on the bouncy cube's
-/// 1296 tetrahedra (f32) a sweep cost 40-110 force passes without the line search and 65-150
-/// with it (runs at different loads): each element is visited once per corner, with an SVD
-/// (four at a time) each time,
-/// where a force pass evaluates it once, four elements per SIMD register. In iterations VBD
-/// gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s (tolerance 2e-3)
-/// 2135-3343 accelerated sweeps against the relaxation's 5351 iterations (5886 plain sweeps),
-/// on the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 681-1017 against 1798; so
-/// its wall time was 10-15 times the relaxation's there accelerated, up to 50 times plain. Pick it for what the count of
-/// iterations cannot show: every accepted vertex update lowers `Phi` (sweeps are monotone,
-/// accelerated ones checked), so a small fixed budget of sweeps is always safe, and its
-/// per-vertex Newton steps resolve stiff local modes the diagonal preconditioner of the
-/// relaxation does not. Turn the line search off ([`VbdSettings::with_line_search`]`(0)`) for
-/// speed where the blocks are well behaved, and let the solver estimate Chebyshev's `rho`
-/// ([`VbdSettings::with_estimated_chebyshev`]).
+/// Measured with `cargo test --release --all-features --test vbd measure_ -- --ignored
+/// --nocapture --test-threads 1` (x86_64, one thread, a shared 2-core machine at a load of
+/// about 8; the solvers interleaved step by step, each step's least wall time over three
+/// repeats, and the thread's CPU time). On the bouncy cube's 1296 tetrahedra (f32) a sweep cost
+/// 11.3-12.9 force passes without the line search (35-40 ns per element visit: `F`, `P g` and
+/// the exact 3x3 block, no SVD; with the SVD-projected blocks it was 40-110) and 32-33 with it:
+/// each element is visited once per corner, scalar, where a force pass evaluates it once,
+/// four elements per SIMD register. The target of 3 force passes per sweep is not met. In
+/// iterations VBD gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s
+/// (tolerance 2e-3) 2151 sweeps with Chebyshev 0.95 against the relaxation's 5351 iterations
+/// (5876 plain sweeps), 3.0-3.4 times the relaxation's CPU time (3.8-4.5 times its wall
+/// time); on the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 681 sweeps (rho
+/// estimated) against 1798 iterations, 1.3-2.2 times its CPU time (1.5-2.6 times its wall
+/// time; the relaxation's whole run there is 7-10 ms, so these ratios vary most).
+/// On the free stiff block, where both sit at the rounding floor and use their budget (6 and
+/// 4 of 30 steps converge), VBD without line search took 0.22-0.27 of the relaxation's time,
+/// whose line search spends 283 000 evaluations there. So the target of half the
+/// relaxation's wall time at the same residual is met only on the free stiff block, not on
+/// the bouncy cube or the clamped block. Pick it for what the count of iterations cannot
+/// show: every accepted vertex update lowers `Phi` (sweeps are monotone, accelerated ones
+/// checked), so a small fixed budget of sweeps is always safe, and its per-vertex Newton steps
+/// (with the exact local Hessian) resolve stiff local modes the diagonal preconditioner of the
+/// relaxation does not. For speed take the full steps with the line search only in sweeps
+/// that raised `Phi` ([`VbdSettings::with_line_search_on_increase`]: the cost of no line
+/// search, 1.0-1.02 of it on the bouncy cube, and still monotone) or no line search at all
+/// ([`VbdSettings::with_line_search`]`(0)`), with Chebyshev acceleration
+/// ([`VbdSettings::with_chebyshev`]`(0.95, 2)` was best on the bouncy cube, the estimate
+/// [`VbdSettings::with_estimated_chebyshev`] on the clamped block).
 ///
 /// ```
 /// use softfem::element::TetRest;
@@ -475,13 +509,13 @@ fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
 
 impl<M: Material> Sweep<'_, M> {
     /// One Gauss–Seidel sweep over the free vertices in colour order, in place.
-    fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts) {
+    fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) {
         for &vertex in self.order {
             let i = vertex as usize;
             if self.pinned.get(i).copied().unwrap_or(false) {
                 continue;
             }
-            self.update(positions, i, counts);
+            self.update(positions, i, counts, line_search);
         }
     }
 
@@ -495,7 +529,13 @@ impl<M: Material> Sweep<'_, M> {
     }
 
     /// The local Newton update of vertex `i` (see the module documentation).
-    fn update(&self, positions: &mut [Vec3], i: usize, counts: &mut SweepCounts) {
+    fn update(
+        &self,
+        positions: &mut [Vec3],
+        i: usize,
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) {
         let Some(&x) = positions.get(i) else {
             return;
         };
@@ -506,7 +546,7 @@ impl<M: Material> Sweep<'_, M> {
             None => x0,
         };
         let weight = m * self.inertia;
-        let line_search = self.max_backtracks > 0;
+        let line_search = line_search && self.max_backtracks > 0;
         let mut gradient = (x - y) * weight - self.gravity * m;
         let mut hessian = Mat3::ZERO;
         let mut elastic = 0.0;
@@ -891,7 +931,7 @@ fn descend<'b, M: Material>(
     let target = settings.tolerance * initial_residual.max(math::sqrt(load_squared));
 
     let mut counts = SweepCounts::default();
-    let (mut iterations, mut restarts) = (0, 0);
+    let (mut iterations, mut restarts, mut redone_sweeps) = (0, 0, 0);
     let mut rho = settings.chebyshev;
     // The largest residual ratio of the plain sweeps 2..=delay, for the estimate.
     let mut largest_ratio: Real = 0.0;
@@ -911,7 +951,8 @@ fn descend<'b, M: Material>(
             };
         }
         copy(previous, positions);
-        sweep.run(positions, &mut counts);
+        let lazy = settings.line_search_on_increase && settings.max_backtracks > 0;
+        sweep.run(positions, &mut counts, !lazy);
         let accelerated = omega > 1.0 && stepped;
         if accelerated {
             copy(unaccelerated, positions);
@@ -938,6 +979,19 @@ fn descend<'b, M: Material>(
                 since_restart = 1;
                 omega = 1.0;
             }
+        }
+        let noise = ROUNDING * (evaluation.phi.abs() + next.phi.abs() + next.elastic.abs());
+        let lowered = next.phi <= evaluation.phi + noise;
+        if lazy && !lowered {
+            // The full steps raised Phi (or gave NaN): redo the sweep from its start with the
+            // line search, which makes it monotone.
+            redone_sweeps += 1;
+            copy(positions, previous);
+            sweep.run(positions, &mut counts, true);
+            next = evaluate(model, frames, vertices, positions, gradient)?;
+            energy_evaluations += 1;
+            since_restart = 1;
+            omega = 1.0;
         }
         if !next.phi.is_finite() {
             let vertex = first_non_finite(positions, &[]).unwrap_or(0);
@@ -971,6 +1025,7 @@ fn descend<'b, M: Material>(
         colours: 0,
         restarts,
         backtracks: counts.backtracks,
+        redone_sweeps,
         skipped: counts.skipped,
         projected: counts.projected,
         rho,
