@@ -884,7 +884,7 @@ macro_rules! precision {
                         Ok(report) => {
                             sweeps += u64::from(report.iterations);
                             meter.units(concat!($prefix, " vbd_step"), "vertex sweep", DROP_VERTICES as u64 * u64::from(report.iterations));
-                            for count in [report.iterations, report.energy_evaluations, report.colours, report.restarts, report.backtracks, report.skipped, report.projected] {
+                            for count in [report.iterations, report.energy_evaluations, report.colours, report.restarts, report.backtracks, report.skipped, report.projected, report.redone_sweeps] {
                                 digest.u64(u64::from(count));
                             }
                             digest.u64(u64::from(report.converged));
