@@ -492,6 +492,24 @@ pub enum MeshError {
         /// The vertex index.
         vertex: usize,
     },
+    /// The stretch threshold of the clamped stress is not in `(0, 1]` (NaN, infinite, zero,
+    /// negative, or above the rest stretch 1, where even an undeformed element would be
+    /// clamped).
+    ClampThreshold,
+    /// An element's deformation gradient has an entry beyond the material's
+    /// `Material::deformation_limit`, where its energy or stress would overflow this precision
+    /// (for example positions scaled by `1e13` in f32).
+    DeformationRange {
+        /// The element index.
+        element: usize,
+    },
+    /// An element's share of the lumped mass, `density * measure / corners` (kg), is not a
+    /// normal floating-point number, or is so large that a vertex's sum could overflow: the
+    /// density does not suit the element sizes in this precision.
+    MassRange {
+        /// The element index.
+        element: usize,
+    },
 }
 
 impl MeshError {
@@ -552,6 +570,19 @@ impl fmt::Display for MeshError {
             MeshError::NonFiniteDirection { vertex } => {
                 write!(f, "direction at vertex {vertex} is not finite")
             }
+            MeshError::ClampThreshold => {
+                f.write_str("the clamp threshold must be a stretch in (0, 1]")
+            }
+            MeshError::DeformationRange { element } => write!(
+                f,
+                "element {element} is deformed beyond the range in which the material's stress \
+                 is finite in this precision"
+            ),
+            MeshError::MassRange { element } => write!(
+                f,
+                "element {element}: density times volume gives a mass this precision cannot \
+                 represent (underflow or overflow)"
+            ),
         }
     }
 }
@@ -626,7 +657,7 @@ impl fmt::Display for StepBuffer {
 pub enum StepError {
     /// The time step `dt` (s) is NaN, infinite, zero or negative.
     TimeStep,
-    /// The number of substeps is zero.
+    /// The number of substeps is zero or above `step::MAX_SUBSTEPS` (65536).
     Substeps,
     /// A buffer does not have the length the model needs.
     LengthMismatch {
@@ -637,7 +668,8 @@ pub enum StepError {
         /// The length it has.
         actual: usize,
     },
-    /// A lumped mass is NaN, infinite, zero or negative.
+    /// A lumped mass is NaN, infinite, zero, negative or subnormal (below `Real::MIN_POSITIVE`,
+    /// whose reciprocal overflows).
     Mass {
         /// The vertex index.
         vertex: usize,
@@ -687,11 +719,22 @@ pub enum StepError {
         /// The first such vertex.
         vertex: usize,
     },
-    /// The energy indicator grew by more than the allowed factor in one (sub)step: the explicit
-    /// step is past its stability limit. The state was restored.
+    /// The explicit step is past its stability limit: the elastic forces reversed and grew for
+    /// `step::FLIP_STREAK` substeps in a row (the unstable mode of symplectic Euler, caught
+    /// early), or the energy indicator grew by more than the allowed factor in one substep. The
+    /// state was restored to what it was before the call.
     EnergyBlowUp,
     /// The force or energy kernel refused the input.
     Mesh(MeshError),
+    /// The stability bound of a vertex is NaN or infinite: the material is too stiff for this
+    /// precision (a modulus near `Real::MAX`), or a custom model reported a NaN stiffness.
+    Stiffness {
+        /// The vertex index.
+        vertex: usize,
+    },
+    /// The relaxation's time step is so small that `1 / dt^2` overflows this precision (below
+    /// about `1e-19` s in f32, `1e-154` s in f64).
+    TimeStepTooSmall,
 }
 
 impl From<MeshError> for StepError {
@@ -704,7 +747,9 @@ impl fmt::Display for StepError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             StepError::TimeStep => f.write_str("the time step must be finite and positive"),
-            StepError::Substeps => f.write_str("the number of substeps must be at least 1"),
+            StepError::Substeps => {
+                f.write_str("the number of substeps must be at least 1 and at most 65536")
+            }
             StepError::LengthMismatch {
                 buffer,
                 expected,
@@ -714,7 +759,10 @@ impl fmt::Display for StepError {
                 "the {buffer} buffer has length {actual}, expected {expected}"
             ),
             StepError::Mass { vertex } => {
-                write!(f, "the mass of vertex {vertex} must be finite and positive")
+                write!(
+                    f,
+                    "the mass of vertex {vertex} must be a finite normal positive number"
+                )
             }
             StepError::Gravity => f.write_str("gravity must be finite"),
             StepError::Damping => f.write_str("the damping coefficient must be finite and >= 0"),
@@ -744,10 +792,18 @@ impl fmt::Display for StepError {
                 "the step made vertex {vertex} non-finite (blow-up); the state was restored"
             ),
             StepError::EnergyBlowUp => f.write_str(
-                "the energy grew beyond the allowed factor in one step (time step above the \
-                 stability limit); the state was restored",
+                "the step blew up (time step above the stability limit: an unstable mode or an \
+                 energy jump); the state was restored",
             ),
             StepError::Mesh(error) => write!(f, "{error}"),
+            StepError::Stiffness { vertex } => write!(
+                f,
+                "the stability bound of vertex {vertex} is not finite (material too stiff for \
+                 this precision, or a NaN stiffness)"
+            ),
+            StepError::TimeStepTooSmall => {
+                f.write_str("the time step is so small that 1 / dt^2 overflows this precision")
+            }
         }
     }
 }
@@ -760,3 +816,37 @@ impl core::error::Error for StepError {
         }
     }
 }
+
+/// [`svd3_batch`](crate::svd::svd3_batch) (either precision) was given an output slice whose
+/// length differs from the input's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum SvdBatchError {
+    /// The output buffer `out` does not have one decomposition per input matrix.
+    OutputLength {
+        /// The length required: the number of input matrices.
+        expected: usize,
+        /// The length of `out`.
+        actual: usize,
+    },
+}
+
+impl fmt::Display for SvdBatchError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SvdBatchError::OutputLength { expected, actual } => write!(
+                f,
+                "the SVD output buffer holds {actual} decompositions, but there are {expected} \
+                 matrices"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for SvdBatchError {}
+
+// The asset pipeline's errors (voxel meshing, embedding, surface buffers, Gmsh and OBJ files).
+#[path = "asset_error.rs"]
+mod asset_error;
+pub use asset_error::*;

@@ -44,6 +44,11 @@ pub(crate) mod math {
     /// correctly rounded result) instead of `libm` lane by lane.
     pub const SERIES_LN_1P: bool = true;
 
+    /// Whether `svd3_batch` at the SSE width runs pairs of [`Lanes`](super::lanes::Lanes)
+    /// (two registers, 8 matrices in flight): 1.25x faster than single groups on an AMD EPYC.
+    #[cfg_attr(debug_assertions, allow(dead_code))] // Unoptimised builds use no pairs.
+    pub const SSE_PAIRS: bool = true;
+
     /// Jacobi sweeps used by [`svd3`](super::svd::svd3) in this precision.
     pub const DEFAULT_SVD_SWEEPS: u32 = 4;
 
@@ -100,6 +105,13 @@ pub(crate) mod math {
         libm::cbrtf(x)
     }
 
+    /// The angle of `(x, y)` from the positive x axis, in `[-pi, pi]` (radians).
+    #[inline(always)]
+    #[must_use]
+    pub fn atan2(y: Real, x: Real) -> Real {
+        libm::atan2f(y, x)
+    }
+
     /// `ln(1 + x)`, accurate for small `x`.
     #[inline(always)]
     #[must_use]
@@ -147,6 +159,38 @@ mod lane_repr;
 #[path = "lanes.rs"]
 pub mod lanes;
 
+/// The AVX2 and AVX-512F instructions of this precision under precision-neutral names, so that
+/// `lanes_avx2.rs` and `lanes_avx512.rs` are written once for both precisions.
+#[cfg(target_arch = "x86_64")]
+mod wide_ops {
+    pub use core::arch::x86_64::{
+        __m256 as Reg256, __m512 as Reg512, __mmask16 as Mask512, _mm256_add_ps as add256,
+        _mm256_and_ps as and256, _mm256_andnot_ps as andnot256, _mm256_blendv_ps as blendv256,
+        _mm256_cmp_ps as cmp256, _mm256_div_ps as div256, _mm256_max_ps as max256,
+        _mm256_movemask_ps as movemask256, _mm256_mul_ps as mul256, _mm256_or_ps as or256,
+        _mm256_set1_ps as set1_256, _mm256_sqrt_ps as sqrt256, _mm256_sub_ps as sub256,
+        _mm256_xor_ps as xor256, _mm512_abs_ps as abs512, _mm512_add_ps as add512,
+        _mm512_castps_si512 as to_bits512, _mm512_castsi512_ps as from_bits512,
+        _mm512_cmp_ps_mask as cmp512, _mm512_div_ps as div512, _mm512_mask_blend_ps as blend512,
+        _mm512_max_ps as max512, _mm512_mul_ps as mul512, _mm512_set1_ps as set1_512,
+        _mm512_sqrt_ps as sqrt512, _mm512_sub_ps as sub512,
+    };
+    /// Values of this precision per AVX register.
+    pub const AVX2_WIDTH: usize = 8;
+    /// Values of this precision per AVX-512 register.
+    pub const AVX512_WIDTH: usize = 16;
+}
+
+/// One AVX register of values (x86_64, run with AVX2 by `simd::dispatch`).
+#[cfg(target_arch = "x86_64")]
+#[path = "lanes_avx2.rs"]
+pub(crate) mod lanes_avx2;
+
+/// One AVX-512 register of values (x86_64, run with AVX-512F by `simd::dispatch`).
+#[cfg(target_arch = "x86_64")]
+#[path = "lanes_avx512.rs"]
+pub(crate) mod lanes_avx512;
+
 #[path = "svd.rs"]
 pub mod svd;
 
@@ -171,3 +215,20 @@ pub mod mesh;
 
 #[path = "step/mod.rs"]
 pub mod step;
+
+#[path = "voxel.rs"]
+pub mod voxel;
+
+#[path = "embed.rs"]
+pub mod embed;
+
+#[path = "surface.rs"]
+pub mod surface;
+
+#[cfg(feature = "std")]
+#[path = "obj.rs"]
+pub mod obj;
+
+#[cfg(feature = "std")]
+#[path = "gmsh.rs"]
+pub mod gmsh;

@@ -414,8 +414,9 @@ fn vertices_2d([nx, ny]: [usize; 2]) -> impl Iterator<Item = [usize; 2]> {
     cells_2d([nx + 1, ny + 1])
 }
 
-/// The local tetrahedra of cube `cell` (corners numbered `x + 2 y + 4 z`).
-fn box_cell_tets(split: BoxSplit, [i, j, k]: [usize; 3]) -> &'static [[u8; 4]] {
+/// The local tetrahedra of cube `cell` (corners numbered `x + 2 y + 4 z`); also the voxel
+/// mesher's split, so that both produce the same conforming tetrahedra.
+pub(crate) fn box_cell_tets(split: BoxSplit, [i, j, k]: [usize; 3]) -> &'static [[u8; 4]] {
     match split {
         BoxSplit::Kuhn6 => &KUHN6,
         BoxSplit::Alternating5 if (i + j + k) % 2 == 0 => &ALTERNATING5_EVEN,

@@ -29,6 +29,11 @@ mod sealed {
     pub trait Sealed {}
     impl Sealed for super::Real {}
     impl Sealed for super::Lanes {}
+    impl<L: super::Lane> Sealed for super::LanePair<L> {}
+    #[cfg(target_arch = "x86_64")]
+    impl Sealed for super::super::lanes_avx2::Avx2Lanes {}
+    #[cfg(target_arch = "x86_64")]
+    impl Sealed for super::super::lanes_avx512::Avx512Lanes {}
 }
 
 /// A sum over `n` items (vertices, elements) in a fixed order, grouped or not: item `i` of the
@@ -181,6 +186,202 @@ impl Lane for Real {
     #[inline(always)]
     fn map(self, f: impl Fn(Real) -> Real) -> Self {
         f(self)
+    }
+}
+
+/// A [`Lane`] type as a fixed array of its values: how batched kernels load and store a group of
+/// any width (4 for [`Lanes`], more for the AVX lanes of `simd`'s wider widths and for
+/// [`LanePair`]s).
+pub(crate) trait LaneArray: Lane {
+    /// Values per group.
+    const WIDTH: usize;
+    /// The values of a group, lane by lane.
+    type Array: Copy;
+    /// An array of zeros.
+    const ZEROS: Self::Array;
+    /// The group holding `values`.
+    fn from_lane_array(values: Self::Array) -> Self;
+    /// The values of the lanes.
+    fn to_lane_array(self) -> Self::Array;
+    /// The value of lane `lane` (zero past the last lane).
+    fn lane_value(values: &Self::Array, lane: usize) -> Real;
+    /// Sets the value of lane `lane` (nothing past the last lane).
+    fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real);
+}
+
+/// [`LaneArray::lane_value`] for a plain array.
+#[inline(always)]
+pub(crate) fn array_lane_value(values: &[Real], lane: usize) -> Real {
+    values.get(lane).copied().unwrap_or(0.0)
+}
+
+/// [`LaneArray::set_lane_value`] for a plain array.
+#[inline(always)]
+pub(crate) fn set_array_lane_value(values: &mut [Real], lane: usize, value: Real) {
+    if let Some(slot) = values.get_mut(lane) {
+        *slot = value;
+    }
+}
+
+impl LaneArray for Lanes {
+    const WIDTH: usize = LANES;
+    type Array = [Real; LANES];
+    const ZEROS: Self::Array = [0.0; LANES];
+
+    #[inline(always)]
+    fn from_lane_array(values: Self::Array) -> Self {
+        Lanes::from_array(values)
+    }
+
+    #[inline(always)]
+    fn to_lane_array(self) -> Self::Array {
+        self.to_array()
+    }
+
+    #[inline(always)]
+    fn lane_value(values: &Self::Array, lane: usize) -> Real {
+        array_lane_value(values, lane)
+    }
+
+    #[inline(always)]
+    fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
+        set_array_lane_value(values, lane, value);
+    }
+}
+
+/// Two groups of lanes as one, twice as wide: lanes `0..L::WIDTH` in the first, the rest in the
+/// second. Every operation applies to both halves, so each lane still gets the bits of the
+/// scalar code; the point is speed: the two halves are independent chains of operations that
+/// the processor overlaps, which hides the latency of a long dependent chain (the SVD's sweeps)
+/// when one register's worth of lanes cannot.
+// Unoptimised builds of the batched SVD use single registers (see src/svd_batch.rs).
+#[cfg_attr(debug_assertions, allow(dead_code))]
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LanePair<L>(L, L);
+
+impl<L: Lane> Add for LanePair<L> {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        LanePair(self.0 + o.0, self.1 + o.1)
+    }
+}
+
+impl<L: Lane> Sub for LanePair<L> {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        LanePair(self.0 - o.0, self.1 - o.1)
+    }
+}
+
+impl<L: Lane> Mul for LanePair<L> {
+    type Output = Self;
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        LanePair(self.0 * o.0, self.1 * o.1)
+    }
+}
+
+impl<L: Lane> Div for LanePair<L> {
+    type Output = Self;
+    #[inline(always)]
+    fn div(self, o: Self) -> Self {
+        LanePair(self.0 / o.0, self.1 / o.1)
+    }
+}
+
+impl<L: Lane> Neg for LanePair<L> {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        LanePair(-self.0, -self.1)
+    }
+}
+
+impl<L: Lane> Lane for LanePair<L> {
+    type Mask = (L::Mask, L::Mask);
+
+    #[inline(always)]
+    fn splat(x: Real) -> Self {
+        LanePair(L::splat(x), L::splat(x))
+    }
+
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        LanePair(self.0.sqrt(), self.1.sqrt())
+    }
+
+    #[inline(always)]
+    fn abs(self) -> Self {
+        LanePair(self.0.abs(), self.1.abs())
+    }
+
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        LanePair(self.0.max(other.0), self.1.max(other.1))
+    }
+
+    #[inline(always)]
+    fn sign(self) -> Self {
+        LanePair(self.0.sign(), self.1.sign())
+    }
+
+    #[inline(always)]
+    fn gt(self, other: Self) -> Self::Mask {
+        (self.0.gt(other.0), self.1.gt(other.1))
+    }
+
+    #[inline(always)]
+    fn ge(self, other: Self) -> Self::Mask {
+        (self.0.ge(other.0), self.1.ge(other.1))
+    }
+
+    #[inline(always)]
+    fn none(mask: Self::Mask) -> bool {
+        L::none(mask.0) && L::none(mask.1)
+    }
+
+    #[inline(always)]
+    fn select(mask: Self::Mask, a: Self, b: Self) -> Self {
+        LanePair(L::select(mask.0, a.0, b.0), L::select(mask.1, a.1, b.1))
+    }
+
+    #[inline(always)]
+    fn map(self, f: impl Fn(Real) -> Real) -> Self {
+        LanePair(self.0.map(&f), self.1.map(&f))
+    }
+}
+
+impl<L: LaneArray> LaneArray for LanePair<L> {
+    const WIDTH: usize = 2 * L::WIDTH;
+    type Array = (L::Array, L::Array);
+    const ZEROS: Self::Array = (L::ZEROS, L::ZEROS);
+
+    #[inline(always)]
+    fn from_lane_array(values: Self::Array) -> Self {
+        LanePair(L::from_lane_array(values.0), L::from_lane_array(values.1))
+    }
+
+    #[inline(always)]
+    fn to_lane_array(self) -> Self::Array {
+        (self.0.to_lane_array(), self.1.to_lane_array())
+    }
+
+    #[inline(always)]
+    fn lane_value(values: &Self::Array, lane: usize) -> Real {
+        match lane.checked_sub(L::WIDTH) {
+            None => L::lane_value(&values.0, lane),
+            Some(upper) => L::lane_value(&values.1, upper),
+        }
+    }
+
+    #[inline(always)]
+    fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
+        match lane.checked_sub(L::WIDTH) {
+            None => L::set_lane_value(&mut values.0, lane, value),
+            Some(upper) => L::set_lane_value(&mut values.1, upper, value),
+        }
     }
 }
 
@@ -443,8 +644,8 @@ mod tests {
     fn term(i: usize) -> super::Real {
         let k = i as super::Real;
         (1.0 + 0.37 * k)
-            * if i % 3 == 0 { 1.0e6 } else { 1.0e-3 }
-            * if i % 2 == 0 { 1.0 } else { -1.0 }
+            * if i.is_multiple_of(3) { 1.0e6 } else { 1.0e-3 }
+            * if i.is_multiple_of(2) { 1.0 } else { -1.0 }
     }
 
     /// Groups plus a tail, and every item one at a time, give the same bits, and both follow the

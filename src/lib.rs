@@ -28,6 +28,12 @@
 //!   with the projected Hessian ([`newton_step`](step::newton_step)) ([`StepError`]).
 //! * [`svd3_lanes`](svd::svd3_lanes) on [`lanes`]: the SVD of 4 matrices at once, bit-identical to
 //!   `svd3`.
+//! * [`svd3_batch`](svd::svd3_batch): the SVDs of a whole slice at the widest SIMD width the CPU
+//!   has (AVX-512F, AVX2, SSE, chosen at run time by [`simd`]), bit-identical to `svd3`.
+//! * From a game asset to a soft body and back: [`voxel`] tet meshing of a closed triangle surface
+//!   (generalised winding number), [`embed`] to drive a detailed render mesh by the simulated one,
+//!   [`surface`] buffers (outward boundary triangles, vertex normals), and with `std` the Gmsh 4.1
+//!   (`gmsh`) and OBJ (`obj`) readers and a per-frame OBJ writer.
 //!
 //! Vectors and matrices are [glam](https://docs.rs/glam/0.34)'s `Vec3` and `Mat3` (`DVec3`,
 //! `DMat3` in f64); the crate re-exports it as `softfem::glam`, so that callers use the exact
@@ -129,6 +135,8 @@
 //!   reader for TetGen `.node` / `.ele` meshes (docs.rs builds with every feature, so it is shown
 //!   there, marked as needing `std`).
 //! * `defmt`: derives `defmt::Format` on every public error and report type.
+//! * `bytemuck`: derives `bytemuck::Pod` on the render-buffer types of [`surface`] (and enables
+//!   glam's `bytemuck`), so vertex and index buffers cast to bytes for a GPU upload.
 #![no_std]
 // docs.rs builds with `--cfg docsrs` (Cargo.toml's `[package.metadata.docs.rs]`), on nightly:
 // items behind a feature are then labelled with it.
@@ -153,10 +161,13 @@ extern crate std;
 pub use glam;
 
 pub mod error;
+pub use error::SvdBatchError;
 pub use error::{
     Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError, StepBuffer,
     StepError,
 };
+
+pub mod simd;
 
 #[path = "f32.rs"]
 mod single;
@@ -166,6 +177,17 @@ pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 #[cfg_attr(docsrs, doc(cfg(feature = "std")))]
 pub use single::tetgen;
 pub use single::{element, generate, lanes, material, mesh, polar, step, svd, types};
+// The asset pipeline: a triangle surface to a soft body and back.
+#[cfg(feature = "std")]
+pub use error::{
+    AssetFileError, GmshFormatError, GmshProblem, GmshSection, ObjFormatError, ObjProblem,
+};
+pub use error::{EmbedBuffer, EmbedError, SurfaceError, VoxelBuffer, VoxelError};
+pub use single::embed;
+pub use single::surface;
+pub use single::voxel;
+#[cfg(feature = "std")]
+pub use single::{gmsh, obj};
 
 pub mod f64;
 

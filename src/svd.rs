@@ -32,12 +32,21 @@
 //! (no format can do better). The number of sweeps trades accuracy for speed: see
 //! [`svd3_sweeps`].
 //!
+//! The structural contract (rotations, `sigma.x >= sigma.y >= |sigma.z|`, only `sigma.z`
+//! negative and then `det a < 0`) holds for every finite input, also when the two smaller
+//! values lie far below `eps sigma.x` (`diag(1e19, 1, 0.5)` in f32): step 5 then works on the
+//! block lifted by an exact power of two, and the QR steps never leave a negative diagonal.
+//!
 //! The sign of `det a` is carried by the sign bit of `sigma.z`; when `|det a|` is so small that
 //! `sigma.z` rounds to zero, it is `-0.0` for an inverted `a`.
 
 use super::lanes::{LANES, Lane, LaneMat3, LaneVec3};
 use super::math;
 use super::types::{Mat3, Real, Vec3};
+
+#[path = "svd_batch.rs"]
+mod batch;
+pub use batch::{svd3_batch, svd3_batch_sweeps};
 
 /// The most Jacobi sweeps [`svd3`] runs: 4 in both precisions (each sweep is three rotations;
 /// fewer run when the matrix has converged before, see the module documentation). With 3,
@@ -327,12 +336,19 @@ fn decompose_scaled<L: Lane>(
     // rotation from the Gram matrix of m's columns (formed from m itself, scaled to order one,
     // not from a^T a), larger column first, then a Givens rotation that triangularises it. This
     // also completes the QR decomposition.
+    //
+    // The block is first lifted by an exact power of two when its entries lie below `TINY`
+    // (two smaller values far below `eps ||a||`, as in `diag(1e19, 1, 0.5)`): on the unit scale
+    // the rotations below would treat them as zero and lose their order and sign. `lift` is 1
+    // otherwise, so ordinary blocks keep their bits.
     let (r11, r12) = (rt.c1.y, rt.c1.z);
     let (r21, r22) = (rt.c2.y, rt.c2.z);
-    let block_max = r11.abs().max(r12.abs()).max(r21.abs()).max(r22.abs());
+    let raw_max = r11.abs().max(r12.abs()).max(r21.abs()).max(r22.abs());
+    let lift = lift_above_tiny(raw_max);
+    let block_max = raw_max * lift;
     let inv_scale = L::splat(1.0) / block_max.max(L::splat(math::TINY));
-    let (m11, m12) = (r11 * inv_scale, r12 * inv_scale);
-    let (m21, m22) = (r21 * inv_scale, r22 * inv_scale);
+    let (m11, m12) = (r11 * lift * inv_scale, r12 * lift * inv_scale);
+    let (m21, m22) = (r21 * lift * inv_scale, r22 * lift * inv_scale);
     let g11 = m11 * m11 + m21 * m21;
     let g22 = m12 * m12 + m22 * m22;
     let g12 = m11 * m12 + m21 * m22;
@@ -342,7 +358,9 @@ fn decompose_scaled<L: Lane>(
     let mut col2 = LaneVec3::new(rt.c0.z, r12, r22);
     rot.rotate_columns(&mut col1, &mut col2);
     rot.rotate_columns(&mut v.c1, &mut v.c2);
-    let g = Givens::zeroing(col1.y, col1.z);
+    // Scaling both entries by the power of two `lift` leaves `(c, s)` bit for bit unchanged
+    // wherever the unlifted pair was usable.
+    let g = Givens::zeroing(col1.y * lift, col1.z * lift);
     let r11 = g.c * col1.y + g.s * col1.z;
     let r22 = g.c * col2.z - g.s * col2.y;
     g.rotate_basis(&mut u.c1, &mut u.c2);
@@ -358,6 +376,19 @@ fn decompose_scaled<L: Lane>(
     sorted.order_second_pair();
     sorted.order_first_pair();
     (sorted.u, sorted.sigma, sorted.v)
+}
+
+/// The power of two (1, `2^k` or `2^2k`, `2^-k` about `TINY`) that brings `magnitude` to at
+/// least [`math::TINY`] whenever it is non-zero: two steps of `2^k` cover the whole range down to
+/// the smallest subnormal, since `TINY^2` is still a normal number. Exact to multiply by.
+#[inline(always)]
+fn lift_above_tiny<L: Lane>(magnitude: L) -> L {
+    let tiny = math::TINY;
+    let step = L::splat(math::pow2(-math::exponent(tiny)));
+    let one = L::splat(1.0);
+    let first = L::select(L::splat(tiny).gt(magnitude), step, one);
+    let second = L::select(L::splat(tiny * tiny).gt(magnitude), step, one);
+    first * second
 }
 
 /// A decomposition in progress: `u diag(sigma) v^T`.
@@ -546,7 +577,13 @@ impl<L: Lane> Givens<L> {
     /// The rotation that maps the pair `(a, b)` to `(sqrt(a^2 + b^2), 0)`.
     ///
     /// On the normalised scale of [`decompose_scaled`]: a pair whose length is below
-    /// [`math::TINY`] is left alone (identity), since its squares would be subnormal.
+    /// [`math::TINY`] (whose squares would be subnormal) is not rotated but only given a
+    /// non-negative first entry, by the half turn `c = -1, s = 0` where `a < 0` (identity otherwise) (a rotation of the
+    /// plane, so `det u` stays `+1`). Either way the new first entry `c a + s b` is `>= 0`: the
+    /// diagonal of `r` that becomes `sigma.x` and `sigma.y` is never negative, which is what
+    /// the sorting network at the end relies on (a negative middle value there was sorted by
+    /// its sign rather than its size and came out as a negative `sigma.z` of a singular
+    /// matrix). The `b` left in place is below `TINY` of the unit scale, far below rounding.
     #[inline(always)]
     fn zeroing(a: L, b: L) -> Self {
         let tiny = L::splat(math::TINY);
@@ -554,7 +591,11 @@ impl<L: Lane> Givens<L> {
         let usable = length.gt(tiny);
         let safe_length = length.max(tiny);
         Givens {
-            c: L::select(usable, a / safe_length, L::splat(1.0)),
+            c: L::select(
+                usable,
+                a / safe_length,
+                L::select(L::splat(0.0).gt(a), L::splat(-1.0), L::splat(1.0)),
+            ),
             s: L::select(usable, b / safe_length, L::splat(0.0)),
         }
     }

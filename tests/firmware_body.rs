@@ -22,8 +22,8 @@ struct Body<const V: usize, const T: usize> {
     velocities: [Vec3; V],
     masses: [f32; V],
     pinned: [bool; V],
-    /// Explicit scratch: forces, position backup, velocity backup.
-    explicit_scratch: [[Vec3; V]; 3],
+    /// Explicit scratch: forces of two substeps, position backup, velocity backup.
+    explicit_scratch: [[Vec3; V]; 4],
     /// Relaxation scratch: five vectors and one scalar per vertex.
     relax_vectors: [[Vec3; V]; 5],
     relax_scalars: [f32; V],
@@ -42,7 +42,7 @@ impl<const V: usize, const T: usize> Body<V, T> {
             velocities: [Vec3::ZERO; V],
             masses: [0.0; V],
             pinned: [false; V],
-            explicit_scratch: [[Vec3::ZERO; V]; 3],
+            explicit_scratch: [[Vec3::ZERO; V]; 4],
             relax_vectors: [[Vec3::ZERO; V]; 5],
             relax_scalars: [0.0; V],
         }

@@ -1144,3 +1144,80 @@ fn report() {
     println!();
     println!("* the default sweep count of that precision");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Extreme dynamic range (issue 16, D1).
+// ---------------------------------------------------------------------------------------------
+
+/// Signed permutations of `diag(big, 1, small)` (and with a zero column) for `big` up to the top
+/// of the range: the two smaller values lie far below `eps big`, where the QR and 2x2 steps work
+/// on entries under their rounding threshold. The structural contract must still hold exactly:
+/// sorted, only `sigma.z` negative and only for `det a < 0` (exact here: a signed permutation of
+/// a diagonal has determinant `±` the product, computed exactly from the f64 entries), for every
+/// sweep count, and `svd3_lanes` must give the scalar bits.
+fn extreme_dynamic_range<P: Svd>() {
+    let mut rng = Rng::new(16);
+    let top = P::EXTREMES.huge.log10() as i32;
+    let mut cases = Vec::new();
+    // The reported probes: columns (Y, big X, 0), and rows [[0, big, 0], [1, 0, 0], [0, 0, -0.5]].
+    for e in 10..=top {
+        let big = 10f64.powi(e);
+        cases.push(DMat3::from_cols(DVec3::Y, DVec3::X * big, DVec3::ZERO));
+        cases.push(DMat3::from_cols(DVec3::Y, DVec3::X * big, DVec3::Z * -0.5));
+        for _ in 0..20 {
+            let small = [0.0, 0.5, -0.5, 1e-3, -2.0][rng.below(5)];
+            let p = signed_permutation(&mut rng);
+            let q = signed_permutation(&mut rng);
+            cases.push(p * DMat3::from_diagonal(DVec3::new(big, 1.0, small)) * q);
+        }
+    }
+    for a in cases.into_iter().map(P::round) {
+        let det = a.determinant();
+        for sweeps in 0..=8 {
+            let svd = P::svd_sweeps(a, sweeps);
+            let s = svd.sigma;
+            let sorted = s.x >= s.y && s.y >= s.z.abs();
+            let signs_ok = s.x >= 0.0 && s.y >= 0.0 && (s.z >= 0.0 || det < 0.0);
+            let sign_rule = det == 0.0 || (s.z < 0.0) == (det < 0.0);
+            if !(sorted && signs_ok && sign_rule) {
+                fail::<P>(
+                    a,
+                    &svd,
+                    &format!("{sweeps} sweeps, det {det:e}"),
+                    "contract".into(),
+                );
+            }
+            let orth = orthonormality_error(svd.u).max(orthonormality_error(svd.v));
+            if orth > P::ORTH_TOL {
+                fail::<P>(
+                    a,
+                    &svd,
+                    "extreme range",
+                    format!("not a rotation: {orth:e}"),
+                );
+            }
+        }
+        // The largest value is exact to rounding; the reconstruction holds to eps ||a||.
+        let svd = P::svd(a);
+        let norm = frobenius(a);
+        let recon = frobenius(svd.u * DMat3::from_diagonal(svd.sigma) * svd.v.transpose() - a);
+        if recon > P::RECON_TOL * norm {
+            fail::<P>(
+                a,
+                &svd,
+                "extreme range",
+                format!("reconstruction {recon:e}"),
+            );
+        }
+        let lanes = P::svd_lanes([a, DMat3::IDENTITY, a.transpose(), -a]);
+        if bits(&lanes[0]) != bits(&svd) || bits(&lanes[2]) != bits(&P::svd(a.transpose())) {
+            fail::<P>(a, &lanes[0], "svd3_lanes", format!("scalar gave {svd:?}"));
+        }
+    }
+}
+
+#[test]
+fn extreme_dynamic_range_keeps_the_structural_contract() {
+    extreme_dynamic_range::<F32>();
+    extreme_dynamic_range::<F64>();
+}

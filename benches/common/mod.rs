@@ -126,3 +126,70 @@ pub fn print_markdown_table(header: &[&str], rows: impl IntoIterator<Item = Vec<
         row(&cells);
     }
 }
+
+/// One measured workload, as a row of the CSV file that `SOFTFEM_BENCH_CSV=<path>` asks for
+/// (columns `bench,workload,size,lanes,threads,value,unit`).
+pub struct CsvRow {
+    /// The bench target (`svd`, `forces`, `step`).
+    pub bench: &'static str,
+    /// What was measured, e.g. `softfem svd3_batch f32 avx512`.
+    pub workload: String,
+    /// The problem size: matrices per batch, tetrahedra of the mesh, ...
+    pub size: usize,
+    /// Values processed at once (1 for scalar code).
+    pub lanes: usize,
+    /// Threads used.
+    pub threads: usize,
+    /// The measured figure.
+    pub value: f64,
+    /// Its unit, e.g. `ns/matrix`, `Mtets/s`.
+    pub unit: &'static str,
+}
+
+/// The header line of the CSV file.
+const CSV_HEADER: &str = "bench,workload,size,lanes,threads,value,unit";
+
+/// A CSV field, quoted when it holds a comma, a quote or a line break.
+fn csv_field(field: &str) -> String {
+    if field.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", field.replace('"', "\"\""))
+    } else {
+        field.to_owned()
+    }
+}
+
+/// Appends `rows` to the file named by `SOFTFEM_BENCH_CSV`, writing the header first when the
+/// file is new or empty; does nothing when the variable is unset. Several benches can append
+/// to one file, so the README tables and the charts come from one run. Panics (failing the
+/// bench) if the file cannot be written: a run asked to record must not silently lose rows.
+pub fn append_csv_rows(rows: &[CsvRow]) {
+    use std::io::Write;
+    let Some(path) = std::env::var_os("SOFTFEM_BENCH_CSV") else {
+        return;
+    };
+    let mut file = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&path)
+        .unwrap_or_else(|error| panic!("SOFTFEM_BENCH_CSV={path:?}: {error}"));
+    let is_new = file.metadata().map(|m| m.len() == 0).unwrap_or(true);
+    let mut text = String::new();
+    if is_new {
+        text.push_str(CSV_HEADER);
+        text.push('\n');
+    }
+    for row in rows {
+        text.push_str(&format!(
+            "{},{},{},{},{},{},{}\n",
+            csv_field(row.bench),
+            csv_field(&row.workload),
+            row.size,
+            row.lanes,
+            row.threads,
+            row.value,
+            csv_field(row.unit),
+        ));
+    }
+    file.write_all(text.as_bytes())
+        .unwrap_or_else(|error| panic!("SOFTFEM_BENCH_CSV={path:?}: {error}"));
+}

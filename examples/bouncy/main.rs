@@ -398,7 +398,7 @@ impl<'a> FrameWriter<'a> {
 
     fn write(&mut self, frame: &FrameView<'_>) -> Result<(), String> {
         let every = self.args.vtk_every as usize;
-        if every == 0 || frame.index % every != 0 {
+        if every == 0 || !frame.index.is_multiple_of(every) {
             return Ok(());
         }
         self.body.volume_ratios(frame.positions, &mut self.ratios);

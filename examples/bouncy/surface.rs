@@ -1,11 +1,7 @@
-//! The boundary surface of a tetrahedral mesh: the faces used by exactly one tetrahedron.
+//! The boundary surface of a tetrahedral mesh: the faces used by exactly one tetrahedron
+//! (computed by the library's `softfem::surface::boundary_faces`).
 
-use std::collections::HashMap;
-
-/// The faces of a positively oriented tetrahedron `[a, b, c, d]` (`det(b - a, c - a, d - a) > 0`),
-/// each counter-clockwise seen from outside, so that `(x1 - x0) x (x2 - x0)` points out of the
-/// tetrahedron. Face `k` is the one opposite corner `3 - k`.
-const OUTWARD_FACES: [[usize; 3]; 4] = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
+use softfem::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
 
 /// Boundary triangles of a tetrahedral mesh.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -24,19 +20,14 @@ impl Surface {
     /// three or more times (a non-manifold mesh) is not boundary and is dropped. Triangles come
     /// in the order of their tetrahedra, so the result is deterministic.
     pub fn of_tets(tets: &[[u32; 4]]) -> Surface {
-        let mut uses: HashMap<[u32; 3], u32> = HashMap::with_capacity(tets.len() * 2);
-        let faces = || {
-            tets.iter().enumerate().flat_map(|(owner, tet)| {
-                OUTWARD_FACES.map(|face| (face.map(|corner| tet[corner]), owner as u32))
-            })
-        };
-        for (face, _) in faces() {
-            *uses.entry(sorted(face)).or_insert(0) += 1;
+        let vertex_count = tets.iter().flatten().max().map_or(0, |&v| v as usize + 1);
+        let mut scratch = vec![BoundaryFace::default(); boundary_scratch_len(tets.len())];
+        let faces = boundary_faces(tets, vertex_count, &mut scratch)
+            .expect("the scratch has the documented length and every index is below the count");
+        Surface {
+            triangles: faces.iter().map(|face| face.triangle).collect(),
+            owners: faces.iter().map(|face| face.tet).collect(),
         }
-        let (triangles, owners) = faces()
-            .filter(|(face, _)| uses.get(&sorted(*face)) == Some(&1))
-            .unzip();
-        Surface { triangles, owners }
     }
 
     /// The number of boundary triangles.
@@ -45,16 +36,12 @@ impl Surface {
     }
 }
 
-fn sorted(mut face: [u32; 3]) -> [u32; 3] {
-    face.sort_unstable();
-    face
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use softfem::generate::{BoxSplit, box_counts, fill_box};
     use softfem::glam::Vec3;
+    use std::collections::HashMap;
 
     fn generated_box(cells: [usize; 3], split: BoxSplit) -> (Vec<Vec3>, Vec<[u32; 4]>) {
         let [nx, ny, nz] = cells;

@@ -219,6 +219,20 @@ pub trait Material: Copy + Debug {
     #[must_use]
     fn first_piola(&self, f: Mat3) -> Mat3;
 
+    /// The largest entry `max |F_ij|` (dimensionless) of a deformation gradient up to which this
+    /// model's energy density and stresses (direct, principal and clamped) are guaranteed finite
+    /// in this precision, with room for the element-level products: below it they stay under
+    /// `Real::MAX / 2^24` in magnitude (see [`deformation_limit_for`]). The mesh kernels refuse
+    /// deformations beyond it with
+    /// [`MeshError::DeformationRange`](crate::MeshError::DeformationRange) instead of returning
+    /// infinite or NaN forces. The provided method returns infinity: no limit is known, and a
+    /// custom model's own overflow is not detected.
+    #[inline]
+    #[must_use]
+    fn deformation_limit(&self) -> Real {
+        Real::INFINITY
+    }
+
     /// `(energy_density(f), first_piola(f))` in one call, bit for bit: the per-element work
     /// of the energy-based steppers (a line search needs both at every trial point). The
     /// models here override it to compute the invariants, `cof(F)` and any cube root or
@@ -420,6 +434,31 @@ pub trait Material: Copy + Debug {
             true,
         )
     }
+}
+
+/// `(Real::MAX / 2^24 / (256 modulus))^(1 / power)` rounded down to a power of two: the
+/// [`Material::deformation_limit`] of a model whose energy density and stress grow at most like
+/// `modulus max(1, s)^power` with `s = max |F_ij|` (the constant 256 covers the sums of up to
+/// nine products of entries in `I_C`, `det F`, `cof F` and the principal stretches, all bounded
+/// by `3 s`). Rounding to a power of two keeps it exact, identical on every target and free of
+/// roots (a software `cbrt` on a Cortex-M4F would cost more than the check it serves). `power`
+/// is 2, 4 or 6 (taken as 6 otherwise). Below 1 for a modulus above about `Real::MAX / 2^32`
+/// (8e28 Pa in f32, 4e298 Pa in f64): then even an undeformed element is refused, as such a
+/// material leaves no headroom at any strain.
+#[must_use]
+pub fn deformation_limit_for(modulus: Real, power: u32) -> Real {
+    let headroom = Real::MAX / 16_777_216.0;
+    let x = headroom / (256.0 * modulus);
+    if !(x > 0.0 && x.is_finite()) {
+        return 0.0;
+    }
+    let root = match power {
+        2 => 2,
+        4 => 4,
+        _ => 6,
+    };
+    // 2^floor(e / root) <= 2^(e / root) <= x^(1 / root), e = floor(log2 x).
+    math::pow2(math::exponent(x).div_euclid(root))
 }
 
 // The helpers below are written once against `Lane`: instantiated with `Real` for the scalar

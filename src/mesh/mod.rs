@@ -26,6 +26,7 @@ mod tet;
 mod triangle;
 
 pub use tet::TetMesh;
+pub(crate) use tet::check_clamp_threshold;
 pub use triangle::{MembraneMesh, TriMesh};
 
 /// `Ok` if `actual == expected`, else [`MeshError::LengthMismatch`] naming `buffer`.
@@ -132,7 +133,7 @@ fn scatter_add<V: Vector, const N: usize>(buffer: &mut [V], corners: &[u32; N], 
 /// `masses` zeroed first. `density` must be finite and positive.
 fn lumped_masses<const N: usize>(
     elements: &[[u32; N]],
-    measures: impl Iterator<Item = super::types::Real>,
+    measures: impl Iterator<Item = super::types::Real> + Clone,
     density: super::types::Real,
     masses: &mut [super::types::Real],
     vertex_count: usize,
@@ -141,8 +142,19 @@ fn lumped_masses<const N: usize>(
         return Err(MeshError::Density);
     }
     check_length(Buffer::Masses, vertex_count, masses.len())?;
-    masses.fill(0.0);
     let share = density / N as super::types::Real;
+    // Every element's share must be a normal number (a subnormal or zero mass makes `1 / m`
+    // overflow in the steppers) and small enough that no vertex sum, over at most as many
+    // elements as the mesh has, can overflow. Checked before anything is written.
+    let largest = super::types::Real::MAX / elements.len().max(1) as super::types::Real;
+    let in_range = |m: super::types::Real| m >= super::types::Real::MIN_POSITIVE && m <= largest;
+    if let Some(element) = measures
+        .clone()
+        .position(|measure| !in_range(share * measure))
+    {
+        return Err(MeshError::MassRange { element });
+    }
+    masses.fill(0.0);
     for (corners, measure) in elements.iter().zip(measures) {
         for &i in corners {
             if let Some(mass) = masses.get_mut(i as usize) {

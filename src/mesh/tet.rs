@@ -43,6 +43,9 @@ pub struct TetMesh<'a> {
     tets: &'a [[u32; 4]],
     rest: &'a [TetRest],
     vertex_count: usize,
+    /// `max_e max_j sum_k |Dm^-1_kj|` (1/m): every entry of every element's `F` is at most this
+    /// times the largest extent of the deformed positions along an axis.
+    gradient_gain: Real,
 }
 
 impl<'a> TetMesh<'a> {
@@ -62,10 +65,18 @@ impl<'a> TetMesh<'a> {
         rest: &'a mut [TetRest],
     ) -> Result<TetMesh<'a>, MeshError> {
         let vertex_count = validate(rest_positions, tets, rest, TetRest::new)?;
+        let gradient_gain = rest.iter().fold(0.0, |gain: Real, r| {
+            let column_sum = |c: Vec3| c.abs().element_sum();
+            let m = r.dm_inv;
+            gain.max(column_sum(m.x_axis))
+                .max(column_sum(m.y_axis))
+                .max(column_sum(m.z_axis))
+        });
         Ok(TetMesh {
             tets,
             rest,
             vertex_count,
+            gradient_gain,
         })
     }
 
@@ -109,7 +120,10 @@ impl<'a> TetMesh<'a> {
     /// # Errors
     /// [`MeshError::LengthMismatch`] if `positions` or `forces` does not have
     /// [`vertex_count`](TetMesh::vertex_count) entries; [`MeshError::NonFinitePosition`] naming
-    /// the first non-finite vertex. On error, `forces` is unchanged.
+    /// the first non-finite vertex; [`MeshError::DeformationRange`] naming the first element
+    /// whose deformation gradient has an entry beyond the material's
+    /// [`deformation_limit`](Material::deformation_limit), where its stress would overflow. On
+    /// error, `forces` is unchanged.
     pub fn add_elastic_forces<M: Material>(
         &self,
         material: &M,
@@ -118,6 +132,7 @@ impl<'a> TetMesh<'a> {
     ) -> Result<(), MeshError> {
         self.check_positions(positions)?;
         check_length(Buffer::Forces, self.vertex_count, forces.len())?;
+        self.check_deformation(material, positions)?;
         let (groups, tail) = self.groups_and_tail(BATCH_FORCES);
         for group in groups {
             let gradients = GroupGradients::new(positions, group);
@@ -145,6 +160,8 @@ impl<'a> TetMesh<'a> {
         positions: &[Vec3],
         forces: &mut [Vec3],
     ) -> Result<(), MeshError> {
+        self.check_positions(positions)?;
+        self.check_deformation(material, positions)?;
         self.add_svd_forces(positions, forces, |svd| material.first_piola_from_svd(svd))
     }
 
@@ -156,7 +173,9 @@ impl<'a> TetMesh<'a> {
     /// minimisation, relaxation, line searches) must not use these forces.
     ///
     /// # Errors
-    /// As [`add_elastic_forces`](TetMesh::add_elastic_forces); on error, `forces` is unchanged.
+    /// [`MeshError::ClampThreshold`] if `threshold` is not in `(0, 1]` (NaN, infinite, zero,
+    /// negative or above the rest stretch); otherwise as
+    /// [`add_elastic_forces`](TetMesh::add_elastic_forces). On error, `forces` is unchanged.
     pub fn add_elastic_forces_clamped<M: Material>(
         &self,
         material: &M,
@@ -164,6 +183,9 @@ impl<'a> TetMesh<'a> {
         positions: &[Vec3],
         forces: &mut [Vec3],
     ) -> Result<(), MeshError> {
+        check_clamp_threshold(threshold)?;
+        self.check_positions(positions)?;
+        self.check_deformation(material, positions)?;
         self.add_svd_forces(positions, forces, |svd| {
             material.first_piola_clamped_from_svd(svd, threshold)
         })
@@ -186,6 +208,12 @@ impl<'a> TetMesh<'a> {
     ) -> Result<Real, MeshError> {
         check_length(Buffer::Positions, self.vertex_count, positions.len())?;
         check_length(Buffer::Forces, self.vertex_count, forces.len())?;
+        // Beyond the material's range the energy is reported as infinite, which the line
+        // searches reject, and the forces are left alone. (Non-finite positions fail the range
+        // check too.)
+        if self.check_deformation(material, positions).is_err() {
+            return Ok(Real::INFINITY);
+        }
         let whole = self.tets.len() - self.tets.len() % LANES;
         let (groups, tail) = self.groups_and_tail(BATCH_FORCES);
         let mut grouped = Lanes::splat(0.0);
@@ -231,6 +259,7 @@ impl<'a> TetMesh<'a> {
         positions: &[Vec3],
     ) -> Result<Real, MeshError> {
         self.check_positions(positions)?;
+        self.check_deformation(material, positions)?;
         Ok(self
             .tets
             .iter()
@@ -253,6 +282,7 @@ impl<'a> TetMesh<'a> {
     ) -> Result<(), MeshError> {
         self.check_positions(positions)?;
         check_length(Buffer::Energies, self.tets.len(), out.len())?;
+        self.check_deformation(material, positions)?;
         for ((corners, rest), energy) in self.tets.iter().zip(self.rest).zip(out) {
             *energy = rest.elastic_energy(material, gather(positions, corners));
         }
@@ -274,6 +304,7 @@ impl<'a> TetMesh<'a> {
     ) -> Result<(), MeshError> {
         self.check_positions(positions)?;
         check_length(Buffer::Stresses, self.tets.len(), out.len())?;
+        self.check_deformation(material, positions)?;
         for ((corners, rest), stress) in self.tets.iter().zip(self.rest).zip(out) {
             *stress = material.first_piola(rest.deformation_gradient(gather(positions, corners)));
         }
@@ -286,8 +317,10 @@ impl<'a> TetMesh<'a> {
     ///
     /// # Errors
     /// [`MeshError::Density`] if `density` (kg/m^3) is not finite and positive;
-    /// [`MeshError::LengthMismatch`] if `masses` does not have one entry per vertex. On error,
-    /// `masses` is unchanged.
+    /// [`MeshError::LengthMismatch`] if `masses` does not have one entry per vertex;
+    /// [`MeshError::MassRange`] naming the first element whose share `density * V / 4` is below
+    /// `Real::MIN_POSITIVE` or above `Real::MAX / element_count` (so that every vertex mass is a
+    /// normal number the steppers accept). On error, `masses` is unchanged.
     pub fn lumped_masses(&self, density: Real, masses: &mut [Real]) -> Result<(), MeshError> {
         super::lumped_masses(
             self.tets,
@@ -324,6 +357,48 @@ impl<'a> TetMesh<'a> {
         (tet_groups(tets, rest), single_tets.iter().zip(single_rest))
     }
 
+    /// `Ok` if every element's deformation gradient at `positions` (one per vertex) has all
+    /// entries finite and within `material`'s [`deformation_limit`](Material::deformation_limit);
+    /// else [`MeshError::DeformationRange`] naming the first element that does not. A single
+    /// pass over the positions settles the common case: no entry of any `F` exceeds the largest
+    /// extent of the positions along an axis times `gradient_gain`. Only when that bound is
+    /// above the limit (or not finite) are the elements' gradients computed one by one.
+    fn check_deformation<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+    ) -> Result<(), MeshError> {
+        let limit = material.deformation_limit();
+        if limit == Real::INFINITY {
+            return Ok(());
+        }
+        let first = positions.first().copied().unwrap_or(Vec3::ZERO);
+        let (low, high) = positions
+            .iter()
+            .fold((first, first), |(low, high), &p| (low.min(p), high.max(p)));
+        if (high - low).max_element() * self.gradient_gain <= limit {
+            return Ok(());
+        }
+        self.check_each_deformation(limit, positions)
+    }
+
+    /// The slow path of [`check_deformation`](Self::check_deformation), element by element:
+    /// kept out of line so that its frame does not add to the stack of every force call.
+    #[cold]
+    #[inline(never)]
+    fn check_each_deformation(&self, limit: Real, positions: &[Vec3]) -> Result<(), MeshError> {
+        let within = |f: Mat3| {
+            let largest = f.x_axis.abs().max(f.y_axis.abs()).max(f.z_axis.abs());
+            largest.max_element() <= limit && f.is_finite()
+        };
+        let outside = self.tets.iter().zip(self.rest).position(|(corners, rest)| {
+            !within(rest.deformation_gradient(gather(positions, corners)))
+        });
+        outside.map_or(Ok(()), |element| {
+            Err(MeshError::DeformationRange { element })
+        })
+    }
+
     /// Length and finiteness of a deformed position buffer.
     fn check_positions(&self, positions: &[Vec3]) -> Result<(), MeshError> {
         check_positions(self.vertex_count, positions)
@@ -356,5 +431,16 @@ impl<'a> TetMesh<'a> {
             scatter_add(forces, corners, rest.nodal_forces(stress(&svd)));
         }
         Ok(())
+    }
+}
+
+/// `Ok` if `threshold` is a stretch in `(0, 1]`, the range in which the clamped stress is
+/// finite for every model and leaves undeformed elements unclamped.
+#[inline]
+pub(crate) fn check_clamp_threshold(threshold: Real) -> Result<(), MeshError> {
+    if threshold > 0.0 && threshold <= 1.0 {
+        Ok(())
+    } else {
+        Err(MeshError::ClampThreshold)
     }
 }

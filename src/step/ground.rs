@@ -29,7 +29,8 @@ use crate::error::StepError;
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ground<V> {
-    /// The outward normal (need not be unit length; non-zero and finite).
+    /// The outward normal (need not be unit length: any non-zero finite vector, of any length
+    /// the precision can represent).
     pub normal: V,
     /// The plane's signed distance from the origin along the unit normal (m).
     pub offset: Real,
@@ -71,7 +72,21 @@ impl<V: Vector> Ground<V> {
 
     /// Checks the parameters and normalises the normal.
     pub(super) fn validated(&self) -> Result<Ground<V>, StepError> {
-        let norm = length(self.normal);
+        // Every finite non-zero normal is valid, also one whose squared length under- or
+        // overflows (`1e-30` or `1e30` in f32): it is first brought near unit length by an exact
+        // power of two, `2^(3/4 MAX_EXP)` up or down, which maps both ends of the range into
+        // lengths whose squares are normal numbers.
+        let squared = self.normal.dot(self.normal);
+        let exponent = 3 * Real::MAX_EXP / 4;
+        let scale = if squared < Real::MIN_POSITIVE {
+            math::pow2(exponent)
+        } else if squared.is_infinite() {
+            math::pow2(-exponent)
+        } else {
+            1.0
+        };
+        let normal = self.normal * scale;
+        let norm = length(normal);
         if !(norm > 0.0 && norm.is_finite() && self.offset.is_finite()) {
             return Err(StepError::Ground);
         }
@@ -82,7 +97,7 @@ impl<V: Vector> Ground<V> {
             return Err(StepError::Friction);
         }
         Ok(Ground {
-            normal: self.normal * (1.0 / norm),
+            normal: normal * (1.0 / norm),
             ..*self
         })
     }

@@ -25,6 +25,27 @@
 //! * Every stepper validates all parameters and buffers **before** touching anything, and
 //!   restores positions and velocities bit for bit when a step fails ([`StepError`]).
 //!
+//! # Accepted ranges
+//! Everything outside these is refused with the error named, before anything is written:
+//!
+//! | input | accepted | error |
+//! |---|---|---|
+//! | `dt` (both steppers) | finite, `> 0` | [`StepError::TimeStep`] |
+//! | relaxation `dt` | `1 / dt^2` finite: `dt >~ 1e-19` s (f32), `1e-154` s (f64) | [`StepError::TimeStepTooSmall`] |
+//! | substeps | `1..=`[`MAX_SUBSTEPS`] (65536) | [`StepError::Substeps`] |
+//! | masses | finite normal numbers `>= Real::MIN_POSITIVE` | [`StepError::Mass`] |
+//! | positions, velocities | finite | [`StepError::NonFiniteInput`] |
+//! | gravity / damping | finite / finite `>= 0` | [`StepError::Gravity`] / [`StepError::Damping`] |
+//! | ground normal, offset | any finite non-zero vector (any length), finite offset | [`StepError::Ground`] |
+//! | restitution / friction | `[0, 1]` / finite `>= 0` | [`StepError::Restitution`] / [`StepError::Friction`] |
+//! | clamp threshold ([`TetClamped`]) | `(0, 1]` | [`MeshError::ClampThreshold`] |
+//! | deformation (tet kernels) | largest entry of each `F` at most [`Material::deformation_limit`] | [`MeshError::DeformationRange`] |
+//! | density ([`TetMesh::lumped_masses`]) | finite `> 0`, each element's share `density V / 4` normal and `<= Real::MAX / elements` | [`MeshError::Density`], [`MeshError::MassRange`] |
+//! | stiffness bounds ([`stable_time_step`]) | finite `k_i`, finite `k_i / m_i` | [`StepError::Stiffness`] |
+//!
+//! Scratch lengths ([`explicit_scratch_len`], [`relax_scratch_len`]) saturate at `usize::MAX`,
+//! which no buffer can match.
+//!
 //! # The stability bound
 //!
 //! ## What is computed
@@ -144,8 +165,8 @@ pub use adjacency::{
     vertex_order,
 };
 pub use explicit::{
-    DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, explicit_scratch_len,
-    step_explicit,
+    DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, FLIP_GROWTH,
+    FLIP_STREAK, MAX_SUBSTEPS, explicit_scratch_len, step_explicit,
 };
 pub use ground::Ground;
 pub use newton::{
@@ -276,7 +297,9 @@ pub struct TetClamped<'a, M: Material> {
 }
 
 impl<'a, M: Material> TetClamped<'a, M> {
-    /// `material` on `mesh`, stretches clamped from below at `threshold`.
+    /// `material` on `mesh`, stretches clamped from below at `threshold`. Not checked here: a
+    /// `threshold` outside `(0, 1]` makes every force evaluation (and so every step) fail with
+    /// [`MeshError::ClampThreshold`]; [`checked`](Self::checked) refuses it up front.
     #[inline]
     #[must_use]
     pub fn new(mesh: TetMesh<'a>, material: M, threshold: Real) -> Self {
@@ -285,6 +308,16 @@ impl<'a, M: Material> TetClamped<'a, M> {
             material,
             threshold,
         }
+    }
+
+    /// As [`new`](Self::new), checking `threshold`.
+    ///
+    /// # Errors
+    /// [`MeshError::ClampThreshold`] if `threshold` is not in `(0, 1]`.
+    #[inline]
+    pub fn checked(mesh: TetMesh<'a>, material: M, threshold: Real) -> Result<Self, MeshError> {
+        super::mesh::check_clamp_threshold(threshold)?;
+        Ok(Self::new(mesh, material, threshold))
     }
 }
 
@@ -442,11 +475,18 @@ fn check_state<V: Vector>(
     if !pinned.is_empty() {
         check_length(StepBuffer::Pinned, vertex_count, pinned.len())?;
     }
-    if let Some(vertex) = masses.iter().position(|&m| !(m > 0.0 && m.is_finite())) {
+    if let Some(vertex) = masses.iter().position(|&m| !mass_in_range(m)) {
         return Err(StepError::Mass { vertex });
     }
     first_non_finite(positions, velocities.unwrap_or(&[]))
         .map_or(Ok(()), |vertex| Err(StepError::NonFiniteInput { vertex }))
+}
+
+/// Whether `m` (kg) is a mass the steppers accept: a finite normal positive number, so that
+/// `1 / m` is finite too (a subnormal mass such as `1e-39` in f32 has an infinite reciprocal).
+#[inline]
+fn mass_in_range(m: Real) -> bool {
+    m >= Real::MIN_POSITIVE && m.is_finite()
 }
 
 /// The first vertex whose position or velocity (if given) is not finite.

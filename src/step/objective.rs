@@ -72,15 +72,23 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     /// `|M g|` (N), the norm of the gravity load on the free vertices: the scale the stopping
     /// test measures a residual against when the initial residual is smaller.
     pub fn gravity_load(&self) -> Real {
-        let load_squared: Real = self
-            .vertices
-            .masses
-            .iter()
-            .zip(pinned_flags(self.vertices.pinned))
-            .filter(|(_, pinned)| !pinned)
-            .map(|(&m, _)| m * m * self.gravity.dot(self.gravity))
-            .sum();
-        math::sqrt(load_squared)
+        // Formed relative to the largest free mass, so that heavy bodies (masses of 1e19 kg in
+        // f32) do not overflow the squares.
+        let free_masses = || {
+            let vertices = &self.vertices;
+            vertices
+                .masses
+                .iter()
+                .zip(pinned_flags(vertices.pinned))
+                .filter(|(_, pinned)| !pinned)
+                .map(|(&m, _)| m)
+        };
+        let heaviest = free_masses().fold(0.0, Real::max);
+        if heaviest <= 0.0 {
+            return 0.0;
+        }
+        let relative_squared: Real = free_masses().map(|m| (m / heaviest) * (m / heaviest)).sum();
+        heaviest * math::sqrt(relative_squared) * math::sqrt(self.gravity.dot(self.gravity))
     }
 }
 

@@ -18,11 +18,12 @@ use crate::error::{StepBuffer, StepError};
 /// The length of the vector scratch buffer the relaxation needs for `vertex_count` vertices:
 /// `5 * vertex_count` (the start positions, two gradients, a second point buffer that trades
 /// places with `positions` as iterate and trial point, and the direction).
-/// The scalar scratch buffer has one entry per vertex.
+/// The scalar scratch buffer has one entry per vertex. Saturates at `usize::MAX` for counts
+/// whose product does not fit (no such buffer can exist, so the length check refuses any).
 #[inline]
 #[must_use]
 pub const fn relax_scratch_len(vertex_count: usize) -> usize {
-    5 * vertex_count
+    vertex_count.saturating_mul(5)
 }
 
 /// Scratch space of [`relax_step`] and [`relax_quasi_static`]: `vectors` of
@@ -275,7 +276,9 @@ pub struct RelaxReport {
 /// ```
 ///
 /// # Errors
-/// Before anything is touched: [`StepError::TimeStep`], [`StepError::Gravity`],
+/// Before anything is touched: [`StepError::TimeStep`], [`StepError::TimeStepTooSmall`] (a
+/// step whose `1 / dt^2` overflows: below about `1e-19` s in f32, `1e-154` s in f64),
+/// [`StepError::Gravity`],
 /// [`StepError::RelaxSettings`], the ground's errors, [`StepError::LengthMismatch`],
 /// [`StepError::Mass`], [`StepError::NonFiniteInput`]. [`StepError::NonFiniteState`] if `Phi`
 /// is not finite at both `y` and `x_n` or the result is not finite; the state is then
@@ -291,6 +294,11 @@ pub fn relax_step<F: ElasticEnergy>(
 ) -> Result<RelaxReport, StepError> {
     if !(settings.dt > 0.0 && settings.dt.is_finite()) {
         return Err(StepError::TimeStep);
+    }
+    // The inertia term `m / (2 h^2) |x - y|^2` needs `1 / h^2`: below about 1e-19 s (f32) or
+    // 1e-154 s (f64) it overflows and every evaluation of Phi would be infinite.
+    if !(1.0 / (settings.dt * settings.dt)).is_finite() {
+        return Err(StepError::TimeStepTooSmall);
     }
     minimise(
         model,
@@ -423,6 +431,13 @@ struct Buffers<'b, V> {
 /// What the descent loop hands back: the report, the final gradient, a free buffer.
 type Descent<'b, V> = (RelaxReport, &'b mut [V], &'b mut [V]);
 
+/// Whether `residual` meets `target`. Never for an overflowed (infinite) or NaN residual or
+/// target: a measure that overflowed says nothing about convergence.
+#[inline(always)]
+fn reached(residual: Real, target: Real) -> bool {
+    residual <= target && residual.is_finite() && target.is_finite()
+}
+
 /// The descent loop from the inertial target. Returns the report, the buffer holding the
 /// final (unprojected) gradient and a free buffer of one vector per vertex.
 ///
@@ -511,7 +526,7 @@ fn descend<'b, F: ElasticEnergy>(
     // Iterations since the last (re)start of the acceleration, and the Chebyshev weight.
     let mut since_restart: u32 = 0;
     let mut omega: Real = 1.0;
-    while residual > target && iterations < settings.max_iterations {
+    while !reached(residual, target) && iterations < settings.max_iterations {
         since_restart = since_restart.saturating_add(1);
         if settings.chebyshev > 0.0 {
             // Wang and Yang 2016, eq. 9-10: omega = 1 for the first S iterations, then
@@ -652,7 +667,7 @@ fn descend<'b, F: ElasticEnergy>(
         initial_residual,
         final_residual: residual,
         phi,
-        converged: residual <= target,
+        converged: reached(residual, target),
         backtracks,
         restarts,
     };

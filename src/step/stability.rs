@@ -160,7 +160,10 @@ pub(super) fn triangle_stiffness(
 ///
 /// # Errors
 /// [`StepError::LengthMismatch`] if `masses`, `stiffness` or a non-empty `pinned` does not have
-/// one entry per vertex; [`StepError::Mass`] for the first mass that is not finite and positive.
+/// one entry per vertex; [`StepError::Mass`] for the first mass that is not a finite normal
+/// positive number; [`StepError::Stiffness`] for the first free vertex whose bound `k_i` is
+/// NaN, negative or infinite, or whose `k_i / m_i` overflows (the material is too stiff for
+/// this precision, or a custom model reports a NaN bound).
 pub fn stable_time_step<F: ElasticModel>(
     model: &F,
     masses: &[Real],
@@ -173,19 +176,28 @@ pub fn stable_time_step<F: ElasticModel>(
         check_length(StepBuffer::Pinned, n, pinned.len())?;
     }
     check_length(StepBuffer::ScalarScratch, n, stiffness.len())?;
-    if let Some(vertex) = masses.iter().position(|&m| !(m > 0.0 && m.is_finite())) {
+    if let Some(vertex) = masses.iter().position(|&m| !super::mass_in_range(m)) {
         return Err(StepError::Mass { vertex });
     }
     vertex_stiffness(model, stiffness);
     let mut worst: Real = 0.0; // max k_i / m_i
-    for ((&k, &m), pinned) in stiffness
+    for (vertex, ((&k, &m), pinned)) in stiffness
         .iter()
         .zip(masses)
         .zip(super::pinned_flags(pinned))
+        .enumerate()
     {
-        if !pinned {
-            worst = worst.max(k / m);
+        // A NaN or infinite bound (a custom model's NaN, a modulus near `Real::MAX` whose
+        // element bound overflows, or `k / m` overflowing) has no step to give: `Ok(0)` or,
+        // with NaN ignored by `max`, `Ok(inf)` would be a wrong answer.
+        if pinned {
+            continue;
         }
+        let ratio = k / m;
+        if !(k >= 0.0 && ratio.is_finite()) {
+            return Err(StepError::Stiffness { vertex });
+        }
+        worst = worst.max(ratio);
     }
     Ok(if worst > 0.0 {
         2.0 / math::sqrt(worst)
@@ -213,7 +225,9 @@ pub(super) fn vertex_stiffness<F: ElasticModel>(model: &F, stiffness: &mut [Real
 /// mesh without elements.
 ///
 /// # Errors
-/// [`StepError::Mesh`]`(`[`MeshError::Density`]`)` if `density` is not finite and positive.
+/// [`StepError::Mesh`]`(`[`MeshError::Density`]`)` if `density` is not finite and positive;
+/// [`StepError::Stiffness`] naming the first corner of the first element whose bound is NaN or
+/// infinite or gives no positive step.
 pub fn element_stable_time_step<F: ElasticModel>(
     model: &F,
     density: Real,
@@ -222,9 +236,18 @@ pub fn element_stable_time_step<F: ElasticModel>(
         return Err(StepError::Mesh(MeshError::Density));
     }
     let mut smallest = Real::INFINITY;
+    let mut unusable = None;
     model.for_each_element_stiffness(|corners, k, measure| {
         let corner_count = corners.len() as Real;
-        smallest = smallest.min(2.0 * math::sqrt(density * measure / (corner_count * k)));
+        let step = 2.0 * math::sqrt(density * measure / (corner_count * k));
+        // NaN (ignored by `min`) or zero from a bound that is NaN or overflows.
+        if unusable.is_none() && !(step > 0.0 && k.is_finite()) {
+            unusable = Some(corners.first().map_or(0, |&i| i as usize));
+        }
+        smallest = smallest.min(step);
     });
-    Ok(smallest)
+    match unusable {
+        Some(vertex) => Err(StepError::Stiffness { vertex }),
+        None => Ok(smallest),
+    }
 }

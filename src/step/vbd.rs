@@ -577,15 +577,15 @@ impl<M: Material> Sweep<'_, M> {
         };
         counts.projected += u32::from(projected);
         let mut step = factor.solve(-gradient);
-        if let Some(ground) = &self.ground {
-            if ground.height(x + step) < 0.0 {
-                // The minimiser of the quadratic model on the plane n.(x + d) = offset:
-                // d = d0 - H^-1 n (n.d0 + height(x)) / (n.H^-1 n).
-                let towards = factor.solve(ground.normal);
-                let curvature = ground.normal.dot(towards);
-                let excess = ground.normal.dot(step) + ground.height(x);
-                step -= towards * (excess / curvature);
-            }
+        if let Some(ground) = &self.ground
+            && ground.height(x + step) < 0.0
+        {
+            // The minimiser of the quadratic model on the plane n.(x + d) = offset:
+            // d = d0 - H^-1 n (n.d0 + height(x)) / (n.H^-1 n).
+            let towards = factor.solve(ground.normal);
+            let curvature = ground.normal.dot(towards);
+            let excess = ground.normal.dot(step) + ground.height(x);
+            step -= towards * (excess / curvature);
         }
         let slope = gradient.dot(step);
         if !(slope < 0.0 && step.is_finite()) {
@@ -696,10 +696,11 @@ fn ensure_topology(
     tets: &[[u32; 4]],
     vertex_count: usize,
 ) -> Result<u32, StepError> {
-    if let Some((vertices, elements, colours)) = scratch.topology {
-        if vertices == vertex_count && elements == tets.len() {
-            return Ok(colours);
-        }
+    if let Some((vertices, elements, colours)) = scratch.topology
+        && vertices == vertex_count
+        && elements == tets.len()
+    {
+        return Ok(colours);
     }
     let (offsets, rest) = scratch
         .indices

@@ -135,13 +135,13 @@ impl VertexFactor {
         let diagonal = Mat3::from_diagonal(Vec3::splat(inertia));
         let exact = *elastic + diagonal;
         let trace = exact.x_axis.x + exact.y_axis.y + exact.z_axis.z;
-        if let Some(cholesky) = Cholesky::new(&exact, PIVOT_FLOOR * trace) {
-            if trace.is_finite() {
-                return Some(VertexFactor {
-                    cholesky,
-                    projected: false,
-                });
-            }
+        if let Some(cholesky) = Cholesky::new(&exact, PIVOT_FLOOR * trace)
+            && trace.is_finite()
+        {
+            return Some(VertexFactor {
+                cholesky,
+                projected: false,
+            });
         }
         let cholesky = Cholesky::regularised(&(positive_part(*elastic) + diagonal))?;
         Some(VertexFactor {

@@ -529,7 +529,7 @@ fn report_ram<Real, Vec3, TetRest>(precision: &str, body_bytes: usize) {
     use core::mem::size_of;
     let vector = size_of::<Vec3>() as u64;
     let scalar = size_of::<Real>() as u64;
-    // rest, position, velocity, mass, pinned flag; explicit scratch 3 vectors; relaxation
+    // rest, position, velocity, mass, pinned flag; explicit scratch 4 vectors; relaxation
     // scratch 5 vectors and 1 scalar (see softfem's explicit_scratch_len / relax_scratch_len).
     let state = 3 * vector + scalar + 1;
     let mut line = Line::new();
@@ -538,7 +538,7 @@ fn report_ram<Real, Vec3, TetRest>(precision: &str, body_bytes: usize) {
         .str(": per vertex ")
         .uint(state)
         .str(" B state + ");
-    line.uint(3 * vector)
+    line.uint(4 * vector)
         .str(" B explicit scratch + ")
         .uint(5 * vector + scalar);
     line.str(" B relaxation scratch; per tet ")

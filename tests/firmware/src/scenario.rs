@@ -346,8 +346,8 @@ macro_rules! precision {
                 pub velocities: [Vec3; V],
                 /// Lumped masses (kg).
                 pub masses: [Real; V],
-                /// Explicit scratch: forces, position backup, velocity backup.
-                pub explicit_scratch: [[Vec3; V]; 3],
+                /// Explicit scratch: forces of two substeps, position backup, velocity backup.
+                pub explicit_scratch: [[Vec3; V]; 4],
                 /// Relaxation scratch: five vectors per vertex.
                 pub relax_vectors: [[Vec3; V]; 5],
                 /// Relaxation scratch (and stiffness for the stable step): one scalar per
@@ -367,7 +367,7 @@ macro_rules! precision {
                     positions: [Vec3::ZERO; V],
                     velocities: [Vec3::ZERO; V],
                     masses: [0.0; V],
-                    explicit_scratch: [[Vec3::ZERO; V]; 3],
+                    explicit_scratch: [[Vec3::ZERO; V]; 4],
                     relax_vectors: [[Vec3::ZERO; V]; 5],
                     relax_scalars: [0.0; V],
                 };

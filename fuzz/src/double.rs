@@ -1,0 +1,18 @@
+//! The checks against the `f64` API under `softfem::f64`.
+
+pub use softfem::f64 as sf;
+/// The bit pattern of this precision's float.
+pub type Bits = u64;
+/// The precision's name, for messages.
+pub const NAME: &str = "f64";
+
+#[path = "mesh_checks.rs"]
+pub mod mesh;
+#[path = "precision.rs"]
+pub mod precision;
+#[path = "step_checks.rs"]
+pub mod step;
+#[path = "svd_checks.rs"]
+pub mod svd;
+#[path = "tetgen_checks.rs"]
+pub mod tetgen;

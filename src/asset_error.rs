@@ -1,0 +1,558 @@
+//! Errors of the asset pipeline: voxel meshing, embedding, surface buffers and (feature `std`)
+//! the Gmsh and OBJ readers. Shared by both precisions, like the rest of [`error`](crate::error).
+
+use core::fmt;
+
+/// One of the caller-owned buffers of the voxel mesher (see [`VoxelError::BufferLength`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum VoxelBuffer {
+    /// The directed-edge scratch of the closedness check (`closed_check_scratch_len`).
+    EdgeScratch,
+    /// The per-cell occupancy (`VoxelGrid::cell_count`).
+    Occupancy,
+    /// The grid-corner to vertex map (`VoxelGrid::corner_count`).
+    CornerMap,
+    /// The output vertex positions.
+    Positions,
+    /// The output tetrahedra.
+    Tetrahedra,
+}
+
+impl fmt::Display for VoxelBuffer {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            VoxelBuffer::EdgeScratch => "edge scratch",
+            VoxelBuffer::Occupancy => "occupancy",
+            VoxelBuffer::CornerMap => "corner map",
+            VoxelBuffer::Positions => "positions",
+            VoxelBuffer::Tetrahedra => "tetrahedra",
+        })
+    }
+}
+
+/// The voxel mesher (module `voxel`) cannot mesh the given surface or grid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum VoxelError {
+    /// A buffer does not have the length its `*_len` function (or the grid) gives.
+    BufferLength {
+        /// The buffer at fault.
+        buffer: VoxelBuffer,
+        /// The length it must have.
+        expected: usize,
+        /// The length it has.
+        actual: usize,
+    },
+    /// The surface has no vertices or no triangles.
+    EmptySurface,
+    /// A surface vertex has a NaN or infinite coordinate.
+    NonFinitePosition {
+        /// The vertex.
+        vertex: usize,
+    },
+    /// A triangle refers to a vertex that does not exist.
+    IndexOutOfRange {
+        /// The triangle.
+        triangle: usize,
+        /// The vertex index it uses.
+        index: u32,
+    },
+    /// The surface is not closed: the directed edge `from -> to` of `triangle` has no triangle on
+    /// the other side using it as `to -> from`.
+    OpenEdge {
+        /// The triangle.
+        triangle: usize,
+        /// The edge's first vertex.
+        from: u32,
+        /// The edge's second vertex.
+        to: u32,
+    },
+    /// The directed edge `from -> to` is used by two triangles (`triangle` is the second): the
+    /// triangles around it are not consistently oriented, or more than two triangles meet there.
+    RepeatedEdge {
+        /// The triangle.
+        triangle: usize,
+        /// The edge's first vertex.
+        from: u32,
+        /// The edge's second vertex.
+        to: u32,
+    },
+    /// The cell size (or resolution) is not a positive finite number.
+    CellSize,
+    /// The grid would have more corners than `u32` indices can address.
+    TooManyCells,
+    /// The coverage settings are out of range (samples per axis in `1..=8`, coverage in `(0, 1]`).
+    Coverage,
+    /// After rounding, some tetrahedron would not have a positive finite volume (cells too small
+    /// for this precision so far from the origin).
+    DegenerateCells,
+}
+
+impl fmt::Display for VoxelError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            VoxelError::BufferLength {
+                buffer,
+                expected,
+                actual,
+            } => write!(
+                f,
+                "the {buffer} buffer has length {actual}, but it needs exactly {expected}"
+            ),
+            VoxelError::EmptySurface => f.write_str("the surface has no vertices or no triangles"),
+            VoxelError::NonFinitePosition { vertex } => {
+                write!(f, "surface vertex {vertex} is not finite")
+            }
+            VoxelError::IndexOutOfRange { triangle, index } => {
+                write!(
+                    f,
+                    "triangle {triangle} uses vertex {index}, which does not exist"
+                )
+            }
+            VoxelError::OpenEdge { triangle, from, to } => write!(
+                f,
+                "the surface is not closed: edge {from} -> {to} of triangle {triangle} has no \
+                 opposite triangle"
+            ),
+            VoxelError::RepeatedEdge { triangle, from, to } => write!(
+                f,
+                "edge {from} -> {to} is used twice in the same direction (again by triangle \
+                 {triangle}): inconsistent orientation or a non-manifold edge"
+            ),
+            VoxelError::CellSize => f.write_str("the cell size must be finite and positive"),
+            VoxelError::TooManyCells => {
+                f.write_str("the grid would have more corners than u32 indices can address")
+            }
+            VoxelError::Coverage => {
+                f.write_str("samples per axis must be in 1..=8 and the coverage fraction in (0, 1]")
+            }
+            VoxelError::DegenerateCells => f.write_str(
+                "the cells are too small for this precision: a tetrahedron would not have a \
+                 positive finite volume",
+            ),
+        }
+    }
+}
+
+impl core::error::Error for VoxelError {}
+
+/// One of the caller-owned buffers of the embedding (see [`EmbedError::BufferLength`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum EmbedBuffer {
+    /// The lookup grid's bucket starts (`TetLookup::starts_len`).
+    BucketStarts,
+    /// The lookup grid's bucket entries (`TetLookup::entries_len`).
+    BucketEntries,
+    /// The embedding of the render points (one per point).
+    Embedding,
+    /// The simulated positions (one per simulation vertex).
+    Positions,
+    /// The output render positions or normals (one per render point).
+    Output,
+}
+
+impl fmt::Display for EmbedBuffer {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            EmbedBuffer::BucketStarts => "bucket starts",
+            EmbedBuffer::BucketEntries => "bucket entries",
+            EmbedBuffer::Embedding => "embedding",
+            EmbedBuffer::Positions => "positions",
+            EmbedBuffer::Output => "output",
+        })
+    }
+}
+
+/// Embedding render points in a tetrahedral mesh (module `embed`) failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum EmbedError {
+    /// A buffer has the wrong length.
+    BufferLength {
+        /// The buffer at fault.
+        buffer: EmbedBuffer,
+        /// The length it must have.
+        expected: usize,
+        /// The length it has.
+        actual: usize,
+    },
+    /// The mesh has no tetrahedra.
+    EmptyMesh,
+    /// A tetrahedron refers to a vertex that does not exist.
+    IndexOutOfRange {
+        /// The tetrahedron.
+        tet: usize,
+        /// The vertex index it uses.
+        index: u32,
+    },
+    /// A rest position or a render point is NaN or infinite.
+    NonFinitePoint {
+        /// The simulation vertex or render point.
+        point: usize,
+    },
+    /// A tetrahedron has zero (or non-finite) rest volume, so barycentric weights are undefined.
+    DegenerateTet {
+        /// The tetrahedron.
+        tet: usize,
+    },
+    /// The margin or the lookup cell size is negative, zero (cell size) or not finite.
+    Settings,
+    /// The lookup grid would have more cells or entries than `u32` can count.
+    TooLarge,
+    /// Render point `point` is farther than the margin from every tetrahedron.
+    Outside {
+        /// The render point.
+        point: usize,
+    },
+}
+
+impl fmt::Display for EmbedError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EmbedError::BufferLength {
+                buffer,
+                expected,
+                actual,
+            } => write!(
+                f,
+                "the {buffer} buffer has length {actual}, but it needs exactly {expected}"
+            ),
+            EmbedError::EmptyMesh => f.write_str("the mesh has no tetrahedra"),
+            EmbedError::IndexOutOfRange { tet, index } => {
+                write!(
+                    f,
+                    "tetrahedron {tet} uses vertex {index}, which does not exist"
+                )
+            }
+            EmbedError::NonFinitePoint { point } => write!(f, "point {point} is not finite"),
+            EmbedError::DegenerateTet { tet } => {
+                write!(f, "tetrahedron {tet} has no positive finite rest volume")
+            }
+            EmbedError::Settings => f.write_str(
+                "the margin must be finite and >= 0 and the lookup cell size finite and > 0",
+            ),
+            EmbedError::TooLarge => {
+                f.write_str("the lookup grid would have more cells or entries than u32 counts")
+            }
+            EmbedError::Outside { point } => write!(
+                f,
+                "render point {point} is farther than the margin from every tetrahedron"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for EmbedError {}
+
+/// A surface-buffer function (module `surface`) was given inconsistent buffers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum SurfaceError {
+    /// A buffer has the wrong length.
+    BufferLength {
+        /// The length it must have.
+        expected: usize,
+        /// The length it has.
+        actual: usize,
+    },
+    /// An element refers to a vertex that does not exist.
+    IndexOutOfRange {
+        /// The element (tetrahedron or triangle).
+        element: usize,
+        /// The vertex index it uses.
+        index: u32,
+    },
+}
+
+impl fmt::Display for SurfaceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SurfaceError::BufferLength { expected, actual } => write!(
+                f,
+                "a surface buffer has length {actual}, but it needs exactly {expected}"
+            ),
+            SurfaceError::IndexOutOfRange { element, index } => {
+                write!(
+                    f,
+                    "element {element} uses vertex {index}, which does not exist"
+                )
+            }
+        }
+    }
+}
+
+impl core::error::Error for SurfaceError {}
+
+/// What is wrong with a line of a Wavefront OBJ file (see [`ObjFormatError`]).
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ObjProblem {
+    /// A `v` line has fewer than three coordinates.
+    MissingCoordinates,
+    /// Field `field` (counting from 1 after the keyword) is not a number or not a vertex
+    /// reference.
+    BadField {
+        /// The field.
+        field: usize,
+    },
+    /// A coordinate is NaN or infinite.
+    NonFiniteCoordinate,
+    /// A face has fewer than three vertices.
+    FaceTooSmall {
+        /// How many it has.
+        vertices: usize,
+    },
+    /// A face uses vertex index 0 (OBJ numbers vertices from 1; negative indices count back).
+    ZeroIndex,
+    /// A face refers to a vertex that does not exist.
+    IndexOutOfRange {
+        /// The index as written.
+        index: i64,
+        /// The number of vertices (defined so far, for a negative index).
+        vertices: usize,
+    },
+    /// The file has no faces.
+    NoFaces,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for ObjProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ObjProblem::MissingCoordinates => f.write_str("a vertex needs three coordinates"),
+            ObjProblem::BadField { field } => write!(f, "field {field} is not valid"),
+            ObjProblem::NonFiniteCoordinate => f.write_str("a coordinate is not finite"),
+            ObjProblem::FaceTooSmall { vertices } => {
+                write!(
+                    f,
+                    "a face needs at least 3 vertices, this one has {vertices}"
+                )
+            }
+            ObjProblem::ZeroIndex => f.write_str("vertex index 0 (OBJ numbers vertices from 1)"),
+            ObjProblem::IndexOutOfRange { index, vertices } => {
+                write!(
+                    f,
+                    "vertex index {index} is out of range ({vertices} vertices)"
+                )
+            }
+            ObjProblem::NoFaces => f.write_str("the file has no faces"),
+        }
+    }
+}
+
+/// A Wavefront OBJ text is malformed: the line (1-based) and the problem.
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ObjFormatError {
+    /// The line, counting from 1 (the last line for [`ObjProblem::NoFaces`]).
+    pub line: usize,
+    /// What is wrong.
+    pub problem: ObjProblem,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for ObjFormatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "line {}: {}", self.line, self.problem)
+    }
+}
+
+#[cfg(feature = "std")]
+impl core::error::Error for ObjFormatError {}
+
+/// A section of a Gmsh `.msh` file (see [`GmshProblem`]).
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum GmshSection {
+    /// `$MeshFormat`.
+    MeshFormat,
+    /// `$Nodes`.
+    Nodes,
+    /// `$Elements`.
+    Elements,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for GmshSection {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            GmshSection::MeshFormat => "$MeshFormat",
+            GmshSection::Nodes => "$Nodes",
+            GmshSection::Elements => "$Elements",
+        })
+    }
+}
+
+/// What is wrong with a line of a Gmsh `.msh` file (see [`GmshFormatError`]).
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum GmshProblem {
+    /// A required section is missing (or the file ended inside it).
+    MissingSection(GmshSection),
+    /// The file ended before a section's `$End...` line.
+    UnterminatedSection(GmshSection),
+    /// The format version is not 4.1.
+    UnsupportedVersion,
+    /// The file is binary (`file-type` 1); only ASCII is read.
+    Binary,
+    /// The line has the wrong number of fields.
+    FieldCount {
+        /// How many it must have.
+        expected: usize,
+        /// How many it has.
+        found: usize,
+    },
+    /// Field `field` (counting from 1) is not a number of the expected kind.
+    BadField {
+        /// The field.
+        field: usize,
+    },
+    /// A coordinate is NaN or infinite.
+    NonFiniteCoordinate,
+    /// A node tag appears twice.
+    DuplicateNode {
+        /// The tag.
+        tag: u64,
+    },
+    /// An element refers to a node tag that no node has.
+    UnknownNode {
+        /// The tag.
+        tag: u64,
+    },
+    /// A count in a header does not match the records that follow.
+    CountMismatch {
+        /// The count the header gives.
+        expected: usize,
+        /// The count found.
+        found: usize,
+    },
+    /// An element type this reader does not convert (higher-order or non-simplex surface and
+    /// volume elements; points and lines are skipped, 3-node triangles and 4-node tetrahedra
+    /// read).
+    UnsupportedElement {
+        /// The Gmsh element type number.
+        element_type: u32,
+    },
+    /// A line other than the expected `$End...` closes a section.
+    ExpectedEnd(GmshSection),
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for GmshProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            GmshProblem::MissingSection(section) => write!(f, "the {section} section is missing"),
+            GmshProblem::UnterminatedSection(section) => {
+                write!(f, "the file ends inside the {section} section")
+            }
+            GmshProblem::UnsupportedVersion => f.write_str("only MSH version 4.1 is read"),
+            GmshProblem::Binary => f.write_str("binary MSH files are not read (save as ASCII)"),
+            GmshProblem::FieldCount { expected, found } => {
+                write!(f, "expected {expected} fields, found {found}")
+            }
+            GmshProblem::BadField { field } => write!(f, "field {field} is not a valid number"),
+            GmshProblem::NonFiniteCoordinate => f.write_str("a coordinate is not finite"),
+            GmshProblem::DuplicateNode { tag } => write!(f, "node tag {tag} appears twice"),
+            GmshProblem::UnknownNode { tag } => write!(f, "node tag {tag} does not exist"),
+            GmshProblem::CountMismatch { expected, found } => {
+                write!(f, "the header announces {expected} records, found {found}")
+            }
+            GmshProblem::UnsupportedElement { element_type } => write!(
+                f,
+                "element type {element_type} is not read (only 3-node triangles and 4-node \
+                 tetrahedra; points and lines are skipped)"
+            ),
+            GmshProblem::ExpectedEnd(section) => write!(f, "expected the end of {section}"),
+        }
+    }
+}
+
+/// A Gmsh `.msh` text is malformed: the line (1-based) and the problem.
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct GmshFormatError {
+    /// The line, counting from 1 (one past the last line when the file ends too early).
+    pub line: usize,
+    /// What is wrong.
+    pub problem: GmshProblem,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for GmshFormatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "line {}: {}", self.line, self.problem)
+    }
+}
+
+#[cfg(feature = "std")]
+impl core::error::Error for GmshFormatError {}
+
+/// Reading or writing an asset file failed: which file, and why (`path:line: problem` when
+/// displayed).
+#[cfg(feature = "std")]
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum AssetFileError {
+    /// The file could not be read or written.
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// An OBJ file is malformed.
+    Obj {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Where and what.
+        error: ObjFormatError,
+    },
+    /// A Gmsh file is malformed.
+    Gmsh {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Where and what.
+        error: GmshFormatError,
+    },
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for AssetFileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            AssetFileError::Io { path, source } => write!(f, "{}: {source}", path.display()),
+            AssetFileError::Obj { path, error } => {
+                write!(f, "{}:{}: {}", path.display(), error.line, error.problem)
+            }
+            AssetFileError::Gmsh { path, error } => {
+                write!(f, "{}:{}: {}", path.display(), error.line, error.problem)
+            }
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl core::error::Error for AssetFileError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            AssetFileError::Io { source, .. } => Some(source),
+            AssetFileError::Obj { error, .. } => Some(error),
+            AssetFileError::Gmsh { error, .. } => Some(error),
+        }
+    }
+}

@@ -1,0 +1,168 @@
+//! [`Avx2Lanes`]: one AVX register of this precision (8 f32 or 4 f64), for the batched kernels
+//! that [`simd::dispatch`](crate::simd) runs with AVX2 enabled.
+//!
+//! Written once for both precisions against the precision-neutral names of `wide_ops` (in
+//! `src/f32.rs` and `src/f64.rs`). Every operation is the packed form of the scalar one with
+//! the same IEEE rounding (add, subtract, multiply, divide and square root are correctly
+//! rounded; no fused multiply-add), `max` reproduces the instruction sequence the compiler
+//! emits for the scalar `max`, and selects are bitwise blends, so lane `i` is bit for bit what
+//! the scalar code computes.
+
+// SAFETY (for every `unsafe` block below, which only calls AVX intrinsics on register values):
+// the type is crate-private and only the batched kernels create it, inside the functions that
+// `simd::dispatch` compiles with AVX2 enabled and calls only after `simd::detected_width` found
+// AVX2 and the OS's support of the YMM state. The intrinsics have no memory operands or other
+// preconditions.
+
+use super::lanes::{Lane, LaneArray, array_lane_value, set_array_lane_value};
+use super::types::Real;
+use super::wide_ops::{
+    AVX2_WIDTH, Reg256, add256, and256, andnot256, blendv256, cmp256, div256, max256, movemask256,
+    mul256, or256, set1_256, sqrt256, sub256, xor256,
+};
+use core::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q};
+use core::ops::{Add, Div, Mul, Neg, Sub};
+
+/// [`AVX2_WIDTH`] independent values processed together (structure of arrays), in one AVX
+/// register.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Avx2Lanes(Reg256);
+
+/// Per-lane comparison results: all bits set where true.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Avx2Mask(Reg256);
+
+macro_rules! lanes_binary_op {
+    ($trait:ident, $method:ident, $intrinsic:ident) => {
+        impl $trait for Avx2Lanes {
+            type Output = Avx2Lanes;
+            #[inline(always)]
+            fn $method(self, other: Avx2Lanes) -> Avx2Lanes {
+                // SAFETY: see the module comment.
+                Avx2Lanes(unsafe { $intrinsic(self.0, other.0) })
+            }
+        }
+    };
+}
+lanes_binary_op!(Add, add, add256);
+lanes_binary_op!(Sub, sub, sub256);
+lanes_binary_op!(Mul, mul, mul256);
+lanes_binary_op!(Div, div, div256);
+
+impl Neg for Avx2Lanes {
+    type Output = Avx2Lanes;
+    #[inline(always)]
+    fn neg(self) -> Avx2Lanes {
+        // SAFETY: see the module comment. Flipping the sign bit is what scalar negation does.
+        Avx2Lanes(unsafe { xor256(self.0, set1_256(-0.0)) })
+    }
+}
+
+impl Lane for Avx2Lanes {
+    type Mask = Avx2Mask;
+
+    #[inline(always)]
+    fn splat(x: Real) -> Self {
+        // SAFETY: see the module comment.
+        Avx2Lanes(unsafe { set1_256(x) })
+    }
+
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        // SAFETY: see the module comment. `vsqrtps`/`vsqrtpd` are correctly rounded, as the
+        // scalar square root.
+        Avx2Lanes(unsafe { sqrt256(self.0) })
+    }
+
+    #[inline(always)]
+    fn abs(self) -> Self {
+        // SAFETY: see the module comment. Clearing the sign bit is what scalar `abs` does.
+        Avx2Lanes(unsafe { andnot256(set1_256(-0.0), self.0) })
+    }
+
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        // Scalar `max(a, b)` compiles to exactly this: `max(b, a)` returns `a` when the two
+        // are unordered or equal, and `b` replaces a NaN `a`.
+        // SAFETY: see the module comment.
+        unsafe {
+            let larger = max256(other.0, self.0);
+            let self_is_nan = cmp256::<_CMP_UNORD_Q>(self.0, self.0);
+            Avx2Lanes(blendv256(larger, other.0, self_is_nan))
+        }
+    }
+
+    #[inline(always)]
+    fn sign(self) -> Self {
+        // `1.0.copysign(self)`: the sign bit of `self` on the bits of 1.0.
+        // SAFETY: see the module comment.
+        unsafe {
+            let sign_bit = set1_256(-0.0);
+            Avx2Lanes(or256(and256(sign_bit, self.0), set1_256(1.0)))
+        }
+    }
+
+    #[inline(always)]
+    fn gt(self, other: Self) -> Avx2Mask {
+        // SAFETY: see the module comment. Ordered: false where either lane is NaN.
+        Avx2Mask(unsafe { cmp256::<_CMP_GT_OQ>(self.0, other.0) })
+    }
+
+    #[inline(always)]
+    fn ge(self, other: Self) -> Avx2Mask {
+        // SAFETY: see the module comment. Ordered: false where either lane is NaN.
+        Avx2Mask(unsafe { cmp256::<_CMP_GE_OQ>(self.0, other.0) })
+    }
+
+    #[inline(always)]
+    fn none(mask: Avx2Mask) -> bool {
+        // SAFETY: see the module comment. The sign bit of each lane, one bit per lane.
+        unsafe { movemask256(mask.0) == 0 }
+    }
+
+    #[inline(always)]
+    fn select(mask: Avx2Mask, a: Self, b: Self) -> Self {
+        // SAFETY: see the module comment. A mask lane is all ones or all zeros, so blending
+        // on its sign bit takes all of `a`'s bits or all of `b`'s.
+        Avx2Lanes(unsafe { blendv256(b.0, a.0, mask.0) })
+    }
+
+    #[inline(always)]
+    fn map(self, f: impl Fn(Real) -> Real) -> Self {
+        let mut values = self.to_lane_array();
+        for value in &mut values {
+            *value = f(*value);
+        }
+        Avx2Lanes::from_lane_array(values)
+    }
+}
+
+impl LaneArray for Avx2Lanes {
+    const WIDTH: usize = AVX2_WIDTH;
+    type Array = [Real; AVX2_WIDTH];
+    const ZEROS: Self::Array = [0.0; AVX2_WIDTH];
+
+    #[inline(always)]
+    fn from_lane_array(values: Self::Array) -> Self {
+        // SAFETY: `[Real; AVX2_WIDTH]` and the register have the same size (32 bytes), and
+        // every bit pattern is valid for both; element `i` is lane `i` (little-endian lane
+        // order).
+        Avx2Lanes(unsafe { core::mem::transmute::<Self::Array, Reg256>(values) })
+    }
+
+    #[inline(always)]
+    fn to_lane_array(self) -> Self::Array {
+        // SAFETY: as in `from_lane_array`.
+        unsafe { core::mem::transmute::<Reg256, Self::Array>(self.0) }
+    }
+
+    #[inline(always)]
+    fn lane_value(values: &Self::Array, lane: usize) -> Real {
+        array_lane_value(values, lane)
+    }
+
+    #[inline(always)]
+    fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
+        set_array_lane_value(values, lane, value);
+    }
+}

@@ -1,0 +1,178 @@
+//! [`Avx512Lanes`]: one AVX-512 register of this precision (16 f32 or 8 f64), for the batched
+//! kernels that [`simd::dispatch`](crate::simd) runs with AVX-512F enabled.
+//!
+//! Written once for both precisions against the precision-neutral names of `wide_ops` (in
+//! `src/f32.rs` and `src/f64.rs`). Every operation is the packed form of the scalar one with
+//! the same IEEE rounding (add, subtract, multiply, divide and square root are correctly
+//! rounded; no fused multiply-add), `max` reproduces the result of the instruction sequence the
+//! compiler emits for the scalar `max`, and selects are mask blends, so lane `i` is bit for bit
+//! what the scalar code computes. Only AVX-512F is used: its bitwise operations are the
+//! integer ones (the floating-point `and`/`or`/`xor` forms need AVX-512DQ).
+
+// SAFETY (for every `unsafe` block below, which only calls AVX-512F intrinsics on register
+// values): the type is crate-private and only the batched kernels create it, inside the
+// functions that `simd::dispatch` compiles with AVX-512F enabled and calls only after
+// `simd::detected_width` found AVX-512F and the OS's support of the ZMM and mask state. The
+// intrinsics have no memory operands or other preconditions.
+
+use super::lanes::{Lane, LaneArray, array_lane_value, set_array_lane_value};
+use super::types::Real;
+use super::wide_ops::{
+    AVX512_WIDTH, Mask512, Reg512, abs512, add512, blend512, cmp512, div512, from_bits512, max512,
+    mul512, set1_512, sqrt512, sub512, to_bits512,
+};
+use core::arch::x86_64::{
+    _CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q, _mm512_and_si512, _mm512_or_si512, _mm512_xor_si512,
+};
+use core::ops::{Add, Div, Mul, Neg, Sub};
+
+/// [`AVX512_WIDTH`] independent values processed together (structure of arrays), in one
+/// AVX-512 register.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Avx512Lanes(Reg512);
+
+/// Per-lane comparison results: one bit per lane, in a mask register.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Avx512Mask(Mask512);
+
+macro_rules! lanes_binary_op {
+    ($trait:ident, $method:ident, $intrinsic:ident) => {
+        impl $trait for Avx512Lanes {
+            type Output = Avx512Lanes;
+            #[inline(always)]
+            fn $method(self, other: Avx512Lanes) -> Avx512Lanes {
+                // SAFETY: see the module comment.
+                Avx512Lanes(unsafe { $intrinsic(self.0, other.0) })
+            }
+        }
+    };
+}
+lanes_binary_op!(Add, add, add512);
+lanes_binary_op!(Sub, sub, sub512);
+lanes_binary_op!(Mul, mul, mul512);
+lanes_binary_op!(Div, div, div512);
+
+impl Neg for Avx512Lanes {
+    type Output = Avx512Lanes;
+    #[inline(always)]
+    fn neg(self) -> Avx512Lanes {
+        // SAFETY: see the module comment. Flipping the sign bit is what scalar negation does.
+        Avx512Lanes(unsafe {
+            from_bits512(_mm512_xor_si512(
+                to_bits512(self.0),
+                to_bits512(set1_512(-0.0)),
+            ))
+        })
+    }
+}
+
+impl Lane for Avx512Lanes {
+    type Mask = Avx512Mask;
+
+    #[inline(always)]
+    fn splat(x: Real) -> Self {
+        // SAFETY: see the module comment.
+        Avx512Lanes(unsafe { set1_512(x) })
+    }
+
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        // SAFETY: see the module comment. `vsqrtps`/`vsqrtpd` (default rounding mode) are
+        // correctly rounded, as the scalar square root.
+        Avx512Lanes(unsafe { sqrt512(self.0) })
+    }
+
+    #[inline(always)]
+    fn abs(self) -> Self {
+        // SAFETY: see the module comment. Clears the sign bit, as scalar `abs`.
+        Avx512Lanes(unsafe { abs512(self.0) })
+    }
+
+    #[inline(always)]
+    fn max(self, other: Self) -> Self {
+        // As scalar `max(a, b)` on x86_64: `max(b, a)` returns `a` when the two are unordered
+        // or equal, and `b` replaces a NaN `a`.
+        // SAFETY: see the module comment.
+        unsafe {
+            let larger = max512(other.0, self.0);
+            let self_is_nan = cmp512::<_CMP_UNORD_Q>(self.0, self.0);
+            Avx512Lanes(blend512(self_is_nan, larger, other.0))
+        }
+    }
+
+    #[inline(always)]
+    fn sign(self) -> Self {
+        // `1.0.copysign(self)`: the sign bit of `self` on the bits of 1.0.
+        // SAFETY: see the module comment.
+        unsafe {
+            let sign_bit = to_bits512(set1_512(-0.0));
+            let one = to_bits512(set1_512(1.0));
+            Avx512Lanes(from_bits512(_mm512_or_si512(
+                _mm512_and_si512(sign_bit, to_bits512(self.0)),
+                one,
+            )))
+        }
+    }
+
+    #[inline(always)]
+    fn gt(self, other: Self) -> Avx512Mask {
+        // SAFETY: see the module comment. Ordered: false where either lane is NaN.
+        Avx512Mask(unsafe { cmp512::<_CMP_GT_OQ>(self.0, other.0) })
+    }
+
+    #[inline(always)]
+    fn ge(self, other: Self) -> Avx512Mask {
+        // SAFETY: see the module comment. Ordered: false where either lane is NaN.
+        Avx512Mask(unsafe { cmp512::<_CMP_GE_OQ>(self.0, other.0) })
+    }
+
+    #[inline(always)]
+    fn none(mask: Avx512Mask) -> bool {
+        mask.0 == 0
+    }
+
+    #[inline(always)]
+    fn select(mask: Avx512Mask, a: Self, b: Self) -> Self {
+        // SAFETY: see the module comment. Takes `a`'s lane where the mask bit is set.
+        Avx512Lanes(unsafe { blend512(mask.0, b.0, a.0) })
+    }
+
+    #[inline(always)]
+    fn map(self, f: impl Fn(Real) -> Real) -> Self {
+        let mut values = self.to_lane_array();
+        for value in &mut values {
+            *value = f(*value);
+        }
+        Avx512Lanes::from_lane_array(values)
+    }
+}
+
+impl LaneArray for Avx512Lanes {
+    const WIDTH: usize = AVX512_WIDTH;
+    type Array = [Real; AVX512_WIDTH];
+    const ZEROS: Self::Array = [0.0; AVX512_WIDTH];
+
+    #[inline(always)]
+    fn from_lane_array(values: Self::Array) -> Self {
+        // SAFETY: `[Real; AVX512_WIDTH]` and the register have the same size (64 bytes), and
+        // every bit pattern is valid for both; element `i` is lane `i` (little-endian lane
+        // order).
+        Avx512Lanes(unsafe { core::mem::transmute::<Self::Array, Reg512>(values) })
+    }
+
+    #[inline(always)]
+    fn to_lane_array(self) -> Self::Array {
+        // SAFETY: as in `from_lane_array`.
+        unsafe { core::mem::transmute::<Reg512, Self::Array>(self.0) }
+    }
+
+    #[inline(always)]
+    fn lane_value(values: &Self::Array, lane: usize) -> Real {
+        array_lane_value(values, lane)
+    }
+
+    #[inline(always)]
+    fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
+        set_array_lane_value(values, lane, value);
+    }
+}
