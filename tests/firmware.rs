@@ -56,8 +56,10 @@ fn host_records() -> Records {
     let mut records = Records::new();
     let mut body32 = Box::new(single::DropBody::EMPTY);
     let mut body64 = Box::new(double::DropBody::EMPTY);
-    single::run(&mut NoMeter, &mut records, &mut body32);
-    double::run(&mut NoMeter, &mut records, &mut body64);
+    let mut descent32 = Box::new(single::DescentScratch::EMPTY);
+    let mut descent64 = Box::new(double::DescentScratch::EMPTY);
+    single::run(&mut NoMeter, &mut records, &mut body32, &mut descent32);
+    double::run(&mut NoMeter, &mut records, &mut body64, &mut descent64);
     assert_eq!(records.overflow, 0, "scenario::MAX_RECORDS is too small");
     records
 }
@@ -226,7 +228,7 @@ fn run_firmware(image: &Path) -> (Option<i32>, String) {
     let mut child = Command::new(qemu())
         .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-nographic"])
         .args(["-semihosting-config", "enable=on,target=native"])
-        // The virtual clock advances 1 ns per instruction: SysTick counts instructions.
+        // The virtual clock advances 1 ns per instruction: the board timer counts instructions.
         .args(["-icount", "shift=0"])
         .arg("-kernel")
         .arg(image)
@@ -368,7 +370,7 @@ impl<'a> Elf<'a> {
 
 /// The pieces whose code size the test reports: the functions of `scenario::<precision>::pieces`
 /// (never inlined, not generic: one symbol each), with a label.
-const PIECES: [(&str, &str); 17] = [
+const PIECES: [(&str, &str); 19] = [
     ("svd3", "svd3"),
     ("svd3_lanes", "svd3_lanes"),
     ("forces_stvk_direct", "StVK forces, direct"),
@@ -398,6 +400,8 @@ const PIECES: [(&str, &str); 17] = [
     ("mesh_new", "TetMesh::new"),
     ("step_explicit", "step_explicit (stable NH)"),
     ("relax_step", "relax_step (stable NH)"),
+    ("newton_step", "newton_step (stable NH)"),
+    ("vbd_step", "vbd_step (stable NH)"),
 ];
 
 /// The Rust toolchain's copy of the LLVM tool `name` (rustup's `llvm-tools` component), if it
@@ -703,10 +707,16 @@ fn firmware_reproduces_the_host_bit_for_bit_on_a_cortex_m4f() {
     eprintln!("{report}");
     let elf = Elf::new(&bytes);
     let functions = elf.functions();
+    let section = |name| elf.section_size(name).unwrap_or(0);
     eprintln!(
-        "image: .text {} B, .rodata {} B; functions of 64 bytes or more (bytes):",
-        elf.section_size(".text").unwrap_or(0),
-        elf.section_size(".rodata").unwrap_or(0)
+        "image: .text {} B, .rodata {} B (flash, with .data: {} B of 1 MiB); .data {} B, .bss {} B \
+         (RAM: {} B of 256 KiB, the rest is stack); functions of 64 bytes or more (bytes):",
+        section(".text"),
+        section(".rodata"),
+        section(".vector_table") + section(".text") + section(".rodata") + section(".data"),
+        section(".data"),
+        section(".bss"),
+        section(".data") + section(".bss"),
     );
     for function in functions.iter().filter(|f| f.size >= 64) {
         eprintln!("  {:>7}  {}", function.size, function.name);

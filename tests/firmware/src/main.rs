@@ -1,11 +1,11 @@
 //! softfem on a Cortex-M4F: the firmware check.
 //!
 //! Runs the workload of `scenario.rs` (SVDs of fixed matrices, forces and energies of every
-//! model on a small box, explicit and implicit steps of a heapless body dropped on the ground)
-//! in both precisions on QEMU's `mps2-an386` board, compares every result with the values the
-//! host computed from the same source (`$OUT_DIR/expected.rs`, bit for bit), measures
-//! instructions and stack, prints a report over semihosting and exits with status 0 only if
-//! every record matched.
+//! model on a small box, explicit, relaxation, Newton and VBD steps of a heapless body dropped
+//! on the ground) in both precisions on QEMU's `mps2-an386` board, compares every result with
+//! the values the host computed from the same source (`$OUT_DIR/expected.rs`, bit for bit),
+//! measures instructions and stack, prints a report over semihosting and exits with status 0
+//! only if every record matched.
 //!
 //! Panic-freedom is checked at link time: the panic handler calls a function that is defined
 //! nowhere, so the release build links only if the optimiser removed every panic path from
@@ -13,9 +13,11 @@
 //! link: build with `--release`.) Nothing here formats through `core::fmt`, whose float
 //! printing keeps panic paths of its own.
 //!
-//! Instructions are counted with SysTick on the processor clock: QEMU run with `-icount
-//! shift=0` advances its virtual clock 1 ns per instruction, so the 25 MHz SysTick ticks once
-//! per 40 instructions. The ratio is calibrated at start-up on a loop of known length.
+//! Instructions are counted with the board's first CMSDK APB timer, a 32-bit down counter on
+//! the 25 MHz peripheral clock: QEMU run with `-icount shift=0` advances its virtual clock 1 ns
+//! per instruction, so the timer ticks once per 40 instructions. The ratio is calibrated at
+//! start-up on a loop of known length. (SysTick, the core's own timer, has 24 bits: it wraps
+//! after 671 million instructions, less than one f64 Newton or VBD step.)
 #![no_std]
 #![no_main]
 
@@ -25,8 +27,6 @@ use core::arch::asm;
 use core::hint::black_box;
 use core::panic::PanicInfo;
 
-use cortex_m::peripheral::SYST;
-use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::debug;
 
@@ -200,22 +200,38 @@ fn say(text: &str) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Instruction counting (SysTick under -icount) and stack high-water marks (painting).
+// Instruction counting (an APB timer under -icount) and stack high-water marks (painting).
 // ---------------------------------------------------------------------------------------------
 
-/// SysTick's largest reload: the counter counts down from here and wraps every 2^24 ticks.
-const SYSTICK_RANGE: u32 = 1 << 24;
+/// The MPS2 board's APB timer 0 (Arm's CMSDK timer): control, current value and reload
+/// registers. It counts down on the 25 MHz peripheral clock and wraps every 2^32 ticks.
+const TIMER0_CTRL: *mut u32 = 0x4000_0000 as *mut u32;
+const TIMER0_VALUE: *mut u32 = 0x4000_0004 as *mut u32;
+const TIMER0_RELOAD: *mut u32 = 0x4000_0008 as *mut u32;
 
-/// Ticks since an arbitrary origin, modulo 2^24 (SysTick counts down).
-#[inline(always)]
-fn ticks() -> u32 {
-    (SYSTICK_RANGE - 1) - SYST::get_current()
+/// Starts timer 0 counting down from its largest value, without interrupts.
+fn start_timer() {
+    // SAFETY: the timer's registers on this board (mps2-an386 memory map); nothing else uses
+    // the timer, and these writes have no effect but to configure it.
+    unsafe {
+        TIMER0_CTRL.write_volatile(0);
+        TIMER0_RELOAD.write_volatile(u32::MAX);
+        TIMER0_VALUE.write_volatile(u32::MAX);
+        TIMER0_CTRL.write_volatile(1);
+    }
 }
 
-/// Ticks between two readings, assuming fewer than 2^24 of them (checked by the caller).
+/// Ticks since the timer started, modulo 2^32 (the timer counts down).
+#[inline(always)]
+fn ticks() -> u32 {
+    // SAFETY: reading the timer's current value has no side effect.
+    u32::MAX - unsafe { TIMER0_VALUE.read_volatile() }
+}
+
+/// Ticks between two readings, assuming fewer than 2^32 of them (checked by the caller).
 #[inline(always)]
 fn elapsed(start: u32, end: u32) -> u32 {
-    end.wrapping_sub(start) & (SYSTICK_RANGE - 1)
+    end.wrapping_sub(start)
 }
 
 /// The iterations of the calibration loop: two instructions each.
@@ -276,9 +292,9 @@ struct Section {
     max_stack: usize,
 }
 
-const SECTIONS: usize = 40;
+const SECTIONS: usize = 48;
 
-/// The firmware's [`Meter`]: SysTick ticks and painted-stack high-water marks per section.
+/// The firmware's [`Meter`]: timer ticks and painted-stack high-water marks per section.
 struct FirmwareMeter {
     sections: [Section; SECTIONS],
     len: usize,
@@ -379,8 +395,8 @@ impl FirmwareMeter {
 impl Meter for FirmwareMeter {
     fn measure<R>(&mut self, name: &'static str, work: impl FnOnce() -> R) -> R {
         let (result, spent, stack) = self.run(work);
-        // A call this long may have wrapped the 24-bit counter more than once.
-        let reliable = spent < SYSTICK_RANGE / 2 && stack != usize::MAX;
+        // A call this long may have wrapped the 32-bit counter more than once.
+        let reliable = spent < u32::MAX / 2 && stack != usize::MAX;
         match self.section(name) {
             Some(section) if reliable => {
                 section.calls += 1;
@@ -410,6 +426,8 @@ impl Meter for FirmwareMeter {
 
 static mut BODY_F32: single::DropBody = single::DropBody::EMPTY;
 static mut BODY_F64: double::DropBody = double::DropBody::EMPTY;
+static mut DESCENT_F32: single::DescentScratch = single::DescentScratch::EMPTY;
+static mut DESCENT_F64: double::DescentScratch = double::DescentScratch::EMPTY;
 static mut RECORDS: Records = Records::new();
 
 /// Compares the records with [`EXPECTED`], one line each; returns the number of mismatches.
@@ -531,6 +549,41 @@ fn report_ram<Real, Vec3, TetRest>(precision: &str, body_bytes: usize) {
         .emit();
 }
 
+/// Prints the scratch RAM of Newton's method and of Vertex Block Descent per vertex and per
+/// tetrahedron, from softfem's length functions (the same in both precisions) and the sizes of
+/// the precision's `Vec3`, `Mat3` and `TetHessian`.
+fn report_descent_ram<Vec3, Mat3, TetHessian>(precision: &str, descent_bytes: usize) {
+    use core::mem::size_of;
+    use softfem::step::{newton_scratch_len, vbd_index_scratch_len, vbd_scratch_len};
+    let vector = size_of::<Vec3>() as u64;
+    let index = size_of::<u32>() as u64;
+    let per_vertex = newton_scratch_len(1, 0);
+    let newton_vertex =
+        per_vertex.vectors as u64 * vector + per_vertex.blocks as u64 * size_of::<Mat3>() as u64;
+    let newton_tet = newton_scratch_len(0, 1).hessians as u64 * size_of::<TetHessian>() as u64;
+    let base = vbd_index_scratch_len(0, 0) as u64;
+    let vbd_vertex =
+        vbd_scratch_len(1) as u64 * vector + (vbd_index_scratch_len(1, 0) as u64 - base) * index;
+    let vbd_tet = (vbd_index_scratch_len(0, 1) as u64 - base) * index;
+    let mut line = Line::new();
+    line.str("ram ")
+        .str(precision)
+        .str(": Newton scratch ")
+        .uint(newton_vertex);
+    line.str(" B per vertex + ")
+        .uint(newton_tet)
+        .str(" B per tet (TetHessian); VBD scratch ");
+    line.uint(vbd_vertex)
+        .str(" B per vertex + ")
+        .uint(vbd_tet)
+        .str(" B per tet + ");
+    line.uint(base * index)
+        .str(" B; drop body's static descent scratch ")
+        .uint(descent_bytes as u64)
+        .str(" B")
+        .emit();
+}
+
 /// Measures `libm::sqrtf`, the software square root the f32 math shim used to call.
 fn report_libm_sqrt(meter: &mut FirmwareMeter) {
     let mut x = black_box(1.5f32);
@@ -549,16 +602,7 @@ fn report_libm_sqrt(meter: &mut FirmwareMeter) {
 #[entry]
 fn main() -> ! {
     say("softfem firmware check: Cortex-M4F (thumbv7em-none-eabihf) on QEMU mps2-an386");
-    let Some(peripherals) = cortex_m::Peripherals::take() else {
-        say("FAIL: core peripherals unavailable");
-        debug::exit(debug::EXIT_FAILURE);
-        halt();
-    };
-    let mut systick = peripherals.SYST;
-    systick.set_clock_source(SystClkSource::Core);
-    systick.set_reload(SYSTICK_RANGE - 1);
-    systick.clear_current();
-    systick.enable_counter();
+    start_timer();
 
     let mut meter = FirmwareMeter::new();
     meter.calibrate();
@@ -567,7 +611,7 @@ fn main() -> ! {
     line.str("calibration: ")
         .uint(instructions)
         .str(" instructions = ");
-    line.uint(calibration_ticks).str(" SysTick ticks (");
+    line.uint(calibration_ticks).str(" timer ticks (");
     line.fixed(instructions, calibration_ticks, 2)
         .str(" instructions/tick), overhead ");
     line.uint(u64::from(meter.overhead)).str(" ticks").emit();
@@ -576,15 +620,17 @@ fn main() -> ! {
     // these are their only references. (Through raw pointers, as the 2024 edition requires for
     // `static mut`; hence the lint.)
     #[allow(clippy::deref_addrof)]
-    let (records, body32, body64) = unsafe {
+    let (records, body32, body64, descent32, descent64) = unsafe {
         (
             &mut *(&raw mut RECORDS),
             &mut *(&raw mut BODY_F32),
             &mut *(&raw mut BODY_F64),
+            &mut *(&raw mut DESCENT_F32),
+            &mut *(&raw mut DESCENT_F64),
         )
     };
-    single::run(&mut meter, records, body32);
-    double::run(&mut meter, records, body64);
+    single::run(&mut meter, records, body32, descent32);
+    double::run(&mut meter, records, body64, descent64);
     report_libm_sqrt(&mut meter);
 
     let failed = compare(records);
@@ -597,6 +643,15 @@ fn main() -> ! {
         "f64",
         core::mem::size_of::<double::DropBody>(),
     );
+    report_descent_ram::<softfem::glam::Vec3, softfem::glam::Mat3, softfem::element::TetHessian>(
+        "f32",
+        core::mem::size_of::<single::DescentScratch>(),
+    );
+    report_descent_ram::<
+        softfem::glam::DVec3,
+        softfem::glam::DMat3,
+        softfem::f64::element::TetHessian,
+    >("f64", core::mem::size_of::<double::DescentScratch>());
     if meter.lost > 0 {
         Line::new()
             .str("note: ")

@@ -8,7 +8,8 @@
 //! the host's does nothing, the firmware's counts instructions and stack.
 //!
 //! Everything here is `no_std` and allocation-free: the drop body lives in a caller-owned
-//! [`DropBody`] of each precision (a static in the firmware).
+//! `DropBody` of each precision and the descent solvers' scratch in a `DescentScratch` (statics
+//! in the firmware), Newton's cached element Hessians on the stack.
 
 /// The most records one run produces (both precisions).
 pub const MAX_RECORDS: usize = 128;
@@ -214,14 +215,15 @@ macro_rules! precision {
         pub mod $module {
             use core::hint::black_box;
 
-            use $($softfem)::+::element::TetRest;
+            use $($softfem)::+::element::{TetHessian, TetRest};
             use $($softfem)::+::generate::{BoxSplit, fill_box};
             use $($softfem)::+::MeshError;
             use $($softfem)::+::material::{NeoHookean, StVK, StableNeoHookean};
             use $($softfem)::+::mesh::TetMesh;
             use $($softfem)::+::step::{
-                ExplicitScratch, ExplicitSettings, Ground, RelaxScratch, RelaxSettings,
-                TetElastic, stable_time_step,
+                ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonScratchLen,
+                NewtonSettings, RelaxScratch, RelaxSettings, TetElastic, VbdScratch, VbdSettings,
+                newton_scratch_len, stable_time_step, vbd_index_scratch_len, vbd_scratch_len,
             };
             use $($softfem)::+::svd::Svd3;
             use $($softfem)::+::types::{Mat3, Real, Vec3};
@@ -237,8 +239,9 @@ macro_rules! precision {
                 use $($softfem)::+::material::{NeoHookean, StVK, StableNeoHookean};
                 use $($softfem)::+::mesh::TetMesh;
                 use $($softfem)::+::step::{
-                    ExplicitReport, ExplicitScratch, ExplicitSettings, RelaxReport, RelaxScratch,
-                    RelaxSettings, TetElastic,
+                    ExplicitReport, ExplicitScratch, ExplicitSettings, NewtonReport,
+                    NewtonScratch, NewtonSettings, RelaxReport, RelaxScratch, RelaxSettings,
+                    TetElastic, VbdReport, VbdScratch, VbdSettings,
                 };
                 use $($softfem)::+::svd::Svd3;
                 use $($softfem)::+::types::{Mat3, Real, Vec3};
@@ -298,6 +301,34 @@ macro_rules! precision {
                 ) -> Result<RelaxReport, StepError> {
                     $($softfem)::+::step::relax_step(model, masses, &[], settings, positions, velocities, scratch)
                 }
+
+                /// [`newton_step`](fn@$($softfem)::+::step::newton_step) of a stable
+                /// neo-Hookean body.
+                #[inline(never)]
+                pub fn newton_step(
+                    model: &TetElastic<'_, StableNeoHookean>,
+                    masses: &[Real],
+                    settings: &NewtonSettings<Vec3>,
+                    positions: &mut [Vec3],
+                    velocities: &mut [Vec3],
+                    scratch: &mut NewtonScratch<'_>,
+                ) -> Result<NewtonReport, StepError> {
+                    $($softfem)::+::step::newton_step(model, masses, &[], settings, positions, velocities, scratch)
+                }
+
+                /// [`vbd_step`](fn@$($softfem)::+::step::vbd_step) of a stable neo-Hookean
+                /// body.
+                #[inline(never)]
+                pub fn vbd_step(
+                    model: &TetElastic<'_, StableNeoHookean>,
+                    masses: &[Real],
+                    settings: &VbdSettings,
+                    positions: &mut [Vec3],
+                    velocities: &mut [Vec3],
+                    scratch: &mut VbdScratch<'_>,
+                ) -> Result<VbdReport, StepError> {
+                    $($softfem)::+::step::vbd_step(model, masses, &[], settings, positions, velocities, scratch)
+                }
             }
 
             /// Everything one body needs, with capacity fixed at compile time: `V` vertices,
@@ -344,13 +375,54 @@ macro_rules! precision {
 
             /// Cells per side of the dropped cube.
             pub const DROP_CELLS: usize = 3;
-            /// The dropped cube: 4^3 vertices, 27 * 6 tetrahedra.
-            pub type DropBody = Body<64, 162>;
+            /// Vertices of the dropped cube: 4^3.
+            pub const DROP_VERTICES: usize = (DROP_CELLS + 1) * (DROP_CELLS + 1) * (DROP_CELLS + 1);
+            /// Tetrahedra of the dropped cube: 27 * 6.
+            pub const DROP_TETS: usize = DROP_CELLS * DROP_CELLS * DROP_CELLS * 6;
+            /// The dropped cube.
+            pub type DropBody = Body<DROP_VERTICES, DROP_TETS>;
+
+            /// The buffer lengths of Newton's method for the dropped cube.
+            const NEWTON_LEN: NewtonScratchLen = newton_scratch_len(DROP_VERTICES, DROP_TETS);
+
+            /// The scratch of the two descent solvers for the dropped cube, sized by softfem's
+            /// `newton_scratch_len`, `vbd_scratch_len` and `vbd_index_scratch_len` (const
+            /// fns). The [`TetHessian`]s Newton's method caches are not here: `TetHessian` has no
+            /// const value to initialise a static with, so they live on the stack of
+            /// [`newton_drop`] (`NEWTON_LEN.hessians` of them).
+            pub struct DescentScratch {
+                /// Newton: vectors (start positions, gradients, trial point, direction, CG).
+                pub newton_vectors: [Vec3; NEWTON_LEN.vectors],
+                /// Newton: the inverted block-Jacobi preconditioner blocks.
+                pub newton_blocks: [Mat3; NEWTON_LEN.blocks],
+                /// VBD: vectors (start, gradient, the iterates of the last two sweeps, sweep).
+                pub vbd_vectors: [Vec3; vbd_scratch_len(DROP_VERTICES)],
+                /// VBD: vertex adjacency, colours and vertex order.
+                pub vbd_indices: [u32; vbd_index_scratch_len(DROP_VERTICES, DROP_TETS)],
+            }
+
+            impl DescentScratch {
+                /// All zeros (the solvers never read what they did not write).
+                pub const EMPTY: Self = DescentScratch {
+                    newton_vectors: [Vec3::ZERO; NEWTON_LEN.vectors],
+                    newton_blocks: [Mat3::ZERO; NEWTON_LEN.blocks],
+                    vbd_vectors: [Vec3::ZERO; vbd_scratch_len(DROP_VERTICES)],
+                    vbd_indices: [0; vbd_index_scratch_len(DROP_VERTICES, DROP_TETS)],
+                };
+            }
 
             /// Explicit steps of the drop.
             pub const EXPLICIT_STEPS: u32 = 300;
             /// Implicit (relaxation) steps of the drop.
             pub const RELAX_STEPS: u32 = 100;
+            /// Implicit steps of each descent solver (Newton, VBD) in the drop.
+            pub const DESCENT_STEPS: u32 = 20;
+            /// The time step of the descent solvers' drop (s).
+            pub const DESCENT_DT: Real = 1.0 / 60.0;
+            /// The budget of sweeps of a VBD step in the drop (a fixed budget, as a game would
+            /// set it: a sweep of this 64-vertex body costs about 33 million instructions in f64
+            /// on the Cortex-M4F).
+            pub const VBD_SWEEPS: u32 = 10;
 
             fn push(records: &mut Records, name: &'static str, digest: Digest, value: Real) {
                 records.push(Record {
@@ -585,7 +657,7 @@ macro_rules! precision {
 
             /// A 6 cm jelly cube (stable neo-Hookean, E = 50 kPa) dropped from 3 cm onto the
             /// ground y = 0, stepped explicitly and, from the same start, implicitly.
-            fn drop(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody) {
+            fn drop(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody, descent: &mut DescentScratch) {
                 let side = 0.06;
                 let lift = Vec3::new(0.0, 0.03, 0.0);
                 let filled = fill_box(lift, lift + Vec3::splat(side), DROP_CELLS, DROP_CELLS, DROP_CELLS, BoxSplit::Kuhn6, &mut body.rest, &mut body.tets);
@@ -615,7 +687,7 @@ macro_rules! precision {
                 // Explicit: half the stable step, light damping.
                 let settings = ExplicitSettings::new(0.5 * dt).with_gravity(gravity).with_damping(2.0).with_ground(ground);
                 body.positions = body.rest;
-                body.velocities = [Vec3::ZERO; 64];
+                body.velocities = [Vec3::ZERO; DROP_VERTICES];
                 let mut scratch = ExplicitScratch::new(body.explicit_scratch.as_flattened_mut());
                 let mut failures = 0u64;
                 let mut contacts = 0u64;
@@ -625,7 +697,7 @@ macro_rules! precision {
                     let report = meter.measure(concat!($prefix, " step_explicit"), || {
                         pieces::step_explicit(&model, &body.masses, &settings, positions, velocities, &mut scratch)
                     });
-                    meter.units(concat!($prefix, " step_explicit"), "vertex step", 64);
+                    meter.units(concat!($prefix, " step_explicit"), "vertex step", DROP_VERTICES as u64);
                     match report {
                         Ok(report) => {
                             contacts += report.ground_contacts as u64;
@@ -654,7 +726,7 @@ macro_rules! precision {
                     .with_tolerance(1e-3, 100)
                     .with_chebyshev(0.99, 2.0, 0);
                 body.positions = body.rest;
-                body.velocities = [Vec3::ZERO; 64];
+                body.velocities = [Vec3::ZERO; DROP_VERTICES];
                 let mut scratch = RelaxScratch::new(body.relax_vectors.as_flattened_mut(), &mut body.relax_scalars);
                 let mut digest = Digest::new();
                 let mut iterations = 0u64;
@@ -666,7 +738,7 @@ macro_rules! precision {
                     match report {
                         Ok(report) => {
                             iterations += u64::from(report.iterations);
-                            meter.units(concat!($prefix, " relax_step"), "vertex iteration", 64 * u64::from(report.iterations));
+                            meter.units(concat!($prefix, " relax_step"), "vertex iteration", DROP_VERTICES as u64 * u64::from(report.iterations));
                             digest.u64(u64::from(report.iterations));
                             digest.u64(u64::from(report.energy_evaluations));
                             digest.u64(u64::from(report.converged));
@@ -688,13 +760,153 @@ macro_rules! precision {
                 let mut count = Digest::new();
                 count.u64(iterations);
                 push(records, concat!($prefix, " relax drop, iterations"), count, iterations as Real);
+
+                // Implicit Euler at 60 Hz from the same start by Newton's method and by Vertex
+                // Block Descent.
+                let state = (&mut body.positions, &mut body.velocities);
+                newton_drop(meter, records, &model, &body.masses, &body.rest, (&mut *state.0, &mut *state.1), descent, gravity, ground);
+                vbd_drop(meter, records, &model, &body.masses, &body.rest, state, descent, gravity, ground);
+            }
+
+            /// Digests of one implicit drop's state after step 10 and 20, and its reports.
+            struct DescentRecords {
+                digest: Digest,
+                labels: [&'static str; 2],
+            }
+
+            impl DescentRecords {
+                /// Mixes in the state after `step` and pushes it at steps 10 and 20.
+                fn after_step(&mut self, records: &mut Records, step: u32, positions: &[Vec3; DROP_VERTICES], velocities: &[Vec3; DROP_VERTICES]) {
+                    let label = match step {
+                        10 => self.labels[0],
+                        20 => self.labels[1],
+                        _ => return,
+                    };
+                    let state = state_digest(positions, velocities);
+                    self.digest.u64(state.finish());
+                    push(records, label, self.digest, lowest(positions));
+                }
+            }
+
+            /// [`DESCENT_STEPS`] Newton steps of the drop from rest.
+            #[allow(clippy::too_many_arguments)]
+            fn newton_drop(
+                meter: &mut impl Meter,
+                records: &mut Records,
+                model: &TetElastic<'_, StableNeoHookean>,
+                masses: &[Real; DROP_VERTICES],
+                rest: &[Vec3; DROP_VERTICES],
+                (positions, velocities): (&mut [Vec3; DROP_VERTICES], &mut [Vec3; DROP_VERTICES]),
+                descent: &mut DescentScratch,
+                gravity: Vec3,
+                ground: Ground<Vec3>,
+            ) {
+                let settings = NewtonSettings::new(DESCENT_DT)
+                    .with_gravity(gravity)
+                    .with_ground(ground)
+                    .with_tolerance(1e-3, 20);
+                *positions = *rest;
+                *velocities = [Vec3::ZERO; DROP_VERTICES];
+                let mut hessians = [TetHessian::default(); NEWTON_LEN.hessians];
+                let mut scratch = NewtonScratch::new(&mut descent.newton_vectors, &mut descent.newton_blocks, &mut hessians);
+                let mut out = DescentRecords {
+                    digest: Digest::new(),
+                    labels: [
+                        concat!($prefix, " newton drop, step 10 (lowest y)"),
+                        concat!($prefix, " newton drop, step 20 (lowest y)"),
+                    ],
+                };
+                let (mut newton, mut cg) = (0u64, 0u64);
+                for step in 1..=DESCENT_STEPS {
+                    let report = meter.measure(concat!($prefix, " newton_step"), || {
+                        pieces::newton_step(model, masses, &settings, &mut *positions, &mut *velocities, &mut scratch)
+                    });
+                    let digest = &mut out.digest;
+                    match report {
+                        Ok(report) => {
+                            newton += u64::from(report.newton_iterations);
+                            cg += u64::from(report.cg_iterations);
+                            meter.units(concat!($prefix, " newton_step"), "vertex Newton iteration", DROP_VERTICES as u64 * u64::from(report.newton_iterations));
+                            for count in [report.newton_iterations, report.cg_iterations, report.energy_evaluations, report.backtracks] {
+                                digest.u64(u64::from(count));
+                            }
+                            digest.u64(u64::from(report.converged) | u64::from(report.stagnated) << 1);
+                            for value in [report.initial_residual, report.residual, report.target, report.rounding_floor, report.phi] {
+                                real(digest, value);
+                            }
+                        }
+                        Err(_) => digest.u64(u64::MAX),
+                    }
+                    out.after_step(records, step, positions, velocities);
+                }
+                let mut count = Digest::new();
+                count.u64(newton);
+                push(records, concat!($prefix, " newton drop, Newton iterations"), count, newton as Real);
+                let mut count = Digest::new();
+                count.u64(cg);
+                push(records, concat!($prefix, " newton drop, CG iterations"), count, cg as Real);
+            }
+
+            /// [`DESCENT_STEPS`] Vertex Block Descent steps of the drop from rest.
+            #[allow(clippy::too_many_arguments)]
+            fn vbd_drop(
+                meter: &mut impl Meter,
+                records: &mut Records,
+                model: &TetElastic<'_, StableNeoHookean>,
+                masses: &[Real; DROP_VERTICES],
+                rest: &[Vec3; DROP_VERTICES],
+                (positions, velocities): (&mut [Vec3; DROP_VERTICES], &mut [Vec3; DROP_VERTICES]),
+                descent: &mut DescentScratch,
+                gravity: Vec3,
+                ground: Ground<Vec3>,
+            ) {
+                let settings = VbdSettings::new(DESCENT_DT)
+                    .with_gravity(gravity)
+                    .with_ground(ground)
+                    .with_tolerance(1e-3, VBD_SWEEPS)
+                    .with_estimated_chebyshev(4);
+                *positions = *rest;
+                *velocities = [Vec3::ZERO; DROP_VERTICES];
+                let mut scratch = VbdScratch::new(&mut descent.vbd_vectors, &mut descent.vbd_indices);
+                let mut out = DescentRecords {
+                    digest: Digest::new(),
+                    labels: [
+                        concat!($prefix, " vbd drop, step 10 (lowest y)"),
+                        concat!($prefix, " vbd drop, step 20 (lowest y)"),
+                    ],
+                };
+                let mut sweeps = 0u64;
+                for step in 1..=DESCENT_STEPS {
+                    let report = meter.measure(concat!($prefix, " vbd_step"), || {
+                        pieces::vbd_step(model, masses, &settings, &mut *positions, &mut *velocities, &mut scratch)
+                    });
+                    let digest = &mut out.digest;
+                    match report {
+                        Ok(report) => {
+                            sweeps += u64::from(report.iterations);
+                            meter.units(concat!($prefix, " vbd_step"), "vertex sweep", DROP_VERTICES as u64 * u64::from(report.iterations));
+                            for count in [report.iterations, report.energy_evaluations, report.colours, report.restarts, report.backtracks, report.skipped, report.projected, report.redone_sweeps] {
+                                digest.u64(u64::from(count));
+                            }
+                            digest.u64(u64::from(report.converged));
+                            for value in [report.initial_residual, report.final_residual, report.phi, report.rho] {
+                                real(digest, value);
+                            }
+                        }
+                        Err(_) => digest.u64(u64::MAX),
+                    }
+                    out.after_step(records, step, positions, velocities);
+                }
+                let mut count = Digest::new();
+                count.u64(sweeps);
+                push(records, concat!($prefix, " vbd drop, sweeps"), count, sweeps as Real);
             }
 
             /// The whole workload in this precision.
-            pub fn run(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody) {
+            pub fn run(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody, descent: &mut DescentScratch) {
                 svds(meter, records);
                 forces(meter, records);
-                drop(meter, records, body);
+                drop(meter, records, body, descent);
             }
         }
     };
