@@ -5,8 +5,7 @@
 //! `M^-1 H` (`docs/math.md` section 4). The proven bound majorises `omega_max` element by element,
 //! which is safe but loose: on the Kuhn boxes of [`generate`](crate::generate) it allows only
 //! about 0.6 of the true limit (measured in `tests/frequency.rs`: 0.632 on one cube, 0.599 on a
-//! 3x2x2 bar pinned at one end; 0.59 on the larger boxes, `0.397` against
-//! `0.671 h / c_d`). Here `omega_max^2` is computed
+//! 3x2x2 bar pinned at one end). Here `omega_max^2` is computed
 //! by power iteration on `M^-1 H` (pinned degrees of freedom removed) with the projected Hessian
 //! `H` at the given positions, through [`ElasticHessian`] products (`docs/math.md` section 6):
 //! `v <- M^-1 H v / |M^-1 H v|_M`, `omega^2 = v.Hv / v.Mv` (the Rayleigh quotient in the
