@@ -22,7 +22,7 @@ use crate::error::{Buffer, ElementError, MeshError};
 
 mod grouped;
 mod hessian;
-mod partition;
+pub mod partition;
 mod tet;
 mod triangle;
 
