@@ -377,6 +377,18 @@ macro_rules! adversarial_tests {
                         let mut f = vec![Vec3::ZERO; rest.len()];
                         same(mesh.add_elastic_forces(&stvk(), &x, &mut f), Err(MeshError::DeformationRange { element: first_with_last }))
                     }))),
+                    ("D9 a modulus with no headroom (limit below 1): even a body collapsed to a point (F = 0) is refused", Box::new(|| with_mesh(|mesh, rest, _| {
+                        // lambda + mu = 2 Real::MAX / 3 overflows the limit's formula: the
+                        // limit is below 1, and F = 0 (energy density of the order of the
+                        // modulus, times a volume) must not come back as an infinite energy.
+                        let huge = StVK::from_lame(Real::MAX / 3.0, Real::MAX / 3.0).map_err(|e| format!("{e:?}"))?;
+                        ensure(huge.deformation_limit() < 1.0, || format!("limit {}", huge.deformation_limit()))?;
+                        let collapsed = vec![Vec3::ZERO; rest.len()];
+                        let mut energies = vec![1.0; mesh.element_count()];
+                        same(mesh.element_energies(&huge, &collapsed, &mut energies), Err(MeshError::DeformationRange { element: 0 }))?;
+                        ensure(energies.iter().all(|&e| e == 1.0), || "energies changed".into())?;
+                        same(mesh.elastic_energy(&huge, rest).err(), Some(MeshError::DeformationRange { element: 0 }))
+                    }))),
                     ("D9 at the documented limit, every entry +-limit: energy and stress finite", Box::new(|| {
                         let mut worst = Vec::new();
                         for (name, energy, stress, limit) in [

@@ -833,6 +833,8 @@ impl ElementScan {
             let (ds, dm_inv) = edge_and_inverse_norms(&x0, &x);
             // F as this precision forms it is off by about 8 eps |Ds| |Dm^-1| per entry.
             let slack = 8.0 * eps * ds * dm_inv + 4.0 * eps * largest;
+            // The kernels compare max(1, largest entry) with the limit.
+            let largest = largest.max(1.0);
             if largest - slack > limit || !largest.is_finite() {
                 scan.may_name.push(element);
                 scan.must_fail = true;
@@ -1070,11 +1072,9 @@ fn tet_kernels<M: Material>(
         &before,
         &real_bits(&energies),
         all_finite,
-        // KNOWN DEFECT (open, issue 16): within StVK's deformation limit an element's energy
-        // can still overflow in f32 (kept input
-        // fuzz/known/mesh_kernels/stvk-element-energy-overflows-within-the-deformation-limit-f32).
-        // Until the limit covers the energy, only the moderate range promises finite energies.
-        finiteness.moderate,
+        // Within a model's deformation limit each element's energy is finite on a body of
+        // physical size.
+        finiteness.moderate || (finiteness.within_limit && finiteness.rest_physical),
     );
     if let (Ok(total), Ok(())) = (energy, result) {
         // "summed element by element in order".

@@ -223,7 +223,8 @@ pub trait Material: Copy + Debug {
     /// model's energy density and stresses (direct, principal and clamped) are guaranteed finite
     /// in this precision, with room for the element-level products: below it they stay under
     /// `Real::MAX / 2^24` in magnitude (see [`deformation_limit_for`]). The mesh kernels refuse
-    /// deformations beyond it with
+    /// an element whose `max(1, max |F_ij|)` exceeds it (so a limit below 1 refuses every
+    /// deformation, `F = 0` included) with
     /// [`MeshError::DeformationRange`](crate::MeshError::DeformationRange) instead of returning
     /// infinite or NaN forces. The provided method returns infinity: no limit is known, and a
     /// custom model's own overflow is not detected.

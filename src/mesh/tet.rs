@@ -406,7 +406,9 @@ impl<'a> TetMesh<'a> {
         let (low, high) = positions
             .iter()
             .fold((first, first), |(low, high), &p| (low.min(p), high.max(p)));
-        if (high - low).max_element() * self.gradient_gain <= limit {
+        // A limit below 1 refuses every element (the bound behind it is on `max(1, |F_ij|)`),
+        // which only the element-by-element path reports.
+        if limit >= 1.0 && (high - low).max_element() * self.gradient_gain <= limit {
             return Ok(());
         }
         self.check_each_deformation(limit, positions)
@@ -417,9 +419,12 @@ impl<'a> TetMesh<'a> {
     #[cold]
     #[inline(never)]
     fn check_each_deformation(&self, limit: Real, positions: &[Vec3]) -> Result<(), MeshError> {
+        // `max(1, largest entry)`: the energy bound behind the limit grows like
+        // `max(1, |F_ij|)^power`, so that a limit below 1 (a modulus with no headroom) refuses
+        // even `F = 0`, whose energy density is of the order of the modulus.
         let within = |f: Mat3| {
             let largest = f.x_axis.abs().max(f.y_axis.abs()).max(f.z_axis.abs());
-            largest.max_element() <= limit && f.is_finite()
+            largest.max_element().max(1.0) <= limit && f.is_finite()
         };
         let outside = self.tets.iter().zip(self.rest).position(|(corners, rest)| {
             !within(rest.deformation_gradient(gather(positions, corners)))

@@ -45,7 +45,7 @@
 //! | ground normal, offset | any finite non-zero vector (any length), finite offset | [`StepError::Ground`] |
 //! | restitution / friction | `[0, 1]` / finite `>= 0` | [`StepError::Restitution`] / [`StepError::Friction`] |
 //! | clamp threshold ([`TetClamped`]) | `(0, 1]` | [`MeshError::ClampThreshold`] |
-//! | deformation (tet kernels) | largest entry of each `F` at most [`Material::deformation_limit`] | [`MeshError::DeformationRange`] |
+//! | deformation (tet kernels) | `max(1, largest entry)` of each `F` at most [`Material::deformation_limit`] (a limit below 1 refuses every `F`) | [`MeshError::DeformationRange`] |
 //! | density ([`TetMesh::lumped_masses`]) | finite `> 0`, each element's share `density V / 4` normal and `<= Real::MAX / elements` | [`MeshError::Density`], [`MeshError::MassRange`] |
 //! | stiffness bounds ([`stable_time_step`]) | finite `k_i`, finite `k_i / m_i` | [`StepError::Stiffness`] |
 //!
