@@ -19,8 +19,8 @@
 //!    with compiler-builtins and libm counted apart.
 //!
 //! Needs the `thumbv7em-none-eabihf` target (`rustup target add thumbv7em-none-eabihf`) and
-//! `qemu-system-arm` with the `mps2-an386` board (Debian: `sudo apt-get install
-//! --no-install-recommends qemu-system-arm`), plus rustup's `llvm-tools` for the code-size table;
+//! `qemu-system-arm` with the `mps2-an386` board (the Debian and Ubuntu package
+//! `qemu-system-arm`, without its recommended packages; the README gives the command), plus rustup's `llvm-tools` for the code-size table;
 //! `.ci/run` installs all three. The test never installs anything: without one of them it prints
 //! a framed notice saying what is missing, the command that installs it and that the firmware
 //! check did not run, and passes, except under `CI=true`, where a missing tool fails it.
@@ -135,13 +135,13 @@ fn missing_tools() -> Vec<MissingTool> {
     match board {
         None => missing.push(MissingTool {
             what: format!("the emulator `{qemu}` (it did not run)"),
-            install: "sudo apt-get install --no-install-recommends qemu-system-arm   (Debian, Ubuntu)",
+            install: "the package qemu-system-arm, without recommended packages (Debian, Ubuntu: the README, section 'The two commands' gives the command)",
             optional: false,
         }),
         Some(boards) if !boards.lines().any(|l| l.starts_with("mps2-an386 ")) => {
             missing.push(MissingTool {
                 what: format!("the mps2-an386 board in `{qemu}` (too old a QEMU?)"),
-                install: "sudo apt-get install --no-install-recommends qemu-system-arm   (Debian, Ubuntu)",
+                install: "the package qemu-system-arm, without recommended packages (Debian, Ubuntu: the README, section 'The two commands' gives the command)",
                 optional: false,
             })
         }
@@ -169,7 +169,7 @@ fn shout(text: &str) {
 fn not_run_notice(headline: &str, missing: &[MissingTool]) -> String {
     let rule = "=".repeat(78);
     let mut text = format!(
-        "\n{rule}\n{headline}\nMissing on this machine, with the command that installs it:\n"
+        "\n{rule}\n{headline}\nMissing on this machine, with how to install it:\n"
     );
     for tool in missing {
         writeln!(text, "  - {}\n      {}", tool.what, tool.install).unwrap();
