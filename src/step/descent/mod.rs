@@ -54,8 +54,6 @@ pub(super) struct Iterate<'a, V> {
     pub gradient: &'a [V],
     /// `|grad Phi(x_k)|` projected on the contacts (N).
     pub residual: Real,
-    /// The residual at the initial guess (N).
-    pub initial_residual: Real,
     /// The residual the tolerance asks for (N).
     pub target: Real,
 }
@@ -404,7 +402,6 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
                 x: current,
                 gradient,
                 residual,
-                initial_residual,
                 target,
             };
             let point = TrialPoint {
@@ -444,7 +441,6 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
             x: current,
             gradient,
             residual,
-            initial_residual,
             target,
         };
         let mut slope = rule.search(

@@ -34,6 +34,7 @@ pub(in super::super) struct Newton<'b> {
     reach: Real,
     /// The estimated rounding floor at the last Hessian evaluation (0 before it).
     floor: Real,
+    forcing: Forcing,
 }
 
 impl<'b> Newton<'b> {
@@ -54,7 +55,50 @@ impl<'b> Newton<'b> {
             cg_iterations: 0,
             reach: 0.0,
             floor: 0.0,
+            forcing: Forcing::default(),
         }
+    }
+}
+
+/// The largest forcing term: the first linear solve (and any far from the solution) stops
+/// at half its initial residual.
+const ETA_MAX: Real = 0.5;
+
+/// Eisenstat and Walker's second forcing term ([EW96] in `docs/math.md`, choice 2 with
+/// `gamma = 0.9`, `q = 2`): `eta_k = gamma (|g_k| / |g_(k-1)|)^2`, safeguarded by
+/// `max(eta_k, gamma eta_(k-1)^2)` when that exceeds 0.1 (a sudden drop of the residual is
+/// not trusted at once), at most [`ETA_MAX`], and never below `target / (2 |g_k|)`: no Newton
+/// step needs a linear residual below half the target.
+#[derive(Default)]
+struct Forcing {
+    /// `|g_(k-1)|` and `eta_(k-1)`, after the first solve.
+    last: Option<(Real, Real)>,
+}
+
+impl Forcing {
+    const GAMMA: Real = 0.9;
+
+    /// The forcing term of the linear solve at `at`.
+    fn next(&mut self, at: &Iterate<'_, Vec3>) -> Real {
+        let eta = match self.last {
+            None => ETA_MAX,
+            Some((previous, last_eta)) => {
+                let ratio = at.residual / previous;
+                let eta = Self::GAMMA * ratio * ratio;
+                let safeguard = Self::GAMMA * last_eta * last_eta;
+                if safeguard > 0.1 {
+                    eta.max(safeguard)
+                } else {
+                    eta
+                }
+            }
+        };
+        let eta = eta
+            .min(ETA_MAX)
+            .max(0.5 * at.target / at.residual)
+            .min(ETA_MAX);
+        self.last = Some((at.residual, eta));
+        eta
     }
 }
 
@@ -93,11 +137,7 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
             x: at.x,
             gradient: at.gradient,
         };
-        // The forcing term, never asking the linear solve for more than the Newton step can use:
-        // a linear residual below half the target.
-        let eta = math::sqrt(at.residual / at.initial_residual)
-            .max(0.5 * at.target / at.residual)
-            .min(0.5);
+        let eta = self.forcing.next(at);
         self.cg_iterations += conjugate_gradients(
             model,
             (self.hessians, self.blocks, masses, self.inertia),
@@ -247,10 +287,12 @@ fn conjugate_gradients<F: ElasticHessian>(
         conjugate,
         product,
     } = cg;
-    direction.fill(Vec3::ZERO);
     for (i, (r, &g)) in residual.iter_mut().zip(constraints.gradient).enumerate() {
         *r = constraints.apply(i, -g);
     }
+    let stop = eta * math::sqrt(dot(residual, residual));
+    let mut iterations = 0;
+    direction.fill(Vec3::ZERO);
     let precondition = |r: &[Vec3], z: &mut [Vec3]| {
         for (i, ((z, &r), block)) in z.iter_mut().zip(r).zip(blocks).enumerate() {
             *z = constraints.apply(i, *block * constraints.apply(i, r));
@@ -259,8 +301,6 @@ fn conjugate_gradients<F: ElasticHessian>(
     precondition(residual, preconditioned);
     copy(conjugate, preconditioned);
     let mut rz = dot(residual, preconditioned);
-    let stop = eta * math::sqrt(dot(residual, residual));
-    let mut iterations = 0;
     while iterations < max {
         product.fill(Vec3::ZERO);
         model.add_hessian_product(hessians, conjugate, product)?;
