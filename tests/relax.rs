@@ -12,8 +12,8 @@ macro_rules! relax_tests {
             use $($api)::+::material::StableNeoHookean;
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
-                RelaxScratch, RelaxSettings, TetElastic, relax_quasi_static, relax_scratch_len,
-                relax_step,
+                RelaxScratch, RelaxSettings, TetElastic, gradient_descent_quasi_static,
+                gradient_descent_step, relax_quasi_static, relax_scratch_len, relax_step,
             };
             use $($api)::+::types::{Real, Vec3};
 
@@ -172,6 +172,55 @@ macro_rules! relax_tests {
                         assert_eq!(v[i], Vec3::ZERO);
                     }
                 }
+            }
+
+            #[test]
+            fn gradient_descent_reaches_the_relaxations_equilibrium_on_the_same_loop() {
+                // P = c I instead of the per-vertex bound, otherwise the relaxation's loop: the
+                // same equilibrium (both checked against the force kernel), in more iterations
+                // wherever the bounds differ between vertices (here the clamped end's and the
+                // free tip's vertices have fewer elements).
+                let bar = bar();
+                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
+                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                let material = StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap();
+                let body = TetElastic::new(mesh, material);
+                let n = bar.rest.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let weight = masses.iter().fold(0.0 as Real, |a, &m| a.max(m)) * 9.81;
+                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                let settings = RelaxSettings::new(1.0 / 60.0)
+                    .with_gravity(GRAVITY)
+                    .with_tolerance(TOLERANCE, 50_000)
+                    .with_chebyshev(QUASI_STATIC_RHO, 2.0, 0);
+                let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+                let mut relaxed = bar.rest.clone();
+                let relax = relax_quasi_static(&body, &masses, &bar.pinned, &settings, &mut relaxed, &mut scratch).unwrap();
+                let mut descended = bar.rest.clone();
+                let descent = gradient_descent_quasi_static(&body, &masses, &bar.pinned, &settings, &mut descended, &mut scratch).unwrap();
+                println!("{}: relaxation {relax:?}\ngradient descent {descent:?}", stringify!($precision));
+                assert!(relax.converged && descent.converged, "{descent:?}");
+                assert!(imbalance(&mesh, &material, &descended, &masses, &bar.pinned) < 20.0 * TOLERANCE * weight);
+                let sag = bar.rest.iter().zip(&relaxed).map(|(r, x)| r.y - x.y).fold(0.0, Real::max);
+                let difference = relaxed.iter().zip(&descended).map(|(a, b)| (*a - *b).length()).fold(0.0, Real::max);
+                // Both stop within the tolerance of the load; in f32 that is its floor, 3e-3.
+                assert!(difference < 0.02 * sag, "{difference:e} m against a sag of {sag} m");
+                for (i, pinned) in bar.pinned.iter().enumerate() {
+                    assert!(!pinned || descended[i] == bar.rest[i]);
+                }
+
+                // One implicit Euler step from rest: the same step as the relaxation's.
+                let dynamic = settings.with_tolerance(TOLERANCE.max(1e-4), 5_000).with_chebyshev(DYNAMIC_RHO, 2.0, 0);
+                let (mut x_relax, mut v_relax) = (bar.rest.clone(), vec![Vec3::ZERO; n]);
+                let (mut x_descent, mut v_descent) = (bar.rest.clone(), vec![Vec3::ZERO; n]);
+                let relax = relax_step(&body, &masses, &bar.pinned, &dynamic, &mut x_relax, &mut v_relax, &mut scratch).unwrap();
+                let descent = gradient_descent_step(&body, &masses, &bar.pinned, &dynamic, &mut x_descent, &mut v_descent, &mut scratch).unwrap();
+                println!("{}: one step, relaxation {} and gradient descent {} iterations", stringify!($precision), relax.iterations, descent.iterations);
+                assert!(relax.converged && descent.converged, "{descent:?}");
+                let moved = bar.rest.iter().zip(&x_relax).map(|(r, x)| (*r - *x).length()).fold(0.0, Real::max);
+                let difference = x_relax.iter().zip(&x_descent).map(|(a, b)| (*a - *b).length()).fold(0.0, Real::max);
+                assert!(difference < 0.05 * moved, "{difference:e} m against a step of {moved} m");
             }
 
             #[test]

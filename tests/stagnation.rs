@@ -1,19 +1,25 @@
-//! The relaxation's honest stop (`src/step/line_search.rs`, `Stagnation`): a tolerance below
+//! The descent loop's honest stop (`src/step/descent/stopping.rs`, `Stagnation`): a tolerance below
 //! the rounding floor stops early as stagnated instead of burning the budget, with the floor
 //! reached reported, in both precisions; the residual it stops at is recomputed from the force
-//! kernel.
+//! kernel; and the loop's displacement coordinates, which keep floor, stop and iteration
+//! counts of a problem translated 60 m (1e4 m in f64) from the origin those at the origin.
 
 macro_rules! stagnation_tests {
-    ($precision:ident, $($api:ident)::+) => {
+    ($precision:ident, $($api:ident)::+, $far:expr, $relax_tolerance:expr, $newton_tolerance:expr) => {
         mod $precision {
-            use $($api)::+::element::TetRest;
+            use $($api)::+::element::{TetHessian, TetRest};
             use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
             use $($api)::+::material::StableNeoHookean;
             use $($api)::+::mesh::TetMesh;
-            use $($api)::+::step::{FLOOR_FACTOR, RelaxScratch, RelaxSettings, TetElastic, relax_quasi_static, relax_scratch_len};
-            use $($api)::+::types::{Real, Vec3};
+            use $($api)::+::step::{FLOOR_FACTOR, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, TetElastic, newton_quasi_static, newton_scratch_len, relax_quasi_static, relax_scratch_len};
+            use $($api)::+::types::{Mat3, Real, Vec3};
 
             const GRAVITY: Vec3 = Vec3::new(0.0, -9.81, 0.0);
+            /// The offsets (m, along x) the translated problems are moved by.
+            const FAR: &[Real] = $far;
+            /// The relative tolerances of the translated problems.
+            const RELAX_TOLERANCE: Real = $relax_tolerance;
+            const NEWTON_TOLERANCE: Real = $newton_tolerance;
 
             /// The cantilever of tests/relax.rs (4x1x1 Kuhn cells, 0.4 x 0.1 x 0.1 m, E = 1 MPa,
             /// clamped at x = 0) moved by `offset`, relaxed at `tolerance` with `budget`
@@ -60,21 +66,69 @@ macro_rules! stagnation_tests {
                 assert!(!report.converged);
             }
 
+            /// Newton's method on the same cantilever moved by `offset` at `tolerance`.
+            fn newton_cantilever(offset: Vec3, tolerance: Real) -> $($api)::+::step::NewtonReport {
+                let (nv, nt) = box_counts(4, 1, 1, BoxSplit::Kuhn6).unwrap();
+                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
+                fill_box(offset, offset + Vec3::new(0.4, 0.1, 0.1), 4, 1, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let mut rest_data = vec![TetRest::default(); nt];
+                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
+                let mut masses = vec![0.0; nv];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let pinned: Vec<bool> = rest.iter().map(|x| x.x == offset.x).collect();
+                let settings = NewtonSettings::new(1.0).with_gravity(GRAVITY).with_tolerance(tolerance, 50);
+                let len = newton_scratch_len(nv, nt);
+                let mut vectors = vec![Vec3::ZERO; len.vectors];
+                let mut blocks = vec![Mat3::ZERO; len.blocks];
+                let mut hessians = vec![TetHessian::default(); len.hessians];
+                let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
+                let mut x = rest.clone();
+                newton_quasi_static(&body, &masses, &pinned, &settings, &mut x, &mut scratch).unwrap()
+            }
+
             #[test]
-            fn far_from_the_origin_the_floor_rises_but_the_stop_stays_early() {
-                // Positions 60 m from the origin are known to eps 60 m / 2, not eps 0.4 m / 2:
-                // the elastic kernel sees the absolute positions, so the floor grows with the
-                // offset. The stop must still come early and report it.
+            fn far_from_the_origin_the_floor_and_the_stop_stay_those_at_the_origin() {
+                // The descent loop iterates in coordinates shifted next to the body
+                // (`src/step/descent/mod.rs`), so positions 60 m from the origin, known only
+                // to eps 60 m / 2, do not raise the floor: it stays the one of the body's own
+                // size, and so does the stop.
                 let budget = 2_000_000;
                 let (near, _) = cantilever(Vec3::ZERO, 0.0, budget);
-                let (far, imbalance) = cantilever(Vec3::new(60.0, 0.0, 0.0), 0.0, budget);
-                println!("at the origin {near:?}\nat 60 m {far:?}, recomputed {imbalance:e} N");
-                assert!(far.stagnated && far.iterations < budget / 20, "{far:?}");
-                assert!(far.rounding_floor > 10.0 * near.rounding_floor, "{far:?} against {near:?}");
+                for &offset in FAR {
+                    let (far, imbalance) = cantilever(Vec3::new(offset, 0.0, 0.0), 0.0, budget);
+                    println!("at the origin {near:?}\nat {offset} m {far:?}, recomputed {imbalance:e} N");
+                    assert!(far.stagnated && far.iterations < budget / 20, "{far:?}");
+                    // The same floor to within the rounding of the translated rest shape.
+                    assert!(far.rounding_floor < 1.5 * near.rounding_floor, "{far:?} against {near:?}");
+                }
+            }
+
+            #[test]
+            fn a_translated_problem_converges_to_the_same_tolerance_in_the_same_iterations() {
+                // Tolerances between the rounding floor of the body at the origin and the
+                // floor the absolute positions would set: 60 m (and 1e4 m in f64) from the
+                // origin, eps |x| / 2 is 150 (25 000) times eps 0.4 m / 2, which put these
+                // tolerances out of reach before the loop worked next to the body.
+                let (near, _) = cantilever(Vec3::ZERO, RELAX_TOLERANCE, 200_000);
+                let newton_near = newton_cantilever(Vec3::ZERO, NEWTON_TOLERANCE);
+                assert!(near.converged && newton_near.residual <= newton_near.target, "{near:?}\n{newton_near:?}");
+                for &offset in FAR {
+                    let (far, _) = cantilever(Vec3::new(offset, 0.0, 0.0), RELAX_TOLERANCE, 200_000);
+                    let newton_far = newton_cantilever(Vec3::new(offset, 0.0, 0.0), NEWTON_TOLERANCE);
+                    println!("{offset} m: relaxation {} against {} iterations, Newton {} against {}", far.iterations, near.iterations, newton_far.newton_iterations, newton_near.newton_iterations);
+                    assert!(far.converged, "{offset} m: {far:?}");
+                    // The translated rest shape is rounded to the ulp of 60 m: a perturbation of
+                    // relative size eps 60 m / 0.1 m that may move the count a little.
+                    let margin = |n: u32| n / 10 + 2;
+                    assert!(far.iterations.abs_diff(near.iterations) <= margin(near.iterations), "{offset} m: {far:?} against {near:?}");
+                    assert!(newton_far.residual <= newton_far.target, "{offset} m: {newton_far:?}");
+                    assert!(newton_far.newton_iterations.abs_diff(newton_near.newton_iterations) <= 1, "{offset} m: {newton_far:?} against {newton_near:?}");
+                }
             }
         }
     };
 }
 
-stagnation_tests!(single, softfem);
-stagnation_tests!(double, softfem::f64);
+stagnation_tests!(single, softfem, &[60.0], 1e-2, 3e-3);
+stagnation_tests!(double, softfem::f64, &[60.0, 1e4], 1e-9, 1e-11);

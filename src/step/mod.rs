@@ -185,13 +185,12 @@ use crate::error::{MeshError, StepBuffer, StepError};
 
 mod adjacency;
 mod chebyshev;
+mod descent;
 mod explicit;
 mod frequency;
 mod ground;
-mod line_search;
 mod loads;
 mod newton;
-mod objective;
 pub(crate) mod points;
 mod relax;
 mod stability;
@@ -203,6 +202,7 @@ pub use adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
     vertex_order,
 };
+pub use descent::gradient::{gradient_descent_quasi_static, gradient_descent_step};
 pub use explicit::{
     DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, FLIP_GROWTH,
     FLIP_STREAK, MAX_SUBSTEPS, explicit_scratch_len, step_explicit,

@@ -1,25 +1,18 @@
 //! Implicit Euler as a minimisation, solved by Jacobi-preconditioned gradient descent with an
 //! Armijo line search (`docs/math.md` section 4; Wang and Yang, "Descent Methods for Elastic Body
 //! Simulation on the GPU", SIGGRAPH Asia 2016), and the same loop without inertia as a
-//! quasi-static relaxation. The preconditioner is derived in the `step` module documentation.
-
-use core::mem::swap;
+//! quasi-static relaxation: the settings, scratch and report of the relaxation. The loop is the
+//! shared descent loop (`descent/mod.rs`), the direction `descent/jacobi.rs`; the
+//! preconditioner is derived in the `step` module documentation.
 
 use super::super::types::Real;
-use super::chebyshev::RhoEstimate;
-use super::line_search::{
-    ROUNDING, Stagnation, copy, downhill, rounding_floor, slope_along, sufficient_decrease,
-};
+use super::chebyshev::AccelerationSettings;
+use super::descent::jacobi::Jacobi;
+use super::descent::stopping::StallRule;
+use super::descent::{self, Direction, LoopSettings, Problem, Work};
 use super::loads::Loads;
-use super::newton::FLOOR_FACTOR;
-use super::objective::{Evaluation, Objective, implicit_velocities};
 use super::stability::vertex_stiffness;
-use super::vertex_passes::{
-    Frames, TrialPoint, Vertices, chebyshev_pass, direction_pass, trial_pass,
-};
-use super::{
-    ElasticEnergy, Ground, Vector, check_length, check_state, first_non_finite, pinned_flags,
-};
+use super::{ElasticEnergy, Ground, Vector, check_length, check_state};
 use crate::error::{StepBuffer, StepError};
 
 /// The length of the vector scratch buffer the relaxation needs for `vertex_count` vertices:
@@ -409,22 +402,15 @@ pub fn relax_step<F: ElasticEnergy>(
     velocities: &mut [F::Vector],
     scratch: &mut RelaxScratch<'_, F::Vector>,
 ) -> Result<RelaxReport, StepError> {
-    if !(settings.dt > 0.0 && settings.dt.is_finite()) {
-        return Err(StepError::TimeStep);
-    }
-    // The inertia term `m / (2 h^2) |x - y|^2` needs `1 / h^2`: below about 1e-19 s (f32) or
-    // 1e-154 s (f64) it overflows and every evaluation of Phi would be infinite.
-    if !(1.0 / (settings.dt * settings.dt)).is_finite() {
-        return Err(StepError::TimeStepTooSmall);
-    }
+    check_time_step(settings.dt)?;
     minimise(
         model,
         masses,
         pinned,
         settings,
-        positions,
-        Some(velocities),
+        (positions, Some(velocities)),
         scratch,
+        Jacobi::default(),
     )
 }
 
@@ -444,18 +430,27 @@ pub fn relax_quasi_static<F: ElasticEnergy>(
     positions: &mut [F::Vector],
     scratch: &mut RelaxScratch<'_, F::Vector>,
 ) -> Result<RelaxReport, StepError> {
-    minimise(model, masses, pinned, settings, positions, None, scratch)
+    minimise(
+        model,
+        masses,
+        pinned,
+        settings,
+        (positions, None),
+        scratch,
+        Jacobi::default(),
+    )
 }
 
-/// The shared loop of [`relax_step`] (`velocities` given) and [`relax_quasi_static`].
-fn minimise<F: ElasticEnergy>(
+/// The shared solve of [`relax_step`] (`velocities` given), [`relax_quasi_static`] and the
+/// gradient-descent solvers: checks, then the descent loop (`descent/mod.rs`) along `direction`.
+pub(super) fn minimise<F: ElasticEnergy, D: Direction<F>>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
     settings: &RelaxSettings<'_, F::Vector>,
-    positions: &mut [F::Vector],
-    velocities: Option<&mut [F::Vector]>,
+    (positions, velocities): (&mut [F::Vector], Option<&mut [F::Vector]>),
     scratch: &mut RelaxScratch<'_, F::Vector>,
+    mut direction: D,
 ) -> Result<RelaxReport, StepError> {
     let n = model.vertex_count();
     let ground = validate(settings)?;
@@ -475,373 +470,78 @@ fn minimise<F: ElasticEnergy>(
     let (start, rest) = scratch.vectors.split_at_mut(n);
     let (gradient, rest) = rest.split_at_mut(n);
     let (trial_gradient, rest) = rest.split_at_mut(n);
-    let (trial, direction) = rest.split_at_mut(n);
+    let (trial, direction_buffer) = rest.split_at_mut(n);
     if !scratch.stiffness_ready {
         vertex_stiffness(model, scratch.scalars);
         scratch.stiffness_ready = true;
     }
-    let stiffness: &[Real] = scratch.scalars;
-    copy(start, positions);
-
-    let start: &[F::Vector] = start;
-    let (h, inertia) = match velocities {
-        Some(_) => (settings.dt, 1.0 / (settings.dt * settings.dt)),
-        None => (0.0, 0.0),
-    };
-    let objective = Objective {
+    let problem = Problem {
         model,
-        vertices: Vertices {
-            masses,
-            pinned,
-            stiffness,
-            start,
-            velocities: velocities.as_deref().unwrap_or(&[]),
-        },
-        frames: Frames::new(h, inertia, settings.gravity, ground.as_ref()),
-        h,
+        masses,
+        pinned,
+        stiffness: scratch.scalars,
         gravity: settings.gravity,
+        ground,
         loads,
+        dt: velocities.is_some().then_some(settings.dt),
     };
-    let buffers = Buffers {
+    let loop_settings = LoopSettings {
+        tolerance: settings.tolerance,
+        max_iterations: settings.max_iterations,
+        armijo: settings.armijo,
+        backtrack: settings.backtrack,
+        max_backtracks: settings.max_backtracks,
+        step_length: settings.step_length,
+        momentum: settings.momentum,
+        acceleration: AccelerationSettings {
+            rho: settings.chebyshev,
+            delay: settings.chebyshev_delay,
+            estimate: settings.estimate_chebyshev,
+            cap: MAX_ESTIMATED_RELAX_RHO,
+        },
+        stall: StallRule::Window,
+    };
+    let work = Work {
+        start,
         gradient,
         trial_gradient,
         trial,
-        direction,
+        direction: direction_buffer,
     };
-    let outcome = descend(&objective, settings, positions, buffers);
-    // The ground of the solve, for the friction pass below.
-    let floor = *objective.frames.floor();
-    let (report, gradient, backup) = match outcome {
-        Ok(result) => result,
-        Err(error) => {
-            copy(positions, start);
-            return Err(error);
-        }
-    };
-    if let Some(vertex) = first_non_finite(positions, &[]) {
-        copy(positions, start);
-        return Err(StepError::NonFiniteState { vertex });
-    }
-    let Some(velocities) = velocities else {
-        return Ok(report);
-    };
-    // v = (x_{n+1} - x_n) / h, then Coulomb friction at the contacts.
-    copy(backup, velocities);
-    implicit_velocities(
-        ground.as_ref(),
-        &floor,
-        h,
-        (masses, pinned),
-        (positions, start, gradient),
+    let summary = descent::solve(
+        &problem,
+        &loop_settings,
+        &mut direction,
+        positions,
         velocities,
-    );
-    if let Some(vertex) = first_non_finite(velocities, &[]) {
-        copy(positions, start);
-        copy(velocities, backup);
-        return Err(StepError::NonFiniteState { vertex });
-    }
-    Ok(report)
+        work,
+    )?;
+    Ok(RelaxReport {
+        iterations: summary.iterations,
+        energy_evaluations: summary.energy_evaluations,
+        initial_residual: summary.initial_residual,
+        final_residual: summary.residual,
+        phi: summary.phi,
+        converged: summary.converged,
+        backtracks: summary.backtracks,
+        restarts: summary.restarts,
+        stagnated: summary.stagnated,
+        rounding_floor: summary.rounding_floor,
+        rho: summary.rho,
+    })
 }
 
-/// The mutable scratch of the descent loop.
-struct Buffers<'b, V> {
-    gradient: &'b mut [V],
-    trial_gradient: &'b mut [V],
-    trial: &'b mut [V],
-    direction: &'b mut [V],
-}
-
-/// What the descent loop hands back: the report, the final gradient, a free buffer.
-type Descent<'b, V> = (RelaxReport, &'b mut [V], &'b mut [V]);
-
-/// Whether `residual` meets `target`. Never for an overflowed (infinite) or NaN residual or
-/// target: a measure that overflowed says nothing about convergence.
-#[inline(always)]
-fn reached(residual: Real, target: Real) -> bool {
-    residual <= target && residual.is_finite() && target.is_finite()
-}
-
-/// The descent loop from the inertial target. Returns the report, the buffer holding the
-/// final (unprojected) gradient and a free buffer of one vector per vertex.
-///
-/// The iterate lives in `positions` or in `trial`, which trade places on every accepted step
-/// instead of being copied: after the swap the other buffer holds `x_{k-1}`, from which the
-/// next direction pass takes the last step `x_k - x_{k-1}` (for momentum and Chebyshev) before
-/// overwriting it with the next trial point. `positions` receives the result at the end.
-fn descend<'b, F: ElasticEnergy>(
-    objective: &Objective<'_, F>,
-    settings: &RelaxSettings<'_, F::Vector>,
-    positions: &mut [F::Vector],
-    buffers: Buffers<'b, F::Vector>,
-) -> Result<Descent<'b, F::Vector>, StepError> {
-    let Buffers {
-        mut gradient,
-        mut trial_gradient,
-        trial,
-        direction,
-    } = buffers;
-    let mut current: &mut [F::Vector] = &mut *positions;
-    let mut other: &mut [F::Vector] = &mut *trial;
-    // Whether `current` is the scratch buffer (an odd number of swaps).
-    let mut swapped = false;
-    // Initial guess: the better (lower Phi) of the inertial target y and y + h^2 g, both
-    // projected on the ground. The second is the predictor of projective dynamics (Bouaziz et
-    // al. 2014) and the exact minimiser in free fall, a rigid translation: without it the
-    // descent would have to find this lowest, slowest mode of the preconditioned system itself.
-    // For a body resting on the ground it is a poor guess (the ground stops the bottom layer
-    // and the drop compresses it): y wins there.
-    let drop = objective.gravity * (objective.h * objective.h);
-    objective.initial_guess(
-        TrialPoint {
-            positions: current,
-            gradient,
-        },
-        drop,
-    );
-    let mut evaluation = objective.evaluate(current, gradient)?;
-    let mut energy_evaluations = 1;
-    if drop != F::Vector::ZERO {
-        objective.initial_guess(
-            TrialPoint {
-                positions: other,
-                gradient: trial_gradient,
-            },
-            F::Vector::ZERO,
-        );
-        let inertial = objective.evaluate(other, trial_gradient)?;
-        energy_evaluations += 1;
-        // y also wins when y + h^2 g is not finite (NaN compares false).
-        if inertial.phi < evaluation.phi || !evaluation.phi.is_finite() {
-            swap(&mut current, &mut other);
-            swap(&mut gradient, &mut trial_gradient);
-            swapped = !swapped;
-            evaluation = inertial;
-        }
+/// Checks the time step of an implicit Euler step: finite and positive, with a finite `1 / dt^2`.
+pub(super) fn check_time_step(dt: Real) -> Result<(), StepError> {
+    if !(dt > 0.0 && dt.is_finite()) {
+        return Err(StepError::TimeStep);
     }
-    if !evaluation.phi.is_finite() {
-        // y may invert an element of a barrier model: start from x_n instead.
-        copy(current, objective.vertices.start);
-        gradient.fill(F::Vector::ZERO);
-        evaluation = objective.evaluate(current, gradient)?;
-        energy_evaluations += 1;
+    // The inertia term `m / (2 h^2) |x - y|^2` needs `1 / h^2`: below about 1e-19 s (f32) or
+    // 1e-154 s (f64) it overflows and every evaluation of Phi would be infinite.
+    if !(1.0 / (dt * dt)).is_finite() {
+        return Err(StepError::TimeStepTooSmall);
     }
-    if !evaluation.phi.is_finite() {
-        let vertex = first_non_finite(gradient, &[]).unwrap_or(0);
-        return Err(StepError::NonFiniteState { vertex });
-    }
-    let mut phi = evaluation.phi;
-
-    let initial_residual = evaluation.residual;
-    let mut residual = initial_residual;
-    // Relative to the larger of the initial residual and the gravity load, so that a step
-    // starting at (or near) equilibrium, whose initial residual is mostly rounding, is not asked
-    // to reduce it further.
-    let target = settings.tolerance * initial_residual.max(objective.gravity_load());
-    let rounding_floor = relax_rounding_floor(objective, current);
-    let mut stagnation = Stagnation::new(residual);
-    let mut stagnated = false;
-    // Whether `other` holds x_{k-1}, so that the last step is known (false at the start and
-    // after a restart, when it counts as zero).
-    let mut stepped = false;
-    let mut iterations = 0;
-    let mut restarts = 0;
-    let mut backtracks = 0;
-    // The step length of the accelerated trials: the one the last plain line search accepted.
-    let mut alpha = settings.step_length;
-    let mut rho = settings.chebyshev;
-    let mut rho_squared = rho * rho;
-    let mut estimate = RhoEstimate::default();
-    let mut previous_residual = residual;
-    // Iterations since the last (re)start of the acceleration, and the Chebyshev weight.
-    let mut since_restart: u32 = 0;
-    let mut omega: Real = 1.0;
-    while !reached(residual, target) && iterations < settings.max_iterations {
-        if iterations > 0 && stagnation.stalled(residual, FLOOR_FACTOR * rounding_floor) {
-            stagnated = true;
-            break;
-        }
-        if settings.estimate_chebyshev && rho == 0.0 {
-            if iterations >= 2 {
-                estimate.observe(previous_residual, residual);
-            }
-            if iterations >= settings.chebyshev_delay {
-                rho = estimate.rho(MAX_ESTIMATED_RELAX_RHO);
-                rho_squared = rho * rho;
-            }
-        }
-        previous_residual = residual;
-        since_restart = since_restart.saturating_add(1);
-        if rho > 0.0 {
-            // Wang and Yang 2016, eq. 9-10: omega = 1 for the first S iterations, then
-            // omega_{S+1} = 2 / (2 - rho^2), omega_{k+1} = 4 / (4 - rho^2 omega_k).
-            omega = match since_restart.checked_sub(settings.chebyshev_delay) {
-                None | Some(0) => 1.0,
-                Some(1) => 2.0 / (2.0 - rho_squared),
-                Some(_) => 4.0 / (4.0 - rho_squared * omega),
-            };
-        }
-        if omega > 1.0 {
-            let point = TrialPoint {
-                positions: other,
-                gradient: trial_gradient,
-            };
-            chebyshev_pass(
-                &objective.frames,
-                &objective.vertices,
-                (current, gradient),
-                stepped,
-                point,
-                omega * alpha,
-                omega,
-            );
-            let Evaluation {
-                phi: trial_phi,
-                elastic: trial_elastic,
-                residual: trial_residual,
-            } = objective.evaluate(other, trial_gradient)?;
-            energy_evaluations += 1;
-            // The semi-iteration is not monotone in Phi in general, but an increase (beyond
-            // rounding) means the nonlinearity or the contacts broke the linear model it
-            // relies on: restart from a plain, line-searched step (Wang and Yang's fallback).
-            let noise = ROUNDING * (phi.abs() + trial_phi.abs() + trial_elastic.abs());
-            if trial_phi <= phi + noise {
-                swap(&mut current, &mut other);
-                swap(&mut gradient, &mut trial_gradient);
-                swapped = !swapped;
-                stepped = true;
-                phi = trial_phi;
-                iterations += 1;
-                residual = trial_residual;
-                continue;
-            }
-            restarts += 1;
-            // The plain step below is the restart's iteration 0, so the next semi-iteration
-            // takes the recurrence's first weight, 2 / (2 - rho^2).
-            since_restart = 0;
-            omega = 1.0;
-            stepped = false;
-        }
-        // d = -P^-1 g (+ momentum * last step), projected; plain descent if that is not
-        // downhill. The same pass writes the first trial point, at the full step.
-        alpha = settings.step_length;
-        let momentum = (stepped && settings.momentum > 0.0).then_some(settings.momentum);
-        let mut slope = direction_pass(
-            &objective.frames,
-            &objective.vertices,
-            (current, gradient),
-            direction,
-            momentum,
-            TrialPoint {
-                positions: other,
-                gradient: trial_gradient,
-            },
-            alpha,
-        );
-        if !downhill(slope) && momentum.is_some() {
-            slope = direction_pass(
-                &objective.frames,
-                &objective.vertices,
-                (current, gradient),
-                direction,
-                None,
-                TrialPoint {
-                    positions: other,
-                    gradient: trial_gradient,
-                },
-                alpha,
-            );
-        }
-        if !downhill(slope) {
-            break; // stationary to rounding
-        }
-        let mut accepted = None;
-        for attempt in 0..=settings.max_backtracks {
-            if attempt > 0 {
-                trial_pass(
-                    &objective.frames,
-                    objective.vertices.pinned,
-                    (current, direction),
-                    alpha,
-                    TrialPoint {
-                        positions: other,
-                        gradient: trial_gradient,
-                    },
-                );
-            }
-            let evaluation = objective.evaluate(other, trial_gradient)?;
-            energy_evaluations += 1;
-            let (trial_phi, trial_elastic) = (evaluation.phi, evaluation.elastic);
-            // Armijo on Phi, or, where Phi's change is below its rounding (the energy of a
-            // nearly undeformed element is a difference of O(mu V) terms), Hager and Zhang's
-            // approximate Armijo test (SIAM J. Optim. 2005): the trapezoidal estimate of the
-            // decrease from the two slopes, which has no cancellation.
-            let sufficient = sufficient_decrease(
-                (phi, trial_phi, trial_elastic),
-                settings.armijo,
-                alpha,
-                slope,
-                || slope_along(trial_gradient, direction),
-            );
-            if sufficient {
-                accepted = Some(evaluation);
-                break;
-            }
-            alpha *= settings.backtrack;
-            backtracks += 1;
-        }
-        let Some(evaluation) = accepted else {
-            break;
-        };
-        swap(&mut current, &mut other);
-        swap(&mut gradient, &mut trial_gradient);
-        swapped = !swapped;
-        stepped = true;
-        phi = evaluation.phi;
-        iterations += 1;
-        residual = evaluation.residual;
-    }
-    if swapped {
-        // `other` is `positions`.
-        copy(other, current);
-    }
-    let report = RelaxReport {
-        iterations,
-        energy_evaluations,
-        initial_residual,
-        final_residual: residual,
-        phi,
-        converged: reached(residual, target),
-        backtracks,
-        restarts,
-        stagnated,
-        rounding_floor,
-        rho,
-    };
-    Ok((report, gradient, trial))
-}
-
-/// The relaxation's estimate of the rounding floor of the residual at `x` (see
-/// [`RelaxReport::rounding_floor`]).
-fn relax_rounding_floor<F: ElasticEnergy>(objective: &Objective<'_, F>, x: &[F::Vector]) -> Real {
-    let vertices = &objective.vertices;
-    let inertia = if objective.h > 0.0 {
-        1.0 / (objective.h * objective.h)
-    } else {
-        0.0
-    };
-    let reach = x.iter().fold(0.0, |a: Real, p| a.max(super::length(*p)));
-    let stiffness_squared: Real = vertices
-        .stiffness
-        .iter()
-        .zip(vertices.masses)
-        .zip(pinned_flags(vertices.pinned))
-        .filter(|(_, pinned)| !pinned)
-        .map(|((&k, &m), _)| {
-            let diagonal = k + m * inertia;
-            3.0 * diagonal * diagonal
-        })
-        .sum();
-    rounding_floor(reach, stiffness_squared)
+    Ok(())
 }
 
 /// Checks the scalar settings; returns the ground with a unit normal.

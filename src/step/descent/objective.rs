@@ -2,19 +2,19 @@
 //! potential `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)` of an implicit Euler
 //! step (`y = x_n + h v_n`), or without inertia the static energy `E(x) - sum m g.(x - x_0)`;
 //! its evaluation with the residual every solver stops on, and the velocity update with Coulomb
-//! friction after a step. Shared by the relaxation (`relax.rs`) and Newton's method
-//! (`newton.rs`).
+//! friction after a step. Shared by every direction of the descent loop (`mod.rs`): the
+//! relaxation, gradient descent and Newton's method.
 
-use super::super::math;
-use super::super::types::Real;
-use super::loads::Loads;
-use super::points::Floor;
-use super::vertex_passes::{Frames, TrialPoint, Vertices, gradient_pass};
-use super::{ElasticEnergy, Ground, Vector, pinned_flags};
+use super::super::super::math;
+use super::super::super::types::Real;
+use super::super::loads::Loads;
+use super::super::points::Floor;
+use super::super::vertex_passes::{Frames, TrialPoint, Vertices, gradient_pass};
+use super::super::{ElasticEnergy, Ground, Vector, pinned_flags};
 use crate::error::StepError;
 
 /// `Phi` and its gradient, without the buffers that change.
-pub(super) struct Objective<'p, F: ElasticEnergy> {
+pub(in super::super) struct Objective<'p, F: ElasticEnergy> {
     pub model: &'p F,
     /// Masses, pinned flags, the preconditioner's stiffness (the relaxation's; empty for
     /// solvers that do not use it), `x_n` and `v_n` (empty in the quasi-static mode).
@@ -116,7 +116,7 @@ impl<F: ElasticEnergy> Objective<'_, F> {
 
 /// What one evaluation of `Phi` gives.
 #[derive(Clone, Copy)]
-pub(super) struct Evaluation {
+pub(in super::super) struct Evaluation {
     /// `Phi(x)` (J).
     pub phi: Real,
     /// The elastic energy `E(x)` (J), part of `phi`.
@@ -129,7 +129,7 @@ pub(super) struct Evaluation {
 /// `v = (x_{n+1} - x_n) / h` at free vertices, then at vertices resting on the ground Coulomb
 /// friction with the normal impulse `h R`, `R` the reaction (the normal component of
 /// `gradient`, the gradient of `Phi` at the result). Pinned vertices keep their velocity.
-pub(super) fn implicit_velocities<V: Vector>(
+pub(in super::super) fn implicit_velocities<V: Vector>(
     ground: Option<&Ground<V>>,
     floor: &Floor<V>,
     h: Real,

@@ -1,0 +1,95 @@
+//! The relaxation's direction: `d = -P^-1 grad Phi` with `P` the diagonal bound
+//! `P_i = m_i / h^2 + k_i` (see the `step` module documentation), in the vertex passes of
+//! `vertex_passes.rs` (four vertices at a time on x86_64), and its Chebyshev trial in one pass.
+
+use super::super::super::types::Real;
+use super::super::vertex_passes::{TrialPoint, chebyshev_pass, direction_pass};
+use super::super::{ElasticEnergy, pinned_flags};
+use super::objective::Objective;
+use super::stopping::rounding_floor;
+use super::{Direction, Iterate};
+
+/// The Jacobi direction, with its rounding floor estimated once at the initial guess.
+#[derive(Default)]
+pub(in super::super) struct Jacobi {
+    floor: Real,
+}
+
+impl<F: ElasticEnergy> Direction<F> for Jacobi {
+    fn begin(&mut self, objective: &Objective<'_, F>, x: &[F::Vector]) {
+        self.floor = diagonal_rounding_floor(objective, x);
+    }
+
+    fn search(
+        &mut self,
+        objective: &Objective<'_, F>,
+        at: &Iterate<'_, F::Vector>,
+        direction: &mut [F::Vector],
+        momentum: Option<Real>,
+        trial: TrialPoint<'_, F::Vector>,
+        step: Real,
+    ) -> Result<Real, crate::error::StepError> {
+        Ok(direction_pass(
+            &objective.frames,
+            &objective.vertices,
+            (at.x, at.gradient),
+            direction,
+            momentum,
+            trial,
+            step,
+        ))
+    }
+
+    fn extrapolate(
+        &mut self,
+        objective: &Objective<'_, F>,
+        at: &Iterate<'_, F::Vector>,
+        stepped: bool,
+        trial: TrialPoint<'_, F::Vector>,
+        (step, omega): (Real, Real),
+    ) {
+        chebyshev_pass(
+            &objective.frames,
+            &objective.vertices,
+            (at.x, at.gradient),
+            stepped,
+            trial,
+            step,
+            omega,
+        );
+    }
+
+    fn rounding_floor(&self) -> Real {
+        self.floor
+    }
+}
+
+/// The rounding floor of the residual at `x` estimated from the diagonal bound (see
+/// [`RelaxReport::rounding_floor`](super::super::RelaxReport::rounding_floor)):
+/// `eps/2 max_i |x_i| (3 sum_i P_i^2)^(1/2)` over the free vertices.
+pub(in super::super) fn diagonal_rounding_floor<F: ElasticEnergy>(
+    objective: &Objective<'_, F>,
+    x: &[F::Vector],
+) -> Real {
+    let vertices = &objective.vertices;
+    let inertia = if objective.h > 0.0 {
+        1.0 / (objective.h * objective.h)
+    } else {
+        0.0
+    };
+    let reach = x
+        .iter()
+        .fold(0.0, |a: Real, p| a.max(super::super::length(*p)));
+    let stiffness_squared: Real = vertices
+        .stiffness
+        .iter()
+        .zip(vertices.masses)
+        .zip(pinned_flags(vertices.pinned))
+        .filter(|(_, pinned)| !pinned)
+        .map(|((&k, &m), _)| {
+            let diagonal = k + m * inertia;
+            3.0 * diagonal * diagonal
+        })
+        .sum();
+    rounding_floor(reach, stiffness_squared)
+}

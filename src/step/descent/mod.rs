@@ -1,0 +1,544 @@
+//! The one descent loop every implicit solver here runs (`docs/math.md` section 7): minimise the
+//! objective `Phi` (`objective.rs`: the incremental potential of an implicit Euler step, or the
+//! static energy) from the better of two initial guesses, by steps along a search direction
+//! `d = -P^-1 grad Phi` for some positive definite `P`, each step found by the Armijo
+//! backtracking line search (`line_search.rs`), until the stopping test (`stopping.rs`: the
+//! relative residual, the rounding floor, stagnation) ends it; then the velocity update with
+//! Coulomb friction, or, if anything failed, the caller's state restored bit for bit.
+//!
+//! The search direction is the only thing a solver adds, one file each, behind [`Direction`]:
+//! * `jacobi.rs`: `P` the diagonal bound `m/h^2 + k_i` (the relaxation, [`relax_step`](super::relax_step)),
+//! * `gradient.rs`: `P = c I`, `c` the largest entry of that bound (plain gradient descent,
+//!   [`gradient_descent_step`](super::gradient_descent_step)),
+//! * `newton.rs`: `P` the projected Hessian, solved by block-Jacobi PCG ([`newton_step`](super::newton_step)).
+//!
+//! The loop also carries what the first-order directions share: heavy-ball momentum and the
+//! Chebyshev semi-iteration (`chebyshev.rs`), each trial an extrapolation along the direction.
+//!
+//! # Displacements
+//! The loop iterates in coordinates shifted by a reference point `c` of the start positions
+//! ([`reference_point`]): along every axis on which the body lies far from the origin (its
+//! nearest coordinate more than four times its extent away), `c` takes the first vertex's
+//! coordinate, so that the iterate holds displacements from the body rather than absolute
+//! positions. The shift is exact (Sterbenz: every coordinate is within a factor 1.25 of `c`'s), so
+//! pinned vertices and fixed coordinates keep their bits and a failed solve restores them; the
+//! elastic energy, inertia and gravity terms depend on differences only, and the ground is
+//! shifted with them. A body 60 m (or 1e4 m) from the origin thus converges like the same body
+//! at the origin, with a rounding floor relative to its size (`tests/stagnation.rs`). Near the
+//! origin `c = 0` and nothing changes.
+
+pub(super) mod gradient;
+pub(super) mod jacobi;
+pub(super) mod line_search;
+pub(super) mod newton;
+pub(super) mod objective;
+pub(super) mod stopping;
+
+use core::mem::swap;
+
+use super::super::types::Real;
+use super::chebyshev::{Acceleration, AccelerationSettings};
+use super::loads::Loads;
+use super::vertex_passes::{Frames, TrialPoint, Vertices, trial_pass};
+use super::{ElasticEnergy, Ground, Vector, first_non_finite};
+use crate::error::StepError;
+use line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
+use objective::{Evaluation, Objective, implicit_velocities};
+use stopping::{StallRule, Stopping};
+
+/// The iterate a direction is computed at.
+pub(super) struct Iterate<'a, V> {
+    /// The positions `x_k` (shifted, see the module documentation).
+    pub x: &'a [V],
+    /// `grad Phi(x_k)` (N, zero at pinned vertices and fixed coordinates).
+    pub gradient: &'a [V],
+    /// `|grad Phi(x_k)|` projected on the contacts (N).
+    pub residual: Real,
+    /// The residual the tolerance asks for (N).
+    pub target: Real,
+}
+
+/// A search direction `d = -P^-1 grad Phi`: the one thing that distinguishes the solvers.
+pub(super) trait Direction<F: ElasticEnergy> {
+    /// Called once at the initial guess `x`, before [`rounding_floor`](Self::rounding_floor) is
+    /// first asked for.
+    fn begin(&mut self, objective: &Objective<'_, F>, x: &[F::Vector]);
+
+    /// Writes the direction at `at` (plus `momentum` times the last step `x_k - x_{k-1}`, with
+    /// `x_{k-1}` read from `trial.positions`, when given) into `direction` and the first trial
+    /// point `x + step d` (projected on the ground, `x` at pinned vertices) into `trial`, zeroing
+    /// its gradient. Returns the slope `grad.d` (not negative: no descent, the solve ends).
+    ///
+    /// # Errors
+    /// The model's errors (a direction that evaluates the Hessian).
+    fn search(
+        &mut self,
+        objective: &Objective<'_, F>,
+        at: &Iterate<'_, F::Vector>,
+        direction: &mut [F::Vector],
+        momentum: Option<Real>,
+        trial: TrialPoint<'_, F::Vector>,
+        step: Real,
+    ) -> Result<Real, StepError>;
+
+    /// Writes the Chebyshev trial `x + step d + (omega - 1) (x - x_{k-1})` into `trial` (whose
+    /// positions hold `x_{k-1}` if `stepped`; the last step is zero otherwise), zeroing its
+    /// gradient. Only called when the settings ask for acceleration.
+    fn extrapolate(
+        &mut self,
+        objective: &Objective<'_, F>,
+        at: &Iterate<'_, F::Vector>,
+        stepped: bool,
+        trial: TrialPoint<'_, F::Vector>,
+        weights: (Real, Real),
+    );
+
+    /// The estimated rounding floor now (N; a direction may refine it as it goes).
+    fn rounding_floor(&self) -> Real;
+}
+
+/// The settings of the loop (validated by each solver).
+#[derive(Clone, Copy)]
+pub(super) struct LoopSettings {
+    /// The relative tolerance.
+    pub tolerance: Real,
+    /// The budget of accepted iterations.
+    pub max_iterations: u32,
+    /// The Armijo constant `c`.
+    pub armijo: Real,
+    /// The backtracking factor `beta`.
+    pub backtrack: Real,
+    /// Rejections allowed per line search.
+    pub max_backtracks: u32,
+    /// The first trial step of every line search.
+    pub step_length: Real,
+    /// Heavy-ball momentum (0 for none).
+    pub momentum: Real,
+    /// The Chebyshev semi-iteration (`rho = 0` and no estimate for none).
+    pub acceleration: AccelerationSettings,
+    /// The stagnation rule.
+    pub stall: StallRule,
+}
+
+/// What the loop reports; each solver builds its public report from it.
+#[derive(Clone, Copy)]
+pub(super) struct Summary {
+    pub iterations: u32,
+    pub energy_evaluations: u32,
+    pub backtracks: u32,
+    pub restarts: u32,
+    pub initial_residual: Real,
+    pub residual: Real,
+    pub target: Real,
+    pub rounding_floor: Real,
+    pub phi: Real,
+    pub converged: bool,
+    pub stagnated: bool,
+    /// The Chebyshev `rho` used (0 for none).
+    pub rho: Real,
+}
+
+/// The problem a solver hands the loop: the model, the per-vertex data and what acts on it.
+pub(super) struct Problem<'p, F: ElasticEnergy> {
+    pub model: &'p F,
+    pub masses: &'p [Real],
+    pub pinned: &'p [bool],
+    /// The relaxation's per-vertex stiffness bounds (N/m), or empty.
+    pub stiffness: &'p [Real],
+    pub gravity: F::Vector,
+    /// The ground, with a unit normal.
+    pub ground: Option<Ground<F::Vector>>,
+    pub loads: Loads<'p, F::Vector>,
+    /// `h` (s), or `None` in the quasi-static mode.
+    pub dt: Option<Real>,
+}
+
+/// The loop's vector scratch, one entry per vertex each (lengths checked by the solver).
+pub(super) struct Work<'b, V> {
+    pub start: &'b mut [V],
+    pub gradient: &'b mut [V],
+    pub trial_gradient: &'b mut [V],
+    pub trial: &'b mut [V],
+    pub direction: &'b mut [V],
+}
+
+/// The reference point the loop's coordinates are measured from (see the module
+/// documentation): along every axis on which `min_i |x_i| > 4 max_i |x_i - x_0|`, the first
+/// vertex's coordinate; zero along the others. Every `x_i - c` is then exact.
+pub(super) fn reference_point<V: Vector>(positions: &[V]) -> V {
+    let Some(&first) = positions.first() else {
+        return V::ZERO;
+    };
+    let mut far = 0;
+    for axis in [1u8, 2, 4] {
+        if axis & V::ALL_AXES == 0 {
+            continue;
+        }
+        let along = |v: V| V::ZERO.axes_from(v, axis).abs_sum();
+        let (nearest, extent) = positions
+            .iter()
+            .fold((Real::INFINITY, 0.0), |(n, e): (Real, Real), &x| {
+                (n.min(along(x)), e.max(along(x - first)))
+            });
+        if nearest > 4.0 * extent {
+            far |= axis;
+        }
+    }
+    V::ZERO.axes_from(first, far)
+}
+
+/// Adds `shift` to every entry of `values` (`-c` into the loop's coordinates, `c` back).
+fn translate<V: Vector>(values: &mut [V], shift: V) {
+    if shift != V::ZERO {
+        for value in values {
+            *value += shift;
+        }
+    }
+}
+
+/// Runs one solve: shifts the state next to the body, descends from the initial guess along
+/// `direction`, updates the velocities (if given) and shifts back; on any failure restores
+/// `positions` and `velocities` bit for bit. Returns the loop's summary.
+///
+/// # Errors
+/// The model's and the direction's errors, [`StepError::NonFiniteState`] (non-finite `Phi` at
+/// every initial guess, or a non-finite result).
+pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
+    problem: &Problem<'_, F>,
+    settings: &LoopSettings,
+    direction_rule: &mut D,
+    positions: &mut [F::Vector],
+    velocities: Option<&mut [F::Vector]>,
+    work: Work<'_, F::Vector>,
+) -> Result<Summary, StepError> {
+    let Work {
+        start,
+        gradient,
+        trial_gradient,
+        trial,
+        direction,
+    } = work;
+    let origin = reference_point(positions);
+    translate(positions, -origin);
+    copy(start, positions);
+    let start: &[F::Vector] = start;
+    let restore = |positions: &mut [F::Vector]| {
+        copy(positions, start);
+        translate(positions, origin);
+    };
+    let ground = problem.ground.map(|g| Ground {
+        offset: g.offset - g.normal.dot(origin),
+        ..g
+    });
+    let (h, inertia) = match problem.dt {
+        Some(dt) => (dt, 1.0 / (dt * dt)),
+        None => (0.0, 0.0),
+    };
+    let objective = Objective {
+        model: problem.model,
+        vertices: Vertices {
+            masses: problem.masses,
+            pinned: problem.pinned,
+            stiffness: problem.stiffness,
+            start,
+            velocities: velocities.as_deref().unwrap_or(&[]),
+        },
+        frames: Frames::new(h, inertia, problem.gravity, ground.as_ref()),
+        h,
+        gravity: problem.gravity,
+        loads: problem.loads,
+    };
+    let buffers = Buffers {
+        gradient,
+        trial_gradient,
+        trial,
+        direction,
+    };
+    let outcome = descend(&objective, settings, direction_rule, positions, buffers);
+    // The ground of the solve, for the friction pass below.
+    let floor = *objective.frames.floor();
+    let (summary, gradient, backup) = match outcome {
+        Ok(result) => result,
+        Err(error) => {
+            restore(positions);
+            return Err(error);
+        }
+    };
+    if let Some(vertex) = first_non_finite(positions, &[]) {
+        restore(positions);
+        return Err(StepError::NonFiniteState { vertex });
+    }
+    let Some(velocities) = velocities else {
+        translate(positions, origin);
+        return Ok(summary);
+    };
+    // v = (x_{n+1} - x_n) / h, then Coulomb friction at the contacts.
+    copy(backup, velocities);
+    implicit_velocities(
+        ground.as_ref(),
+        &floor,
+        h,
+        (problem.masses, problem.pinned),
+        (positions, start, gradient),
+        velocities,
+    );
+    if let Some(vertex) = first_non_finite(velocities, &[]) {
+        restore(positions);
+        copy(velocities, backup);
+        return Err(StepError::NonFiniteState { vertex });
+    }
+    translate(positions, origin);
+    Ok(summary)
+}
+
+/// The mutable scratch of the descent loop.
+struct Buffers<'b, V> {
+    gradient: &'b mut [V],
+    trial_gradient: &'b mut [V],
+    trial: &'b mut [V],
+    direction: &'b mut [V],
+}
+
+/// What the descent loop hands back: the summary, the final gradient, a free buffer.
+type Descent<'b, V> = (Summary, &'b mut [V], &'b mut [V]);
+
+/// The descent loop from the initial guess. Returns the summary, the buffer holding the final
+/// (unprojected) gradient and a free buffer of one vector per vertex.
+///
+/// The iterate lives in `positions` or in `trial`, which trade places on every accepted step
+/// instead of being copied: after the swap the other buffer holds `x_{k-1}`, from which the
+/// next direction takes the last step `x_k - x_{k-1}` (for momentum and Chebyshev) before
+/// overwriting it with the next trial point. `positions` receives the result at the end.
+fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
+    objective: &Objective<'_, F>,
+    settings: &LoopSettings,
+    rule: &mut D,
+    positions: &mut [F::Vector],
+    buffers: Buffers<'b, F::Vector>,
+) -> Result<Descent<'b, F::Vector>, StepError> {
+    let Buffers {
+        mut gradient,
+        mut trial_gradient,
+        trial,
+        direction,
+    } = buffers;
+    let mut current: &mut [F::Vector] = &mut *positions;
+    let mut other: &mut [F::Vector] = &mut *trial;
+    // Whether `current` is the scratch buffer (an odd number of swaps).
+    let mut swapped = false;
+    // Initial guess: the better (lower Phi) of the inertial target y and y + h^2 g, both
+    // projected on the ground. The second is the predictor of projective dynamics (Bouaziz et
+    // al. 2014) and the exact minimiser in free fall, a rigid translation: without it the
+    // descent would have to find this lowest, slowest mode of the preconditioned system itself.
+    // For a body resting on the ground it is a poor guess (the ground stops the bottom layer
+    // and the drop compresses it): y wins there.
+    let drop = objective.gravity * (objective.h * objective.h);
+    objective.initial_guess(
+        TrialPoint {
+            positions: current,
+            gradient,
+        },
+        drop,
+    );
+    let mut evaluation = objective.evaluate(current, gradient)?;
+    let mut energy_evaluations = 1;
+    if drop != F::Vector::ZERO {
+        objective.initial_guess(
+            TrialPoint {
+                positions: other,
+                gradient: trial_gradient,
+            },
+            F::Vector::ZERO,
+        );
+        let inertial = objective.evaluate(other, trial_gradient)?;
+        energy_evaluations += 1;
+        // y also wins when y + h^2 g is not finite (NaN compares false).
+        if inertial.phi < evaluation.phi || !evaluation.phi.is_finite() {
+            swap(&mut current, &mut other);
+            swap(&mut gradient, &mut trial_gradient);
+            swapped = !swapped;
+            evaluation = inertial;
+        }
+    }
+    if !evaluation.phi.is_finite() {
+        // y may invert an element of a barrier model: start from x_n instead.
+        copy(current, objective.vertices.start);
+        gradient.fill(F::Vector::ZERO);
+        evaluation = objective.evaluate(current, gradient)?;
+        energy_evaluations += 1;
+    }
+    if !evaluation.phi.is_finite() {
+        let vertex = first_non_finite(gradient, &[]).unwrap_or(0);
+        return Err(StepError::NonFiniteState { vertex });
+    }
+    let mut phi = evaluation.phi;
+
+    let initial_residual = evaluation.residual;
+    let mut residual = initial_residual;
+    let mut stopping = Stopping::new(
+        settings.stall,
+        settings.tolerance,
+        initial_residual,
+        objective.gravity_load(),
+    );
+    let target = stopping.target;
+    rule.begin(objective, current);
+    // Whether `other` holds x_{k-1}, so that the last step is known (false at the start and
+    // after a restart, when it counts as zero).
+    let mut stepped = false;
+    let mut iterations = 0;
+    let mut restarts = 0;
+    let mut backtracks = 0;
+    // The step length of the accelerated trials: the one the last plain line search accepted.
+    let mut alpha = settings.step_length;
+    let mut acceleration = Acceleration::new(settings.acceleration);
+    while stopping.unmet(residual) && iterations < settings.max_iterations {
+        if stopping.stalled_before(iterations, residual, rule.rounding_floor()) {
+            break;
+        }
+        let omega = acceleration.next_weight(iterations, residual);
+        if omega > 1.0 {
+            let at = Iterate {
+                x: current,
+                gradient,
+                residual,
+                target,
+            };
+            let point = TrialPoint {
+                positions: other,
+                gradient: trial_gradient,
+            };
+            rule.extrapolate(objective, &at, stepped, point, (omega * alpha, omega));
+            let Evaluation {
+                phi: trial_phi,
+                elastic: trial_elastic,
+                residual: trial_residual,
+            } = objective.evaluate(other, trial_gradient)?;
+            energy_evaluations += 1;
+            // The semi-iteration is not monotone in Phi in general, but an increase (beyond
+            // rounding) means the nonlinearity or the contacts broke the linear model it
+            // relies on: restart from a plain, line-searched step (Wang and Yang's fallback).
+            let noise = ROUNDING * (phi.abs() + trial_phi.abs() + trial_elastic.abs());
+            if trial_phi <= phi + noise {
+                swap(&mut current, &mut other);
+                swap(&mut gradient, &mut trial_gradient);
+                swapped = !swapped;
+                stepped = true;
+                phi = trial_phi;
+                iterations += 1;
+                residual = trial_residual;
+                continue;
+            }
+            restarts += 1;
+            acceleration.restart();
+            stepped = false;
+        }
+        // d = -P^-1 g (+ momentum * last step), projected; plain descent if that is not
+        // downhill. The same pass writes the first trial point, at the full step.
+        alpha = settings.step_length;
+        let momentum = (stepped && settings.momentum > 0.0).then_some(settings.momentum);
+        let at = Iterate {
+            x: current,
+            gradient,
+            residual,
+            target,
+        };
+        let mut slope = rule.search(
+            objective,
+            &at,
+            direction,
+            momentum,
+            TrialPoint {
+                positions: other,
+                gradient: trial_gradient,
+            },
+            alpha,
+        )?;
+        if !downhill(slope) && momentum.is_some() {
+            slope = rule.search(
+                objective,
+                &at,
+                direction,
+                None,
+                TrialPoint {
+                    positions: other,
+                    gradient: trial_gradient,
+                },
+                alpha,
+            )?;
+        }
+        if !downhill(slope) {
+            stopping.failed();
+            break; // stationary to rounding
+        }
+        let mut accepted = None;
+        for attempt in 0..=settings.max_backtracks {
+            if attempt > 0 {
+                trial_pass(
+                    &objective.frames,
+                    objective.vertices.pinned,
+                    (current, direction),
+                    alpha,
+                    TrialPoint {
+                        positions: other,
+                        gradient: trial_gradient,
+                    },
+                );
+            }
+            let evaluation = objective.evaluate(other, trial_gradient)?;
+            energy_evaluations += 1;
+            let (trial_phi, trial_elastic) = (evaluation.phi, evaluation.elastic);
+            // Armijo on Phi, or, where Phi's change is below its rounding, Hager and Zhang's
+            // approximate Armijo test (see `line_search.rs`).
+            let trial_gradient: &[F::Vector] = trial_gradient;
+            let sufficient = sufficient_decrease(
+                (phi, trial_phi, trial_elastic),
+                settings.armijo,
+                alpha,
+                slope,
+                || slope_along(trial_gradient, direction),
+            );
+            if sufficient {
+                accepted = Some(evaluation);
+                break;
+            }
+            alpha *= settings.backtrack;
+            backtracks += 1;
+        }
+        let Some(evaluation) = accepted else {
+            stopping.failed();
+            break;
+        };
+        swap(&mut current, &mut other);
+        swap(&mut gradient, &mut trial_gradient);
+        swapped = !swapped;
+        stepped = true;
+        phi = evaluation.phi;
+        iterations += 1;
+        let previous = residual;
+        residual = evaluation.residual;
+        if stopping.stalled_after(previous, residual, rule.rounding_floor()) {
+            break;
+        }
+    }
+    if swapped {
+        // `other` is `positions`.
+        copy(other, current);
+    }
+    let rounding_floor = rule.rounding_floor();
+    let summary = Summary {
+        iterations,
+        energy_evaluations,
+        backtracks,
+        restarts,
+        initial_residual,
+        residual,
+        target,
+        rounding_floor,
+        phi,
+        converged: stopping.converged(residual, rounding_floor),
+        stagnated: stopping.stagnated,
+        rho: acceleration.rho(),
+    };
+    Ok((summary, gradient, trial))
+}
