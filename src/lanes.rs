@@ -25,15 +25,129 @@ pub(crate) fn each_lane<T, U>(values: [T; LANES], mut f: impl FnMut(T) -> U) -> 
 }
 
 mod sealed {
-    /// Only this crate's number types implement [`Lane`](super::Lane).
-    pub trait Sealed {}
-    impl Sealed for super::Real {}
-    impl Sealed for super::Lanes {}
-    impl<L: super::Lane> Sealed for super::LanePair<L> {}
+    use super::{LaneArray, Real};
+
+    /// Only this crate's number types implement [`Lane`](super::Lane). Lane-by-lane access
+    /// lives here, out of reach of other crates, for the provided methods of
+    /// [`Material`](super::super::material::Material) that fall back to one value at a time.
+    pub trait Sealed: Sized {
+        /// Values per group: 1 for a scalar.
+        const WIDTH: usize;
+        /// The value of lane `lane` (zero past the last lane).
+        fn value_of_lane(self, lane: usize) -> Real;
+        /// The group whose lane `i` holds `value(i)`.
+        fn from_lane_fn(value: impl FnMut(usize) -> Real) -> Self;
+    }
+
+    impl Sealed for Real {
+        const WIDTH: usize = 1;
+        #[inline(always)]
+        fn value_of_lane(self, lane: usize) -> Real {
+            if lane == 0 { self } else { 0.0 }
+        }
+        #[inline(always)]
+        fn from_lane_fn(mut value: impl FnMut(usize) -> Real) -> Self {
+            value(0)
+        }
+    }
+
+    /// [`Sealed`] of a [`LaneArray`] type, through its array of values.
+    macro_rules! sealed_by_array {
+        ($lanes:ty, $width:expr) => {
+            impl Sealed for $lanes {
+                const WIDTH: usize = $width;
+                #[inline(always)]
+                fn value_of_lane(self, lane: usize) -> Real {
+                    <$lanes as LaneArray>::lane_value(&self.to_lane_array(), lane)
+                }
+                #[inline(always)]
+                fn from_lane_fn(mut value: impl FnMut(usize) -> Real) -> Self {
+                    let mut values = <$lanes as LaneArray>::ZEROS;
+                    for lane in 0..$width {
+                        <$lanes as LaneArray>::set_lane_value(&mut values, lane, value(lane));
+                    }
+                    <$lanes as LaneArray>::from_lane_array(values)
+                }
+            }
+        };
+    }
+    sealed_by_array!(super::Lanes, super::LANES);
     #[cfg(target_arch = "x86_64")]
-    impl Sealed for super::super::lanes_avx2::Avx2Lanes {}
+    sealed_by_array!(
+        super::super::lanes_avx2::Avx2Lanes,
+        super::super::wide_ops::AVX2_WIDTH
+    );
     #[cfg(target_arch = "x86_64")]
-    impl Sealed for super::super::lanes_avx512::Avx512Lanes {}
+    sealed_by_array!(
+        super::super::lanes_avx512::Avx512Lanes,
+        super::super::wide_ops::AVX512_WIDTH
+    );
+
+    impl<L: super::Lane> Sealed for super::LanePair<L> {
+        const WIDTH: usize = 2 * L::WIDTH;
+        #[inline(always)]
+        fn value_of_lane(self, lane: usize) -> Real {
+            match lane.checked_sub(L::WIDTH) {
+                None => self.0.value_of_lane(lane),
+                Some(upper) => self.1.value_of_lane(upper),
+            }
+        }
+        #[inline(always)]
+        fn from_lane_fn(mut value: impl FnMut(usize) -> Real) -> Self {
+            let lower = L::from_lane_fn(&mut value);
+            let upper = L::from_lane_fn(|lane| value(lane + L::WIDTH));
+            super::LanePair(lower, upper)
+        }
+    }
+}
+
+/// The widest group any lane type has (32 f32 in a pair of AVX-512 registers).
+pub(crate) const MAX_WIDTH: usize = 32;
+
+/// The matrix in lane `lane` of `m`.
+#[inline(always)]
+pub(crate) fn lane_mat3<L: Lane>(m: &LaneMat3<L>, lane: usize) -> Mat3 {
+    let v = |c: &LaneVec3<L>| {
+        Vec3::new(
+            c.x.value_of_lane(lane),
+            c.y.value_of_lane(lane),
+            c.z.value_of_lane(lane),
+        )
+    };
+    Mat3::from_cols(v(&m.c0), v(&m.c1), v(&m.c2))
+}
+
+/// `each` of the matrix in every lane of `m`, one lane at a time, back in lanes: the provided
+/// methods of [`Material`](super::material::Material) for lane groups of any width.
+#[inline(always)]
+pub(crate) fn map_lane_matrices<L: Lane>(
+    m: LaneMat3<L>,
+    mut each: impl FnMut(Mat3) -> (Real, Mat3),
+) -> (L, LaneMat3<L>) {
+    let mut results = [(0.0, [0.0; 9]); MAX_WIDTH];
+    for (lane, slot) in results.iter_mut().enumerate().take(L::WIDTH) {
+        let (value, matrix) = each(lane_mat3(&m, lane));
+        *slot = (value, matrix.to_cols_array());
+    }
+    let entry = |k: usize| {
+        L::from_lane_fn(|lane| {
+            results
+                .get(lane)
+                .and_then(|(_, entries)| entries.get(k))
+                .copied()
+                .unwrap_or(0.0)
+        })
+    };
+    let column = |c: usize| LaneVec3::new(entry(3 * c), entry(3 * c + 1), entry(3 * c + 2));
+    let values = L::from_lane_fn(|lane| results.get(lane).map_or(0.0, |(value, _)| *value));
+    (
+        values,
+        LaneMat3 {
+            c0: column(0),
+            c1: column(1),
+            c2: column(2),
+        },
+    )
 }
 
 /// A sum over `n` items (vertices, elements) in a fixed order, grouped or not: item `i` of the
@@ -193,8 +307,6 @@ impl Lane for Real {
 /// any width (4 for [`Lanes`], more for the AVX lanes of `simd`'s wider widths and for
 /// [`LanePair`]s).
 pub(crate) trait LaneArray: Lane {
-    /// Values per group.
-    const WIDTH: usize;
     /// The values of a group, lane by lane.
     type Array: Copy;
     /// An array of zeros.
@@ -224,7 +336,6 @@ pub(crate) fn set_array_lane_value(values: &mut [Real], lane: usize, value: Real
 }
 
 impl LaneArray for Lanes {
-    const WIDTH: usize = LANES;
     type Array = [Real; LANES];
     const ZEROS: Self::Array = [0.0; LANES];
 
@@ -354,7 +465,6 @@ impl<L: Lane> Lane for LanePair<L> {
 }
 
 impl<L: LaneArray> LaneArray for LanePair<L> {
-    const WIDTH: usize = 2 * L::WIDTH;
     type Array = (L::Array, L::Array);
     const ZEROS: Self::Array = (L::ZEROS, L::ZEROS);
 

@@ -138,7 +138,6 @@ impl Lane for Avx2Lanes {
 }
 
 impl LaneArray for Avx2Lanes {
-    const WIDTH: usize = AVX2_WIDTH;
     type Array = [Real; AVX2_WIDTH];
     const ZEROS: Self::Array = [0.0; AVX2_WIDTH];
 

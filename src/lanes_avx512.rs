@@ -148,7 +148,6 @@ impl Lane for Avx512Lanes {
 }
 
 impl LaneArray for Avx512Lanes {
-    const WIDTH: usize = AVX512_WIDTH;
     type Array = [Real; AVX512_WIDTH];
     const ZEROS: Self::Array = [0.0; AVX512_WIDTH];
 

@@ -50,6 +50,7 @@ use super::types::{Mat3, Real, Vec3};
 
 #[path = "svd_batch.rs"]
 mod batch;
+pub(crate) use batch::{UNWRITTEN, svd3_of_lanes};
 pub use batch::{svd3_batch, svd3_batch_sweeps};
 
 /// The most Jacobi sweeps [`svd3`] runs: 4 in both precisions (each sweep is three rotations;

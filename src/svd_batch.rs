@@ -15,7 +15,9 @@
 
 #[cfg(not(debug_assertions))]
 use super::super::lanes::LanePair;
-use super::super::lanes::{LaneArray, LaneMat3, LaneVec3, Lanes};
+use super::super::lanes::{
+    LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH as MAX_GROUP, lane_mat3,
+};
 use super::super::math;
 use super::super::types::{Mat3, Real, Vec3};
 use super::{DEFAULT_SWEEPS, Prescale, Svd3, decompose_scaled, svd3_sweeps};
@@ -170,9 +172,6 @@ fn padded_groups<L: LaneArray>(matrices: &[Mat3], out: &mut [Svd3], sweeps: u32)
     }
 }
 
-/// The widest group any lane type has (32 f32 in a pair of AVX-512 registers).
-const MAX_GROUP: usize = 32;
-
 /// The value of `lane` in each of `columns`.
 #[inline(always)]
 fn lane_values<L: LaneArray, const N: usize>(columns: &[L::Array; N], lane: usize) -> [Real; N] {
@@ -274,3 +273,20 @@ fn decompose_group<L: LaneArray>(matrices: &[Mat3], out: &mut [Svd3], sweeps: u3
         };
     }
 }
+
+/// [`svd3`](super::svd3) of the matrix in each lane of `a`, in `out[lane]` for the first
+/// `L::WIDTH` entries (the others are left as they are): the principal-path force kernels'
+/// batch, whose deformation gradients are already in lanes.
+#[inline(always)]
+pub(crate) fn svd3_of_lanes<L: LaneArray>(a: &LaneMat3<L>, out: &mut [Svd3; MAX_GROUP]) {
+    let mut matrices = [Mat3::ZERO; MAX_GROUP];
+    for (lane, matrix) in matrices.iter_mut().enumerate().take(L::WIDTH) {
+        *matrix = lane_mat3(a, lane);
+    }
+    if let (Some(matrices), Some(out)) = (matrices.get(..L::WIDTH), out.get_mut(..L::WIDTH)) {
+        decompose_group::<L>(matrices, out, DEFAULT_SWEEPS);
+    }
+}
+
+/// An output slot for [`svd3_of_lanes`] before it is written.
+pub(crate) const UNWRITTEN: Svd3 = Svd3::NON_FINITE;

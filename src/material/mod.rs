@@ -44,7 +44,7 @@
 
 use core::fmt::Debug;
 
-use super::lanes::{Lane, LaneMat3, LaneVec3, Lanes};
+use super::lanes::{Lane, LaneMat3, LaneVec3, Lanes, map_lane_matrices};
 use super::math;
 use super::svd::{Svd3, svd3};
 use super::types::{Mat3, Real, Vec3};
@@ -141,6 +141,16 @@ macro_rules! invariant_stress_methods {
         #[inline]
         fn principal_stress(&self, s: Vec3) -> Vec3 {
             invariant_principal_stress(s, |ic, j| self.stress_coefficients(ic, j))
+        }
+
+        #[inline(always)]
+        fn first_piola_wide<L: Lane>(&self, f: LaneMat3<L>) -> LaneMat3<L> {
+            invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
+        }
+
+        #[inline(always)]
+        fn energy_and_first_piola_wide<L: Lane>(&self, f: LaneMat3<L>) -> (L, LaneMat3<L>) {
+            self.energy_and_stress(f)
         }
     };
 }
@@ -264,6 +274,32 @@ pub trait Material: Copy + Debug {
             Lanes::from_array(both.map(|(energy, _)| energy)),
             LaneMat3::from_matrices(&both.map(|(_, stress)| stress)),
         )
+    }
+
+    /// [`energy_density`](Material::energy_density) of every lane of `f`, for a group of any
+    /// [`Lane`] type (the mesh kernels run groups of 4, 8, 16 or 32, see
+    /// [`simd`](crate::simd)), lane by lane bit for bit. The provided method calls
+    /// `energy_density` once per lane; the models here compute every lane at once.
+    #[inline(always)]
+    #[must_use]
+    fn energy_density_wide<L: Lane>(&self, f: LaneMat3<L>) -> L {
+        map_lane_matrices(f, |f| (self.energy_density(f), Mat3::ZERO)).0
+    }
+
+    /// [`first_piola`](Material::first_piola) of every lane of `f`, bit for bit; see
+    /// [`energy_density_wide`](Material::energy_density_wide).
+    #[inline(always)]
+    #[must_use]
+    fn first_piola_wide<L: Lane>(&self, f: LaneMat3<L>) -> LaneMat3<L> {
+        map_lane_matrices(f, |f| (0.0, self.first_piola(f))).1
+    }
+
+    /// [`energy_and_first_piola`](Material::energy_and_first_piola) of every lane of `f`, bit
+    /// for bit; see [`energy_density_wide`](Material::energy_density_wide).
+    #[inline(always)]
+    #[must_use]
+    fn energy_and_first_piola_wide<L: Lane>(&self, f: LaneMat3<L>) -> (L, LaneMat3<L>) {
+        map_lane_matrices(f, |f| self.energy_and_first_piola(f))
     }
 
     /// The strain energy density `W` (J/m^3) as a function of the signed singular values `s` of

@@ -137,6 +137,12 @@ impl Material for NeoHookean {
         self.energy(ic, j)
     }
 
+    #[inline(always)]
+    fn energy_density_wide<L: Lane>(&self, f: LaneMat3<L>) -> L {
+        let (ic, j) = invariants(f);
+        self.energy(ic, j)
+    }
+
     #[inline]
     fn principal_energy(&self, s: Vec3) -> Real {
         let (ic, j) = principal_invariants(s);

@@ -164,6 +164,12 @@ impl Material for StableNeoHookean {
         self.energy(ic_minus_3, j_minus_1)
     }
 
+    #[inline(always)]
+    fn energy_density_wide<L: Lane>(&self, f: LaneMat3<L>) -> L {
+        let (ic_minus_3, j_minus_1) = invariant_deviations(f, f.c1.cross(f.c2));
+        self.energy(ic_minus_3, j_minus_1)
+    }
+
     #[inline]
     fn principal_energy(&self, s: Vec3) -> Real {
         let (ic_minus_3, j_minus_1) = principal_invariant_deviations(s);

@@ -126,6 +126,21 @@ impl Material for StVK {
         (self.energy(f), self.stress(f))
     }
 
+    #[inline(always)]
+    fn energy_density_wide<L: Lane>(&self, f: LaneMat3<L>) -> L {
+        self.energy(f)
+    }
+
+    #[inline(always)]
+    fn first_piola_wide<L: Lane>(&self, f: LaneMat3<L>) -> LaneMat3<L> {
+        self.stress(f)
+    }
+
+    #[inline(always)]
+    fn energy_and_first_piola_wide<L: Lane>(&self, f: LaneMat3<L>) -> (L, LaneMat3<L>) {
+        (self.energy(f), self.stress(f))
+    }
+
     #[inline]
     fn principal_energy(&self, s: Vec3) -> Real {
         let g = (s * s - Vec3::ONE) * 0.5;

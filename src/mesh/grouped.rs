@@ -3,8 +3,16 @@
 //! energies are bit for bit those of the scalar loop.
 
 use super::super::element::TetRest;
-use super::super::lanes::{LANES, LaneMat3, LaneVec3, Lanes, each_lane};
-use super::super::types::Vec3;
+use super::super::lanes::{LANES, LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH, each_lane};
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes_avx2::Avx2Lanes;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes_avx512::Avx512Lanes;
+use super::super::material::Material;
+use super::super::svd::{Svd3, UNWRITTEN, svd3, svd3_of_lanes};
+use super::super::types::{Mat3, Real, Vec3};
+use super::{gather, scatter_add};
+use crate::simd::WidthKernel;
 
 /// A group of [`LANES`] consecutive tetrahedra: vertex indices and rest data.
 pub(crate) type TetGroup<'a> = (&'a [[u32; 4]; LANES], &'a [TetRest; LANES]);
@@ -84,27 +92,456 @@ impl GroupGradients {
             }
         }
     }
+}
+
+/// The deformation gradients of a group of `L::WIDTH` consecutive tetrahedra, for a lane type of
+/// any width ([`simd`](crate::simd) picks it at run time), and the rest data their forces need:
+/// the arithmetic of [`GroupGradients`] (and of [`TetRest::deformation_gradient`] and
+/// [`TetRest::nodal_forces`]) in the same order, so every lane gets the scalar code's bits.
+pub(super) struct WideGradients<L> {
+    /// `F = Ds Dm^-1` of every element.
+    pub f: LaneMat3<L>,
+    dm_inv: LaneMat3<L>,
+    /// The rest volumes (m^3).
+    pub volume: L,
+}
+
+/// The positions of a group's corners, coordinate by coordinate: `[corner][axis]`, one value per
+/// lane.
+type CornerArrays<L> = [[<L as LaneArray>::Array; 3]; 4];
+
+impl<L: LaneArray> WideGradients<L> {
+    /// `F` of the `L::WIDTH` elements `tets` (with rest data `rests`, both exactly `L::WIDTH`
+    /// long) at `positions`. The indices were validated by the mesh; the zero fallbacks only
+    /// keep the loop free of panics.
+    #[inline(always)]
+    pub fn new(positions: &[Vec3], tets: &[[u32; 4]], rests: &[TetRest]) -> Self {
+        let mut corners: CornerArrays<L> = [[L::ZEROS; 3]; 4];
+        let mut rest_values = [L::ZEROS; 10];
+        for (lane, (tet, rest)) in tets.iter().zip(rests).enumerate() {
+            for (corner, &i) in corners.iter_mut().zip(tet) {
+                let p = positions.get(i as usize).copied().unwrap_or(Vec3::ZERO);
+                for (axis, value) in corner.iter_mut().zip([p.x, p.y, p.z]) {
+                    L::set_lane_value(axis, lane, value);
+                }
+            }
+            let m = &rest.dm_inv;
+            let values = [
+                m.x_axis.x,
+                m.x_axis.y,
+                m.x_axis.z,
+                m.y_axis.x,
+                m.y_axis.y,
+                m.y_axis.z,
+                m.z_axis.x,
+                m.z_axis.y,
+                m.z_axis.z,
+                rest.volume,
+            ];
+            for (slot, value) in rest_values.iter_mut().zip(values) {
+                L::set_lane_value(slot, lane, value);
+            }
+        }
+        let [c0, c1, c2, c3] = corners;
+        let vector = |[x, y, z]: [L::Array; 3]| {
+            LaneVec3::new(
+                L::from_lane_array(x),
+                L::from_lane_array(y),
+                L::from_lane_array(z),
+            )
+        };
+        let x0 = vector(c0);
+        let edges = LaneMat3 {
+            c0: vector(c1) - x0,
+            c1: vector(c2) - x0,
+            c2: vector(c3) - x0,
+        };
+        let [m00, m10, m20, m01, m11, m21, m02, m12, m22, volume] = rest_values;
+        let dm_inv = LaneMat3 {
+            c0: vector([m00, m10, m20]),
+            c1: vector([m01, m11, m21]),
+            c2: vector([m02, m12, m22]),
+        };
+        WideGradients {
+            f: edges * dm_inv,
+            dm_inv,
+            volume: L::from_lane_array(volume),
+        }
+    }
 
     /// Adds the nodal forces of the stresses `p` (Pa) into `forces`, element by element and
-    /// corner by corner in order, as [`TetRest::nodal_forces`] forms them.
+    /// corner by corner in order (the order of the scalar loop, which matters where elements
+    /// share vertices), as [`TetRest::nodal_forces`] forms them.
     #[inline(always)]
-    pub fn scatter_forces(
-        &self,
-        tets: &[[u32; 4]; LANES],
-        p: LaneMat3<Lanes>,
-        forces: &mut [Vec3],
-    ) {
+    pub fn scatter_forces(&self, tets: &[[u32; 4]], p: LaneMat3<L>, forces: &mut [Vec3]) {
         let h = p.scale(-self.volume) * self.dm_inv.transpose();
-        let corners = each_lane(
-            [-(h.c0 + h.c1 + h.c2), h.c0, h.c1, h.c2],
-            LaneVec3::to_vectors,
-        );
+        let arrays = |v: LaneVec3<L>| {
+            [
+                v.x.to_lane_array(),
+                v.y.to_lane_array(),
+                v.z.to_lane_array(),
+            ]
+        };
+        let corners: CornerArrays<L> = [
+            arrays(-(h.c0 + h.c1 + h.c2)),
+            arrays(h.c0),
+            arrays(h.c1),
+            arrays(h.c2),
+        ];
         for (lane, tet) in tets.iter().enumerate() {
             for (corner, &i) in corners.iter().zip(tet) {
-                if let (Some(slot), Some(&force)) = (forces.get_mut(i as usize), corner.get(lane)) {
-                    *slot += force;
+                if let Some(slot) = forces.get_mut(i as usize) {
+                    let [x, y, z] = corner;
+                    *slot += Vec3::new(
+                        L::lane_value(x, lane),
+                        L::lane_value(y, lane),
+                        L::lane_value(z, lane),
+                    );
                 }
             }
         }
+    }
+}
+
+/// The elements of `tets` (and `rests`, as long) in whole groups of `width`, and the rest.
+#[inline(always)]
+#[allow(clippy::type_complexity)]
+fn split_groups<'a>(
+    tets: &'a [[u32; 4]],
+    rests: &'a [TetRest],
+    width: usize,
+) -> (
+    (&'a [[u32; 4]], &'a [TetRest]),
+    (&'a [[u32; 4]], &'a [TetRest]),
+) {
+    let whole = tets.len() - tets.len() % width.max(1);
+    match (tets.split_at_checked(whole), rests.split_at_checked(whole)) {
+        (Some((group_tets, tail_tets)), Some((group_rests, tail_rests))) => {
+            ((group_tets, group_rests), (tail_tets, tail_rests))
+        }
+        _ => ((&[], &[]), (tets, rests)),
+    }
+}
+
+/// The four interleaved partial sums of the fused energy pass (the order of `LaneSum` in
+/// lanes.rs): element `i < whole` adds to partial sum `i % 4`, the rest to `last`, whether it
+/// comes in a group or alone.
+pub(super) struct FusedEnergy {
+    partial: [Real; LANES],
+    last: Real,
+    whole: usize,
+}
+
+impl FusedEnergy {
+    /// Zero, for `n` elements.
+    #[inline(always)]
+    pub fn new(n: usize) -> Self {
+        FusedEnergy {
+            partial: [0.0; LANES],
+            last: 0.0,
+            whole: n - n % LANES,
+        }
+    }
+
+    /// Adds the terms of a group of `L::WIDTH` consecutive elements, the first of them at a
+    /// multiple of [`LANES`], all below `whole`: [`LANES`] at a time, in order.
+    #[inline(always)]
+    pub fn add_group<L: LaneArray>(&mut self, terms: L) {
+        const { assert!(L::WIDTH.is_multiple_of(LANES)) };
+        let values = terms.to_lane_array();
+        for chunk in 0..L::WIDTH / LANES {
+            for (j, partial) in self.partial.iter_mut().enumerate() {
+                *partial += L::lane_value(&values, chunk * LANES + j);
+            }
+        }
+    }
+
+    /// Adds the term of element `i`, taken one at a time.
+    #[inline(always)]
+    pub fn add_single(&mut self, i: usize, term: Real) {
+        match self.partial.get_mut(i % LANES) {
+            Some(partial) if i < self.whole => *partial += term,
+            _ => self.last += term,
+        }
+    }
+
+    /// The total.
+    #[inline(always)]
+    pub fn total(self) -> Real {
+        let [s0, s1, s2, s3] = self.partial;
+        ((s0 + s1) + (s2 + s3)) + self.last
+    }
+}
+
+/// One pass of a mesh kernel over the elements of `(tets, rests)` at deformed `positions`, run
+/// at the width [`dispatch`](crate::simd) picks: whole groups of the widest lanes first, then
+/// narrower ones, then one element at a time. Every group gives the bits of the one-at-a-time
+/// code, so the width changes nothing but the speed.
+pub(super) struct Pass<'k, M, J> {
+    pub material: &'k M,
+    pub positions: &'k [Vec3],
+    pub tets: &'k [[u32; 4]],
+    pub rests: &'k [TetRest],
+    pub job: J,
+}
+
+/// What a [`Pass`] does with each group and each single element.
+pub(super) trait PassJob {
+    /// Elements before the current slice (for per-element outputs and the energy order).
+    fn groups<L: LaneArray, M: Material>(
+        &mut self,
+        material: &M,
+        positions: &[Vec3],
+        first: usize,
+        tets: &[[u32; 4]],
+        rests: &[TetRest],
+    );
+    /// One element `i` at a time.
+    fn single<M: Material>(
+        &mut self,
+        material: &M,
+        positions: &[Vec3],
+        i: usize,
+        corners: &[u32; 4],
+        rest: &TetRest,
+    );
+}
+
+impl<M: Material, J: PassJob> Pass<'_, M, J> {
+    /// Groups of `L` and then, recursively, narrower widths: returns the elements left and the
+    /// index of the first of them.
+    #[inline(always)]
+    fn groups_of<'t, L: LaneArray>(
+        &mut self,
+        first: usize,
+        tets: &'t [[u32; 4]],
+        rests: &'t [TetRest],
+    ) -> (usize, &'t [[u32; 4]], &'t [TetRest]) {
+        let ((group_tets, group_rests), (tail_tets, tail_rests)) =
+            split_groups(tets, rests, L::WIDTH);
+        self.job.groups::<L, M>(
+            self.material,
+            self.positions,
+            first,
+            group_tets,
+            group_rests,
+        );
+        (first + group_tets.len(), tail_tets, tail_rests)
+    }
+
+    /// The elements from `first` on one at a time.
+    #[inline(always)]
+    fn singles(&mut self, first: usize, tets: &[[u32; 4]], rests: &[TetRest]) {
+        for (i, (corners, rest)) in (first..).zip(tets.iter().zip(rests)) {
+            self.job
+                .single(self.material, self.positions, i, corners, rest);
+        }
+    }
+}
+
+impl<M: Material, J: PassJob> WidthKernel for Pass<'_, M, J> {
+    type Output = J;
+
+    #[inline(always)]
+    fn scalar(mut self) -> J {
+        let (tets, rests) = (self.tets, self.rests);
+        self.singles(0, tets, rests);
+        self.job
+    }
+
+    #[inline(always)]
+    fn sse(mut self) -> J {
+        let (first, tets, rests) = self.groups_of::<Lanes>(0, self.tets, self.rests);
+        self.singles(first, tets, rests);
+        self.job
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn avx2(mut self) -> J {
+        let (first, tets, rests) = self.groups_of::<Avx2Lanes>(0, self.tets, self.rests);
+        #[cfg(not(debug_assertions))]
+        let (first, tets, rests) = self.groups_of::<Lanes>(first, tets, rests);
+        self.singles(first, tets, rests);
+        self.job
+    }
+
+    // Unoptimised builds run the widest lanes and then one element at a time, as the batched SVD
+    // does (src/svd_batch.rs): there the inlined SVD of every lane type keeps its own stack
+    // slots, and three of them in one function overflowed a test thread's stack.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn avx512(mut self) -> J {
+        let (first, tets, rests) = self.groups_of::<Avx512Lanes>(0, self.tets, self.rests);
+        #[cfg(not(debug_assertions))]
+        let (first, tets, rests) = self.groups_of::<Avx2Lanes>(first, tets, rests);
+        #[cfg(not(debug_assertions))]
+        let (first, tets, rests) = self.groups_of::<Lanes>(first, tets, rests);
+        self.singles(first, tets, rests);
+        self.job
+    }
+}
+
+/// Adds the direct-stress forces into a force buffer.
+pub(super) struct DirectForces<'f>(pub &'f mut [Vec3]);
+
+impl PassJob for DirectForces<'_> {
+    #[inline(always)]
+    fn groups<L: LaneArray, M: Material>(
+        &mut self,
+        material: &M,
+        positions: &[Vec3],
+        _first: usize,
+        tets: &[[u32; 4]],
+        rests: &[TetRest],
+    ) {
+        for (tets, rests) in tets
+            .chunks_exact(L::WIDTH)
+            .zip(rests.chunks_exact(L::WIDTH))
+        {
+            let gradients = WideGradients::<L>::new(positions, tets, rests);
+            gradients.scatter_forces(tets, material.first_piola_wide(gradients.f), self.0);
+        }
+    }
+
+    #[inline(always)]
+    fn single<M: Material>(
+        &mut self,
+        material: &M,
+        positions: &[Vec3],
+        _i: usize,
+        corners: &[u32; 4],
+        rest: &TetRest,
+    ) {
+        let f = rest.deformation_gradient(gather(positions, corners));
+        scatter_add(self.0, corners, rest.nodal_forces(material.first_piola(f)));
+    }
+}
+
+/// The fused energy and force pass: the forces into a buffer, the energy in [`FusedEnergy`]'s
+/// order.
+pub(super) struct EnergyAndForces<'f> {
+    pub forces: &'f mut [Vec3],
+    pub energy: FusedEnergy,
+}
+
+impl PassJob for EnergyAndForces<'_> {
+    #[inline(always)]
+    fn groups<L: LaneArray, M: Material>(
+        &mut self,
+        material: &M,
+        positions: &[Vec3],
+        _first: usize,
+        tets: &[[u32; 4]],
+        rests: &[TetRest],
+    ) {
+        for (tets, rests) in tets
+            .chunks_exact(L::WIDTH)
+            .zip(rests.chunks_exact(L::WIDTH))
+        {
+            let gradients = WideGradients::<L>::new(positions, tets, rests);
+            let (density, p) = material.energy_and_first_piola_wide(gradients.f);
+            self.energy.add_group(gradients.volume * density);
+            gradients.scatter_forces(tets, p, self.forces);
+        }
+    }
+
+    #[inline(always)]
+    fn single<M: Material>(
+        &mut self,
+        material: &M,
+        positions: &[Vec3],
+        i: usize,
+        corners: &[u32; 4],
+        rest: &TetRest,
+    ) {
+        let f = rest.deformation_gradient(gather(positions, corners));
+        let (density, stress) = material.energy_and_first_piola(f);
+        self.energy.add_single(i, rest.volume * density);
+        scatter_add(self.forces, corners, rest.nodal_forces(stress));
+    }
+}
+
+/// The energy `V W(F)` (J) of every element, handed to `each(i, energy)` in element order.
+pub(super) struct Energies<E>(pub E);
+
+impl<E: FnMut(usize, Real)> PassJob for Energies<E> {
+    #[inline(always)]
+    fn groups<L: LaneArray, M: Material>(
+        &mut self,
+        material: &M,
+        positions: &[Vec3],
+        first: usize,
+        tets: &[[u32; 4]],
+        rests: &[TetRest],
+    ) {
+        let groups = tets
+            .chunks_exact(L::WIDTH)
+            .zip(rests.chunks_exact(L::WIDTH));
+        for (start, (tets, rests)) in (first..).step_by(L::WIDTH).zip(groups) {
+            let gradients = WideGradients::<L>::new(positions, tets, rests);
+            let energies =
+                (gradients.volume * material.energy_density_wide(gradients.f)).to_lane_array();
+            for lane in 0..L::WIDTH {
+                (self.0)(start + lane, L::lane_value(&energies, lane));
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn single<M: Material>(
+        &mut self,
+        material: &M,
+        positions: &[Vec3],
+        i: usize,
+        corners: &[u32; 4],
+        rest: &TetRest,
+    ) {
+        (self.0)(i, rest.elastic_energy(material, gather(positions, corners)));
+    }
+}
+
+/// Adds the principal-path forces (`stress` maps the SVD of `F` to `P`) into a force buffer:
+/// the SVDs a group at a time ([`svd3_of_lanes`], the bits of `svd3`), the stresses and nodal
+/// forces element by element.
+pub(super) struct SvdForces<'f, S> {
+    pub forces: &'f mut [Vec3],
+    pub stress: S,
+}
+
+impl<S: Fn(&Svd3) -> Mat3> PassJob for SvdForces<'_, S> {
+    #[inline(always)]
+    fn groups<L: LaneArray, M: Material>(
+        &mut self,
+        _material: &M,
+        positions: &[Vec3],
+        _first: usize,
+        tets: &[[u32; 4]],
+        rests: &[TetRest],
+    ) {
+        let mut svds = [UNWRITTEN; MAX_WIDTH];
+        for (tets, rests) in tets
+            .chunks_exact(L::WIDTH)
+            .zip(rests.chunks_exact(L::WIDTH))
+        {
+            let gradients = WideGradients::<L>::new(positions, tets, rests);
+            svd3_of_lanes(&gradients.f, &mut svds);
+            for ((corners, rest), svd) in tets.iter().zip(rests).zip(&svds) {
+                scatter_add(self.forces, corners, rest.nodal_forces((self.stress)(svd)));
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn single<M: Material>(
+        &mut self,
+        _material: &M,
+        positions: &[Vec3],
+        _i: usize,
+        corners: &[u32; 4],
+        rest: &TetRest,
+    ) {
+        let svd = svd3(rest.deformation_gradient(gather(positions, corners)));
+        scatter_add(self.forces, corners, rest.nodal_forces((self.stress)(&svd)));
     }
 }

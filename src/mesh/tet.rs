@@ -1,14 +1,18 @@
 //! Tetrahedral meshes.
 
 use super::super::element::TetRest;
-use super::super::lanes::{LANES, Lane, Lanes};
+use super::super::lanes::LANES;
 use super::super::material::Material;
 use super::super::math::{BATCH_FORCES, BATCH_SVD};
-use super::super::svd::{Svd3, svd3, svd3_lanes};
+use super::super::svd::Svd3;
 use super::super::types::{Mat3, Real, Vec3};
-use super::grouped::{GroupGradients, TetGroup, tet_groups};
-use super::{check_length, check_positions, gather, scatter_add, validate};
+use super::grouped::{
+    DirectForces, Energies, EnergyAndForces, FusedEnergy, Pass, PassJob, SvdForces, TetGroup,
+    tet_groups,
+};
+use super::{check_length, check_positions, gather, validate};
 use crate::error::{Buffer, MeshError};
+use crate::simd::{WidthKernel, dispatch};
 
 /// A validated tetrahedral mesh: the caller's index buffer and the rest data computed from the
 /// rest positions, borrowed for `'a`. No heap.
@@ -163,24 +167,16 @@ impl<'a> TetMesh<'a> {
         self.check_positions(positions)?;
         check_length(Buffer::Forces, self.vertex_count, forces.len())?;
         self.check_deformation(material, positions)?;
-        let (groups, tail) = self.groups_and_tail(BATCH_FORCES);
-        for group in groups {
-            let gradients = GroupGradients::new(positions, group);
-            let p = material.first_piola_lanes(gradients.f);
-            gradients.scatter_forces(group.0, p, forces);
-        }
-        for (corners, rest) in tail {
-            let f = rest.deformation_gradient(gather(positions, corners));
-            scatter_add(forces, corners, rest.nodal_forces(material.first_piola(f)));
-        }
+        self.pass(material, positions, DirectForces(forces), BATCH_FORCES);
         Ok(())
     }
 
     /// As [`add_elastic_forces`](TetMesh::add_elastic_forces), through the principal
     /// (SVD) stress `P = U diag(dW/ds) V^T` ([`Material::first_piola_from_svd`]). Equal to the
     /// direct path to rounding wherever the model is defined. On targets with SIMD (x86_64,
-    /// aarch64) the SVDs of consecutive tetrahedra are computed [`LANES`] at a time
-    /// ([`svd3_lanes`]), elsewhere one by one ([`svd3`]): the same bits either way.
+    /// aarch64) the SVDs of consecutive tetrahedra are computed a group at a time, at the widest
+    /// SIMD width the CPU has ([`simd`](crate::simd)), elsewhere one by one ([`svd3`]): the same
+    /// bits either way.
     ///
     /// # Errors
     /// As [`add_elastic_forces`](TetMesh::add_elastic_forces); on error, `forces` is unchanged.
@@ -192,7 +188,9 @@ impl<'a> TetMesh<'a> {
     ) -> Result<(), MeshError> {
         self.check_positions(positions)?;
         self.check_deformation(material, positions)?;
-        self.add_svd_forces(positions, forces, |svd| material.first_piola_from_svd(svd))
+        self.add_svd_forces(material, positions, forces, |svd| {
+            material.first_piola_from_svd(svd)
+        })
     }
 
     /// **Not the gradient of any energy: for explicit time stepping only.** As
@@ -216,7 +214,7 @@ impl<'a> TetMesh<'a> {
         check_clamp_threshold(threshold)?;
         self.check_positions(positions)?;
         self.check_deformation(material, positions)?;
-        self.add_svd_forces(positions, forces, |svd| {
+        self.add_svd_forces(material, positions, forces, |svd| {
             material.first_piola_clamped_from_svd(svd, threshold)
         })
     }
@@ -244,35 +242,14 @@ impl<'a> TetMesh<'a> {
         if self.check_deformation(material, positions).is_err() {
             return Ok(Real::INFINITY);
         }
-        let whole = self.tets.len() - self.tets.len() % LANES;
-        let (groups, tail) = self.groups_and_tail(BATCH_FORCES);
-        let mut grouped = Lanes::splat(0.0);
-        for group in groups {
-            let gradients = GroupGradients::new(positions, group);
-            let (density, p) = material.energy_and_first_piola_lanes(gradients.f);
-            grouped = grouped + gradients.volume * density;
-            gradients.scatter_forces(group.0, p, forces);
-        }
-        // Elements of whole groups evaluated one at a time (all of them without batching), by
-        // the lane they would have had, and the elements after the last whole group: the order
-        // of `LaneSum` (lanes.rs), written out here because the pass measured 4 % slower through
-        // it (1.23x against 1.19x a force pass, stable neo-Hookean, benches/step.rs).
-        let mut single = [0.0; LANES];
-        let mut last = 0.0;
-        let first = if BATCH_FORCES { whole } else { 0 };
-        for (i, (corners, rest)) in (first..).zip(tail) {
-            let f = rest.deformation_gradient(gather(positions, corners));
-            let (density, stress) = material.energy_and_first_piola(f);
-            let energy = rest.volume * density;
-            match single.get_mut(i % LANES) {
-                Some(partial) if i < whole => *partial += energy,
-                _ => last += energy,
-            }
-            scatter_add(forces, corners, rest.nodal_forces(stress));
-        }
-        // One of `grouped` and `single` holds the partial sums, the other zeros.
-        let [s0, s1, s2, s3] = (grouped + Lanes::from_array(single)).to_array();
-        Ok(((s0 + s1) + (s2 + s3)) + last)
+        let job = EnergyAndForces {
+            forces,
+            energy: FusedEnergy::new(self.tets.len()),
+        };
+        Ok(self
+            .pass(material, positions, job, BATCH_FORCES)
+            .energy
+            .total())
     }
 
     /// The total elastic energy `sum V W(F)` (J) of `material` at deformed `positions` (m),
@@ -290,12 +267,11 @@ impl<'a> TetMesh<'a> {
     ) -> Result<Real, MeshError> {
         self.check_positions(positions)?;
         self.check_deformation(material, positions)?;
-        Ok(self
-            .tets
-            .iter()
-            .zip(self.rest)
-            .map(|(corners, rest)| rest.elastic_energy(material, gather(positions, corners)))
-            .sum())
+        // In element order from the neutral element of `Sum`, as `Iterator::sum` adds.
+        let mut total: Real = core::iter::empty::<Real>().sum();
+        let job = Energies(|_, energy| total += energy);
+        self.pass(material, positions, job, BATCH_FORCES);
+        Ok(total)
     }
 
     /// Writes the energy `V W(F)` (J) of every tetrahedron into `out`.
@@ -313,9 +289,12 @@ impl<'a> TetMesh<'a> {
         self.check_positions(positions)?;
         check_length(Buffer::Energies, self.tets.len(), out.len())?;
         self.check_deformation(material, positions)?;
-        for ((corners, rest), energy) in self.tets.iter().zip(self.rest).zip(out) {
-            *energy = rest.elastic_energy(material, gather(positions, corners));
-        }
+        let job = Energies(|i, energy| {
+            if let Some(slot) = out.get_mut(i) {
+                *slot = energy;
+            }
+        });
+        self.pass(material, positions, job, BATCH_FORCES);
         Ok(())
     }
 
@@ -434,37 +413,43 @@ impl<'a> TetMesh<'a> {
         })
     }
 
+    /// Runs `job` over every element: at the width [`simd`](crate::simd) picks where `batch`,
+    /// else one element at a time.
+    #[inline(always)]
+    fn pass<M: Material, J: PassJob>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        job: J,
+        batch: bool,
+    ) -> J {
+        let pass = Pass {
+            material,
+            positions,
+            tets: self.tets,
+            rests: self.rest,
+            job,
+        };
+        if batch { dispatch(pass) } else { pass.scalar() }
+    }
+
     /// Length and finiteness of a deformed position buffer.
     fn check_positions(&self, positions: &[Vec3]) -> Result<(), MeshError> {
         check_positions(self.vertex_count, positions)
     }
 
     /// The principal-path force loop, with `stress` mapping an SVD of `F` to `P`.
-    fn add_svd_forces(
+    fn add_svd_forces<M: Material>(
         &self,
+        material: &M,
         positions: &[Vec3],
         forces: &mut [Vec3],
         stress: impl Fn(&Svd3) -> Mat3,
     ) -> Result<(), MeshError> {
         self.check_positions(positions)?;
         check_length(Buffer::Forces, self.vertex_count, forces.len())?;
-        let (groups, tail) = self.groups_and_tail(BATCH_SVD);
-        for (tets, rests) in groups {
-            let gradients = core::array::from_fn(|lane| match (tets.get(lane), rests.get(lane)) {
-                (Some(corners), Some(rest)) => {
-                    rest.deformation_gradient(gather(positions, corners))
-                }
-                _ => Mat3::ZERO,
-            });
-            let svds = svd3_lanes(&gradients);
-            for ((corners, rest), svd) in tets.iter().zip(rests).zip(&svds) {
-                scatter_add(forces, corners, rest.nodal_forces(stress(svd)));
-            }
-        }
-        for (corners, rest) in tail {
-            let svd = svd3(rest.deformation_gradient(gather(positions, corners)));
-            scatter_add(forces, corners, rest.nodal_forces(stress(&svd)));
-        }
+        let job = SvdForces { forces, stress };
+        self.pass(material, positions, job, BATCH_SVD);
         Ok(())
     }
 }
