@@ -474,7 +474,7 @@ pub fn vbd_step<M: Material>(
     if !(settings.dt > 0.0 && settings.dt.is_finite()) {
         return Err(StepError::TimeStep);
     }
-    minimise(
+    minimise::<M, InOrder>(
         model,
         masses,
         pinned,
@@ -507,7 +507,58 @@ pub fn vbd_quasi_static<M: Material>(
     positions: &mut [Vec3],
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
-    minimise(model, masses, pinned, settings, positions, None, scratch)
+    minimise::<M, InOrder>(model, masses, pinned, settings, positions, None, scratch)
+}
+
+/// [`vbd_step`] with the updates of each colour spread over the current rayon pool (feature
+/// `rayon`; the global pool, or a pool of your own through `rayon::ThreadPool::install`): the
+/// same result, bit for bit, for any number of threads and any schedule, because two vertices
+/// of one colour share no element (see [`colour_vertices`](super::colour_vertices)), so the
+/// updates of a colour read only positions that no update of that colour writes, and the
+/// sequential sweep gives them the same inputs. The evaluation of `Phi` after every sweep
+/// stays sequential.
+///
+/// # Errors
+/// As [`vbd_step`].
+#[cfg(feature = "rayon")]
+pub fn vbd_step_parallel<M: Material + Sync>(
+    model: &TetElastic<'_, M>,
+    masses: &[Real],
+    pinned: &[bool],
+    settings: &VbdSettings<'_>,
+    positions: &mut [Vec3],
+    velocities: &mut [Vec3],
+    scratch: &mut VbdScratch<'_>,
+) -> Result<VbdReport, StepError> {
+    if !(settings.dt > 0.0 && settings.dt.is_finite()) {
+        return Err(StepError::TimeStep);
+    }
+    minimise::<M, OnPool>(
+        model,
+        masses,
+        pinned,
+        settings,
+        positions,
+        Some(velocities),
+        scratch,
+    )
+}
+
+/// [`vbd_quasi_static`] with the sweeps of [`vbd_step_parallel`]: the same bits as the
+/// sequential solve for any number of threads.
+///
+/// # Errors
+/// As [`vbd_quasi_static`].
+#[cfg(feature = "rayon")]
+pub fn vbd_quasi_static_parallel<M: Material + Sync>(
+    model: &TetElastic<'_, M>,
+    masses: &[Real],
+    pinned: &[bool],
+    settings: &VbdSettings<'_>,
+    positions: &mut [Vec3],
+    scratch: &mut VbdScratch<'_>,
+) -> Result<VbdReport, StepError> {
+    minimise::<M, OnPool>(model, masses, pinned, settings, positions, None, scratch)
 }
 
 /// The relative size of `Phi`'s rounding error the tests on `Phi` tolerate: `sqrt(eps)`, as
@@ -562,6 +613,8 @@ struct Sweep<'s, M: Material> {
     material: &'s M,
     offsets: &'s [u32],
     incident: &'s [u32],
+    /// The colour of every vertex.
+    colours: &'s [u32],
     order: &'s [u32],
     masses: &'s [Real],
     pinned: &'s [bool],
@@ -580,11 +633,76 @@ struct Sweep<'s, M: Material> {
 }
 
 /// What a sweep counts.
-#[derive(Default)]
+#[derive(Clone, Copy, Default)]
 struct SweepCounts {
     backtracks: u32,
     skipped: u32,
     projected: u32,
+}
+
+impl SweepCounts {
+    /// Both counts added (integers: the same in any grouping).
+    #[cfg(feature = "rayon")]
+    fn plus(self, other: SweepCounts) -> SweepCounts {
+        SweepCounts {
+            backtracks: self.backtracks.saturating_add(other.backtracks),
+            skipped: self.skipped.saturating_add(other.skipped),
+            projected: self.projected.saturating_add(other.projected),
+        }
+    }
+}
+
+/// How the vertex updates of a sweep are run: one after the other ([`InOrder`]) or colour by
+/// colour on a thread pool; the result is the same bits either way.
+trait Schedule<M: Material> {
+    /// One sweep of `sweep` over `positions` in place; `staging` (one vector per vertex) is
+    /// free to use.
+    fn sweep(
+        sweep: &Sweep<'_, M>,
+        positions: &mut [Vec3],
+        staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    );
+}
+
+/// The vertex updates one after the other in the vertex order.
+struct InOrder;
+
+/// The vertex updates of each colour in parallel on the current rayon pool.
+#[cfg(feature = "rayon")]
+struct OnPool;
+
+/// The vertices a task of a parallel sweep updates: small enough to split the colours of
+/// small meshes over the threads, large enough to pay for a task.
+#[cfg(feature = "rayon")]
+const VERTEX_CHUNK: usize = 32;
+
+#[cfg(feature = "rayon")]
+impl<M: Material + Sync> Schedule<M> for OnPool {
+    #[inline]
+    fn sweep(
+        sweep: &Sweep<'_, M>,
+        positions: &mut [Vec3],
+        staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) {
+        sweep.run_on_pool(positions, staging, counts, line_search);
+    }
+}
+
+impl<M: Material> Schedule<M> for InOrder {
+    #[inline]
+    fn sweep(
+        sweep: &Sweep<'_, M>,
+        positions: &mut [Vec3],
+        _staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) {
+        sweep.run(positions, counts, line_search);
+    }
 }
 
 /// The corner positions of `corners`.
@@ -596,13 +714,71 @@ fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
 impl<M: Material> Sweep<'_, M> {
     /// One Gauss–Seidel sweep over the free vertices in colour order, in place.
     fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) {
-        for &vertex in self.order {
+        for &vertex in self.colour_runs().flatten() {
             let i = vertex as usize;
-            if self.pinned.get(i).copied().unwrap_or(false) {
-                continue;
+            if let Some(x) = self.updated(positions, i, counts, line_search)
+                && let Some(slot) = positions.get_mut(i)
+            {
+                *slot = x;
             }
-            self.update(positions, i, counts, line_search);
         }
+    }
+
+    /// One sweep colour by colour on the current rayon pool: the updates of a colour, which
+    /// read only positions of other colours, are computed into `staging` in chunks of
+    /// [`VERTEX_CHUNK`] vertices, then written back; the same bits as [`run`](Self::run).
+    #[cfg(feature = "rayon")]
+    fn run_on_pool(
+        &self,
+        positions: &mut [Vec3],
+        staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) where
+        M: Sync,
+    {
+        use rayon::prelude::*;
+        for members in self.colour_runs() {
+            let staged = staging.get_mut(..members.len()).unwrap_or_default();
+            let read: &[Vec3] = positions;
+            let counted = staged
+                .par_chunks_mut(VERTEX_CHUNK)
+                .zip(members.par_chunks(VERTEX_CHUNK))
+                .map(|(out, chunk)| {
+                    let mut counted = SweepCounts::default();
+                    for (slot, &vertex) in out.iter_mut().zip(chunk) {
+                        let i = vertex as usize;
+                        let old = read.get(i).copied().unwrap_or(Vec3::ZERO);
+                        *slot = self
+                            .updated(read, i, &mut counted, line_search)
+                            .unwrap_or(old);
+                    }
+                    counted
+                })
+                .reduce(SweepCounts::default, SweepCounts::plus);
+            *counts = counts.plus(counted);
+            for (&vertex, &x) in members.iter().zip(&*staged) {
+                if let Some(slot) = positions.get_mut(vertex as usize) {
+                    *slot = x;
+                }
+            }
+        }
+    }
+
+    /// The colour runs of the vertex order: each colour's vertices, in order.
+    fn colour_runs(&self) -> impl Iterator<Item = &[u32]> + '_ {
+        let colour = |v: u32| self.colours.get(v as usize).copied();
+        let mut rest = self.order;
+        core::iter::from_fn(move || {
+            let first = colour(*rest.first()?);
+            let len = rest
+                .iter()
+                .position(|&v| colour(v) != first)
+                .unwrap_or(rest.len());
+            let (run, tail) = rest.split_at(len);
+            rest = tail;
+            Some(run)
+        })
     }
 
     /// The elements around `i`: index, corner, corner indices and rest data.
@@ -614,17 +790,20 @@ impl<M: Material> Sweep<'_, M> {
         })
     }
 
-    /// The local Newton update of vertex `i` (see the module documentation).
-    fn update(
+    /// The local Newton update of vertex `i` (see [`vbd_step`]): its new position, or `None`
+    /// where it stays (pinned, skipped, stationary). Reads the positions of `i` and of the
+    /// vertices sharing an element with it, which have other colours.
+    fn updated(
         &self,
-        positions: &mut [Vec3],
+        positions: &[Vec3],
         i: usize,
         counts: &mut SweepCounts,
         line_search: bool,
-    ) {
-        let Some(&x) = positions.get(i) else {
-            return;
-        };
+    ) -> Option<Vec3> {
+        if self.pinned.get(i).copied().unwrap_or(false) {
+            return None;
+        }
+        let x = *positions.get(i)?;
         let m = self.masses.get(i).copied().unwrap_or(0.0);
         let x0 = self.start.get(i).copied().unwrap_or(x);
         let y = match self.velocities.get(i) {
@@ -679,7 +858,7 @@ impl<M: Material> Sweep<'_, M> {
         }) = VertexFactor::new(weight, &hessian)
         else {
             counts.skipped += 1;
-            return;
+            return None;
         };
         counts.projected += u32::from(projected);
         let mut step = factor.solve(-gradient);
@@ -698,7 +877,7 @@ impl<M: Material> Sweep<'_, M> {
         if !(slope < 0.0 && step.is_finite()) {
             // Stationary (g = 0) or no descent: nothing to gain here this sweep.
             counts.skipped += u32::from(slope != 0.0);
-            return;
+            return None;
         }
         let project = |p: Vec3| {
             let mut p = p;
@@ -708,10 +887,7 @@ impl<M: Material> Sweep<'_, M> {
             p.axes_from(x, fixed)
         };
         if !line_search {
-            if let Some(slot) = positions.get_mut(i) {
-                *slot = project(x + step);
-            }
-            return;
+            return Some(project(x + step));
         }
         let resolution = RESOLUTION * resolution;
         let mut alpha = 1.0;
@@ -741,15 +917,13 @@ impl<M: Material> Sweep<'_, M> {
                     trial_gradient.dot(step) <= (2.0 * self.armijo - 1.0) * slope
                 });
             if sufficient {
-                if let Some(slot) = positions.get_mut(i) {
-                    *slot = trial;
-                }
-                return;
+                return Some(trial);
             }
             alpha *= self.backtrack;
             counts.backtracks += 1;
         }
         counts.skipped += 1;
+        None
     }
 
     /// Calls `visit(corner, rest, f)` for every element around `i` with vertex `i` moved to
@@ -825,8 +999,9 @@ fn ensure_topology(
     Ok(count)
 }
 
-/// The shared loop of [`vbd_step`] (`velocities` given) and [`vbd_quasi_static`].
-fn minimise<M: Material>(
+/// The shared loop of [`vbd_step`] (`velocities` given) and [`vbd_quasi_static`], their
+/// sweeps run by `S`.
+fn minimise<M: Material, S: Schedule<M>>(
     model: &TetElastic<'_, M>,
     masses: &[Real],
     pinned: &[bool],
@@ -862,7 +1037,7 @@ fn minimise<M: Material>(
     let (incident, rest) = rest
         .split_at_checked(adjacency_incident_len(tets.len()))
         .unwrap_or_default();
-    let order = rest.get(n..).unwrap_or(&[]);
+    let (colours_of, order) = rest.split_at_checked(n).unwrap_or_default();
 
     let (start, rest) = scratch.vectors.split_at_mut_checked(n).unwrap_or_default();
     let (gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
@@ -889,6 +1064,7 @@ fn minimise<M: Material>(
         material: &model.material,
         offsets,
         incident,
+        colours: colours_of,
         order,
         masses,
         pinned,
@@ -909,7 +1085,7 @@ fn minimise<M: Material>(
         last,
         unaccelerated,
     };
-    let outcome = descend(
+    let outcome = descend::<M, S>(
         model, &frames, &vertices, &sweep, settings, positions, buffers,
     );
     let (mut report, gradient, backup) = match outcome {
@@ -997,7 +1173,7 @@ fn initial_guess(
 }
 
 /// The sweeps from the relaxation's initial guess until the stopping test or the budget.
-fn descend<'b, M: Material>(
+fn descend<'b, M: Material, S: Schedule<M>>(
     model: &TetElastic<'_, M>,
     frames: &Frames<Vec3>,
     vertices: &Vertices<'_, Vec3>,
@@ -1076,7 +1252,7 @@ fn descend<'b, M: Material>(
         }
         copy(previous, positions);
         let lazy = settings.line_search_on_increase && settings.max_backtracks > 0;
-        sweep.run(positions, &mut counts, !lazy);
+        S::sweep(sweep, positions, unaccelerated, &mut counts, !lazy);
         let accelerated = omega > 1.0 && stepped;
         if accelerated {
             copy(unaccelerated, positions);
@@ -1111,7 +1287,7 @@ fn descend<'b, M: Material>(
             // line search, which makes it monotone.
             redone_sweeps += 1;
             copy(positions, previous);
-            sweep.run(positions, &mut counts, true);
+            S::sweep(sweep, positions, unaccelerated, &mut counts, true);
             next = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
             energy_evaluations += 1;
             since_restart = 1;
