@@ -396,6 +396,13 @@ pub struct VbdReport {
 /// exact block, and with the line search one or two energy densities per trial) plus one fused
 /// energy-and-force pass.
 ///
+/// # Parallel sweeps
+/// `vbd_step_parallel` (feature `rayon`) runs each colour's updates on the current rayon
+/// pool and returns this function's result bit for bit, for any number of threads: two
+/// vertices of one colour share no element, so a colour's updates are computed from the
+/// positions before the colour and written back after it, which is what the sequential sweep
+/// computes in place (`docs/math.md` section 7.2).
+///
 /// # When to pick it
 /// Measured with `cargo test --release --all-features --test vbd measure_ -- --ignored
 /// --nocapture --test-threads 1` (x86_64, one thread, a shared 2-core machine at a load of
