@@ -408,30 +408,33 @@ pub struct VbdReport {
 /// --nocapture --test-threads 1` (x86_64, one thread, a shared 2-core machine at a load of
 /// about 8; the solvers interleaved step by step, each step's least wall time over three
 /// repeats, and the thread's CPU time). On the bouncy cube's 1296 tetrahedra (f32) a sweep cost
-/// 11.3-12.9 force passes without the line search (35-40 ns per element visit: `F`, `P g` and
-/// the exact 3x3 block, no SVD; with the SVD-projected blocks it was 40-110) and 32-33 with it:
-/// each element is visited once per corner, scalar, where a force pass evaluates it once,
-/// four elements per SIMD register. The target of 3 force passes per sweep is not met. In
-/// iterations VBD gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s
-/// (tolerance 2e-3) 2151 sweeps with Chebyshev 0.95 against the relaxation's 5351 iterations
-/// (5876 plain sweeps), 3.0-3.4 times the relaxation's CPU time (3.8-4.5 times its wall
-/// time); on the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 681 sweeps (rho
-/// estimated) against 1798 iterations, 1.3-2.2 times its CPU time (1.5-2.6 times its wall
-/// time; the relaxation's whole run there is 7-10 ms, so these ratios vary most).
-/// On the free stiff block, where both sit at the rounding floor and use their budget (6 and
-/// 4 of 30 steps converge), VBD without line search took 0.22-0.27 of the relaxation's time,
-/// whose line search spends 283 000 evaluations there. So the target of half the
-/// relaxation's wall time at the same residual is met only on the free stiff block, not on
-/// the bouncy cube or the clamped block. Pick it for what the count of iterations cannot
-/// show: every accepted vertex update lowers `Phi` (sweeps are monotone, accelerated ones
-/// checked), so a small fixed budget of sweeps is always safe, and its per-vertex Newton steps
-/// (with the exact local Hessian) resolve stiff local modes the diagonal preconditioner of the
-/// relaxation does not. For speed take the full steps with the line search only in sweeps
+/// 11.4-11.7 force passes without the line search (35-37 ns per element visit: `F`, `P g` and
+/// the exact 3x3 block, no SVD) and 29-32 with it: each element is visited once per corner,
+/// scalar, where a force pass evaluates it once, four elements per SIMD register. Of a visit,
+/// the material's corner kernel is about a third (a build with a trivial kernel in its place
+/// swept in 7.7 force passes), `F` and the gather of the corners about a tenth (10.3 without
+/// them), the rest the loop over the elements around the vertex and its 3x3 solve. The target of 3 force passes per sweep is
+/// not met. In iterations VBD gains only with acceleration: over the bouncy cube's 180 steps
+/// of 1/60 s (tolerance 2e-3) 2151 sweeps with Chebyshev 0.95 against the relaxation's 5351
+/// iterations (5876 plain sweeps), 2.7 times the relaxation's CPU time (3.5 times its wall
+/// time); at these counts half the relaxation's time needs a sweep of at most about 2 force
+/// passes. On the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 681 sweeps (rho
+/// estimated, 30 of 30 steps converge) against 1798 iterations (28 of 30), 0.96-1.4 times its
+/// CPU time (1.3-1.4 times its wall time; the relaxation's whole run there is about 10 ms, so
+/// these ratios vary most). On the free stiff block, where both sit at the rounding floor and
+/// use their budget (6 and 4 of 30 steps converge), VBD without line search took 0.82-0.83 of
+/// the relaxation's CPU time (0.82-0.87 of its wall time). So the target of half the
+/// relaxation's wall time at the same residual is not met on these scenes. Pick it for what
+/// the count of iterations cannot show: every accepted vertex update lowers `Phi` (sweeps are
+/// monotone, accelerated ones checked), so a small fixed budget of sweeps is always safe, and
+/// its per-vertex Newton steps (with the exact local Hessian) resolve stiff local modes the
+/// diagonal preconditioner of the relaxation does not; and for threads: the colour-parallel
+/// sweep keeps the bits. For speed take the full steps with the line search only in sweeps
 /// that raised `Phi` ([`VbdSettings::with_line_search_on_increase`]: the cost of no line
-/// search, 1.0-1.02 of it on the bouncy cube, and still monotone) or no line search at all
+/// search, and still monotone) or no line search at all
 /// ([`VbdSettings::with_line_search`]`(0)`), with Chebyshev acceleration
 /// ([`VbdSettings::with_chebyshev`]`(0.95, 2)` was best on the bouncy cube, the estimate
-/// [`VbdSettings::with_estimated_chebyshev`] on the clamped block).
+/// [`VbdSettings::with_estimated_chebyshev`] on the stiff blocks).
 ///
 /// ```
 /// use softfem::element::TetRest;
