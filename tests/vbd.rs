@@ -327,6 +327,75 @@ macro_rules! vbd_tests {
                 assert_eq!(x, cube.rest);
                 let _ = Material::energy_density(&body.material, Mat3::IDENTITY);
             }
+
+            /// The colour-parallel sweeps give the sequential solver's bits, positions,
+            /// velocities and reports, on pools of 1, 2, 3 and 8 threads: a block (12 x 10 x 3
+            /// cubes: 8 colours of 43 or more vertices, over the 32 a task takes, so every colour is split)
+            /// pinned at one end, pressed sideways by external loads, with a roller axis, thrown
+            /// onto a frictional ground, with the line search and Chebyshev on (StVK, which is
+            /// projected where compressed); and a quasi-static sag.
+            #[cfg(feature = "rayon")]
+            #[test]
+            fn parallel_sweeps_give_the_sequential_bits_for_any_thread_count() {
+                use $($api)::+::step::{vbd_quasi_static_parallel, vbd_step_parallel};
+                let cube = boxed(Vec3::new(0.24, 0.06, 0.2), [12, 3, 10]);
+                let mut rest_data = vec![TetRest::default(); cube.tets.len()];
+                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StVK::from_young_poisson(2.0e5, 0.4).unwrap());
+                let n = cube.rest.len();
+                let t = cube.tets.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let pinned: Vec<bool> = cube.rest.iter().map(|p| p.x < 1e-6).collect();
+                let loads: Vec<Vec3> = cube.rest.iter().map(|p| Vec3::new(0.0, 0.0, -0.05 * p.x)).collect();
+                let fixed: Vec<u8> = cube.rest.iter().map(|p| u8::from(p.z < 1e-6) * 4).collect();
+                let ground = Ground::new(Vec3::Y, -2e-3).with_friction(0.5);
+                let settings = VbdSettings::new(1.0 / 60.0)
+                    .with_gravity(GRAVITY)
+                    .with_ground(ground)
+                    .with_tolerance(0.0, 8)
+                    .with_chebyshev(0.9, 2)
+                    .with_external_forces(&loads)
+                    .with_fixed_axes(&fixed);
+                // The colouring splits every colour over several tasks.
+                let (mut offsets, mut incident) = (vec![0; n + 1], vec![0; 4 * t]);
+                softfem::step::build_vertex_adjacency(&cube.tets, n, &mut offsets, &mut incident).unwrap();
+                let mut colours = vec![0; n];
+                let count = softfem::step::colour_vertices(&cube.tets, &offsets, &incident, &mut colours).unwrap();
+                let smallest = (0..count).map(|c| colours.iter().filter(|&&k| k == c).count()).min().unwrap();
+                assert!(smallest > 32, "{count} colours, the smallest of {smallest} vertices");
+                type Run = (Vec<[u64; 3]>, Vec<[u64; 3]>, Vec<String>);
+                let run = |parallel: bool| -> Run {
+                    let (mut x, mut v) = (cube.rest.clone(), vec![Vec3::new(0.5, -1.0, 0.2); n]);
+                    let (mut vectors, mut indices) = buffers(n, t);
+                    let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                    let mut reports = Vec::new();
+                    for _ in 0..3 {
+                        let report = if parallel {
+                            vbd_step_parallel(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)
+                        } else {
+                            vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)
+                        };
+                        reports.push(format!("{:?}", report.unwrap()));
+                    }
+                    let still = settings.with_tolerance(1e-6, 6);
+                    let report = if parallel {
+                        vbd_quasi_static_parallel(&body, &masses, &pinned, &still, &mut x, &mut scratch)
+                    } else {
+                        vbd_quasi_static(&body, &masses, &pinned, &still, &mut x, &mut scratch)
+                    };
+                    reports.push(format!("{:?}", report.unwrap()));
+                    (bits(&x), bits(&v), reports)
+                };
+                let sequential = run(false);
+                // The scene exercises the contact, the line search and the projection.
+                assert!(sequential.2.iter().any(|r| !r.contains("backtracks: 0,")), "{:?}", sequential.2);
+                for threads in [1, 2, 3, 8] {
+                    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                    let parallel = pool.install(|| run(true));
+                    assert!(parallel == sequential, "{threads} threads differ: {:?} vs {:?}", parallel.2, sequential.2);
+                }
+            }
         }
     };
 }

@@ -231,6 +231,8 @@ pub use super::element::Vector;
 // The owning body keeps what the scratch views remember between steps.
 pub(crate) use explicit::ExplicitMemory;
 pub(crate) use vbd::VbdTopology;
+#[cfg(feature = "rayon")]
+pub use vbd::{vbd_quasi_static_parallel, vbd_step_parallel};
 
 /// An elastic body the explicit stepper can advance: a validated mesh, a material and a force
 /// path. Implement it to plug in other force models (extra springs, a different element).

@@ -396,35 +396,45 @@ pub struct VbdReport {
 /// exact block, and with the line search one or two energy densities per trial) plus one fused
 /// energy-and-force pass.
 ///
+/// # Parallel sweeps
+/// `vbd_step_parallel` (feature `rayon`) runs each colour's updates on the current rayon
+/// pool and returns this function's result bit for bit, for any number of threads: two
+/// vertices of one colour share no element, so a colour's updates are computed from the
+/// positions before the colour and written back after it, which is what the sequential sweep
+/// computes in place (`docs/math.md` section 7.2).
+///
 /// # When to pick it
 /// Measured with `cargo test --release --all-features --test vbd measure_ -- --ignored
 /// --nocapture --test-threads 1` (x86_64, one thread, a shared 2-core machine at a load of
 /// about 8; the solvers interleaved step by step, each step's least wall time over three
 /// repeats, and the thread's CPU time). On the bouncy cube's 1296 tetrahedra (f32) a sweep cost
-/// 11.3-12.9 force passes without the line search (35-40 ns per element visit: `F`, `P g` and
-/// the exact 3x3 block, no SVD; with the SVD-projected blocks it was 40-110) and 32-33 with it:
-/// each element is visited once per corner, scalar, where a force pass evaluates it once,
-/// four elements per SIMD register. The target of 3 force passes per sweep is not met. In
-/// iterations VBD gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s
-/// (tolerance 2e-3) 2151 sweeps with Chebyshev 0.95 against the relaxation's 5351 iterations
-/// (5876 plain sweeps), 3.0-3.4 times the relaxation's CPU time (3.8-4.5 times its wall
-/// time); on the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 681 sweeps (rho
-/// estimated) against 1798 iterations, 1.3-2.2 times its CPU time (1.5-2.6 times its wall
-/// time; the relaxation's whole run there is 7-10 ms, so these ratios vary most).
-/// On the free stiff block, where both sit at the rounding floor and use their budget (6 and
-/// 4 of 30 steps converge), VBD without line search took 0.22-0.27 of the relaxation's time,
-/// whose line search spends 283 000 evaluations there. So the target of half the
-/// relaxation's wall time at the same residual is met only on the free stiff block, not on
-/// the bouncy cube or the clamped block. Pick it for what the count of iterations cannot
-/// show: every accepted vertex update lowers `Phi` (sweeps are monotone, accelerated ones
-/// checked), so a small fixed budget of sweeps is always safe, and its per-vertex Newton steps
-/// (with the exact local Hessian) resolve stiff local modes the diagonal preconditioner of the
-/// relaxation does not. For speed take the full steps with the line search only in sweeps
+/// 11.4-11.7 force passes without the line search (35-37 ns per element visit: `F`, `P g` and
+/// the exact 3x3 block, no SVD) and 29-32 with it: each element is visited once per corner,
+/// scalar, where a force pass evaluates it once, four elements per SIMD register. Of a visit,
+/// the material's corner kernel is about a third (a build with a trivial kernel in its place
+/// swept in 7.7 force passes), `F` and the gather of the corners about a tenth (10.3 without
+/// them), the rest the loop over the elements around the vertex and its 3x3 solve. The target of 3 force passes per sweep is
+/// not met. In iterations VBD gains only with acceleration: over the bouncy cube's 180 steps
+/// of 1/60 s (tolerance 2e-3) 2151 sweeps with Chebyshev 0.95 against the relaxation's 5351
+/// iterations (5876 plain sweeps), 2.7 times the relaxation's CPU time (3.5 times its wall
+/// time); at these counts half the relaxation's time needs a sweep of at most about 2 force
+/// passes. On the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 681 sweeps (rho
+/// estimated, 30 of 30 steps converge) against 1798 iterations (28 of 30), 0.96-1.4 times its
+/// CPU time (1.3-1.4 times its wall time; the relaxation's whole run there is about 10 ms, so
+/// these ratios vary most). On the free stiff block, where both sit at the rounding floor and
+/// use their budget (6 and 4 of 30 steps converge), VBD without line search took 0.82-0.83 of
+/// the relaxation's CPU time (0.82-0.87 of its wall time). So the target of half the
+/// relaxation's wall time at the same residual is not met on these scenes. Pick it for what
+/// the count of iterations cannot show: every accepted vertex update lowers `Phi` (sweeps are
+/// monotone, accelerated ones checked), so a small fixed budget of sweeps is always safe, and
+/// its per-vertex Newton steps (with the exact local Hessian) resolve stiff local modes the
+/// diagonal preconditioner of the relaxation does not; and for threads: the colour-parallel
+/// sweep keeps the bits. For speed take the full steps with the line search only in sweeps
 /// that raised `Phi` ([`VbdSettings::with_line_search_on_increase`]: the cost of no line
-/// search, 1.0-1.02 of it on the bouncy cube, and still monotone) or no line search at all
+/// search, and still monotone) or no line search at all
 /// ([`VbdSettings::with_line_search`]`(0)`), with Chebyshev acceleration
 /// ([`VbdSettings::with_chebyshev`]`(0.95, 2)` was best on the bouncy cube, the estimate
-/// [`VbdSettings::with_estimated_chebyshev`] on the clamped block).
+/// [`VbdSettings::with_estimated_chebyshev`] on the stiff blocks).
 ///
 /// ```
 /// use softfem::element::TetRest;
@@ -474,7 +484,7 @@ pub fn vbd_step<M: Material>(
     if !(settings.dt > 0.0 && settings.dt.is_finite()) {
         return Err(StepError::TimeStep);
     }
-    minimise(
+    minimise::<M, InOrder>(
         model,
         masses,
         pinned,
@@ -507,7 +517,58 @@ pub fn vbd_quasi_static<M: Material>(
     positions: &mut [Vec3],
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
-    minimise(model, masses, pinned, settings, positions, None, scratch)
+    minimise::<M, InOrder>(model, masses, pinned, settings, positions, None, scratch)
+}
+
+/// [`vbd_step`] with the updates of each colour spread over the current rayon pool (feature
+/// `rayon`; the global pool, or a pool of your own through `rayon::ThreadPool::install`): the
+/// same result, bit for bit, for any number of threads and any schedule, because two vertices
+/// of one colour share no element (see [`colour_vertices`](super::colour_vertices)), so the
+/// updates of a colour read only positions that no update of that colour writes, and the
+/// sequential sweep gives them the same inputs. The evaluation of `Phi` after every sweep
+/// stays sequential.
+///
+/// # Errors
+/// As [`vbd_step`].
+#[cfg(feature = "rayon")]
+pub fn vbd_step_parallel<M: Material + Sync>(
+    model: &TetElastic<'_, M>,
+    masses: &[Real],
+    pinned: &[bool],
+    settings: &VbdSettings<'_>,
+    positions: &mut [Vec3],
+    velocities: &mut [Vec3],
+    scratch: &mut VbdScratch<'_>,
+) -> Result<VbdReport, StepError> {
+    if !(settings.dt > 0.0 && settings.dt.is_finite()) {
+        return Err(StepError::TimeStep);
+    }
+    minimise::<M, OnPool>(
+        model,
+        masses,
+        pinned,
+        settings,
+        positions,
+        Some(velocities),
+        scratch,
+    )
+}
+
+/// [`vbd_quasi_static`] with the sweeps of [`vbd_step_parallel`]: the same bits as the
+/// sequential solve for any number of threads.
+///
+/// # Errors
+/// As [`vbd_quasi_static`].
+#[cfg(feature = "rayon")]
+pub fn vbd_quasi_static_parallel<M: Material + Sync>(
+    model: &TetElastic<'_, M>,
+    masses: &[Real],
+    pinned: &[bool],
+    settings: &VbdSettings<'_>,
+    positions: &mut [Vec3],
+    scratch: &mut VbdScratch<'_>,
+) -> Result<VbdReport, StepError> {
+    minimise::<M, OnPool>(model, masses, pinned, settings, positions, None, scratch)
 }
 
 /// The relative size of `Phi`'s rounding error the tests on `Phi` tolerate: `sqrt(eps)`, as
@@ -562,6 +623,8 @@ struct Sweep<'s, M: Material> {
     material: &'s M,
     offsets: &'s [u32],
     incident: &'s [u32],
+    /// The colour of every vertex.
+    colours: &'s [u32],
     order: &'s [u32],
     masses: &'s [Real],
     pinned: &'s [bool],
@@ -580,11 +643,76 @@ struct Sweep<'s, M: Material> {
 }
 
 /// What a sweep counts.
-#[derive(Default)]
+#[derive(Clone, Copy, Default)]
 struct SweepCounts {
     backtracks: u32,
     skipped: u32,
     projected: u32,
+}
+
+impl SweepCounts {
+    /// Both counts added (integers: the same in any grouping).
+    #[cfg(feature = "rayon")]
+    fn plus(self, other: SweepCounts) -> SweepCounts {
+        SweepCounts {
+            backtracks: self.backtracks.saturating_add(other.backtracks),
+            skipped: self.skipped.saturating_add(other.skipped),
+            projected: self.projected.saturating_add(other.projected),
+        }
+    }
+}
+
+/// How the vertex updates of a sweep are run: one after the other ([`InOrder`]) or colour by
+/// colour on a thread pool; the result is the same bits either way.
+trait Schedule<M: Material> {
+    /// One sweep of `sweep` over `positions` in place; `staging` (one vector per vertex) is
+    /// free to use.
+    fn sweep(
+        sweep: &Sweep<'_, M>,
+        positions: &mut [Vec3],
+        staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    );
+}
+
+/// The vertex updates one after the other in the vertex order.
+struct InOrder;
+
+/// The vertex updates of each colour in parallel on the current rayon pool.
+#[cfg(feature = "rayon")]
+struct OnPool;
+
+/// The vertices a task of a parallel sweep updates: small enough to split the colours of
+/// small meshes over the threads, large enough to pay for a task.
+#[cfg(feature = "rayon")]
+const VERTEX_CHUNK: usize = 32;
+
+#[cfg(feature = "rayon")]
+impl<M: Material + Sync> Schedule<M> for OnPool {
+    #[inline]
+    fn sweep(
+        sweep: &Sweep<'_, M>,
+        positions: &mut [Vec3],
+        staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) {
+        sweep.run_on_pool(positions, staging, counts, line_search);
+    }
+}
+
+impl<M: Material> Schedule<M> for InOrder {
+    #[inline]
+    fn sweep(
+        sweep: &Sweep<'_, M>,
+        positions: &mut [Vec3],
+        _staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) {
+        sweep.run(positions, counts, line_search);
+    }
 }
 
 /// The corner positions of `corners`.
@@ -596,13 +724,71 @@ fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
 impl<M: Material> Sweep<'_, M> {
     /// One Gauss–Seidel sweep over the free vertices in colour order, in place.
     fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) {
-        for &vertex in self.order {
+        for &vertex in self.colour_runs().flatten() {
             let i = vertex as usize;
-            if self.pinned.get(i).copied().unwrap_or(false) {
-                continue;
+            if let Some(x) = self.updated(positions, i, counts, line_search)
+                && let Some(slot) = positions.get_mut(i)
+            {
+                *slot = x;
             }
-            self.update(positions, i, counts, line_search);
         }
+    }
+
+    /// One sweep colour by colour on the current rayon pool: the updates of a colour, which
+    /// read only positions of other colours, are computed into `staging` in chunks of
+    /// [`VERTEX_CHUNK`] vertices, then written back; the same bits as [`run`](Self::run).
+    #[cfg(feature = "rayon")]
+    fn run_on_pool(
+        &self,
+        positions: &mut [Vec3],
+        staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) where
+        M: Sync,
+    {
+        use rayon::prelude::*;
+        for members in self.colour_runs() {
+            let staged = staging.get_mut(..members.len()).unwrap_or_default();
+            let read: &[Vec3] = positions;
+            let counted = staged
+                .par_chunks_mut(VERTEX_CHUNK)
+                .zip(members.par_chunks(VERTEX_CHUNK))
+                .map(|(out, chunk)| {
+                    let mut counted = SweepCounts::default();
+                    for (slot, &vertex) in out.iter_mut().zip(chunk) {
+                        let i = vertex as usize;
+                        let old = read.get(i).copied().unwrap_or(Vec3::ZERO);
+                        *slot = self
+                            .updated(read, i, &mut counted, line_search)
+                            .unwrap_or(old);
+                    }
+                    counted
+                })
+                .reduce(SweepCounts::default, SweepCounts::plus);
+            *counts = counts.plus(counted);
+            for (&vertex, &x) in members.iter().zip(&*staged) {
+                if let Some(slot) = positions.get_mut(vertex as usize) {
+                    *slot = x;
+                }
+            }
+        }
+    }
+
+    /// The colour runs of the vertex order: each colour's vertices, in order.
+    fn colour_runs(&self) -> impl Iterator<Item = &[u32]> + '_ {
+        let colour = |v: u32| self.colours.get(v as usize).copied();
+        let mut rest = self.order;
+        core::iter::from_fn(move || {
+            let first = colour(*rest.first()?);
+            let len = rest
+                .iter()
+                .position(|&v| colour(v) != first)
+                .unwrap_or(rest.len());
+            let (run, tail) = rest.split_at(len);
+            rest = tail;
+            Some(run)
+        })
     }
 
     /// The elements around `i`: index, corner, corner indices and rest data.
@@ -614,17 +800,20 @@ impl<M: Material> Sweep<'_, M> {
         })
     }
 
-    /// The local Newton update of vertex `i` (see the module documentation).
-    fn update(
+    /// The local Newton update of vertex `i` (see [`vbd_step`]): its new position, or `None`
+    /// where it stays (pinned, skipped, stationary). Reads the positions of `i` and of the
+    /// vertices sharing an element with it, which have other colours.
+    fn updated(
         &self,
-        positions: &mut [Vec3],
+        positions: &[Vec3],
         i: usize,
         counts: &mut SweepCounts,
         line_search: bool,
-    ) {
-        let Some(&x) = positions.get(i) else {
-            return;
-        };
+    ) -> Option<Vec3> {
+        if self.pinned.get(i).copied().unwrap_or(false) {
+            return None;
+        }
+        let x = *positions.get(i)?;
         let m = self.masses.get(i).copied().unwrap_or(0.0);
         let x0 = self.start.get(i).copied().unwrap_or(x);
         let y = match self.velocities.get(i) {
@@ -679,7 +868,7 @@ impl<M: Material> Sweep<'_, M> {
         }) = VertexFactor::new(weight, &hessian)
         else {
             counts.skipped += 1;
-            return;
+            return None;
         };
         counts.projected += u32::from(projected);
         let mut step = factor.solve(-gradient);
@@ -698,7 +887,7 @@ impl<M: Material> Sweep<'_, M> {
         if !(slope < 0.0 && step.is_finite()) {
             // Stationary (g = 0) or no descent: nothing to gain here this sweep.
             counts.skipped += u32::from(slope != 0.0);
-            return;
+            return None;
         }
         let project = |p: Vec3| {
             let mut p = p;
@@ -708,10 +897,7 @@ impl<M: Material> Sweep<'_, M> {
             p.axes_from(x, fixed)
         };
         if !line_search {
-            if let Some(slot) = positions.get_mut(i) {
-                *slot = project(x + step);
-            }
-            return;
+            return Some(project(x + step));
         }
         let resolution = RESOLUTION * resolution;
         let mut alpha = 1.0;
@@ -741,15 +927,13 @@ impl<M: Material> Sweep<'_, M> {
                     trial_gradient.dot(step) <= (2.0 * self.armijo - 1.0) * slope
                 });
             if sufficient {
-                if let Some(slot) = positions.get_mut(i) {
-                    *slot = trial;
-                }
-                return;
+                return Some(trial);
             }
             alpha *= self.backtrack;
             counts.backtracks += 1;
         }
         counts.skipped += 1;
+        None
     }
 
     /// Calls `visit(corner, rest, f)` for every element around `i` with vertex `i` moved to
@@ -825,8 +1009,9 @@ fn ensure_topology(
     Ok(count)
 }
 
-/// The shared loop of [`vbd_step`] (`velocities` given) and [`vbd_quasi_static`].
-fn minimise<M: Material>(
+/// The shared loop of [`vbd_step`] (`velocities` given) and [`vbd_quasi_static`], their
+/// sweeps run by `S`.
+fn minimise<M: Material, S: Schedule<M>>(
     model: &TetElastic<'_, M>,
     masses: &[Real],
     pinned: &[bool],
@@ -862,7 +1047,7 @@ fn minimise<M: Material>(
     let (incident, rest) = rest
         .split_at_checked(adjacency_incident_len(tets.len()))
         .unwrap_or_default();
-    let order = rest.get(n..).unwrap_or(&[]);
+    let (colours_of, order) = rest.split_at_checked(n).unwrap_or_default();
 
     let (start, rest) = scratch.vectors.split_at_mut_checked(n).unwrap_or_default();
     let (gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
@@ -889,6 +1074,7 @@ fn minimise<M: Material>(
         material: &model.material,
         offsets,
         incident,
+        colours: colours_of,
         order,
         masses,
         pinned,
@@ -909,7 +1095,7 @@ fn minimise<M: Material>(
         last,
         unaccelerated,
     };
-    let outcome = descend(
+    let outcome = descend::<M, S>(
         model, &frames, &vertices, &sweep, settings, positions, buffers,
     );
     let (mut report, gradient, backup) = match outcome {
@@ -997,7 +1183,7 @@ fn initial_guess(
 }
 
 /// The sweeps from the relaxation's initial guess until the stopping test or the budget.
-fn descend<'b, M: Material>(
+fn descend<'b, M: Material, S: Schedule<M>>(
     model: &TetElastic<'_, M>,
     frames: &Frames<Vec3>,
     vertices: &Vertices<'_, Vec3>,
@@ -1076,7 +1262,7 @@ fn descend<'b, M: Material>(
         }
         copy(previous, positions);
         let lazy = settings.line_search_on_increase && settings.max_backtracks > 0;
-        sweep.run(positions, &mut counts, !lazy);
+        S::sweep(sweep, positions, unaccelerated, &mut counts, !lazy);
         let accelerated = omega > 1.0 && stepped;
         if accelerated {
             copy(unaccelerated, positions);
@@ -1111,7 +1297,7 @@ fn descend<'b, M: Material>(
             // line search, which makes it monotone.
             redone_sweeps += 1;
             copy(positions, previous);
-            sweep.run(positions, &mut counts, true);
+            S::sweep(sweep, positions, unaccelerated, &mut counts, true);
             next = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
             energy_evaluations += 1;
             since_restart = 1;

@@ -1,0 +1,302 @@
+//! The cost of one Vertex Block Descent sweep against one force evaluation on the same mesh, at
+//! about 10k and 100k tetrahedra, f32, in ns per tetrahedron, from one run.
+//!
+//! The body: a cube of edge 0.5 m in 12^3 and 26^3 cubes (Kuhn 6-tet split,
+//! `softfem::generate::fill_box`: 10 368 and 105 456 tetrahedra), stable neo-Hookean rubber
+//! (E = 1 MPa, nu = 0.45, 1000 kg/m^3, lumped masses), released from a stretch of 5 % in x and
+//! -3 % in y, so that every element is deformed. Per mesh:
+//!
+//! * **force evaluation**: zero a force buffer, then `TetMesh::add_elastic_forces` (the
+//!   reference);
+//! * **energy + forces**: the same with `ElasticEnergy::energy_and_add_forces`, the fused pass
+//!   VBD evaluates after every sweep for its stopping test;
+//! * **VBD**: `vbd_step` (dt = 1/60 s, no gravity, no line search, no acceleration) from the
+//!   stretched state, tolerance 0 so that it runs its whole budget of sweeps (1, and 3), the
+//!   state reset before each call (two copies, included) and one `VbdScratch` kept across calls
+//!   (the adjacency and colouring are built by the first, untimed call). A call costs one fused
+//!   pass for the initial guess, then per sweep the sweep and one fused pass; the marginal
+//!   iteration `(T_3 - T_1) / 2` minus the fused pass is the sweep alone;
+//! * with feature `rayon`, the same through `vbd_step_parallel` on a pool of 2 threads (its
+//!   result is the sequential one bit for bit; only the sweep is parallel).
+//!
+//! `cargo bench --bench vbd [--features rayon]` runs criterion (one group per mesh, flat
+//! sampling, 10 samples) and then a plain `Instant` pass that times every operation round-robin,
+//! each timed block repeating one operation for about 50 ms, keeps the minimum per operation
+//! and prints the markdown table (ratios from one run). `SOFTFEM_BENCH_QUICK=1` skips criterion
+//! and the 100k mesh: a smoke test of seconds.
+
+mod common;
+
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use common::TablePass;
+use criterion::{Criterion, SamplingMode, Throughput};
+use softfem::element::TetRest;
+use softfem::generate::{BoxSplit, box_counts, fill_box};
+use softfem::glam::Vec3;
+use softfem::material::StableNeoHookean;
+use softfem::mesh::TetMesh;
+use softfem::step::{
+    ElasticEnergy, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_scratch_len,
+    vbd_step,
+};
+
+/// Cubes per axis of the two meshes: 10 368 and 105 456 tetrahedra.
+const CELLS: [usize; 2] = [12, 26];
+
+/// The sweep budgets of the two VBD calls whose difference is two iterations.
+const BUDGETS: [u32; 2] = [1, 3];
+
+/// Threads of the parallel rows.
+#[cfg(feature = "rayon")]
+const THREADS: usize = 2;
+
+/// A mesh and what its operations read.
+struct Scene {
+    rest: Vec<Vec3>,
+    tets: Vec<[u32; 4]>,
+    stretched: Vec<Vec3>,
+}
+
+impl Scene {
+    fn new(cells: usize) -> Scene {
+        let (nv, nt) = box_counts(cells, cells, cells, BoxSplit::Kuhn6).unwrap();
+        let mut rest = vec![Vec3::ZERO; nv];
+        let mut tets = vec![[0; 4]; nt];
+        let (nx, ny, nz) = (cells, cells, cells);
+        fill_box(
+            Vec3::ZERO,
+            Vec3::splat(0.5),
+            nx,
+            ny,
+            nz,
+            BoxSplit::Kuhn6,
+            &mut rest,
+            &mut tets,
+        )
+        .unwrap();
+        let stretched = rest
+            .iter()
+            .map(|p| *p * Vec3::new(1.05, 0.97, 1.0))
+            .collect();
+        Scene {
+            rest,
+            tets,
+            stretched,
+        }
+    }
+}
+
+/// A named, repeatable operation.
+struct Operation<'a> {
+    id: &'static str,
+    run: Box<dyn FnMut() + 'a>,
+}
+
+/// The operations of one mesh: force, fused, and the VBD calls (sequential, then parallel).
+fn operations<'a>(
+    body: &'a TetElastic<'a, StableNeoHookean>,
+    masses: &'a [f32],
+    x0: &'a [Vec3],
+) -> Vec<Operation<'a>> {
+    let n = x0.len();
+    let t = body.mesh.element_count();
+    let mut forces = vec![Vec3::ZERO; n];
+    let mut fused_forces = vec![Vec3::ZERO; n];
+    let mut operations = vec![
+        Operation {
+            id: "force_evaluation",
+            run: Box::new(move || {
+                forces.fill(Vec3::ZERO);
+                body.mesh
+                    .add_elastic_forces(&body.material, x0, &mut forces)
+                    .unwrap();
+                black_box(&forces);
+            }),
+        },
+        Operation {
+            id: "energy_and_forces",
+            run: Box::new(move || {
+                fused_forces.fill(Vec3::ZERO);
+                black_box(body.energy_and_add_forces(x0, &mut fused_forces).unwrap());
+            }),
+        },
+    ];
+    let settings = VbdSettings::new(1.0 / 60.0).with_line_search(0);
+    let vbd = |budget: u32, parallel: bool| -> Box<dyn FnMut() + 'a> {
+        let vectors: &'a mut [Vec3] =
+            Box::leak(vec![Vec3::ZERO; vbd_scratch_len(n)].into_boxed_slice());
+        let indices: &'a mut [u32] =
+            Box::leak(vec![0; vbd_index_scratch_len(n, t)].into_boxed_slice());
+        let mut scratch = VbdScratch::new(vectors, indices);
+        let (mut x, mut v) = (x0.to_vec(), vec![Vec3::ZERO; n]);
+        let settings = settings.with_tolerance(0.0, budget);
+        #[cfg(feature = "rayon")]
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(THREADS)
+            .build()
+            .unwrap();
+        let mut call = move || {
+            x.copy_from_slice(x0);
+            v.fill(Vec3::ZERO);
+            let report = if parallel {
+                #[cfg(feature = "rayon")]
+                let report = pool.install(|| {
+                    softfem::step::vbd_step_parallel(
+                        body,
+                        masses,
+                        &[],
+                        &settings,
+                        &mut x,
+                        &mut v,
+                        &mut scratch,
+                    )
+                });
+                #[cfg(not(feature = "rayon"))]
+                let report = vbd_step(body, masses, &[], &settings, &mut x, &mut v, &mut scratch);
+                report
+            } else {
+                vbd_step(body, masses, &[], &settings, &mut x, &mut v, &mut scratch)
+            };
+            assert_eq!(report.unwrap().iterations, budget);
+        };
+        // The first call builds the topology.
+        call();
+        Box::new(call)
+    };
+    operations.push(Operation {
+        id: "vbd_1_sweep",
+        run: vbd(BUDGETS[0], false),
+    });
+    operations.push(Operation {
+        id: "vbd_3_sweeps",
+        run: vbd(BUDGETS[1], false),
+    });
+    if cfg!(feature = "rayon") {
+        operations.push(Operation {
+            id: "vbd_parallel_1_sweep",
+            run: vbd(BUDGETS[0], true),
+        });
+        operations.push(Operation {
+            id: "vbd_parallel_3_sweeps",
+            run: vbd(BUDGETS[1], true),
+        });
+    }
+    operations
+}
+
+fn criterion_group(c: &mut Criterion, tets: usize, operations: &mut [Operation<'_>]) {
+    let mut group = c.benchmark_group(format!("vbd_{}k", (tets + 500) / 1000));
+    group
+        .sampling_mode(SamplingMode::Flat)
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(2))
+        .throughput(Throughput::Elements(tets as u64));
+    for operation in operations {
+        group.bench_function(operation.id, |b| b.iter(&mut operation.run));
+    }
+    group.finish();
+}
+
+/// Times every operation round-robin (blocks of about `block`, the least of `rounds`) and
+/// returns ns per call, in the order of `operations`.
+fn table_pass(operations: &mut [Operation<'_>], block: Duration, rounds: u32) -> Vec<f64> {
+    let mut calls = Vec::new();
+    for operation in operations.iter_mut() {
+        let start = Instant::now();
+        (operation.run)();
+        let once = start.elapsed().as_secs_f64().max(1e-9);
+        calls.push((block.as_secs_f64() / once).ceil().clamp(1.0, 1e5) as u32);
+    }
+    let mut best = vec![f64::INFINITY; operations.len()];
+    for _ in 0..rounds {
+        for ((operation, best), &calls) in operations.iter_mut().zip(&mut best).zip(&calls) {
+            let start = Instant::now();
+            for _ in 0..calls {
+                (operation.run)();
+            }
+            *best = best.min(start.elapsed().as_secs_f64() * 1e9 / f64::from(calls));
+        }
+    }
+    best
+}
+
+/// One row per mesh (and schedule): ns per tetrahedron of the force pass, the fused pass, the
+/// VBD iteration and the sweep alone, and the sweep in force passes.
+fn rows(tets: usize, ns: &[f64]) -> Vec<Vec<String>> {
+    let per_tet = |ns: f64| format!("{:.1}", ns / tets as f64);
+    let (force, fused) = (ns[0], ns[1]);
+    let extra = f64::from(BUDGETS[1] - BUDGETS[0]);
+    let mut rows = Vec::new();
+    for (schedule, pair) in ["sequential", "parallel"].iter().zip(ns[2..].chunks(2)) {
+        let iteration = (pair[1] - pair[0]) / extra;
+        let sweep = iteration - fused;
+        rows.push(vec![
+            format!("{tets} tets, {schedule}"),
+            per_tet(force),
+            per_tet(fused),
+            per_tet(iteration),
+            per_tet(sweep),
+            format!("{:.2}", sweep / force),
+        ]);
+    }
+    rows
+}
+
+fn main() {
+    let quick = common::quick();
+    let plan = if quick {
+        Some((Duration::from_millis(5), 3))
+    } else {
+        match common::table_pass() {
+            TablePass::Skip => None,
+            TablePass::Test => Some((Duration::ZERO, 1)),
+            TablePass::Full => Some((Duration::from_millis(50), 7)),
+        }
+    };
+    let cells: &[usize] = if quick { &CELLS[..1] } else { &CELLS };
+    let mut criterion = Criterion::default()
+        .without_plots()
+        .warm_up_time(Duration::from_millis(300))
+        .configure_from_args();
+    let mut table = Vec::new();
+    for &cells in cells {
+        let scene = Scene::new(cells);
+        let mut rest_data = vec![TetRest::default(); scene.tets.len()];
+        let mesh = TetMesh::new(&scene.rest, &scene.tets, &mut rest_data).unwrap();
+        let material = StableNeoHookean::from_young_poisson(1.0e6, 0.45).unwrap();
+        let body = TetElastic::new(mesh, material);
+        let mut masses = vec![0.0; scene.rest.len()];
+        mesh.lumped_masses(1000.0, &mut masses).unwrap();
+        let mut operations = operations(&body, &masses, &scene.stretched);
+        if !quick {
+            criterion_group(&mut criterion, scene.tets.len(), &mut operations);
+        }
+        if let Some((block, rounds)) = plan {
+            let ns = table_pass(&mut operations, block, rounds);
+            table.extend(rows(scene.tets.len(), &ns));
+        }
+    }
+    if !quick {
+        criterion.final_summary();
+    }
+    if table.is_empty() {
+        return;
+    }
+    println!(
+        "\nVBD sweep against one force evaluation, f32, {}:",
+        common::machine()
+    );
+    common::print_markdown_table(
+        &[
+            "mesh",
+            "force ns/tet",
+            "energy+force ns/tet",
+            "VBD iteration ns/tet",
+            "sweep ns/tet",
+            "sweep / force",
+        ],
+        table,
+    );
+}
