@@ -1,7 +1,13 @@
 //! The partitioned passes of [`TetPartition`] on [rayon](https://docs.rs/rayon)'s thread pool
-//! (feature `rayon`): the elastic forces, the energy, the fused energy-and-force pass and, through
-//! [`ParallelTetElastic`], the explicit stepper, **bit for bit** the results of the sequential
-//! code for any number of threads and any schedule (see [`TetPartition`] for why).
+//! (feature `rayon`): the elastic forces (direct, principal and clamped paths), the energy, the
+//! fused energy-and-force pass, the projected Hessians, their products and diagonal blocks, and,
+//! through [`ParallelTetElastic`] and [`ParallelTetClamped`], the steppers (explicit,
+//! relaxation, Newton), **bit for bit** the results of the sequential code for any number of
+//! threads and any schedule (see [`TetPartition`] for why).
+//!
+//! The steppers' own passes over the vertices (integration, preconditioner, dot products, line
+//! search updates) stay on the calling thread: only the element passes behind the model traits
+//! run on the pool.
 //!
 //! The functions run on the pool they are called from: the global pool, or a pool of your own
 //! through [`rayon::ThreadPool::install`], which picks the thread count. [`ParallelTetElastic`]
@@ -44,11 +50,11 @@ use std::sync::{Mutex, PoisonError};
 use rayon::ThreadPool;
 use rayon::prelude::*;
 
-use super::element::TetRest;
+use super::element::{TetHessian, TetRest};
 use super::material::Material;
 use super::mesh::{ElementForces, TetMesh, TetPartition};
-use super::step::{ElasticEnergy, ElasticModel, TetElastic};
-use super::types::{Real, Vec3};
+use super::step::{ElasticEnergy, ElasticHessian, ElasticModel, TetClamped, TetElastic};
+use super::types::{Mat3, Real, Vec3};
 use crate::error::MeshError;
 
 /// [`TetMesh::add_elastic_forces`] on the current rayon pool, through `partition`: adds the
@@ -123,6 +129,115 @@ pub fn energy_and_add_forces<M: Material + Sync>(
     partition.fused_total_energy(energies)
 }
 
+/// [`TetMesh::add_elastic_forces_principal`] on the current rayon pool, through `partition`:
+/// adds the principal-path (SVD) forces (N) of `material` at `positions` (m) into `forces`,
+/// with the sequential bits. `element_forces` is scratch as for [`add_elastic_forces`].
+///
+/// # Errors
+/// As [`TetPartition::check_principal`]; on error, `forces` is unchanged.
+pub fn add_elastic_forces_principal<M: Material + Sync>(
+    partition: &TetPartition<'_>,
+    material: &M,
+    positions: &[Vec3],
+    forces: &mut [Vec3],
+    element_forces: &mut [ElementForces],
+) -> Result<(), MeshError> {
+    partition.check_principal(material, positions, forces, element_forces)?;
+    element_forces
+        .par_chunks_mut(partition.element_chunk())
+        .enumerate()
+        .try_for_each(|(piece, out)| {
+            partition.element_forces_principal(material, positions, piece, out)
+        })?;
+    gather(partition, element_forces, forces)
+}
+
+/// [`TetMesh::add_elastic_forces_clamped`] on the current rayon pool, through `partition`:
+/// adds the clamped principal forces (N; **not an energy gradient, explicit stepping only**) of
+/// `material` at `positions` (m), stretches clamped from below at `threshold`, into `forces`,
+/// with the sequential bits. `element_forces` is scratch as for [`add_elastic_forces`].
+///
+/// # Errors
+/// As [`TetPartition::check_clamped`]; on error, `forces` is unchanged.
+pub fn add_elastic_forces_clamped<M: Material + Sync>(
+    partition: &TetPartition<'_>,
+    material: &M,
+    threshold: Real,
+    positions: &[Vec3],
+    forces: &mut [Vec3],
+    element_forces: &mut [ElementForces],
+) -> Result<(), MeshError> {
+    partition.check_clamped(material, threshold, positions, forces, element_forces)?;
+    element_forces
+        .par_chunks_mut(partition.element_chunk())
+        .enumerate()
+        .try_for_each(|(piece, out)| {
+            partition.element_forces_clamped(material, threshold, positions, piece, out)
+        })?;
+    gather(partition, element_forces, forces)
+}
+
+/// [`TetMesh::projected_hessians`] on the current rayon pool, through `partition`: writes the
+/// projected Hessian data of every element of `material` at `positions` (m) into `cache`, with
+/// the sequential bits.
+///
+/// # Errors
+/// As [`TetPartition::check_hessians`]; on error, `cache` is unchanged.
+pub fn projected_hessians<M: Material + Sync>(
+    partition: &TetPartition<'_>,
+    material: &M,
+    positions: &[Vec3],
+    cache: &mut [TetHessian],
+) -> Result<(), MeshError> {
+    partition.check_hessians(positions, cache)?;
+    cache
+        .par_chunks_mut(partition.element_chunk())
+        .enumerate()
+        .try_for_each(|(piece, out)| partition.element_hessians(material, positions, piece, out))
+}
+
+/// [`TetMesh::add_hessian_product`] on the current rayon pool, through `partition`: adds `H d`
+/// (N) for the Hessian in `cache` and the per-vertex `direction` (m) into `out`, with the
+/// sequential bits. `element_products` is scratch of
+/// [`element_forces_len`](super::mesh::element_forces_len) entries.
+///
+/// # Errors
+/// As [`TetPartition::check_hessian_product`]; on error, `out` is unchanged.
+pub fn add_hessian_product(
+    partition: &TetPartition<'_>,
+    cache: &[TetHessian],
+    direction: &[Vec3],
+    out: &mut [Vec3],
+    element_products: &mut [ElementForces],
+) -> Result<(), MeshError> {
+    partition.check_hessian_product(cache, direction, out, element_products)?;
+    element_products
+        .par_chunks_mut(partition.element_chunk())
+        .enumerate()
+        .try_for_each(|(piece, products)| {
+            partition.element_hessian_products(cache, direction, piece, products)
+        })?;
+    gather(partition, element_products, out)
+}
+
+/// [`TetMesh::add_vertex_hessian_blocks`] on the current rayon pool, through `partition`: adds
+/// the 3x3 diagonal blocks (N/m) of the Hessian in `cache` into `blocks`, one per vertex, with
+/// the sequential bits (vertex pieces only: no scratch).
+///
+/// # Errors
+/// As [`TetPartition::check_vertex_blocks`]; on error, `blocks` is unchanged.
+pub fn add_vertex_hessian_blocks(
+    partition: &TetPartition<'_>,
+    cache: &[TetHessian],
+    blocks: &mut [Mat3],
+) -> Result<(), MeshError> {
+    partition.check_vertex_blocks(cache, blocks)?;
+    blocks
+        .par_chunks_mut(partition.vertex_chunk())
+        .enumerate()
+        .try_for_each(|(piece, out)| partition.gather_vertex_blocks(cache, piece, out))
+}
+
 /// The vertex phase of every force pass on the current pool.
 fn gather(
     partition: &TetPartition<'_>,
@@ -137,9 +252,10 @@ fn gather(
 
 /// A [`TetElastic`] body whose force (and fused energy-and-force) passes run in parallel through
 /// a [`TetPartition`], with the bits of the sequential body: hand it to
-/// [`step_explicit`](super::step::step_explicit) (or any stepper taking an [`ElasticModel`] or
-/// [`ElasticEnergy`]) for a parallel step whose result does not depend on the thread count.
-/// The steppers' passes over the vertices stay sequential.
+/// [`step_explicit`](super::step::step_explicit), [`relax_step`](super::step::relax_step),
+/// [`newton_step`](super::step::newton_step) (any stepper taking an [`ElasticModel`],
+/// [`ElasticEnergy`] or [`ElasticHessian`]) for a parallel step whose result does not depend on
+/// the thread count. The steppers' passes over the vertices stay sequential.
 ///
 /// The scratch buffers sit behind a mutex (force evaluations of one body do not overlap); the
 /// optional pool is installed around every evaluation (else the caller's current pool runs it).
@@ -203,28 +319,9 @@ impl<'a, M: Material + Sync> ParallelTetElastic<'a, M> {
         element_forces: &'a mut [ElementForces],
         energies: &'a mut [Real],
     ) -> Result<Self, MeshError> {
-        let (mesh, partition_mesh) = (body.mesh, partition.mesh());
-        let same = |a: &TetMesh<'_>, b: &TetMesh<'_>| {
-            a.element_count() == b.element_count() && a.vertex_count() == b.vertex_count()
-        };
-        if !same(&mesh, &partition_mesh) || !same_rest(mesh.rest(), partition_mesh.rest()) {
-            return Err(MeshError::LengthMismatch {
-                buffer: crate::Buffer::RestData,
-                expected: mesh.element_count(),
-                actual: partition_mesh.element_count(),
-            });
-        }
-        let length = |buffer, actual| {
-            if actual == mesh.element_count() {
-                Ok(())
-            } else {
-                Err(MeshError::LengthMismatch {
-                    buffer,
-                    expected: mesh.element_count(),
-                    actual,
-                })
-            }
-        };
+        let mesh = body.mesh;
+        check_same_mesh(&mesh, &partition.mesh())?;
+        let length = |buffer, actual| element_length(&mesh, buffer, actual);
         length(crate::Buffer::ElementForces, element_forces.len())?;
         length(crate::Buffer::Energies, energies.len())?;
         Ok(ParallelTetElastic {
@@ -254,10 +351,49 @@ impl<'a, M: Material + Sync> ParallelTetElastic<'a, M> {
     fn run<T: Send>(&self, run: impl FnOnce(&mut [ElementForces], &mut [Real]) -> T + Send) -> T {
         let mut scratch = self.scratch.lock().unwrap_or_else(PoisonError::into_inner);
         let (element_forces, energies) = &mut *scratch;
-        match self.pool {
-            Some(pool) => pool.install(|| run(element_forces, energies)),
-            None => run(element_forces, energies),
-        }
+        on_pool(self.pool, || run(element_forces, energies))
+    }
+}
+
+/// `run` on `pool` if there is one, else on the current pool.
+fn on_pool<T: Send>(pool: Option<&ThreadPool>, run: impl FnOnce() -> T + Send) -> T {
+    match pool {
+        Some(pool) => pool.install(run),
+        None => run(),
+    }
+}
+
+/// `Ok` if `partition_mesh` is `mesh` (the same rest buffer and counts), else
+/// [`MeshError::LengthMismatch`] naming [`Buffer::RestData`](crate::Buffer::RestData).
+fn check_same_mesh(mesh: &TetMesh<'_>, partition_mesh: &TetMesh<'_>) -> Result<(), MeshError> {
+    let same = mesh.element_count() == partition_mesh.element_count()
+        && mesh.vertex_count() == partition_mesh.vertex_count()
+        && same_rest(mesh.rest(), partition_mesh.rest());
+    if same {
+        Ok(())
+    } else {
+        Err(MeshError::LengthMismatch {
+            buffer: crate::Buffer::RestData,
+            expected: mesh.element_count(),
+            actual: partition_mesh.element_count(),
+        })
+    }
+}
+
+/// `Ok` if a per-element scratch buffer (`buffer`) has one entry per element of `mesh`.
+fn element_length(
+    mesh: &TetMesh<'_>,
+    buffer: crate::Buffer,
+    actual: usize,
+) -> Result<(), MeshError> {
+    if actual == mesh.element_count() {
+        Ok(())
+    } else {
+        Err(MeshError::LengthMismatch {
+            buffer,
+            expected: mesh.element_count(),
+            actual,
+        })
     }
 }
 
@@ -300,5 +436,159 @@ impl<M: Material + Sync> ElasticEnergy for ParallelTetElastic<'_, M> {
                 energies,
             )
         })
+    }
+}
+
+impl<M: Material + Sync> ElasticHessian for ParallelTetElastic<'_, M> {
+    #[inline]
+    fn element_count(&self) -> usize {
+        self.body.mesh.element_count()
+    }
+    fn projected_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError> {
+        let (partition, material) = (&self.partition, &self.body.material);
+        on_pool(self.pool, || {
+            projected_hessians(partition, material, positions, cache)
+        })
+    }
+    fn add_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        let partition = &self.partition;
+        self.run(|element_products, _| {
+            add_hessian_product(partition, cache, direction, out, element_products)
+        })
+    }
+    fn add_vertex_hessian_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &mut [Mat3],
+    ) -> Result<(), MeshError> {
+        let partition = &self.partition;
+        on_pool(self.pool, || {
+            add_vertex_hessian_blocks(partition, cache, blocks)
+        })
+    }
+}
+
+/// A [`TetClamped`] body (clamped principal stress, **explicit stepping only**) whose force
+/// passes run in parallel through a [`TetPartition`], with the bits of the sequential body:
+/// hand it to [`step_explicit`](super::step::step_explicit). As [`ParallelTetElastic`], the
+/// scratch sits behind a mutex and the optional pool is installed around every evaluation.
+///
+/// ```
+/// use softfem::element::TetRest;
+/// use softfem::generate::{BoxSplit, box_counts, fill_box};
+/// use softfem::glam::Vec3;
+/// use softfem::material::NeoHookean;
+/// use softfem::mesh::{TetMesh, TetPartition, element_forces_len};
+/// use softfem::mesh::{partition_incident_len, partition_offsets_len};
+/// use softfem::parallel::ParallelTetClamped;
+/// use softfem::step::{ElasticModel, TetClamped};
+///
+/// let (vertices, tets) = box_counts(3, 3, 3, BoxSplit::Kuhn6)?;
+/// let (mut rest, mut elements) = (vec![Vec3::ZERO; vertices], vec![[0; 4]; tets]);
+/// fill_box(Vec3::ZERO, Vec3::ONE * 0.1, 3, 3, 3, BoxSplit::Kuhn6, &mut rest, &mut elements)?;
+/// let mut rest_data = vec![TetRest::default(); tets];
+/// let mesh = TetMesh::new(&rest, &elements, &mut rest_data)?;
+/// let (mut offsets, mut incident) =
+///     (vec![0; partition_offsets_len(vertices)], vec![0; partition_incident_len(tets)]);
+/// let partition = TetPartition::new(mesh, 8, &mut offsets, &mut incident)?;
+/// let mut element_forces = vec![[Vec3::ZERO; 4]; element_forces_len(tets)];
+/// let clamped = TetClamped::checked(mesh, NeoHookean::from_young_poisson(1.0e5, 0.3)?, 0.3)?;
+/// let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build()?;
+/// let body = ParallelTetClamped::new(clamped, partition, &mut element_forces)?.with_pool(&pool);
+///
+/// // Flattened below the clamp: the clamped stress still pushes the body back up.
+/// let x: Vec<Vec3> = rest.iter().map(|p| *p * Vec3::new(1.0, 0.1, 1.0)).collect();
+/// let (mut parallel, mut sequential) = (vec![Vec3::ZERO; vertices], vec![Vec3::ZERO; vertices]);
+/// body.add_forces(&x, &mut parallel)?;
+/// clamped.add_forces(&x, &mut sequential)?;
+/// assert_eq!(parallel, sequential); // and bit for bit
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug)]
+pub struct ParallelTetClamped<'a, M: Material> {
+    body: TetClamped<'a, M>,
+    partition: TetPartition<'a>,
+    element_forces: Mutex<&'a mut [ElementForces]>,
+    pool: Option<&'a ThreadPool>,
+}
+
+impl<'a, M: Material + Sync> ParallelTetClamped<'a, M> {
+    /// `body` evaluated through `partition` (of the same mesh), with scratch `element_forces`
+    /// ([`element_forces_len`](super::mesh::element_forces_len) entries), on the caller's
+    /// current pool.
+    ///
+    /// # Errors
+    /// As [`ParallelTetElastic::new`].
+    pub fn new(
+        body: TetClamped<'a, M>,
+        partition: TetPartition<'a>,
+        element_forces: &'a mut [ElementForces],
+    ) -> Result<Self, MeshError> {
+        check_same_mesh(&body.mesh, &partition.mesh())?;
+        element_length(
+            &body.mesh,
+            crate::Buffer::ElementForces,
+            element_forces.len(),
+        )?;
+        Ok(ParallelTetClamped {
+            body,
+            partition,
+            element_forces: Mutex::new(element_forces),
+            pool: None,
+        })
+    }
+
+    /// This body with its evaluations run on `pool` (its thread count).
+    #[must_use]
+    pub fn with_pool(self, pool: &'a ThreadPool) -> Self {
+        ParallelTetClamped {
+            pool: Some(pool),
+            ..self
+        }
+    }
+
+    /// The sequential body.
+    #[must_use]
+    pub fn body(&self) -> &TetClamped<'a, M> {
+        &self.body
+    }
+}
+
+impl<M: Material + Sync> ElasticModel for ParallelTetClamped<'_, M> {
+    type Vector = Vec3;
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.body.mesh.vertex_count()
+    }
+    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
+        let (partition, material, threshold) =
+            (&self.partition, &self.body.material, self.body.threshold);
+        let mut element_forces = self
+            .element_forces
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let element_forces: &mut [ElementForces] = &mut element_forces;
+        on_pool(self.pool, || {
+            add_elastic_forces_clamped(
+                partition,
+                material,
+                threshold,
+                positions,
+                forces,
+                element_forces,
+            )
+        })
+    }
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
+        self.body.for_each_element_stiffness(visit);
     }
 }

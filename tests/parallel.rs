@@ -8,15 +8,15 @@
 macro_rules! precision_tests {
     ($name:ident, $root:path, $real:ty) => {
         mod $name {
-            use sf::element::TetRest;
+            use sf::element::{TetHessian, TetRest};
             use sf::generate::{BoxSplit, box_counts, fill_box};
             use sf::material::{Material, StVK, StableNeoHookean};
             use sf::mesh::{
                 ElementForces, TetMesh, TetPartition, element_forces_len, partition_incident_len,
                 partition_offsets_len,
             };
-            use sf::step::{ElasticEnergy, TetElastic};
-            use sf::types::Vec3;
+            use sf::step::{ElasticEnergy, ElasticHessian, ElasticModel, TetClamped, TetElastic};
+            use sf::types::{Mat3, Vec3};
             use $root as sf;
 
             type Real = $real;
@@ -255,13 +255,243 @@ macro_rules! precision_tests {
                 );
             }
 
+            fn mat_bits(m: &[Mat3]) -> Vec<[u64; 9]> {
+                m.iter()
+                    .map(|a| a.to_cols_array().map(|c| (c as f64).to_bits()))
+                    .collect()
+            }
+
+            /// Non-zero starting blocks, so the gather must add to the caller's values.
+            fn initial_blocks(n: usize) -> Vec<Mat3> {
+                (0..n)
+                    .map(|i| Mat3::from_diagonal(Vec3::new(1.0, 2.0, 3.0) * (i % 5) as Real))
+                    .collect()
+            }
+
+            /// A direction with its own value at every vertex (the Hessian product's input).
+            fn direction(rest: &[Vec3]) -> Vec<Vec3> {
+                rest.iter()
+                    .enumerate()
+                    .map(|(i, p)| Vec3::new(p.y, -p.z, p.x) + Vec3::splat((i % 11) as Real * 1e-3))
+                    .collect()
+            }
+
+            /// The sequential results of every pass these tests split: principal and clamped
+            /// forces, projected Hessians, their product and diagonal blocks.
+            struct SvdAndHessianReference {
+                principal: Vec<[u64; 3]>,
+                clamped: Vec<[u64; 3]>,
+                cache: Vec<TetHessian>,
+                product: Vec<[u64; 3]>,
+                blocks: Vec<[u64; 9]>,
+            }
+
+            const CLAMP: Real = 0.95;
+
+            impl SvdAndHessianReference {
+                fn new<M: Material>(
+                    mesh: TetMesh<'_>,
+                    material: &M,
+                    x: &[Vec3],
+                    d: &[Vec3],
+                ) -> Self {
+                    let nv = mesh.vertex_count();
+                    let mut principal = initial_forces(nv);
+                    mesh.add_elastic_forces_principal(material, x, &mut principal)
+                        .unwrap();
+                    let mut clamped = initial_forces(nv);
+                    mesh.add_elastic_forces_clamped(material, CLAMP, x, &mut clamped)
+                        .unwrap();
+                    let mut cache = vec![TetHessian::default(); mesh.element_count()];
+                    mesh.projected_hessians(material, x, &mut cache).unwrap();
+                    let mut product = initial_forces(nv);
+                    mesh.add_hessian_product(&cache, d, &mut product).unwrap();
+                    let mut blocks = initial_blocks(nv);
+                    mesh.add_vertex_hessian_blocks(&cache, &mut blocks).unwrap();
+                    // The clamp acts (y is squashed to 0.92), so the two paths differ.
+                    assert_ne!(bits(&principal), bits(&clamped));
+                    SvdAndHessianReference {
+                        principal: bits(&principal),
+                        clamped: bits(&clamped),
+                        cache,
+                        product: bits(&product),
+                        blocks: mat_bits(&blocks),
+                    }
+                }
+            }
+
+            /// Runs `piece(k, slice)` on the `chunk`-long slices of `buffer` in shuffled order.
+            fn shuffled_pieces<T>(
+                buffer: &mut [T],
+                chunk: usize,
+                seed: u64,
+                mut piece: impl FnMut(usize, &mut [T]),
+            ) {
+                let mut slices: Vec<_> = buffer.chunks_mut(chunk).enumerate().map(Some).collect();
+                for slot in shuffled(slices.len(), seed) {
+                    let (k, out) = slices[slot].take().unwrap();
+                    piece(k, out);
+                }
+            }
+
+            /// Principal and clamped forces, Hessians, products and blocks of `material`
+            /// through partitions of several piece counts, pieces in shuffled order on one
+            /// thread, against the sequential kernels.
+            fn shuffled_svd_and_hessian_matches<M: Material>(material: &M, cells: usize) {
+                let (rest, tets) = box_mesh(cells);
+                let mut rest_data = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let (x, d) = (deformed(&rest), direction(&rest));
+                let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+                let reference = SvdAndHessianReference::new(mesh, material, &x, &d);
+                for (pieces, seed) in [(1, 11), (2, 12), (3, 13), (7, 14), (64, 15), (ne + 5, 16)] {
+                    let mut offsets = vec![0; partition_offsets_len(nv)];
+                    let mut incident = vec![0; partition_incident_len(ne)];
+                    let p = TetPartition::new(mesh, pieces, &mut offsets, &mut incident).unwrap();
+                    let (ec, vc) = (p.element_chunk(), p.vertex_chunk());
+                    let mut element_forces = vec![[Vec3::ZERO; 4]; element_forces_len(ne)];
+
+                    let mut forces = initial_forces(nv);
+                    p.check_principal(material, &x, &forces, &element_forces)
+                        .unwrap();
+                    shuffled_pieces(&mut element_forces, ec, seed, |k, out| {
+                        p.element_forces_principal(material, &x, k, out).unwrap()
+                    });
+                    shuffled_pieces(&mut forces, vc, seed + 1, |k, out| {
+                        p.gather_forces(&element_forces, k, out).unwrap()
+                    });
+                    assert_eq!(
+                        bits(&forces),
+                        reference.principal,
+                        "principal, {pieces} pieces"
+                    );
+
+                    let mut forces = initial_forces(nv);
+                    p.check_clamped(material, CLAMP, &x, &forces, &element_forces)
+                        .unwrap();
+                    shuffled_pieces(&mut element_forces, ec, seed + 2, |k, out| {
+                        p.element_forces_clamped(material, CLAMP, &x, k, out)
+                            .unwrap()
+                    });
+                    shuffled_pieces(&mut forces, vc, seed + 3, |k, out| {
+                        p.gather_forces(&element_forces, k, out).unwrap()
+                    });
+                    assert_eq!(bits(&forces), reference.clamped, "clamped, {pieces} pieces");
+
+                    let mut cache = vec![TetHessian::default(); ne];
+                    p.check_hessians(&x, &cache).unwrap();
+                    shuffled_pieces(&mut cache, ec, seed + 4, |k, out| {
+                        p.element_hessians(material, &x, k, out).unwrap()
+                    });
+                    assert!(cache == reference.cache, "Hessians, {pieces} pieces");
+
+                    let mut product = initial_forces(nv);
+                    p.check_hessian_product(&cache, &d, &product, &element_forces)
+                        .unwrap();
+                    shuffled_pieces(&mut element_forces, ec, seed + 5, |k, out| {
+                        p.element_hessian_products(&cache, &d, k, out).unwrap()
+                    });
+                    shuffled_pieces(&mut product, vc, seed + 6, |k, out| {
+                        p.gather_forces(&element_forces, k, out).unwrap()
+                    });
+                    assert_eq!(
+                        bits(&product),
+                        reference.product,
+                        "product, {pieces} pieces"
+                    );
+
+                    let mut blocks = initial_blocks(nv);
+                    p.check_vertex_blocks(&cache, &blocks).unwrap();
+                    shuffled_pieces(&mut blocks, vc, seed + 7, |k, out| {
+                        p.gather_vertex_blocks(&cache, k, out).unwrap()
+                    });
+                    assert_eq!(
+                        mat_bits(&blocks),
+                        reference.blocks,
+                        "blocks, {pieces} pieces"
+                    );
+                }
+            }
+
+            #[test]
+            fn shuffled_svd_and_hessian_pieces_on_one_thread_give_the_sequential_bits() {
+                // 750 tets: a scalar tail after the last group of four.
+                let snh = StableNeoHookean::from_young_poisson(1.0e5, 0.45).unwrap();
+                shuffled_svd_and_hessian_matches(&snh, 5);
+                shuffled_svd_and_hessian_matches(&StVK::from_young_poisson(1.0e6, 0.3).unwrap(), 4);
+            }
+
+            #[test]
+            fn svd_and_hessian_pieces_check_as_the_sequential_kernels() {
+                let (rest, tets) = box_mesh(2);
+                let mut rest_data = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+                let mut offsets = vec![0; partition_offsets_len(nv)];
+                let mut incident = vec![0; partition_incident_len(ne)];
+                let p = TetPartition::new(mesh, 3, &mut offsets, &mut incident).unwrap();
+                let material = StVK::from_young_poisson(1.0e6, 0.3).unwrap();
+                let element_forces = vec![[Vec3::ZERO; 4]; ne];
+                let forces = vec![Vec3::ZERO; nv];
+                let mut sequential = forces.clone();
+                for threshold in [0.0, 1.5, Real::NAN] {
+                    assert_eq!(
+                        p.check_clamped(&material, threshold, &rest, &forces, &element_forces),
+                        mesh.add_elastic_forces_clamped(
+                            &material,
+                            threshold,
+                            &rest,
+                            &mut sequential
+                        )
+                    );
+                }
+                let mut bad = rest.clone();
+                bad[5].z = Real::INFINITY;
+                assert_eq!(
+                    p.check_principal(&material, &bad, &forces, &element_forces),
+                    mesh.add_elastic_forces_principal(&material, &bad, &mut sequential)
+                );
+                let cache = vec![TetHessian::default(); ne];
+                let mut out = vec![Vec3::ZERO; nv];
+                assert_eq!(
+                    p.check_hessian_product(&cache, &bad, &out, &element_forces),
+                    mesh.add_hessian_product(&cache, &bad, &mut out)
+                );
+                assert_eq!(
+                    p.check_hessians(&bad, &cache),
+                    Err(sf::MeshError::NonFinitePosition { vertex: 5 })
+                );
+                let mut blocks = vec![Mat3::ZERO; nv - 1];
+                assert_eq!(
+                    p.check_vertex_blocks(&cache, &blocks),
+                    mesh.add_vertex_hessian_blocks(&cache, &mut blocks)
+                );
+                let pieces = p.vertex_piece_count();
+                assert_eq!(
+                    p.gather_vertex_blocks(&cache, pieces, &mut blocks),
+                    Err(sf::MeshError::PieceIndex {
+                        piece: pieces,
+                        pieces
+                    })
+                );
+                let mut short = vec![TetHessian::default(); p.element_chunk() - 1];
+                assert!(matches!(
+                    p.element_hessians(&material, &rest, 0, &mut short),
+                    Err(sf::MeshError::LengthMismatch {
+                        buffer: sf::Buffer::Hessians,
+                        ..
+                    })
+                ));
+            }
+
             #[cfg(feature = "rayon")]
             mod threads {
                 use super::*;
-                use sf::parallel::{self, ParallelTetElastic};
+                use sf::parallel::{self, ParallelTetClamped, ParallelTetElastic};
                 use sf::step::{
-                    ExplicitScratch, ExplicitSettings, Ground, explicit_scratch_len,
-                    stable_time_step, step_explicit,
+                    ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonSettings,
+                    RelaxScratch, RelaxSettings, explicit_scratch_len, newton_scratch_len,
+                    newton_step, relax_scratch_len, relax_step, stable_time_step, step_explicit,
                 };
 
                 const THREADS: [usize; 4] = [1, 2, 3, 8];
@@ -332,6 +562,254 @@ macro_rules! precision_tests {
                             .unwrap();
                         assert_eq!(bits(&forces), bits(&expected_fused), "{threads} threads");
                         assert_eq!(fused.to_bits(), expected_fused_energy.to_bits());
+                    }
+                }
+
+                #[test]
+                fn svd_forces_and_hessians_on_1_2_3_8_threads_give_the_sequential_bits() {
+                    let (rest, tets) = box_mesh(7); // 2058 tets (2058 % 4 = 2)
+                    let mut rest_data = vec![TetRest::default(); tets.len()];
+                    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                    let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+                    let material = StableNeoHookean::from_young_poisson(1.0e5, 0.45).unwrap();
+                    let (x, d) = (deformed(&rest), direction(&rest));
+                    let reference = SvdAndHessianReference::new(mesh, &material, &x, &d);
+                    let body = TetElastic::new(mesh, material);
+                    for threads in THREADS {
+                        let mut offsets = vec![0; partition_offsets_len(nv)];
+                        let mut incident = vec![0; partition_incident_len(ne)];
+                        let p =
+                            TetPartition::new(mesh, 4 * threads + 1, &mut offsets, &mut incident)
+                                .unwrap();
+                        let mut element_forces = vec![[Vec3::ZERO; 4]; ne];
+                        let pool = pool(threads);
+                        pool.install(|| {
+                            let mut forces = initial_forces(nv);
+                            parallel::add_elastic_forces_principal(
+                                &p,
+                                &material,
+                                &x,
+                                &mut forces,
+                                &mut element_forces,
+                            )
+                            .unwrap();
+                            assert_eq!(bits(&forces), reference.principal, "{threads} threads");
+                            let mut forces = initial_forces(nv);
+                            parallel::add_elastic_forces_clamped(
+                                &p,
+                                &material,
+                                CLAMP,
+                                &x,
+                                &mut forces,
+                                &mut element_forces,
+                            )
+                            .unwrap();
+                            assert_eq!(bits(&forces), reference.clamped, "{threads} threads");
+                        });
+                        // The Hessian passes through the body the Newton solver takes.
+                        let mut energies = vec![0.0; ne];
+                        let parallel_body =
+                            ParallelTetElastic::new(body, p, &mut element_forces, &mut energies)
+                                .unwrap()
+                                .with_pool(&pool);
+                        assert_eq!(ElasticHessian::element_count(&parallel_body), ne);
+                        let mut cache = vec![TetHessian::default(); ne];
+                        parallel_body.projected_hessians(&x, &mut cache).unwrap();
+                        assert!(cache == reference.cache, "{threads} threads: Hessians");
+                        let mut product = initial_forces(nv);
+                        parallel_body
+                            .add_hessian_product(&cache, &d, &mut product)
+                            .unwrap();
+                        assert_eq!(bits(&product), reference.product, "{threads} threads");
+                        let mut blocks = initial_blocks(nv);
+                        parallel_body
+                            .add_vertex_hessian_blocks(&cache, &mut blocks)
+                            .unwrap();
+                        assert_eq!(mat_bits(&blocks), reference.blocks, "{threads} threads");
+                    }
+                }
+
+                /// A box of `cells^3` Kuhn cells lifted 2 mm above the ground: rest positions,
+                /// tets.
+                fn lifted_box(cells: usize) -> (Vec<Vec3>, Vec<[u32; 4]>) {
+                    let (rest, tets) = box_mesh(cells);
+                    (rest.iter().map(|p| *p + Vec3::Y * 0.002).collect(), tets)
+                }
+
+                /// A partition of `mesh` into `pieces` over fresh adjacency buffers.
+                fn partition<'a>(
+                    mesh: TetMesh<'a>,
+                    pieces: usize,
+                    offsets: &'a mut Vec<u32>,
+                    incident: &'a mut Vec<u32>,
+                ) -> TetPartition<'a> {
+                    offsets.resize(partition_offsets_len(mesh.vertex_count()), 0);
+                    incident.resize(partition_incident_len(mesh.element_count()), 0);
+                    TetPartition::new(mesh, pieces, offsets, incident).unwrap()
+                }
+
+                type RunBits = (Vec<[u64; 3]>, Vec<[u64; 3]>, String);
+
+                /// `steps` explicit steps of `model` from `start` at rest, onto the ground:
+                /// the final state's bits and the contact count.
+                fn explicit_run<F: ElasticModel<Vector = Vec3>>(
+                    model: &F,
+                    masses: &[Real],
+                    settings: &ExplicitSettings<'_, Vec3>,
+                    start: &[Vec3],
+                    steps: usize,
+                ) -> RunBits {
+                    let n = start.len();
+                    let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
+                    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                    let mut scratch = ExplicitScratch::new(&mut buffer);
+                    let mut contacts = 0;
+                    for _ in 0..steps {
+                        let report = step_explicit(
+                            model,
+                            masses,
+                            &[],
+                            settings,
+                            &mut x,
+                            &mut v,
+                            &mut scratch,
+                        )
+                        .unwrap();
+                        contacts += report.ground_contacts;
+                    }
+                    (bits(&x), bits(&v), format!("{contacts} contacts"))
+                }
+
+                /// 60 explicit steps of a box on the ground with the clamped principal forces, sequential
+                /// against `ParallelTetClamped` on 1, 2, 3 and 8 threads: every bit.
+                #[test]
+                fn clamped_explicit_run_on_1_2_3_8_threads_gives_the_sequential_bits() {
+                    // Resting on the ground from the start (60 steps are 1 ms): contacts at once.
+                    let (start, tets) = box_mesh(5);
+                    let mut rest_data = vec![TetRest::default(); tets.len()];
+                    let mesh = TetMesh::new(&start, &tets, &mut rest_data).unwrap();
+                    let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+                    let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
+                    let body = TetClamped::checked(mesh, material, 0.3).unwrap();
+                    let mut masses = vec![0.0; nv];
+                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                    let mut stiffness = vec![0.0; nv];
+                    let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
+                    let settings = ExplicitSettings::new(dt)
+                        .with_gravity(Vec3::new(0.0, -9.81, 0.0))
+                        .with_ground(Ground::new(Vec3::Y, 0.0));
+                    let expected = explicit_run(&body, &masses, &settings, &start, 60);
+                    assert_ne!(expected.2, "0 contacts", "the box must touch the ground");
+                    for threads in THREADS {
+                        let (mut offsets, mut incident) = (Vec::new(), Vec::new());
+                        let p = partition(mesh, 3 * threads, &mut offsets, &mut incident);
+                        let mut element_forces = vec![[Vec3::ZERO; 4]; ne];
+                        let pool = pool(threads);
+                        let parallel_body = ParallelTetClamped::new(body, p, &mut element_forces)
+                            .unwrap()
+                            .with_pool(&pool);
+                        let got = explicit_run(&parallel_body, &masses, &settings, &start, 60);
+                        assert!(got == expected, "{threads} threads: clamped run differs");
+                    }
+                }
+
+                /// `steps` relaxation steps of 1/60 s (Chebyshev, the defaults) of `model`
+                /// from `start` at rest, onto the ground: the final state's bits and every
+                /// step's report.
+                fn relax_run<F: ElasticEnergy<Vector = Vec3>>(
+                    model: &F,
+                    masses: &[Real],
+                    start: &[Vec3],
+                    steps: usize,
+                ) -> RunBits {
+                    let n = start.len();
+                    let settings = RelaxSettings::new(1.0 / 60.0)
+                        .with_gravity(Vec3::new(0.0, -9.81, 0.0))
+                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5))
+                        .with_tolerance(1.0e-3, 300);
+                    let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
+                    let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
+                    let mut scalars = vec![0.0; n];
+                    let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+                    let mut reports = String::new();
+                    for _ in 0..steps {
+                        let report =
+                            relax_step(model, masses, &[], &settings, &mut x, &mut v, &mut scratch)
+                                .unwrap();
+                        reports += &format!("{report:?}\n");
+                    }
+                    (bits(&x), bits(&v), reports)
+                }
+
+                /// `steps` Newton steps of 1/30 s of `model` from `start` at rest, onto the
+                /// ground, as [`relax_run`].
+                fn newton_run<F: ElasticHessian>(
+                    model: &F,
+                    masses: &[Real],
+                    start: &[Vec3],
+                    steps: usize,
+                ) -> RunBits {
+                    let (n, ne) = (start.len(), model.element_count());
+                    let settings = NewtonSettings::new(1.0 / 30.0)
+                        .with_gravity(Vec3::new(0.0, -9.81, 0.0))
+                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5))
+                        .with_tolerance(1.0e-4, 30);
+                    let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
+                    let lengths = newton_scratch_len(n, ne);
+                    let mut vectors = vec![Vec3::ZERO; lengths.vectors];
+                    let mut blocks = vec![Mat3::ZERO; lengths.blocks];
+                    let mut hessians = vec![TetHessian::default(); lengths.hessians];
+                    let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
+                    let mut reports = String::new();
+                    for _ in 0..steps {
+                        let report = newton_step(
+                            model,
+                            masses,
+                            &[],
+                            &settings,
+                            &mut x,
+                            &mut v,
+                            &mut scratch,
+                        )
+                        .unwrap();
+                        reports += &format!("{report:?}\n");
+                    }
+                    (bits(&x), bits(&v), reports)
+                }
+
+                /// Whole relaxation and Newton runs of the dropped box (landing included),
+                /// sequential against `ParallelTetElastic` on 1, 2, 3 and 8 threads: every
+                /// position, velocity and report bit.
+                #[test]
+                fn relaxation_and_newton_runs_on_1_2_3_8_threads_give_the_sequential_bits() {
+                    let (start, tets) = lifted_box(4);
+                    let mut rest_data = vec![TetRest::default(); tets.len()];
+                    let mesh = TetMesh::new(&start, &tets, &mut rest_data).unwrap();
+                    let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+                    let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
+                    let body = TetElastic::new(mesh, material);
+                    let mut masses = vec![0.0; nv];
+                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                    let relaxed = relax_run(&body, &masses, &start, 6);
+                    let newton = newton_run(&body, &masses, &start, 4);
+                    // Landed: some vertex is on the ground (y = 0) at the end.
+                    for (x, _, _) in [&relaxed, &newton] {
+                        assert!(x.iter().any(|p| p[1] == 0.0f64.to_bits()), "not landed");
+                    }
+                    for threads in THREADS {
+                        let (mut offsets, mut incident) = (Vec::new(), Vec::new());
+                        let p = partition(mesh, 2 * threads + 1, &mut offsets, &mut incident);
+                        let (mut element_forces, mut energies) =
+                            (vec![[Vec3::ZERO; 4]; ne], vec![0.0; ne]);
+                        let pool = pool(threads);
+                        let parallel_body =
+                            ParallelTetElastic::new(body, p, &mut element_forces, &mut energies)
+                                .unwrap()
+                                .with_pool(&pool);
+                        let got = relax_run(&parallel_body, &masses, &start, 6);
+                        assert!(got == relaxed, "{threads} threads: relaxation run differs");
+                        let got = newton_run(&parallel_body, &masses, &start, 4);
+                        assert!(got == newton, "{threads} threads: Newton run differs");
                     }
                 }
 

@@ -89,6 +89,9 @@ use super::grouped::{GroupGradients, tet_groups};
 use super::{TetMesh, check_length, check_positions, gather};
 use crate::error::{Buffer, MeshError, StepBuffer, StepError};
 
+mod hessian;
+mod principal;
+
 /// The nodal forces (N) of one tetrahedron at its four corners, in corner order: the entry of
 /// the element buffer of a partitioned pass.
 pub type ElementForces = [Vec3; 4];
@@ -306,16 +309,25 @@ impl<'a> TetPartition<'a> {
             self.check_piece(piece, self.vertex_piece_count(), self.vertex_piece(piece))?;
         check_length(Buffer::Forces, vertices.len(), out.len())?;
         for (vertex, slot) in vertices.zip(out) {
-            let start = self.offsets.get(vertex).copied().unwrap_or(0) as usize;
-            let end = self.offsets.get(vertex + 1).copied().unwrap_or(0) as usize;
-            for &packed in self.incident.get(start..end).unwrap_or(&[]) {
-                let (element, corner) = ((packed >> 2) as usize, (packed & 3) as usize);
+            for (element, corner) in self.incident_corners(vertex) {
                 if let Some(force) = element_forces.get(element).and_then(|f| f.get(corner)) {
                     *slot += *force;
                 }
             }
         }
         Ok(())
+    }
+
+    /// The (element, corner) pairs at `vertex`, in increasing order: the order in which the
+    /// sequential scatter adds into it.
+    #[inline]
+    fn incident_corners(&self, vertex: usize) -> impl Iterator<Item = (usize, usize)> + 'a {
+        let start = self.offsets.get(vertex).copied().unwrap_or(0) as usize;
+        let end = self.offsets.get(vertex + 1).copied().unwrap_or(0) as usize;
+        let incident: &'a [u32] = self.incident.get(start..end).unwrap_or(&[]);
+        incident
+            .iter()
+            .map(|&packed| ((packed >> 2) as usize, (packed & 3) as usize))
     }
 
     /// The check of a partitioned energy pass, the tests of [`TetMesh::elastic_energy`] in its
@@ -528,13 +540,21 @@ impl<'a> TetPartition<'a> {
     /// evaluates [`LANES`] at a time: those before the last whole group's end, where it batches.
     /// Pieces start at multiples of [`LANES`], so these are whole sequential groups.
     fn grouped_len(&self, piece: usize) -> usize {
-        if !BATCH_FORCES {
-            return 0;
-        }
-        let n = self.mesh.element_count();
-        let range = self.element_piece(piece);
-        (n - n % LANES).clamp(range.start, range.end) - range.start
+        grouped_len(
+            BATCH_FORCES,
+            self.mesh.element_count(),
+            self.element_piece(piece),
+        )
     }
+}
+
+/// How many of the elements `range` (from its start, a multiple of [`LANES`]) of a mesh of
+/// `elements` a sequential kernel that batches when `batch` evaluates [`LANES`] at a time.
+fn grouped_len(batch: bool, elements: usize, range: Range<usize>) -> usize {
+    if !batch {
+        return 0;
+    }
+    (elements - elements % LANES).clamp(range.start, range.end) - range.start
 }
 
 /// Chunk `piece` of length `chunk` of `0..len` (empty past the end).

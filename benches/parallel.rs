@@ -1,0 +1,604 @@
+//! Many cores, same bits: the partitioned passes (`mesh::TetPartition`) on rayon pools of 1, 2
+//! and all cores' threads (`softfem::parallel`, feature `rayon`) against the sequential code, on
+//! boxes of 105 456 and 998 250 tetrahedra (the unit cube in 26^3 and 55^3 Kuhn cells).
+//!
+//! Workloads (f32):
+//! * `forces`: StVK direct forces (`TetMesh::add_elastic_forces`) at both sizes: the sequential
+//!   kernel, the partitioned scheme run piece by piece on this thread
+//!   (`TetPartition::add_elastic_forces`: its one-thread cost), and `parallel::add_elastic_forces`
+//!   on each pool.
+//! * `explicit step`: one `step_explicit` of stable neo-Hookean (half the proven stable step, the
+//!   box falling from rest) at 105k tets, on `TetElastic` and on `ParallelTetElastic`.
+//! * `relaxation iteration`: `relax_step` (1/60 s, Chebyshev defaults, tolerance 0 so it runs its
+//!   whole budget of 10 iterations) of the box resting on the ground under gravity, from the same
+//!   state every run; the time per iteration (initial guess and end of step included, spread
+//!   over the 10).
+//!
+//! The steppers' own passes over the vertices run on the calling thread; the tables give their
+//! share of a sequential step (1 - element passes / step, from the stable neo-Hookean force and
+//! fused-pass rows measured in the same run), which bounds the step's speed-up (Amdahl).
+//!
+//! Every row is timed by one round-robin pass over all variants of a workload (the minimum of
+//! several rounds), so ratios come from one machine state. `SOFTFEM_BENCH_CSV=<path>` appends
+//! every row (`bench,workload,size,lanes,threads,value,unit`) plus the derived ratios (the
+//! scheme's one-thread cost, the speed-ups, the vertex passes' share) to a CSV file.
+//! `SOFTFEM_BENCH_THREADS=1,2,4,8,16` picks other pool sizes (default: 1, 2 and all cores).
+//! `SOFTFEM_BENCH_QUICK=1` is a smoke test (the small box only, few repetitions).
+//!
+//! `cargo bench --features rayon --bench parallel` takes about two minutes on two cores.
+
+mod common;
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use common::{CsvRow, TablePass};
+use softfem::element::TetRest;
+use softfem::generate::{BoxSplit, box_counts, fill_box};
+use softfem::glam::{Mat3, Vec3};
+use softfem::material::{StVK, StableNeoHookean};
+use softfem::mesh::{
+    TetMesh, TetPartition, element_forces_len, partition_incident_len, partition_offsets_len,
+};
+use softfem::parallel::ParallelTetElastic;
+use softfem::step::{
+    ElasticEnergy, ElasticModel, ExplicitScratch, ExplicitSettings, Ground, RelaxScratch,
+    RelaxSettings, TetElastic, explicit_scratch_len, relax_scratch_len, relax_step,
+    stable_time_step, step_explicit,
+};
+
+/// Cells per axis of the two boxes: 105 456 and 998 250 tetrahedra.
+const CELLS: [usize; 2] = [26, 55];
+
+/// Young's modulus (Pa) and Poisson ratio: a soft rubber.
+const YOUNG: f32 = 1.0e6;
+const POISSON: f32 = 0.45;
+
+/// The relaxation's iteration budget per timed step.
+const RELAX_ITERATIONS: u32 = 10;
+
+/// Element and vertex pieces per thread of the largest pool: enough for work stealing to
+/// balance the load (the bits do not depend on it).
+const PIECES_PER_THREAD: usize = 4;
+
+/// The pool sizes: `SOFTFEM_BENCH_THREADS` (comma-separated) or 1, 2 and all cores.
+fn thread_counts() -> Vec<usize> {
+    if let Ok(list) = std::env::var("SOFTFEM_BENCH_THREADS") {
+        return list
+            .split(',')
+            .map(|n| {
+                n.trim()
+                    .parse()
+                    .expect("SOFTFEM_BENCH_THREADS: a list of counts")
+            })
+            .collect();
+    }
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mut counts = vec![1, 2];
+    if cores > 2 {
+        counts.push(cores);
+    }
+    counts
+}
+
+/// A rayon pool of `threads` threads, alive for the whole run.
+fn pool(threads: usize) -> &'static rayon::ThreadPool {
+    Box::leak(Box::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap(),
+    ))
+}
+
+/// A box of `cells^3` Kuhn cells (the unit cube), its mesh, a partition and a deformed state
+/// (a general affine map plus jitter, as in `benches/forces.rs`), all leaked: they live for the
+/// whole run.
+struct Scene {
+    rest_positions: &'static [Vec3],
+    positions: &'static [Vec3],
+    mesh: TetMesh<'static>,
+    partition: TetPartition<'static>,
+}
+
+impl Scene {
+    fn new(cells: usize, pieces: usize) -> Self {
+        let (vertices, tets) = box_counts(cells, cells, cells, BoxSplit::Kuhn6).unwrap();
+        let rest_positions = vec![Vec3::ZERO; vertices].leak();
+        let elements = vec![[0u32; 4]; tets].leak();
+        fill_box(
+            Vec3::ZERO,
+            Vec3::ONE,
+            cells,
+            cells,
+            cells,
+            BoxSplit::Kuhn6,
+            rest_positions,
+            elements,
+        )
+        .unwrap();
+        let affine = Mat3::from_cols(
+            Vec3::new(1.10, -0.10, 0.05),
+            Vec3::new(0.15, 0.95, -0.12),
+            Vec3::new(-0.05, 0.20, 1.05),
+        );
+        let amplitude = 0.08 / cells as f32;
+        let mut rng = common::XorShift64Star(0x5eed_f0ce_5b0c_2026);
+        let mut jitter = || rng.next_signed_unit() * amplitude;
+        let positions: Vec<Vec3> = rest_positions
+            .iter()
+            .map(|&x| affine * x + Vec3::new(jitter(), jitter(), jitter()))
+            .collect();
+        let rest = vec![TetRest::default(); tets].leak();
+        let mesh = TetMesh::new(rest_positions, elements, rest).unwrap();
+        let offsets = vec![0; partition_offsets_len(vertices)].leak();
+        let incident = vec![0; partition_incident_len(tets)].leak();
+        let partition = TetPartition::new(mesh, pieces, offsets, incident).unwrap();
+        Scene {
+            rest_positions,
+            positions: positions.leak(),
+            mesh,
+            partition,
+        }
+    }
+
+    /// A `TetElastic` of stable neo-Hookean on this mesh and its parallel form on `pool`.
+    fn stable_bodies(
+        &self,
+        pool: Option<&'static rayon::ThreadPool>,
+    ) -> (
+        TetElastic<'static, StableNeoHookean>,
+        Option<ParallelTetElastic<'static, StableNeoHookean>>,
+    ) {
+        let material = StableNeoHookean::from_young_poisson(YOUNG, POISSON).unwrap();
+        let body = TetElastic::new(self.mesh, material);
+        let parallel = pool.map(|pool| {
+            let ne = self.mesh.element_count();
+            let element_forces = vec![[Vec3::ZERO; 4]; element_forces_len(ne)].leak();
+            let energies = vec![0.0; ne].leak();
+            ParallelTetElastic::new(body, self.partition, element_forces, energies)
+                .unwrap()
+                .with_pool(pool)
+        });
+        (body, parallel)
+    }
+}
+
+/// A timed variant: a label, its thread count (0: the sequential code) and one run.
+struct Variant {
+    label: String,
+    threads: usize,
+    run: Box<dyn FnMut()>,
+}
+
+/// The label of a variant on `threads` (0: sequential).
+fn on(threads: usize) -> String {
+    match threads {
+        0 => "sequential".to_owned(),
+        1 => "rayon, 1 thread".to_owned(),
+        n => format!("rayon, {n} threads"),
+    }
+}
+
+/// StVK direct forces on `scene`: sequential, pieces on this thread, then each pool.
+fn force_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) -> Vec<Variant> {
+    let stvk = StVK::from_young_poisson(YOUNG, POISSON).unwrap();
+    let (mesh, partition, x) = (scene.mesh, scene.partition, scene.positions);
+    let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+    let mut forces = vec![Vec3::ZERO; nv];
+    let mut variants = vec![Variant {
+        label: on(0),
+        threads: 0,
+        run: Box::new(move || {
+            forces.fill(Vec3::ZERO);
+            mesh.add_elastic_forces(&stvk, black_box(x), &mut forces)
+                .unwrap();
+            black_box(&forces);
+        }),
+    }];
+    let (mut forces, mut element_forces) = (vec![Vec3::ZERO; nv], vec![[Vec3::ZERO; 4]; ne]);
+    variants.push(Variant {
+        label: "partitioned, pieces on this thread".to_owned(),
+        threads: 1,
+        run: Box::new(move || {
+            forces.fill(Vec3::ZERO);
+            partition
+                .add_elastic_forces(&stvk, black_box(x), &mut forces, &mut element_forces)
+                .unwrap();
+            black_box(&forces);
+        }),
+    });
+    for &(threads, pool) in pools {
+        let (mut forces, mut element_forces) = (vec![Vec3::ZERO; nv], vec![[Vec3::ZERO; 4]; ne]);
+        variants.push(Variant {
+            label: on(threads),
+            threads,
+            run: Box::new(move || {
+                forces.fill(Vec3::ZERO);
+                pool.install(|| {
+                    softfem::parallel::add_elastic_forces(
+                        &partition,
+                        &stvk,
+                        black_box(x),
+                        &mut forces,
+                        &mut element_forces,
+                    )
+                })
+                .unwrap();
+                black_box(&forces);
+            }),
+        });
+    }
+    variants
+}
+
+/// One explicit step of any model, falling from rest (the state carries on between runs).
+fn explicit_variant<F: ElasticModel<Vector = Vec3> + 'static>(
+    label: String,
+    threads: usize,
+    model: F,
+    scene: &Scene,
+) -> Variant {
+    let n = scene.mesh.vertex_count();
+    let mut masses = vec![0.0; n];
+    scene.mesh.lumped_masses(1000.0, &mut masses).unwrap();
+    let mut stiffness = vec![0.0; n];
+    let dt = 0.5 * stable_time_step(&model, &masses, &[], &mut stiffness).unwrap();
+    let settings = ExplicitSettings::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+    let (mut x, mut v) = (scene.rest_positions.to_vec(), vec![Vec3::ZERO; n]);
+    let scratch = vec![Vec3::ZERO; explicit_scratch_len(n)].leak();
+    let mut scratch = ExplicitScratch::new(scratch);
+    Variant {
+        label,
+        threads,
+        run: Box::new(move || {
+            step_explicit(
+                &model,
+                &masses,
+                &[],
+                &settings,
+                &mut x,
+                &mut v,
+                &mut scratch,
+            )
+            .unwrap();
+        }),
+    }
+}
+
+/// The relaxation's step: from the box at rest on the ground, `RELAX_ITERATIONS` iterations;
+/// the state is restored before every run. Returns the variant and its (iterations, energy
+/// evaluations) per run.
+fn relax_variant<F: ElasticEnergy<Vector = Vec3> + 'static>(
+    label: String,
+    threads: usize,
+    model: F,
+    scene: &Scene,
+) -> (Variant, (u32, u32)) {
+    let n = scene.mesh.vertex_count();
+    let mut masses = vec![0.0; n];
+    scene.mesh.lumped_masses(1000.0, &mut masses).unwrap();
+    let settings = RelaxSettings::new(1.0 / 60.0)
+        .with_gravity(Vec3::new(0.0, -9.81, 0.0))
+        .with_ground(Ground::new(Vec3::Y, 0.0))
+        .with_tolerance(0.0, RELAX_ITERATIONS);
+    let start = scene.rest_positions;
+    let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
+    let vectors = vec![Vec3::ZERO; relax_scratch_len(n)].leak();
+    let scalars = vec![0.0; n].leak();
+    let mut scratch = RelaxScratch::new(vectors, scalars);
+    let mut step = move || {
+        x.copy_from_slice(start);
+        v.fill(Vec3::ZERO);
+        relax_step(
+            &model,
+            &masses,
+            &[],
+            &settings,
+            &mut x,
+            &mut v,
+            &mut scratch,
+        )
+        .unwrap()
+    };
+    // The first run computes the preconditioner (kept in the scratch, as in a simulation).
+    let report = step();
+    let counts = (report.iterations, report.energy_evaluations);
+    let run = Box::new(move || {
+        let report = step();
+        assert_eq!((report.iterations, report.energy_evaluations), counts);
+    });
+    (
+        Variant {
+            label,
+            threads,
+            run,
+        },
+        counts,
+    )
+}
+
+/// A component of a sequential step, timed with the workload: stable neo-Hookean forces
+/// (`fused: false`) or the fused energy-and-force pass.
+fn component_variant(scene: &Scene, fused: bool) -> Variant {
+    let (body, _) = scene.stable_bodies(None);
+    let mut forces = vec![Vec3::ZERO; scene.mesh.vertex_count()];
+    let x = scene.positions;
+    Variant {
+        label: if fused {
+            "component: fused energy-and-force pass, sequential".to_owned()
+        } else {
+            "component: stable neo-Hookean forces, sequential".to_owned()
+        },
+        threads: 0,
+        run: Box::new(move || {
+            forces.fill(Vec3::ZERO);
+            if fused {
+                let energy = body
+                    .energy_and_add_forces(black_box(x), &mut forces)
+                    .unwrap();
+                // Infinite beyond the material's range, where the pass computes nothing.
+                assert!(
+                    energy.is_finite(),
+                    "the fused pass computed nothing: {energy}"
+                );
+            } else {
+                body.add_forces(black_box(x), &mut forces).unwrap();
+            }
+            black_box(&forces);
+        }),
+    }
+}
+
+/// How long to time: round-robin rounds and the least time per timed block.
+struct Plan {
+    rounds: u32,
+    block_seconds: f64,
+}
+
+/// Times `variants` round-robin; returns seconds per run, the minimum over the rounds.
+fn time(variants: &mut [Variant], plan: &Plan) -> Vec<f64> {
+    // Runs per block from one warm-up run each (the slowest variant sets it for all, so the
+    // blocks are comparable).
+    let slowest = variants
+        .iter_mut()
+        .map(|variant| {
+            let start = Instant::now();
+            (variant.run)();
+            start.elapsed().as_secs_f64()
+        })
+        .fold(0.0, f64::max);
+    let repetitions = ((plan.block_seconds / slowest).ceil() as u32).max(1);
+    common::round_robin_min_ns(variants, |v| (v.run)(), repetitions, 1, plan.rounds)
+        .into_iter()
+        .map(|ns| ns * 1e-9)
+        .collect()
+}
+
+/// Prints a workload's table and returns its CSV rows. `per_run` is the item a run counts (a
+/// force pass over `tets`, a step, `iterations` relaxation iterations).
+fn report(
+    workload: &str,
+    tets: usize,
+    variants: &[Variant],
+    seconds: &[f64],
+    per_run: PerRun,
+) -> Vec<CsvRow> {
+    let sequential = seconds[0];
+    let one_thread = variants
+        .iter()
+        .zip(seconds)
+        .find(|(v, _)| v.label == on(1))
+        .map(|(_, &s)| s);
+    println!();
+    println!("{workload}, {tets} tets:");
+    println!();
+    let (value_name, unit) = per_run.unit();
+    common::print_markdown_table(
+        &["variant", value_name, "vs sequential", "vs rayon 1 thread"],
+        variants
+            .iter()
+            .zip(seconds)
+            .filter(|(variant, _)| !variant.label.starts_with("component"))
+            .map(|(variant, &s)| {
+                vec![
+                    variant.label.clone(),
+                    format!("{:.3}", per_run.value(s, tets)),
+                    format!("{:.2}x", sequential / s),
+                    one_thread.map_or("-".to_owned(), |one| format!("{:.2}x", one / s)),
+                ]
+            }),
+    );
+    for (variant, s) in variants.iter().zip(seconds) {
+        if variant.label.starts_with("component") {
+            println!("{}: {:.3} ms a pass.", variant.label, s * 1e3);
+        }
+    }
+    let mut rows: Vec<CsvRow> = variants
+        .iter()
+        .zip(seconds)
+        .filter(|(variant, _)| !variant.label.starts_with("component"))
+        .map(|(variant, &s)| CsvRow {
+            bench: "parallel",
+            workload: format!("{workload}, {}", variant.label),
+            size: tets,
+            lanes: softfem::lanes::LANES,
+            threads: variant.threads.max(1),
+            value: per_run.value(s, tets),
+            unit,
+        })
+        .collect();
+    if let Some(one) = one_thread {
+        rows.push(CsvRow {
+            bench: "parallel",
+            workload: format!("{workload}, scheme one-thread time / sequential time"),
+            size: tets,
+            lanes: softfem::lanes::LANES,
+            threads: 1,
+            value: one / sequential,
+            unit: "ratio",
+        });
+        for (variant, &s) in variants.iter().zip(seconds) {
+            if variant.label.starts_with("rayon") && variant.threads > 1 {
+                rows.push(CsvRow {
+                    bench: "parallel",
+                    workload: format!(
+                        "{workload}, speed-up {} threads / 1 thread",
+                        variant.threads
+                    ),
+                    size: tets,
+                    lanes: softfem::lanes::LANES,
+                    threads: variant.threads,
+                    value: one / s,
+                    unit: "ratio",
+                });
+            }
+        }
+    }
+    rows
+}
+
+/// What one run of a workload counts.
+#[derive(Clone, Copy)]
+enum PerRun {
+    ForcePass,
+    Step,
+    Iterations(u32),
+}
+
+impl PerRun {
+    fn unit(self) -> (&'static str, &'static str) {
+        match self {
+            PerRun::ForcePass => ("Mtets/s", "Mtets/s"),
+            PerRun::Step => ("ms/step", "ms/step"),
+            PerRun::Iterations(_) => ("ms/iteration", "ms/iteration"),
+        }
+    }
+
+    fn value(self, seconds: f64, tets: usize) -> f64 {
+        match self {
+            PerRun::ForcePass => tets as f64 / seconds * 1e-6,
+            PerRun::Step => seconds * 1e3,
+            PerRun::Iterations(n) => seconds * 1e3 / f64::from(n),
+        }
+    }
+}
+
+fn main() {
+    let plan = match common::table_pass() {
+        TablePass::Skip => return,
+        TablePass::Test => Plan {
+            rounds: 1,
+            block_seconds: 0.0,
+        },
+        TablePass::Full if common::quick() => Plan {
+            rounds: 2,
+            block_seconds: 0.02,
+        },
+        TablePass::Full => Plan {
+            rounds: 7,
+            block_seconds: 0.25,
+        },
+    };
+    let short = common::quick() || matches!(common::table_pass(), TablePass::Test);
+    let threads = thread_counts();
+    let pools: Vec<_> = threads.iter().map(|&t| (t, pool(t))).collect();
+    let pieces = PIECES_PER_THREAD * threads.iter().copied().max().unwrap_or(1);
+    println!(
+        "softfem parallel bench on {}, {} cores available; pools of {threads:?} threads; \
+         partitions of {pieces} pieces; minimum of {} round-robin rounds.",
+        common::machine(),
+        std::thread::available_parallelism().map_or(1, |n| n.get()),
+        plan.rounds,
+    );
+    let sizes = if short { &CELLS[..1] } else { &CELLS[..] };
+    let scenes: Vec<Scene> = sizes.iter().map(|&c| Scene::new(c, pieces)).collect();
+    let mut rows = Vec::new();
+    for scene in &scenes {
+        let mut variants = force_variants(scene, &pools);
+        let seconds = time(&mut variants, &plan);
+        let tets = scene.mesh.element_count();
+        rows.extend(report(
+            "StVK direct forces",
+            tets,
+            &variants,
+            &seconds,
+            PerRun::ForcePass,
+        ));
+    }
+    let scene = &scenes[0];
+    let tets = scene.mesh.element_count();
+
+    let (body, _) = scene.stable_bodies(None);
+    let mut variants = vec![explicit_variant(on(0), 0, body, scene)];
+    for &(threads, pool) in &pools {
+        let (_, parallel) = scene.stable_bodies(Some(pool));
+        variants.push(explicit_variant(
+            on(threads),
+            threads,
+            parallel.unwrap(),
+            scene,
+        ));
+    }
+    variants.push(component_variant(scene, false));
+    let seconds = time(&mut variants, &plan);
+    rows.extend(report(
+        "explicit step",
+        tets,
+        &variants,
+        &seconds,
+        PerRun::Step,
+    ));
+    let share = 1.0 - seconds[variants.len() - 1] / seconds[0];
+    println!(
+        "Vertex passes (integration, damping, checks): {:.1} % of a sequential step.",
+        share * 100.0
+    );
+    rows.push(vertex_share_row("explicit step", tets, share));
+
+    let (body, _) = scene.stable_bodies(None);
+    let (sequential, counts) = relax_variant(on(0), 0, body, scene);
+    let mut variants = vec![sequential];
+    for &(threads, pool) in &pools {
+        let (_, parallel) = scene.stable_bodies(Some(pool));
+        let (variant, parallel_counts) =
+            relax_variant(on(threads), threads, parallel.unwrap(), scene);
+        assert_eq!(
+            parallel_counts, counts,
+            "the parallel run must take the same path"
+        );
+        variants.push(variant);
+    }
+    variants.push(component_variant(scene, true));
+    let seconds = time(&mut variants, &plan);
+    let (iterations, evaluations) = counts;
+    rows.extend(report(
+        "relaxation iteration",
+        tets,
+        &variants,
+        &seconds,
+        PerRun::Iterations(iterations),
+    ));
+    let element_passes = f64::from(evaluations) * seconds[variants.len() - 1];
+    let share = 1.0 - element_passes / seconds[0];
+    println!(
+        "{iterations} iterations and {evaluations} energy-and-force evaluations a step; vertex \
+         passes (preconditioner, directions, line search, Chebyshev): {:.1} % of a sequential step.",
+        share * 100.0
+    );
+    rows.push(vertex_share_row("relaxation iteration", tets, share));
+    common::append_csv_rows(&rows);
+}
+
+/// The CSV row of the vertex passes' share of a sequential step.
+fn vertex_share_row(workload: &str, tets: usize, share: f64) -> CsvRow {
+    CsvRow {
+        bench: "parallel",
+        workload: format!("{workload}, vertex passes' share of a sequential step"),
+        size: tets,
+        lanes: softfem::lanes::LANES,
+        threads: 1,
+        value: share,
+        unit: "ratio",
+    }
+}

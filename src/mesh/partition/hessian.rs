@@ -1,0 +1,194 @@
+//! The Hessian passes of a [`TetPartition`]: the element pieces of
+//! [`TetMesh::projected_hessians`] (each writes its slice of the cache) and of
+//! [`TetMesh::add_hessian_product`] (each writes its elements' products into the element buffer,
+//! which [`gather_forces`](TetPartition::gather_forces) then adds up per vertex), and the vertex
+//! pieces of [`TetMesh::add_vertex_hessian_blocks`] (each sums its vertices' blocks straight from
+//! the cache, in increasing (element, corner) order: no element phase).
+
+use core::ops::Range;
+
+use super::super::super::element::{TetHessian, TetRest};
+use super::super::super::lanes::LANES;
+use super::super::super::material::Material;
+use super::super::super::math::BATCH_SVD;
+use super::super::super::svd::svd3_lanes;
+use super::super::super::types::{Mat3, Vec3};
+#[cfg(doc)]
+use super::super::TetMesh;
+use super::super::grouped::tet_groups;
+use super::super::{check_finite, check_length, check_positions, gather};
+use super::{ElementForces, TetPartition, grouped_len};
+use crate::error::{Buffer, MeshError};
+
+impl<'a> TetPartition<'a> {
+    /// The check of a partitioned [`TetMesh::projected_hessians`], its tests in its order.
+    ///
+    /// # Errors
+    /// As [`TetMesh::projected_hessians`]: [`MeshError::LengthMismatch`] naming
+    /// [`Buffer::Positions`] or [`Buffer::Hessians`], [`MeshError::NonFinitePosition`].
+    pub fn check_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &[TetHessian],
+    ) -> Result<(), MeshError> {
+        check_positions(self.mesh.vertex_count(), positions)?;
+        check_length(Buffer::Hessians, self.mesh.element_count(), cache.len())
+    }
+
+    /// Element piece `piece` of [`TetMesh::projected_hessians`]: writes the projected Hessian
+    /// data of `material` at `positions` (m) of each of its elements into `out` (its slice of
+    /// the cache), with the sequential bits. Assumes [`check_hessians`](Self::check_hessians)
+    /// passed.
+    ///
+    /// # Errors
+    /// [`MeshError::PieceIndex`] past the last piece; [`MeshError::LengthMismatch`] naming
+    /// [`Buffer::Hessians`] if `out` is not as long as the piece, or [`Buffer::Positions`].
+    /// Nothing is written on error.
+    pub fn element_hessians<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        piece: usize,
+        out: &mut [TetHessian],
+    ) -> Result<(), MeshError> {
+        let (tets, rests, range) = self.piece_elements(piece, Buffer::Hessians, out.len())?;
+        check_length(Buffer::Positions, self.mesh.vertex_count(), positions.len())?;
+        let grouped = grouped_len(BATCH_SVD, self.mesh.element_count(), range);
+        let (out_groups, out_tail) = out.split_at_mut(grouped.min(out.len()));
+        let (tets_groups, tets_tail) = tets.split_at(grouped.min(tets.len()));
+        let (rests_groups, rests_tail) = rests.split_at(grouped.min(rests.len()));
+        let groups = tet_groups(tets_groups, rests_groups);
+        for ((tets, rests), slots) in groups.zip(out_groups.chunks_exact_mut(LANES)) {
+            let gradients = core::array::from_fn(|lane| match (tets.get(lane), rests.get(lane)) {
+                (Some(corners), Some(rest)) => {
+                    rest.deformation_gradient(gather(positions, corners))
+                }
+                _ => Mat3::ZERO,
+            });
+            let svds = svd3_lanes(&gradients);
+            for ((rest, svd), slot) in rests.iter().zip(&svds).zip(slots) {
+                let derivative = material.projected_stress_derivative_from_svd(svd);
+                *slot = TetHessian::from_stress_derivative(&derivative, rest);
+            }
+        }
+        for ((corners, rest), slot) in tets_tail.iter().zip(rests_tail).zip(out_tail) {
+            *slot = TetHessian::new(material, rest, gather(positions, corners));
+        }
+        Ok(())
+    }
+
+    /// The check of a partitioned [`TetMesh::add_hessian_product`]: its tests in its order,
+    /// then the element buffer's length.
+    ///
+    /// # Errors
+    /// As [`TetMesh::add_hessian_product`]: [`MeshError::LengthMismatch`] naming
+    /// [`Buffer::Hessians`], [`Buffer::Direction`] or [`Buffer::Products`],
+    /// [`MeshError::NonFiniteDirection`]; then [`MeshError::LengthMismatch`] naming
+    /// [`Buffer::ElementForces`] if `element_products` does not have
+    /// [`element_forces_len`](super::element_forces_len) entries.
+    pub fn check_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &[Vec3],
+        element_products: &[ElementForces],
+    ) -> Result<(), MeshError> {
+        let (elements, vertices) = (self.mesh.element_count(), self.mesh.vertex_count());
+        check_length(Buffer::Hessians, elements, cache.len())?;
+        check_length(Buffer::Direction, vertices, direction.len())?;
+        check_length(Buffer::Products, vertices, out.len())?;
+        check_finite(direction, |vertex| MeshError::NonFiniteDirection { vertex })?;
+        self.check_element_buffer(element_products.len())
+    }
+
+    /// Element piece `piece` of [`TetMesh::add_hessian_product`]: writes `H_e d_e` (N), the
+    /// product of each of its elements' Hessian in `cache` (the whole cache) with the element's
+    /// corners of `direction` (m), into `out` (its slice of the element buffer). Then
+    /// [`gather_forces`](Self::gather_forces) adds the products into the caller's output with
+    /// the sequential bits. Assumes [`check_hessian_product`](Self::check_hessian_product)
+    /// passed.
+    ///
+    /// # Errors
+    /// [`MeshError::PieceIndex`] past the last piece; [`MeshError::LengthMismatch`] naming
+    /// [`Buffer::ElementForces`] if `out` is not as long as the piece, [`Buffer::Hessians`] or
+    /// [`Buffer::Direction`]. Nothing is written on error.
+    pub fn element_hessian_products(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        piece: usize,
+        out: &mut [ElementForces],
+    ) -> Result<(), MeshError> {
+        let (tets, rests, range) = self.piece_elements(piece, Buffer::ElementForces, out.len())?;
+        check_length(Buffer::Hessians, self.mesh.element_count(), cache.len())?;
+        check_length(Buffer::Direction, self.mesh.vertex_count(), direction.len())?;
+        let hessians = cache.get(range).unwrap_or(&[]);
+        let elements = tets.iter().zip(rests).zip(hessians);
+        for (((corners, rest), hessian), slot) in elements.zip(out) {
+            *slot = hessian.product(rest, gather(direction, corners));
+        }
+        Ok(())
+    }
+
+    /// The check of a partitioned [`TetMesh::add_vertex_hessian_blocks`], its tests in its
+    /// order.
+    ///
+    /// # Errors
+    /// As [`TetMesh::add_vertex_hessian_blocks`]: [`MeshError::LengthMismatch`] naming
+    /// [`Buffer::Hessians`] or [`Buffer::Blocks`].
+    pub fn check_vertex_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &[Mat3],
+    ) -> Result<(), MeshError> {
+        check_length(Buffer::Hessians, self.mesh.element_count(), cache.len())?;
+        check_length(Buffer::Blocks, self.mesh.vertex_count(), blocks.len())
+    }
+
+    /// Vertex piece `piece` of [`TetMesh::add_vertex_hessian_blocks`]: adds into `out` (its
+    /// slice of the caller's blocks, N/m) the diagonal blocks of the Hessian in `cache` at each
+    /// of its vertices, in increasing (element, corner) order: the sequential additions. Needs
+    /// no element phase.
+    ///
+    /// # Errors
+    /// [`MeshError::PieceIndex`] past the last piece; [`MeshError::LengthMismatch`] naming
+    /// [`Buffer::Blocks`] if `out` is not as long as the piece, or [`Buffer::Hessians`].
+    /// Nothing is written on error.
+    pub fn gather_vertex_blocks(
+        &self,
+        cache: &[TetHessian],
+        piece: usize,
+        out: &mut [Mat3],
+    ) -> Result<(), MeshError> {
+        check_length(Buffer::Hessians, self.mesh.element_count(), cache.len())?;
+        let vertices =
+            self.check_piece(piece, self.vertex_piece_count(), self.vertex_piece(piece))?;
+        check_length(Buffer::Blocks, vertices.len(), out.len())?;
+        let rests = self.mesh.rest();
+        for (vertex, slot) in vertices.zip(out) {
+            for (element, corner) in self.incident_corners(vertex) {
+                if let (Some(hessian), Some(rest)) = (cache.get(element), rests.get(element)) {
+                    *slot += hessian.vertex_block(rest, corner);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The vertex indices, rest data and range of element piece `piece`, after checking the
+    /// piece index and that the output (`buffer`) has `out_len` entries, one per element.
+    #[allow(clippy::type_complexity)]
+    fn piece_elements(
+        &self,
+        piece: usize,
+        buffer: Buffer,
+        out_len: usize,
+    ) -> Result<(&'a [[u32; 4]], &'a [TetRest], Range<usize>), MeshError> {
+        let range =
+            self.check_piece(piece, self.element_piece_count(), self.element_piece(piece))?;
+        check_length(buffer, range.len(), out_len)?;
+        let tets = self.mesh.tets().get(range.clone()).unwrap_or(&[]);
+        let rests = self.mesh.rest().get(range.clone()).unwrap_or(&[]);
+        Ok((tets, rests, range))
+    }
+}
