@@ -185,6 +185,7 @@ use crate::error::{MeshError, StepBuffer, StepError};
 
 mod adjacency;
 mod chebyshev;
+mod collider;
 mod explicit;
 mod frequency;
 mod ground;
@@ -203,6 +204,7 @@ pub use adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
     vertex_order,
 };
+pub use collider::{Collider, Shape, SignedDistance};
 pub use explicit::{
     DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, FLIP_GROWTH,
     FLIP_STREAK, MAX_SUBSTEPS, explicit_scratch_len, step_explicit,

@@ -10,6 +10,7 @@ use core::mem::swap;
 use super::super::element::TetHessian;
 use super::super::math;
 use super::super::types::{Mat3, Real, Vec3};
+use super::collider::{Collider, check_colliders};
 use super::line_search::{self, copy, downhill, slope_along, sufficient_decrease};
 use super::loads::Loads;
 use super::objective::{Evaluation, Objective, implicit_velocities};
@@ -85,6 +86,9 @@ pub struct NewtonSettings<'a, V> {
     /// An optional ground half-space: an active set in the linear solves, projection of the
     /// trial points, friction on the velocity after the step (as the relaxation).
     pub ground: Option<Ground<V>>,
+    /// Rigid colliders (empty, the default, for none): projection and friction as the
+    /// ground's, relative to each collider's surface velocity; see [`Collider`].
+    pub colliders: &'a [Collider<'a>],
     /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)`, the relaxation's
     /// relative residual (in `[0, 1)`), or at the rounding floor (see the
     /// [`newton_step`] documentation). Reachable: `1e-8` and below in f64; in f32 `1e-4` where a
@@ -124,6 +128,7 @@ impl<'a, V: Vector> NewtonSettings<'a, V> {
             dt,
             gravity: V::ZERO,
             ground: None,
+            colliders: &[],
             tolerance: 1e-4,
             max_iterations: 50,
             max_cg_iterations: 200,
@@ -148,6 +153,13 @@ impl<'a, V: Vector> NewtonSettings<'a, V> {
             ground: Some(ground),
             ..self
         }
+    }
+
+    /// These settings with `colliders` (see [`Collider`]; checked by the step).
+    #[inline]
+    #[must_use]
+    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
+        NewtonSettings { colliders, ..self }
     }
 
     /// These settings with relative tolerance `tolerance` and `max_iterations` Newton
@@ -378,6 +390,7 @@ fn validate(settings: &NewtonSettings<'_, Vec3>) -> Result<Option<Ground<Vec3>>,
     {
         return Err(StepError::NewtonSettings);
     }
+    check_colliders(settings.colliders, true)?;
     settings.ground.as_ref().map(Ground::validated).transpose()
 }
 
@@ -435,7 +448,8 @@ fn solve<F: ElasticHessian>(
             start,
             velocities: velocities.as_deref().unwrap_or(&[]),
         },
-        frames: Frames::new(h, inertia, settings.gravity, ground.as_ref()),
+        frames: Frames::new(h, inertia, settings.gravity, ground.as_ref())
+            .with_colliders(settings.colliders),
         h,
         gravity: settings.gravity,
         loads,
@@ -459,7 +473,7 @@ fn solve<F: ElasticHessian>(
         ground: ground.as_ref(),
     };
     let outcome = iterate(&objective, &system, settings, positions, buffers);
-    let floor = *objective.frames.floor();
+    let floor = Floor::new(ground.as_ref()).with_colliders(settings.colliders);
     let (report, gradient, backup) = match outcome {
         Ok(result) => result,
         Err(error) => {
@@ -524,7 +538,7 @@ struct Constraints<'c> {
     pinned: &'c [bool],
     /// The fixed-axis masks (empty for none): those components are removed too.
     fixed_axes: &'c [u8],
-    floor: &'c Floor<Vec3>,
+    floor: &'c Floor<'c, Vec3>,
     normal: Option<Vec3>,
     x: &'c [Vec3],
     gradient: &'c [Vec3],
@@ -538,11 +552,16 @@ impl Constraints<'_> {
             return Vec3::ZERO;
         }
         let fixed = self.fixed_axes.get(i).copied().unwrap_or(0);
-        let v = v.axes_from(Vec3::ZERO, fixed);
+        let mut v = v.axes_from(Vec3::ZERO, fixed);
+        let at = |values: &[Vec3]| values.get(i).copied().unwrap_or(Vec3::ZERO);
+        if let Some(n) = self.floor.collider_normal(at(self.x))
+            && n.dot(at(self.gradient)) > 0.0
+        {
+            v = (v - n * n.dot(v)).axes_from(Vec3::ZERO, fixed);
+        }
         let Some(normal) = self.normal else {
             return v;
         };
-        let at = |values: &[Vec3]| values.get(i).copied().unwrap_or(Vec3::ZERO);
         let active =
             self.floor.contact(at(self.x)) == Some(true) && normal.dot(at(self.gradient)) > 0.0;
         if active {

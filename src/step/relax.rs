@@ -7,12 +7,14 @@ use core::mem::swap;
 
 use super::super::types::Real;
 use super::chebyshev::RhoEstimate;
+use super::collider::{Collider, check_colliders};
 use super::line_search::{
     ROUNDING, Stagnation, copy, downhill, rounding_floor, slope_along, sufficient_decrease,
 };
 use super::loads::Loads;
 use super::newton::FLOOR_FACTOR;
 use super::objective::{Evaluation, Objective, implicit_velocities};
+use super::points::Floor;
 use super::stability::vertex_stiffness;
 use super::vertex_passes::{
     Frames, TrialPoint, Vertices, chebyshev_pass, direction_pass, trial_pass,
@@ -108,6 +110,9 @@ pub struct RelaxSettings<'a, V> {
     /// acts on the velocity after the solve; restitution is ignored (implicit Euler does not
     /// bounce).
     pub ground: Option<Ground<V>>,
+    /// Rigid colliders (empty, the default, for none): projection and friction as the
+    /// ground's, relative to each collider's surface velocity; see [`Collider`].
+    pub colliders: &'a [Collider<'a>],
     /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` (relative residual, in
     /// `[0, 1)`; 0 runs the whole budget), `|M g|` the norm of the gravity load on the free
     /// vertices (N): a step that starts near equilibrium is measured against the load, not
@@ -197,6 +202,7 @@ impl<'a, V: Vector> RelaxSettings<'a, V> {
             dt,
             gravity: V::ZERO,
             ground: None,
+            colliders: &[],
             tolerance: 2e-3,
             max_iterations: 300,
             armijo: 1e-4,
@@ -225,6 +231,13 @@ impl<'a, V: Vector> RelaxSettings<'a, V> {
             ground: Some(ground),
             ..self
         }
+    }
+
+    /// These settings with `colliders` (see [`Collider`]; checked by the step).
+    #[inline]
+    #[must_use]
+    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
+        RelaxSettings { colliders, ..self }
     }
 
     /// These settings with relative tolerance `tolerance` and budget `max_iterations`.
@@ -497,7 +510,8 @@ fn minimise<F: ElasticEnergy>(
             start,
             velocities: velocities.as_deref().unwrap_or(&[]),
         },
-        frames: Frames::new(h, inertia, settings.gravity, ground.as_ref()),
+        frames: Frames::new(h, inertia, settings.gravity, ground.as_ref())
+            .with_colliders(settings.colliders),
         h,
         gravity: settings.gravity,
         loads,
@@ -510,7 +524,7 @@ fn minimise<F: ElasticEnergy>(
     };
     let outcome = descend(&objective, settings, positions, buffers);
     // The ground of the solve, for the friction pass below.
-    let floor = *objective.frames.floor();
+    let floor = Floor::new(ground.as_ref()).with_colliders(settings.colliders);
     let (report, gradient, backup) = match outcome {
         Ok(result) => result,
         Err(error) => {
@@ -865,5 +879,6 @@ fn validate<V: Vector>(settings: &RelaxSettings<'_, V>) -> Result<Option<Ground<
     {
         return Err(StepError::RelaxSettings);
     }
+    check_colliders(settings.colliders, V::ALL_AXES == 0b111)?;
     settings.ground.as_ref().map(Ground::validated).transpose()
 }
