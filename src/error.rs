@@ -779,6 +779,48 @@ pub enum StepError {
         /// The vertex index.
         vertex: usize,
     },
+    /// A collider of the settings (or of the body's step) is out of range.
+    Collider {
+        /// Its index in the collider slice.
+        collider: usize,
+        /// What is wrong with it.
+        problem: ColliderProblem,
+    },
+}
+
+/// What is wrong with a collider ([`StepError::Collider`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ColliderProblem {
+    /// A radius, half length or half extent is NaN, infinite, zero or negative.
+    Shape,
+    /// The position is not finite.
+    Position,
+    /// The rotation quaternion is not finite or not of unit length (within `1e-3`).
+    Rotation,
+    /// The linear or angular velocity is not finite.
+    Velocity,
+    /// The restitution lies outside `[0, 1]`.
+    Restitution,
+    /// The friction coefficient is NaN, infinite or negative.
+    Friction,
+    /// Colliders were given to a 2D body: they act on 3D bodies only.
+    Dimension,
+}
+
+impl fmt::Display for ColliderProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            ColliderProblem::Shape => "a radius, half length or half extent is not finite and > 0",
+            ColliderProblem::Position => "its position is not finite",
+            ColliderProblem::Rotation => "its rotation is not a finite unit quaternion",
+            ColliderProblem::Velocity => "its linear or angular velocity is not finite",
+            ColliderProblem::Restitution => "its restitution is outside [0, 1]",
+            ColliderProblem::Friction => "its friction coefficient is not finite and >= 0",
+            ColliderProblem::Dimension => "colliders act on 3D bodies only",
+        })
+    }
 }
 
 impl From<MeshError> for StepError {
@@ -855,6 +897,9 @@ impl fmt::Display for StepError {
                 f,
                 "the fixed-axis mask of vertex {vertex} names an axis this space does not have"
             ),
+            StepError::Collider { collider, problem } => {
+                write!(f, "collider {collider}: {problem}")
+            }
         }
     }
 }

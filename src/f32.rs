@@ -7,6 +7,7 @@
 pub mod types {
     /// The floating-point scalar of this precision.
     pub type Real = f32;
+    pub use glam::Quat;
     pub use glam::{Mat2, Mat3, Vec2, Vec3};
 }
 
@@ -137,6 +138,13 @@ pub(crate) mod math {
     #[must_use]
     pub fn pow2(n: i32) -> Real {
         Real::from_bits((((n + 127) as u32) & 255) << 23)
+    }
+
+    /// `(sin x, cos x)` (x in radians).
+    #[inline(always)]
+    #[must_use]
+    pub fn sin_cos(x: Real) -> (Real, Real) {
+        (libm::sinf(x), libm::cosf(x))
     }
 
     /// `if condition { a } else { b }` as bit masking, so that it never becomes a branch.

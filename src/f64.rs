@@ -3,6 +3,7 @@
 //! The same items as at the crate root, in double precision, compiled from the same source files
 //! (see `src/f32.rs`). The error types do not depend on the precision and are the crate root's.
 
+pub use crate::error::ColliderProblem;
 pub use crate::error::SvdBatchError;
 pub use crate::error::{BodyBuffer, BodyError};
 pub use crate::error::{
@@ -16,6 +17,7 @@ pub use crate::error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem
 pub mod types {
     /// The floating-point scalar of this precision.
     pub type Real = f64;
+    pub use glam::DQuat as Quat;
     pub use glam::{DMat2 as Mat2, DMat3 as Mat3, DVec2 as Vec2, DVec3 as Vec3};
 }
 
@@ -109,6 +111,13 @@ pub(crate) mod math {
     #[must_use]
     pub fn pow2(n: i32) -> Real {
         Real::from_bits((((n + 1023) as u64) & 2047) << 52)
+    }
+
+    /// `(sin x, cos x)` (x in radians).
+    #[inline(always)]
+    #[must_use]
+    pub fn sin_cos(x: Real) -> (Real, Real) {
+        (libm::sin(x), libm::cos(x))
     }
 
     /// `if condition { a } else { b }` as bit masking, so that it never becomes a branch.

@@ -179,6 +179,7 @@ pub mod simd;
 
 #[path = "f32.rs"]
 mod single;
+pub use error::ColliderProblem;
 pub use error::{BodyBuffer, BodyError};
 #[cfg(feature = "std")]
 pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};

@@ -63,8 +63,8 @@ use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
 use super::mesh::TetMesh;
 use super::step::{
-    ExplicitMemory, ExplicitScratch, Ground, NewtonScratch, RelaxScratch, TetElastic, VbdScratch,
-    VbdTopology, newton_step, relax_step, stable_time_step, step_explicit, vbd_step,
+    Collider, ExplicitMemory, ExplicitScratch, Ground, NewtonScratch, RelaxScratch, TetElastic,
+    VbdScratch, VbdTopology, newton_step, relax_step, stable_time_step, step_explicit, vbd_step,
 };
 use super::types::{Real, Vec3};
 use crate::error::{BodyBuffer, BodyError, StepError};
@@ -590,6 +590,37 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// [`MAX_SUBSTEPS`](super::step::MAX_SUBSTEPS) substeps (nothing touched in both cases), or the
     /// stepper's error, with positions, velocities and targets restored bit for bit.
     pub fn step(&mut self, dt: Real) -> Result<StepReport, StepError> {
+        self.step_with_colliders(dt, &[])
+    }
+
+    /// [`step`](Self::step) with rigid `colliders` besides the ground (see [`Collider`]): the
+    /// step sees each where it is; move kinematic ones between steps with
+    /// [`Collider::advanced`].
+    ///
+    /// ```
+    /// use softfem::body::{Body, FixedStorage};
+    /// use softfem::{glam::Vec3, material::StableNeoHookean, step::Collider};
+    ///
+    /// let jelly = StableNeoHookean::from_young_poisson(5.0e4, 0.45)?; // Pa
+    /// let (low, high) = (Vec3::new(-0.1, 0.5, -0.1), Vec3::new(0.1, 0.7, 0.1)); // m
+    /// let mut body = Body::<FixedStorage<27, 40>, _>::from_box(low, high, [2; 3], 1000.0, jelly)?;
+    /// body.set_gravity(Vec3::new(0.0, -9.81, 0.0));
+    /// let ball = [Collider::sphere(Vec3::ZERO, 0.4).with_friction(0.5)]; // 0.4 m under the box
+    /// for _ in 0..60 {
+    ///     body.step_with_colliders(1.0 / 60.0, &ball)?;
+    /// }
+    /// assert!(body.positions().iter().all(|&x| ball[0].distance(x) > -1e-3)); // on it, not in it
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// As [`step`](Self::step), and [`StepError::Collider`] for a collider out of range
+    /// (nothing touched).
+    pub fn step_with_colliders(
+        &mut self,
+        dt: Real,
+        colliders: &[Collider<'_>],
+    ) -> Result<StepReport, StepError> {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(StepError::TimeStep);
         }
@@ -602,7 +633,7 @@ impl<S: Storage, M: Material> Body<S, M> {
             _ => 1,
         };
         self.move_kinematic(dt);
-        let outcome = self.run_solver(dt, substeps);
+        let outcome = self.run_solver(dt, substeps, colliders);
         self.settle_kinematic(outcome.is_ok());
         outcome
     }
@@ -652,7 +683,12 @@ impl<S: Storage, M: Material> Body<S, M> {
     }
 
     /// One call of the solver's stepper.
-    fn run_solver(&mut self, dt: Real, substeps: u32) -> Result<StepReport, StepError> {
+    fn run_solver(
+        &mut self,
+        dt: Real,
+        substeps: u32,
+        colliders: &[Collider<'_>],
+    ) -> Result<StepReport, StepError> {
         let n = self.vertex_count();
         let mesh = TetMesh::from_validated(
             self.tets.slice(),
@@ -666,7 +702,8 @@ impl<S: Storage, M: Material> Body<S, M> {
         let (gravity, ground) = (self.gravity, self.ground);
         let vectors = self.vectors.slice_mut();
         match self.solver {
-            Solver::Explicit { mut settings, .. } => {
+            Solver::Explicit { settings, .. } => {
+                let mut settings = settings.with_colliders(colliders);
                 settings.dt = dt;
                 settings.substeps = substeps;
                 settings.gravity = gravity;
@@ -677,7 +714,8 @@ impl<S: Storage, M: Material> Body<S, M> {
                 self.explicit_memory = scratch.memory();
                 outcome.map(StepReport::Explicit)
             }
-            Solver::Relax(mut settings) => {
+            Solver::Relax(settings) => {
+                let mut settings = settings.with_colliders(colliders);
                 settings.dt = dt;
                 settings.gravity = gravity;
                 settings.ground = ground;
@@ -691,7 +729,8 @@ impl<S: Storage, M: Material> Body<S, M> {
                 self.preconditioner_ready = scratch.stiffness_ready();
                 outcome.map(StepReport::Relax)
             }
-            Solver::Newton(mut settings) => {
+            Solver::Newton(settings) => {
+                let mut settings = settings.with_colliders(colliders);
                 settings.dt = dt;
                 settings.gravity = gravity;
                 settings.ground = ground;
@@ -701,7 +740,8 @@ impl<S: Storage, M: Material> Body<S, M> {
                 newton_step(&model, masses, pinned, &settings, x, v, &mut scratch)
                     .map(StepReport::Newton)
             }
-            Solver::Vbd(mut settings) => {
+            Solver::Vbd(settings) => {
+                let mut settings = settings.with_colliders(colliders);
                 settings.dt = dt;
                 settings.gravity = gravity;
                 settings.ground = ground;

@@ -8,9 +8,10 @@ use super::super::types::{Real, Vec3};
 
 /// The stepper of a [`Body`](super::Body) and its settings.
 ///
-/// The settings' own `dt`, `gravity` and `ground` fields are ignored: every step uses the `dt`
-/// given to [`Body::step`](super::Body::step) and the body's
-/// [`gravity`](super::Body::set_gravity) and [`ground`](super::Body::set_ground). Every other
+/// The settings' own `dt`, `gravity`, `ground` and `colliders` fields are ignored: every step
+/// uses the `dt` given to [`Body::step`](super::Body::step) and the body's
+/// [`gravity`](super::Body::set_gravity) and [`ground`](super::Body::set_ground), and the
+/// colliders given to [`Body::step_with_colliders`](super::Body::step_with_colliders). Every other
 /// field (damping, tolerances, budgets, accelerations, and whatever the settings types gain)
 /// is passed on as it is. The settings borrow for `'static`: per-vertex external forces and
 /// per-axis constraints (`with_external_forces`, `with_fixed_axes`) reach a body only from

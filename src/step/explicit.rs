@@ -2,7 +2,9 @@
 //! blow-up detection.
 
 use super::super::types::Real;
+use super::collider::{Collider, check_colliders};
 use super::loads::Loads;
+use super::points::Grouped;
 use super::{
     ElasticModel, Ground, Vector, check_length, check_state, first_non_finite, pinned_flags,
 };
@@ -60,6 +62,9 @@ pub struct ExplicitSettings<'a, V> {
     pub damping: Real,
     /// An optional ground half-space.
     pub ground: Option<Ground<V>>,
+    /// Rigid colliders (empty, the default, for none): projection and friction as the
+    /// ground's, relative to each collider's surface velocity; see [`Collider`].
+    pub colliders: &'a [Collider<'a>],
     /// The blow-up detector's limit (> 1): a substep whose energy indicator exceeds this factor
     /// times the previous substep's is refused with [`StepError::EnergyBlowUp`]. See
     /// [`DEFAULT_ENERGY_GROWTH`].
@@ -89,6 +94,7 @@ impl<'a, V: Vector> ExplicitSettings<'a, V> {
             gravity: V::ZERO,
             damping: 0.0,
             ground: None,
+            colliders: &[],
             max_energy_growth: DEFAULT_ENERGY_GROWTH,
         }
     }
@@ -115,6 +121,13 @@ impl<'a, V: Vector> ExplicitSettings<'a, V> {
             ground: Some(ground),
             ..self
         }
+    }
+
+    /// These settings with `colliders` (see [`Collider`]; checked by the step).
+    #[inline]
+    #[must_use]
+    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
+        ExplicitSettings { colliders, ..self }
     }
 
     /// These settings with `substeps` substeps per call.
@@ -451,6 +464,7 @@ fn validate<V: Vector>(settings: &ExplicitSettings<'_, V>) -> Result<Option<Grou
     if settings.max_energy_growth.is_nan() || settings.max_energy_growth <= 1.0 {
         return Err(StepError::GrowthLimit);
     }
+    check_colliders(settings.colliders, V::ALL_AXES == 0b111)?;
     settings.ground.as_ref().map(Ground::validated).transpose()
 }
 
@@ -542,6 +556,11 @@ fn substep<F: ElasticModel>(
         *x += *v * h;
         if let Some(ground) = ground {
             contacts += usize::from(ground.resolve(x, v, resting_speed));
+            *x = loads.keep_fixed(i, *x, before);
+            *v = loads.free_part(i, *v);
+        }
+        if !settings.colliders.is_empty() {
+            contacts += F::Vector::resolve_colliders(settings.colliders, x, v, resting_speed);
             *x = loads.keep_fixed(i, *x, before);
             *v = loads.free_part(i, *v);
         }

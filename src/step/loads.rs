@@ -115,7 +115,7 @@ impl<V: Vector> Loads<'_, V> {
             let force = self.force(i);
             phi -= force.inner(x - x0);
             *g = self.free_part(i, *g - force);
-            let projected = floor.constrain(floor.contact(x), *g, 1.0);
+            let projected = floor.constrain(floor.contact(x), x, *g, 1.0);
             residual += projected.inner(projected);
         }
         (phi, residual)

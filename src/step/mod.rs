@@ -185,6 +185,7 @@ use crate::error::{MeshError, StepBuffer, StepError};
 
 mod adjacency;
 mod chebyshev;
+mod collider;
 mod descent;
 mod explicit;
 mod frequency;
@@ -202,6 +203,7 @@ pub use adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
     vertex_order,
 };
+pub use collider::{Collider, Shape, SignedDistance};
 pub use descent::gradient::{gradient_descent_quasi_static, gradient_descent_step};
 pub use explicit::{
     DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, FLIP_GROWTH,

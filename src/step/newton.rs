@@ -8,6 +8,7 @@
 use super::super::element::TetHessian;
 use super::super::types::{Mat3, Real, Vec3};
 use super::chebyshev::AccelerationSettings;
+use super::collider::{Collider, check_colliders};
 use super::descent::newton::{CgVectors, Newton};
 use super::descent::stopping::StallRule;
 use super::descent::{self, LoopSettings, Problem, Work};
@@ -78,6 +79,9 @@ pub struct NewtonSettings<'a, V> {
     /// An optional ground half-space: an active set in the linear solves, projection of the
     /// trial points, friction on the velocity after the step (as the relaxation).
     pub ground: Option<Ground<V>>,
+    /// Rigid colliders (empty, the default, for none): projection and friction as the
+    /// ground's, relative to each collider's surface velocity; see [`Collider`].
+    pub colliders: &'a [Collider<'a>],
     /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)`, the relaxation's
     /// relative residual (in `[0, 1)`), or at the rounding floor (see the
     /// [`newton_step`] documentation). Reachable: `1e-8` and below in f64; in f32 `1e-4` where a
@@ -117,6 +121,7 @@ impl<'a, V: Vector> NewtonSettings<'a, V> {
             dt,
             gravity: V::ZERO,
             ground: None,
+            colliders: &[],
             tolerance: 1e-4,
             max_iterations: 50,
             max_cg_iterations: 200,
@@ -141,6 +146,13 @@ impl<'a, V: Vector> NewtonSettings<'a, V> {
             ground: Some(ground),
             ..self
         }
+    }
+
+    /// These settings with `colliders` (see [`Collider`]; checked by the step).
+    #[inline]
+    #[must_use]
+    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
+        NewtonSettings { colliders, ..self }
     }
 
     /// These settings with relative tolerance `tolerance` and `max_iterations` Newton
@@ -374,6 +386,7 @@ fn validate(settings: &NewtonSettings<'_, Vec3>) -> Result<Option<Ground<Vec3>>,
     {
         return Err(StepError::NewtonSettings);
     }
+    check_colliders(settings.colliders, true)?;
     settings.ground.as_ref().map(Ground::validated).transpose()
 }
 
@@ -437,6 +450,7 @@ fn solve<F: ElasticHessian>(
         stiffness: &[],
         gravity: settings.gravity,
         ground,
+        colliders: settings.colliders,
         loads,
         dt,
     };

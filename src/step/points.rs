@@ -13,6 +13,7 @@ use core::ops::{Add, Neg, Sub};
 use super::super::lanes::{LANES, Lane, LaneVec3, Lanes, each_lane};
 use super::super::types::{Real, Vec2, Vec3};
 use super::Ground;
+use super::collider::{self, Collider};
 
 /// One vertex vector, or [`LANES`] of them. Public in a private module: the hidden half of the
 /// sealed [`Vector`](super::Vector) trait.
@@ -33,6 +34,12 @@ pub trait Point: Copy + Add<Output = Self> + Sub<Output = Self> + Neg<Output = S
     fn abs_sum(self) -> Self::Scalar;
     /// `mask ? a : b`, per lane.
     fn select(mask: <Self::Scalar as Lane>::Mask, a: Self, b: Self) -> Self;
+    /// `self` pushed out of every collider, in order (colliders act on 3D points only: the
+    /// identity in 2D). Lane by lane for groups.
+    fn pushed_out(self, colliders: &[Collider<'_>]) -> Self;
+    /// `v` without its component into the first collider touching `self`, `sign` as in
+    /// [`Floor::constrain`] (the identity in 2D). Lane by lane for groups.
+    fn constrained_by(self, colliders: &[Collider<'_>], v: Self, sign: Real) -> Self;
 }
 
 /// A vector type that also comes in groups of [`LANES`]: `Vec2` and `Vec3`.
@@ -48,6 +55,24 @@ pub trait Grouped: Point<Scalar = Real, Vector = Self> {
     /// `self` with the coordinates whose bit is set in `fixed` (bit 0 x, 1 y, 2 z) taken from
     /// `source`: a select, so they keep `source`'s bits exactly.
     fn axes_from(self, source: Self, fixed: u8) -> Self;
+    /// The explicit stepper's response to the colliders at a vertex at `x` moving at `v` (see
+    /// `collider::resolve`); the number of colliders it was inside (none in 2D).
+    fn resolve_colliders(
+        colliders: &[Collider<'_>],
+        x: &mut Self,
+        v: &mut Self,
+        resting_speed: Real,
+    ) -> usize;
+    /// The implicit solvers' velocity `v` at a vertex at `x` with gradient `g`, mass `m` and
+    /// step `h` after the colliders' friction (see `collider::implicit_velocity`; `v` in 2D).
+    fn collider_velocity(
+        colliders: &[Collider<'_>],
+        x: Self,
+        g: Self,
+        m: Real,
+        h: Real,
+        v: Self,
+    ) -> Self;
 }
 
 /// `source`'s coordinate where `bit` is set in `fixed`, else `own`.
@@ -123,6 +148,14 @@ impl Point for Vec2 {
     fn select(mask: bool, a: Self, b: Self) -> Self {
         if mask { a } else { b }
     }
+    #[inline(always)]
+    fn pushed_out(self, _: &[Collider<'_>]) -> Self {
+        self
+    }
+    #[inline(always)]
+    fn constrained_by(self, _: &[Collider<'_>], v: Self, _: Real) -> Self {
+        v
+    }
 }
 
 impl Point for LaneVec2 {
@@ -161,6 +194,14 @@ impl Point for LaneVec2 {
             y: Lanes::select(mask, a.y, b.y),
         }
     }
+    #[inline(always)]
+    fn pushed_out(self, _: &[Collider<'_>]) -> Self {
+        self
+    }
+    #[inline(always)]
+    fn constrained_by(self, _: &[Collider<'_>], v: Self, _: Real) -> Self {
+        v
+    }
 }
 
 impl Grouped for Vec2 {
@@ -173,6 +214,14 @@ impl Grouped for Vec2 {
         }
     }
     const ALL_AXES: u8 = 0b11;
+    #[inline(always)]
+    fn resolve_colliders(_: &[Collider<'_>], _: &mut Self, _: &mut Self, _: Real) -> usize {
+        0
+    }
+    #[inline(always)]
+    fn collider_velocity(_: &[Collider<'_>], _: Self, _: Self, _: Real, _: Real, v: Self) -> Self {
+        v
+    }
     #[inline(always)]
     fn axes_from(self, source: Vec2, fixed: u8) -> Vec2 {
         Vec2::new(
@@ -219,6 +268,14 @@ impl Point for Vec3 {
     fn select(mask: bool, a: Self, b: Self) -> Self {
         if mask { a } else { b }
     }
+    #[inline(always)]
+    fn pushed_out(self, colliders: &[Collider<'_>]) -> Self {
+        collider::pushed_out(colliders, self)
+    }
+    #[inline(always)]
+    fn constrained_by(self, colliders: &[Collider<'_>], v: Self, sign: Real) -> Self {
+        collider::constrained(colliders, self, v, sign)
+    }
 }
 
 impl Point for LaneVec3<Lanes> {
@@ -248,6 +305,22 @@ impl Point for LaneVec3<Lanes> {
     fn select(mask: <Lanes as Lane>::Mask, a: Self, b: Self) -> Self {
         LaneVec3::select(mask, a, b)
     }
+    #[inline(always)]
+    fn pushed_out(self, colliders: &[Collider<'_>]) -> Self {
+        LaneVec3::from_vectors(
+            self.to_vectors()
+                .map(|x| collider::pushed_out(colliders, x)),
+        )
+    }
+    #[inline(always)]
+    fn constrained_by(self, colliders: &[Collider<'_>], v: Self, sign: Real) -> Self {
+        let (x, v) = (self.to_vectors(), v.to_vectors());
+        let lane = |k: usize| {
+            let at = |values: &[Vec3; LANES]| values.get(k).copied().unwrap_or(Vec3::ZERO);
+            collider::constrained(colliders, at(&x), at(&v), sign)
+        };
+        LaneVec3::from_vectors(core::array::from_fn(lane))
+    }
 }
 
 impl Grouped for Vec3 {
@@ -257,6 +330,26 @@ impl Grouped for Vec3 {
         LaneVec3::from_vectors(v)
     }
     const ALL_AXES: u8 = 0b111;
+    #[inline(always)]
+    fn resolve_colliders(
+        colliders: &[Collider<'_>],
+        x: &mut Self,
+        v: &mut Self,
+        resting_speed: Real,
+    ) -> usize {
+        collider::resolve(colliders, x, v, resting_speed)
+    }
+    #[inline(always)]
+    fn collider_velocity(
+        colliders: &[Collider<'_>],
+        x: Self,
+        g: Self,
+        m: Real,
+        h: Real,
+        v: Self,
+    ) -> Self {
+        collider::implicit_velocity(colliders, (x, g, m, h), v)
+    }
     #[inline(always)]
     fn axes_from(self, source: Vec3, fixed: u8) -> Vec3 {
         Vec3::new(
@@ -271,32 +364,49 @@ impl Grouped for Vec3 {
     }
 }
 
-/// The ground as seen by [`Point`]s (or no ground): contact tests and projections, the same bits
-/// for one vertex and for a lane.
+/// The ground and the colliders as seen by [`Point`]s (or neither): contact tests and
+/// projections, the same bits for one vertex and for a lane. Without colliders the ground path
+/// is all there is (bit for bit what it was before colliders existed); with colliders, groups
+/// fall back to lane-by-lane work for them.
 #[derive(Clone, Copy)]
-pub(crate) struct Floor<P: Point> {
+pub(crate) struct Floor<'a, P: Point> {
     /// `None` without a ground.
     plane: Option<(P, P::Scalar)>,
     /// `16 eps |offset|`, the part of the contact tolerance that does not depend on `x`.
     slack: P::Scalar,
+    /// The validated colliders (empty for none).
+    colliders: &'a [Collider<'a>],
 }
 
 /// The contact tolerance's factor: `16 eps`.
 const CONTACT_EPS: Real = 16.0 * Real::EPSILON;
 
-impl<P: Point> Floor<P> {
-    /// `ground` (with a unit normal) for points of type `P`.
+impl<'a, P: Point> Floor<'a, P> {
+    /// `ground` (with a unit normal) for points of type `P`, no colliders.
     #[inline(always)]
     pub fn new(ground: Option<&Ground<P::Vector>>) -> Self {
         Floor {
             plane: ground.map(|g| (P::splat(g.normal), P::Scalar::splat(g.offset))),
             slack: P::Scalar::splat(ground.map_or(0.0, |g| CONTACT_EPS * g.offset.abs())),
+            colliders: &[],
         }
     }
 
-    /// The same ground for groups of [`LANES`] vectors.
+    /// This floor with the (validated) `colliders` too.
     #[inline(always)]
-    pub fn grouped(&self) -> Floor<P::Group>
+    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
+        Floor { colliders, ..self }
+    }
+
+    /// The colliders (empty for none).
+    #[inline(always)]
+    pub fn colliders(&self) -> &'a [Collider<'a>] {
+        self.colliders
+    }
+
+    /// The same ground and colliders for groups of [`LANES`] vectors.
+    #[inline(always)]
+    pub fn grouped(&self) -> Floor<'a, P::Group>
     where
         P: Grouped,
     {
@@ -305,11 +415,13 @@ impl<P: Point> Floor<P> {
                 .plane
                 .map(|(normal, offset)| (P::Group::splat(normal), Lanes::splat(offset))),
             slack: Lanes::splat(self.slack),
+            colliders: self.colliders,
         }
     }
 
     /// Whether `x` touches the ground within rounding of the projection: height at most
-    /// `16 eps (|offset| + |x|_1)`. `None` without a ground.
+    /// `16 eps (|offset| + |x|_1)`. `None` without a ground. (The colliders' contacts are
+    /// tested by [`constrain`](Self::constrain) itself.)
     #[inline(always)]
     pub fn contact(&self, x: P) -> Option<<P::Scalar as Lane>::Mask> {
         let (normal, offset) = self.plane?;
@@ -318,9 +430,20 @@ impl<P: Point> Floor<P> {
         Some(tolerance.ge(height))
     }
 
-    /// `x` projected onto the ground if it is inside.
+    /// `x` projected onto the ground if it is inside, then pushed out of every collider.
     #[inline(always)]
     pub fn project(&self, x: P) -> P {
+        let x = self.project_ground(x);
+        if self.colliders.is_empty() {
+            x
+        } else {
+            x.pushed_out(self.colliders)
+        }
+    }
+
+    /// `x` projected onto the ground if it is inside.
+    #[inline(always)]
+    fn project_ground(&self, x: P) -> P {
         let Some((normal, offset)) = self.plane else {
             return x;
         };
@@ -333,11 +456,29 @@ impl<P: Point> Floor<P> {
         P::select(inside, x + normal.scale(depth), x)
     }
 
-    /// `v` without its component into the ground where `contact` (from [`contact`](Self::contact)
-    /// at the vertex) is set: `sign` +1 for a gradient, whose descent is `-g`, -1 for a
+    /// `v` at a vertex at `x` without its component into the ground where `contact` (from
+    /// [`contact`](Self::contact) at `x`) is set, then without its component into the first
+    /// collider `x` touches: `sign` +1 for a gradient, whose descent is `-g`, -1 for a
     /// direction.
     #[inline(always)]
-    pub fn constrain(&self, contact: Option<<P::Scalar as Lane>::Mask>, v: P, sign: Real) -> P {
+    pub fn constrain(
+        &self,
+        contact: Option<<P::Scalar as Lane>::Mask>,
+        x: P,
+        v: P,
+        sign: Real,
+    ) -> P {
+        let v = self.constrain_ground(contact, v, sign);
+        if self.colliders.is_empty() {
+            v
+        } else {
+            x.constrained_by(self.colliders, v, sign)
+        }
+    }
+
+    /// The ground's part of [`constrain`](Self::constrain).
+    #[inline(always)]
+    fn constrain_ground(&self, contact: Option<<P::Scalar as Lane>::Mask>, v: P, sign: Real) -> P {
         let (Some((normal, _)), Some(contact)) = (self.plane, contact) else {
             return v;
         };
@@ -348,6 +489,14 @@ impl<P: Point> Floor<P> {
         let along = normal.inner(v);
         let into = (along * P::Scalar::splat(sign)).gt(P::Scalar::splat(0.0));
         P::select(contact, P::select(into, v - normal.scale(along), v), v)
+    }
+}
+
+impl Floor<'_, Vec3> {
+    /// The outward normal of the first collider `x` touches (Newton's active set).
+    #[inline(always)]
+    pub fn collider_normal(&self, x: Vec3) -> Option<Vec3> {
+        collider::touching(self.colliders, x).map(|(_, normal)| normal)
     }
 }
 

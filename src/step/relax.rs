@@ -7,6 +7,7 @@
 
 use super::super::types::Real;
 use super::chebyshev::AccelerationSettings;
+use super::collider::{Collider, check_colliders};
 use super::descent::jacobi::Jacobi;
 use super::descent::stopping::StallRule;
 use super::descent::{self, Direction, LoopSettings, Problem, Work};
@@ -101,6 +102,9 @@ pub struct RelaxSettings<'a, V> {
     /// acts on the velocity after the solve; restitution is ignored (implicit Euler does not
     /// bounce).
     pub ground: Option<Ground<V>>,
+    /// Rigid colliders (empty, the default, for none): projection and friction as the
+    /// ground's, relative to each collider's surface velocity; see [`Collider`].
+    pub colliders: &'a [Collider<'a>],
     /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` (relative residual, in
     /// `[0, 1)`; 0 runs the whole budget), `|M g|` the norm of the gravity load on the free
     /// vertices (N): a step that starts near equilibrium is measured against the load, not
@@ -190,6 +194,7 @@ impl<'a, V: Vector> RelaxSettings<'a, V> {
             dt,
             gravity: V::ZERO,
             ground: None,
+            colliders: &[],
             tolerance: 2e-3,
             max_iterations: 300,
             armijo: 1e-4,
@@ -218,6 +223,13 @@ impl<'a, V: Vector> RelaxSettings<'a, V> {
             ground: Some(ground),
             ..self
         }
+    }
+
+    /// These settings with `colliders` (see [`Collider`]; checked by the step).
+    #[inline]
+    #[must_use]
+    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
+        RelaxSettings { colliders, ..self }
     }
 
     /// These settings with relative tolerance `tolerance` and budget `max_iterations`.
@@ -482,6 +494,7 @@ pub(super) fn minimise<F: ElasticEnergy, D: Direction<F>>(
         stiffness: scratch.scalars,
         gravity: settings.gravity,
         ground,
+        colliders: settings.colliders,
         loads,
         dt: velocities.is_some().then_some(settings.dt),
     };
@@ -565,5 +578,6 @@ fn validate<V: Vector>(settings: &RelaxSettings<'_, V>) -> Result<Option<Ground<
     {
         return Err(StepError::RelaxSettings);
     }
+    check_colliders(settings.colliders, V::ALL_AXES == 0b111)?;
     settings.ground.as_ref().map(Ground::validated).transpose()
 }

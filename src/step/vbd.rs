@@ -17,8 +17,9 @@ use super::adjacency::{
     incident_elements, vertex_order,
 };
 use super::chebyshev::RhoEstimate;
+use super::collider::{Collider, check_colliders};
 use super::loads::Loads;
-use super::points::Grouped;
+use super::points::{Grouped, Point};
 use super::vertex_block::{VertexFactor, shape_gradient};
 use super::vertex_passes::{Frames, Vertices, gradient_pass};
 use super::{
@@ -122,6 +123,9 @@ pub struct VbdSettings<'a> {
     /// acts on the velocity after the solve, restitution is ignored, as in
     /// [`RelaxSettings::ground`](super::RelaxSettings::ground).
     pub ground: Option<Ground<Vec3>>,
+    /// Rigid colliders (empty, the default, for none): projection and friction as the
+    /// ground's, relative to each collider's surface velocity; see [`Collider`].
+    pub colliders: &'a [Collider<'a>],
     /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)`, exactly as
     /// [`RelaxSettings::tolerance`](super::RelaxSettings::tolerance) (in `[0, 1)`).
     pub tolerance: Real,
@@ -181,6 +185,7 @@ impl<'a> VbdSettings<'a> {
             dt,
             gravity: Vec3::ZERO,
             ground: None,
+            colliders: &[],
             tolerance: 1e-3,
             max_iterations: 100,
             armijo: 1e-4,
@@ -208,6 +213,13 @@ impl<'a> VbdSettings<'a> {
             ground: Some(ground),
             ..self
         }
+    }
+
+    /// These settings with `colliders` (see [`Collider`]; checked by the step).
+    #[inline]
+    #[must_use]
+    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
+        VbdSettings { colliders, ..self }
     }
 
     /// These settings with relative tolerance `tolerance` and a budget of `max_iterations`
@@ -637,6 +649,7 @@ struct Sweep<'s, M: Material> {
     /// External forces and fixed axes (both empty for none).
     loads: Loads<'s, Vec3>,
     ground: Option<Ground<Vec3>>,
+    colliders: &'s [Collider<'s>],
     armijo: Real,
     backtrack: Real,
     max_backtracks: u32,
@@ -894,6 +907,7 @@ impl<M: Material> Sweep<'_, M> {
             if let Some(ground) = &self.ground {
                 ground.project(&mut p);
             }
+            let p = Point::pushed_out(p, self.colliders);
             p.axes_from(x, fixed)
         };
         if !line_search {
@@ -978,6 +992,7 @@ fn validate(settings: &VbdSettings<'_>) -> Result<Option<Ground<Vec3>>, StepErro
     {
         return Err(StepError::VbdSettings);
     }
+    check_colliders(settings.colliders, true)?;
     settings.ground.as_ref().map(Ground::validated).transpose()
 }
 
@@ -1060,7 +1075,8 @@ fn minimise<M: Material, S: Schedule<M>>(
         Some(_) => (settings.dt, 1.0 / (settings.dt * settings.dt)),
         None => (0.0, 0.0),
     };
-    let frames = Frames::new(h, inertia, settings.gravity, ground.as_ref());
+    let frames = Frames::new(h, inertia, settings.gravity, ground.as_ref())
+        .with_colliders(settings.colliders);
     let vertices = Vertices {
         masses,
         pinned,
@@ -1085,6 +1101,7 @@ fn minimise<M: Material, S: Schedule<M>>(
         gravity: settings.gravity,
         loads,
         ground,
+        colliders: settings.colliders,
         armijo: settings.armijo,
         backtrack: settings.backtrack,
         max_backtracks: settings.max_backtracks,
@@ -1135,6 +1152,7 @@ fn minimise<M: Material, S: Schedule<M>>(
             *v = ground.friction_applied(tangential, normal_change)
                 + ground.normal * normal.max(0.0);
         }
+        *v = Vec3::collider_velocity(settings.colliders, x, g, m, h, *v);
     }
     if let Some(vertex) = first_non_finite(velocities, &[]) {
         copy(positions, start);

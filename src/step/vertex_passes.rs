@@ -7,21 +7,21 @@
 use super::super::lanes::{LANES, Lane, LaneSum, Lanes, each_lane};
 use super::super::math::BATCH_VERTICES;
 use super::super::types::Real;
-use super::Ground;
 use super::points::{Floor, Grouped, Point};
+use super::{Collider, Ground};
 
 /// What every vertex pass needs besides the buffers, for points of type `P`.
 #[derive(Clone, Copy)]
-struct Frame<P: Point> {
+struct Frame<'a, P: Point> {
     /// The time step `h` (0 without inertia).
     h: P::Scalar,
     /// `1 / h^2`, or 0 without inertia.
     inertia: P::Scalar,
     gravity: P,
-    floor: Floor<P>,
+    floor: Floor<'a, P>,
 }
 
-impl<P: Point> Frame<P> {
+impl<P: Point> Frame<'_, P> {
     #[inline(always)]
     fn new(h: Real, inertia: Real, gravity: P::Vector, ground: Option<&Ground<P::Vector>>) -> Self {
         Frame {
@@ -54,7 +54,9 @@ impl<P: Point> Frame<P> {
             - m * self.gravity.inner(x - start);
         // The kernel added the forces, -dE/dx: flip them into dE/dx.
         let gradient = offset.scale(weight) - force - self.gravity.scale(m);
-        let projected = self.floor.constrain(self.floor.contact(x), gradient, 1.0);
+        let projected = self
+            .floor
+            .constrain(self.floor.contact(x), x, gradient, 1.0);
         let residual = projected.inner(projected);
         let Some(free) = free else {
             return (gradient, phi, residual);
@@ -79,14 +81,14 @@ impl<P: Point> Frame<P> {
         heavy_ball: Option<(P, P::Scalar)>,
     ) -> (P, P::Scalar) {
         let contact = self.floor.contact(x);
-        let g = self.floor.constrain(contact, g, 1.0);
+        let g = self.floor.constrain(contact, x, g, 1.0);
         let zero = P::Scalar::splat(0.0);
         let plain = P::select(p.gt(zero), g.scale(P::Scalar::splat(-1.0) / p), P::zero());
         let direction = match heavy_ball {
             Some((previous, momentum)) => plain + (x - previous).scale(momentum),
             None => plain,
         };
-        let d = self.floor.constrain(contact, direction, -1.0);
+        let d = self.floor.constrain(contact, x, direction, -1.0);
         (d, g.inner(d))
     }
 
@@ -104,11 +106,11 @@ impl<P: Point> Frame<P> {
 /// The [`Frame`] of a solve, for single vertices; [`group`](Frames::group) gives the same for
 /// groups, built only where the passes group (`math::BATCH_VERTICES`).
 #[derive(Clone, Copy)]
-pub(super) struct Frames<V: Grouped> {
-    single: Frame<V>,
+pub(super) struct Frames<'a, V: Grouped> {
+    single: Frame<'a, V>,
 }
 
-impl<V: Grouped> Frames<V> {
+impl<'a, V: Grouped> Frames<'a, V> {
     /// The frames of a solve: time step `h` and `inertia = 1 / h^2` (both 0 without inertia),
     /// `gravity`, and `ground` with a unit normal.
     pub fn new(h: Real, inertia: Real, gravity: V, ground: Option<&Ground<V>>) -> Self {
@@ -117,9 +119,17 @@ impl<V: Grouped> Frames<V> {
         }
     }
 
+    /// These frames with the (validated) `colliders`, which every pass then applies after the
+    /// ground.
+    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
+        let mut single = self.single;
+        single.floor = single.floor.with_colliders(colliders);
+        Frames { single }
+    }
+
     /// The frame for groups of [`LANES`] vertices: every value in every lane.
     #[inline(always)]
-    fn group(&self) -> Frame<V::Group> {
+    fn group(&self) -> Frame<'a, V::Group> {
         let single = &self.single;
         Frame {
             h: Lanes::splat(single.h),
@@ -129,8 +139,8 @@ impl<V: Grouped> Frames<V> {
         }
     }
 
-    /// The ground, for one vertex.
-    pub fn floor(&self) -> &Floor<V> {
+    /// The ground and the colliders, for one vertex.
+    pub fn floor(&self) -> &Floor<'a, V> {
         &self.single.floor
     }
 }

@@ -130,13 +130,13 @@ impl Gradient {
         heavy_ball: Option<(V, Real)>,
     ) -> (V, Real) {
         let contact = floor.contact(x);
-        let g = floor.constrain(contact, g, 1.0);
+        let g = floor.constrain(contact, x, g, 1.0);
         let plain = g.scale(-self.inverse_scale);
         let direction = match heavy_ball {
             Some((previous, momentum)) => plain + (x - previous).scale(momentum),
             None => plain,
         };
-        let d = floor.constrain(contact, direction, -1.0);
+        let d = floor.constrain(contact, x, direction, -1.0);
         (d, g.inner(d))
     }
 }

@@ -41,6 +41,8 @@ use super::chebyshev::{Acceleration, AccelerationSettings};
 use super::loads::Loads;
 use super::vertex_passes::{Frames, TrialPoint, Vertices, trial_pass};
 use super::{ElasticEnergy, Ground, Vector, first_non_finite};
+use super::collider::Collider;
+use super::points::Floor;
 use crate::error::StepError;
 use line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
 use objective::{Evaluation, Objective, implicit_velocities};
@@ -148,6 +150,8 @@ pub(super) struct Problem<'p, F: ElasticEnergy> {
     pub gravity: F::Vector,
     /// The ground, with a unit normal.
     pub ground: Option<Ground<F::Vector>>,
+    /// The validated colliders (empty for none).
+    pub colliders: &'p [Collider<'p>],
     pub loads: Loads<'p, F::Vector>,
     /// `h` (s), or `None` in the quasi-static mode.
     pub dt: Option<Real>,
@@ -218,7 +222,13 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
         trial,
         direction,
     } = work;
-    let origin = reference_point(positions);
+    // The colliders' geometry is given in world coordinates: with colliders the loop stays
+    // there (no shift), so that their contact tests see the caller's positions.
+    let origin = if problem.colliders.is_empty() {
+        reference_point(positions)
+    } else {
+        F::Vector::ZERO
+    };
     translate(positions, -origin);
     copy(start, positions);
     let start: &[F::Vector] = start;
@@ -243,7 +253,8 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
             start,
             velocities: velocities.as_deref().unwrap_or(&[]),
         },
-        frames: Frames::new(h, inertia, problem.gravity, ground.as_ref()),
+        frames: Frames::new(h, inertia, problem.gravity, ground.as_ref())
+            .with_colliders(problem.colliders),
         h,
         gravity: problem.gravity,
         loads: problem.loads,
@@ -256,7 +267,7 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
     };
     let outcome = descend(&objective, settings, direction_rule, positions, buffers);
     // The ground of the solve, for the friction pass below.
-    let floor = *objective.frames.floor();
+    let floor = Floor::new(ground.as_ref()).with_colliders(problem.colliders);
     let (summary, gradient, backup) = match outcome {
         Ok(result) => result,
         Err(error) => {

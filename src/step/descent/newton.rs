@@ -182,7 +182,7 @@ struct Constraints<'c> {
     pinned: &'c [bool],
     /// The fixed-axis masks (empty for none): those components are removed too.
     fixed_axes: &'c [u8],
-    floor: &'c Floor<Vec3>,
+    floor: &'c Floor<'c, Vec3>,
     normal: Option<Vec3>,
     x: &'c [Vec3],
     gradient: &'c [Vec3],
@@ -196,11 +196,16 @@ impl Constraints<'_> {
             return Vec3::ZERO;
         }
         let fixed = self.fixed_axes.get(i).copied().unwrap_or(0);
-        let v = v.axes_from(Vec3::ZERO, fixed);
+        let mut v = v.axes_from(Vec3::ZERO, fixed);
+        let at = |values: &[Vec3]| values.get(i).copied().unwrap_or(Vec3::ZERO);
+        if let Some(n) = self.floor.collider_normal(at(self.x))
+            && n.dot(at(self.gradient)) > 0.0
+        {
+            v = (v - n * n.dot(v)).axes_from(Vec3::ZERO, fixed);
+        }
         let Some(normal) = self.normal else {
             return v;
         };
-        let at = |values: &[Vec3]| values.get(i).copied().unwrap_or(Vec3::ZERO);
         let active =
             self.floor.contact(at(self.x)) == Some(true) && normal.dot(at(self.gradient)) > 0.0;
         if active {

@@ -21,7 +21,7 @@ pub(in super::super) struct Objective<'p, F: ElasticEnergy> {
     pub vertices: Vertices<'p, F::Vector>,
     /// `h`, `1 / h^2` (both 0 in the quasi-static mode), gravity and the ground, for the
     /// vertex passes.
-    pub frames: Frames<F::Vector>,
+    pub frames: Frames<'p, F::Vector>,
     /// `h` (unused in the quasi-static mode).
     pub h: Real,
     pub gravity: F::Vector,
@@ -154,6 +154,9 @@ pub(in super::super) fn implicit_velocities<V: Vector>(
             let tangential = *v - ground.normal * normal;
             *v = ground.friction_applied(tangential, normal_change)
                 + ground.normal * normal.max(0.0);
+        }
+        if !floor.colliders().is_empty() {
+            *v = V::collider_velocity(floor.colliders(), x, g, m, h, *v);
         }
     }
 }

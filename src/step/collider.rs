@@ -1,0 +1,733 @@
+//! Rigid colliders a soft body touches: half-spaces, spheres, capsules, oriented boxes and any
+//! user shape with a signed distance, each static or kinematic (moving with a linear and an
+//! angular velocity), with restitution and Coulomb friction relative to the collider's surface
+//! velocity.
+//!
+//! Every stepper treats a collider as it treats the [`Ground`](super::Ground): a vertex found
+//! inside is projected onto the surface along the outward normal (the gradient of the signed
+//! distance), the implicit solvers project every iterate onto the admissible set and drop the
+//! gradient and direction components into the surface at the vertices in contact, and the
+//! velocity update after a step applies friction to the velocity *relative to the surface*,
+//! `v - (v_c + w_c x (x - p_c))`.
+
+use super::super::math;
+use super::super::types::{Quat, Real, Vec3};
+use crate::error::{ColliderProblem, StepError};
+
+/// A shape given by its signed distance, for anything the built-in [`Shape`]s do not cover
+/// (a terrain, a mesh's distance field, a union of primitives).
+///
+/// Both functions take points in the collider's own frame (the world point moved by
+/// `-position` and rotated by the inverse rotation). Negative distances are inside. The gradient
+/// need not have unit length (it is normalised; a zero or non-finite gradient means "no
+/// direction here", and the vertex is left where it is). A vertex inside is moved by
+/// `-distance` along the normalised gradient: exact for a true distance field, one Newton step
+/// towards the surface for any other implicit function.
+///
+/// ```
+/// use softfem::glam::Vec3;
+/// use softfem::step::{Collider, SignedDistance};
+///
+/// /// A torus around the z axis: major radius 1 m, tube radius 0.25 m.
+/// struct Torus;
+/// impl SignedDistance for Torus {
+///     fn distance(&self, x: Vec3) -> f32 {
+///         let ring = (x.x * x.x + x.y * x.y).sqrt() - 1.0;
+///         (ring * ring + x.z * x.z).sqrt() - 0.25
+///     }
+///     fn gradient(&self, x: Vec3) -> Vec3 {
+///         let radial = (x.x * x.x + x.y * x.y).sqrt();
+///         let ring = radial - 1.0;
+///         Vec3::new(ring * x.x / radial, ring * x.y / radial, x.z)
+///     }
+/// }
+/// let torus = Collider::custom(&Torus, Vec3::ZERO);
+/// assert!((torus.distance(Vec3::new(1.0, 0.0, 0.0)) + 0.25).abs() < 1e-6);
+/// ```
+pub trait SignedDistance: Sync {
+    /// The signed distance (m) of the local point `x` (m): negative inside.
+    fn distance(&self, x: Vec3) -> Real;
+    /// The gradient of [`distance`](Self::distance) at the local point `x` (outward).
+    fn gradient(&self, x: Vec3) -> Vec3;
+}
+
+/// The geometry of a [`Collider`] in its own frame (m).
+#[derive(Clone, Copy)]
+pub enum Shape<'a> {
+    /// The half-space `z < 0`: its surface is the plane `z = 0`, its outward normal `+z`.
+    HalfSpace,
+    /// The ball `|x| < radius`.
+    Sphere {
+        /// The radius (m), finite and `> 0`.
+        radius: Real,
+    },
+    /// The points closer than `radius` to the segment from `(0, 0, -half_length)` to
+    /// `(0, 0, half_length)`.
+    Capsule {
+        /// Half the length of the axis segment (m), finite and `> 0`.
+        half_length: Real,
+        /// The radius (m), finite and `> 0`.
+        radius: Real,
+    },
+    /// The box `|x| < half_extents.x`, `|y| < half_extents.y`, `|z| < half_extents.z`.
+    Cuboid {
+        /// Half the edge lengths (m), each finite and `> 0`.
+        half_extents: Vec3,
+    },
+    /// A user shape.
+    Custom(&'a dyn SignedDistance),
+}
+
+impl core::fmt::Debug for Shape<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Shape::HalfSpace => f.write_str("HalfSpace"),
+            Shape::Sphere { radius } => f.debug_struct("Sphere").field("radius", radius).finish(),
+            Shape::Capsule {
+                half_length,
+                radius,
+            } => f
+                .debug_struct("Capsule")
+                .field("half_length", half_length)
+                .field("radius", radius)
+                .finish(),
+            Shape::Cuboid { half_extents } => f
+                .debug_struct("Cuboid")
+                .field("half_extents", half_extents)
+                .finish(),
+            Shape::Custom(_) => f.write_str("Custom(..)"),
+        }
+    }
+}
+
+/// Equal shapes: the same kind and dimensions; custom shapes are equal when they are the same
+/// object.
+impl PartialEq for Shape<'_> {
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Shape::HalfSpace, Shape::HalfSpace) => true,
+            (Shape::Sphere { radius: a }, Shape::Sphere { radius: b }) => a == b,
+            (
+                Shape::Capsule {
+                    half_length: la,
+                    radius: ra,
+                },
+                Shape::Capsule {
+                    half_length: lb,
+                    radius: rb,
+                },
+            ) => la == lb && ra == rb,
+            (Shape::Cuboid { half_extents: a }, Shape::Cuboid { half_extents: b }) => a == b,
+            (Shape::Custom(a), Shape::Custom(b)) => core::ptr::addr_eq(*a, *b),
+            _ => false,
+        }
+    }
+}
+
+/// A rigid obstacle: a [`Shape`] placed by a position and a rotation, optionally moving.
+///
+/// * Pose: a local point `l` is at `position + rotation * l` in the world (m). The rotation is a
+///   unit quaternion (checked to `1e-3`, used normalised).
+/// * Motion: the velocity of the collider's material at a world point `x` is
+///   `linear_velocity + angular_velocity x (x - position)` (m/s; rad/s). A step sees the
+///   collider where it is (its pose does not change during a step, substeps included);
+///   between steps move it with [`advanced`](Self::advanced). A static collider has zero
+///   velocities.
+/// * Contact: restitution `e` in `[0, 1]` and Coulomb friction `>= 0`, exactly as the
+///   [`Ground`](super::Ground)'s, applied to the velocity relative to the collider's surface.
+///   Restitution is applied by the explicit stepper only (implicit Euler dissipates the normal
+///   velocity at an impact).
+/// * Several colliders are resolved one after the other in slice order (a vertex pushed out of
+///   one into the next ends outside the later one).
+///
+/// ```
+/// use softfem::glam::{Quat, Vec3};
+/// use softfem::step::Collider;
+///
+/// let ball = Collider::sphere(Vec3::new(0.0, 1.0, 0.0), 0.5);
+/// assert!((ball.distance(Vec3::ZERO) - 0.5).abs() < 1e-6);
+/// // A paddle 0.1 m x 1 m x 1 m turning about y at 1 rad/s.
+/// let paddle = Collider::cuboid(Vec3::ZERO, Vec3::new(0.05, 0.5, 0.5), Quat::IDENTITY)
+///     .with_velocity(Vec3::ZERO, Vec3::Y)
+///     .with_friction(0.5);
+/// assert!(paddle.distance(Vec3::new(0.0, 0.0, 0.5)).abs() < 1e-6); // on its edge
+/// let later = paddle.advanced(core::f32::consts::FRAC_PI_2); // a quarter turn later
+/// assert!((later.distance(Vec3::new(0.0, 0.0, 0.5)) - 0.45).abs() < 1e-5); // thin along z now
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Collider<'a> {
+    /// The geometry, in the collider's frame.
+    pub shape: Shape<'a>,
+    /// The origin of the collider's frame in the world (m).
+    pub position: Vec3,
+    /// The rotation from the collider's frame to the world (a unit quaternion).
+    pub rotation: Quat,
+    /// The velocity of the frame's origin (m/s).
+    pub linear_velocity: Vec3,
+    /// The angular velocity (rad/s, world axes).
+    pub angular_velocity: Vec3,
+    /// The restitution coefficient `e` in `[0, 1]` (dimensionless; explicit stepper only).
+    pub restitution: Real,
+    /// The Coulomb friction coefficient `>= 0` (dimensionless).
+    pub friction: Real,
+}
+
+/// The contact tolerance's factor: a vertex projected onto a curved surface lands within a few
+/// roundings of `|x| + |position| + size` of it.
+const CONTACT_EPS: Real = 64.0 * Real::EPSILON;
+
+/// The unit quaternion whose rotation takes `+z` to the unit vector `to`.
+fn rotation_from_z(to: Vec3) -> Quat {
+    // The half-way quaternion (1 + z.to, z x to), normalised; for `to = -z` any half turn.
+    let w = 1.0 + to.z;
+    if w <= Real::EPSILON {
+        return Quat::from_xyzw(1.0, 0.0, 0.0, 0.0);
+    }
+    let (x, y) = (-to.y, to.x);
+    let norm = math::sqrt(x * x + y * y + w * w);
+    Quat::from_xyzw(x / norm, y / norm, 0.0, w / norm)
+}
+
+/// `v` rotated by the unit quaternion `(x, y, z, w)` = `q`, in plain scalar arithmetic (same
+/// bits on every target): `v + w t + q_v x t` with `t = 2 q_v x v`.
+#[inline(always)]
+fn rotate(q: [Real; 4], v: Vec3) -> Vec3 {
+    let [x, y, z, w] = q;
+    let axis = Vec3::new(x, y, z);
+    let t = axis.cross(v) * 2.0;
+    v + t * w + axis.cross(t)
+}
+
+/// `v` rotated by the inverse of the unit quaternion `q`.
+#[inline(always)]
+fn rotate_back(q: [Real; 4], v: Vec3) -> Vec3 {
+    let [x, y, z, w] = q;
+    rotate([-x, -y, -z, w], v)
+}
+
+/// `x / |x|`, or `None` if that is not a finite unit vector.
+#[inline(always)]
+fn unit(x: Vec3) -> Option<Vec3> {
+    let length = math::sqrt(x.dot(x));
+    let unit = x * (1.0 / length);
+    (length > 0.0 && unit.is_finite()).then_some(unit)
+}
+
+/// `-1` for negative `c`, else `1`.
+#[inline(always)]
+fn sign(c: Real) -> Real {
+    if c < 0.0 { -1.0 } else { 1.0 }
+}
+
+impl<'a> Collider<'a> {
+    /// `shape` at `position` (m) rotated by `rotation`, static, without restitution or friction.
+    #[inline]
+    #[must_use]
+    pub fn new(shape: Shape<'a>, position: Vec3, rotation: Quat) -> Self {
+        Collider {
+            shape,
+            position,
+            rotation,
+            linear_velocity: Vec3::ZERO,
+            angular_velocity: Vec3::ZERO,
+            restitution: 0.0,
+            friction: 0.0,
+        }
+    }
+
+    /// The half-space below the plane through `point` (m) with outward normal `normal` (any
+    /// non-zero finite length; a zero or non-finite one gives a non-finite rotation, refused by
+    /// the step).
+    #[must_use]
+    pub fn half_space(point: Vec3, normal: Vec3) -> Self {
+        let rotation = match unit(normal) {
+            Some(n) => rotation_from_z(n),
+            None => Quat::from_xyzw(Real::NAN, 0.0, 0.0, 0.0),
+        };
+        Collider::new(Shape::HalfSpace, point, rotation)
+    }
+
+    /// The ball of `radius` (m) around `center` (m).
+    #[inline]
+    #[must_use]
+    pub fn sphere(center: Vec3, radius: Real) -> Self {
+        Collider::new(Shape::Sphere { radius }, center, Quat::IDENTITY)
+    }
+
+    /// The capsule of `radius` (m) around the segment from `a` to `b` (m), which must not
+    /// coincide (a zero-length capsule is refused by the step: use a sphere).
+    #[must_use]
+    pub fn capsule(a: Vec3, b: Vec3, radius: Real) -> Self {
+        let axis = b - a;
+        let half_length = 0.5 * math::sqrt(axis.dot(axis));
+        let rotation = unit(axis).map_or(Quat::IDENTITY, rotation_from_z);
+        let shape = Shape::Capsule {
+            half_length,
+            radius,
+        };
+        Collider::new(shape, (a + b) * 0.5, rotation)
+    }
+
+    /// The box with half edge lengths `half_extents` (m) centred at `center` (m), its edges along
+    /// `rotation`'s axes.
+    #[inline]
+    #[must_use]
+    pub fn cuboid(center: Vec3, half_extents: Vec3, rotation: Quat) -> Self {
+        Collider::new(Shape::Cuboid { half_extents }, center, rotation)
+    }
+
+    /// The user shape `shape` with its frame's origin at `position` (m), not rotated.
+    #[inline]
+    #[must_use]
+    pub fn custom(shape: &'a dyn SignedDistance, position: Vec3) -> Self {
+        Collider::new(Shape::Custom(shape), position, Quat::IDENTITY)
+    }
+
+    /// This collider moving with `linear` (m/s) and `angular` (rad/s) velocity.
+    #[inline]
+    #[must_use]
+    pub fn with_velocity(self, linear: Vec3, angular: Vec3) -> Self {
+        Collider {
+            linear_velocity: linear,
+            angular_velocity: angular,
+            ..self
+        }
+    }
+
+    /// This collider with restitution coefficient `restitution` (in `[0, 1]`).
+    #[inline]
+    #[must_use]
+    pub fn with_restitution(self, restitution: Real) -> Self {
+        Collider {
+            restitution,
+            ..self
+        }
+    }
+
+    /// This collider with Coulomb friction coefficient `friction` (`>= 0`).
+    #[inline]
+    #[must_use]
+    pub fn with_friction(self, friction: Real) -> Self {
+        Collider { friction, ..self }
+    }
+
+    /// This collider `dt` (s) later: moved by `linear_velocity dt` and turned by the angle
+    /// `|angular_velocity| dt` about `angular_velocity` (exactly, not to first order); the
+    /// velocities are kept.
+    #[must_use]
+    pub fn advanced(&self, dt: Real) -> Self {
+        let turn = self.angular_velocity * dt;
+        let angle = math::sqrt(turn.dot(turn));
+        let rotation = match unit(turn) {
+            Some(axis) => {
+                let (sin, cos) = math::sin_cos(0.5 * angle);
+                let [x, y, z, w] = self.unit_rotation();
+                let (a, s) = (axis * sin, cos);
+                // The Hamilton product (s, a) (w, v): s w - a.v, s v + w a + a x v.
+                let v = Vec3::new(x, y, z);
+                let vector = v * s + a * w + a.cross(v);
+                Quat::from_xyzw(vector.x, vector.y, vector.z, s * w - a.dot(v))
+            }
+            None => self.rotation,
+        };
+        Collider {
+            position: self.position + self.linear_velocity * dt,
+            rotation,
+            ..*self
+        }
+    }
+
+    /// The signed distance (m) of the world point `x` (m) from the surface: negative inside.
+    /// NaN for a collider the step would refuse.
+    #[must_use]
+    pub fn distance(&self, x: Vec3) -> Real {
+        self.probe(x).0
+    }
+
+    /// The velocity (m/s) of the collider's material at the world point `x` (m).
+    #[inline]
+    #[must_use]
+    pub fn surface_velocity(&self, x: Vec3) -> Vec3 {
+        self.linear_velocity + self.angular_velocity.cross(x - self.position)
+    }
+
+    /// Checks the parameters (see [`ColliderProblem`]).
+    ///
+    /// # Errors
+    /// The first problem found, in the order shape, position, rotation, velocity, restitution,
+    /// friction.
+    pub fn check(&self) -> Result<(), ColliderProblem> {
+        let positive = |r: Real| r > 0.0 && r.is_finite();
+        let shape = match self.shape {
+            Shape::HalfSpace | Shape::Custom(_) => true,
+            Shape::Sphere { radius } => positive(radius),
+            Shape::Capsule {
+                half_length,
+                radius,
+            } => positive(half_length) && positive(radius),
+            Shape::Cuboid { half_extents: h } => positive(h.x) && positive(h.y) && positive(h.z),
+        };
+        if !shape {
+            return Err(ColliderProblem::Shape);
+        }
+        if !self.position.is_finite() {
+            return Err(ColliderProblem::Position);
+        }
+        let q = self.rotation;
+        let squared = q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w;
+        // NaN fails the test too.
+        let unit_length = (squared - 1.0).abs() <= 1e-3;
+        if !unit_length {
+            return Err(ColliderProblem::Rotation);
+        }
+        if !(self.linear_velocity.is_finite() && self.angular_velocity.is_finite()) {
+            return Err(ColliderProblem::Velocity);
+        }
+        if !(0.0..=1.0).contains(&self.restitution) {
+            return Err(ColliderProblem::Restitution);
+        }
+        if !(self.friction >= 0.0 && self.friction.is_finite()) {
+            return Err(ColliderProblem::Friction);
+        }
+        Ok(())
+    }
+
+    /// The rotation normalised, as `[x, y, z, w]`.
+    #[inline(always)]
+    fn unit_rotation(&self) -> [Real; 4] {
+        let q = self.rotation;
+        let norm = math::sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+        let inverse = 1.0 / norm;
+        [q.x * inverse, q.y * inverse, q.z * inverse, q.w * inverse]
+    }
+
+    /// The signed distance of `x` and the outward unit normal there (world frame); `None` for
+    /// the normal where the shape gives no direction.
+    #[inline]
+    fn probe(&self, x: Vec3) -> (Real, Option<Vec3>) {
+        let q = self.unit_rotation();
+        let local = rotate_back(q, x - self.position);
+        let (distance, gradient) = match self.shape {
+            Shape::HalfSpace => (local.z, Some(Vec3::Z)),
+            Shape::Sphere { radius } => {
+                let r = math::sqrt(local.dot(local));
+                (r - radius, Some(unit(local).unwrap_or(Vec3::Z)))
+            }
+            Shape::Capsule {
+                half_length,
+                radius,
+            } => {
+                let axis = Vec3::new(0.0, 0.0, local.z.clamp(-half_length, half_length));
+                let off = local - axis;
+                let r = math::sqrt(off.dot(off));
+                (r - radius, Some(unit(off).unwrap_or(Vec3::X)))
+            }
+            Shape::Cuboid { half_extents } => cuboid_distance(local, half_extents),
+            Shape::Custom(shape) => (shape.distance(local), unit(shape.gradient(local))),
+        };
+        (distance, gradient.map(|g| rotate(q, g)))
+    }
+
+    /// A size of the shape (m) for the contact tolerance.
+    #[inline(always)]
+    fn size(&self) -> Real {
+        match self.shape {
+            Shape::HalfSpace | Shape::Custom(_) => 0.0,
+            Shape::Sphere { radius } => radius,
+            Shape::Capsule {
+                half_length,
+                radius,
+            } => half_length + radius,
+            Shape::Cuboid { half_extents: h } => h.x + h.y + h.z,
+        }
+    }
+
+    /// The outward normal at `x` if `x` touches the surface within rounding of the projection
+    /// (signed distance at most `64 eps (|x|_1 + |position|_1 + size)`).
+    #[inline]
+    fn touching(&self, x: Vec3) -> Option<Vec3> {
+        let (distance, normal) = self.probe(x);
+        let l1 = |v: Vec3| v.x.abs() + v.y.abs() + v.z.abs();
+        let tolerance = CONTACT_EPS * (l1(x) + l1(self.position) + self.size());
+        if distance <= tolerance { normal } else { None }
+    }
+
+    /// `x` moved onto the surface along the normal if it is inside; whether it was.
+    #[inline]
+    fn push_out(&self, x: &mut Vec3) -> bool {
+        let (distance, normal) = self.probe(*x);
+        match normal {
+            Some(normal) if distance < 0.0 => {
+                *x -= normal * distance;
+                true
+            }
+            _ => false,
+        }
+    }
+}
+
+/// The signed distance of the local point `p` from the box of `half` extents and its outward
+/// unit normal (the nearest face's inside).
+#[inline]
+fn cuboid_distance(p: Vec3, half: Vec3) -> (Real, Option<Vec3>) {
+    let excess = p.abs() - half;
+    let outside = excess.max(Vec3::ZERO);
+    if excess.x > 0.0 || excess.y > 0.0 || excess.z > 0.0 {
+        let distance = math::sqrt(outside.dot(outside));
+        let direction = Vec3::new(
+            outside.x * sign(p.x),
+            outside.y * sign(p.y),
+            outside.z * sign(p.z),
+        );
+        return (distance, unit(direction));
+    }
+    // Inside: the nearest face is the one with the largest (least negative) excess; ties go to
+    // x, then y.
+    let (distance, normal) = if excess.x >= excess.y && excess.x >= excess.z {
+        (excess.x, Vec3::new(sign(p.x), 0.0, 0.0))
+    } else if excess.y >= excess.z {
+        (excess.y, Vec3::new(0.0, sign(p.y), 0.0))
+    } else {
+        (excess.z, Vec3::new(0.0, 0.0, sign(p.z)))
+    };
+    (distance, Some(normal))
+}
+
+/// Checks every collider; `three_d` is false for 2D bodies, which take none.
+pub(super) fn check_colliders(colliders: &[Collider<'_>], three_d: bool) -> Result<(), StepError> {
+    for (collider, c) in colliders.iter().enumerate() {
+        let problem = if three_d {
+            c.check().err()
+        } else {
+            Some(ColliderProblem::Dimension)
+        };
+        if let Some(problem) = problem {
+            return Err(StepError::Collider { collider, problem });
+        }
+    }
+    Ok(())
+}
+
+/// `x` pushed out of every collider, in order.
+#[inline]
+pub(super) fn pushed_out(colliders: &[Collider<'_>], x: Vec3) -> Vec3 {
+    let mut x = x;
+    for collider in colliders {
+        collider.push_out(&mut x);
+    }
+    x
+}
+
+/// The first collider `x` touches and its outward normal there.
+#[inline]
+pub(super) fn touching<'c, 'a>(
+    colliders: &'c [Collider<'a>],
+    x: Vec3,
+) -> Option<(&'c Collider<'a>, Vec3)> {
+    colliders
+        .iter()
+        .find_map(|c| c.touching(x).map(|normal| (c, normal)))
+}
+
+/// `v` without its component into the first collider `x` touches: `sign` +1 for a gradient
+/// (whose descent is `-v`), -1 for a direction.
+#[inline]
+pub(super) fn constrained(colliders: &[Collider<'_>], x: Vec3, v: Vec3, sign: Real) -> Vec3 {
+    match touching(colliders, x) {
+        Some((_, normal)) => {
+            let along = normal.dot(v);
+            if along * sign > 0.0 {
+                v - normal * along
+            } else {
+                v
+            }
+        }
+        None => v,
+    }
+}
+
+/// The tangential velocity `tangential` (m/s) reduced by Coulomb friction: by
+/// `min(|tangential|, reduction)`.
+#[inline(always)]
+fn coulomb(tangential: Vec3, reduction: Real) -> Vec3 {
+    let speed = math::sqrt(tangential.dot(tangential));
+    // Stops the vertex when friction can absorb all its tangential speed (also at zero speed,
+    // where the ratio below would be 0/0).
+    let keep = math::select(speed > reduction, 1.0 - reduction / speed, 0.0);
+    tangential * keep
+}
+
+/// The explicit stepper's contact response at one vertex: pushed out of every collider it is
+/// inside, in order, and for each the velocity relative to the surface gets restitution (for
+/// approaches faster than `resting_speed`, m/s) and Coulomb friction as at the ground. Returns
+/// the number of colliders the vertex was inside.
+#[inline]
+pub(super) fn resolve(
+    colliders: &[Collider<'_>],
+    x: &mut Vec3,
+    v: &mut Vec3,
+    resting_speed: Real,
+) -> usize {
+    let mut contacts = 0;
+    for collider in colliders {
+        if !collider.push_out(x) {
+            continue;
+        }
+        contacts += 1;
+        let Some(normal) = collider.probe(*x).1 else {
+            continue;
+        };
+        let surface = collider.surface_velocity(*x);
+        let relative = *v - surface;
+        let vn = normal.dot(relative);
+        if vn < 0.0 {
+            let restitution = math::select(-vn > resting_speed, collider.restitution, 0.0);
+            let normal_change = (1.0 + restitution) * -vn;
+            let tangential = relative - normal * vn;
+            *v = surface
+                + coulomb(tangential, collider.friction * normal_change)
+                + normal * (-restitution * vn);
+        }
+    }
+    contacts
+}
+
+/// The implicit solvers' velocity at a vertex at `x` touching a collider, after
+/// `v = (x_{n+1} - x_n) / h`: relative to the surface, the normal approach removed and Coulomb
+/// friction with the normal impulse `h R` (`R` the reaction: the normal component of the
+/// gradient `g` of `Phi`, N; `m` the mass, kg). `v` unchanged away from every collider.
+#[inline]
+pub(super) fn implicit_velocity(
+    colliders: &[Collider<'_>],
+    (x, g, m, h): (Vec3, Vec3, Real, Real),
+    v: Vec3,
+) -> Vec3 {
+    let Some((collider, normal)) = touching(colliders, x) else {
+        return v;
+    };
+    let surface = collider.surface_velocity(x);
+    let relative = v - surface;
+    let along = normal.dot(relative);
+    let reaction = normal.dot(g).max(0.0);
+    let normal_change = h * reaction / m + (-along).max(0.0);
+    let tangential = relative - normal * along;
+    surface + coulomb(tangential, collider.friction * normal_change) + normal * along.max(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::super::math::sqrt;
+    use super::super::super::types::{Quat, Real, Vec3};
+    use super::{Collider, SignedDistance, pushed_out};
+    use crate::error::ColliderProblem;
+
+    /// Distances of each shape at points whose answer is known by hand.
+    #[test]
+    fn distances_of_every_shape_match_closed_forms() {
+        let close = |a: Real, b: Real| (a - b).abs() < 1e-5;
+        let plane = Collider::half_space(Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, 2.0));
+        assert!(close(plane.distance(Vec3::new(3.0, -4.0, 1.5)), 0.5));
+        let tilted = Collider::half_space(Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0));
+        assert!(close(tilted.distance(Vec3::new(1.0, 0.0, 0.0)), sqrt(0.5)));
+        let ball = Collider::sphere(Vec3::new(1.0, 2.0, 3.0), 0.5);
+        assert!(close(ball.distance(Vec3::new(1.0, 2.0, 5.0)), 1.5));
+        assert!(close(ball.distance(Vec3::new(1.0, 2.0, 3.0)), -0.5));
+        let capsule = Collider::capsule(Vec3::ZERO, Vec3::new(2.0, 0.0, 0.0), 0.25);
+        assert!(close(capsule.distance(Vec3::new(1.0, 1.0, 0.0)), 0.75));
+        assert!(close(capsule.distance(Vec3::new(3.0, 0.0, 0.0)), 0.75));
+        assert!(close(capsule.distance(Vec3::new(-1.0, 0.0, 0.0)), 0.75));
+        let turned = Quat::from_rotation_z(core::f32::consts::FRAC_PI_4 as Real);
+        let cube = Collider::cuboid(Vec3::ZERO, Vec3::splat(1.0), turned);
+        // The corner (1, 1, 0) of the unrotated cube now lies on the y axis at sqrt(2).
+        assert!(close(
+            cube.distance(Vec3::new(0.0, 3.0, 0.0)),
+            3.0 - sqrt(2.0)
+        ));
+        assert!(close(cube.distance(Vec3::new(0.0, 0.0, 0.25)), -0.75));
+        assert!(close(cube.distance(Vec3::new(0.0, 0.0, 3.0)), 2.0));
+    }
+
+    /// A point inside each shape is moved onto its surface (distance 0 within rounding).
+    #[test]
+    fn projection_lands_on_the_surface() {
+        struct Ball;
+        impl SignedDistance for Ball {
+            fn distance(&self, x: Vec3) -> Real {
+                x.length() - 1.0
+            }
+            fn gradient(&self, x: Vec3) -> Vec3 {
+                x * 3.0
+            }
+        }
+        let turned = Quat::from_rotation_x(0.3);
+        let shapes = [
+            Collider::half_space(Vec3::ZERO, Vec3::new(0.0, 1.0, 1.0)),
+            Collider::sphere(Vec3::ONE, 1.0),
+            Collider::capsule(Vec3::ZERO, Vec3::new(0.0, 1.0, 1.0), 0.5),
+            Collider::cuboid(Vec3::ONE, Vec3::new(0.5, 1.0, 2.0), turned),
+            Collider::custom(&Ball, Vec3::ZERO),
+        ];
+        for (k, shape) in shapes.iter().enumerate() {
+            let inside = shape.position + Vec3::new(0.1, -0.2, -0.15);
+            assert!(shape.distance(inside) < 0.0, "shape {k}");
+            let out = pushed_out(core::slice::from_ref(shape), inside);
+            assert!(shape.distance(out).abs() < 1e-5, "shape {k}");
+            assert!(shape.touching(out).is_some(), "shape {k}");
+        }
+    }
+
+    /// Every parameter out of range is named.
+    #[test]
+    fn checks_name_the_problem() {
+        let ball = Collider::sphere(Vec3::ZERO, 1.0);
+        assert_eq!(ball.check(), Ok(()));
+        let cases = [
+            (
+                Collider::sphere(Vec3::ZERO, Real::NAN),
+                ColliderProblem::Shape,
+            ),
+            (
+                Collider::capsule(Vec3::ONE, Vec3::ONE, 1.0),
+                ColliderProblem::Shape,
+            ),
+            (
+                Collider::sphere(Vec3::splat(Real::INFINITY), 1.0),
+                ColliderProblem::Position,
+            ),
+            (
+                Collider::cuboid(Vec3::ZERO, Vec3::ONE, Quat::from_xyzw(0.0, 0.0, 0.0, 2.0)),
+                ColliderProblem::Rotation,
+            ),
+            (
+                Collider::half_space(Vec3::ZERO, Vec3::ZERO),
+                ColliderProblem::Rotation,
+            ),
+            (
+                ball.with_velocity(Vec3::ZERO, Vec3::splat(Real::NAN)),
+                ColliderProblem::Velocity,
+            ),
+            (ball.with_restitution(1.5), ColliderProblem::Restitution),
+            (ball.with_friction(-0.1), ColliderProblem::Friction),
+        ];
+        for (collider, problem) in cases {
+            assert_eq!(collider.check(), Err(problem));
+        }
+    }
+
+    /// `advanced` turns by the exact angle: a quarter turn about z takes x to y.
+    #[test]
+    fn advancing_turns_by_the_exact_angle() {
+        let spun = Collider::cuboid(Vec3::ZERO, Vec3::new(2.0, 0.5, 0.5), Quat::IDENTITY)
+            .with_velocity(Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 2.0));
+        let later = spun.advanced(core::f32::consts::FRAC_PI_4 as Real);
+        // Now centred at (pi/4, 0, 0) with its long axis along y.
+        let centre = Vec3::new(core::f32::consts::FRAC_PI_4 as Real, 0.0, 0.0);
+        assert!((later.distance(centre + Vec3::new(0.0, 2.5, 0.0)) - 0.5).abs() < 1e-5);
+        assert!((later.distance(centre + Vec3::new(2.5, 0.0, 0.0)) - 2.0).abs() < 1e-5);
+        assert!(
+            (later.surface_velocity(centre + Vec3::new(0.0, 1.0, 0.0)) - Vec3::new(-1.0, 0.0, 0.0))
+                .length()
+                < 1e-6
+        );
+    }
+}

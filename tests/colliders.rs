@@ -1,0 +1,16 @@
+//! Rigid colliders (`step::Collider`) for every stepper, in both precisions, asserted against
+//! closed forms: resting contact on each shape with a bounded penetration, a block on an incline
+//! that sticks when `tan(theta) < mu` and otherwise slides with the acceleration
+//! `g (sin(theta) - mu cos(theta))` of Coulomb's law, a body dropped at 10 m/s onto each shape
+//! that never ends up inside it, and a kinematic box that pushes a body along at its own speed.
+//! The numeric runs are small (a 27-vertex cube) but many steps: run with `--release`.
+
+mod single {
+    use softfem as p;
+    include!("colliders/suite.rs");
+}
+
+mod double {
+    use softfem::f64 as p;
+    include!("colliders/suite.rs");
+}

@@ -1,0 +1,304 @@
+// The collider tests, written once and included per precision (`p` is `softfem` or
+// `softfem::f64`).
+
+use p::body::{Body, FixedStorage, Solver};
+use p::material::StableNeoHookean;
+use p::step::{Collider, SignedDistance};
+use p::types::{Quat, Real, Vec3};
+
+/// A 0.2 m cube of 2 x 2 x 2 cells: 27 vertices, 40 tetrahedra.
+type Cube = Body<FixedStorage<27, 40>, StableNeoHookean>;
+
+const G: Real = 9.81;
+
+/// How deep a vertex may be inside a collider after any step (m): the rounding of the
+/// projection onto the surface, `64 eps` on metre-sized coordinates (7.6e-6 m in f32, 1.4e-14 m
+/// in f64; the contact tolerance of `step::Collider` has the same factor).
+const PROJECTION_BOUND: Real = 64.0 * Real::EPSILON;
+const EDGE: Real = 0.2;
+
+/// A cube with its lowest corner at `low`, Young's modulus `young` (Pa), nu 0.3, 1000 kg/m^3,
+/// under gravity `-G` along y.
+fn cube(low: Vec3, young: Real) -> Cube {
+    let material = StableNeoHookean::from_young_poisson(young, 0.3).unwrap();
+    let high = low + Vec3::splat(EDGE);
+    let mut body = Cube::from_box(low, high, [2; 3], 1000.0, material).unwrap();
+    body.set_gravity(Vec3::new(0.0, -G, 0.0));
+    body
+}
+
+/// Every stepper, with its default settings.
+fn solvers() -> [(&'static str, Solver); 4] {
+    [
+        ("explicit", Solver::explicit()),
+        ("relax", Solver::relax()),
+        ("newton", Solver::newton()),
+        ("vbd", Solver::vbd()),
+    ]
+}
+
+/// The mass-weighted mean of `values` over the body's vertices.
+fn mean(body: &Cube, values: &[Vec3]) -> Vec3 {
+    let masses = body.masses();
+    let total: Real = masses.iter().sum();
+    values
+        .iter()
+        .zip(masses)
+        .fold(Vec3::ZERO, |sum, (&x, &m)| sum + x * m)
+        / total
+}
+
+/// The deepest any vertex is inside any collider (m; 0 if none is).
+fn penetration(body: &Cube, colliders: &[Collider<'_>]) -> Real {
+    let mut deepest: Real = 0.0;
+    for &x in body.positions() {
+        for collider in colliders {
+            deepest = deepest.max(-collider.distance(x));
+        }
+    }
+    deepest
+}
+
+/// A ball of radius 2 m given by its signed distance, for the user-shape path.
+struct Ball;
+
+impl SignedDistance for Ball {
+    fn distance(&self, x: Vec3) -> Real {
+        x.length() - 2.0
+    }
+    fn gradient(&self, x: Vec3) -> Vec3 {
+        x
+    }
+}
+
+/// Every shape with its top at y = 0 under the origin: half-space, sphere, capsule, box
+/// (turned about y) and the user ball. The curved ones are large (radius 1 to 2 m) so that a
+/// cube resting on top is stable against the creep of the friction model (see the incline
+/// test): on a 0.3 m ball the cube creeps off its top in a few seconds.
+fn shapes() -> [(&'static str, Collider<'static>); 5] {
+    let turned = Quat::from_rotation_y(0.3);
+    [
+        ("half-space", Collider::half_space(Vec3::ZERO, Vec3::Y)),
+        ("sphere", Collider::sphere(Vec3::new(0.0, -2.0, 0.0), 2.0)),
+        (
+            "capsule",
+            Collider::capsule(
+                Vec3::new(0.0, -1.0, -0.3),
+                Vec3::new(0.0, -1.0, 0.3),
+                1.0,
+            ),
+        ),
+        (
+            "box",
+            Collider::cuboid(Vec3::new(0.0, -0.1, 0.0), Vec3::new(0.3, 0.1, 0.3), turned),
+        ),
+        ("user ball", Collider::custom(&Ball, Vec3::new(0.0, -2.0, 0.0))),
+    ]
+}
+
+/// A cube released 1 cm above each shape comes to rest on it with every solver: after 3 s
+/// it touches the shape (its lowest vertex within 1 mm), sits on top (centroid between 5 and
+/// 15 cm up), moves slower than 5 cm/s, and no vertex is inside by more than the rounding of
+/// the projection: `1e4 eps` m (1.2 mm in f32; measured: 0 or a few ulp, printed). The
+/// explicit stepper gets a light damping (2/s), as the undamped jelly rings for seconds.
+#[test]
+fn a_body_rests_on_every_shape_with_every_solver() {
+    use p::step::ExplicitSettings;
+    for (name, shape) in shapes() {
+        let colliders = [shape.with_friction(0.8)];
+        for (solver_name, solver) in solvers() {
+            let mut body = cube(Vec3::new(-0.1, 0.01, -0.1), 1.0e5);
+            let solver = match solver {
+                Solver::Explicit { .. } => Solver::Explicit {
+                    settings: ExplicitSettings::new(1.0).with_damping(2.0),
+                    stable_fraction: Some(0.5),
+                },
+                other => other,
+            };
+            body.set_solver(solver).unwrap();
+            let mut worst: Real = 0.0;
+            for _ in 0..180 {
+                body.step_with_colliders(1.0 / 60.0, &colliders).unwrap();
+                worst = worst.max(penetration(&body, &colliders));
+            }
+            let lowest = body
+                .positions()
+                .iter()
+                .map(|&x| colliders[0].distance(x))
+                .fold(Real::INFINITY, Real::min);
+            let centre = mean(&body, body.positions());
+            let speed = mean(&body, body.velocities()).length();
+            println!(
+                "{name} {solver_name}: deepest {worst:.2e} m, lowest {lowest:.2e} m, centroid \
+                 y {:.4} m, centroid speed {speed:.2e} m/s",
+                centre.y
+            );
+            assert!(worst <= PROJECTION_BOUND, "{name} {solver_name}: {worst}");
+            assert!(lowest < 1e-3, "{name} {solver_name}: {lowest}");
+            assert!(centre.y > 0.05 && centre.y < 0.15, "{name} {solver_name}: {centre}");
+            assert!(speed < 0.05, "{name} {solver_name}: {speed}");
+        }
+    }
+}
+
+/// The incline: a half-space through the origin tilted by `theta` about z, the cube lying on
+/// it (turned with it, so at rest), friction `mu`. Returns the mean velocity along the downhill
+/// direction at 1 s and at 2 s (m/s).
+fn incline(solver: Solver, theta: Real, mu: Real) -> (Real, Real) {
+    let turn = Quat::from_rotation_z(theta);
+    let normal = turn * Vec3::Y;
+    let downhill = -(turn * Vec3::X);
+    let colliders = [Collider::half_space(Vec3::ZERO, normal).with_friction(mu)];
+    // Stiff, so that the block slides as a whole instead of rolling its bottom layer.
+    let mut body = cube(Vec3::new(-0.1, 0.0, -0.1), 1.0e6);
+    body.set_solver(solver).unwrap();
+    for x in body.positions_mut() {
+        *x = turn * *x;
+    }
+    let dt = 1.0 / 100.0;
+    let mut speeds = [0.0; 2];
+    for step in 1..=200 {
+        body.step_with_colliders(dt, &colliders).unwrap();
+        assert!(penetration(&body, &colliders) <= PROJECTION_BOUND);
+        if step % 100 == 0 {
+            speeds[step / 100 - 1] = mean(&body, body.velocities()).dot(downhill);
+        }
+    }
+    (speeds[0], speeds[1])
+}
+
+/// `tan(theta) < mu` sticks: no acceleration (the mean velocity changes by less than 1 % of
+/// `g sin(theta)` between 1 s and 2 s). The friction acts on the contact vertices' velocities
+/// after each (sub)step, so a stuck block still creeps at a constant speed (printed; a known
+/// limitation shared with the ground: about 1 cm/s explicit, 0.2 to 0.3 m/s with Newton at
+/// 100 Hz). Otherwise the block slides with `g (sin(theta) - mu cos(theta))`, measured as the change of its mean
+/// velocity between 1 s and 2 s (after the landing transient), within 2 %. The explicit
+/// stepper and Newton's method.
+#[test]
+fn a_block_on_an_incline_sticks_or_slides_by_coulomb_law() {
+    let theta = core::f64::consts::FRAC_PI_6 as Real; // 30 degrees: tan = 0.577
+    let (sin, cos) = (theta.sin(), theta.cos());
+    for (name, solver) in [("explicit", Solver::explicit()), ("newton", Solver::newton())] {
+        for mu in [0.7, 1.0] {
+            let (early, late) = incline(solver, theta, mu);
+            let gained = late - early; // over 1 s
+            println!(
+                "{name}, mu {mu}: creeps at {early:.2e} m/s after 1 s, {late:.2e} m/s after 2 s"
+            );
+            assert!(gained.abs() < 0.01 * G * sin, "{name}, mu {mu}: {early} -> {late}");
+        }
+        for mu in [0.1, 0.3] {
+            let (early, late) = incline(solver, theta, mu);
+            let measured = late - early; // over 1 s
+            let expected = G * (sin - mu * cos);
+            let error = (measured / expected - 1.0).abs();
+            println!(
+                "{name}, mu {mu}: {measured:.4} m/s^2, expected {expected:.4} ({:.2} %)",
+                100.0 * error
+            );
+            assert!(error < 0.02, "{name}, mu {mu}: {measured} against {expected}");
+        }
+    }
+}
+
+/// A cube dropped at 10 m/s from 5 cm above each shape, at half the stable step (the body's
+/// default explicit solver) and with Newton's method at 240 Hz: no vertex is ever inside the
+/// shape by more than the projection's rounding, and the body ends on top (it did not pass
+/// through).
+#[test]
+fn a_fast_body_never_ends_up_inside_a_shape() {
+    let newton = Solver::newton();
+    for (name, shape) in shapes() {
+        let colliders = [shape];
+        for (solver_name, solver, dt) in [
+            ("explicit", Solver::explicit(), 1.0 / 60.0),
+            ("newton", newton, 1.0 / 240.0),
+        ] {
+            let mut body = cube(Vec3::new(-0.1, 0.05, -0.1), 1.0e5);
+            body.set_solver(solver).unwrap();
+            for v in body.velocities_mut() {
+                *v = Vec3::new(0.0, -10.0, 0.0);
+            }
+            let mut worst: Real = 0.0;
+            for _ in 0..(0.5 / dt) as usize {
+                body.step_with_colliders(dt, &colliders).unwrap();
+                worst = worst.max(penetration(&body, &colliders));
+            }
+            let centre = mean(&body, body.positions());
+            println!("{name} {solver_name}: deepest {worst:.2e} m, centroid y {:.3}", centre.y);
+            assert!(worst <= PROJECTION_BOUND, "{name} {solver_name}: {worst}");
+            assert!(centre.y > 0.0, "{name} {solver_name}: fell through, {centre}");
+        }
+    }
+}
+
+/// A box collider moving at 0.5 m/s along x pushes a cube resting on the ground (friction 0.3)
+/// ahead of it: from 1 s to 2 s the cube's centroid moves at the box's speed within 2 %, and
+/// no vertex is inside the box. The box is advanced between steps by `Collider::advanced`.
+#[test]
+fn a_kinematic_box_pushes_a_body_at_its_own_speed() {
+    let speed: Real = 0.5;
+    for (name, solver) in [("explicit", Solver::explicit()), ("newton", Solver::newton())] {
+        let floor = Collider::half_space(Vec3::ZERO, Vec3::Y).with_friction(0.3);
+        let pusher = Collider::cuboid(
+            Vec3::new(-0.25, 0.15, 0.0),
+            Vec3::new(0.1, 0.15, 0.3),
+            Quat::IDENTITY,
+        )
+        .with_velocity(Vec3::new(speed, 0.0, 0.0), Vec3::ZERO);
+        let mut colliders = [floor, pusher];
+        let mut body = cube(Vec3::new(-0.1, 0.0, -0.1), 1.0e5);
+        body.set_solver(solver).unwrap();
+        let dt = 1.0 / 100.0;
+        let mut at_one_second = Vec3::ZERO;
+        for step in 1..=200 {
+            colliders[1] = colliders[1].advanced(dt);
+            body.step_with_colliders(dt, &colliders).unwrap();
+            assert!(penetration(&body, &colliders) <= PROJECTION_BOUND);
+            if step == 100 {
+                at_one_second = mean(&body, body.positions());
+            }
+        }
+        let moved = (mean(&body, body.positions()) - at_one_second).x;
+        println!("{name}: {moved:.4} m in 1 s behind a box at {speed} m/s");
+        assert!((moved / speed - 1.0).abs() < 0.02, "{name}: {moved}");
+    }
+}
+
+/// Every collider parameter out of range is refused with the collider's index, before
+/// anything moves.
+#[test]
+fn bad_colliders_are_refused_with_their_index() {
+    use softfem::{ColliderProblem, StepError};
+    let mut body = cube(Vec3::new(-0.1, 0.01, -0.1), 1.0e5);
+    let before = body.positions().to_vec();
+    let good = Collider::sphere(Vec3::ZERO, 0.1);
+    let cases = [
+        (Collider::sphere(Vec3::ZERO, Real::NAN), ColliderProblem::Shape),
+        (
+            Collider::capsule(Vec3::ONE, Vec3::ONE, 0.1),
+            ColliderProblem::Shape,
+        ),
+        (
+            Collider::cuboid(Vec3::ZERO, Vec3::ONE, Quat::from_xyzw(0.0, 0.0, 0.5, 0.5)),
+            ColliderProblem::Rotation,
+        ),
+        (good.with_friction(Real::INFINITY), ColliderProblem::Friction),
+    ];
+    for (solver_name, solver) in solvers() {
+        body.set_solver(solver).unwrap();
+        for (bad, problem) in cases {
+            let error = body.step_with_colliders(0.01, &[good, bad]).unwrap_err();
+            assert_eq!(
+                error,
+                StepError::Collider {
+                    collider: 1,
+                    problem
+                },
+                "{solver_name}"
+            );
+            assert_eq!(body.positions(), &before[..]);
+        }
+    }
+}
+
