@@ -141,12 +141,18 @@
 //! on every step after landing.
 //!
 //! Jobs, one file each: [`explicit`](step_explicit) stepping, [`stability`](stable_time_step)
-//! bounds, [`relax`](relax_step)ation, its passes over the vertices (`vertex_passes.rs`, four
-//! vertices at a time on x86_64, with the per-vertex arithmetic of `points.rs`) and the
-//! [`ground`](Ground) contact. [`newton`](newton_step)'s method (projected Hessian,
-//! block-Jacobi PCG, `docs/math.md` section 7) minimises the same objective with the same line
-//! search and stopping test (`objective.rs`, `line_search.rs`): pick it for stiff bodies, large
-//! time steps and static solves, where the relaxation needs thousands of iterations.
+//! bounds, the [`ground`](Ground) contact, and the implicit solvers on one descent loop
+//! (`descent/`, `docs/math.md` section 7.0): `mod.rs` the loop (initial guess, Chebyshev and
+//! momentum trials, line search, velocity update, restore on failure) in coordinates shifted
+//! next to the body, `objective.rs` the objective `Phi`, `line_search.rs` the Armijo test,
+//! `stopping.rs` the stopping test with the rounding floor and stagnation, and one file per
+//! search direction: `jacobi.rs` for the [`relax`](relax_step)ation (whose passes over the
+//! vertices are `vertex_passes.rs`, four vertices at a time on x86_64, with the per-vertex
+//! arithmetic of `points.rs`), `gradient.rs` for plain [gradient descent](gradient_descent_step)
+//! (`P = c I`, for comparison) and `newton.rs` for [`newton`](newton_step)'s method (projected
+//! Hessian, block-Jacobi PCG, `docs/math.md` section 7): pick Newton for stiff bodies, large
+//! time steps and static solves, where the relaxation needs thousands of iterations. The
+//! settings and reports of each solver are in `relax.rs` and `newton.rs`.
 //! [Vertex Block Descent](vbd_step) (`vbd.rs`, with the vertex
 //! [adjacency and colouring](build_vertex_adjacency) of `adjacency.rs` and the per-element
 //! block of `vertex_block.rs`) minimises it by per-vertex Newton steps in Gauss–Seidel order.
@@ -156,6 +162,9 @@
 //! `1e-4`, `1e-6` for the static solve) and the `bouncy` example:
 //! * [`step_explicit`]: soft bodies and small steps (one force pass a step, the least work per
 //!   simulated second while the step stays under [`stable_time_step`]); no solve to converge.
+//! * [`gradient_descent_step`] / [`gradient_descent_quasi_static`]: only to compare. The same
+//!   loop and cost per iteration as the relaxation with `P = c I`; on the cantilever of
+//!   `tests/relax.rs` it needed 2.2 to 3 times the relaxation's iterations.
 //! * [`relax_step`] with Chebyshev (the defaults): soft bodies at display-rate steps. Its
 //!   iterations are the cheapest (1 to 4 force evaluations each): over the whole bouncy run it
 //!   is the fastest implicit stepper (21.5 iterations a step in f32), and on a small stiff block

@@ -553,3 +553,67 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     };
     Ok((summary, gradient, trial))
 }
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use std::vec::Vec;
+
+    use super::super::super::types::{Real, Vec2, Vec3};
+    use super::reference_point;
+
+    /// A 0.4 x 0.1 x 0.1 m grid of points, moved by `offset`.
+    fn grid(offset: Vec3) -> Vec<Vec3> {
+        let mut points = Vec::new();
+        for i in 0..=8 {
+            for j in 0..=3 {
+                for k in 0..=3 {
+                    let p = Vec3::new(0.05 * i as Real, j as Real / 30.0, k as Real / 30.0);
+                    points.push(p + offset);
+                }
+            }
+        }
+        points
+    }
+
+    #[test]
+    fn near_the_origin_nothing_is_shifted() {
+        assert_eq!(reference_point(&grid(Vec3::ZERO)), Vec3::ZERO);
+        // 1.5 m away along x is within four extents (1.6 m): not shifted either.
+        assert_eq!(reference_point(&grid(Vec3::new(1.5, 0.0, 0.0))), Vec3::ZERO);
+        assert_eq!(reference_point::<Vec3>(&[]), Vec3::ZERO);
+    }
+
+    #[test]
+    fn far_axes_take_the_first_vertex_and_the_shift_is_exact() {
+        for offset in [
+            Vec3::new(60.0, 0.0, 0.0),
+            Vec3::new(-60.0, 0.0, 0.25),
+            Vec3::new(1e4, -1e4, 1e4),
+        ] {
+            let points = grid(offset);
+            let c = reference_point(&points);
+            // Along x the body is 0.4 m wide, along y and z 0.1 m: far where |offset| > 4 of it.
+            let expected = |far: bool, value: Real| if far { value } else { 0.0 };
+            let first = points[0];
+            assert_eq!(c.x, expected(offset.x.abs() > 1.6, first.x), "{offset}");
+            assert_eq!(c.y, expected(offset.y.abs() > 0.4, first.y), "{offset}");
+            assert_eq!(c.z, expected(offset.z.abs() > 0.4, first.z), "{offset}");
+            for &p in &points {
+                // Exact both ways (Sterbenz): the shifted point comes back bit for bit.
+                assert_eq!((p - c) + c, p, "{offset}: {p}");
+                assert!((p - c).abs().max_element() <= 0.41, "{offset}: {p}");
+            }
+        }
+    }
+
+    #[test]
+    fn two_dimensional_points_shift_along_their_two_axes() {
+        let points = [
+            Vec2::new(60.0, 0.0),
+            Vec2::new(60.5, 0.1),
+            Vec2::new(60.25, 0.05),
+        ];
+        assert_eq!(reference_point(&points), Vec2::new(60.0, 0.0));
+    }
+}
