@@ -1,5 +1,5 @@
-//! The tetrahedral force, energy and fused passes split into independent pieces that a caller
-//! can run on any threads, in any order, with the bits of the sequential pass.
+//! The tetrahedral force, energy, fused and Hessian passes split into independent pieces that a
+//! caller can run on any threads, in any order, with the bits of the sequential pass.
 //!
 //! # Why a gather
 //! The sequential kernels ([`TetMesh::add_elastic_forces`] and the others) add every element's
@@ -30,6 +30,18 @@
 //! Run every element piece before any vertex piece. The total energy is then summed from the
 //! per-element energies by one call in the sequential pass's order
 //! ([`total_energy`](TetPartition::total_energy), [`fused_total_energy`](TetPartition::fused_total_energy)).
+//!
+//! The passes: the direct forces ([`element_forces`](TetPartition::element_forces)), the
+//! principal and clamped forces
+//! ([`element_forces_principal`](TetPartition::element_forces_principal),
+//! [`element_forces_clamped`](TetPartition::element_forces_clamped)), the energy, the fused
+//! energy-and-force pass, the projected Hessians
+//! ([`element_hessians`](TetPartition::element_hessians): element pieces only, each writes its
+//! slice of the cache) and their products
+//! ([`element_hessian_products`](TetPartition::element_hessian_products)), all gathered by
+//! [`gather_forces`](TetPartition::gather_forces); and the Hessian's diagonal blocks
+//! ([`gather_vertex_blocks`](TetPartition::gather_vertex_blocks): vertex pieces only, each sums
+//! its vertices' blocks straight from the cache).
 //!
 //! Each pass starts with a check (`check_*`, sequential, one pass over the positions) that makes
 //! the same tests in the same order as the sequential kernel and fails with the same error; the
