@@ -57,9 +57,10 @@ const POISSON: f32 = 0.45;
 /// The relaxation's iteration budget per timed step.
 const RELAX_ITERATIONS: u32 = 10;
 
-/// Element and vertex pieces per thread of the largest pool: enough for work stealing to
-/// balance the load (the bits do not depend on it).
-const PIECES_PER_THREAD: usize = 4;
+/// Element and vertex pieces per thread of the largest pool. One: the direct force pass
+/// evaluates the elements cut by a vertex-piece boundary once per piece, so the fewer pieces the
+/// less redundant work, and the box's load is uniform (the bits do not depend on it).
+const PIECES_PER_THREAD: usize = 1;
 
 /// The pool sizes: `SOFTFEM_BENCH_THREADS` (comma-separated) or 1, 2 and all cores.
 fn thread_counts() -> Vec<usize> {

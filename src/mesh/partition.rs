@@ -31,6 +31,13 @@
 //! per-element energies by one call in the sequential pass's order
 //! ([`total_energy`](TetPartition::total_energy), [`fused_total_energy`](TetPartition::fused_total_energy)).
 //!
+//! The direct force pass also has an **owner-computes** form without element buffer or gather
+//! ([`add_forces_owned`](TetPartition::add_forces_owned), the one `softfem::parallel` runs): each
+//! vertex piece evaluates every element at its vertices and adds the forces at its own vertices
+//! straight into its slice, elements cut by a piece boundary evaluated by each piece they touch
+//! (see `partition/owner.rs`). It costs about the sequential pass on one thread, where the
+//! two-phase form writes and gathers 48 bytes per element.
+//!
 //! The passes: the direct forces ([`element_forces`](TetPartition::element_forces)), the
 //! principal and clamped forces
 //! ([`element_forces_principal`](TetPartition::element_forces_principal),
@@ -102,6 +109,7 @@ use super::{TetMesh, check_length, check_positions, gather};
 use crate::error::{Buffer, MeshError, StepBuffer, StepError};
 
 mod hessian;
+mod owner;
 mod principal;
 
 /// The nodal forces (N) of one tetrahedron at its four corners, in corner order: the entry of
@@ -481,8 +489,9 @@ impl<'a> TetPartition<'a> {
         Ok(((s0 + s1) + (s2 + s3)) + last)
     }
 
-    /// The whole direct force pass on this thread, piece by piece: the one-thread cost of the
-    /// scheme, and its reference. Adds into `forces` as [`TetMesh::add_elastic_forces`] does,
+    /// The whole direct force pass on this thread, piece by piece in the owner-computes form
+    /// ([`add_forces_owned`](Self::add_forces_owned)): the one-thread cost of the scheme that
+    /// `softfem::parallel` runs (`element_forces` is checked, not used). Adds into `forces` as [`TetMesh::add_elastic_forces`] does,
     /// with the same bits.
     ///
     /// # Errors
@@ -495,11 +504,8 @@ impl<'a> TetPartition<'a> {
         element_forces: &mut [ElementForces],
     ) -> Result<(), MeshError> {
         self.check_forces(material, positions, forces, element_forces)?;
-        for (piece, out) in element_forces.chunks_mut(self.element_chunk).enumerate() {
-            self.element_forces(material, positions, piece, out)?;
-        }
         for (piece, out) in forces.chunks_mut(self.vertex_chunk).enumerate() {
-            self.gather_forces(element_forces, piece, out)?;
+            self.add_forces_owned(material, positions, piece, out)?;
         }
         Ok(())
     }
