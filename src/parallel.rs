@@ -58,9 +58,11 @@ use super::types::{Mat3, Real, Vec3};
 use crate::error::MeshError;
 
 /// [`TetMesh::add_elastic_forces`] on the current rayon pool, through `partition`: adds the
-/// elastic forces (N) of `material` at `positions` (m) into `forces`, with the sequential bits.
-/// `element_forces` is scratch of [`element_forces_len`](super::mesh::element_forces_len)
-/// entries.
+/// elastic forces (N) of `material` at `positions` (m) into `forces`, with the sequential bits,
+/// in the owner-computes form ([`TetPartition::add_forces_owned`]: one task per vertex piece,
+/// no gather; partition with about one piece per thread). `element_forces`
+/// ([`element_forces_len`](super::mesh::element_forces_len) entries) is checked as by the other
+/// force passes but not used.
 ///
 /// # Errors
 /// As [`TetPartition::check_forces`]; on error, `forces` is unchanged.
@@ -72,11 +74,12 @@ pub fn add_elastic_forces<M: Material + Sync>(
     element_forces: &mut [ElementForces],
 ) -> Result<(), MeshError> {
     partition.check_forces(material, positions, forces, element_forces)?;
-    element_forces
-        .par_chunks_mut(partition.element_chunk())
+    // The owner-computes form: each vertex piece evaluates the elements at its vertices, the
+    // elements cut by a piece boundary once per piece (no element buffer, no gather).
+    forces
+        .par_chunks_mut(partition.vertex_chunk())
         .enumerate()
-        .try_for_each(|(piece, out)| partition.element_forces(material, positions, piece, out))?;
-    gather(partition, element_forces, forces)
+        .try_for_each(|(piece, out)| partition.add_forces_owned(material, positions, piece, out))
 }
 
 /// [`TetMesh::elastic_energy`] on the current rayon pool, through `partition`: the total elastic
@@ -131,7 +134,8 @@ pub fn energy_and_add_forces<M: Material + Sync>(
 
 /// [`TetMesh::add_elastic_forces_principal`] on the current rayon pool, through `partition`:
 /// adds the principal-path (SVD) forces (N) of `material` at `positions` (m) into `forces`,
-/// with the sequential bits. `element_forces` is scratch as for [`add_elastic_forces`].
+/// with the sequential bits. `element_forces` is scratch of
+/// [`element_forces_len`](super::mesh::element_forces_len) entries.
 ///
 /// # Errors
 /// As [`TetPartition::check_principal`]; on error, `forces` is unchanged.
@@ -155,7 +159,8 @@ pub fn add_elastic_forces_principal<M: Material + Sync>(
 /// [`TetMesh::add_elastic_forces_clamped`] on the current rayon pool, through `partition`:
 /// adds the clamped principal forces (N; **not an energy gradient, explicit stepping only**) of
 /// `material` at `positions` (m), stretches clamped from below at `threshold`, into `forces`,
-/// with the sequential bits. `element_forces` is scratch as for [`add_elastic_forces`].
+/// with the sequential bits. `element_forces` is scratch of
+/// [`element_forces_len`](super::mesh::element_forces_len) entries.
 ///
 /// # Errors
 /// As [`TetPartition::check_clamped`]; on error, `forces` is unchanged.

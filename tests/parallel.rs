@@ -151,6 +151,20 @@ macro_rules! precision_tests {
                         .unwrap();
                     assert_eq!(bits(&one_thread), bits(&expected));
 
+                    // The owner-computes form, pieces shuffled.
+                    let mut forces = initial_forces(nv);
+                    shuffled_pieces(
+                        &mut forces,
+                        partition.vertex_chunk(),
+                        seed + 41,
+                        |k, out| partition.add_forces_owned(material, &x, k, out).unwrap(),
+                    );
+                    assert_eq!(
+                        bits(&forces),
+                        bits(&expected),
+                        "owner form, {pieces} pieces"
+                    );
+
                     let mut energies = vec![0.0; ne];
                     partition.check_energy(material, &x, &energies).unwrap();
                     for piece in shuffled(partition.element_piece_count(), seed + 10) {

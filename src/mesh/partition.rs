@@ -1,5 +1,5 @@
-//! The tetrahedral force, energy and fused passes split into independent pieces that a caller
-//! can run on any threads, in any order, with the bits of the sequential pass.
+//! The tetrahedral force, energy, fused and Hessian passes split into independent pieces that a
+//! caller can run on any threads, in any order, with the bits of the sequential pass.
 //!
 //! # Why a gather
 //! The sequential kernels ([`TetMesh::add_elastic_forces`] and the others) add every element's
@@ -30,6 +30,25 @@
 //! Run every element piece before any vertex piece. The total energy is then summed from the
 //! per-element energies by one call in the sequential pass's order
 //! ([`total_energy`](TetPartition::total_energy), [`fused_total_energy`](TetPartition::fused_total_energy)).
+//!
+//! The direct force pass also has an **owner-computes** form without element buffer or gather
+//! ([`add_forces_owned`](TetPartition::add_forces_owned), the one `softfem::parallel` runs): each
+//! vertex piece evaluates every element at its vertices and adds the forces at its own vertices
+//! straight into its slice, elements cut by a piece boundary evaluated by each piece they touch
+//! (see `partition/owner.rs`). It costs about the sequential pass on one thread, where the
+//! two-phase form writes and gathers 48 bytes per element.
+//!
+//! The passes: the direct forces ([`element_forces`](TetPartition::element_forces)), the
+//! principal and clamped forces
+//! ([`element_forces_principal`](TetPartition::element_forces_principal),
+//! [`element_forces_clamped`](TetPartition::element_forces_clamped)), the energy, the fused
+//! energy-and-force pass, the projected Hessians
+//! ([`element_hessians`](TetPartition::element_hessians): element pieces only, each writes its
+//! slice of the cache) and their products
+//! ([`element_hessian_products`](TetPartition::element_hessian_products)), all gathered by
+//! [`gather_forces`](TetPartition::gather_forces); and the Hessian's diagonal blocks
+//! ([`gather_vertex_blocks`](TetPartition::gather_vertex_blocks): vertex pieces only, each sums
+//! its vertices' blocks straight from the cache).
 //!
 //! Each pass starts with a check (`check_*`, sequential, one pass over the positions) that makes
 //! the same tests in the same order as the sequential kernel and fails with the same error; the
@@ -90,6 +109,7 @@ use super::{TetMesh, check_length, check_positions, gather};
 use crate::error::{Buffer, MeshError, StepBuffer, StepError};
 
 mod hessian;
+mod owner;
 mod principal;
 
 /// The nodal forces (N) of one tetrahedron at its four corners, in corner order: the entry of
@@ -469,8 +489,9 @@ impl<'a> TetPartition<'a> {
         Ok(((s0 + s1) + (s2 + s3)) + last)
     }
 
-    /// The whole direct force pass on this thread, piece by piece: the one-thread cost of the
-    /// scheme, and its reference. Adds into `forces` as [`TetMesh::add_elastic_forces`] does,
+    /// The whole direct force pass on this thread, piece by piece in the owner-computes form
+    /// ([`add_forces_owned`](Self::add_forces_owned)): the one-thread cost of the scheme that
+    /// `softfem::parallel` runs (`element_forces` is checked, not used). Adds into `forces` as [`TetMesh::add_elastic_forces`] does,
     /// with the same bits.
     ///
     /// # Errors
@@ -483,11 +504,8 @@ impl<'a> TetPartition<'a> {
         element_forces: &mut [ElementForces],
     ) -> Result<(), MeshError> {
         self.check_forces(material, positions, forces, element_forces)?;
-        for (piece, out) in element_forces.chunks_mut(self.element_chunk).enumerate() {
-            self.element_forces(material, positions, piece, out)?;
-        }
         for (piece, out) in forces.chunks_mut(self.vertex_chunk).enumerate() {
-            self.gather_forces(element_forces, piece, out)?;
+            self.add_forces_owned(material, positions, piece, out)?;
         }
         Ok(())
     }
