@@ -55,9 +55,10 @@ use softfem::mesh::{
 };
 #[cfg(feature = "rayon")]
 use softfem::parallel::ParallelTetElastic;
+use softfem::simd::{self, Width};
 use softfem::step::{
-    ExplicitScratch, ExplicitSettings, TetElastic, explicit_scratch_len, stable_time_step,
-    step_explicit,
+    ElasticEnergy, ExplicitScratch, ExplicitSettings, TetElastic, explicit_scratch_len,
+    stable_time_step, step_explicit,
 };
 
 /// Cubes per axis of the benchmarked boxes, 6 tetrahedra per cube: 10 368, 105 456 and 998 250
@@ -272,6 +273,18 @@ impl DeformedBox {
                 mesh_f64.vertex_count(),
                 move |f: &mut [DVec3]| mesh_f64.add_elastic_forces(&stvk_f64, positions_f64, f),
             ),
+            Variant::forces(
+                "stable neo-Hookean, fused energy + forces (relaxation pass), f32",
+                "stable_nh_fused_f32",
+                n,
+                move |f: &mut [Vec3]| {
+                    TetElastic::new(mesh, stable)
+                        .energy_and_add_forces(positions, f)
+                        .map(|energy| {
+                            black_box(energy);
+                        })
+                },
+            ),
             Variant {
                 label: "StVK, `elastic_energy` (no forces), f32",
                 id: "stvk_energy_f32",
@@ -477,7 +490,178 @@ struct TablePlan {
     rounds: u32,
 }
 
+/// Whether `SOFTFEM_BENCH_WIDTHS=1` asks for the per-width table pass (no criterion).
+fn widths_mode() -> bool {
+    std::env::var("SOFTFEM_BENCH_WIDTHS").is_ok_and(|value| value == "1")
+}
+
+/// The per-width table: every one-thread variant at every SIMD width this machine has
+/// (`softfem::simd::set_max_width`), all round-robin in one pass, so the ratios between widths
+/// come from one machine state.
+fn print_width_table(info: &MeshInfo, variants: &mut [Variant<'_>], plan: &TablePlan) {
+    let tets = info.tets;
+    let repetitions = u32::try_from(plan.tets_per_block.div_ceil(tets).max(1)).unwrap();
+    let widths: Vec<Width> = Width::ALL
+        .into_iter()
+        .filter(|&w| w <= simd::detected_width())
+        .collect();
+    let mut items: Vec<(usize, Width)> = variants
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.threads == 1 && !v.id.contains("rayon") && !v.id.contains("partitioned"))
+        .flat_map(|(i, _)| widths.iter().map(move |&w| (i, w)))
+        .collect();
+    let ns = common::round_robin_min_ns(
+        &mut items,
+        |&mut (i, width)| {
+            simd::set_max_width(width);
+            (variants[i].run)();
+        },
+        repetitions,
+        tets,
+        plan.rounds,
+    );
+    simd::set_max_width(Width::Avx512);
+    println!();
+    println!(
+        "Per SIMD width, {tets} tetrahedra ({n}^3 cubes), one thread; minimum of {rounds} \
+         round-robin rounds of {repetitions} passes over every (variant, width), on {machine}.",
+        n = info.cells,
+        rounds = plan.rounds,
+        machine = common::machine(),
+    );
+    println!();
+    let scalar_ns = |i: usize| {
+        items
+            .iter()
+            .zip(&ns)
+            .find(|((j, w), _)| *j == i && *w == Width::Scalar)
+            .map(|(_, &ns)| ns)
+    };
+    common::print_markdown_table(
+        &[
+            "variant",
+            "width",
+            "lanes",
+            "Mtets/s",
+            "ns/tet",
+            "vs scalar",
+        ],
+        items.iter().zip(&ns).map(|(&(i, width), ns)| {
+            let v = &variants[i];
+            let lanes = if v.id.ends_with("f64") {
+                width.lanes_f64()
+            } else {
+                width.lanes_f32()
+            };
+            vec![
+                v.label.to_owned(),
+                width.name().to_owned(),
+                lanes.to_string(),
+                format!("{:.1}", 1e3 / ns),
+                format!("{ns:.1}"),
+                scalar_ns(i).map_or("-".to_owned(), |s| format!("{:.2}x", s / ns)),
+            ]
+        }),
+    );
+    common::append_csv_rows(
+        &items
+            .iter()
+            .zip(&ns)
+            .map(|(&(i, width), ns)| {
+                let v = &variants[i];
+                let lanes = if v.id.ends_with("f64") {
+                    width.lanes_f64()
+                } else {
+                    width.lanes_f32()
+                };
+                let unit = if v.id.starts_with("explicit") {
+                    "steps/s"
+                } else {
+                    "Mtets/s"
+                };
+                let value = if v.id.starts_with("explicit") {
+                    1e9 / (ns * tets as f64)
+                } else {
+                    1e3 / ns
+                };
+                common::CsvRow {
+                    bench: "forces",
+                    workload: format!("{} {}", v.id, width.name()),
+                    size: tets,
+                    lanes,
+                    threads: 1,
+                    value,
+                    unit,
+                }
+            })
+            .collect::<Vec<_>>(),
+    );
+}
+
+/// The memory roofline of the force pass: a STREAM-like triad `a[i] = b[i] + s c[i]` over f32
+/// arrays of 64 MiB each (twice the last-level cache of the machine this was written on, so
+/// every pass comes from DRAM), one thread, best of 10 passes; STREAM's convention counts 12
+/// bytes per element (two loads and a store, write-allocate traffic not counted). Returns GB/s.
+fn stream_triad_gb_per_s() -> f64 {
+    let n = 16 << 20;
+    let (mut a, b, c) = (vec![0.0f32; n], vec![1.0f32; n], vec![2.0f32; n]);
+    let scale = black_box(3.0f32);
+    let mut best = f64::INFINITY;
+    for _ in 0..10 {
+        let start = std::time::Instant::now();
+        for ((a, b), c) in a.iter_mut().zip(&b).zip(&c) {
+            *a = b + scale * c;
+        }
+        black_box(&mut a);
+        best = best.min(start.elapsed().as_secs_f64());
+    }
+    assert!(a.iter().all(|&x| x == 7.0));
+    (12 * n) as f64 / best / 1e9
+}
+
+/// Bytes the f32 force pass streams per tetrahedron from this layout: the four `u32` corner
+/// indices and the `TetRest` (`Dm^-1` and the volume); positions and forces (12 bytes each per
+/// vertex, about a sixth of a vertex per tetrahedron in these boxes) mostly stay in cache.
+const STREAMED_BYTES_PER_TET: usize =
+    size_of::<[u32; 4]>() + size_of::<softfem::element::TetRest>();
+
+fn print_roofline() {
+    let triad = stream_triad_gb_per_s();
+    let roofline = triad * 1e3 / STREAMED_BYTES_PER_TET as f64;
+    println!();
+    println!(
+        "Memory roofline: STREAM-like triad {triad:.1} GB/s (one thread, f32, 3 x 64 MiB), \
+         {STREAMED_BYTES_PER_TET} bytes streamed per tetrahedron (indices + rest data) = \
+         {roofline:.0} Mtets/s."
+    );
+    common::append_csv_rows(&[
+        common::CsvRow {
+            bench: "forces",
+            workload: "stream triad f32".to_owned(),
+            size: 16 << 20,
+            lanes: 1,
+            threads: 1,
+            value: triad,
+            unit: "GB/s",
+        },
+        common::CsvRow {
+            bench: "forces",
+            workload: "memory roofline".to_owned(),
+            size: STREAMED_BYTES_PER_TET,
+            lanes: 1,
+            threads: 1,
+            value: roofline,
+            unit: "Mtets/s",
+        },
+    ]);
+}
+
 fn print_table(info: &MeshInfo, variants: &mut [Variant<'_>], plan: &TablePlan) {
+    if widths_mode() {
+        print_width_table(info, variants, plan);
+        return;
+    }
     let tets = info.tets;
     // Mesh passes per timed block: enough to cover `plan.tets_per_block`, at least one.
     let repetitions = u32::try_from(plan.tets_per_block.div_ceil(tets).max(1)).unwrap();
@@ -595,6 +779,17 @@ fn main() {
         .map(|mesh| (mesh.info(), mesh.variants()))
         .collect();
 
+    if widths_mode() {
+        print_roofline();
+        print_tables(
+            &mut cases,
+            &TablePlan {
+                tets_per_block: 2_000_000,
+                rounds: 3,
+            },
+        );
+        return;
+    }
     if quick {
         print_tables(
             &mut cases,

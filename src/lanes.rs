@@ -319,6 +319,19 @@ pub(crate) trait LaneArray: Lane {
     fn lane_value(values: &Self::Array, lane: usize) -> Real;
     /// Sets the value of lane `lane` (nothing past the last lane).
     fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real);
+    /// The group whose lanes `4 q..4 q + 4` hold `quarters[q]` (quarters past the width are
+    /// ignored): how the kernels build a wide group from 4-lane transposes, which the compiler
+    /// keeps in registers (lane-by-lane stores measured slower than the SSE lanes).
+    #[inline(always)]
+    fn from_quarters(quarters: [[Real; LANES]; 4]) -> Self {
+        let mut values = Self::ZEROS;
+        for (q, quarter) in quarters.iter().enumerate().take(Self::WIDTH / LANES) {
+            for (j, &value) in quarter.iter().enumerate() {
+                Self::set_lane_value(&mut values, q * LANES + j, value);
+            }
+        }
+        Self::from_lane_array(values)
+    }
 }
 
 /// [`LaneArray::lane_value`] for a plain array.

@@ -143,9 +143,15 @@ macro_rules! invariant_stress_methods {
             invariant_principal_stress(s, |ic, j| self.stress_coefficients(ic, j))
         }
 
+        // Written out without the closures of `invariant_first_piola` (the same operations):
+        // a closure is not `inline(always)`, and one left out of line runs without the wide
+        // registers of the SIMD function that calls this (measured 4x slower with AVX2).
         #[inline(always)]
         fn first_piola_wide<L: Lane>(&self, f: LaneMat3<L>) -> LaneMat3<L> {
-            invariant_first_piola(f, |ic, j| self.stress_coefficients(ic, j))
+            let cof = cofactor(f);
+            let j = f.c0.dot(cof.c0);
+            let (a, b) = self.stress_coefficients(frobenius_squared(f), j);
+            f.scale(a) + cof.scale(b)
         }
 
         #[inline(always)]
@@ -587,21 +593,6 @@ fn first_piola_with_cofactor<L: Lane>(
     let j = f.c0.dot(cof.c0);
     let (a, b) = coefficients(frobenius_squared(f), j);
     f.scale(a) + cof.scale(b)
-}
-
-/// `(W, P)` of a model written as `W(I_C, J)`, sharing `cof(F)`: `energy(F, cof(F)_0)` gives
-/// `W`, and the stress is that of [`invariant_first_piola`], bit for bit.
-#[inline(always)]
-fn invariant_energy_and_first_piola<L: Lane>(
-    f: LaneMat3<L>,
-    energy: impl FnOnce(LaneMat3<L>, LaneVec3<L>) -> L,
-    coefficients: impl FnOnce(L, L) -> (L, L),
-) -> (L, LaneMat3<L>) {
-    let cof = cofactor(f);
-    (
-        energy(f, cof.c0),
-        first_piola_with_cofactor(f, cof, coefficients),
-    )
 }
 
 /// [`Material::corner_stress_and_stiffness`] of a model written as `W(I_C, J)`: with

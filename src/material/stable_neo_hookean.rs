@@ -1,9 +1,9 @@
 //! Stable neo-Hookean (Smith, de Goes, Kim 2018): smooth through inversion.
 
 use super::{
-    Lame, Lane, LaneMat3, Lanes, Mat3, Material, MaterialError, Real, Vec3, invariant_deviations,
-    invariant_energy_and_first_piola, invariant_first_piola, invariant_principal_stress, math,
-    principal_invariant_deviations,
+    Lame, Lane, LaneMat3, Lanes, Mat3, Material, MaterialError, Real, Vec3, cofactor,
+    frobenius_squared, invariant_deviations, invariant_first_piola, invariant_principal_stress,
+    math, principal_invariant_deviations,
 };
 
 /// Stable neo-Hookean: Smith, de Goes, Kim, "Stable Neo-Hookean Flesh Simulation" (ACM TOG
@@ -104,15 +104,15 @@ impl StableNeoHookean {
 
     /// `(W, P)` from one cofactor matrix, for one value or a group of lanes.
     #[inline(always)]
+    /// The operations of `invariant_energy_and_first_piola`, written out: its closures are not
+    /// `inline(always)`, and one left out of line runs without the SIMD function's registers.
     fn energy_and_stress<L: Lane>(&self, f: LaneMat3<L>) -> (L, LaneMat3<L>) {
-        invariant_energy_and_first_piola(
-            f,
-            |f, cof0| {
-                let (ic_minus_3, j_minus_1) = invariant_deviations(f, cof0);
-                self.energy(ic_minus_3, j_minus_1)
-            },
-            |ic, j| self.stress_coefficients(ic, j),
-        )
+        let cof = cofactor(f);
+        let (ic_minus_3, j_minus_1) = invariant_deviations(f, cof.c0);
+        let energy = self.energy(ic_minus_3, j_minus_1);
+        let j = f.c0.dot(cof.c0);
+        let (a, b) = self.stress_coefficients(frobenius_squared(f), j);
+        (energy, f.scale(a) + cof.scale(b))
     }
 }
 

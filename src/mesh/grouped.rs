@@ -116,31 +116,53 @@ impl<L: LaneArray> WideGradients<L> {
     /// keep the loop free of panics.
     #[inline(always)]
     pub fn new(positions: &[Vec3], tets: &[[u32; 4]], rests: &[TetRest]) -> Self {
-        let mut corners: CornerArrays<L> = [[L::ZEROS; 3]; 4];
-        let mut rest_values = [L::ZEROS; 10];
-        for (lane, (tet, rest)) in tets.iter().zip(rests).enumerate() {
-            for (corner, &i) in corners.iter_mut().zip(tet) {
-                let p = positions.get(i as usize).copied().unwrap_or(Vec3::ZERO);
-                for (axis, value) in corner.iter_mut().zip([p.x, p.y, p.z]) {
-                    L::set_lane_value(axis, lane, value);
+        // Four elements at a time through the SSE transposes of `GroupGradients`, then the
+        // quarters side by side.
+        let mut corner_quarters = [[[[0.0; LANES]; 4]; 3]; 4];
+        let mut rest_quarters = [[[0.0; LANES]; 4]; 10];
+        let quarters = tets.chunks_exact(LANES).zip(rests.chunks_exact(LANES));
+        for (q, (tets, rests)) in quarters.enumerate().take(4) {
+            let (Ok(tets), Ok(rests)) = (
+                <&[[u32; 4]; LANES]>::try_from(tets),
+                <&[TetRest; LANES]>::try_from(rests),
+            ) else {
+                continue;
+            };
+            for (k, corner) in corner_quarters.iter_mut().enumerate() {
+                let x = LaneVec3::from_vectors(each_lane(*tets, |tet| {
+                    tet.get(k)
+                        .and_then(|&i| positions.get(i as usize))
+                        .copied()
+                        .unwrap_or(Vec3::ZERO)
+                }));
+                for (axis, value) in corner.iter_mut().zip([x.x, x.y, x.z]) {
+                    if let Some(slot) = axis.get_mut(q) {
+                        *slot = value.to_array();
+                    }
                 }
             }
-            let m = &rest.dm_inv;
+            let m = LaneMat3::from_matrices(&each_lane(*rests, |rest| rest.dm_inv));
+            let volume = Lanes::from_array(each_lane(*rests, |rest| rest.volume));
             let values = [
-                m.x_axis.x,
-                m.x_axis.y,
-                m.x_axis.z,
-                m.y_axis.x,
-                m.y_axis.y,
-                m.y_axis.z,
-                m.z_axis.x,
-                m.z_axis.y,
-                m.z_axis.z,
-                rest.volume,
+                m.c0.x, m.c0.y, m.c0.z, m.c1.x, m.c1.y, m.c1.z, m.c2.x, m.c2.y, m.c2.z, volume,
             ];
-            for (slot, value) in rest_values.iter_mut().zip(values) {
-                L::set_lane_value(slot, lane, value);
+            for (slot, value) in rest_quarters.iter_mut().zip(values) {
+                if let Some(slot) = slot.get_mut(q) {
+                    *slot = value.to_array();
+                }
             }
+        }
+        // Loops rather than `<[T; N]>::map`, which is not always inlined (a call would run
+        // outside the function compiled for the wide registers).
+        let mut corners: CornerArrays<L> = [[L::ZEROS; 3]; 4];
+        for (corner, quarters) in corners.iter_mut().zip(corner_quarters) {
+            for (axis, quarters) in corner.iter_mut().zip(quarters) {
+                *axis = L::from_quarters(quarters).to_lane_array();
+            }
+        }
+        let mut rest_values = [L::ZEROS; 10];
+        for (values, quarters) in rest_values.iter_mut().zip(rest_quarters) {
+            *values = L::from_quarters(quarters).to_lane_array();
         }
         let [c0, c1, c2, c3] = corners;
         let vector = |[x, y, z]: [L::Array; 3]| {
