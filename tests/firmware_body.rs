@@ -1,7 +1,10 @@
 //! A whole simulation the way firmware would run it: no heap at all. A fixed-capacity body
 //! (const generics, plain arrays) holds a 5 x 2 x 2-cell bar generated in place, pinned at one
 //! end, stepped first with the explicit stepper and then with implicit Euler relaxation; the
-//! memory it needs is `size_of::<Body<54, 120>>()`, printed.
+//! memory it needs is `size_of::<Body<54, 120>>()`, printed. The first test writes that body by
+//! hand over the low-level kernels; the second uses the crate's owning
+//! `softfem::body::Body<FixedStorage<54, 120>, _>` in a static, with a capsule under the bar's
+//! tip for it to rest on.
 
 use softfem::element::TetRest;
 use softfem::generate::{BoxSplit, fill_box};
@@ -155,4 +158,104 @@ fn a_pinned_bar_sags_and_settles_without_allocating() {
             assert_eq!(x, r);
         }
     }
+}
+
+/// The crate's owning body of the same bar, in a static as firmware would place it (`None` until
+/// built: the body has no `const` constructor).
+type OwnedBar = softfem::body::Body<softfem::body::FixedStorage<54, 120>, StableNeoHookean>;
+static mut OWNED_BAR: Option<OwnedBar> = None;
+
+/// The same pinned bar, built and stepped by `softfem::body::Body` with a capsule 1 cm under it
+/// near its free end: it sags onto the capsule and rests there (explicit, then relaxation), never inside
+/// it, and its tip sags less than the 1.8 cm it does hanging free (the test above) but touches.
+#[test]
+fn the_owning_body_rests_on_a_capsule_without_allocating() {
+    use softfem::body::{Solver, StepReport};
+    use softfem::step::Collider;
+    println!(
+        "softfem::body::Body<FixedStorage<54, 120>, _>: {} bytes",
+        core::mem::size_of::<OwnedBar>()
+    );
+    let (length, side) = (0.5f32, 0.1f32);
+    let material = StableNeoHookean::from_young_poisson(2.0e6, 0.4).unwrap();
+    let built = OwnedBar::from_box_split(
+        Vec3::ZERO,
+        Vec3::new(length, side, side),
+        [5, 2, 2],
+        BoxSplit::Kuhn6,
+        1100.0,
+        material,
+    )
+    .unwrap();
+    // The test owns the static for its whole run (this is the only test touching it).
+    let body = unsafe { (*core::ptr::addr_of_mut!(OWNED_BAR)).insert(built) };
+    for vertex in 0..body.vertex_count() {
+        if body.rest_positions()[vertex].x == 0.0 {
+            body.set_pinned(vertex, true).unwrap();
+        }
+    }
+    body.set_gravity(Vec3::new(0.0, -9.81, 0.0));
+    // A capsule across the bar (along z), its top 1 cm under the bar's bottom at x = 0.4 m,
+    // right under a row of vertices (contact is tested at the vertices: a capsule between two
+    // rows would pass through the bottom face unseen).
+    let radius = 0.02;
+    let capsule = Collider::capsule(
+        Vec3::new(0.4, -0.01 - radius, -0.1),
+        Vec3::new(0.4, -0.01 - radius, 0.2),
+        radius,
+    )
+    .with_friction(0.5);
+    let colliders = [capsule];
+    body.set_solver(Solver::Explicit {
+        settings: ExplicitSettings::new(1.0).with_damping(20.0),
+        stable_fraction: Some(0.9),
+    })
+    .unwrap();
+    let mut deepest: f32 = 0.0;
+    let inside = |body: &OwnedBar| {
+        body.positions()
+            .iter()
+            .map(|&x| -capsule.distance(x))
+            .fold(0.0f32, f32::max)
+    };
+    for _ in 0..18 {
+        body.step_with_colliders(1.0 / 60.0, &colliders).unwrap(); // 0.3 s
+        deepest = deepest.max(inside(body));
+    }
+    body.set_solver(Solver::Relax(
+        RelaxSettings::new(1.0)
+            .with_tolerance(1e-3, 500)
+            .with_momentum(0.5),
+    ))
+    .unwrap();
+    let mut iterations = 0;
+    for _ in 0..60 {
+        match body.step_with_colliders(1.0 / 60.0, &colliders).unwrap() {
+            StepReport::Relax(report) => iterations += report.iterations,
+            other => panic!("{other:?}"),
+        }
+        deepest = deepest.max(inside(body));
+    }
+    let tip_sag = body
+        .positions()
+        .iter()
+        .zip(body.rest_positions())
+        .filter(|(_, r)| r.x == length)
+        .map(|(p, r)| r.y - p.y)
+        .sum::<f32>()
+        / 9.0;
+    let closest = body
+        .positions()
+        .iter()
+        .map(|&x| capsule.distance(x))
+        .fold(f32::INFINITY, f32::min);
+    println!(
+        "owning body: tip sag {tip_sag:.5} m, closest to the capsule {closest:.2e} m, deepest \
+         inside {deepest:.2e} m, {iterations} relaxation iterations"
+    );
+    // The projection's rounding: 64 eps on metre-sized coordinates.
+    assert!(deepest <= 64.0 * f32::EPSILON, "{deepest}");
+    assert!(closest < 1e-4, "{closest}"); // resting on it
+    assert!(tip_sag > 0.008 && tip_sag < 0.015, "{tip_sag}");
+    assert!(body.velocities().iter().all(|v| v.length() < 2e-2));
 }

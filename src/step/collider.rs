@@ -139,6 +139,8 @@ impl PartialEq for Shape<'_> {
 ///   velocity at an impact).
 /// * Several colliders are resolved one after the other in slice order (a vertex pushed out of
 ///   one into the next ends outside the later one).
+/// * Contact is tested at the vertices only: a collider smaller than the mesh spacing (a thin
+///   capsule between two rows of vertices) can pass through a face unseen.
 ///
 /// ```
 /// use softfem::glam::{Quat, Vec3};
@@ -417,7 +419,8 @@ impl<'a> Collider<'a> {
                 half_length,
                 radius,
             } => {
-                let axis = Vec3::new(0.0, 0.0, local.z.clamp(-half_length, half_length));
+                // max then min, not `clamp`, which has a panic path for bounds the optimiser cannot order.
+                let axis = Vec3::new(0.0, 0.0, local.z.max(-half_length).min(half_length));
                 let off = local - axis;
                 let r = math::sqrt(off.dot(off));
                 (r - radius, Some(unit(off).unwrap_or(Vec3::X)))

@@ -22,6 +22,9 @@
 //!   ground whose normal is not a coordinate axis, the contact projection is applied first and
 //!   the fixed coordinates restored after it).
 //! * The ground is a half-space, see [`Ground`].
+//! * Rigid colliders (half-spaces, spheres, capsules, oriented boxes, any [`SignedDistance`];
+//!   static or kinematic) act on 3D bodies in every stepper as the ground does, see [`Collider`]
+//!   and each settings type's `with_colliders`.
 //! * No axis is special: gravity is a vector in the settings and the ground a plane given by its
 //!   normal, so y up, z up or any other convention works. The examples in these docs use y up
 //!   (gravity `(0, -9.81, 0)`, `Ground::new(Vec3::Y, 0.0)`); the `bouncy` scene and the
@@ -44,6 +47,7 @@
 //! | gravity / damping | finite / finite `>= 0` | [`StepError::Gravity`] / [`StepError::Damping`] |
 //! | ground normal, offset | any finite non-zero vector (any length), finite offset | [`StepError::Ground`] |
 //! | restitution / friction | `[0, 1]` / finite `>= 0` | [`StepError::Restitution`] / [`StepError::Friction`] |
+//! | colliders ([`Collider`]) | sizes finite `> 0`, finite position and velocities, unit rotation (to `1e-3`), restitution `[0, 1]`, friction finite `>= 0`; 3D bodies only | [`StepError::Collider`] (index and [`ColliderProblem`](crate::ColliderProblem)) |
 //! | clamp threshold ([`TetClamped`]) | `(0, 1]` | [`MeshError::ClampThreshold`] |
 //! | deformation (tet kernels) | `max(1, largest entry)` of each `F` at most [`Material::deformation_limit`] (a limit below 1 refuses every `F`) | [`MeshError::DeformationRange`] |
 //! | density ([`TetMesh::lumped_masses`]) | finite `> 0`, each element's share `density V / 4` normal and `<= Real::MAX / elements` | [`MeshError::Density`], [`MeshError::MassRange`] |
