@@ -300,9 +300,11 @@ fn main() {
                 newton_time * 1e3
             ),
             format!(
-                "{}, {}, {:.1} ms",
+                "{}, {}{}, {:.1e}, {:.1} ms",
                 relax.iterations,
                 relax.converged,
+                if relax.stagnated { " (stagnated)" } else { "" },
+                relax.final_residual / relax.initial_residual,
                 relax_time * 1e3
             ),
             format!("{:.1}", relax_time / newton_time),
@@ -316,7 +318,7 @@ fn main() {
             "product / force",
             "projected Hessians ns/tet",
             "Newton to 1e-8 (iterations / CG, relative residual, time)",
-            "relaxation to 1e-6 (iterations, converged, time)",
+            "relaxation to 1e-6 (iterations, converged, relative residual, time)",
             "relaxation / Newton time",
         ],
         rows,

@@ -168,7 +168,7 @@
 //!   simulated second while the step stays under [`stable_time_step`]); no solve to converge.
 //! * [`gradient_descent_step`] / [`gradient_descent_quasi_static`]: only to compare. The same
 //!   loop and cost per iteration as the relaxation with `P = c I`; on the cantilever of
-//!   `tests/relax.rs` it needed 2.2 to 3 times the relaxation's iterations.
+//!   `tests/relax.rs` it needed 2.1 to 2.2 times the relaxation's iterations.
 //! * [`relax_step`] with Chebyshev (the defaults): soft bodies at display-rate steps. Its
 //!   iterations are the cheapest (1 to 4 force evaluations each): over the whole bouncy run it
 //!   is the fastest implicit stepper (21.5 iterations a step in f32), and on a small stiff block
