@@ -38,11 +38,11 @@ use core::mem::swap;
 
 use super::super::types::Real;
 use super::chebyshev::{Acceleration, AccelerationSettings};
+use super::collider::Collider;
 use super::loads::Loads;
+use super::points::Floor;
 use super::vertex_passes::{Frames, TrialPoint, Vertices, trial_pass};
 use super::{ElasticEnergy, Ground, Vector, first_non_finite};
-use super::collider::Collider;
-use super::points::Floor;
 use crate::error::StepError;
 use line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
 use objective::{Evaluation, Objective, implicit_velocities};
