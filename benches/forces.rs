@@ -36,6 +36,12 @@
 //! and the 2-thread speed-ups. `SOFTFEM_BENCH_CSV=<path>` appends every row (Mtets/s, with its
 //! thread count) to a CSV file.
 //!
+//! `SOFTFEM_BENCH_WIDTHS=1` skips criterion and runs instead a table pass of every one-thread
+//! variant at every SIMD width the machine has (`softfem::simd::set_max_width`), all (variant,
+//! width) pairs round-robin, after a STREAM-like triad that gives the memory roofline (GB/s and
+//! Mtets/s at the bytes the layout streams per tetrahedron); with `SOFTFEM_BENCH_QUICK=1` too,
+//! only the two smaller meshes.
+//!
 //! `SOFTFEM_BENCH_QUICK=1` skips criterion and the 1M mesh and runs the table pass with few
 //! repetitions: a smoke test that finishes in seconds.
 

@@ -21,6 +21,11 @@
 //! assert_eq!(simd::active_width(), widest);
 //! ```
 //!
+//! The batched kernels: [`svd3_batch`](crate::svd::svd3_batch) and the mesh kernels of
+//! [`TetMesh`](crate::mesh::TetMesh) (direct, principal and clamped forces, element and total
+//! energies, and the fused energy and force pass of the relaxation), which take the elements in
+//! groups of the width's lanes, then narrower groups, then one at a time.
+//!
 //! This module holds the crate's run-time CPU checks and the only calls into code compiled for
 //! CPU features beyond the baseline; the lane types themselves live in `src/lanes_avx2.rs` and
 //! `src/lanes_avx512.rs`.

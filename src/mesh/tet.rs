@@ -175,7 +175,7 @@ impl<'a> TetMesh<'a> {
     /// (SVD) stress `P = U diag(dW/ds) V^T` ([`Material::first_piola_from_svd`]). Equal to the
     /// direct path to rounding wherever the model is defined. On targets with SIMD (x86_64,
     /// aarch64) the SVDs of consecutive tetrahedra are computed a group at a time, at the widest
-    /// SIMD width the CPU has ([`simd`](crate::simd)), elsewhere one by one ([`svd3`]): the same
+    /// SIMD width the CPU has ([`simd`](crate::simd)), elsewhere one by one ([`svd3`](super::super::svd::svd3)): the same
     /// bits either way.
     ///
     /// # Errors
