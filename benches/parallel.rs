@@ -19,7 +19,8 @@
 //! fused-pass rows measured in the same run), which bounds the step's speed-up (Amdahl).
 //!
 //! Every row is timed by one round-robin pass over all variants of a workload (the minimum of
-//! several rounds), so ratios come from one machine state. `SOFTFEM_BENCH_CSV=<path>` appends
+//! several rounds, a 20 ms pause before every timed block so that the pools' idle workers have
+//! gone to sleep), so ratios come from one machine state. `SOFTFEM_BENCH_CSV=<path>` appends
 //! every row (`bench,workload,size,lanes,threads,value,unit`) plus the derived ratios (the
 //! scheme's one-thread cost, the speed-ups, the vertex passes' share) to a CSV file.
 //! `SOFTFEM_BENCH_THREADS=1,2,4,8,16` picks other pool sizes (default: 1, 2 and all cores).
@@ -169,7 +170,7 @@ impl Scene {
 struct Variant {
     label: String,
     threads: usize,
-    run: Box<dyn FnMut()>,
+    run: Box<dyn FnMut() + Send>,
 }
 
 /// The label of a variant on `threads` (0: sequential).
@@ -234,7 +235,7 @@ fn force_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) 
 }
 
 /// One explicit step of any model, falling from rest (the state carries on between runs).
-fn explicit_variant<F: ElasticModel<Vector = Vec3> + 'static>(
+fn explicit_variant<F: ElasticModel<Vector = Vec3> + Send + 'static>(
     label: String,
     threads: usize,
     model: F,
@@ -270,7 +271,7 @@ fn explicit_variant<F: ElasticModel<Vector = Vec3> + 'static>(
 /// The relaxation's step: from the box at rest on the ground, `RELAX_ITERATIONS` iterations;
 /// the state is restored before every run. Returns the variant and its (iterations, energy
 /// evaluations) per run.
-fn relax_variant<F: ElasticEnergy<Vector = Vec3> + 'static>(
+fn relax_variant<F: ElasticEnergy<Vector = Vec3> + Send + 'static>(
     label: String,
     threads: usize,
     model: F,
@@ -370,11 +371,32 @@ fn time(variants: &mut [Variant], plan: &Plan) -> Vec<f64> {
         })
         .fold(0.0, f64::max);
     let repetitions = ((plan.block_seconds / slowest).ceil() as u32).max(1);
-    common::round_robin_min_ns(variants, |v| (v.run)(), repetitions, 1, plan.rounds)
-        .into_iter()
-        .map(|ns| ns * 1e-9)
-        .collect()
+    // Every block is timed on the worker of a one-thread pool, the sequential rows too: on the
+    // loaded machine the main thread ran consistently slower than the pools' workers, which made
+    // the sequential rows look slower than the (strictly costlier) one-thread pool rows.
+    let timer = pool(1);
+    let mut best = vec![f64::INFINITY; variants.len()];
+    for _ in 0..plan.rounds {
+        for (variant, best) in variants.iter_mut().zip(&mut best) {
+            // Rayon's idle workers spin a while before they sleep: without the pause they would
+            // take the core from the variant timed next.
+            std::thread::sleep(PAUSE);
+            let run = &mut variant.run;
+            let seconds = timer.install(|| {
+                let start = Instant::now();
+                for _ in 0..repetitions {
+                    run();
+                }
+                start.elapsed().as_secs_f64()
+            });
+            *best = best.min(seconds / f64::from(repetitions));
+        }
+    }
+    best
 }
+
+/// The pause before every timed block.
+const PAUSE: std::time::Duration = std::time::Duration::from_millis(20);
 
 /// Prints a workload's table and returns its CSV rows. `per_run` is the item a run counts (a
 /// force pass over `tets`, a step, `iterations` relaxation iterations).
