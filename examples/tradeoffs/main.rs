@@ -12,7 +12,7 @@
 //! | `stability` | largest stable explicit step (bisection and eigenvalues) over the bound across E and nu; relaxation at the same steps |
 //! | `inversion` | volume ratio over time of a tet and a block driven through inversion and released, per model |
 //! | `convergence` | cantilever tip deflection against Euler–Bernoulli vs mesh resolution (5/6-tet splits), with its cost |
-//! | `descent` | residual against wall time and iterations for GD plain, GD + Chebyshev, VBD and Newton on three scenes |
+//! | `descent` | residual against wall time and iterations for GD (P = c I), GD plain, GD + Chebyshev, VBD and Newton on three scenes |
 //!
 //! `--quick` runs every chart at a reduced size (CI) and is refused with `--update-docs` or an
 //! `--out` inside `docs/`, so the reduced run never replaces the committed charts; `--only NAME`
