@@ -1,10 +1,15 @@
-//! Chart `descent`: one descent loop, four preconditioners `P`, measured against each other —
+//! Chart `descent`: one descent loop, five preconditioners `P`, measured against each other —
 //! residual against wall time and against iterations on three scenes, with the cost of an
 //! iteration in force evaluations measured in the same run.
 //!
 //! The solvers (all `softfem::f64::step`, one thread) minimise the same objective with the same
 //! stopping test, `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)`, so their relative
 //! residuals compare directly:
+//! * GD (`P = c I`): `gradient_descent_step` / `gradient_descent_quasi_static`, `c` the
+//!   largest entry of the diagonal bound, first trial step 2 (in units of `1 / c`), no
+//!   acceleration: the baseline of the family. It is slow, so its budget is capped (the
+//!   relaxation's budget on each scene); a run that does not reach the tolerance says so in
+//!   the CSV (`converged` false) and in the legend;
 //! * GD plain: `relax_step` / `relax_quasi_static` without acceleration, `P` the diagonal
 //!   stiffness bound, first trial step 2 (the bound's safe step, `RelaxSettings::step_length`);
 //! * GD + Chebyshev: the same with Chebyshev acceleration (`rho = 0.995` for time steps, the
@@ -45,9 +50,9 @@ use softfem::f64::generate::BoxSplit;
 use softfem::f64::material::StableNeoHookean;
 use softfem::f64::step::{
     ElasticEnergy, Ground, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, TetElastic,
-    VbdScratch, VbdSettings, newton_quasi_static, newton_scratch_len, newton_step,
-    relax_quasi_static, relax_scratch_len, relax_step, vbd_index_scratch_len, vbd_quasi_static,
-    vbd_scratch_len, vbd_step,
+    VbdScratch, VbdSettings, gradient_descent_quasi_static, gradient_descent_step,
+    newton_quasi_static, newton_scratch_len, newton_step, relax_quasi_static, relax_scratch_len,
+    relax_step, vbd_index_scratch_len, vbd_quasi_static, vbd_scratch_len, vbd_step,
 };
 use softfem::glam::{DMat3, DVec3};
 
@@ -56,18 +61,20 @@ use crate::double::body::{BoxMesh, masses};
 use crate::measure::{min_time, progress};
 use crate::{Findings, Size};
 
-const G: f64 = 9.81;
+pub const G: f64 = 9.81;
 
 /// The four preconditioners, in the order they are drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Solver {
+    GdIdentity,
     GdPlain,
     GdChebyshev,
     Vbd,
     Newton,
 }
 
-const SOLVERS: [Solver; 4] = [
+const SOLVERS: [Solver; 5] = [
+    Solver::GdIdentity,
     Solver::GdPlain,
     Solver::GdChebyshev,
     Solver::Vbd,
@@ -77,6 +84,7 @@ const SOLVERS: [Solver; 4] = [
 impl Solver {
     fn name(self) -> &'static str {
         match self {
+            Solver::GdIdentity => "GD (P = c I)",
             Solver::GdPlain => "GD plain (P = diagonal bound)",
             Solver::GdChebyshev => "GD + Chebyshev",
             Solver::Vbd => "VBD (estimated Chebyshev)",
@@ -86,6 +94,7 @@ impl Solver {
 
     fn short(self) -> &'static str {
         match self {
+            Solver::GdIdentity => "gd_identity",
             Solver::GdPlain => "gd_plain",
             Solver::GdChebyshev => "gd_chebyshev",
             Solver::Vbd => "vbd",
@@ -111,7 +120,7 @@ struct Scene<'a> {
     tolerance: f64,
     /// Per solver (in [`SOLVERS`] order): the largest `k` of the sweep and the budget of the
     /// run to tolerance.
-    budgets: [u32; 4],
+    budgets: [u32; 5],
 }
 
 /// What one solve did.
@@ -135,7 +144,7 @@ struct Outcome {
 /// scheduler's ticks and switches, so a reading can lag by a tick (a few ms): used only for
 /// solves far longer than that, where the least wall time of a loaded machine (2 cores, load
 /// average 8 to 10 when the committed chart was made) would count other processes' time.
-fn thread_cpu_seconds() -> f64 {
+pub fn thread_cpu_seconds() -> f64 {
     std::fs::read_to_string("/proc/thread-self/schedstat")
         .ok()
         .and_then(|s| s.split_whitespace().next()?.parse::<f64>().ok())
@@ -143,7 +152,7 @@ fn thread_cpu_seconds() -> f64 {
 }
 
 /// The norm of the gravity load on the free vertices (N): the solvers' scale for the tolerance.
-fn weight(masses: &[f64], pinned: &[bool]) -> f64 {
+pub fn weight(masses: &[f64], pinned: &[bool]) -> f64 {
     masses
         .iter()
         .enumerate()
@@ -189,11 +198,11 @@ impl Scene<'_> {
             let (started, cpu_started) = (Instant::now(), thread_cpu_seconds());
             let (model, m, pinned) = (&self.model, self.masses, self.pinned);
             let mut result = match solver {
-                Solver::GdPlain | Solver::GdChebyshev => {
-                    let rho = if solver == Solver::GdPlain {
-                        0.0
-                    } else {
+                Solver::GdIdentity | Solver::GdPlain | Solver::GdChebyshev => {
+                    let rho = if solver == Solver::GdChebyshev {
                         self.rho
+                    } else {
+                        0.0
                     };
                     let mut settings = RelaxSettings::new(dt)
                         .with_gravity(gravity)
@@ -201,9 +210,15 @@ impl Scene<'_> {
                         .with_chebyshev(rho, 2.0, 0);
                     settings.ground = self.ground;
                     let scratch = &mut relax_scratch;
-                    let report = match self.dt {
-                        Some(_) => relax_step(model, m, pinned, &settings, x, v, scratch),
-                        None => relax_quasi_static(model, m, pinned, &settings, x, scratch),
+                    let report = match (self.dt, solver) {
+                        (Some(_), Solver::GdIdentity) => {
+                            gradient_descent_step(model, m, pinned, &settings, x, v, scratch)
+                        }
+                        (None, Solver::GdIdentity) => {
+                            gradient_descent_quasi_static(model, m, pinned, &settings, x, scratch)
+                        }
+                        (Some(_), _) => relax_step(model, m, pinned, &settings, x, v, scratch),
+                        (None, _) => relax_quasi_static(model, m, pinned, &settings, x, scratch),
                     }
                     .map_err(|e| e.to_string())?;
                     Outcome {
@@ -325,8 +340,22 @@ struct Measured {
     scene: &'static str,
     force_seconds: f64,
     history: Vec<Point>,
-    to_tolerance: Vec<(Solver, Outcome)>,
+    /// Per solver: its budget for the run to tolerance and what that run did.
+    to_tolerance: Vec<(Solver, u32, Outcome)>,
     tolerance: f64,
+}
+
+impl Measured {
+    /// The solver's legend entry: its name, and "NOT converged in N" when its run to the
+    /// tolerance ran out of budget.
+    fn legend(&self, solver: Solver) -> String {
+        match self.to_tolerance.iter().find(|(s, _, _)| *s == solver) {
+            Some((_, _, o)) if !o.converged => {
+                format!("{} (NOT converged in {})", solver.name(), o.iterations)
+            }
+            _ => solver.name().to_string(),
+        }
+    }
 }
 
 /// The smallest relative residual the sweep goes for: f64's floor is far below it on every
@@ -386,7 +415,7 @@ fn measure(scene: &Scene<'_>, time_cap: f64) -> Result<Measured, String> {
                 outcome.seconds / force_seconds
             ),
         );
-        to_tolerance.push((*solver, outcome));
+        to_tolerance.push((*solver, largest, outcome));
     }
     Ok(Measured {
         scene: scene.name,
@@ -469,8 +498,8 @@ fn bouncy(size: Size) -> Result<Measured, String> {
         rho: 0.995,
         tolerance: 1e-4,
         budgets: match size {
-            Size::Quick => [300, 300, 100, 30],
-            Size::Full => [3000, 3000, 1000, 50],
+            Size::Quick => [300, 300, 300, 100, 30],
+            Size::Full => [3000, 3000, 3000, 1000, 50],
         },
     };
     measure(&scene, time_cap(size))
@@ -517,8 +546,8 @@ fn stiff_block(size: Size) -> Result<Measured, String> {
         rho: 0.995,
         tolerance: 1e-4,
         budgets: match size {
-            Size::Quick => [1000, 1000, 300, 30],
-            Size::Full => [30000, 10000, 5000, 50],
+            Size::Quick => [1000, 1000, 1000, 300, 30],
+            Size::Full => [30000, 30000, 10000, 5000, 50],
         },
     };
     measure(&scene, time_cap(size))
@@ -548,8 +577,8 @@ fn cantilever(size: Size) -> Result<Measured, String> {
         rho: crate::convergence::RHO,
         tolerance: 1e-6,
         budgets: match size {
-            Size::Quick => [3000, 3000, 1000, 30],
-            Size::Full => [300_000, 200_000, 20_000, 50],
+            Size::Quick => [3000, 3000, 3000, 1000, 30],
+            Size::Full => [300_000, 300_000, 200_000, 20_000, 50],
         },
     };
     measure(&scene, time_cap(size))
@@ -615,18 +644,12 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
                 &point.outcome,
             ));
         }
-        for (solver, outcome) in &scene.to_tolerance {
-            let budget = scene
-                .history
-                .iter()
-                .filter(|p| p.solver == *solver)
-                .map(|p| p.budget);
-            let largest = budget.max().unwrap_or(0);
+        for (solver, budget, outcome) in &scene.to_tolerance {
             table.push(row(
                 scene,
                 *solver,
                 "to_tolerance",
-                largest,
+                *budget,
                 scene.tolerance,
                 outcome,
             ));
@@ -652,7 +675,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
                             )
                         })
                         .collect();
-                    Series::new(solver.name(), Style::LinePoints, color, points)
+                    Series::new(&scene.legend(*solver), Style::LinePoints, color, points)
                 })
                 .chain(std::iter::once(Series::new(
                     &format!("tolerance {:.0e}", scene.tolerance),
@@ -702,14 +725,14 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
         );
     }
     Figure {
-        title: "One descent loop, four preconditioners: residual against cost (f64)".into(),
+        title: "One descent loop, five preconditioners: residual against cost (f64)".into(),
         panels,
     }
     .write(&out.join("descent.svg"))?;
 
     let mut findings = Findings::new("descent");
     for scene in &scenes {
-        for (solver, o) in &scene.to_tolerance {
+        for (solver, _, o) in &scene.to_tolerance {
             findings.line(format!(
                 "{}, {}: tolerance {:.0e} {} in {} iterations{}, {:.3e} s ({:.0} force evaluations, {:.1} per iteration)",
                 scene.scene,

@@ -12,11 +12,15 @@
 //! | `stability` | largest stable explicit step (bisection and eigenvalues) over the bound across E and nu; relaxation at the same steps |
 //! | `inversion` | volume ratio over time of a tet and a block driven through inversion and released, per model |
 //! | `convergence` | cantilever tip deflection against Euler–Bernoulli vs mesh resolution (5/6-tet splits), with its cost |
-//! | `descent` | residual against wall time and iterations for GD plain, GD + Chebyshev, VBD and Newton on three scenes |
+//! | `descent` | residual against wall time and iterations for GD (P = c I), GD plain, GD + Chebyshev, VBD and Newton on three scenes |
 //!
 //! `--quick` runs every chart at a reduced size (CI) and is refused with `--update-docs` or an
 //! `--out` inside `docs/`, so the reduced run never replaces the committed charts; `--only NAME`
 //! runs some of them. The run prints its progress and, at the end, the findings in numbers.
+//!
+//! `--static-scale` runs instead the static-solve scale check (no chart): a 10 800-tet
+//! quasi-static cantilever solved by Newton to relative residual 1e-8, and what the
+//! relaxation reaches in the same time, into `static_scale.csv` (with `--quick`: 400 tets).
 
 // `single.rs` and `double.rs` each include `body.rs` against their own precision, as the crate
 // does with its numeric modules.
@@ -32,6 +36,7 @@ mod inversion;
 mod measure;
 mod single;
 mod stability_map;
+mod static_scale;
 mod svd;
 
 use std::path::{Component, Path, PathBuf};
@@ -66,6 +71,11 @@ pub struct Args {
     /// Run only these charts (repeatable); default: all.
     #[arg(long, value_enum)]
     pub only: Vec<ChartName>,
+
+    /// Run only the static-solve scale check (a 10 800-tet cantilever, Newton against the
+    /// relaxation in the same time) into static_scale.csv; no chart.
+    #[arg(long, conflicts_with_all = ["update_docs", "only"])]
+    pub static_scale: bool,
 }
 
 /// The charts, in the order they run.
@@ -191,6 +201,17 @@ fn tradeoffs(args: &Args) -> Result<(), String> {
     let out = args.output_dir(&cwd)?;
     std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let size = if args.quick { Size::Quick } else { Size::Full };
+    if args.static_scale {
+        println!(
+            "tradeoffs: the static-solve scale check, writing into {}",
+            out.display()
+        );
+        let findings = static_scale::run(size, &out)?;
+        for line in &findings.lines {
+            println!("  {line}");
+        }
+        return Ok(());
+    }
     let charts: Vec<ChartName> = if args.only.is_empty() {
         ChartName::ALL.to_vec()
     } else {
