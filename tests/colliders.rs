@@ -3,7 +3,8 @@
 //! that sticks when `tan(theta) < mu` and otherwise slides with the acceleration
 //! `g (sin(theta) - mu cos(theta))` of Coulomb's law, a body dropped at 10 m/s onto each shape
 //! that never ends up inside it, and a kinematic box that pushes a body along at its own speed.
-//! The numeric runs are small (a 27-vertex cube) but many steps: run with `--release`.
+//! The numeric runs are small (a 27-vertex cube) but many steps: unoptimised builds skip them
+//! (`cargo test --release --test colliders` runs them, about 25 s here; `.ci/run` does).
 
 mod single {
     use softfem as p;

@@ -196,10 +196,8 @@ impl<S: Storage, M: Material> Body<S, M> {
         material: M,
     ) -> Result<Self, BodyError> {
         let mut body = Self::sized(rest_positions.len(), tets.len(), material)?;
-        body.rest_positions
-            .slice_mut()
-            .copy_from_slice(rest_positions);
-        body.tets.slice_mut().copy_from_slice(tets);
+        copy_into(body.rest_positions.slice_mut(), rest_positions);
+        copy_into(body.tets.slice_mut(), tets);
         body.validate(density)?;
         Ok(body)
     }
@@ -218,9 +216,7 @@ impl<S: Storage, M: Material> Body<S, M> {
         material: M,
     ) -> Result<Self, BodyError> {
         let mut body = Self::sized(mesh.positions.len(), mesh.tets.len(), material)?;
-        body.rest_positions
-            .slice_mut()
-            .copy_from_slice(&mesh.positions);
+        copy_into(body.rest_positions.slice_mut(), &mesh.positions);
         for (slot, &tet) in body.tets.slice_mut().iter_mut().zip(&mesh.tets) {
             let corner = |i: u32| mesh.positions.get(i as usize).copied();
             *slot = match tet.map(corner) {
@@ -289,9 +285,7 @@ impl<S: Storage, M: Material> Body<S, M> {
         )?;
         mesh.lumped_masses(density, self.masses.slice_mut())?;
         self.gradient_gain = mesh.gradient_gain();
-        self.positions
-            .slice_mut()
-            .copy_from_slice(self.rest_positions.slice());
+        copy_into(self.positions.slice_mut(), self.rest_positions.slice());
         Ok(())
     }
 
@@ -753,6 +747,15 @@ impl<S: Storage, M: Material> Body<S, M> {
                 outcome.map(StepReport::Vbd)
             }
         }
+    }
+}
+
+/// `source` into `target`, entry by entry: the storage sized both alike, but `copy_from_slice`
+/// would keep a panic path for lengths the optimiser cannot prove equal (the firmware's link
+/// check found it).
+fn copy_into<X: Copy>(target: &mut [X], source: &[X]) {
+    for (slot, &value) in target.iter_mut().zip(source) {
+        *slot = value;
     }
 }
 

@@ -3,6 +3,7 @@
 
 use super::super::types::Real;
 use super::collider::{Collider, check_colliders};
+use super::line_search::copy;
 use super::loads::Loads;
 use super::points::Grouped;
 use super::{
@@ -394,11 +395,13 @@ pub fn step_explicit<F: ElasticModel>(
         explicit_scratch_len(n),
         scratch.buffer.len(),
     )?;
-    let (first_forces, rest) = scratch.buffer.split_at_mut(n);
-    let (second_forces, backup) = rest.split_at_mut(n);
-    let (backup_positions, backup_velocities) = backup.split_at_mut(n);
-    backup_positions.copy_from_slice(positions);
-    backup_velocities.copy_from_slice(velocities);
+    let (first_forces, rest) = scratch.buffer.split_at_mut_checked(n).unwrap_or_default();
+    let (second_forces, backup) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (backup_positions, backup_velocities) = backup.split_at_mut_checked(n).unwrap_or_default();
+    // Entry by entry: the lengths were checked, but an out-of-line call (the body calls this
+    // stepper too) hides them from the optimiser, and `copy_from_slice` would keep a panic path.
+    copy(backup_positions, positions);
+    copy(backup_velocities, velocities);
 
     let h = settings.dt / settings.substeps as Real;
     if scratch.history.is_some_and(|history| history.h != h) {
@@ -428,8 +431,8 @@ pub fn step_explicit<F: ElasticModel>(
         match outcome {
             Ok(contacts) => ground_contacts = contacts,
             Err(error) => {
-                positions.copy_from_slice(backup_positions);
-                velocities.copy_from_slice(backup_velocities);
+                copy(positions, backup_positions);
+                copy(velocities, backup_velocities);
                 scratch.history = None;
                 return Err(error);
             }

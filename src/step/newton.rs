@@ -425,14 +425,14 @@ fn solve<F: ElasticHessian>(
         scratch.hessians.len(),
     )?;
 
-    let (start, rest) = scratch.vectors.split_at_mut(n);
-    let (gradient, rest) = rest.split_at_mut(n);
-    let (trial_gradient, rest) = rest.split_at_mut(n);
-    let (trial, rest) = rest.split_at_mut(n);
-    let (direction, rest) = rest.split_at_mut(n);
-    let (residual, rest) = rest.split_at_mut(n);
-    let (preconditioned, rest) = rest.split_at_mut(n);
-    let (conjugate, product) = rest.split_at_mut(n);
+    let (start, rest) = scratch.vectors.split_at_mut_checked(n).unwrap_or_default();
+    let (gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (trial_gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (trial, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (direction, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (residual, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (preconditioned, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (conjugate, product) = rest.split_at_mut_checked(n).unwrap_or_default();
     let dt = velocities.is_some().then_some(settings.dt);
     let inertia = dt.map_or(0.0, |dt| 1.0 / (dt * dt));
     let cg = CgVectors {

@@ -479,10 +479,10 @@ pub(super) fn minimise<F: ElasticEnergy, D: Direction<F>>(
     )?;
     check_length(StepBuffer::ScalarScratch, n, scratch.scalars.len())?;
 
-    let (start, rest) = scratch.vectors.split_at_mut(n);
-    let (gradient, rest) = rest.split_at_mut(n);
-    let (trial_gradient, rest) = rest.split_at_mut(n);
-    let (trial, direction_buffer) = rest.split_at_mut(n);
+    let (start, rest) = scratch.vectors.split_at_mut_checked(n).unwrap_or_default();
+    let (gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (trial_gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (trial, direction_buffer) = rest.split_at_mut_checked(n).unwrap_or_default();
     if !scratch.stiffness_ready {
         vertex_stiffness(model, scratch.scalars);
         scratch.stiffness_ready = true;

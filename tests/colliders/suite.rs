@@ -102,6 +102,7 @@ fn shapes() -> [(&'static str, Collider<'static>); 5] {
 /// the projection: `1e4 eps` m (1.2 mm in f32; measured: 0 or a few ulp, printed). The
 /// explicit stepper gets a light damping (2/s), as the undamped jelly rings for seconds.
 #[test]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test colliders")]
 fn a_body_rests_on_every_shape_with_every_solver() {
     use p::step::ExplicitSettings;
     for (name, shape) in shapes() {
@@ -175,6 +176,7 @@ fn incline(solver: Solver, theta: Real, mu: Real) -> (Real, Real) {
 /// velocity between 1 s and 2 s (after the landing transient), within 2 %. The explicit
 /// stepper and Newton's method.
 #[test]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test colliders")]
 fn a_block_on_an_incline_sticks_or_slides_by_coulomb_law() {
     let theta = core::f64::consts::FRAC_PI_6 as Real; // 30 degrees: tan = 0.577
     let (sin, cos) = (theta.sin(), theta.cos());
@@ -206,6 +208,7 @@ fn a_block_on_an_incline_sticks_or_slides_by_coulomb_law() {
 /// shape by more than the projection's rounding, and the body ends on top (it did not pass
 /// through).
 #[test]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test colliders")]
 fn a_fast_body_never_ends_up_inside_a_shape() {
     let newton = Solver::newton();
     for (name, shape) in shapes() {
@@ -236,6 +239,7 @@ fn a_fast_body_never_ends_up_inside_a_shape() {
 /// ahead of it: from 1 s to 2 s the cube's centroid moves at the box's speed within 2 %, and
 /// no vertex is inside the box. The box is advanced between steps by `Collider::advanced`.
 #[test]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test colliders")]
 fn a_kinematic_box_pushes_a_body_at_its_own_speed() {
     let speed: Real = 0.5;
     for (name, solver) in [("explicit", Solver::explicit()), ("newton", Solver::newton())] {
