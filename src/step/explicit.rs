@@ -3,7 +3,7 @@
 
 use super::super::types::Real;
 use super::collider::{Collider, check_colliders};
-use super::line_search::copy;
+use super::descent::line_search::copy;
 use super::loads::Loads;
 use super::points::Grouped;
 use super::{
