@@ -168,9 +168,8 @@ fn shout(text: &str) {
 /// for each.
 fn not_run_notice(headline: &str, missing: &[MissingTool]) -> String {
     let rule = "=".repeat(78);
-    let mut text = format!(
-        "\n{rule}\n{headline}\nMissing on this machine, with how to install it:\n"
-    );
+    let mut text =
+        format!("\n{rule}\n{headline}\nMissing on this machine, with how to install it:\n");
     for tool in missing {
         writeln!(text, "  - {}\n      {}", tool.what, tool.install).unwrap();
     }
