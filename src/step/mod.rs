@@ -159,7 +159,8 @@
 //! settings and reports of each solver are in `relax.rs` and `newton.rs`.
 //! [Vertex Block Descent](vbd_step) (`vbd.rs`, with the vertex
 //! [adjacency and colouring](build_vertex_adjacency) of `adjacency.rs` and the per-element
-//! block of `vertex_block.rs`) minimises it by per-vertex Newton steps in Gauss–Seidel order.
+//! block of `vertex_block.rs`) minimises it by per-vertex Newton steps in Gauss–Seidel order,
+//! one sweep being the direction `descent/vbd.rs` of the same loop.
 //!
 //! # Which solver to pick
 //! Measured by the `tradeoffs` example's `descent` chart (f64, one thread; relative residual

@@ -6,30 +6,26 @@
 //! The method, its safeguards, contact handling and measured cost are documented on
 //! [`vbd_step`].
 
-use core::mem::swap;
-
-use super::super::element::TetRest;
 use super::super::material::Material;
-use super::super::math;
-use super::super::types::{Mat3, Real, Vec3};
+use super::super::types::{Real, Vec3};
 use super::adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
-    incident_elements, vertex_order,
+    vertex_order,
 };
-use super::chebyshev::RhoEstimate;
+use super::chebyshev::AccelerationSettings;
 use super::collider::{Collider, check_colliders};
+use super::descent::stopping::StallRule;
+#[cfg(feature = "rayon")]
+use super::descent::vbd::OnPool;
+use super::descent::vbd::{InOrder, Schedule, Sweep, VbdSweep};
+use super::descent::{self, LoopSettings, Problem, Work};
 use super::loads::Loads;
-use super::points::{Grouped, Point};
-use super::vertex_block::{VertexFactor, shape_gradient};
-use super::vertex_passes::{Frames, Vertices, gradient_pass};
-use super::{
-    ElasticEnergy, Ground, TetElastic, check_length, check_state, first_non_finite, pinned_flags,
-};
+use super::{Ground, TetElastic, check_length, check_state};
 use crate::error::{StepBuffer, StepError};
 
 /// The length of the vector scratch buffer of [`vbd_step`] and [`vbd_quasi_static`] for
-/// `vertex_count` vertices: `5 * vertex_count` (the start positions, the gradient, the iterates
-/// before the last two sweeps, and the unaccelerated sweep result).
+/// `vertex_count` vertices: `5 * vertex_count` (the descent loop's start positions, gradient,
+/// trial gradient, trial point and direction).
 #[inline]
 #[must_use]
 pub const fn vbd_scratch_len(vertex_count: usize) -> usize {
@@ -140,12 +136,13 @@ pub struct VbdSettings<'a> {
     /// (every Newton step is taken whole, as the paper does, saving two energy densities per
     /// element and corner).
     pub max_backtracks: u32,
-    /// Take every Newton step whole and run the line search only in a sweep that raised `Phi`:
-    /// the evaluation after each sweep (which the stopping test needs anyway) detects the
-    /// increase, and the sweep is then redone from its start with the line search
-    /// ([`max_backtracks`](Self::max_backtracks) > 0), and the Chebyshev weights restart. Sweeps
-    /// stay monotone at the cost of the plain sweep where the full steps are safe. Ignored when
-    /// `max_backtracks` is 0.
+    /// Take every Newton step whole and run the line search only in a sweep whose full steps
+    /// did not lower `Phi` enough: the evaluation after each sweep (which the stopping test
+    /// needs anyway) detects it (the first trial of the descent loop's Armijo search fails),
+    /// and the sweep is then redone from its start with the line search
+    /// ([`max_backtracks`](Self::max_backtracks) > 0), and the Chebyshev weights restart.
+    /// Iterates stay monotone at the cost of the plain sweep where the full steps are safe.
+    /// Ignored when `max_backtracks` is 0.
     pub line_search_on_increase: bool,
     /// Chebyshev acceleration over sweeps: `rho` in `[0, 1)`, the estimated spectral radius of
     /// the plain sweep; 0 turns it off (see [`vbd_step`](vbd_step#acceleration)).
@@ -318,10 +315,12 @@ impl<'a> VbdSettings<'a> {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct VbdReport {
-    /// Sweeps over the vertices.
+    /// Accepted iterations of the descent loop, one sweep each (a rejected Chebyshev trial,
+    /// counted in [`restarts`](Self::restarts), costs one sweep more).
     pub iterations: u32,
     /// Evaluations of `Phi` and its gradient: one or two for the initial guess (as the
-    /// relaxation's), one per sweep, one per restart and one per redone sweep.
+    /// relaxation's), one per sweep and one per shortened sweep step (the loop's Armijo
+    /// backtracking along `d = sweep(x) - x`).
     pub energy_evaluations: u32,
     /// `|grad Phi|` (N) at the initial guess (projected on the ground's constraint).
     pub initial_residual: Real,
@@ -337,8 +336,8 @@ pub struct VbdReport {
     pub restarts: u32,
     /// Per-vertex line-search trials rejected.
     pub backtracks: u32,
-    /// Sweeps redone with the line search because `Phi` increased (with
-    /// [`VbdSettings::line_search_on_increase`]).
+    /// Sweeps redone with the line search because the full steps did not lower `Phi` enough
+    /// (with [`VbdSettings::line_search_on_increase`]).
     pub redone_sweeps: u32,
     /// Vertex updates skipped: block not positive definite (after regularisation), not finite,
     /// no descent, or no acceptable step within the backtracks.
@@ -391,20 +390,32 @@ pub struct VbdReport {
 /// solution of the local contact problem for the quadratic model, where the relaxation only
 /// projects. Friction acts on the velocity after the solve, as in the relaxation.
 ///
+/// # The descent loop
+/// The sweeps run in the descent loop every implicit solver here shares (`docs/math.md`
+/// section 7.0): a sweep from the iterate `x` is the direction `d = sweep(x) - x`, whose first
+/// trial is the sweep's result itself, and the loop's Armijo line search (constant
+/// [`VbdSettings::armijo`], factor [`VbdSettings::backtrack`], at most 8 halvings) accepts it
+/// or shortens it, with the rounding of the elastic energy (`64 eps sum V_e tr(K_e) / |g_a|^2`
+/// over the element corners, as in the vertex line search) tolerated where `Phi`'s change is
+/// below it; a sweep that is not downhill, or not acceptable after 8 halvings, ends the solve
+/// (not converged).
+///
 /// # Acceleration
 /// The paper's Chebyshev semi-iteration over whole sweeps: `x^(n) = omega_n (xbar^(n) -
 /// x^(n-2)) + x^(n-2)`, `xbar^(n)` the result of sweep `n`, with `omega_1 = 1`,
 /// `omega_2 = 2 / (2 - rho^2)` and `omega_n = 4 / (4 - rho^2 omega_(n-1))` (Wang, "A
 /// Chebyshev semi-iterative approach for accelerating projective and position-based dynamics",
-/// SIGGRAPH Asia 2015), applied per free vertex and projected onto the ground. An accelerated
-/// iterate whose `Phi` is higher (beyond rounding) than the last one is replaced by `xbar^(n)`
-/// and the weights restart, as in the relaxation.
+/// SIGGRAPH Asia 2015), applied per free vertex and projected onto the ground: the loop's
+/// Chebyshev trial. An accelerated iterate whose `Phi` is higher (beyond rounding) than the
+/// last one is rejected and the weights restart with a plain, line-searched sweep, as in the
+/// relaxation.
 ///
 /// # Stopping test and cost
 /// After every sweep `Phi` and its gradient are evaluated with the relaxation's own passes,
 /// so the residual (`|grad Phi|` projected on the contacts) and the test
-/// `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` are exactly the relaxation's. An
-/// iteration costs a sweep (per element and corner one deformation gradient, `P g` and the
+/// `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` are exactly the relaxation's, and
+/// so is the stall window (the rounding floor estimated from the exact vertex blocks at the
+/// initial guess). An iteration costs a sweep (per element and corner one deformation gradient, `P g` and the
 /// exact block, and with the line search one or two energy densities per trial) plus one fused
 /// energy-and-force pass.
 ///
@@ -413,7 +424,9 @@ pub struct VbdReport {
 /// pool and returns this function's result bit for bit, for any number of threads: two
 /// vertices of one colour share no element, so a colour's updates are computed from the
 /// positions before the colour and written back after it, which is what the sequential sweep
-/// computes in place (`docs/math.md` section 7.2).
+/// computes in place (`docs/math.md` section 7.2). The sweep of an accelerated trial runs
+/// in order (the loop has no vector left over for the parallel schedule's staging there):
+/// the same bits, on one thread.
 ///
 /// # When to pick it
 /// Measured with `cargo test --release --all-features --test vbd measure_ -- --ignored
@@ -427,16 +440,19 @@ pub struct VbdReport {
 /// swept in 7.7 force passes), `F` and the gather of the corners about a tenth (10.3 without
 /// them), the rest the loop over the elements around the vertex and its 3x3 solve. The target of 3 force passes per sweep is
 /// not met. In iterations VBD gains only with acceleration: over the bouncy cube's 180 steps
-/// of 1/60 s (tolerance 2e-3) 2151 sweeps with Chebyshev 0.95 against the relaxation's 5351
-/// iterations (5876 plain sweeps), 2.7 times the relaxation's CPU time (3.5 times its wall
-/// time); at these counts half the relaxation's time needs a sweep of at most about 2 force
-/// passes. On the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 681 sweeps (rho
-/// estimated, 30 of 30 steps converge) against 1798 iterations (28 of 30), 0.96-1.4 times its
-/// CPU time (1.3-1.4 times its wall time; the relaxation's whole run there is about 10 ms, so
-/// these ratios vary most). On the free stiff block, where both sit at the rounding floor and
-/// use their budget (6 and 4 of 30 steps converge), VBD without line search took 0.82-0.83 of
-/// the relaxation's CPU time (0.82-0.87 of its wall time). So the target of half the
-/// relaxation's wall time at the same residual is not met on these scenes. Pick it for what
+/// of 1/60 s (tolerance 2e-3) 2244 sweeps with Chebyshev 0.95 (all 180 steps converge)
+/// against the relaxation's 5351 iterations (5876 plain sweeps), 4.0 times the relaxation's
+/// CPU time (5.3 times its wall time; this run shared the machine with a build, so these
+/// ratios are high); at these counts half the relaxation's time needs a sweep of at most
+/// about 2 force passes. On the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 1093
+/// sweeps (rho estimated, at its cap 0.99; 29 of 30 steps converge) or 724 (Chebyshev 0.95,
+/// 30 of 30) against 1798 iterations (28 of 30), 3-4 times its CPU time (the relaxation's
+/// whole run there is about 5 ms, so these ratios vary most). On the free stiff block, where
+/// both sit at the rounding floor and use their budget (6 and 4 of 30 steps converge), VBD
+/// without line search took 0.35 of the relaxation's CPU time (0.39 of its wall time), 0.30
+/// with Chebyshev 0.95. So the target of half the relaxation's wall time at the same residual
+/// is not met on the bouncy cube or the clamped block; only on the free block, where neither
+/// reaches the tolerance. Pick it for what
 /// the count of iterations cannot show: every accepted vertex update lowers `Phi` (sweeps are
 /// monotone, accelerated ones checked), so a small fixed budget of sweeps is always safe, and
 /// its per-vertex Newton steps (with the exact local Hessian) resolve stiff local modes the
@@ -583,400 +599,6 @@ pub fn vbd_quasi_static_parallel<M: Material + Sync>(
     minimise::<M, OnPool>(model, masses, pinned, settings, positions, None, scratch)
 }
 
-/// The relative size of `Phi`'s rounding error the tests on `Phi` tolerate: `sqrt(eps)`, as
-/// in the relaxation.
-const ROUNDING: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
-
-/// The energy resolution's factor: `64 eps`.
-const RESOLUTION: Real = 64.0 * Real::EPSILON;
-
-/// What one evaluation of `Phi` gives.
-#[derive(Clone, Copy)]
-struct Evaluation {
-    phi: Real,
-    elastic: Real,
-    residual: Real,
-}
-
-/// `Phi(x)` with its gradient (written into `gradient`, zero at pinned vertices) and the
-/// projected residual, by the relaxation's own passes.
-fn evaluate<M: Material>(
-    model: &TetElastic<'_, M>,
-    (frames, loads): (&Frames<Vec3>, &Loads<'_, Vec3>),
-    vertices: &Vertices<'_, Vec3>,
-    x: &[Vec3],
-    gradient: &mut [Vec3],
-) -> Result<Evaluation, StepError> {
-    gradient.fill(Vec3::ZERO);
-    let elastic = model.energy_and_add_forces(x, gradient)?;
-    let (mut inertia_and_gravity, mut residual_squared) =
-        gradient_pass(frames, vertices, x, gradient);
-    if !loads.is_none() {
-        let (loads_phi, loaded_residual) = loads.apply(
-            frames.floor(),
-            (vertices.pinned, vertices.start),
-            x,
-            gradient,
-        );
-        inertia_and_gravity += loads_phi;
-        residual_squared = loaded_residual;
-    }
-    Ok(Evaluation {
-        phi: elastic + inertia_and_gravity,
-        elastic,
-        residual: math::sqrt(residual_squared),
-    })
-}
-
-/// Everything a sweep reads besides the positions.
-struct Sweep<'s, M: Material> {
-    tets: &'s [[u32; 4]],
-    rest: &'s [TetRest],
-    material: &'s M,
-    offsets: &'s [u32],
-    incident: &'s [u32],
-    /// The colour of every vertex.
-    colours: &'s [u32],
-    order: &'s [u32],
-    masses: &'s [Real],
-    pinned: &'s [bool],
-    start: &'s [Vec3],
-    /// `v_n`, empty without inertia.
-    velocities: &'s [Vec3],
-    h: Real,
-    inertia: Real,
-    gravity: Vec3,
-    /// External forces and fixed axes (both empty for none).
-    loads: Loads<'s, Vec3>,
-    ground: Option<Ground<Vec3>>,
-    colliders: &'s [Collider<'s>],
-    armijo: Real,
-    backtrack: Real,
-    max_backtracks: u32,
-}
-
-/// What a sweep counts.
-#[derive(Clone, Copy, Default)]
-struct SweepCounts {
-    backtracks: u32,
-    skipped: u32,
-    projected: u32,
-}
-
-impl SweepCounts {
-    /// Both counts added (integers: the same in any grouping).
-    #[cfg(feature = "rayon")]
-    fn plus(self, other: SweepCounts) -> SweepCounts {
-        SweepCounts {
-            backtracks: self.backtracks.saturating_add(other.backtracks),
-            skipped: self.skipped.saturating_add(other.skipped),
-            projected: self.projected.saturating_add(other.projected),
-        }
-    }
-}
-
-/// How the vertex updates of a sweep are run: one after the other ([`InOrder`]) or colour by
-/// colour on a thread pool; the result is the same bits either way.
-trait Schedule<M: Material> {
-    /// One sweep of `sweep` over `positions` in place; `staging` (one vector per vertex) is
-    /// free to use.
-    fn sweep(
-        sweep: &Sweep<'_, M>,
-        positions: &mut [Vec3],
-        staging: &mut [Vec3],
-        counts: &mut SweepCounts,
-        line_search: bool,
-    );
-}
-
-/// The vertex updates one after the other in the vertex order.
-struct InOrder;
-
-/// The vertex updates of each colour in parallel on the current rayon pool.
-#[cfg(feature = "rayon")]
-struct OnPool;
-
-/// The vertices a task of a parallel sweep updates: small enough to split the colours of
-/// small meshes over the threads, large enough to pay for a task.
-#[cfg(feature = "rayon")]
-const VERTEX_CHUNK: usize = 32;
-
-#[cfg(feature = "rayon")]
-impl<M: Material + Sync> Schedule<M> for OnPool {
-    #[inline]
-    fn sweep(
-        sweep: &Sweep<'_, M>,
-        positions: &mut [Vec3],
-        staging: &mut [Vec3],
-        counts: &mut SweepCounts,
-        line_search: bool,
-    ) {
-        sweep.run_on_pool(positions, staging, counts, line_search);
-    }
-}
-
-impl<M: Material> Schedule<M> for InOrder {
-    #[inline]
-    fn sweep(
-        sweep: &Sweep<'_, M>,
-        positions: &mut [Vec3],
-        _staging: &mut [Vec3],
-        counts: &mut SweepCounts,
-        line_search: bool,
-    ) {
-        sweep.run(positions, counts, line_search);
-    }
-}
-
-/// The corner positions of `corners`.
-#[inline(always)]
-fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
-    corners.map(|i| positions.get(i as usize).copied().unwrap_or(Vec3::ZERO))
-}
-
-impl<M: Material> Sweep<'_, M> {
-    /// One Gauss–Seidel sweep over the free vertices in colour order, in place.
-    fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) {
-        for &vertex in self.colour_runs().flatten() {
-            let i = vertex as usize;
-            if let Some(x) = self.updated(positions, i, counts, line_search)
-                && let Some(slot) = positions.get_mut(i)
-            {
-                *slot = x;
-            }
-        }
-    }
-
-    /// One sweep colour by colour on the current rayon pool: the updates of a colour, which
-    /// read only positions of other colours, are computed into `staging` in chunks of
-    /// [`VERTEX_CHUNK`] vertices, then written back; the same bits as [`run`](Self::run).
-    #[cfg(feature = "rayon")]
-    fn run_on_pool(
-        &self,
-        positions: &mut [Vec3],
-        staging: &mut [Vec3],
-        counts: &mut SweepCounts,
-        line_search: bool,
-    ) where
-        M: Sync,
-    {
-        use rayon::prelude::*;
-        for members in self.colour_runs() {
-            let staged = staging.get_mut(..members.len()).unwrap_or_default();
-            let read: &[Vec3] = positions;
-            let counted = staged
-                .par_chunks_mut(VERTEX_CHUNK)
-                .zip(members.par_chunks(VERTEX_CHUNK))
-                .map(|(out, chunk)| {
-                    let mut counted = SweepCounts::default();
-                    for (slot, &vertex) in out.iter_mut().zip(chunk) {
-                        let i = vertex as usize;
-                        let old = read.get(i).copied().unwrap_or(Vec3::ZERO);
-                        *slot = self
-                            .updated(read, i, &mut counted, line_search)
-                            .unwrap_or(old);
-                    }
-                    counted
-                })
-                .reduce(SweepCounts::default, SweepCounts::plus);
-            *counts = counts.plus(counted);
-            for (&vertex, &x) in members.iter().zip(&*staged) {
-                if let Some(slot) = positions.get_mut(vertex as usize) {
-                    *slot = x;
-                }
-            }
-        }
-    }
-
-    /// The colour runs of the vertex order: each colour's vertices, in order.
-    fn colour_runs(&self) -> impl Iterator<Item = &[u32]> + '_ {
-        let colour = |v: u32| self.colours.get(v as usize).copied();
-        let mut rest = self.order;
-        core::iter::from_fn(move || {
-            let first = colour(*rest.first()?);
-            let len = rest
-                .iter()
-                .position(|&v| colour(v) != first)
-                .unwrap_or(rest.len());
-            let (run, tail) = rest.split_at(len);
-            rest = tail;
-            Some(run)
-        })
-    }
-
-    /// The elements around `i`: index, corner, corner indices and rest data.
-    #[inline(always)]
-    fn elements(&self, i: usize) -> impl Iterator<Item = ([u32; 4], usize, &TetRest)> + '_ {
-        incident_elements(self.offsets, self.incident, i).filter_map(|(element, corner)| {
-            let corners = *self.tets.get(element)?;
-            Some((corners, corner, self.rest.get(element)?))
-        })
-    }
-
-    /// The local Newton update of vertex `i` (see [`vbd_step`]): its new position, or `None`
-    /// where it stays (pinned, skipped, stationary). Reads the positions of `i` and of the
-    /// vertices sharing an element with it, which have other colours.
-    fn updated(
-        &self,
-        positions: &[Vec3],
-        i: usize,
-        counts: &mut SweepCounts,
-        line_search: bool,
-    ) -> Option<Vec3> {
-        if self.pinned.get(i).copied().unwrap_or(false) {
-            return None;
-        }
-        let x = *positions.get(i)?;
-        let m = self.masses.get(i).copied().unwrap_or(0.0);
-        let x0 = self.start.get(i).copied().unwrap_or(x);
-        let y = match self.velocities.get(i) {
-            Some(&v) => x0 + v * self.h,
-            None => x0,
-        };
-        let weight = m * self.inertia;
-        let line_search = line_search && self.max_backtracks > 0;
-        let external = self.loads.force(i);
-        let fixed = self.loads.fixed(i);
-        let mut gradient = (x - y) * weight - self.gravity * m - external;
-        let mut hessian = Mat3::ZERO;
-        let mut elastic = 0.0;
-        // What the local energy can resolve: 64 eps sum_e V_e W_e-scale, the scale from the
-        // element block, tr(K_e) / |g_a|^2 ~ V_e times the elastic modulus (J).
-        let mut resolution = 0.0;
-        // One deformation gradient, stress and exact corner block per element: the force
-        // -V P g and the block V K(g) (no SVD; see `vertex_block`).
-        for (corners, corner, rest) in self.elements(i) {
-            let f = rest.deformation_gradient(gather(positions, corners));
-            let g = shape_gradient(rest, corner);
-            let (stress, stiffness) = self.material.corner_stress_and_stiffness(f, g);
-            gradient += stress * rest.volume;
-            hessian += stiffness * rest.volume;
-            if line_search {
-                elastic += rest.volume * self.material.energy_density(f);
-                let trace = stiffness.x_axis.x + stiffness.y_axis.y + stiffness.z_axis.z;
-                resolution += (trace * rest.volume).abs() / g.dot(g);
-            }
-        }
-        if fixed != 0 {
-            // The step on the free subspace exactly: the reduced system, its fixed rows and
-            // columns replaced by the identity and its fixed gradient components by zero.
-            gradient = gradient.axes_from(Vec3::ZERO, fixed);
-            let keep = Vec3::ONE.axes_from(Vec3::ZERO, fixed);
-            let unit = Vec3::ONE - keep;
-            // Rows, then columns.
-            hessian = Mat3::from_cols(
-                hessian.x_axis * keep,
-                hessian.y_axis * keep,
-                hessian.z_axis * keep,
-            );
-            hessian = Mat3::from_cols(
-                hessian.x_axis * keep.x + Vec3::X * unit.x,
-                hessian.y_axis * keep.y + Vec3::Y * unit.y,
-                hessian.z_axis * keep.z + Vec3::Z * unit.z,
-            );
-        }
-        let Some(VertexFactor {
-            cholesky: factor,
-            projected,
-        }) = VertexFactor::new(weight, &hessian)
-        else {
-            counts.skipped += 1;
-            return None;
-        };
-        counts.projected += u32::from(projected);
-        let mut step = factor.solve(-gradient);
-        if let Some(ground) = &self.ground
-            && ground.height(x + step) < 0.0
-        {
-            // The minimiser of the quadratic model on the plane n.(x + d) = offset:
-            // d = d0 - H^-1 n (n.d0 + height(x)) / (n.H^-1 n).
-            let towards = factor.solve(ground.normal);
-            let curvature = ground.normal.dot(towards);
-            let excess = ground.normal.dot(step) + ground.height(x);
-            step -= towards * (excess / curvature);
-        }
-        let step = step.axes_from(Vec3::ZERO, fixed);
-        let slope = gradient.dot(step);
-        if !(slope < 0.0 && step.is_finite()) {
-            // Stationary (g = 0) or no descent: nothing to gain here this sweep.
-            counts.skipped += u32::from(slope != 0.0);
-            return None;
-        }
-        let project = |p: Vec3| {
-            let mut p = p;
-            if let Some(ground) = &self.ground {
-                ground.project(&mut p);
-            }
-            let p = Point::pushed_out(p, self.colliders);
-            p.axes_from(x, fixed)
-        };
-        if !line_search {
-            return Some(project(x + step));
-        }
-        let resolution = RESOLUTION * resolution;
-        let mut alpha = 1.0;
-        for _ in 0..=self.max_backtracks {
-            let trial = project(x + step * alpha);
-            let moved = trial - x;
-            let mut trial_elastic = 0.0;
-            self.for_each_trial_element(positions, i, trial, |_, rest, f| {
-                trial_elastic += rest.volume * self.material.energy_density(f);
-            });
-            // The inertia and gravity change in a form without cancellation.
-            let change = 0.5 * weight * moved.dot(moved + (x - y) * 2.0)
-                - m * self.gravity.dot(moved)
-                - external.dot(moved)
-                + (trial_elastic - elastic);
-            // Armijo where the energy resolves the predicted decrease; below that, Hager and
-            // Zhang's approximate Armijo test from the two slopes (SIAM J. Optim. 2005), as
-            // the relaxation's line search does, with the trial's gradient computed only then.
-            let noise = resolution + ROUNDING * (elastic.abs() + trial_elastic.abs());
-            let sufficient = change <= self.armijo * alpha * slope
-                || (-alpha * slope <= noise && change <= noise && {
-                    let mut trial_gradient = (trial - y) * weight - self.gravity * m - external;
-                    self.for_each_trial_element(positions, i, trial, |corner, rest, f| {
-                        let g = shape_gradient(rest, corner);
-                        trial_gradient += self.material.first_piola(f) * g * rest.volume;
-                    });
-                    trial_gradient.dot(step) <= (2.0 * self.armijo - 1.0) * slope
-                });
-            if sufficient {
-                return Some(trial);
-            }
-            alpha *= self.backtrack;
-            counts.backtracks += 1;
-        }
-        counts.skipped += 1;
-        None
-    }
-
-    /// Calls `visit(corner, rest, f)` for every element around `i` with vertex `i` moved to
-    /// `trial`: its corner, rest data and deformation gradient there.
-    #[inline(always)]
-    fn for_each_trial_element(
-        &self,
-        positions: &[Vec3],
-        i: usize,
-        trial: Vec3,
-        mut visit: impl FnMut(usize, &TetRest, Mat3),
-    ) {
-        for (corners, corner, rest) in self.elements(i) {
-            let mut xs = gather(positions, corners);
-            if let Some(slot) = xs.get_mut(corner) {
-                *slot = trial;
-            }
-            visit(corner, rest, rest.deformation_gradient(xs));
-        }
-    }
-}
-
-/// Copies `source` into `target`, as far as the shorter goes.
-fn copy(target: &mut [Vec3], source: &[Vec3]) {
-    for (t, &s) in target.iter_mut().zip(source) {
-        *t = s;
-    }
-}
-
 /// Checks the scalar settings; returns the ground with a unit normal.
 fn validate(settings: &VbdSettings<'_>) -> Result<Option<Ground<Vec3>>, StepError> {
     if !settings.gravity.is_finite() {
@@ -1024,8 +646,12 @@ fn ensure_topology(
     Ok(count)
 }
 
-/// The shared loop of [`vbd_step`] (`velocities` given) and [`vbd_quasi_static`], their
-/// sweeps run by `S`.
+/// Whole-sweep steps the descent loop's Armijo search may shorten before the solve stops.
+const SWEEP_BACKTRACKS: u32 = 8;
+
+/// The shared solve of [`vbd_step`] (`velocities` given) and [`vbd_quasi_static`], their
+/// sweeps run by `S`: checks, then the descent loop (`descent/mod.rs`) along the sweep
+/// direction (`descent/vbd.rs`).
 fn minimise<M: Material, S: Schedule<M>>(
     model: &TetElastic<'_, M>,
     masses: &[Real],
@@ -1066,23 +692,15 @@ fn minimise<M: Material, S: Schedule<M>>(
 
     let (start, rest) = scratch.vectors.split_at_mut_checked(n).unwrap_or_default();
     let (gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (previous, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (last, unaccelerated) = rest.split_at_mut_checked(n).unwrap_or_default();
-    copy(start, positions);
-    let start: &[Vec3] = start;
+    let (trial_gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (trial, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let direction_buffer = rest.get_mut(..n).unwrap_or_default();
 
-    let (h, inertia) = match velocities {
-        Some(_) => (settings.dt, 1.0 / (settings.dt * settings.dt)),
-        None => (0.0, 0.0),
-    };
-    let frames = Frames::new(h, inertia, settings.gravity, ground.as_ref())
-        .with_colliders(settings.colliders);
-    let vertices = Vertices {
-        masses,
-        pinned,
-        stiffness: &[],
-        start,
-        velocities: velocities.as_deref().unwrap_or(&[]),
+    // The sweeps see the ground in the loop's coordinates, shifted as the loop shifts it.
+    let origin = if settings.colliders.is_empty() {
+        descent::reference_point(positions)
+    } else {
+        Vec3::ZERO
     };
     let sweep = Sweep {
         tets,
@@ -1094,265 +712,79 @@ fn minimise<M: Material, S: Schedule<M>>(
         order,
         masses,
         pinned,
-        start,
-        velocities: vertices.velocities,
-        h,
-        inertia,
+        start: &[],
+        velocities: &[],
+        h: 0.0,
+        inertia: 0.0,
         gravity: settings.gravity,
         loads,
-        ground,
+        ground: ground.map(|g| Ground {
+            offset: g.offset - g.normal.dot(origin),
+            ..g
+        }),
         colliders: settings.colliders,
         armijo: settings.armijo,
         backtrack: settings.backtrack,
         max_backtracks: settings.max_backtracks,
     };
-    let buffers = Buffers {
+    let lazy = settings.line_search_on_increase && settings.max_backtracks > 0;
+    let mut direction = VbdSweep::<M, S>::new(sweep, !lazy);
+    let problem = Problem {
+        model,
+        masses,
+        pinned,
+        stiffness: &[],
+        gravity: settings.gravity,
+        ground,
+        colliders: settings.colliders,
+        loads,
+        dt: velocities.is_some().then_some(settings.dt),
+    };
+    let loop_settings = LoopSettings {
+        tolerance: settings.tolerance,
+        max_iterations: settings.max_iterations,
+        armijo: settings.armijo,
+        backtrack: settings.backtrack,
+        max_backtracks: SWEEP_BACKTRACKS,
+        step_length: 1.0,
+        momentum: 0.0,
+        acceleration: AccelerationSettings {
+            rho: settings.chebyshev,
+            delay: settings.chebyshev_delay,
+            estimate: settings.estimate_chebyshev,
+            cap: MAX_ESTIMATED_RHO,
+        },
+        stall: StallRule::Window,
+    };
+    let work = Work {
+        start,
         gradient,
-        previous,
-        last,
-        unaccelerated,
+        trial_gradient,
+        trial,
+        direction: direction_buffer,
     };
-    let outcome = descend::<M, S>(
-        model, &frames, &vertices, &sweep, settings, positions, buffers,
-    );
-    let (mut report, gradient, backup) = match outcome {
-        Ok(result) => result,
-        Err(error) => {
-            copy(positions, start);
-            return Err(error);
-        }
-    };
-    report.colours = colours;
-    if let Some(vertex) = first_non_finite(positions, &[]) {
-        copy(positions, start);
-        return Err(StepError::NonFiniteState { vertex });
-    }
-    let Some(velocities) = velocities else {
-        return Ok(report);
-    };
-    // v = (x_{n+1} - x_n) / h, then the relaxation's Coulomb friction at the contacts, with the
-    // normal impulse h R, R the reaction: the gradient's normal component there.
-    copy(backup, velocities);
-    let floor = frames.floor();
-    let rows = velocities
-        .iter_mut()
-        .zip(&*positions)
-        .zip(start)
-        .zip(&*gradient);
-    for ((((v, &x), &x0), &g), (&m, pinned)) in rows.zip(masses.iter().zip(pinned_flags(pinned))) {
-        if pinned {
-            continue;
-        }
-        *v = (x - x0) * (1.0 / h);
-        if let (Some(ground), Some(true)) = (&ground, floor.contact(x)) {
-            let normal = ground.normal.dot(*v);
-            let reaction = ground.normal.dot(g).max(0.0);
-            let normal_change = h * reaction / m + (-normal).max(0.0);
-            let tangential = *v - ground.normal * normal;
-            *v = ground.friction_applied(tangential, normal_change)
-                + ground.normal * normal.max(0.0);
-        }
-        *v = Vec3::collider_velocity(settings.colliders, x, g, m, h, *v);
-    }
-    if let Some(vertex) = first_non_finite(velocities, &[]) {
-        copy(positions, start);
-        copy(velocities, backup);
-        return Err(StepError::NonFiniteState { vertex });
-    }
-    Ok(report)
-}
-
-/// The mutable scratch of the descent loop, one vector per vertex each.
-struct Buffers<'b> {
-    gradient: &'b mut [Vec3],
-    previous: &'b mut [Vec3],
-    last: &'b mut [Vec3],
-    unaccelerated: &'b mut [Vec3],
-}
-
-/// The report (colours not yet set), the buffer holding the final gradient and a free buffer.
-type Descent<'b> = (VbdReport, &'b mut [Vec3], &'b mut [Vec3]);
-
-/// Writes `y + offset` (`x_n` without inertia) projected on the ground at free vertices and
-/// `x_n` at pinned ones into `x`.
-fn initial_guess(
-    sweep: &Sweep<'_, impl Material>,
-    frames: &Frames<Vec3>,
-    x: &mut [Vec3],
-    offset: Vec3,
-) {
-    let rows = x
-        .iter_mut()
-        .zip(sweep.start)
-        .zip(pinned_flags(sweep.pinned));
-    for (i, ((x, &x0), pinned)) in rows.enumerate() {
-        let target = match sweep.velocities.get(i) {
-            Some(&v) => x0 + v * sweep.h + offset,
-            None => x0,
-        };
-        *x = if pinned {
-            x0
-        } else {
-            sweep
-                .loads
-                .keep_fixed(i, frames.floor().project(target), x0)
-        };
-    }
-}
-
-/// The sweeps from the relaxation's initial guess until the stopping test or the budget.
-fn descend<'b, M: Material, S: Schedule<M>>(
-    model: &TetElastic<'_, M>,
-    frames: &Frames<Vec3>,
-    vertices: &Vertices<'_, Vec3>,
-    sweep: &Sweep<'_, M>,
-    settings: &VbdSettings<'_>,
-    positions: &mut [Vec3],
-    buffers: Buffers<'b>,
-) -> Result<Descent<'b>, StepError> {
-    let Buffers {
-        gradient,
-        mut previous,
-        mut last,
-        unaccelerated,
-    } = buffers;
-    // The relaxation's initial guess: the lower-Phi of y + h^2 g and y, x_n if neither is
-    // finite.
-    let drop = settings.gravity * (sweep.h * sweep.h);
-    initial_guess(sweep, frames, positions, drop);
-    let mut evaluation = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
-    let mut energy_evaluations = 1;
-    if drop != Vec3::ZERO {
-        initial_guess(sweep, frames, previous, Vec3::ZERO);
-        let inertial = evaluate(model, (frames, &sweep.loads), vertices, previous, last)?;
-        energy_evaluations += 1;
-        if inertial.phi < evaluation.phi || !evaluation.phi.is_finite() {
-            copy(positions, previous);
-            copy(gradient, last);
-            evaluation = inertial;
-        }
-    }
-    if !evaluation.phi.is_finite() {
-        copy(positions, sweep.start);
-        evaluation = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
-        energy_evaluations += 1;
-    }
-    if !evaluation.phi.is_finite() {
-        let vertex = first_non_finite(gradient, &[]).unwrap_or(0);
-        return Err(StepError::NonFiniteState { vertex });
-    }
-    let initial_residual = evaluation.residual;
-    let load = if sweep.loads.is_none() {
-        let load_squared: Real = vertices
-            .masses
-            .iter()
-            .zip(pinned_flags(vertices.pinned))
-            .filter(|(_, pinned)| !pinned)
-            .map(|(&m, _)| m * m * settings.gravity.dot(settings.gravity))
-            .sum();
-        math::sqrt(load_squared)
-    } else {
-        sweep
-            .loads
-            .load(vertices.masses, vertices.pinned, settings.gravity)
-    };
-    let target = settings.tolerance * initial_residual.max(load);
-
-    let mut counts = SweepCounts::default();
-    let (mut iterations, mut restarts, mut redone_sweeps) = (0, 0, 0);
-    let mut rho = settings.chebyshev;
-    // The largest residual ratio of the plain sweeps 2..=delay, for the estimate.
-    let mut estimate = RhoEstimate::default();
-    // Sweeps since the last (re)start, counting the current one, and the Chebyshev weight.
-    let mut since_restart: u32 = 0;
-    let mut omega: Real = 1.0;
-    // Whether `last` holds the iterate before the current one.
-    let mut stepped = false;
-    while evaluation.residual > target && iterations < settings.max_iterations {
-        since_restart = since_restart.saturating_add(1);
-        if rho > 0.0 {
-            let rho_squared = rho * rho;
-            omega = match since_restart.checked_sub(settings.chebyshev_delay + 1) {
-                None | Some(0) => 1.0,
-                Some(1) => 2.0 / (2.0 - rho_squared),
-                Some(_) => 4.0 / (4.0 - rho_squared * omega),
-            };
-        }
-        copy(previous, positions);
-        let lazy = settings.line_search_on_increase && settings.max_backtracks > 0;
-        S::sweep(sweep, positions, unaccelerated, &mut counts, !lazy);
-        let accelerated = omega > 1.0 && stepped;
-        if accelerated {
-            copy(unaccelerated, positions);
-            let rows = positions
-                .iter_mut()
-                .zip(&*last)
-                .zip(pinned_flags(sweep.pinned));
-            for ((x, &older), pinned) in rows {
-                if !pinned {
-                    *x = frames.floor().project((*x - older) * omega + older);
-                }
-            }
-        }
-        let mut next = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
-        energy_evaluations += 1;
-        if accelerated {
-            let noise = ROUNDING * (evaluation.phi.abs() + next.phi.abs() + next.elastic.abs());
-            let kept = next.phi <= evaluation.phi + noise;
-            if !kept {
-                restarts += 1;
-                copy(positions, unaccelerated);
-                next = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
-                energy_evaluations += 1;
-                since_restart = 1;
-                omega = 1.0;
-            }
-        }
-        let noise = ROUNDING * (evaluation.phi.abs() + next.phi.abs() + next.elastic.abs());
-        let lowered = next.phi <= evaluation.phi + noise;
-        if lazy && !lowered {
-            // The full steps raised Phi (or gave NaN): redo the sweep from its start with the
-            // line search, which makes it monotone.
-            redone_sweeps += 1;
-            copy(positions, previous);
-            S::sweep(sweep, positions, unaccelerated, &mut counts, true);
-            next = evaluate(model, (frames, &sweep.loads), vertices, positions, gradient)?;
-            energy_evaluations += 1;
-            since_restart = 1;
-            omega = 1.0;
-        }
-        if !next.phi.is_finite() {
-            let vertex = first_non_finite(positions, &[]).unwrap_or(0);
-            return Err(StepError::NonFiniteState { vertex });
-        }
-        if settings.estimate_chebyshev && rho == 0.0 {
-            if iterations >= 1 {
-                estimate.observe(evaluation.residual, next.residual);
-            }
-            if iterations + 1 >= settings.chebyshev_delay {
-                // A NaN ratio gives 0: no acceleration.
-                rho = estimate.rho(MAX_ESTIMATED_RHO);
-            }
-        }
-        swap(&mut previous, &mut last);
-        stepped = true;
-        evaluation = next;
-        iterations += 1;
-    }
-    let report = VbdReport {
-        iterations,
-        energy_evaluations,
-        initial_residual,
-        final_residual: evaluation.residual,
-        phi: evaluation.phi,
-        converged: evaluation.residual <= target,
-        colours: 0,
-        restarts,
+    let summary = descent::solve(
+        &problem,
+        &loop_settings,
+        &mut direction,
+        positions,
+        velocities,
+        work,
+    )?;
+    let counts = direction.counts;
+    Ok(VbdReport {
+        iterations: summary.iterations,
+        energy_evaluations: summary.energy_evaluations,
+        initial_residual: summary.initial_residual,
+        final_residual: summary.residual,
+        phi: summary.phi,
+        converged: summary.converged,
+        colours,
+        restarts: summary.restarts,
         backtracks: counts.backtracks,
-        redone_sweeps,
+        redone_sweeps: direction.redone,
         skipped: counts.skipped,
         projected: counts.projected,
-        rho,
-    };
-    Ok((report, gradient, unaccelerated))
+        rho: summary.rho,
+    })
 }

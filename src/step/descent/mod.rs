@@ -10,7 +10,9 @@
 //! * `jacobi.rs`: `P` the diagonal bound `m/h^2 + k_i` (the relaxation, [`relax_step`](super::relax_step)),
 //! * `gradient.rs`: `P = c I`, `c` the largest entry of that bound (plain gradient descent,
 //!   [`gradient_descent_step`](super::gradient_descent_step)),
-//! * `newton.rs`: `P` the projected Hessian, solved by block-Jacobi PCG ([`newton_step`](super::newton_step)).
+//! * `newton.rs`: `P` the projected Hessian, solved by block-Jacobi PCG ([`newton_step`](super::newton_step)),
+//! * `vbd.rs`: one block Gauss–Seidel sweep of 3x3 vertex Newton steps, `d = sweep(x) - x`
+//!   (Vertex Block Descent, [`vbd_step`](super::vbd_step)).
 //!
 //! The loop also carries what the first-order directions share: heavy-ball momentum and the
 //! Chebyshev semi-iteration (`chebyshev.rs`), each trial an extrapolation along the direction.
@@ -33,6 +35,7 @@ pub(super) mod line_search;
 pub(super) mod newton;
 pub(super) mod objective;
 pub(super) mod stopping;
+pub(super) mod vbd;
 
 use core::mem::swap;
 
@@ -97,6 +100,21 @@ pub(super) trait Direction<F: ElasticEnergy> {
 
     /// The estimated rounding floor now (N; a direction may refine it as it goes).
     fn rounding_floor(&self) -> Real;
+
+    /// The absolute rounding of `Phi` (J) the line search tolerates beyond its relative
+    /// `sqrt(eps)`: where `Phi`'s change is below it, the line search takes Hager and Zhang's
+    /// test from the slopes. 0 (the default) for none.
+    fn phi_resolution(&self) -> Real {
+        0.0
+    }
+
+    /// Called when a direction is not downhill or the first trial of its line search fails:
+    /// `true` if the direction has a safer variant to search with from the same iterate
+    /// instead (the loop then restarts the acceleration and searches again); `false` (the
+    /// default) to backtrack, or to end the solve on a direction that is not downhill.
+    fn fall_back(&mut self) -> bool {
+        false
+    }
 }
 
 /// The settings of the loop (validated by each solver).
@@ -429,7 +447,8 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
             // The semi-iteration is not monotone in Phi in general, but an increase (beyond
             // rounding) means the nonlinearity or the contacts broke the linear model it
             // relies on: restart from a plain, line-searched step (Wang and Yang's fallback).
-            let noise = ROUNDING * (phi.abs() + trial_phi.abs() + trial_elastic.abs());
+            let noise = ROUNDING * (phi.abs() + trial_phi.abs() + trial_elastic.abs())
+                + rule.phi_resolution();
             if trial_phi <= phi + noise {
                 swap(&mut current, &mut other);
                 swap(&mut gradient, &mut trial_gradient);
@@ -479,10 +498,16 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
             )?;
         }
         if !downhill(slope) {
+            if rule.fall_back() {
+                acceleration.restart();
+                stepped = false;
+                continue;
+            }
             stopping.failed();
             break; // stationary to rounding
         }
         let mut accepted = None;
+        let mut redo = false;
         for attempt in 0..=settings.max_backtracks {
             if attempt > 0 {
                 trial_pass(
@@ -509,14 +534,30 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
                 slope,
                 || slope_along(trial_gradient, direction),
             );
-            if sufficient {
+            let resolution = rule.phi_resolution();
+            if sufficient
+                || (resolution > 0.0
+                    && trial_phi <= phi + resolution
+                    && slope_along(trial_gradient, direction)
+                        <= (2.0 * settings.armijo - 1.0) * slope)
+            {
                 accepted = Some(evaluation);
+                break;
+            }
+            if attempt == 0 && rule.fall_back() {
+                redo = true;
                 break;
             }
             alpha *= settings.backtrack;
             backtracks += 1;
         }
         let Some(evaluation) = accepted else {
+            if redo {
+                // The trial overwrote x_(k-1): the last step is unknown again.
+                acceleration.restart();
+                stepped = false;
+                continue;
+            }
             stopping.failed();
             break;
         };

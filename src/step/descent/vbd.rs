@@ -1,0 +1,571 @@
+//! Vertex Block Descent's direction (Chen, Liu, Yang and Yuksel, "Vertex Block Descent", ACM
+//! Transactions on Graphics 43(4), SIGGRAPH 2024; `docs/math.md` section 7): one block
+//! Gauss–Seidel sweep over the vertices in colour order, a 3x3 Newton step per vertex, from the
+//! iterate `x`; the direction is `d = sweep(x) - x`, and the loop's Armijo search runs on the
+//! whole sweep. The Chebyshev trial sweeps again and extrapolates (Wang 2015). The sweep itself,
+//! its vertex updates and its colour-parallel schedule are documented on
+//! [`vbd_step`](super::super::vbd_step).
+
+use core::marker::PhantomData;
+
+use super::super::super::element::TetRest;
+use super::super::super::material::Material;
+use super::super::super::types::{Mat3, Real, Vec3};
+use super::super::adjacency::incident_elements;
+use super::super::collider::Collider;
+use super::super::loads::Loads;
+use super::super::points::{Grouped, Point};
+use super::super::vertex_block::{VertexFactor, shape_gradient};
+use super::super::vertex_passes::{TrialPoint, trial_pass};
+use super::super::{Ground, TetElastic, pinned_flags};
+use super::line_search::{copy, slope_along};
+use super::objective::Objective;
+use super::stopping::rounding_floor;
+use super::{Direction, Iterate};
+use crate::error::StepError;
+
+/// The relative size of `Phi`'s rounding error the tests on `Phi` tolerate: `sqrt(eps)`, as
+/// in the relaxation.
+const ROUNDING: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
+
+/// The energy resolution's factor: `64 eps`.
+const RESOLUTION: Real = 64.0 * Real::EPSILON;
+
+/// Everything a sweep reads besides the positions.
+pub(in super::super) struct Sweep<'s, M: Material> {
+    pub tets: &'s [[u32; 4]],
+    pub rest: &'s [TetRest],
+    pub material: &'s M,
+    pub offsets: &'s [u32],
+    pub incident: &'s [u32],
+    /// The colour of every vertex.
+    pub colours: &'s [u32],
+    pub order: &'s [u32],
+    pub masses: &'s [Real],
+    pub pinned: &'s [bool],
+    pub start: &'s [Vec3],
+    /// `v_n`, empty without inertia.
+    pub velocities: &'s [Vec3],
+    pub h: Real,
+    pub inertia: Real,
+    pub gravity: Vec3,
+    /// External forces and fixed axes (both empty for none).
+    pub loads: Loads<'s, Vec3>,
+    pub ground: Option<Ground<Vec3>>,
+    pub colliders: &'s [Collider<'s>],
+    pub armijo: Real,
+    pub backtrack: Real,
+    pub max_backtracks: u32,
+}
+
+/// What a sweep counts.
+#[derive(Clone, Copy, Default)]
+pub(in super::super) struct SweepCounts {
+    pub backtracks: u32,
+    pub skipped: u32,
+    pub projected: u32,
+}
+
+impl SweepCounts {
+    /// Both counts added (integers: the same in any grouping).
+    #[cfg(feature = "rayon")]
+    fn plus(self, other: SweepCounts) -> SweepCounts {
+        SweepCounts {
+            backtracks: self.backtracks.saturating_add(other.backtracks),
+            skipped: self.skipped.saturating_add(other.skipped),
+            projected: self.projected.saturating_add(other.projected),
+        }
+    }
+}
+
+/// How the vertex updates of a sweep are run: one after the other ([`InOrder`]) or colour by
+/// colour on a thread pool; the result is the same bits either way.
+pub(in super::super) trait Schedule<M: Material> {
+    /// One sweep of `sweep` over `positions` in place; `staging` (one vector per vertex) is
+    /// free to use.
+    fn sweep(
+        sweep: &Sweep<'_, M>,
+        positions: &mut [Vec3],
+        staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    );
+}
+
+/// The vertex updates one after the other in the vertex order.
+pub(in super::super) struct InOrder;
+
+/// The vertex updates of each colour in parallel on the current rayon pool.
+#[cfg(feature = "rayon")]
+pub(in super::super) struct OnPool;
+
+/// The vertices a task of a parallel sweep updates: small enough to split the colours of
+/// small meshes over the threads, large enough to pay for a task.
+#[cfg(feature = "rayon")]
+const VERTEX_CHUNK: usize = 32;
+
+#[cfg(feature = "rayon")]
+impl<M: Material + Sync> Schedule<M> for OnPool {
+    #[inline]
+    fn sweep(
+        sweep: &Sweep<'_, M>,
+        positions: &mut [Vec3],
+        staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) {
+        sweep.run_on_pool(positions, staging, counts, line_search);
+    }
+}
+
+impl<M: Material> Schedule<M> for InOrder {
+    #[inline]
+    fn sweep(
+        sweep: &Sweep<'_, M>,
+        positions: &mut [Vec3],
+        _staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) {
+        sweep.run(positions, counts, line_search);
+    }
+}
+
+/// The corner positions of `corners`.
+#[inline(always)]
+fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
+    corners.map(|i| positions.get(i as usize).copied().unwrap_or(Vec3::ZERO))
+}
+
+impl<M: Material> Sweep<'_, M> {
+    /// One Gauss–Seidel sweep over the free vertices in colour order, in place.
+    fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) {
+        for &vertex in self.colour_runs().flatten() {
+            let i = vertex as usize;
+            if let Some(x) = self.updated(positions, i, counts, line_search)
+                && let Some(slot) = positions.get_mut(i)
+            {
+                *slot = x;
+            }
+        }
+    }
+
+    /// One sweep colour by colour on the current rayon pool: the updates of a colour, which
+    /// read only positions of other colours, are computed into `staging` in chunks of
+    /// [`VERTEX_CHUNK`] vertices, then written back; the same bits as [`run`](Self::run).
+    #[cfg(feature = "rayon")]
+    fn run_on_pool(
+        &self,
+        positions: &mut [Vec3],
+        staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) where
+        M: Sync,
+    {
+        use rayon::prelude::*;
+        for members in self.colour_runs() {
+            let staged = staging.get_mut(..members.len()).unwrap_or_default();
+            let read: &[Vec3] = positions;
+            let counted = staged
+                .par_chunks_mut(VERTEX_CHUNK)
+                .zip(members.par_chunks(VERTEX_CHUNK))
+                .map(|(out, chunk)| {
+                    let mut counted = SweepCounts::default();
+                    for (slot, &vertex) in out.iter_mut().zip(chunk) {
+                        let i = vertex as usize;
+                        let old = read.get(i).copied().unwrap_or(Vec3::ZERO);
+                        *slot = self
+                            .updated(read, i, &mut counted, line_search)
+                            .unwrap_or(old);
+                    }
+                    counted
+                })
+                .reduce(SweepCounts::default, SweepCounts::plus);
+            *counts = counts.plus(counted);
+            for (&vertex, &x) in members.iter().zip(&*staged) {
+                if let Some(slot) = positions.get_mut(vertex as usize) {
+                    *slot = x;
+                }
+            }
+        }
+    }
+
+    /// The colour runs of the vertex order: each colour's vertices, in order.
+    fn colour_runs(&self) -> impl Iterator<Item = &[u32]> + '_ {
+        let colour = |v: u32| self.colours.get(v as usize).copied();
+        let mut rest = self.order;
+        core::iter::from_fn(move || {
+            let first = colour(*rest.first()?);
+            let len = rest
+                .iter()
+                .position(|&v| colour(v) != first)
+                .unwrap_or(rest.len());
+            let (run, tail) = rest.split_at(len);
+            rest = tail;
+            Some(run)
+        })
+    }
+
+    /// The elements around `i`: index, corner, corner indices and rest data.
+    #[inline(always)]
+    fn elements(&self, i: usize) -> impl Iterator<Item = ([u32; 4], usize, &TetRest)> + '_ {
+        incident_elements(self.offsets, self.incident, i).filter_map(|(element, corner)| {
+            let corners = *self.tets.get(element)?;
+            Some((corners, corner, self.rest.get(element)?))
+        })
+    }
+
+    /// The local Newton update of vertex `i` (see [`vbd_step`]): its new position, or `None`
+    /// where it stays (pinned, skipped, stationary). Reads the positions of `i` and of the
+    /// vertices sharing an element with it, which have other colours.
+    fn updated(
+        &self,
+        positions: &[Vec3],
+        i: usize,
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) -> Option<Vec3> {
+        if self.pinned.get(i).copied().unwrap_or(false) {
+            return None;
+        }
+        let x = *positions.get(i)?;
+        let m = self.masses.get(i).copied().unwrap_or(0.0);
+        let x0 = self.start.get(i).copied().unwrap_or(x);
+        let y = match self.velocities.get(i) {
+            Some(&v) => x0 + v * self.h,
+            None => x0,
+        };
+        let weight = m * self.inertia;
+        let line_search = line_search && self.max_backtracks > 0;
+        let external = self.loads.force(i);
+        let fixed = self.loads.fixed(i);
+        let mut gradient = (x - y) * weight - self.gravity * m - external;
+        let mut hessian = Mat3::ZERO;
+        let mut elastic = 0.0;
+        // What the local energy can resolve: 64 eps sum_e V_e W_e-scale, the scale from the
+        // element block, tr(K_e) / |g_a|^2 ~ V_e times the elastic modulus (J).
+        let mut resolution = 0.0;
+        // One deformation gradient, stress and exact corner block per element: the force
+        // -V P g and the block V K(g) (no SVD; see `vertex_block`).
+        for (corners, corner, rest) in self.elements(i) {
+            let f = rest.deformation_gradient(gather(positions, corners));
+            let g = shape_gradient(rest, corner);
+            let (stress, stiffness) = self.material.corner_stress_and_stiffness(f, g);
+            gradient += stress * rest.volume;
+            hessian += stiffness * rest.volume;
+            if line_search {
+                elastic += rest.volume * self.material.energy_density(f);
+                let trace = stiffness.x_axis.x + stiffness.y_axis.y + stiffness.z_axis.z;
+                resolution += (trace * rest.volume).abs() / g.dot(g);
+            }
+        }
+        if fixed != 0 {
+            // The step on the free subspace exactly: the reduced system, its fixed rows and
+            // columns replaced by the identity and its fixed gradient components by zero.
+            gradient = gradient.axes_from(Vec3::ZERO, fixed);
+            let keep = Vec3::ONE.axes_from(Vec3::ZERO, fixed);
+            let unit = Vec3::ONE - keep;
+            // Rows, then columns.
+            hessian = Mat3::from_cols(
+                hessian.x_axis * keep,
+                hessian.y_axis * keep,
+                hessian.z_axis * keep,
+            );
+            hessian = Mat3::from_cols(
+                hessian.x_axis * keep.x + Vec3::X * unit.x,
+                hessian.y_axis * keep.y + Vec3::Y * unit.y,
+                hessian.z_axis * keep.z + Vec3::Z * unit.z,
+            );
+        }
+        let Some(VertexFactor {
+            cholesky: factor,
+            projected,
+        }) = VertexFactor::new(weight, &hessian)
+        else {
+            counts.skipped += 1;
+            return None;
+        };
+        counts.projected += u32::from(projected);
+        let mut step = factor.solve(-gradient);
+        if let Some(ground) = &self.ground
+            && ground.height(x + step) < 0.0
+        {
+            // The minimiser of the quadratic model on the plane n.(x + d) = offset:
+            // d = d0 - H^-1 n (n.d0 + height(x)) / (n.H^-1 n).
+            let towards = factor.solve(ground.normal);
+            let curvature = ground.normal.dot(towards);
+            let excess = ground.normal.dot(step) + ground.height(x);
+            step -= towards * (excess / curvature);
+        }
+        let step = step.axes_from(Vec3::ZERO, fixed);
+        let slope = gradient.dot(step);
+        if !(slope < 0.0 && step.is_finite()) {
+            // Stationary (g = 0) or no descent: nothing to gain here this sweep.
+            counts.skipped += u32::from(slope != 0.0);
+            return None;
+        }
+        let project = |p: Vec3| {
+            let mut p = p;
+            if let Some(ground) = &self.ground {
+                ground.project(&mut p);
+            }
+            let p = Point::pushed_out(p, self.colliders);
+            p.axes_from(x, fixed)
+        };
+        if !line_search {
+            return Some(project(x + step));
+        }
+        let resolution = RESOLUTION * resolution;
+        let mut alpha = 1.0;
+        for _ in 0..=self.max_backtracks {
+            let trial = project(x + step * alpha);
+            let moved = trial - x;
+            let mut trial_elastic = 0.0;
+            self.for_each_trial_element(positions, i, trial, |_, rest, f| {
+                trial_elastic += rest.volume * self.material.energy_density(f);
+            });
+            // The inertia and gravity change in a form without cancellation.
+            let change = 0.5 * weight * moved.dot(moved + (x - y) * 2.0)
+                - m * self.gravity.dot(moved)
+                - external.dot(moved)
+                + (trial_elastic - elastic);
+            // Armijo where the energy resolves the predicted decrease; below that, Hager and
+            // Zhang's approximate Armijo test from the two slopes (SIAM J. Optim. 2005), as
+            // the relaxation's line search does, with the trial's gradient computed only then.
+            let noise = resolution + ROUNDING * (elastic.abs() + trial_elastic.abs());
+            let sufficient = change <= self.armijo * alpha * slope
+                || (-alpha * slope <= noise && change <= noise && {
+                    let mut trial_gradient = (trial - y) * weight - self.gravity * m - external;
+                    self.for_each_trial_element(positions, i, trial, |corner, rest, f| {
+                        let g = shape_gradient(rest, corner);
+                        trial_gradient += self.material.first_piola(f) * g * rest.volume;
+                    });
+                    trial_gradient.dot(step) <= (2.0 * self.armijo - 1.0) * slope
+                });
+            if sufficient {
+                return Some(trial);
+            }
+            alpha *= self.backtrack;
+            counts.backtracks += 1;
+        }
+        counts.skipped += 1;
+        None
+    }
+
+    /// Calls `visit(corner, rest, f)` for every element around `i` with vertex `i` moved to
+    /// `trial`: its corner, rest data and deformation gradient there.
+    #[inline(always)]
+    fn for_each_trial_element(
+        &self,
+        positions: &[Vec3],
+        i: usize,
+        trial: Vec3,
+        mut visit: impl FnMut(usize, &TetRest, Mat3),
+    ) {
+        for (corners, corner, rest) in self.elements(i) {
+            let mut xs = gather(positions, corners);
+            if let Some(slot) = xs.get_mut(corner) {
+                *slot = trial;
+            }
+            visit(corner, rest, rest.deformation_gradient(xs));
+        }
+    }
+}
+
+impl<M: Material> Clone for Sweep<'_, M> {
+    #[inline]
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<M: Material> Copy for Sweep<'_, M> {}
+
+/// The sweep as a direction of the descent loop, run by schedule `S`, with the counts of its
+/// vertex updates and its rounding floor.
+pub(in super::super) struct VbdSweep<'s, M: Material, S> {
+    /// The mesh, topology and settings of the sweeps; the start positions, velocities and time
+    /// step come from the objective of each call (the loop's shifted coordinates), the ground
+    /// is given already shifted.
+    sweep: Sweep<'s, M>,
+    /// Whether every vertex update runs its line search (otherwise only the sweep after one
+    /// whose full steps the loop rejected).
+    line_search: bool,
+    /// Whether the next sweep runs the line search although `line_search` is false.
+    redo: bool,
+    /// Whether the last search's sweep ran the line search.
+    searched_safely: bool,
+    /// Sweeps redone with the line search.
+    pub redone: u32,
+    /// The rounding of the elastic energy, `64 eps sum V_e tr(K_e) / |g|^2` over the element
+    /// corners at the initial guess (J).
+    resolution: Real,
+    /// What the sweeps counted so far.
+    pub counts: SweepCounts,
+    floor: Real,
+    schedule: PhantomData<S>,
+}
+
+impl<'s, M: Material, S: Schedule<M>> VbdSweep<'s, M, S> {
+    /// The direction of the sweeps of `sweep` (its `start`, `velocities`, `h` and `inertia`
+    /// are ignored), each vertex update line-searched where `line_search`.
+    pub fn new(sweep: Sweep<'s, M>, line_search: bool) -> Self {
+        VbdSweep {
+            sweep,
+            line_search,
+            redo: false,
+            searched_safely: false,
+            redone: 0,
+            resolution: 0.0,
+            counts: SweepCounts::default(),
+            floor: 0.0,
+            schedule: PhantomData,
+        }
+    }
+
+    /// The sweep at the objective's start positions, velocities and time step.
+    fn at<'o>(&'o self, objective: &'o Objective<'_, TetElastic<'_, M>>) -> Sweep<'o, M> {
+        let h = objective.h;
+        Sweep {
+            start: objective.vertices.start,
+            velocities: objective.vertices.velocities,
+            h,
+            inertia: if h > 0.0 { 1.0 / (h * h) } else { 0.0 },
+            ..self.sweep
+        }
+    }
+}
+
+impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<'_, M, S> {
+    fn begin(&mut self, objective: &Objective<'_, TetElastic<'m, M>>, x: &[Vec3]) {
+        // The relaxation's estimate with the exact vertex blocks in place of the diagonal
+        // bounds: `eps/2 max |x| (sum_i |m_i/h^2 I + sum_e V_e K_e,ii|_F^2)^(1/2)`.
+        let sweep = self.at(objective);
+        let reach = x
+            .iter()
+            .fold(0.0, |a: Real, p| a.max(p.abs().max_element()));
+        let mut stiffness_squared = 0.0;
+        let mut resolution = 0.0;
+        for (i, (&m, pinned)) in sweep
+            .masses
+            .iter()
+            .zip(pinned_flags(sweep.pinned))
+            .enumerate()
+        {
+            if pinned {
+                continue;
+            }
+            let mut block = Mat3::from_diagonal(Vec3::splat(m * sweep.inertia));
+            for (corners, corner, rest) in sweep.elements(i) {
+                let f = rest.deformation_gradient(gather(x, corners));
+                let g = shape_gradient(rest, corner);
+                let (_, stiffness) = sweep.material.corner_stress_and_stiffness(f, g);
+                block += stiffness * rest.volume;
+                let trace = stiffness.x_axis.x + stiffness.y_axis.y + stiffness.z_axis.z;
+                resolution += (trace * rest.volume).abs() / g.dot(g);
+            }
+            let columns = [block.x_axis, block.y_axis, block.z_axis];
+            stiffness_squared += columns.iter().map(|c| c.dot(*c)).sum::<Real>();
+        }
+        self.floor = rounding_floor(reach, stiffness_squared);
+        // The energy of a nearly undeformed element is a difference of `O(mu V)` terms: its
+        // rounding, which the relative `sqrt(eps) |Phi|` of the loop misses when `Phi` is
+        // small, as the vertex line search estimates it.
+        self.resolution = RESOLUTION * resolution;
+    }
+
+    fn phi_resolution(&self) -> Real {
+        self.resolution
+    }
+
+    fn fall_back(&mut self) -> bool {
+        // The full steps did not lower `Phi` enough: redo the sweep with the line search.
+        let redo = !self.searched_safely && self.sweep.max_backtracks > 0;
+        if redo {
+            self.redo = true;
+            self.redone = self.redone.saturating_add(1);
+        }
+        redo
+    }
+
+    fn search(
+        &mut self,
+        objective: &Objective<'_, TetElastic<'m, M>>,
+        at: &Iterate<'_, Vec3>,
+        direction: &mut [Vec3],
+        _momentum: Option<Real>,
+        trial: TrialPoint<'_, Vec3>,
+        step: Real,
+    ) -> Result<Real, StepError> {
+        let sweep = self.at(objective);
+        let TrialPoint {
+            positions: swept,
+            gradient,
+        } = trial;
+        copy(swept, at.x);
+        // `direction` is free until the sweep is done: the parallel schedule stages there.
+        let mut counts = self.counts;
+        let line_search = self.line_search || self.redo;
+        S::sweep(&sweep, swept, direction, &mut counts, line_search);
+        self.counts = counts;
+        self.redo = false;
+        self.searched_safely = line_search;
+        for (d, (&s, &x)) in direction.iter_mut().zip(swept.iter().zip(at.x)) {
+            *d = s - x;
+        }
+        if step == 1.0 {
+            // The trial is the sweep's result itself (not `x + (s - x)`, which may round).
+            gradient.fill(Vec3::ZERO);
+        } else {
+            trial_pass(
+                &objective.frames,
+                objective.vertices.pinned,
+                (at.x, direction),
+                step,
+                TrialPoint {
+                    positions: swept,
+                    gradient,
+                },
+            );
+        }
+        Ok(slope_along(at.gradient, direction))
+    }
+
+    fn extrapolate(
+        &mut self,
+        objective: &Objective<'_, TetElastic<'m, M>>,
+        at: &Iterate<'_, Vec3>,
+        stepped: bool,
+        trial: TrialPoint<'_, Vec3>,
+        (step, omega): (Real, Real),
+    ) {
+        let sweep = self.at(objective);
+        let TrialPoint {
+            positions: older,
+            gradient: swept,
+        } = trial;
+        copy(swept, at.x);
+        // No buffer is free for the parallel schedule's staging here: the sequential sweep,
+        // which gives the same bits.
+        let mut counts = self.counts;
+        sweep.run(swept, &mut counts, self.line_search);
+        let floor = objective.frames.floor();
+        let rows = older.iter_mut().zip(swept.iter()).zip(at.x);
+        for (i, ((older, &s), &x)) in rows.enumerate() {
+            if sweep.pinned.get(i).copied().unwrap_or(false) {
+                *older = x;
+                continue;
+            }
+            let last_step = if stepped { x - *older } else { Vec3::ZERO };
+            let target = x + (s - x) * step + last_step * (omega - 1.0);
+            *older = sweep.loads.keep_fixed(i, floor.project(target), x);
+        }
+        swept.fill(Vec3::ZERO);
+        self.counts = counts;
+    }
+
+    fn rounding_floor(&self) -> Real {
+        self.floor
+    }
+}
