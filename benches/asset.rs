@@ -14,6 +14,9 @@
 //! criterion and prints the table from a few repetitions: a smoke test.
 
 mod common;
+// The tests' icosphere, so that the surface is written once.
+#[path = "../tests/common/shapes.rs"]
+mod shapes;
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
@@ -37,7 +40,7 @@ struct Inputs {
 
 impl Inputs {
     fn new() -> Inputs {
-        let (surface, triangles) = icosphere(0.1, 5);
+        let (surface, triangles) = shapes::icosphere(Vec3::ZERO, 0.1, 5);
         let body = mesh(&surface, &triangles);
         let margin = body.grid.cell_size * 3f32.sqrt();
         let embedded = embed_points_vec(&body.positions, &body.tets, &surface, margin).unwrap();
@@ -64,66 +67,6 @@ impl Inputs {
 fn mesh(surface: &[Vec3], triangles: &[[u32; 3]]) -> VoxelMesh {
     let grid = VoxelGrid::with_resolution(surface, 10).unwrap();
     voxel_mesh(surface, triangles, &grid, &VoxelOptions::default()).unwrap()
-}
-
-/// An icosahedron subdivided `levels` times on the sphere of `radius` about the origin.
-fn icosphere(radius: f32, levels: u32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let mut points: Vec<Vec3> = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ]
-    .iter()
-    .map(|&p| Vec3::from_array(p).normalize())
-    .collect();
-    let mut triangles: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut midpoints = std::collections::HashMap::new();
-        let mut finer = Vec::with_capacity(triangles.len() * 4);
-        for &[a, b, c] in &triangles {
-            let mut midpoint = |u: u32, v: u32| {
-                *midpoints.entry((u.min(v), u.max(v))).or_insert_with(|| {
-                    points.push((points[u as usize] + points[v as usize]).normalize());
-                    (points.len() - 1) as u32
-                })
-            };
-            let (ab, bc, ca) = (midpoint(a, b), midpoint(b, c), midpoint(c, a));
-            finer.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        triangles = finer;
-    }
-    (points.iter().map(|&p| p * radius).collect(), triangles)
 }
 
 fn deform(inputs: &Inputs, embedding: &Embedding<'_>, render: &mut [Vec3]) {
