@@ -46,7 +46,8 @@ use std::time::{Duration, Instant};
 use scenario::{NoMeter, Records, double, single};
 
 const TARGET: &str = "thumbv7em-none-eabihf";
-/// Far above the ~20 s a run takes here; a hung emulator must not hang the test suite.
+/// Far above the ~80 s a run took here (machine loaded); a hung emulator must not hang the
+/// test suite (a fault or a stack overflow makes the firmware exit at once).
 const QEMU_TIMEOUT: Duration = Duration::from_secs(600);
 /// The record whose expected digest the corruption check flips.
 const CORRUPTED_RECORD: &str = "f32 forces StVK direct";

@@ -8,8 +8,9 @@
 //! the host's does nothing, the firmware's counts instructions and stack.
 //!
 //! Everything here is `no_std` and allocation-free: the drop body lives in a caller-owned
-//! `DropBody` of each precision and the descent solvers' scratch in a `DescentScratch` (statics
-//! in the firmware), Newton's cached element Hessians on the stack.
+//! `DropBody` of each precision and the descent solvers' scratch in a `DescentScratch`, the
+//! collider scene's `softfem::body::Body` in a caller-owned `Option<ColliderBody>` (statics in
+//! the firmware), Newton's cached element Hessians on the stack.
 
 /// The most records one run produces (both precisions).
 pub const MAX_RECORDS: usize = 128;
