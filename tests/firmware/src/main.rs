@@ -2,10 +2,12 @@
 //!
 //! Runs the workload of `scenario.rs` (SVDs of fixed matrices, forces and energies of every
 //! model on a small box, explicit, relaxation, Newton and VBD steps of a heapless body dropped
-//! on the ground) in both precisions on QEMU's `mps2-an386` board, compares every result with
+//! on the ground, and softfem's owning `Body` in fixed storage dropped onto a sphere and a
+//! capsule) in both precisions on QEMU's `mps2-an386` board, compares every result with
 //! the values the host computed from the same source (`$OUT_DIR/expected.rs`, bit for bit),
 //! measures instructions and stack, prints a report over semihosting and exits with status 0
-//! only if every record matched.
+//! only if every record matched, no measured call ran the stack down to the end of `.bss` and
+//! no fault occurred (a hard fault prints its pc and exits at once).
 //!
 //! Panic-freedom is checked at link time: the panic handler calls a function that is defined
 //! nowhere, so the release build links only if the optimiser removed every panic path from
@@ -27,7 +29,7 @@ use core::arch::asm;
 use core::hint::black_box;
 use core::panic::PanicInfo;
 
-use cortex_m_rt::entry;
+use cortex_m_rt::{ExceptionFrame, entry, exception};
 use cortex_m_semihosting::debug;
 
 use scenario::{Meter, Records, double, single};
@@ -269,10 +271,8 @@ fn stack_pointer() -> usize {
     sp
 }
 
-/// The word painted below the stack pointer before a measured call.
+/// The word painted below the stack pointer before a measured call, down to the end of `.bss`.
 const PAINT: u32 = 0x5afe_c0de;
-/// How far below the caller's stack pointer the painting reaches.
-const PAINT_WINDOW: usize = 48 * 1024;
 
 /// Calls `work` out of line, so that its frame lies below the measuring function's stack pointer.
 #[inline(never)]
@@ -302,8 +302,11 @@ struct FirmwareMeter {
     calibration: (u64, u64),
     /// Ticks of measuring an empty call (subtracted from every call).
     overhead: u32,
-    /// Measurements that could not be recorded (table full, window exceeded).
+    /// Measurements that could not be recorded (table full, call too long).
     lost: u32,
+    /// The first section whose call used all the stack down to the end of `.bss`: the stack
+    /// may have overwritten statics, and the run fails.
+    overflowed: Option<&'static str>,
 }
 
 impl FirmwareMeter {
@@ -323,6 +326,7 @@ impl FirmwareMeter {
             calibration: (1, 1),
             overhead: 0,
             lost: 0,
+            overflowed: None,
         }
     }
 
@@ -347,11 +351,13 @@ impl FirmwareMeter {
         ticks.saturating_mul(instructions) / calibration_ticks.max(1)
     }
 
-    /// Measures `work` and returns its ticks (minus the overhead) and stack use in bytes.
+    /// Measures `work` and returns its ticks (minus the overhead) and stack use in bytes
+    /// (`usize::MAX` if it reached the end of `.bss`). The whole free stack is painted, so a
+    /// call that overflows it cannot pass unseen.
     #[inline(always)]
     fn run<R>(&self, work: impl FnOnce() -> R) -> (R, u32, usize) {
         let top = stack_pointer() & !3;
-        let bottom = stack_floor().max(top.saturating_sub(PAINT_WINDOW));
+        let bottom = stack_floor();
         let words = top.saturating_sub(bottom) / 4;
         let base = bottom as *mut u32;
         for i in 0..words {
@@ -395,6 +401,9 @@ impl FirmwareMeter {
 impl Meter for FirmwareMeter {
     fn measure<R>(&mut self, name: &'static str, work: impl FnOnce() -> R) -> R {
         let (result, spent, stack) = self.run(work);
+        if stack == usize::MAX && self.overflowed.is_none() {
+            self.overflowed = Some(name);
+        }
         // A call this long may have wrapped the 32-bit counter more than once.
         let reliable = spent < u32::MAX / 2 && stack != usize::MAX;
         match self.section(name) {
@@ -429,6 +438,10 @@ static mut BODY_F64: double::DropBody = double::DropBody::EMPTY;
 static mut DESCENT_F32: single::DescentScratch = single::DescentScratch::EMPTY;
 static mut DESCENT_F64: double::DescentScratch = double::DescentScratch::EMPTY;
 static mut RECORDS: Records = Records::new();
+/// softfem's owning bodies of the collider scene: `None` until built (a `Body` has no `const`
+/// constructor), in statics because the f64 one is tens of KB.
+static mut OWNED_F32: Option<single::ColliderBody> = None;
+static mut OWNED_F64: Option<double::ColliderBody> = None;
 
 /// Compares the records with [`EXPECTED`], one line each; returns the number of mismatches.
 fn compare(records: &Records) -> u64 {
@@ -481,7 +494,8 @@ fn compare(records: &Records) -> u64 {
     failed
 }
 
-/// Prints every measured section, then the f64/f32 ratio of each pair.
+/// Prints every measured section, then the f64/f32 ratios of each pair (per call, and per unit
+/// of work).
 fn report_measurements(meter: &FirmwareMeter) {
     let sections = meter.sections.get(..meter.len).unwrap_or(&[]);
     for section in sections {
@@ -518,7 +532,22 @@ fn report_measurements(meter: &FirmwareMeter) {
         let mut line = Line::new();
         line.str("f64/f32 ").str(rest).str(": ");
         line.fixed(per_call(double), per_call(single), 2)
-            .str("x instructions, stack ");
+            .str("x instructions per call, ");
+        // Per unit of work where both count the same unit (the solvers' iteration counts
+        // differ between the precisions, so per call and per unit differ).
+        if single.units > 0 && double.units > 0 && single.unit == double.unit {
+            let (d, s) = (
+                meter.instructions(double.ticks),
+                meter.instructions(single.ticks),
+            );
+            line.fixed(
+                d.saturating_mul(single.units),
+                s.saturating_mul(double.units),
+                2,
+            );
+            line.str("x per ").str(single.unit).str(", ");
+        }
+        line.str("stack ");
         line.uint(single.max_stack as u64).str(" B -> ");
         line.uint(double.max_stack as u64).str(" B").emit();
     }
@@ -584,6 +613,21 @@ fn report_descent_ram<Vec3, Mat3, TetHessian>(precision: &str, descent_bytes: us
         .emit();
 }
 
+/// Prints the size of softfem's owning body of the collider scene (a static here).
+fn report_body_ram(precision: &str, bytes: usize, vertices: usize, tets: usize) {
+    let mut line = Line::new();
+    line.str("ram ")
+        .str(precision)
+        .str(": softfem::body::Body<FixedStorage<");
+    line.uint(vertices as u64)
+        .str(", ")
+        .uint(tets as u64)
+        .str(">, StableNeoHookean> ");
+    line.uint(bytes as u64)
+        .str(" B (static, every solver's scratch)")
+        .emit();
+}
+
 /// Measures `libm::sqrtf`, the software square root the f32 math shim used to call.
 fn report_libm_sqrt(meter: &mut FirmwareMeter) {
     let mut x = black_box(1.5f32);
@@ -620,17 +664,19 @@ fn main() -> ! {
     // these are their only references. (Through raw pointers, as the 2024 edition requires for
     // `static mut`; hence the lint.)
     #[allow(clippy::deref_addrof)]
-    let (records, body32, body64, descent32, descent64) = unsafe {
+    let (records, body32, body64, descent32, descent64, owned32, owned64) = unsafe {
         (
             &mut *(&raw mut RECORDS),
             &mut *(&raw mut BODY_F32),
             &mut *(&raw mut BODY_F64),
             &mut *(&raw mut DESCENT_F32),
             &mut *(&raw mut DESCENT_F64),
+            &mut *(&raw mut OWNED_F32),
+            &mut *(&raw mut OWNED_F64),
         )
     };
-    single::run(&mut meter, records, body32, descent32);
-    double::run(&mut meter, records, body64, descent64);
+    single::run(&mut meter, records, body32, descent32, owned32);
+    double::run(&mut meter, records, body64, descent64, owned64);
     report_libm_sqrt(&mut meter);
 
     let failed = compare(records);
@@ -652,11 +698,32 @@ fn main() -> ! {
         softfem::glam::DMat3,
         softfem::f64::element::TetHessian,
     >("f64", core::mem::size_of::<double::DescentScratch>());
+    report_body_ram(
+        "f32",
+        core::mem::size_of::<single::ColliderBody>(),
+        single::COLLIDER_VERTICES,
+        single::COLLIDER_TETS,
+    );
+    report_body_ram(
+        "f64",
+        core::mem::size_of::<double::ColliderBody>(),
+        double::COLLIDER_VERTICES,
+        double::COLLIDER_TETS,
+    );
     if meter.lost > 0 {
         Line::new()
             .str("note: ")
             .uint(u64::from(meter.lost))
-            .str(" measurements lost (table full, call too long or stack window exceeded)")
+            .str(" measurements lost (table full or call too long)")
+            .emit();
+    }
+    let mut failed = failed;
+    if let Some(section) = meter.overflowed {
+        failed += 1;
+        Line::new()
+            .str("FAIL stack: a call of ")
+            .str(section)
+            .str(" used all the stack down to the end of .bss")
             .emit();
     }
     let total = records.as_slice().len() as u64;
@@ -674,6 +741,21 @@ fn main() -> ! {
     } else {
         debug::EXIT_FAILURE
     });
+    halt()
+}
+
+/// A fault (a bus fault, such as the stack running below the RAM, or an undefined
+/// instruction) fails the run at once, naming the faulting instruction, instead of leaving the
+/// emulator spinning in cortex-m-rt's default handler until the host test's timeout.
+#[exception]
+unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+    let mut line = Line::new();
+    line.str("FAIL hard fault at pc ")
+        .hex(u64::from(frame.pc()))
+        .str(", lr ")
+        .hex(u64::from(frame.lr()));
+    line.emit();
+    debug::exit(debug::EXIT_FAILURE);
     halt()
 }
 

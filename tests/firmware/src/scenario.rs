@@ -8,8 +8,9 @@
 //! the host's does nothing, the firmware's counts instructions and stack.
 //!
 //! Everything here is `no_std` and allocation-free: the drop body lives in a caller-owned
-//! `DropBody` of each precision and the descent solvers' scratch in a `DescentScratch` (statics
-//! in the firmware), Newton's cached element Hessians on the stack.
+//! `DropBody` of each precision and the descent solvers' scratch in a `DescentScratch`, the
+//! collider scene's `softfem::body::Body` in a caller-owned `Option<ColliderBody>` (statics in
+//! the firmware), Newton's cached element Hessians on the stack.
 
 /// The most records one run produces (both precisions).
 pub const MAX_RECORDS: usize = 128;
@@ -215,14 +216,15 @@ macro_rules! precision {
         pub mod $module {
             use core::hint::black_box;
 
+            use $($softfem)::+::body::{self as owning, FixedStorage, Solver, StepReport};
             use $($softfem)::+::element::{TetHessian, TetRest};
             use $($softfem)::+::generate::{BoxSplit, fill_box};
             use $($softfem)::+::MeshError;
             use $($softfem)::+::material::{NeoHookean, StVK, StableNeoHookean};
             use $($softfem)::+::mesh::TetMesh;
             use $($softfem)::+::step::{
-                ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonScratchLen,
-                NewtonSettings, RelaxScratch, RelaxSettings, TetElastic, VbdScratch, VbdSettings,
+                Collider, ExplicitScratch, ExplicitSettings, Ground, NewtonReport, NewtonScratch,
+                NewtonScratchLen, NewtonSettings, RelaxReport, RelaxScratch, RelaxSettings, TetElastic, VbdScratch, VbdSettings,
                 newton_scratch_len, stable_time_step, vbd_index_scratch_len, vbd_scratch_len,
             };
             use $($softfem)::+::svd::Svd3;
@@ -246,7 +248,11 @@ macro_rules! precision {
                 use $($softfem)::+::svd::Svd3;
                 use $($softfem)::+::types::{Mat3, Real, Vec3};
                 use $($softfem)::+::element::TetRest;
-                use $($softfem)::+::{MeshError, StepError};
+                use $($softfem)::+::{BodyError, MeshError, StepError};
+                use $($softfem)::+::body::StepReport;
+                use $($softfem)::+::step::Collider;
+
+                use super::ColliderBody;
 
                 /// [`svd3`](fn@$($softfem)::+::svd::svd3).
                 #[inline(never)]
@@ -329,6 +335,30 @@ macro_rules! precision {
                 ) -> Result<VbdReport, StepError> {
                     $($softfem)::+::step::vbd_step(model, masses, &[], settings, positions, velocities, scratch)
                 }
+
+                /// `Body::from_box` of the body dropped onto the colliders, written into `slot`
+                /// (a static in the firmware).
+                #[inline(never)]
+                pub fn body_new(
+                    slot: &mut Option<ColliderBody>,
+                    min: Vec3,
+                    max: Vec3,
+                    density: Real,
+                    material: StableNeoHookean,
+                ) -> Result<(), BodyError> {
+                    *slot = Some(ColliderBody::from_box(min, max, super::COLLIDER_CELLS, density, material)?);
+                    Ok(())
+                }
+
+                /// `Body::step_with_colliders` of that body, whichever its solver.
+                #[inline(never)]
+                pub fn body_step(
+                    body: &mut ColliderBody,
+                    dt: Real,
+                    colliders: &[Collider<'_>],
+                ) -> Result<StepReport, StepError> {
+                    body.step_with_colliders(dt, colliders)
+                }
             }
 
             /// Everything one body needs, with capacity fixed at compile time: `V` vertices,
@@ -410,6 +440,25 @@ macro_rules! precision {
                     vbd_indices: [0; vbd_index_scratch_len(DROP_VERTICES, DROP_TETS)],
                 };
             }
+
+            /// Cells along x, y and z of the cube dropped onto the colliders: one layer of 2 x 2
+            /// cubes, the bottom face a 3 x 3 grid of vertices. (Two layers, 27 vertices, do not
+            /// fit: `Body::from_box` of `FixedStorage<27, 40>` takes 170 KB of stack in f64
+            /// here, about five copies of the 33 KB body, more than the RAM the statics leave.)
+            pub const COLLIDER_CELLS: [usize; 3] = [2, 1, 2];
+            /// Its vertices: 3 x 2 x 3.
+            pub const COLLIDER_VERTICES: usize = (COLLIDER_CELLS[0] + 1) * (COLLIDER_CELLS[1] + 1) * (COLLIDER_CELLS[2] + 1);
+            /// Its tetrahedra: five per cube (`Body::from_box` splits by `BoxSplit::Alternating5`).
+            pub const COLLIDER_TETS: usize = COLLIDER_CELLS[0] * COLLIDER_CELLS[1] * COLLIDER_CELLS[2] * 5;
+            /// softfem's owning body in fixed storage, sized for that cube. `FixedStorage` holds
+            /// the scratch of every solver (Newton's `TetHessian`s included), so this is the
+            /// largest static of the firmware per vertex.
+            pub type ColliderBody = owning::Body<FixedStorage<COLLIDER_VERTICES, COLLIDER_TETS>, StableNeoHookean>;
+            /// Explicit steps (60 Hz) of the cube on the colliders.
+            pub const COLLIDER_EXPLICIT_STEPS: u32 = 30;
+            /// Implicit steps (60 Hz, the relaxation) of the cube on the colliders, from the same
+            /// start.
+            pub const COLLIDER_RELAX_STEPS: u32 = 20;
 
             /// Explicit steps of the drop.
             pub const EXPLICIT_STEPS: u32 = 300;
@@ -642,7 +691,7 @@ macro_rules! precision {
                 }
             }
 
-            fn state_digest<const V: usize>(positions: &[Vec3; V], velocities: &[Vec3; V]) -> Digest {
+            fn state_digest(positions: &[Vec3], velocities: &[Vec3]) -> Digest {
                 let mut digest = Digest::new();
                 for (x, v) in positions.iter().zip(velocities) {
                     vec3(&mut digest, *x);
@@ -739,11 +788,7 @@ macro_rules! precision {
                         Ok(report) => {
                             iterations += u64::from(report.iterations);
                             meter.units(concat!($prefix, " relax_step"), "vertex iteration", DROP_VERTICES as u64 * u64::from(report.iterations));
-                            digest.u64(u64::from(report.iterations));
-                            digest.u64(u64::from(report.energy_evaluations));
-                            digest.u64(u64::from(report.converged));
-                            real(&mut digest, report.final_residual);
-                            real(&mut digest, report.phi);
+                            relax_report(&mut digest, &report);
                         }
                         Err(_) => digest.u64(u64::MAX),
                     }
@@ -788,8 +833,11 @@ macro_rules! precision {
                 }
             }
 
-            /// [`DESCENT_STEPS`] Newton steps of the drop from rest.
+            /// [`DESCENT_STEPS`] Newton steps of the drop from rest. Never inlined: its cached
+            /// `TetHessian`s (58 KB in f64) must leave the stack when it returns, not stay in
+            /// [`run`]'s frame while [`on_colliders`] builds its body.
             #[allow(clippy::too_many_arguments)]
+            #[inline(never)]
             fn newton_drop(
                 meter: &mut impl Meter,
                 records: &mut Records,
@@ -827,13 +875,7 @@ macro_rules! precision {
                             newton += u64::from(report.newton_iterations);
                             cg += u64::from(report.cg_iterations);
                             meter.units(concat!($prefix, " newton_step"), "vertex Newton iteration", DROP_VERTICES as u64 * u64::from(report.newton_iterations));
-                            for count in [report.newton_iterations, report.cg_iterations, report.energy_evaluations, report.backtracks] {
-                                digest.u64(u64::from(count));
-                            }
-                            digest.u64(u64::from(report.converged) | u64::from(report.stagnated) << 1);
-                            for value in [report.initial_residual, report.residual, report.target, report.rounding_floor, report.phi] {
-                                real(digest, value);
-                            }
+                            newton_report(digest, &report);
                         }
                         Err(_) => digest.u64(u64::MAX),
                     }
@@ -845,6 +887,28 @@ macro_rules! precision {
                 let mut count = Digest::new();
                 count.u64(cg);
                 push(records, concat!($prefix, " newton drop, CG iterations"), count, cg as Real);
+            }
+
+            /// Mixes every field of a relaxation step's report into `digest`.
+            fn relax_report(digest: &mut Digest, report: &RelaxReport) {
+                for count in [report.iterations, report.energy_evaluations, report.backtracks, report.restarts] {
+                    digest.u64(u64::from(count));
+                }
+                digest.u64(u64::from(report.converged) | u64::from(report.stagnated) << 1);
+                for value in [report.initial_residual, report.final_residual, report.phi, report.rounding_floor] {
+                    real(digest, value);
+                }
+            }
+
+            /// Mixes every field of a Newton step's report into `digest`.
+            fn newton_report(digest: &mut Digest, report: &NewtonReport) {
+                for count in [report.newton_iterations, report.cg_iterations, report.energy_evaluations, report.backtracks] {
+                    digest.u64(u64::from(count));
+                }
+                digest.u64(u64::from(report.converged) | u64::from(report.stagnated) << 1);
+                for value in [report.initial_residual, report.residual, report.target, report.rounding_floor, report.phi] {
+                    real(digest, value);
+                }
             }
 
             /// [`DESCENT_STEPS`] Vertex Block Descent steps of the drop from rest.
@@ -902,11 +966,160 @@ macro_rules! precision {
                 push(records, concat!($prefix, " vbd drop, sweeps"), count, sweeps as Real);
             }
 
+            /// The sphere and the capsule the cube of [`on_colliders`] lands on: the sphere's top
+            /// under the middle of the cube's bottom edge at x = -5 cm, the capsule (along z)
+            /// under the whole edge at x = +5 cm, both tops at y = 5 cm, friction 0.5.
+            fn colliders() -> [Collider<'static>; 2] {
+                let (radius, top) = (0.02, 0.05);
+                [
+                    Collider::sphere(Vec3::new(-0.05, 0.0, 0.0), top).with_friction(0.5),
+                    Collider::capsule(Vec3::new(0.05, top - radius, -0.1), Vec3::new(0.05, top - radius, 0.1), radius).with_friction(0.5),
+                ]
+            }
+
+            /// The least signed distance (m) of any vertex to any collider: 0 for a body resting
+            /// on them, negative inside one.
+            pub fn clearance(positions: &[Vec3]) -> Real {
+                let colliders = colliders();
+                positions
+                    .iter()
+                    .flat_map(|&x| colliders.iter().map(move |c| c.distance(x)))
+                    .fold(Real::INFINITY, Real::min)
+            }
+
+            /// One solver's run in [`on_colliders`]: what it measures and records.
+            struct ColliderRun {
+                solver: Solver,
+                steps: u32,
+                section: &'static str,
+                unit: &'static str,
+                /// The records of the state after half the steps and after all of them.
+                labels: [&'static str; 2],
+                /// The records of the summed substeps, or of the relaxation's iterations and
+                /// converged steps ("": none).
+                counts: [&'static str; 2],
+            }
+
+            /// A 10 cm jelly cube (stable neo-Hookean, E = 50 kPa; 18 vertices, 20 tetrahedra),
+            /// softfem's owning `Body` in
+            /// fixed storage ([`ColliderBody`], built in `slot`), dropped from 5 cm onto a sphere
+            /// and a capsule ([`colliders`]) and stepped at 60 Hz by `Body::step_with_colliders`:
+            /// explicitly (substeps of half the stable step) and, rebuilt at rest, by implicit
+            /// Euler (the relaxation, the stepper the README recommends for soft bodies at
+            /// display rates).
+            #[inline(never)]
+            fn on_colliders(meter: &mut impl Meter, records: &mut Records, slot: &mut Option<ColliderBody>) {
+                let material = StableNeoHookean::from_young_poisson(black_box(5.0e4), black_box(0.4));
+                let Ok(material) = material else {
+                    push(records, concat!($prefix, " body setup"), Digest::new(), Real::NAN);
+                    return;
+                };
+                let colliders = colliders();
+                let (low, high) = (Vec3::new(-0.05, 0.1, -0.05), Vec3::new(0.05, 0.2, 0.05));
+                let explicit = ColliderRun {
+                    solver: Solver::Explicit {
+                        settings: ExplicitSettings::new(1.0).with_damping(2.0),
+                        stable_fraction: Some(0.5),
+                    },
+                    steps: COLLIDER_EXPLICIT_STEPS,
+                    section: concat!($prefix, " body explicit step"),
+                    unit: "vertex substep",
+                    labels: [
+                        concat!($prefix, " body explicit, step 15 (clearance)"),
+                        concat!($prefix, " body explicit, step 30 (clearance)"),
+                    ],
+                    counts: [concat!($prefix, " body explicit, substeps"), ""],
+                };
+                // The drop's relaxation settings (Chebyshev-accelerated, tolerance 1e-3).
+                let relax = ColliderRun {
+                    solver: Solver::Relax(RelaxSettings::new(1.0).with_tolerance(1e-3, 100).with_chebyshev(0.99, 2.0, 0)),
+                    steps: COLLIDER_RELAX_STEPS,
+                    section: concat!($prefix, " body relax step"),
+                    unit: "vertex iteration",
+                    labels: [
+                        concat!($prefix, " body relax, step 10 (clearance)"),
+                        concat!($prefix, " body relax, step 20 (clearance)"),
+                    ],
+                    counts: [
+                        concat!($prefix, " body relax, iterations"),
+                        concat!($prefix, " body relax, converged steps"),
+                    ],
+                };
+                for (index, run) in [explicit, relax].into_iter().enumerate() {
+                    // Each run from rest: the body is built afresh.
+                    let built = meter.measure(concat!($prefix, " Body::from_box"), || {
+                        pieces::body_new(slot, low, high, 1000.0, material)
+                    });
+                    let (Ok(()), Some(body)) = (built, slot.as_mut()) else {
+                        push(records, concat!($prefix, " body build"), Digest::new(), Real::NAN);
+                        return;
+                    };
+                    body.set_gravity(Vec3::new(0.0, -9.81, 0.0));
+                    if index == 0 {
+                        let dt = body.stable_time_step().unwrap_or(Real::NAN);
+                        let mut digest = Digest::new();
+                        for m in body.masses() {
+                            real(&mut digest, *m);
+                        }
+                        real(&mut digest, dt);
+                        push(records, concat!($prefix, " body masses and stable dt"), digest, dt);
+                    }
+                    if body.set_solver(run.solver).is_err() {
+                        push(records, concat!($prefix, " body solver"), Digest::new(), Real::NAN);
+                        return;
+                    }
+                    let vertices = body.vertex_count() as u64;
+                    let mut digest = Digest::new();
+                    let mut counts = [0u64; 2];
+                    for step in 1..=run.steps {
+                        let report = meter.measure(run.section, || pieces::body_step(body, 1.0 / 60.0, &colliders));
+                        let work = match report {
+                            Ok(StepReport::Explicit(report)) => {
+                                digest.u64(u64::from(report.substeps));
+                                digest.u64(report.ground_contacts as u64);
+                                real(&mut digest, report.kinetic_energy);
+                                counts[0] += u64::from(report.substeps);
+                                report.substeps
+                            }
+                            Ok(StepReport::Relax(report)) => {
+                                relax_report(&mut digest, &report);
+                                counts[0] += u64::from(report.iterations);
+                                counts[1] += u64::from(report.converged);
+                                report.iterations
+                            }
+                            Ok(_) => {
+                                digest.u64(u64::MAX - 1);
+                                0
+                            }
+                            Err(_) => {
+                                digest.u64(u64::MAX);
+                                0
+                            }
+                        };
+                        meter.units(run.section, run.unit, vertices * u64::from(work));
+                        if step == run.steps / 2 || step == run.steps {
+                            let state = state_digest(body.positions(), body.velocities());
+                            digest.u64(state.finish());
+                            let label = if step == run.steps { run.labels[1] } else { run.labels[0] };
+                            push(records, label, digest, clearance(body.positions()));
+                        }
+                    }
+                    for (label, count) in run.counts.into_iter().zip(counts) {
+                        if !label.is_empty() {
+                            let mut digest = Digest::new();
+                            digest.u64(count);
+                            push(records, label, digest, count as Real);
+                        }
+                    }
+                }
+            }
+
             /// The whole workload in this precision.
-            pub fn run(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody, descent: &mut DescentScratch) {
+            pub fn run(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody, descent: &mut DescentScratch, owned: &mut Option<ColliderBody>) {
                 svds(meter, records);
                 forces(meter, records);
                 drop(meter, records, body, descent);
+                on_colliders(meter, records, owned);
             }
         }
     };
