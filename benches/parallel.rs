@@ -7,6 +7,10 @@
 //!   kernel, the partitioned scheme run piece by piece on this thread
 //!   (`TetPartition::add_elastic_forces`: its one-thread cost), and `parallel::add_elastic_forces`
 //!   on each pool.
+//! * `fused pass`: the relaxation's fused energy-and-force pass (stable neo-Hookean) at 105k
+//!   tets: `ElasticEnergy::energy_and_add_forces` of `TetElastic`, the partitioned scheme piece
+//!   by piece on this thread (`TetPartition::energy_and_add_forces`) and
+//!   `parallel::energy_and_add_forces` on each pool.
 //! * `explicit step`: one `step_explicit` of stable neo-Hookean (half the proven stable step, the
 //!   box falling from rest) at 105k tets, on `TetElastic` and on `ParallelTetElastic`.
 //! * `relaxation iteration`: `relax_step` (1/60 s, Chebyshev defaults, tolerance 0 so it runs its
@@ -227,6 +231,80 @@ fn force_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) 
                     )
                 })
                 .unwrap();
+                black_box(&forces);
+            }),
+        });
+    }
+    variants
+}
+
+/// The fused energy-and-force pass of stable neo-Hookean (the relaxation's) on `scene`:
+/// sequential, pieces on this thread, then each pool. Every variant checks its energy is finite
+/// (beyond the material's range the pass computes nothing).
+fn fused_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) -> Vec<Variant> {
+    let (body, _) = scene.stable_bodies(None);
+    let material = body.material;
+    let (partition, x) = (scene.partition, scene.positions);
+    let (nv, ne) = (scene.mesh.vertex_count(), scene.mesh.element_count());
+    let mut forces = vec![Vec3::ZERO; nv];
+    let mut variants = vec![Variant {
+        label: on(0),
+        threads: 0,
+        run: Box::new(move || {
+            forces.fill(Vec3::ZERO);
+            let energy = body
+                .energy_and_add_forces(black_box(x), &mut forces)
+                .unwrap();
+            assert!(energy.is_finite());
+            black_box(&forces);
+        }),
+    }];
+    let scratch = move || {
+        (
+            vec![Vec3::ZERO; nv],
+            vec![[Vec3::ZERO; 4]; ne],
+            vec![0.0; ne],
+        )
+    };
+    let (mut forces, element_forces, mut energies) = scratch();
+    variants.push(Variant {
+        label: "partitioned, pieces on this thread".to_owned(),
+        threads: 1,
+        run: Box::new(move || {
+            forces.fill(Vec3::ZERO);
+            let energy = partition
+                .energy_and_add_forces(
+                    &material,
+                    black_box(x),
+                    &mut forces,
+                    &element_forces,
+                    &mut energies,
+                )
+                .unwrap();
+            assert!(energy.is_finite());
+            black_box(&forces);
+        }),
+    });
+    for &(threads, pool) in pools {
+        let (mut forces, mut element_forces, mut energies) = scratch();
+        variants.push(Variant {
+            label: on(threads),
+            threads,
+            run: Box::new(move || {
+                forces.fill(Vec3::ZERO);
+                let energy = pool
+                    .install(|| {
+                        softfem::parallel::energy_and_add_forces(
+                            &partition,
+                            &material,
+                            black_box(x),
+                            &mut forces,
+                            &mut element_forces,
+                            &mut energies,
+                        )
+                    })
+                    .unwrap();
+                assert!(energy.is_finite());
                 black_box(&forces);
             }),
         });
@@ -552,6 +630,15 @@ fn main() {
     }
     let scene = &scenes[0];
     let tets = scene.mesh.element_count();
+    let mut variants = fused_variants(scene, &pools);
+    let seconds = time(&mut variants, &plan);
+    rows.extend(report(
+        "fused energy-and-force pass",
+        tets,
+        &variants,
+        &seconds,
+        PerRun::ForcePass,
+    ));
 
     let (body, _) = scene.stable_bodies(None);
     let mut variants = vec![explicit_variant(on(0), 0, body, scene)];

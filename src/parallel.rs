@@ -107,6 +107,12 @@ pub fn elastic_energy<M: Material + Sync>(
 /// returns the energy (J) and adds the forces (N) into `forces`, with the sequential bits.
 /// Beyond the material's range the energy is infinite and `forces` is left alone, as there.
 ///
+/// The owner-computes form ([`TetPartition::energy_and_add_forces_owned`]: one task per vertex
+/// piece, no gather), each piece writing the energies of its
+/// [`energy_piece`](TetPartition::energy_piece) into `energies` (one per element), which are
+/// then summed on the calling thread in the sequential order. `element_forces` is checked as
+/// by the other passes but not used.
+///
 /// # Errors
 /// As [`TetPartition::check_fused`].
 pub fn energy_and_add_forces<M: Material + Sync>(
@@ -120,15 +126,22 @@ pub fn energy_and_add_forces<M: Material + Sync>(
     if !partition.check_fused(material, positions, forces, element_forces, energies)? {
         return Ok(Real::INFINITY);
     }
-    let chunk = partition.element_chunk();
-    element_forces
-        .par_chunks_mut(chunk)
-        .zip(energies.par_chunks_mut(chunk))
+    let (vertex_chunk, energy_chunk) = (partition.vertex_chunk(), partition.energy_chunk());
+    // The last vertex pieces may have no energy piece: an empty slice each.
+    let energy_pieces = energies.len().div_ceil(energy_chunk);
+    let without = partition.vertex_piece_count().saturating_sub(energy_pieces);
+    let energy_slices = energies.par_chunks_mut(energy_chunk).chain(
+        (0..without)
+            .into_par_iter()
+            .map(|_| <&mut [Real]>::default()),
+    );
+    forces
+        .par_chunks_mut(vertex_chunk)
+        .zip(energy_slices)
         .enumerate()
-        .try_for_each(|(piece, (forces, energies))| {
-            partition.element_energies_and_forces(material, positions, piece, energies, forces)
+        .try_for_each(|(piece, (out, energies))| {
+            partition.energy_and_add_forces_owned(material, positions, piece, out, energies)
         })?;
-    gather(partition, element_forces, forces)?;
     partition.fused_total_energy(energies)
 }
 

@@ -211,6 +211,48 @@ macro_rules! precision_tests {
                     );
                     let fused = partition.fused_total_energy(&energies).unwrap();
                     assert_eq!(fused.to_bits(), expected_fused_energy.to_bits());
+
+                    // The owner-computes fused form, pieces shuffled: every element's energy
+                    // written once (NaN where none was) and the forces of the sequential pass.
+                    let mut owned_energies = vec![Real::NAN; ne];
+                    let mut forces = initial_forces(nv);
+                    let covered: usize = (0..partition.vertex_piece_count())
+                        .map(|k| partition.energy_piece(k).len())
+                        .sum();
+                    assert_eq!(covered, ne, "energy pieces cover the elements once");
+                    for piece in shuffled(partition.vertex_piece_count(), seed + 40) {
+                        let vertices = partition.vertex_piece(piece);
+                        let elements = partition.energy_piece(piece);
+                        partition
+                            .energy_and_add_forces_owned(
+                                material,
+                                &x,
+                                piece,
+                                &mut forces[vertices],
+                                &mut owned_energies[elements],
+                            )
+                            .unwrap();
+                    }
+                    assert_eq!(
+                        bits(&forces),
+                        bits(&expected_fused),
+                        "owner fused, {pieces} pieces"
+                    );
+                    let energy_bits =
+                        |e: &[Real]| e.iter().map(|e| e.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(energy_bits(&owned_energies), energy_bits(&energies));
+                    let mut forces = initial_forces(nv);
+                    let fused = partition
+                        .energy_and_add_forces(
+                            material,
+                            &x,
+                            &mut forces,
+                            &element_forces,
+                            &mut owned_energies,
+                        )
+                        .unwrap();
+                    assert_eq!(bits(&forces), bits(&expected_fused));
+                    assert_eq!(fused.to_bits(), expected_fused_energy.to_bits());
                 }
             }
 

@@ -196,6 +196,20 @@ impl<L: LaneArray> WideGradients<L> {
     /// share vertices), as [`TetRest::nodal_forces`] forms them.
     #[inline(always)]
     pub fn scatter_forces(&self, tets: &[[u32; 4]], p: LaneMat3<L>, forces: &mut [Vec3]) {
+        self.scatter_forces_from(tets, p, forces, 0);
+    }
+
+    /// As [`scatter_forces`](Self::scatter_forces) into the slice `forces` of a force buffer
+    /// that starts at vertex `first`: corners outside it are skipped (the owner-computes pieces
+    /// of a partition, `partition/owner.rs`). One bounds test per corner, as with `first = 0`.
+    #[inline(always)]
+    pub fn scatter_forces_from(
+        &self,
+        tets: &[[u32; 4]],
+        p: LaneMat3<L>,
+        forces: &mut [Vec3],
+        first: usize,
+    ) {
         let h = p.scale(-self.volume) * self.dm_inv.transpose();
         let arrays = |v: LaneVec3<L>| {
             [
@@ -212,7 +226,8 @@ impl<L: LaneArray> WideGradients<L> {
         ];
         for (lane, tet) in tets.iter().enumerate() {
             for (corner, &i) in corners.iter().zip(tet) {
-                if let Some(slot) = forces.get_mut(i as usize) {
+                // Below `first` the index wraps past any slice length.
+                if let Some(slot) = forces.get_mut((i as usize).wrapping_sub(first)) {
                     let [x, y, z] = corner;
                     *slot += Vec3::new(
                         L::lane_value(x, lane),
