@@ -43,7 +43,8 @@ use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::{Mat3, Vec3};
 use softfem::material::{StVK, StableNeoHookean};
 use softfem::mesh::{
-    TetMesh, TetPartition, element_forces_len, partition_incident_len, partition_offsets_len,
+    ElementForces, TetMesh, TetPartition, element_forces_len, partition_incident_len,
+    partition_offsets_len,
 };
 use softfem::parallel::ParallelTetElastic;
 use softfem::step::{
@@ -186,56 +187,88 @@ fn on(threads: usize) -> String {
     }
 }
 
-/// StVK direct forces on `scene`: sequential, pieces on this thread, then each pool.
-fn force_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) -> Vec<Variant> {
-    let stvk = StVK::from_young_poisson(YOUNG, POISSON).unwrap();
-    let (mesh, partition, x) = (scene.mesh, scene.partition, scene.positions);
-    let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
-    let mut forces = vec![Vec3::ZERO; nv];
-    let mut variants = vec![Variant {
-        label: on(0),
-        threads: 0,
-        run: Box::new(move || {
-            forces.fill(Vec3::ZERO);
-            mesh.add_elastic_forces(&stvk, black_box(x), &mut forces)
-                .unwrap();
-            black_box(&forces);
-        }),
-    }];
-    let (mut forces, mut element_forces) = (vec![Vec3::ZERO; nv], vec![[Vec3::ZERO; 4]; ne]);
-    variants.push(Variant {
-        label: "partitioned, pieces on this thread".to_owned(),
-        threads: 1,
-        run: Box::new(move || {
-            forces.fill(Vec3::ZERO);
-            partition
-                .add_elastic_forces(&stvk, black_box(x), &mut forces, &mut element_forces)
-                .unwrap();
-            black_box(&forces);
-        }),
-    });
-    for &(threads, pool) in pools {
-        let (mut forces, mut element_forces) = (vec![Vec3::ZERO; nv], vec![[Vec3::ZERO; 4]; ne]);
-        variants.push(Variant {
-            label: on(threads),
+/// The scratch of a partitioned pass: one element-forces entry and one energy per element.
+struct Scratch {
+    element_forces: Vec<ElementForces>,
+    energies: Vec<f32>,
+}
+
+/// One run of a force-like pass: adds into the forces at the positions, with its scratch.
+type PassRun = dyn Fn(&[Vec3], &mut [Vec3], &mut Scratch) + Send + Sync;
+
+/// A pass on `scene` as variants: `sequential`, `scheme` (the partitioned pieces on this
+/// thread), then `parallel` on each pool. Each variant has its own buffers and zeroes its forces
+/// before every run.
+fn pass_variants(
+    scene: &Scene,
+    pools: &[(usize, &'static rayon::ThreadPool)],
+    sequential: Box<PassRun>,
+    scheme: Box<PassRun>,
+    parallel: Box<PassRun>,
+) -> Vec<Variant> {
+    let x = scene.positions;
+    let (nv, ne) = (scene.mesh.vertex_count(), scene.mesh.element_count());
+    let parallel: std::sync::Arc<PassRun> = parallel.into();
+    let variant = |label: String, threads, pool: Option<&'static rayon::ThreadPool>, pass| {
+        let pass: std::sync::Arc<PassRun> = pass;
+        let mut forces = vec![Vec3::ZERO; nv];
+        let mut scratch = Scratch {
+            element_forces: vec![[Vec3::ZERO; 4]; ne],
+            energies: vec![0.0; ne],
+        };
+        Variant {
+            label,
             threads,
             run: Box::new(move || {
                 forces.fill(Vec3::ZERO);
-                pool.install(|| {
-                    softfem::parallel::add_elastic_forces(
-                        &partition,
-                        &stvk,
-                        black_box(x),
-                        &mut forces,
-                        &mut element_forces,
-                    )
-                })
-                .unwrap();
+                let mut run = || pass(black_box(x), &mut forces, &mut scratch);
+                match pool {
+                    Some(pool) => pool.install(run),
+                    None => run(),
+                }
                 black_box(&forces);
             }),
-        });
+        }
+    };
+    let mut variants = vec![
+        variant(on(0), 0, None, sequential.into()),
+        variant(
+            "partitioned, pieces on this thread".to_owned(),
+            1,
+            None,
+            scheme.into(),
+        ),
+    ];
+    for &(threads, pool) in pools {
+        variants.push(variant(on(threads), threads, Some(pool), parallel.clone()));
     }
     variants
+}
+
+/// StVK direct forces on `scene`: sequential, pieces on this thread, then each pool.
+fn force_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) -> Vec<Variant> {
+    let stvk = StVK::from_young_poisson(YOUNG, POISSON).unwrap();
+    let (mesh, partition) = (scene.mesh, scene.partition);
+    pass_variants(
+        scene,
+        pools,
+        Box::new(move |x, forces, _| mesh.add_elastic_forces(&stvk, x, forces).unwrap()),
+        Box::new(move |x, forces, scratch| {
+            partition
+                .add_elastic_forces(&stvk, x, forces, &mut scratch.element_forces)
+                .unwrap();
+        }),
+        Box::new(move |x, forces, scratch| {
+            softfem::parallel::add_elastic_forces(
+                &partition,
+                &stvk,
+                x,
+                forces,
+                &mut scratch.element_forces,
+            )
+            .unwrap();
+        }),
+    )
 }
 
 /// The fused energy-and-force pass of stable neo-Hookean (the relaxation's) on `scene`:
@@ -243,73 +276,39 @@ fn force_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) 
 /// (beyond the material's range the pass computes nothing).
 fn fused_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) -> Vec<Variant> {
     let (body, _) = scene.stable_bodies(None);
-    let material = body.material;
-    let (partition, x) = (scene.partition, scene.positions);
-    let (nv, ne) = (scene.mesh.vertex_count(), scene.mesh.element_count());
-    let mut forces = vec![Vec3::ZERO; nv];
-    let mut variants = vec![Variant {
-        label: on(0),
-        threads: 0,
-        run: Box::new(move || {
-            forces.fill(Vec3::ZERO);
-            let energy = body
-                .energy_and_add_forces(black_box(x), &mut forces)
-                .unwrap();
-            assert!(energy.is_finite());
-            black_box(&forces);
-        }),
-    }];
-    let scratch = move || {
-        (
-            vec![Vec3::ZERO; nv],
-            vec![[Vec3::ZERO; 4]; ne],
-            vec![0.0; ne],
-        )
-    };
-    let (mut forces, element_forces, mut energies) = scratch();
-    variants.push(Variant {
-        label: "partitioned, pieces on this thread".to_owned(),
-        threads: 1,
-        run: Box::new(move || {
-            forces.fill(Vec3::ZERO);
+    let (material, partition) = (body.material, scene.partition);
+    let finite = |energy: f32| assert!(energy.is_finite(), "the pass computed nothing");
+    pass_variants(
+        scene,
+        pools,
+        Box::new(move |x, forces, _| finite(body.energy_and_add_forces(x, forces).unwrap())),
+        Box::new(move |x, forces, scratch| {
+            let Scratch {
+                element_forces,
+                energies,
+            } = scratch;
             let energy = partition
-                .energy_and_add_forces(
-                    &material,
-                    black_box(x),
-                    &mut forces,
-                    &element_forces,
-                    &mut energies,
-                )
+                .energy_and_add_forces(&material, x, forces, element_forces, energies)
                 .unwrap();
-            assert!(energy.is_finite());
-            black_box(&forces);
+            finite(energy);
         }),
-    });
-    for &(threads, pool) in pools {
-        let (mut forces, mut element_forces, mut energies) = scratch();
-        variants.push(Variant {
-            label: on(threads),
-            threads,
-            run: Box::new(move || {
-                forces.fill(Vec3::ZERO);
-                let energy = pool
-                    .install(|| {
-                        softfem::parallel::energy_and_add_forces(
-                            &partition,
-                            &material,
-                            black_box(x),
-                            &mut forces,
-                            &mut element_forces,
-                            &mut energies,
-                        )
-                    })
-                    .unwrap();
-                assert!(energy.is_finite());
-                black_box(&forces);
-            }),
-        });
-    }
-    variants
+        Box::new(move |x, forces, scratch| {
+            let Scratch {
+                element_forces,
+                energies,
+            } = scratch;
+            let energy = softfem::parallel::energy_and_add_forces(
+                &partition,
+                &material,
+                x,
+                forces,
+                element_forces,
+                energies,
+            )
+            .unwrap();
+            finite(energy);
+        }),
+    )
 }
 
 /// One explicit step of any model, falling from rest (the state carries on between runs).

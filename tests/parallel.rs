@@ -456,6 +456,24 @@ macro_rules! precision_tests {
                         "product, {pieces} pieces"
                     );
 
+                    // The owner-computes forms, pieces shuffled.
+                    let mut forces = initial_forces(nv);
+                    shuffled_pieces(&mut forces, vc, seed + 8, |k, out| {
+                        p.add_forces_principal_owned(material, &x, k, out).unwrap()
+                    });
+                    assert_eq!(bits(&forces), reference.principal, "owner principal");
+                    let mut forces = initial_forces(nv);
+                    shuffled_pieces(&mut forces, vc, seed + 9, |k, out| {
+                        p.add_forces_clamped_owned(material, CLAMP, &x, k, out)
+                            .unwrap()
+                    });
+                    assert_eq!(bits(&forces), reference.clamped, "owner clamped");
+                    let mut product = initial_forces(nv);
+                    shuffled_pieces(&mut product, vc, seed + 10, |k, out| {
+                        p.add_hessian_product_owned(&cache, &d, k, out).unwrap()
+                    });
+                    assert_eq!(bits(&product), reference.product, "owner product");
+
                     let mut blocks = initial_blocks(nv);
                     p.check_vertex_blocks(&cache, &blocks).unwrap();
                     shuffled_pieces(&mut blocks, vc, seed + 7, |k, out| {

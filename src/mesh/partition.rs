@@ -31,12 +31,21 @@
 //! per-element energies by one call in the sequential pass's order
 //! ([`total_energy`](TetPartition::total_energy), [`fused_total_energy`](TetPartition::fused_total_energy)).
 //!
-//! The direct force pass also has an **owner-computes** form without element buffer or gather
-//! ([`add_forces_owned`](TetPartition::add_forces_owned), the one `softfem::parallel` runs): each
-//! vertex piece evaluates every element at its vertices and adds the forces at its own vertices
-//! straight into its slice, elements cut by a piece boundary evaluated by each piece they touch
-//! (see `partition/owner.rs`). It costs about the sequential pass on one thread, where the
-//! two-phase form writes and gathers 48 bytes per element.
+//! The force passes, the fused energy-and-force pass and the Hessian product also have an
+//! **owner-computes** form without element buffer or gather (the one `softfem::parallel` runs):
+//! [`add_forces_owned`](TetPartition::add_forces_owned),
+//! [`add_forces_principal_owned`](TetPartition::add_forces_principal_owned),
+//! [`add_forces_clamped_owned`](TetPartition::add_forces_clamped_owned),
+//! [`energy_and_add_forces_owned`](TetPartition::energy_and_add_forces_owned) and
+//! [`add_hessian_product_owned`](TetPartition::add_hessian_product_owned). Each vertex piece runs
+//! the sequential kernel's own loop (its SIMD groups, at the width [`simd`](crate::simd) picks)
+//! over the elements at its vertices and adds their forces at its own vertices straight into its
+//! slice, elements cut by a piece boundary evaluated by each piece they touch (see
+//! `partition/owner.rs`); vertex piece `k` of the fused pass also writes the energies of
+//! [`energy_piece(k)`](TetPartition::energy_piece), summed afterwards in the sequential order by
+//! [`fused_total_energy`](TetPartition::fused_total_energy). On one thread the owner-computes
+//! passes cost about the sequential pass plus the cut elements (one layer of a box cut in two);
+//! the two-phase form writes and gathers 48 bytes per element.
 //!
 //! The passes: the direct forces ([`element_forces`](TetPartition::element_forces)), the
 //! principal and clamped forces

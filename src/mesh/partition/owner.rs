@@ -1,4 +1,5 @@
-//! The owner-computes form of the direct force pass and of the fused energy-and-force pass:
+//! The owner-computes form of the direct force pass and of the fused energy-and-force pass (the
+//! principal and clamped force passes in `principal.rs`, the Hessian product in `hessian.rs`):
 //! each vertex piece evaluates every element incident to its vertices and adds, corner by
 //! corner, the forces at its own vertices straight into its slice of the output, as the
 //! sequential scatter does. No element buffer and no gather: an element whose corners lie in
@@ -26,7 +27,6 @@
 
 use core::ops::Range;
 
-use super::super::super::element::TetRest;
 use super::super::super::lanes::{LANES, LaneArray, LaneMat3};
 use super::super::super::material::Material;
 use super::super::super::math::BATCH_FORCES;
@@ -34,8 +34,9 @@ use super::super::super::types::{Real, Vec3};
 #[cfg(doc)]
 use super::super::TetMesh;
 use super::super::check_length;
-use super::super::gather;
-use super::super::grouped::{Pass, PassJob, WideGradients};
+use super::super::grouped::{
+    DirectForces, EnergyAndForces, EnergySink, ForceSink, Pass, PassJob, WideGradients,
+};
 use super::{ElementForces, TetPartition};
 use crate::error::{Buffer, MeshError};
 use crate::simd::{WidthKernel, dispatch};
@@ -63,11 +64,11 @@ impl TetPartition<'_> {
         let Some(elements) = self.incident_elements(piece) else {
             return Ok(()); // No element touches these vertices.
         };
-        let job = OwnedForces(OwnerSlice {
+        let job = DirectForces(OwnerSlice {
             out,
             first: vertices.start,
         });
-        self.owner_pass(material, positions, elements, job);
+        self.owner_pass(material, positions, elements, job, BATCH_FORCES);
         Ok(())
     }
 
@@ -128,17 +129,19 @@ impl TetPartition<'_> {
             Some(incident) => incident,
             None => energy_elements.clone(),
         };
-        let job = OwnedEnergyAndForces {
-            owner: OwnerSlice {
+        let job = EnergyAndForces {
+            forces: OwnerSlice {
                 out,
                 first: vertices.start,
             },
-            energies,
-            energy_first: energy_elements.start,
-            energy_end: energy_elements.end,
-            pass_first: elements.start,
+            energy: EnergySlots {
+                energies,
+                first: energy_elements.start,
+                end: energy_elements.end,
+                pass_first: elements.start,
+            },
         };
-        self.owner_pass(material, positions, elements, job);
+        self.owner_pass(material, positions, elements, job, BATCH_FORCES);
         Ok(())
     }
 
@@ -175,7 +178,7 @@ impl TetPartition<'_> {
 
     /// The vertices of owner piece `piece`, after checking the piece index, the output length
     /// `out_len` and the positions' length.
-    fn owner_vertices(
+    pub(super) fn owner_vertices(
         &self,
         positions: &[Vec3],
         piece: usize,
@@ -188,14 +191,16 @@ impl TetPartition<'_> {
         Ok(vertices)
     }
 
-    /// Runs `job` over `elements` at the width the sequential kernels run at.
+    /// Runs `job` over `elements` at the width the sequential kernels run at where `batch`,
+    /// else one element at a time.
     #[inline(always)]
-    fn owner_pass<M: Material, J: PassJob>(
+    pub(super) fn owner_pass<M: Material, J: PassJob>(
         &self,
         material: &M,
         positions: &[Vec3],
         elements: Range<usize>,
         job: J,
+        batch: bool,
     ) {
         let pass = Pass {
             material,
@@ -204,7 +209,7 @@ impl TetPartition<'_> {
             rests: self.mesh.rest().get(elements).unwrap_or(&[]),
             job,
         };
-        if BATCH_FORCES {
+        if batch {
             dispatch(pass);
         } else {
             pass.scalar();
@@ -214,7 +219,7 @@ impl TetPartition<'_> {
     /// The elements from the first to the last one incident to any vertex of vertex piece
     /// `piece`, or `None` if none is: kept by the partition for the first pieces, else found
     /// from the adjacency.
-    fn incident_elements(&self, piece: usize) -> Option<Range<usize>> {
+    pub(super) fn incident_elements(&self, piece: usize) -> Option<Range<usize>> {
         match self.piece_elements.get(piece) {
             Some(&[start, end]) => (start < end).then_some(start as usize..end as usize),
             None => self.scan_incident_elements(self.vertex_piece(piece)),
@@ -242,38 +247,28 @@ impl TetPartition<'_> {
 }
 
 /// A vertex piece's slice of the forces, indexed by global vertex.
-struct OwnerSlice<'o> {
-    out: &'o mut [Vec3],
-    first: usize,
+pub(super) struct OwnerSlice<'o> {
+    pub out: &'o mut [Vec3],
+    pub first: usize,
 }
 
 impl OwnerSlice<'_> {
     /// Whether some corner is one of this piece's vertices.
     #[inline(always)]
-    fn touches(&self, corners: &[u32; 4]) -> bool {
+    pub fn touches(&self, corners: &[u32; 4]) -> bool {
         // Below `first` the index wraps past any slice length.
         corners
             .iter()
             .any(|&v| (v as usize).wrapping_sub(self.first) < self.out.len())
     }
+}
 
-    /// Whether some element of `tets` touches this piece.
+impl ForceSink for OwnerSlice<'_> {
     #[inline(always)]
-    fn touches_any(&self, tets: &[[u32; 4]]) -> bool {
-        tets.iter().any(|corners| self.touches(corners))
+    fn skips(&self, tets: &[[u32; 4]]) -> bool {
+        !tets.iter().any(|corners| self.touches(corners))
     }
 
-    /// Adds `values` at the corners that are this piece's vertices, corner by corner.
-    #[inline(always)]
-    fn add(&mut self, corners: &[u32; 4], values: ElementForces) {
-        for (&v, value) in corners.iter().zip(values) {
-            if let Some(slot) = self.out.get_mut((v as usize).wrapping_sub(self.first)) {
-                *slot += value;
-            }
-        }
-    }
-
-    /// Adds the nodal forces of a group's stresses `p` at this piece's vertices.
     #[inline(always)]
     fn add_group<L: LaneArray>(
         &mut self,
@@ -283,137 +278,50 @@ impl OwnerSlice<'_> {
     ) {
         gradients.scatter_forces_from(tets, p, self.out, self.first);
     }
-}
 
-/// The groups of `L::WIDTH` elements of `tets` and `rests` (as long), with the index of the
-/// first element of each within them.
-#[inline(always)]
-fn wide_groups<'t, L: LaneArray>(
-    tets: &'t [[u32; 4]],
-    rests: &'t [TetRest],
-) -> impl Iterator<Item = (usize, (&'t [[u32; 4]], &'t [TetRest]))> {
-    (0..).step_by(L::WIDTH).zip(
-        tets.chunks_exact(L::WIDTH)
-            .zip(rests.chunks_exact(L::WIDTH)),
-    )
-}
-
-/// The direct forces of an owner piece.
-struct OwnedForces<'o>(OwnerSlice<'o>);
-
-impl PassJob for OwnedForces<'_> {
+    /// Adds `forces` at the corners that are this piece's vertices, corner by corner.
     #[inline(always)]
-    fn groups<L: LaneArray, M: Material>(
-        &mut self,
-        material: &M,
-        positions: &[Vec3],
-        _first: usize,
-        tets: &[[u32; 4]],
-        rests: &[TetRest],
-    ) {
-        for (_, (tets, rests)) in wide_groups::<L>(tets, rests) {
-            if self.0.touches_any(tets) {
-                let gradients = WideGradients::<L>::new(positions, tets, rests);
-                self.0
-                    .add_group(&gradients, tets, material.first_piola_wide(gradients.f));
+    fn add(&mut self, corners: &[u32; 4], forces: ElementForces) {
+        for (&v, force) in corners.iter().zip(forces) {
+            if let Some(slot) = self.out.get_mut((v as usize).wrapping_sub(self.first)) {
+                *slot += force;
             }
         }
     }
-
-    #[inline(always)]
-    fn single<M: Material>(
-        &mut self,
-        material: &M,
-        positions: &[Vec3],
-        _i: usize,
-        corners: &[u32; 4],
-        rest: &TetRest,
-    ) {
-        if self.0.touches(corners) {
-            let f = rest.deformation_gradient(gather(positions, corners));
-            self.0
-                .add(corners, rest.nodal_forces(material.first_piola(f)));
-        }
-    }
 }
 
-/// The fused energy and forces of an owner piece: the forces at its vertices, the energies of
-/// its energy piece.
-struct OwnedEnergyAndForces<'o> {
-    owner: OwnerSlice<'o>,
-    /// The energies of elements `energy_first..energy_first + energies.len()`.
+/// The energies of one energy piece of the owner-computes fused pass, written element by
+/// element.
+struct EnergySlots<'o> {
+    /// The energies of elements `first..end` (J).
     energies: &'o mut [Real],
-    energy_first: usize,
-    energy_end: usize,
+    first: usize,
+    end: usize,
     /// The element at the start of the pass's slice.
     pass_first: usize,
 }
 
-impl OwnedEnergyAndForces<'_> {
-    /// The slot of pass element `i`'s energy, if it is in the energy piece.
+impl EnergySink for EnergySlots<'_> {
     #[inline(always)]
-    fn energy_slot(&mut self, i: usize) -> Option<&mut Real> {
-        // Below `energy_first` the index wraps past any slice length.
-        self.energies
-            .get_mut((self.pass_first + i).wrapping_sub(self.energy_first))
-    }
-
-    /// Whether any of `count` pass elements from `i` is in the energy piece.
-    #[inline(always)]
-    fn owes_energy(&self, i: usize, count: usize) -> bool {
+    fn owes(&self, i: usize, count: usize) -> bool {
         let start = self.pass_first + i;
-        start < self.energy_end && start + count > self.energy_first
+        start < self.end && start + count > self.first
     }
-}
 
-impl PassJob for OwnedEnergyAndForces<'_> {
     #[inline(always)]
-    fn groups<L: LaneArray, M: Material>(
-        &mut self,
-        material: &M,
-        positions: &[Vec3],
-        first: usize,
-        tets: &[[u32; 4]],
-        rests: &[TetRest],
-    ) {
-        for (offset, (tets, rests)) in wide_groups::<L>(tets, rests) {
-            let start = first + offset;
-            let owes_energy = self.owes_energy(start, L::WIDTH);
-            if !owes_energy && !self.owner.touches_any(tets) {
-                continue;
-            }
-            let gradients = WideGradients::<L>::new(positions, tets, rests);
-            let (density, p) = material.energy_and_first_piola_wide(gradients.f);
-            if owes_energy {
-                let energies = (gradients.volume * density).to_lane_array();
-                for lane in 0..L::WIDTH {
-                    if let Some(slot) = self.energy_slot(start + lane) {
-                        *slot = L::lane_value(&energies, lane);
-                    }
-                }
-            }
-            self.owner.add_group(&gradients, tets, p);
+    fn add_group<L: LaneArray>(&mut self, i: usize, terms: L) {
+        let values = terms.to_lane_array();
+        for lane in 0..L::WIDTH {
+            self.add_single(i + lane, L::lane_value(&values, lane));
         }
     }
 
     #[inline(always)]
-    fn single<M: Material>(
-        &mut self,
-        material: &M,
-        positions: &[Vec3],
-        i: usize,
-        corners: &[u32; 4],
-        rest: &TetRest,
-    ) {
-        let owes_energy = self.owes_energy(i, 1);
-        if !owes_energy && !self.owner.touches(corners) {
-            return;
+    fn add_single(&mut self, i: usize, term: Real) {
+        // Below `first` the index wraps past any slice length.
+        let slot = (self.pass_first + i).wrapping_sub(self.first);
+        if let Some(energy) = self.energies.get_mut(slot) {
+            *energy = term;
         }
-        let f = rest.deformation_gradient(gather(positions, corners));
-        let (density, stress) = material.energy_and_first_piola(f);
-        if let Some(slot) = self.energy_slot(i) {
-            *slot = rest.volume * density;
-        }
-        self.owner.add(corners, rest.nodal_forces(stress));
     }
 }
