@@ -7,6 +7,10 @@
 //!   kernel, the partitioned scheme run piece by piece on this thread
 //!   (`TetPartition::add_elastic_forces`: its one-thread cost), and `parallel::add_elastic_forces`
 //!   on each pool.
+//! * `fused pass`: the relaxation's fused energy-and-force pass (stable neo-Hookean) at 105k
+//!   tets: `ElasticEnergy::energy_and_add_forces` of `TetElastic`, the partitioned scheme piece
+//!   by piece on this thread (`TetPartition::energy_and_add_forces`) and
+//!   `parallel::energy_and_add_forces` on each pool.
 //! * `explicit step`: one `step_explicit` of stable neo-Hookean (half the proven stable step, the
 //!   box falling from rest) at 105k tets, on `TetElastic` and on `ParallelTetElastic`.
 //! * `relaxation iteration`: `relax_step` (1/60 s, Chebyshev defaults, tolerance 0 so it runs its
@@ -20,7 +24,10 @@
 //!
 //! Every row is timed by one round-robin pass over all variants of a workload (the minimum of
 //! several rounds, a 20 ms pause before every timed block so that the pools' idle workers have
-//! gone to sleep), so ratios come from one machine state. `SOFTFEM_BENCH_CSV=<path>` appends
+//! gone to sleep), so ratios come from one machine state. The force and fused workloads also
+//! print the thread CPU time of the pieces run on the timing thread against the sequential pass:
+//! the scheme's one-thread cost, robust to other processes taking the core (not to their cache
+//! traffic). `SOFTFEM_BENCH_CSV=<path>` appends
 //! every row (`bench,workload,size,lanes,threads,value,unit`) plus the derived ratios (the
 //! scheme's one-thread cost, the speed-ups, the vertex passes' share) to a CSV file.
 //! `SOFTFEM_BENCH_THREADS=1,2,4,8,16` picks other pool sizes (default: 1, 2 and all cores).
@@ -39,7 +46,8 @@ use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::{Mat3, Vec3};
 use softfem::material::{StVK, StableNeoHookean};
 use softfem::mesh::{
-    TetMesh, TetPartition, element_forces_len, partition_incident_len, partition_offsets_len,
+    ElementForces, TetMesh, TetPartition, element_forces_len, partition_incident_len,
+    partition_offsets_len,
 };
 use softfem::parallel::ParallelTetElastic;
 use softfem::step::{
@@ -182,56 +190,128 @@ fn on(threads: usize) -> String {
     }
 }
 
-/// StVK direct forces on `scene`: sequential, pieces on this thread, then each pool.
-fn force_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) -> Vec<Variant> {
-    let stvk = StVK::from_young_poisson(YOUNG, POISSON).unwrap();
-    let (mesh, partition, x) = (scene.mesh, scene.partition, scene.positions);
-    let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
-    let mut forces = vec![Vec3::ZERO; nv];
-    let mut variants = vec![Variant {
-        label: on(0),
-        threads: 0,
-        run: Box::new(move || {
-            forces.fill(Vec3::ZERO);
-            mesh.add_elastic_forces(&stvk, black_box(x), &mut forces)
-                .unwrap();
-            black_box(&forces);
-        }),
-    }];
-    let (mut forces, mut element_forces) = (vec![Vec3::ZERO; nv], vec![[Vec3::ZERO; 4]; ne]);
-    variants.push(Variant {
-        label: "partitioned, pieces on this thread".to_owned(),
-        threads: 1,
-        run: Box::new(move || {
-            forces.fill(Vec3::ZERO);
-            partition
-                .add_elastic_forces(&stvk, black_box(x), &mut forces, &mut element_forces)
-                .unwrap();
-            black_box(&forces);
-        }),
-    });
-    for &(threads, pool) in pools {
-        let (mut forces, mut element_forces) = (vec![Vec3::ZERO; nv], vec![[Vec3::ZERO; 4]; ne]);
-        variants.push(Variant {
-            label: on(threads),
+/// The scratch of a partitioned pass: one element-forces entry and one energy per element.
+struct Scratch {
+    element_forces: Vec<ElementForces>,
+    energies: Vec<f32>,
+}
+
+/// One run of a force-like pass: adds into the forces at the positions, with its scratch.
+type PassRun = dyn Fn(&[Vec3], &mut [Vec3], &mut Scratch) + Send + Sync;
+
+/// A pass on `scene` as variants: `sequential`, `scheme` (the partitioned pieces on this
+/// thread), then `parallel` on each pool. Each variant has its own buffers and zeroes its forces
+/// before every run.
+fn pass_variants(
+    scene: &Scene,
+    pools: &[(usize, &'static rayon::ThreadPool)],
+    sequential: Box<PassRun>,
+    scheme: Box<PassRun>,
+    parallel: Box<PassRun>,
+) -> Vec<Variant> {
+    let x = scene.positions;
+    let (nv, ne) = (scene.mesh.vertex_count(), scene.mesh.element_count());
+    let parallel: std::sync::Arc<PassRun> = parallel.into();
+    let variant = |label: String, threads, pool: Option<&'static rayon::ThreadPool>, pass| {
+        let pass: std::sync::Arc<PassRun> = pass;
+        let mut forces = vec![Vec3::ZERO; nv];
+        let mut scratch = Scratch {
+            element_forces: vec![[Vec3::ZERO; 4]; ne],
+            energies: vec![0.0; ne],
+        };
+        Variant {
+            label,
             threads,
             run: Box::new(move || {
                 forces.fill(Vec3::ZERO);
-                pool.install(|| {
-                    softfem::parallel::add_elastic_forces(
-                        &partition,
-                        &stvk,
-                        black_box(x),
-                        &mut forces,
-                        &mut element_forces,
-                    )
-                })
-                .unwrap();
+                let mut run = || pass(black_box(x), &mut forces, &mut scratch);
+                match pool {
+                    Some(pool) => pool.install(run),
+                    None => run(),
+                }
                 black_box(&forces);
             }),
-        });
+        }
+    };
+    let mut variants = vec![
+        variant(on(0), 0, None, sequential.into()),
+        variant(
+            "partitioned, pieces on this thread".to_owned(),
+            1,
+            None,
+            scheme.into(),
+        ),
+    ];
+    for &(threads, pool) in pools {
+        variants.push(variant(on(threads), threads, Some(pool), parallel.clone()));
     }
     variants
+}
+
+/// StVK direct forces on `scene`: sequential, pieces on this thread, then each pool.
+fn force_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) -> Vec<Variant> {
+    let stvk = StVK::from_young_poisson(YOUNG, POISSON).unwrap();
+    let (mesh, partition) = (scene.mesh, scene.partition);
+    pass_variants(
+        scene,
+        pools,
+        Box::new(move |x, forces, _| mesh.add_elastic_forces(&stvk, x, forces).unwrap()),
+        Box::new(move |x, forces, scratch| {
+            partition
+                .add_elastic_forces(&stvk, x, forces, &mut scratch.element_forces)
+                .unwrap();
+        }),
+        Box::new(move |x, forces, scratch| {
+            softfem::parallel::add_elastic_forces(
+                &partition,
+                &stvk,
+                x,
+                forces,
+                &mut scratch.element_forces,
+            )
+            .unwrap();
+        }),
+    )
+}
+
+/// The fused energy-and-force pass of stable neo-Hookean (the relaxation's) on `scene`:
+/// sequential, pieces on this thread, then each pool. Every variant checks its energy is finite
+/// (beyond the material's range the pass computes nothing).
+fn fused_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) -> Vec<Variant> {
+    let (body, _) = scene.stable_bodies(None);
+    let (material, partition) = (body.material, scene.partition);
+    let finite = |energy: f32| assert!(energy.is_finite(), "the pass computed nothing");
+    pass_variants(
+        scene,
+        pools,
+        Box::new(move |x, forces, _| finite(body.energy_and_add_forces(x, forces).unwrap())),
+        Box::new(move |x, forces, scratch| {
+            let Scratch {
+                element_forces,
+                energies,
+            } = scratch;
+            let energy = partition
+                .energy_and_add_forces(&material, x, forces, element_forces, energies)
+                .unwrap();
+            finite(energy);
+        }),
+        Box::new(move |x, forces, scratch| {
+            let Scratch {
+                element_forces,
+                energies,
+            } = scratch;
+            let energy = softfem::parallel::energy_and_add_forces(
+                &partition,
+                &material,
+                x,
+                forces,
+                element_forces,
+                energies,
+            )
+            .unwrap();
+            finite(energy);
+        }),
+    )
 }
 
 /// One explicit step of any model, falling from rest (the state carries on between runs).
@@ -358,8 +438,11 @@ struct Plan {
     block_seconds: f64,
 }
 
-/// Times `variants` round-robin; returns seconds per run, the minimum over the rounds.
-fn time(variants: &mut [Variant], plan: &Plan) -> Vec<f64> {
+/// Times `variants` round-robin; returns seconds per run, the minimum over the rounds, in wall
+/// time and in the CPU time of the timing thread (which counts only the work done on that
+/// thread, and none of the time another process held its core: on a loaded machine, the robust
+/// measure of the rows that run on the calling thread).
+fn time(variants: &mut [Variant], plan: &Plan) -> (Vec<f64>, Vec<f64>) {
     // Runs per block from one warm-up run each (the slowest variant sets it for all, so the
     // blocks are comparable).
     let slowest = variants
@@ -376,23 +459,79 @@ fn time(variants: &mut [Variant], plan: &Plan) -> Vec<f64> {
     // the sequential rows look slower than the (strictly costlier) one-thread pool rows.
     let timer = pool(1);
     let mut best = vec![f64::INFINITY; variants.len()];
+    let mut best_cpu = vec![f64::INFINITY; variants.len()];
     for _ in 0..plan.rounds {
-        for (variant, best) in variants.iter_mut().zip(&mut best) {
+        let bests = best.iter_mut().zip(&mut best_cpu);
+        for (variant, (best, best_cpu)) in variants.iter_mut().zip(bests) {
             // Rayon's idle workers spin a while before they sleep: without the pause they would
             // take the core from the variant timed next.
             std::thread::sleep(PAUSE);
             let run = &mut variant.run;
-            let seconds = timer.install(|| {
-                let start = Instant::now();
+            let (seconds, cpu_seconds) = timer.install(|| {
+                let (start, cpu_start) = (Instant::now(), thread_cpu_seconds());
                 for _ in 0..repetitions {
                     run();
                 }
-                start.elapsed().as_secs_f64()
+                (
+                    start.elapsed().as_secs_f64(),
+                    thread_cpu_seconds() - cpu_start,
+                )
             });
             *best = best.min(seconds / f64::from(repetitions));
+            *best_cpu = best_cpu.min(cpu_seconds / f64::from(repetitions));
         }
     }
-    best
+    (best, best_cpu)
+}
+
+/// The CPU time (s) this thread has run, from `CLOCK_THREAD_CPUTIME_ID`; NaN where there is no
+/// such clock here (then the CPU-time ratios read NaN).
+fn thread_cpu_seconds() -> f64 {
+    #[cfg(target_os = "linux")]
+    {
+        #[repr(C)]
+        struct Timespec {
+            seconds: i64,
+            nanoseconds: i64,
+        }
+        unsafe extern "C" {
+            fn clock_gettime(clock: i32, time: *mut Timespec) -> i32;
+        }
+        /// Linux's `CLOCK_THREAD_CPUTIME_ID`.
+        const THREAD_CPU_CLOCK: i32 = 3;
+        let mut time = Timespec {
+            seconds: 0,
+            nanoseconds: 0,
+        };
+        // SAFETY: `clock_gettime` writes one `struct timespec` (two 64-bit fields on x86_64
+        // and aarch64 Linux) at a valid pointer; the bench has no other way to a thread's CPU
+        // clock without a new dependency.
+        if unsafe { clock_gettime(THREAD_CPU_CLOCK, &mut time) } == 0 {
+            return time.seconds as f64 + time.nanoseconds as f64 * 1e-9;
+        }
+    }
+    f64::NAN
+}
+
+/// Prints and returns as a CSV row the thread-CPU-time cost of the partitioned pieces run on the
+/// timing thread against the sequential pass (`variants` from [`pass_variants`]: the sequential
+/// pass first, the pieces second).
+fn cpu_cost_row(workload: &str, tets: usize, cpu_seconds: &[f64]) -> CsvRow {
+    let ratio = cpu_seconds[1] / cpu_seconds[0];
+    println!(
+        "Thread CPU time, pieces on this thread / sequential: {ratio:.3} ({:.3} ms / {:.3} ms).",
+        cpu_seconds[1] * 1e3,
+        cpu_seconds[0] * 1e3
+    );
+    CsvRow {
+        bench: "parallel",
+        workload: format!("{workload}, pieces on this thread / sequential, thread CPU time"),
+        size: tets,
+        lanes: softfem::lanes::LANES,
+        threads: 1,
+        value: ratio,
+        unit: "ratio",
+    }
 }
 
 /// The pause before every timed block.
@@ -540,7 +679,7 @@ fn main() {
     let mut rows = Vec::new();
     for scene in &scenes {
         let mut variants = force_variants(scene, &pools);
-        let seconds = time(&mut variants, &plan);
+        let (seconds, cpu_seconds) = time(&mut variants, &plan);
         let tets = scene.mesh.element_count();
         rows.extend(report(
             "StVK direct forces",
@@ -549,9 +688,24 @@ fn main() {
             &seconds,
             PerRun::ForcePass,
         ));
+        rows.push(cpu_cost_row("StVK direct forces", tets, &cpu_seconds));
     }
     let scene = &scenes[0];
     let tets = scene.mesh.element_count();
+    let mut variants = fused_variants(scene, &pools);
+    let (seconds, cpu_seconds) = time(&mut variants, &plan);
+    rows.extend(report(
+        "fused energy-and-force pass",
+        tets,
+        &variants,
+        &seconds,
+        PerRun::ForcePass,
+    ));
+    rows.push(cpu_cost_row(
+        "fused energy-and-force pass",
+        tets,
+        &cpu_seconds,
+    ));
 
     let (body, _) = scene.stable_bodies(None);
     let mut variants = vec![explicit_variant(on(0), 0, body, scene)];
@@ -565,7 +719,7 @@ fn main() {
         ));
     }
     variants.push(component_variant(scene, false));
-    let seconds = time(&mut variants, &plan);
+    let (seconds, _) = time(&mut variants, &plan);
     rows.extend(report(
         "explicit step",
         tets,
@@ -594,7 +748,7 @@ fn main() {
         variants.push(variant);
     }
     variants.push(component_variant(scene, true));
-    let seconds = time(&mut variants, &plan);
+    let (seconds, _) = time(&mut variants, &plan);
     let (iterations, evaluations) = counts;
     rows.extend(report(
         "relaxation iteration",

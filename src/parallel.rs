@@ -76,10 +76,9 @@ pub fn add_elastic_forces<M: Material + Sync>(
     partition.check_forces(material, positions, forces, element_forces)?;
     // The owner-computes form: each vertex piece evaluates the elements at its vertices, the
     // elements cut by a piece boundary once per piece (no element buffer, no gather).
-    forces
-        .par_chunks_mut(partition.vertex_chunk())
-        .enumerate()
-        .try_for_each(|(piece, out)| partition.add_forces_owned(material, positions, piece, out))
+    vertex_pieces(partition, forces, |piece, out| {
+        partition.add_forces_owned(material, positions, piece, out)
+    })
 }
 
 /// [`TetMesh::elastic_energy`] on the current rayon pool, through `partition`: the total elastic
@@ -107,6 +106,12 @@ pub fn elastic_energy<M: Material + Sync>(
 /// returns the energy (J) and adds the forces (N) into `forces`, with the sequential bits.
 /// Beyond the material's range the energy is infinite and `forces` is left alone, as there.
 ///
+/// The owner-computes form ([`TetPartition::energy_and_add_forces_owned`]: one task per vertex
+/// piece, no gather), each piece writing the energies of its
+/// [`energy_piece`](TetPartition::energy_piece) into `energies` (one per element), which are
+/// then summed on the calling thread in the sequential order. `element_forces` is checked as
+/// by the other passes but not used.
+///
 /// # Errors
 /// As [`TetPartition::check_fused`].
 pub fn energy_and_add_forces<M: Material + Sync>(
@@ -120,22 +125,31 @@ pub fn energy_and_add_forces<M: Material + Sync>(
     if !partition.check_fused(material, positions, forces, element_forces, energies)? {
         return Ok(Real::INFINITY);
     }
-    let chunk = partition.element_chunk();
-    element_forces
-        .par_chunks_mut(chunk)
-        .zip(energies.par_chunks_mut(chunk))
+    let (vertex_chunk, energy_chunk) = (partition.vertex_chunk(), partition.energy_chunk());
+    // The last vertex pieces may have no energy piece: an empty slice each.
+    let energy_pieces = energies.len().div_ceil(energy_chunk);
+    let without = partition.vertex_piece_count().saturating_sub(energy_pieces);
+    let energy_slices = energies.par_chunks_mut(energy_chunk).chain(
+        (0..without)
+            .into_par_iter()
+            .map(|_| <&mut [Real]>::default()),
+    );
+    forces
+        .par_chunks_mut(vertex_chunk)
+        .zip(energy_slices)
         .enumerate()
-        .try_for_each(|(piece, (forces, energies))| {
-            partition.element_energies_and_forces(material, positions, piece, energies, forces)
+        .try_for_each(|(piece, (out, energies))| {
+            partition.energy_and_add_forces_owned(material, positions, piece, out, energies)
         })?;
-    gather(partition, element_forces, forces)?;
     partition.fused_total_energy(energies)
 }
 
 /// [`TetMesh::add_elastic_forces_principal`] on the current rayon pool, through `partition`:
 /// adds the principal-path (SVD) forces (N) of `material` at `positions` (m) into `forces`,
-/// with the sequential bits. `element_forces` is scratch of
-/// [`element_forces_len`](super::mesh::element_forces_len) entries.
+/// with the sequential bits, in the owner-computes form
+/// ([`TetPartition::add_forces_principal_owned`]: one task per vertex piece, no gather).
+/// `element_forces` ([`element_forces_len`](super::mesh::element_forces_len) entries) is
+/// checked but not used.
 ///
 /// # Errors
 /// As [`TetPartition::check_principal`]; on error, `forces` is unchanged.
@@ -147,20 +161,17 @@ pub fn add_elastic_forces_principal<M: Material + Sync>(
     element_forces: &mut [ElementForces],
 ) -> Result<(), MeshError> {
     partition.check_principal(material, positions, forces, element_forces)?;
-    element_forces
-        .par_chunks_mut(partition.element_chunk())
-        .enumerate()
-        .try_for_each(|(piece, out)| {
-            partition.element_forces_principal(material, positions, piece, out)
-        })?;
-    gather(partition, element_forces, forces)
+    vertex_pieces(partition, forces, |piece, out| {
+        partition.add_forces_principal_owned(material, positions, piece, out)
+    })
 }
 
 /// [`TetMesh::add_elastic_forces_clamped`] on the current rayon pool, through `partition`:
 /// adds the clamped principal forces (N; **not an energy gradient, explicit stepping only**) of
 /// `material` at `positions` (m), stretches clamped from below at `threshold`, into `forces`,
-/// with the sequential bits. `element_forces` is scratch of
-/// [`element_forces_len`](super::mesh::element_forces_len) entries.
+/// with the sequential bits, in the owner-computes form
+/// ([`TetPartition::add_forces_clamped_owned`]). `element_forces`
+/// ([`element_forces_len`](super::mesh::element_forces_len) entries) is checked but not used.
 ///
 /// # Errors
 /// As [`TetPartition::check_clamped`]; on error, `forces` is unchanged.
@@ -173,13 +184,9 @@ pub fn add_elastic_forces_clamped<M: Material + Sync>(
     element_forces: &mut [ElementForces],
 ) -> Result<(), MeshError> {
     partition.check_clamped(material, threshold, positions, forces, element_forces)?;
-    element_forces
-        .par_chunks_mut(partition.element_chunk())
-        .enumerate()
-        .try_for_each(|(piece, out)| {
-            partition.element_forces_clamped(material, threshold, positions, piece, out)
-        })?;
-    gather(partition, element_forces, forces)
+    vertex_pieces(partition, forces, |piece, out| {
+        partition.add_forces_clamped_owned(material, threshold, positions, piece, out)
+    })
 }
 
 /// [`TetMesh::projected_hessians`] on the current rayon pool, through `partition`: writes the
@@ -203,8 +210,9 @@ pub fn projected_hessians<M: Material + Sync>(
 
 /// [`TetMesh::add_hessian_product`] on the current rayon pool, through `partition`: adds `H d`
 /// (N) for the Hessian in `cache` and the per-vertex `direction` (m) into `out`, with the
-/// sequential bits. `element_products` is scratch of
-/// [`element_forces_len`](super::mesh::element_forces_len) entries.
+/// sequential bits, in the owner-computes form ([`TetPartition::add_hessian_product_owned`]).
+/// `element_products` ([`element_forces_len`](super::mesh::element_forces_len) entries) is
+/// checked but not used.
 ///
 /// # Errors
 /// As [`TetPartition::check_hessian_product`]; on error, `out` is unchanged.
@@ -216,13 +224,9 @@ pub fn add_hessian_product(
     element_products: &mut [ElementForces],
 ) -> Result<(), MeshError> {
     partition.check_hessian_product(cache, direction, out, element_products)?;
-    element_products
-        .par_chunks_mut(partition.element_chunk())
-        .enumerate()
-        .try_for_each(|(piece, products)| {
-            partition.element_hessian_products(cache, direction, piece, products)
-        })?;
-    gather(partition, element_products, out)
+    vertex_pieces(partition, out, |piece, out| {
+        partition.add_hessian_product_owned(cache, direction, piece, out)
+    })
 }
 
 /// [`TetMesh::add_vertex_hessian_blocks`] on the current rayon pool, through `partition`: adds
@@ -237,22 +241,22 @@ pub fn add_vertex_hessian_blocks(
     blocks: &mut [Mat3],
 ) -> Result<(), MeshError> {
     partition.check_vertex_blocks(cache, blocks)?;
-    blocks
-        .par_chunks_mut(partition.vertex_chunk())
-        .enumerate()
-        .try_for_each(|(piece, out)| partition.gather_vertex_blocks(cache, piece, out))
+    vertex_pieces(partition, blocks, |piece, out| {
+        partition.gather_vertex_blocks(cache, piece, out)
+    })
 }
 
-/// The vertex phase of every force pass on the current pool.
-fn gather(
+/// `piece(k, slice)` for every vertex piece `k` of `partition` and its slice of the per-vertex
+/// `buffer`, on the current pool.
+fn vertex_pieces<T: Send>(
     partition: &TetPartition<'_>,
-    element_forces: &[ElementForces],
-    forces: &mut [Vec3],
+    buffer: &mut [T],
+    piece: impl Fn(usize, &mut [T]) -> Result<(), MeshError> + Sync,
 ) -> Result<(), MeshError> {
-    forces
+    buffer
         .par_chunks_mut(partition.vertex_chunk())
         .enumerate()
-        .try_for_each(|(piece, out)| partition.gather_forces(element_forces, piece, out))
+        .try_for_each(|(k, out)| piece(k, out))
 }
 
 /// A [`TetElastic`] body whose force (and fused energy-and-force) passes run in parallel through

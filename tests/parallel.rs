@@ -211,6 +211,48 @@ macro_rules! precision_tests {
                     );
                     let fused = partition.fused_total_energy(&energies).unwrap();
                     assert_eq!(fused.to_bits(), expected_fused_energy.to_bits());
+
+                    // The owner-computes fused form, pieces shuffled: every element's energy
+                    // written once (NaN where none was) and the forces of the sequential pass.
+                    let mut owned_energies = vec![Real::NAN; ne];
+                    let mut forces = initial_forces(nv);
+                    let covered: usize = (0..partition.vertex_piece_count())
+                        .map(|k| partition.energy_piece(k).len())
+                        .sum();
+                    assert_eq!(covered, ne, "energy pieces cover the elements once");
+                    for piece in shuffled(partition.vertex_piece_count(), seed + 40) {
+                        let vertices = partition.vertex_piece(piece);
+                        let elements = partition.energy_piece(piece);
+                        partition
+                            .energy_and_add_forces_owned(
+                                material,
+                                &x,
+                                piece,
+                                &mut forces[vertices],
+                                &mut owned_energies[elements],
+                            )
+                            .unwrap();
+                    }
+                    assert_eq!(
+                        bits(&forces),
+                        bits(&expected_fused),
+                        "owner fused, {pieces} pieces"
+                    );
+                    let energy_bits =
+                        |e: &[Real]| e.iter().map(|e| e.to_bits()).collect::<Vec<_>>();
+                    assert_eq!(energy_bits(&owned_energies), energy_bits(&energies));
+                    let mut forces = initial_forces(nv);
+                    let fused = partition
+                        .energy_and_add_forces(
+                            material,
+                            &x,
+                            &mut forces,
+                            &element_forces,
+                            &mut owned_energies,
+                        )
+                        .unwrap();
+                    assert_eq!(bits(&forces), bits(&expected_fused));
+                    assert_eq!(fused.to_bits(), expected_fused_energy.to_bits());
                 }
             }
 
@@ -413,6 +455,24 @@ macro_rules! precision_tests {
                         reference.product,
                         "product, {pieces} pieces"
                     );
+
+                    // The owner-computes forms, pieces shuffled.
+                    let mut forces = initial_forces(nv);
+                    shuffled_pieces(&mut forces, vc, seed + 8, |k, out| {
+                        p.add_forces_principal_owned(material, &x, k, out).unwrap()
+                    });
+                    assert_eq!(bits(&forces), reference.principal, "owner principal");
+                    let mut forces = initial_forces(nv);
+                    shuffled_pieces(&mut forces, vc, seed + 9, |k, out| {
+                        p.add_forces_clamped_owned(material, CLAMP, &x, k, out)
+                            .unwrap()
+                    });
+                    assert_eq!(bits(&forces), reference.clamped, "owner clamped");
+                    let mut product = initial_forces(nv);
+                    shuffled_pieces(&mut product, vc, seed + 10, |k, out| {
+                        p.add_hessian_product_owned(&cache, &d, k, out).unwrap()
+                    });
+                    assert_eq!(bits(&product), reference.product, "owner product");
 
                     let mut blocks = initial_blocks(nv);
                     p.check_vertex_blocks(&cache, &blocks).unwrap();

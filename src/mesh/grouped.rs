@@ -196,6 +196,20 @@ impl<L: LaneArray> WideGradients<L> {
     /// share vertices), as [`TetRest::nodal_forces`] forms them.
     #[inline(always)]
     pub fn scatter_forces(&self, tets: &[[u32; 4]], p: LaneMat3<L>, forces: &mut [Vec3]) {
+        self.scatter_forces_from(tets, p, forces, 0);
+    }
+
+    /// As [`scatter_forces`](Self::scatter_forces) into the slice `forces` of a force buffer
+    /// that starts at vertex `first`: corners outside it are skipped (the owner-computes pieces
+    /// of a partition, `partition/owner.rs`). One bounds test per corner, as with `first = 0`.
+    #[inline(always)]
+    pub fn scatter_forces_from(
+        &self,
+        tets: &[[u32; 4]],
+        p: LaneMat3<L>,
+        forces: &mut [Vec3],
+        first: usize,
+    ) {
         let h = p.scale(-self.volume) * self.dm_inv.transpose();
         let arrays = |v: LaneVec3<L>| {
             [
@@ -212,7 +226,8 @@ impl<L: LaneArray> WideGradients<L> {
         ];
         for (lane, tet) in tets.iter().enumerate() {
             for (corner, &i) in corners.iter().zip(tet) {
-                if let Some(slot) = forces.get_mut(i as usize) {
+                // Below `first` the index wraps past any slice length.
+                if let Some(slot) = forces.get_mut((i as usize).wrapping_sub(first)) {
                     let [x, y, z] = corner;
                     *slot += Vec3::new(
                         L::lane_value(x, lane),
@@ -265,10 +280,25 @@ impl FusedEnergy {
         }
     }
 
+    /// The total.
+    #[inline(always)]
+    pub fn total(self) -> Real {
+        let [s0, s1, s2, s3] = self.partial;
+        ((s0 + s1) + (s2 + s3)) + self.last
+    }
+}
+
+impl EnergySink for FusedEnergy {
+    /// The energy asks for no element by itself: the pass evaluates them all.
+    #[inline(always)]
+    fn owes(&self, _i: usize, _count: usize) -> bool {
+        false
+    }
+
     /// Adds the terms of a group of `L::WIDTH` consecutive elements, the first of them at a
     /// multiple of [`LANES`], all below `whole`: [`LANES`] at a time, in order.
     #[inline(always)]
-    pub fn add_group<L: LaneArray>(&mut self, terms: L) {
+    fn add_group<L: LaneArray>(&mut self, _i: usize, terms: L) {
         const { assert!(L::WIDTH.is_multiple_of(LANES)) };
         let values = terms.to_lane_array();
         for chunk in 0..L::WIDTH / LANES {
@@ -280,19 +310,63 @@ impl FusedEnergy {
 
     /// Adds the term of element `i`, taken one at a time.
     #[inline(always)]
-    pub fn add_single(&mut self, i: usize, term: Real) {
+    fn add_single(&mut self, i: usize, term: Real) {
         match self.partial.get_mut(i % LANES) {
             Some(partial) if i < self.whole => *partial += term,
             _ => self.last += term,
         }
     }
+}
 
-    /// The total.
+/// Where a pass's nodal forces go: the whole force buffer (`&mut [Vec3]`), or the slice of one
+/// owner piece of a partition (`partition/owner.rs`), which skips the elements that add
+/// nothing to it.
+pub(super) trait ForceSink {
+    /// Whether no element of `tets` adds a force here, so that they need not be evaluated.
+    fn skips(&self, tets: &[[u32; 4]]) -> bool;
+    /// Adds the nodal forces of the stresses `p` (Pa) of a group of elements `tets`.
+    fn add_group<L: LaneArray>(
+        &mut self,
+        gradients: &WideGradients<L>,
+        tets: &[[u32; 4]],
+        p: LaneMat3<L>,
+    );
+    /// Adds one element's nodal `forces` (N) at its `corners`.
+    fn add(&mut self, corners: &[u32; 4], forces: [Vec3; 4]);
+}
+
+impl ForceSink for &mut [Vec3] {
     #[inline(always)]
-    pub fn total(self) -> Real {
-        let [s0, s1, s2, s3] = self.partial;
-        ((s0 + s1) + (s2 + s3)) + self.last
+    fn skips(&self, _tets: &[[u32; 4]]) -> bool {
+        false
     }
+
+    #[inline(always)]
+    fn add_group<L: LaneArray>(
+        &mut self,
+        gradients: &WideGradients<L>,
+        tets: &[[u32; 4]],
+        p: LaneMat3<L>,
+    ) {
+        gradients.scatter_forces(tets, p, self);
+    }
+
+    #[inline(always)]
+    fn add(&mut self, corners: &[u32; 4], forces: [Vec3; 4]) {
+        scatter_add(self, corners, forces);
+    }
+}
+
+/// What a fused pass does with the elements' energies: sums them in a fixed order
+/// ([`FusedEnergy`]), or writes those of one piece of a partition (`partition/owner.rs`).
+pub(super) trait EnergySink {
+    /// Whether any of the `count` elements from pass element `i` needs its energy here (then
+    /// it is evaluated even if its forces go elsewhere).
+    fn owes(&self, i: usize, count: usize) -> bool;
+    /// Takes the energies `terms` (J) of the group of pass elements from `i`.
+    fn add_group<L: LaneArray>(&mut self, i: usize, terms: L);
+    /// Takes the energy `term` (J) of pass element `i`, evaluated alone.
+    fn add_single(&mut self, i: usize, term: Real);
 }
 
 /// One pass of a mesh kernel over the elements of `(tets, rests)` at deformed `positions`, run
@@ -404,10 +478,10 @@ impl<M: Material, J: PassJob> WidthKernel for Pass<'_, M, J> {
     }
 }
 
-/// Adds the direct-stress forces into a force buffer.
-pub(super) struct DirectForces<'f>(pub &'f mut [Vec3]);
+/// Adds the direct-stress forces into a [`ForceSink`].
+pub(super) struct DirectForces<S>(pub S);
 
-impl PassJob for DirectForces<'_> {
+impl<S: ForceSink> PassJob for DirectForces<S> {
     #[inline(always)]
     fn groups<L: LaneArray, M: Material>(
         &mut self,
@@ -421,8 +495,12 @@ impl PassJob for DirectForces<'_> {
             .chunks_exact(L::WIDTH)
             .zip(rests.chunks_exact(L::WIDTH))
         {
+            if self.0.skips(tets) {
+                continue;
+            }
             let gradients = WideGradients::<L>::new(positions, tets, rests);
-            gradients.scatter_forces(tets, material.first_piola_wide(gradients.f), self.0);
+            self.0
+                .add_group(&gradients, tets, material.first_piola_wide(gradients.f));
         }
     }
 
@@ -435,36 +513,43 @@ impl PassJob for DirectForces<'_> {
         corners: &[u32; 4],
         rest: &TetRest,
     ) {
+        if self.0.skips(core::slice::from_ref(corners)) {
+            return;
+        }
         let f = rest.deformation_gradient(gather(positions, corners));
-        scatter_add(self.0, corners, rest.nodal_forces(material.first_piola(f)));
+        self.0
+            .add(corners, rest.nodal_forces(material.first_piola(f)));
     }
 }
 
-/// The fused energy and force pass: the forces into a buffer, the energy in [`FusedEnergy`]'s
-/// order.
-pub(super) struct EnergyAndForces<'f> {
-    pub forces: &'f mut [Vec3],
-    pub energy: FusedEnergy,
+/// The fused energy and force pass: the forces into a [`ForceSink`], the energies into an
+/// [`EnergySink`] (summed in [`FusedEnergy`]'s order by the sequential pass).
+pub(super) struct EnergyAndForces<S, E> {
+    pub forces: S,
+    pub energy: E,
 }
 
-impl PassJob for EnergyAndForces<'_> {
+impl<S: ForceSink, E: EnergySink> PassJob for EnergyAndForces<S, E> {
     #[inline(always)]
     fn groups<L: LaneArray, M: Material>(
         &mut self,
         material: &M,
         positions: &[Vec3],
-        _first: usize,
+        first: usize,
         tets: &[[u32; 4]],
         rests: &[TetRest],
     ) {
-        for (tets, rests) in tets
+        let groups = tets
             .chunks_exact(L::WIDTH)
-            .zip(rests.chunks_exact(L::WIDTH))
-        {
+            .zip(rests.chunks_exact(L::WIDTH));
+        for (start, (tets, rests)) in (first..).step_by(L::WIDTH).zip(groups) {
+            if !self.energy.owes(start, L::WIDTH) && self.forces.skips(tets) {
+                continue;
+            }
             let gradients = WideGradients::<L>::new(positions, tets, rests);
             let (density, p) = material.energy_and_first_piola_wide(gradients.f);
-            self.energy.add_group(gradients.volume * density);
-            gradients.scatter_forces(tets, p, self.forces);
+            self.energy.add_group(start, gradients.volume * density);
+            self.forces.add_group(&gradients, tets, p);
         }
     }
 
@@ -477,10 +562,13 @@ impl PassJob for EnergyAndForces<'_> {
         corners: &[u32; 4],
         rest: &TetRest,
     ) {
+        if !self.energy.owes(i, 1) && self.forces.skips(core::slice::from_ref(corners)) {
+            return;
+        }
         let f = rest.deformation_gradient(gather(positions, corners));
         let (density, stress) = material.energy_and_first_piola(f);
         self.energy.add_single(i, rest.volume * density);
-        scatter_add(self.forces, corners, rest.nodal_forces(stress));
+        self.forces.add(corners, rest.nodal_forces(stress));
     }
 }
 
@@ -523,15 +611,15 @@ impl<E: FnMut(usize, Real)> PassJob for Energies<E> {
     }
 }
 
-/// Adds the principal-path forces (`stress` maps the SVD of `F` to `P`) into a force buffer:
+/// Adds the principal-path forces (`stress` maps the SVD of `F` to `P`) into a [`ForceSink`]:
 /// the SVDs a group at a time ([`svd3_of_lanes`], the bits of `svd3`), the stresses and nodal
 /// forces element by element.
-pub(super) struct SvdForces<'f, S> {
-    pub forces: &'f mut [Vec3],
+pub(super) struct SvdForces<F, S> {
+    pub forces: F,
     pub stress: S,
 }
 
-impl<S: Fn(&Svd3) -> Mat3> PassJob for SvdForces<'_, S> {
+impl<F: ForceSink, S: Fn(&Svd3) -> Mat3> PassJob for SvdForces<F, S> {
     #[inline(always)]
     fn groups<L: LaneArray, M: Material>(
         &mut self,
@@ -546,10 +634,14 @@ impl<S: Fn(&Svd3) -> Mat3> PassJob for SvdForces<'_, S> {
             .chunks_exact(L::WIDTH)
             .zip(rests.chunks_exact(L::WIDTH))
         {
+            if self.forces.skips(tets) {
+                continue;
+            }
             let gradients = WideGradients::<L>::new(positions, tets, rests);
             svd3_of_lanes(&gradients.f, &mut svds);
             for ((corners, rest), svd) in tets.iter().zip(rests).zip(&svds) {
-                scatter_add(self.forces, corners, rest.nodal_forces((self.stress)(svd)));
+                self.forces
+                    .add(corners, rest.nodal_forces((self.stress)(svd)));
             }
         }
     }
@@ -563,7 +655,11 @@ impl<S: Fn(&Svd3) -> Mat3> PassJob for SvdForces<'_, S> {
         corners: &[u32; 4],
         rest: &TetRest,
     ) {
+        if self.forces.skips(core::slice::from_ref(corners)) {
+            return;
+        }
         let svd = svd3(rest.deformation_gradient(gather(positions, corners)));
-        scatter_add(self.forces, corners, rest.nodal_forces((self.stress)(&svd)));
+        self.forces
+            .add(corners, rest.nodal_forces((self.stress)(&svd)));
     }
 }

@@ -31,12 +31,21 @@
 //! per-element energies by one call in the sequential pass's order
 //! ([`total_energy`](TetPartition::total_energy), [`fused_total_energy`](TetPartition::fused_total_energy)).
 //!
-//! The direct force pass also has an **owner-computes** form without element buffer or gather
-//! ([`add_forces_owned`](TetPartition::add_forces_owned), the one `softfem::parallel` runs): each
-//! vertex piece evaluates every element at its vertices and adds the forces at its own vertices
-//! straight into its slice, elements cut by a piece boundary evaluated by each piece they touch
-//! (see `partition/owner.rs`). It costs about the sequential pass on one thread, where the
-//! two-phase form writes and gathers 48 bytes per element.
+//! The force passes, the fused energy-and-force pass and the Hessian product also have an
+//! **owner-computes** form without element buffer or gather (the one `softfem::parallel` runs):
+//! [`add_forces_owned`](TetPartition::add_forces_owned),
+//! [`add_forces_principal_owned`](TetPartition::add_forces_principal_owned),
+//! [`add_forces_clamped_owned`](TetPartition::add_forces_clamped_owned),
+//! [`energy_and_add_forces_owned`](TetPartition::energy_and_add_forces_owned) and
+//! [`add_hessian_product_owned`](TetPartition::add_hessian_product_owned). Each vertex piece runs
+//! the sequential kernel's own loop (its SIMD groups, at the width [`simd`](crate::simd) picks)
+//! over the elements at its vertices and adds their forces at its own vertices straight into its
+//! slice, elements cut by a piece boundary evaluated by each piece they touch (see
+//! `partition/owner.rs`); vertex piece `k` of the fused pass also writes the energies of
+//! [`energy_piece(k)`](TetPartition::energy_piece), summed afterwards in the sequential order by
+//! [`fused_total_energy`](TetPartition::fused_total_energy). On one thread the owner-computes
+//! passes cost about the sequential pass plus the cut elements (one layer of a box cut in two);
+//! the two-phase form writes and gathers 48 bytes per element.
 //!
 //! The passes: the direct forces ([`element_forces`](TetPartition::element_forces)), the
 //! principal and clamped forces
@@ -156,7 +165,17 @@ pub struct TetPartition<'a> {
     incident: &'a [u32],
     element_chunk: usize,
     vertex_chunk: usize,
+    /// The elements from the first to the last one incident to each of the first
+    /// [`CACHED_PIECES`] vertex pieces (`start..end`, empty if none is), found once here rather
+    /// than by a scan of the piece's adjacency rows at every owner-computes pass.
+    piece_elements: [[u32; 2]; CACHED_PIECES],
 }
+
+/// The vertex pieces whose incident element range a [`TetPartition`] keeps. The owner-computes
+/// passes want about one piece per thread; pieces past this find their range at every pass from
+/// their adjacency rows, a read that cost 5 % of a StVK force pass at 105k tets and 9 % at 998k
+/// on one thread (measured on the development machine; `benches/parallel.rs`).
+const CACHED_PIECES: usize = 64;
 
 impl<'a> TetPartition<'a> {
     /// Splits `mesh` into about `pieces` element pieces and as many vertex pieces (`0` counts as
@@ -197,13 +216,24 @@ impl<'a> TetPartition<'a> {
         })?;
         let pieces = pieces.max(1);
         let element_chunk = elements.div_ceil(pieces).div_ceil(LANES).max(1) * LANES;
-        Ok(TetPartition {
+        let mut partition = TetPartition {
             mesh,
             offsets,
             incident,
             element_chunk,
             vertex_chunk: vertices.div_ceil(pieces).max(1),
-        })
+            piece_elements: [[0; 2]; CACHED_PIECES],
+        };
+        let mut piece_elements = [[0; 2]; CACHED_PIECES];
+        for (piece, range) in piece_elements.iter_mut().enumerate() {
+            if let Some(elements) = partition.scan_incident_elements(partition.vertex_piece(piece))
+            {
+                // Below `u32::MAX / 4` elements (the adjacency's limit, checked above).
+                *range = [elements.start as u32, elements.end as u32];
+            }
+        }
+        partition.piece_elements = piece_elements;
+        Ok(partition)
     }
 
     /// The mesh.

@@ -1,9 +1,10 @@
 //! The Hessian passes of a [`TetPartition`]: the element pieces of
 //! [`TetMesh::projected_hessians`] (each writes its slice of the cache) and of
 //! [`TetMesh::add_hessian_product`] (each writes its elements' products into the element buffer,
-//! which [`gather_forces`](TetPartition::gather_forces) then adds up per vertex), and the vertex
-//! pieces of [`TetMesh::add_vertex_hessian_blocks`] (each sums its vertices' blocks straight from
-//! the cache, in increasing (element, corner) order: no element phase).
+//! which [`gather_forces`](TetPartition::gather_forces) then adds up per vertex; or, in the
+//! owner-computes form, each vertex piece adds those of the elements at its vertices), and the
+//! vertex pieces of [`TetMesh::add_vertex_hessian_blocks`] (each sums its vertices' blocks
+//! straight from the cache, in increasing (element, corner) order: no element phase).
 
 use core::ops::Range;
 
@@ -15,8 +16,9 @@ use super::super::super::svd::svd3_lanes;
 use super::super::super::types::{Mat3, Vec3};
 #[cfg(doc)]
 use super::super::TetMesh;
-use super::super::grouped::tet_groups;
+use super::super::grouped::{ForceSink, tet_groups};
 use super::super::{check_finite, check_length, check_positions, gather};
+use super::owner::OwnerSlice;
 use super::{ElementForces, TetPartition, grouped_len};
 use crate::error::{Buffer, MeshError};
 
@@ -126,6 +128,46 @@ impl<'a> TetPartition<'a> {
         let elements = tets.iter().zip(rests).zip(hessians);
         for (((corners, rest), hessian), slot) in elements.zip(out) {
             *slot = hessian.product(rest, gather(direction, corners));
+        }
+        Ok(())
+    }
+
+    /// Owner piece `piece` of the owner-computes [`TetMesh::add_hessian_product`]: adds into
+    /// `out` (vertex piece `piece`'s slice of the products, N) `H_e d_e` of every element
+    /// incident to its vertices, for the Hessian in `cache` and the per-vertex `direction` (m),
+    /// element by element at its own vertices: the sequential bits, no element buffer, no
+    /// gather. Assumes [`check_hessian_product`](Self::check_hessian_product) passed.
+    ///
+    /// # Errors
+    /// [`MeshError::PieceIndex`] past the last vertex piece; [`MeshError::LengthMismatch`]
+    /// naming [`Buffer::Hessians`], [`Buffer::Direction`], or [`Buffer::Products`] if `out`
+    /// is not as long as the piece. Nothing is written on error.
+    pub fn add_hessian_product_owned(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        piece: usize,
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        check_length(Buffer::Hessians, self.mesh.element_count(), cache.len())?;
+        check_length(Buffer::Direction, self.mesh.vertex_count(), direction.len())?;
+        let vertices =
+            self.check_piece(piece, self.vertex_piece_count(), self.vertex_piece(piece))?;
+        check_length(Buffer::Products, vertices.len(), out.len())?;
+        let Some(elements) = self.incident_elements(piece) else {
+            return Ok(()); // No element touches these vertices.
+        };
+        let mut owner = OwnerSlice {
+            out,
+            first: vertices.start,
+        };
+        let tets = self.mesh.tets().get(elements.clone()).unwrap_or(&[]);
+        let rests = self.mesh.rest().get(elements.clone()).unwrap_or(&[]);
+        let hessians = cache.get(elements).unwrap_or(&[]);
+        for ((corners, rest), hessian) in tets.iter().zip(rests).zip(hessians) {
+            if owner.touches(corners) {
+                owner.add(corners, hessian.product(rest, gather(direction, corners)));
+            }
         }
         Ok(())
     }

@@ -9,8 +9,9 @@ use super::super::super::svd::{Svd3, svd3, svd3_lanes};
 use super::super::super::types::{Mat3, Real, Vec3};
 #[cfg(doc)]
 use super::super::TetMesh;
-use super::super::grouped::tet_groups;
+use super::super::grouped::{SvdForces, tet_groups};
 use super::super::{check_clamp_threshold, check_length, check_positions, gather};
+use super::owner::OwnerSlice;
 use super::{ElementForces, TetPartition, grouped_len};
 use crate::error::{Buffer, MeshError};
 
@@ -98,6 +99,75 @@ impl TetPartition<'_> {
         self.element_svd_forces(positions, piece, out, |svd| {
             material.first_piola_clamped_from_svd(svd, threshold)
         })
+    }
+
+    /// Owner piece `piece` of the owner-computes principal force pass: adds into `out` (vertex
+    /// piece `piece`'s slice of the forces, N) the principal-path forces
+    /// ([`Material::first_piola_from_svd`]) at `positions` (m) of every element incident to its
+    /// vertices, as [`add_forces_owned`](Self::add_forces_owned) does for the direct path: the
+    /// bits of [`TetMesh::add_elastic_forces_principal`], no element buffer, no gather. Assumes
+    /// [`check_principal`](Self::check_principal) passed.
+    ///
+    /// # Errors
+    /// As [`add_forces_owned`](Self::add_forces_owned). Nothing is written on error.
+    pub fn add_forces_principal_owned<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        piece: usize,
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        self.owner_svd_forces(material, positions, piece, out, |svd| {
+            material.first_piola_from_svd(svd)
+        })
+    }
+
+    /// Owner piece `piece` of the owner-computes clamped force pass (**not an energy gradient:
+    /// explicit stepping only**): as
+    /// [`add_forces_principal_owned`](Self::add_forces_principal_owned) with the stretches
+    /// clamped from below at `threshold`, with the bits of
+    /// [`TetMesh::add_elastic_forces_clamped`]. Assumes [`check_clamped`](Self::check_clamped)
+    /// passed.
+    ///
+    /// # Errors
+    /// [`MeshError::ClampThreshold`] if `threshold` is not in `(0, 1]`; then as
+    /// [`add_forces_owned`](Self::add_forces_owned). Nothing is written on error.
+    pub fn add_forces_clamped_owned<M: Material>(
+        &self,
+        material: &M,
+        threshold: Real,
+        positions: &[Vec3],
+        piece: usize,
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        check_clamp_threshold(threshold)?;
+        self.owner_svd_forces(material, positions, piece, out, |svd| {
+            material.first_piola_clamped_from_svd(svd, threshold)
+        })
+    }
+
+    /// The owner piece of the principal-path passes, with `stress` mapping an SVD of `F` to
+    /// `P`: the sequential loop ([`SvdForces`] at the SIMD width it runs at) over the elements
+    /// incident to the piece's vertices.
+    fn owner_svd_forces<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        piece: usize,
+        out: &mut [Vec3],
+        stress: impl Fn(&Svd3) -> Mat3,
+    ) -> Result<(), MeshError> {
+        let vertices = self.owner_vertices(positions, piece, out.len())?;
+        let Some(elements) = self.incident_elements(piece) else {
+            return Ok(()); // No element touches these vertices.
+        };
+        let forces = OwnerSlice {
+            out,
+            first: vertices.start,
+        };
+        let job = SvdForces { forces, stress };
+        self.owner_pass(material, positions, elements, job, BATCH_SVD);
+        Ok(())
     }
 
     /// The element loop of the principal-path pieces, with `stress` mapping an SVD of `F` to
