@@ -10,7 +10,7 @@ use super::super::material::Material;
 use super::super::types::{Real, Vec3};
 use super::adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
-    vertex_order,
+    vertex_order_by_degree,
 };
 use super::chebyshev::AccelerationSettings;
 use super::collider::{Collider, check_colliders};
@@ -641,7 +641,7 @@ fn ensure_topology(
     let (colours, order) = rest.split_at_mut_checked(vertex_count).unwrap_or_default();
     build_vertex_adjacency(tets, vertex_count, offsets, incident)?;
     let count = colour_vertices(tets, offsets, incident, colours)?;
-    vertex_order(colours, count, order)?;
+    vertex_order_by_degree(colours, count, offsets, order)?;
     scratch.topology = Some((vertex_count, tets.len(), count));
     Ok(count)
 }
