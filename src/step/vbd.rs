@@ -456,8 +456,9 @@ pub struct VbdReport {
 /// and 39 on the same machine. Each element is still visited once per corner, and a visit
 /// gathers its corners' positions and rest data lane by lane, which is now most of its time,
 /// where a force pass gathers once per element. `cargo bench --features rayon --bench vbd`
-/// (load 6) gave 4.7 force passes at 10 368 tetrahedra and 10.9 at 105 456, where the gather
-/// runs from the last-level cache. The target of 3 force passes per sweep is not met. In
+/// (load 3) gave 6.3 force passes at 10 368 tetrahedra and 7.9 at 105 456, where the gather
+/// runs from the last-level cache (the scalar sweep, built and run right after: 15.5 and
+/// 17.0). The target of 3 force passes per sweep is not met. In
 /// iterations VBD gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s
 /// (tolerance 2e-3) 2239 sweeps with Chebyshev 0.95 (all 180 steps converge) against the
 /// relaxation's 5351 iterations, 2.0 times the relaxation's wall time (1.96 times its CPU
