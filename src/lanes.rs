@@ -150,6 +150,48 @@ pub(crate) fn map_lane_matrices<L: Lane>(
     )
 }
 
+/// `each` of the matrix and vector in every lane of `(m, v)`, one lane at a time, back in
+/// lanes: the provided corner kernel of [`Material`](super::material::Material) for lane
+/// groups of any width.
+#[inline(always)]
+pub(crate) fn map_lane_corners<L: Lane>(
+    m: LaneMat3<L>,
+    v: LaneVec3<L>,
+    mut each: impl FnMut(Mat3, Vec3) -> (Vec3, Mat3),
+) -> (LaneVec3<L>, LaneMat3<L>) {
+    let mut results = [[0.0; 12]; MAX_WIDTH];
+    for (lane, slot) in results.iter_mut().enumerate().take(L::WIDTH) {
+        let vector = Vec3::new(
+            v.x.value_of_lane(lane),
+            v.y.value_of_lane(lane),
+            v.z.value_of_lane(lane),
+        );
+        let (stress, matrix) = each(lane_mat3(&m, lane), vector);
+        let [c0, c1, c2] = [matrix.x_axis, matrix.y_axis, matrix.z_axis];
+        *slot = [
+            stress.x, stress.y, stress.z, c0.x, c0.y, c0.z, c1.x, c1.y, c1.z, c2.x, c2.y, c2.z,
+        ];
+    }
+    let entry = |k: usize| {
+        L::from_lane_fn(|lane| {
+            results
+                .get(lane)
+                .and_then(|entries| entries.get(k))
+                .copied()
+                .unwrap_or(0.0)
+        })
+    };
+    let vector = |k: usize| LaneVec3::new(entry(k), entry(k + 1), entry(k + 2));
+    (
+        vector(0),
+        LaneMat3 {
+            c0: vector(3),
+            c1: vector(6),
+            c2: vector(9),
+        },
+    )
+}
+
 /// A sum over `n` items (vertices, elements) in a fixed order, grouped or not: item `i` of the
 /// first `n - n % LANES` adds to partial sum `i % LANES`, the partial sums are added as
 /// `(s0 + s1) + (s2 + s3)`, then the last `n % LANES` terms in order. Groups add one term per
@@ -370,6 +412,34 @@ impl LaneArray for Lanes {
     #[inline(always)]
     fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
         set_array_lane_value(values, lane, value);
+    }
+}
+
+impl LaneArray for Real {
+    type Array = [Real; 1];
+    const ZEROS: Self::Array = [0.0];
+
+    #[inline(always)]
+    fn from_lane_array(values: Self::Array) -> Self {
+        let [value] = values;
+        value
+    }
+
+    #[inline(always)]
+    fn to_lane_array(self) -> Self::Array {
+        [self]
+    }
+
+    #[inline(always)]
+    fn lane_value(&[value]: &Self::Array, lane: usize) -> Real {
+        if lane == 0 { value } else { 0.0 }
+    }
+
+    #[inline(always)]
+    fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
+        if lane == 0 {
+            *values = [value];
+        }
     }
 }
 

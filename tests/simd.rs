@@ -438,6 +438,22 @@ macro_rules! mesh_tests {
                 }
             }
 
+            /// `run` at [`Width::Scalar`] and at every width, each result asserted equal to the
+            /// scalar one, which is returned.
+            fn same_at_every_width<T: PartialEq>(what: &str, run: impl Fn() -> T) -> T {
+                let _guard = lock_width();
+                simd::set_max_width(Width::Scalar);
+                let scalar = run();
+                for width in widths() {
+                    simd::set_max_width(width);
+                    let wide = run();
+                    simd::set_max_width(Width::Avx512);
+                    assert!(wide == scalar, "{what}, width {width:?}: the run differs from the scalar run");
+                }
+                simd::set_max_width(Width::Avx512);
+                scalar
+            }
+
             /// Forces of every element `per_element(rest, corners' positions)`, added in element
             /// and corner order.
             fn element_loop(
@@ -600,18 +616,61 @@ macro_rules! mesh_tests {
                     }
                     (explicit, bits(&x), bits(&v))
                 };
-                let _guard = lock_width();
-                simd::set_max_width(Width::Scalar);
-                let scalar = run();
-                for width in widths() {
-                    simd::set_max_width(width);
-                    let wide = run();
-                    simd::set_max_width(Width::Avx512);
-                    assert!(wide == scalar, "width {width:?}: the run differs from the scalar run");
-                }
-                simd::set_max_width(Width::Avx512);
+                let scalar = same_at_every_width("explicit and relaxation", run);
                 // The runs moved: the comparison is not of two rest states.
                 assert_ne!(scalar.0.0, bits(&rest_x));
+            }
+
+            /// Vertex Block Descent steps at every width end in the bits of the scalar run: the
+            /// sweep sums the elements around several vertices of one colour at once, one vertex
+            /// per lane (`src/step/vertex_sums.rs`), with the vertex line search (energies too)
+            /// and without, for every model, from deformed positions with the bottom pinned.
+            #[test]
+            fn vbd_runs_are_bitwise_the_scalar_run_at_every_width() {
+                use $($crate_path)::+::step::{
+                    VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_scratch_len, vbd_step,
+                };
+                fn check<M: Material>(material: M, label: &str) {
+                    let (rest_x, deformed, tets) = deformed_box(3, 0.05, 0);
+                    let mut rest = vec![TetRest::default(); tets.len()];
+                    let mesh = TetMesh::new(&rest_x, &tets, &mut rest).unwrap();
+                    let model = TetElastic::new(mesh, material);
+                    let n = mesh.vertex_count();
+                    let mut masses = vec![0.0; n];
+                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                    let pinned: Vec<bool> = rest_x.iter().map(|x| x.y == 0.0).collect();
+                    let start: Vec<V> = deformed
+                        .iter()
+                        .zip(&rest_x)
+                        .zip(&pinned)
+                        .map(|((&d, &r), &p)| if p { r } else { d })
+                        .collect();
+                    let gravity = V::new(0.0, -9.81, 0.0);
+                    let base = VbdSettings::new(1.0 / 60.0).with_gravity(gravity).with_tolerance(0.0, 12);
+                    let run = || {
+                        let mut results = Vec::new();
+                        for settings in [
+                            base.with_estimated_chebyshev(3),
+                            base.with_line_search(0).with_chebyshev(0.9, 2),
+                        ] {
+                            let (mut x, mut v) = (start.clone(), vec![V::ZERO; n]);
+                            let mut vectors = vec![V::ZERO; vbd_scratch_len(n)];
+                            let mut indices = vec![0; vbd_index_scratch_len(n, tets.len())];
+                            let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                            for _ in 0..2 {
+                                vbd_step(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)
+                                    .unwrap();
+                            }
+                            results.push((bits(&x), bits(&v)));
+                        }
+                        results
+                    };
+                    let scalar = same_at_every_width(&format!("{label} VBD"), run);
+                    assert_ne!(scalar[0].0, bits(&start), "{label}: the run moved");
+                }
+                check(StVK::from_young_poisson(1.0e6, 0.45).unwrap(), "StVK");
+                check(NeoHookean::from_young_poisson(1.0e6, 0.45).unwrap(), "neo-Hookean");
+                check(StableNeoHookean::from_young_poisson(1.0e6, 0.45).unwrap(), "stable neo-Hookean");
             }
         }
     };

@@ -1035,8 +1035,8 @@ mod measure {
                         vbd_step(body, masses, pinned, &vbd, &mut x, &mut v, &mut scratch).unwrap();
                     if trace {
                         println!(
-                            "  {name}: {} sweeps, residual {:.3e} -> {:.3e}",
-                            r.iterations, r.initial_residual, r.final_residual
+                            "  {name}: {} sweeps, residual {:.3e} -> {:.3e}, rho {:.3}, {} restarts",
+                            r.iterations, r.initial_residual, r.final_residual, r.rho, r.restarts
                         );
                     }
                     Outcome {

@@ -44,7 +44,7 @@
 
 use core::fmt::Debug;
 
-use super::lanes::{Lane, LaneMat3, LaneVec3, Lanes, map_lane_matrices};
+use super::lanes::{Lane, LaneMat3, LaneVec3, Lanes, map_lane_corners, map_lane_matrices};
 use super::math;
 use super::svd::{Svd3, svd3};
 use super::types::{Mat3, Real, Vec3};
@@ -196,11 +196,27 @@ macro_rules! invariant_hessian_methods {
 
         #[inline]
         fn corner_stress_and_stiffness(&self, f: Mat3, g: Vec3) -> (Vec3, Mat3) {
+            let (stress, stiffness) = self.corner_stress_and_stiffness_wide(
+                super::LaneMat3::from(f),
+                super::LaneVec3::from(g),
+            );
+            (stress.into(), stiffness.into())
+        }
+
+        // Written out without closures (the same operations for one value and for lanes), as
+        // `first_piola_wide`: a closure left out of line would run without the wide registers.
+        #[inline(always)]
+        fn corner_stress_and_stiffness_wide<L: super::Lane>(
+            &self,
+            f: super::LaneMat3<L>,
+            g: super::LaneVec3<L>,
+        ) -> (super::LaneVec3<L>, super::LaneMat3<L>) {
+            let cof = super::cofactor(f);
+            let (ic, j) = (super::frobenius_squared(f), f.c0.dot(cof.c0));
             super::invariant_corner_stress_and_stiffness(
-                f,
-                g,
-                |ic, j| self.stress_coefficients(ic, j),
-                |ic, j| self.hessian_coefficients(ic, j),
+                (f, cof, g),
+                self.stress_coefficients(ic, j),
+                self.hessian_coefficients(ic, j),
             )
         }
     };
@@ -465,6 +481,20 @@ pub trait Material: Copy + Debug {
         (self.first_piola(f) * g, (k + k.transpose()) * 0.5)
     }
 
+    /// [`corner_stress_and_stiffness`](Material::corner_stress_and_stiffness) of every lane of
+    /// `f` and `g`, bit for bit: what the Vertex Block Descent sweep evaluates for several
+    /// vertices of one colour at once. The models here write one kernel for one value and for
+    /// lanes; the provided method takes the lanes one at a time.
+    #[inline(always)]
+    #[must_use]
+    fn corner_stress_and_stiffness_wide<L: Lane>(
+        &self,
+        f: LaneMat3<L>,
+        g: LaneVec3<L>,
+    ) -> (LaneVec3<L>, LaneMat3<L>) {
+        map_lane_corners(f, g, |f, g| self.corner_stress_and_stiffness(f, g))
+    }
+
     /// [`projected_stress_derivative`](Material::projected_stress_derivative) from an SVD the
     /// caller already has.
     #[inline]
@@ -595,52 +625,47 @@ fn first_piola_with_cofactor<L: Lane>(
     f.scale(a) + cof.scale(b)
 }
 
-/// [`Material::corner_stress_and_stiffness`] of a model written as `W(I_C, J)`: with
-/// `p = F g`, `q = cof(F) g`, `P g = a p + b q` and
-/// `K = a |g|^2 I + 4 W_II p p^T + 2 W_IJ (p q^T + q p^T) + W_JJ q q^T` (`a = 2 W_I`,
-/// `b = W_J`), from `dP = a dF + F da + cof(F) db + b d cof(F)` at `dF = u g^T`
-/// (`d cof(F)[u g^T] g = 0`). Six entries of the symmetric `K` are formed, then mirrored.
+/// [`Material::corner_stress_and_stiffness_wide`] of a model written as `W(I_C, J)`, given
+/// `(F, cof(F), g)`, `(a, b) = (2 W_I, W_J)` and `(W_II, W_IJ, W_JJ)` at `F`: with `p = F g`,
+/// `q = cof(F) g`, `P g = a p + b q` and
+/// `K = a |g|^2 I + 4 W_II p p^T + 2 W_IJ (p q^T + q p^T) + W_JJ q q^T`, from
+/// `dP = a dF + F da + cof(F) db + b d cof(F)` at `dF = u g^T` (`d cof(F)[u g^T] g = 0`). Six
+/// entries of the symmetric `K` are formed, then mirrored.
 #[inline(always)]
-fn invariant_corner_stress_and_stiffness(
-    f: Mat3,
-    g: Vec3,
-    stress_coefficients: impl FnOnce(Real, Real) -> (Real, Real),
-    hessian_coefficients: impl FnOnce(Real, Real) -> (Real, Real, Real),
-) -> (Vec3, Mat3) {
-    let (c0, c1, c2) = (f.x_axis, f.y_axis, f.z_axis);
-    let cof = Mat3::from_cols(c1.cross(c2), c2.cross(c0), c0.cross(c1));
-    let (ic, j) = (c0.dot(c0) + c1.dot(c1) + c2.dot(c2), c0.dot(cof.x_axis));
-    let (a, b) = stress_coefficients(ic, j);
-    let (w_ii, w_ij, w_jj) = hessian_coefficients(ic, j);
-    let (p, q) = (f * g, cof * g);
-    let (pp, pq, qq) = (4.0 * w_ii, 2.0 * w_ij, w_jj);
+fn invariant_corner_stress_and_stiffness<L: Lane>(
+    (f, cof, g): (LaneMat3<L>, LaneMat3<L>, LaneVec3<L>),
+    (a, b): (L, L),
+    (w_ii, w_ij, w_jj): (L, L, L),
+) -> (LaneVec3<L>, LaneMat3<L>) {
+    let (p, q) = (f.mul_vec(g), cof.mul_vec(g));
+    let (pp, pq, qq) = (L::splat(4.0) * w_ii, L::splat(2.0) * w_ij, w_jj);
     // K = a |g|^2 I + p r^T + q s^T with r = pp p + pq q, s = pq p + qq q.
-    let (r, s) = (p * pp + q * pq, p * pq + q * qq);
+    let (r, s) = (p.scale(pp) + q.scale(pq), p.scale(pq) + q.scale(qq));
     let diagonal = a * g.dot(g);
     let k = symmetric(
-        Vec3::new(
+        LaneVec3::new(
             p.x * r.x + q.x * s.x + diagonal,
             p.y * r.y + q.y * s.y + diagonal,
             p.z * r.z + q.z * s.z + diagonal,
         ),
-        Vec3::new(
+        LaneVec3::new(
             p.x * r.y + q.x * s.y,
             p.x * r.z + q.x * s.z,
             p.y * r.z + q.y * s.z,
         ),
     );
-    (p * a + q * b, k)
+    (p.scale(a) + q.scale(b), k)
 }
 
 /// The symmetric 3x3 with diagonal `d` and off-diagonal `(o.x, o.y, o.z)` at `(0, 1)`, `(0, 2)`,
 /// `(1, 2)`.
 #[inline(always)]
-fn symmetric(d: Vec3, o: Vec3) -> Mat3 {
-    Mat3::from_cols(
-        Vec3::new(d.x, o.x, o.y),
-        Vec3::new(o.x, d.y, o.z),
-        Vec3::new(o.y, o.z, d.z),
-    )
+fn symmetric<L: Lane>(d: LaneVec3<L>, o: LaneVec3<L>) -> LaneMat3<L> {
+    LaneMat3 {
+        c0: LaneVec3::new(d.x, o.x, o.y),
+        c1: LaneVec3::new(o.x, d.y, o.z),
+        c2: LaneVec3::new(o.y, o.z, d.z),
+    }
 }
 
 /// `dW/ds` of a model written as `W(I_C, J)`: `dI_C/ds_i = 2 s_i` and `dJ/ds_i = p_i`, the

@@ -100,13 +100,13 @@ impl NeoHookean {
     /// derivatives of `W(I_C, J)` with the real cube root (`docs/math.md` section 6); not
     /// finite at `J = 0`.
     #[inline(always)]
-    fn hessian_coefficients(&self, ic: Real, j: Real) -> (Real, Real, Real) {
-        let j23: Real = j_pow_minus_two_thirds(j);
+    fn hessian_coefficients<L: Lane>(&self, ic: L, j: L) -> (L, L, L) {
+        let j23 = j_pow_minus_two_thirds(j);
         let mu = self.lame.mu();
         (
-            0.0,
-            -(mu / 3.0) * j23 / j,
-            (5.0 * mu / 9.0) * ic * j23 / (j * j) + self.bulk_modulus,
+            L::splat(0.0),
+            L::splat(-(mu / 3.0)) * j23 / j,
+            L::splat(5.0 * mu / 9.0) * ic * j23 / (j * j) + L::splat(self.bulk_modulus),
         )
     }
 

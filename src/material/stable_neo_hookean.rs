@@ -93,12 +93,12 @@ impl StableNeoHookean {
     /// `(W_II, W_IJ, W_JJ) = (m / (2 (I_C + 1)^2), 0, l)` with `m = 4 mu / 3`: the second
     /// derivatives of `W(I_C, J)` (`docs/math.md` section 6).
     #[inline(always)]
-    fn hessian_coefficients(&self, ic: Real, _j: Real) -> (Real, Real, Real) {
-        let shifted = ic + 1.0;
+    fn hessian_coefficients<L: Lane>(&self, ic: L, _j: L) -> (L, L, L) {
+        let shifted = ic + L::splat(1.0);
         (
-            (2.0 * self.lame.mu() / 3.0) / (shifted * shifted),
-            0.0,
-            self.volume_stiffness,
+            L::splat(2.0 * self.lame.mu() / 3.0) / (shifted * shifted),
+            L::splat(0.0),
+            L::splat(self.volume_stiffness),
         )
     }
 

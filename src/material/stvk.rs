@@ -1,6 +1,6 @@
 //! Saint Venant–Kirchhoff: linear elasticity written in the Green strain.
 
-use super::{Lame, Lane, LaneMat3, Lanes, Mat3, Material, MaterialError, Real, Vec3};
+use super::{Lame, Lane, LaneMat3, LaneVec3, Lanes, Mat3, Material, MaterialError, Real, Vec3};
 
 /// Saint Venant–Kirchhoff (`docs/math.md` section 2): with the Green strain `G = (F^T F - I) / 2`,
 /// `W = lambda/2 (tr G)^2 + mu tr(G^2)` and `P = F (2 mu G + lambda tr(G) I)`.
@@ -200,30 +200,51 @@ impl Material for StVK {
     /// (`2 G = F^T F - I`).
     #[inline]
     fn corner_stress_and_stiffness(&self, f: Mat3, g: Vec3) -> (Vec3, Mat3) {
+        let (stress, stiffness) =
+            self.corner_stress_and_stiffness_wide(LaneMat3::from(f), LaneVec3::from(g));
+        (stress.into(), stiffness.into())
+    }
+
+    /// [`corner_stress_and_stiffness`](Material::corner_stress_and_stiffness) for one value or
+    /// a group of lanes (the same operations).
+    #[inline(always)]
+    fn corner_stress_and_stiffness_wide<L: Lane>(
+        &self,
+        f: LaneMat3<L>,
+        g: LaneVec3<L>,
+    ) -> (LaneVec3<L>, LaneMat3<L>) {
         let (lambda, mu) = (self.lame.lambda(), self.lame.mu());
-        let (a, b, c) = (f.x_axis, f.y_axis, f.z_axis);
-        let p = f * g;
+        let (a, b, c) = (f.c0, f.c1, f.c2);
+        let one = L::splat(1.0);
+        let p = f.mul_vec(g);
         let g2 = g.dot(g);
-        let volumetric = 0.5 * lambda * ((a.dot(a) - 1.0) + (b.dot(b) - 1.0) + (c.dot(c) - 1.0));
-        let s_g = (f.transpose() * p - g) * mu + g * volumetric;
-        let diagonal = mu * (p.dot(p) - g2) + volumetric * g2;
-        let (shear, volume) = (mu * g2, lambda + mu);
-        // (F F^T)_xy = a_x a_y + b_x b_y + c_x c_y.
-        let ff = |x: usize, y: usize| {
-            let at = |v: Vec3, k: usize| v.to_array().get(k).copied().unwrap_or(0.0);
-            at(a, x) * at(a, y) + at(b, x) * at(b, y) + at(c, x) * at(c, y)
+        let volumetric =
+            L::splat(0.5 * lambda) * ((a.dot(a) - one) + (b.dot(b) - one) + (c.dot(c) - one));
+        let mu_lanes = L::splat(mu);
+        let s_g = (f.transpose().mul_vec(p) - g).scale(mu_lanes) + g.scale(volumetric);
+        let diagonal = mu_lanes * (p.dot(p) - g2) + volumetric * g2;
+        let (shear, volume) = (mu_lanes * g2, L::splat(lambda + mu));
+        // K_xy = mu |g|^2 (F F^T)_xy + (lambda + mu) p_x p_y, (F F^T)_xy = a_x a_y + b_x b_y
+        // + c_x c_y.
+        let entry = |(ax, bx, cx, px): (L, L, L, L), (ay, by, cy, py): (L, L, L, L)| {
+            shear * (ax * ay + bx * by + cx * cy) + volume * px * py
         };
-        let entry = |x: usize, y: usize| {
-            let at = |v: Vec3, k: usize| v.to_array().get(k).copied().unwrap_or(0.0);
-            shear * ff(x, y) + volume * at(p, x) * at(p, y)
-        };
-        let d = Vec3::new(entry(0, 0), entry(1, 1), entry(2, 2)) + Vec3::splat(diagonal);
-        let (o01, o02, o12) = (entry(0, 1), entry(0, 2), entry(1, 2));
-        let k = Mat3::from_cols(
-            Vec3::new(d.x, o01, o02),
-            Vec3::new(o01, d.y, o12),
-            Vec3::new(o02, o12, d.z),
+        let (ex, ey, ez) = (
+            (a.x, b.x, c.x, p.x),
+            (a.y, b.y, c.y, p.y),
+            (a.z, b.z, c.z, p.z),
         );
-        (f * s_g, k)
+        let (dx, dy, dz) = (
+            entry(ex, ex) + diagonal,
+            entry(ey, ey) + diagonal,
+            entry(ez, ez) + diagonal,
+        );
+        let (o01, o02, o12) = (entry(ex, ey), entry(ex, ez), entry(ey, ez));
+        let k = LaneMat3 {
+            c0: LaneVec3::new(dx, o01, o02),
+            c1: LaneVec3::new(o01, dy, o12),
+            c2: LaneVec3::new(o02, o12, dz),
+        };
+        (f.mul_vec(s_g), k)
     }
 }

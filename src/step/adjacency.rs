@@ -233,3 +233,58 @@ pub fn vertex_order(colours: &[u32], count: u32, order: &mut [u32]) -> Result<()
     }
     Ok(())
 }
+
+/// Writes the vertices into `order` (one per vertex) colour by colour, as [`vertex_order`],
+/// but within each colour by increasing number of incident elements (`offsets` of
+/// [`build_vertex_adjacency`]), then by index: the sweep's order. Within a colour the order
+/// changes no result (no two of its vertices share an element); grouping vertices with rows of
+/// equal length lets a lane group of the sweep (`vertex_sums.rs`) finish together, with few
+/// masked lanes. One scan of the vertices per colour and distinct row length.
+///
+/// # Errors
+/// As [`vertex_order`]; [`StepError::LengthMismatch`] naming [`StepBuffer::AdjacencyOffsets`]
+/// if `offsets` does not have one entry more than `colours`.
+pub(crate) fn vertex_order_by_degree(
+    colours: &[u32],
+    count: u32,
+    offsets: &[u32],
+    order: &mut [u32],
+) -> Result<(), StepError> {
+    check(StepBuffer::VertexOrder, colours.len(), order.len())?;
+    check(
+        StepBuffer::AdjacencyOffsets,
+        adjacency_offsets_len(colours.len()),
+        offsets.len(),
+    )?;
+    let degrees = offsets.windows(2).map(|w| match w {
+        [start, end] => end.saturating_sub(*start),
+        _ => 0,
+    });
+    let members = |colour: u32| {
+        (0u32..)
+            .zip(colours)
+            .zip(degrees.clone())
+            .filter(move |&((_, &c), _)| c == colour)
+            .map(|((vertex, _), degree)| (vertex, degree))
+    };
+    let mut slots = order.iter_mut();
+    for colour in 0..count {
+        let mut least = 0;
+        while let Some(degree) = members(colour)
+            .map(|(_, d)| d)
+            .filter(|&d| d >= least)
+            .min()
+        {
+            for (vertex, _) in members(colour).filter(|&(_, d)| d == degree) {
+                if let Some(slot) = slots.next() {
+                    *slot = vertex;
+                }
+            }
+            match degree.checked_add(1) {
+                Some(next) => least = next,
+                None => break,
+            }
+        }
+    }
+    Ok(())
+}

@@ -212,6 +212,7 @@ mod stability;
 mod vbd;
 mod vertex_block;
 mod vertex_passes;
+mod vertex_sums;
 
 pub use adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,

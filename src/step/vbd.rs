@@ -10,7 +10,7 @@ use super::super::material::Material;
 use super::super::types::{Real, Vec3};
 use super::adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
-    vertex_order,
+    vertex_order_by_degree,
 };
 use super::chebyshev::AccelerationSettings;
 use super::collider::{Collider, check_colliders};
@@ -152,8 +152,9 @@ pub struct VbdSettings<'a> {
     /// Estimate `rho` instead of taking [`chebyshev`](Self::chebyshev) (which must then be 0):
     /// the largest residual ratio `r_k / r_(k-1)` of plain sweeps `2..=chebyshev_delay` of the
     /// solve (`chebyshev_delay >= 2`), at most [`MAX_ESTIMATED_RHO`]. Plain Gauss–Seidel
-    /// contracts the slow modes by about `rho` a sweep once the fast ones are gone; the largest
-    /// early ratio errs high, which Chebyshev tolerates better than low.
+    /// contracts the slow modes by about a fixed rate a sweep once the fast ones are gone,
+    /// which the largest early ratio measures; it errs high, which Chebyshev tolerates better
+    /// than low, up to the cap (see [`MAX_ESTIMATED_RHO`]).
     pub estimate_chebyshev: bool,
     /// External forces (N), one per vertex, or empty (the default) for none: constant loads
     /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
@@ -167,8 +168,18 @@ pub struct VbdSettings<'a> {
     pub fixed_axes: &'a [u8],
 }
 
-/// The largest spectral radius [`VbdSettings::estimate_chebyshev`] uses: 0.99.
-pub const MAX_ESTIMATED_RHO: Real = 0.99;
+/// The largest spectral radius [`VbdSettings::estimate_chebyshev`] uses: 0.98.
+///
+/// The Chebyshev weights are those of a real spectrum in `[-rho, rho]`, and the iteration
+/// matrix of a Gauss–Seidel sweep has complex eigenvalues, so `rho` at the plain sweeps' own
+/// rate can diverge where that rate is close to 1. Measured on the clamped stiff block of
+/// `tests/vbd.rs` (`measure_stiff_block`): in its third step the plain sweeps contract the
+/// residual by 0.988 each (the first seven ratios all 0.988), the accelerated sweeps diverge
+/// with any `rho` from 0.985 up (at the estimate 0.988: three rejected trials, 500 sweeps, not
+/// converged) and converge up to 0.98 (227 sweeps at 0.98, 295 at 0.95). The cap was 0.99
+/// until then, which let that step fail (29 of 30 steps converged, 1093 sweeps); with 0.98
+/// all 30 do in 663 sweeps.
+pub const MAX_ESTIMATED_RHO: Real = 0.98;
 
 impl<'a> VbdSettings<'a> {
     /// Time step `dt` (s), no gravity or ground, relative tolerance `1e-3`, 100 sweeps, line
@@ -364,15 +375,21 @@ pub struct VbdReport {
 /// depend on the previous contents of the scratch buffers, and is the same on every target.
 ///
 /// # One sweep
-/// For every free vertex `i`, in the colour order of [`vertex_order`](super::vertex_order),
-/// with every other vertex held where it is: the gradient and Hessian of the terms of `Phi`
+/// For every free vertex `i`, colour by colour (the colouring of
+/// [`colour_vertices`](super::colour_vertices); within a colour by number of incident
+/// elements, then by index, an order that changes no result, since no two vertices of a colour
+/// share an element), with every other vertex held where it is: the gradient and Hessian of
+/// the terms of `Phi`
 /// that depend on `x_i`,
 /// `g_i = m_i / h^2 (x_i - y_i) - m_i g - sum_e f_e,i(x)` and
 /// `H_i = m_i / h^2 I + sum_e H_e,ii(x)` over the elements `e` around `i`, `f_e,i` the elastic
 /// force of `e` on `i` and `H_e,ii` the exact 3x3 diagonal block of its Hessian, both from
 /// one deformation gradient per element by
 /// [`Material::corner_stress_and_stiffness`] (closed forms, no SVD; `docs/math.md` section
-/// 7.2). `H_i` is factored by Cholesky where it is positive definite (always for
+/// 7.2). These sums are formed for several vertices of a colour at once, one vertex per SIMD
+/// lane at the width [`simd`](crate::simd) picks
+/// ([`Material::corner_stress_and_stiffness_wide`]), each lane over its own vertex's elements
+/// in their adjacency order: every width gives the same bits. `H_i` is factored by Cholesky where it is positive definite (always for
 /// [`StableNeoHookean`](super::super::material::StableNeoHookean), whose element blocks all
 /// are); elsewhere the elastic sum is replaced by its positive semi-definite part (one 3x3
 /// eigen-decomposition for that vertex, counted in [`VbdReport::projected`]) and regularised
@@ -430,30 +447,30 @@ pub struct VbdReport {
 ///
 /// # When to pick it
 /// Measured with `cargo test --release --all-features --test vbd measure_ -- --ignored
-/// --nocapture --test-threads 1` (x86_64, one thread, a shared 2-core machine at a load of
-/// about 8; the solvers interleaved step by step, each step's least wall time over three
+/// --nocapture --test-threads 1` (x86_64 with AVX-512, one thread, a shared 2-core machine at a
+/// load of 3 to 5; the solvers interleaved step by step, each step's least wall time over three
 /// repeats, and the thread's CPU time). On the bouncy cube's 1296 tetrahedra (f32) a sweep cost
-/// 11.4-11.7 force passes without the line search (35-37 ns per element visit: `F`, `P g` and
-/// the exact 3x3 block, no SVD) and 29-32 with it: each element is visited once per corner,
-/// scalar, where a force pass evaluates it once, four elements per SIMD register. Of a visit,
-/// the material's corner kernel is about a third (a build with a trivial kernel in its place
-/// swept in 7.7 force passes), `F` and the gather of the corners about a tenth (10.3 without
-/// them), the rest the loop over the elements around the vertex and its 3x3 solve. The target of 3 force passes per sweep is
-/// not met. In iterations VBD gains only with acceleration: over the bouncy cube's 180 steps
-/// of 1/60 s (tolerance 2e-3) 2244 sweeps with Chebyshev 0.95 (all 180 steps converge)
-/// against the relaxation's 5351 iterations (5876 plain sweeps), 4.0 times the relaxation's
-/// CPU time (5.3 times its wall time; this run shared the machine with a build, so these
-/// ratios are high); at these counts half the relaxation's time needs a sweep of at most
-/// about 2 force passes. On the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 1093
-/// sweeps (rho estimated, at its cap 0.99; 29 of 30 steps converge) or 724 (Chebyshev 0.95,
-/// 30 of 30) against 1798 iterations (28 of 30), 3-4 times its CPU time (the relaxation's
-/// whole run there is about 5 ms, so these ratios vary most). On the free stiff block, where
-/// both sit at the rounding floor and use their budget (6 and 4 of 30 steps converge), VBD
-/// without line search took 0.35 of the relaxation's CPU time (0.39 of its wall time), 0.30
-/// with Chebyshev 0.95. So the target of half the relaxation's wall time at the same residual
-/// is not met on the bouncy cube or the clamped block; only on the free block, where neither
-/// reaches the tolerance. Pick it for what
-/// the count of iterations cannot show: every accepted vertex update lowers `Phi` (sweeps are
+/// 6.9-7.0 force passes without the line search (17 ns per element visit: `F`, `P g` and the
+/// exact 3x3 block, no SVD, sixteen vertices per AVX-512 group) and 27-28 with it (the trial
+/// energies are evaluated one vertex at a time); the scalar sweep before the lanes cost 14.0
+/// and 39 on the same machine. Each element is still visited once per corner, and a visit
+/// gathers its corners' positions and rest data lane by lane, which is now most of its time,
+/// where a force pass gathers once per element. `cargo bench --features rayon --bench vbd`
+/// (load 3) gave 6.3 force passes at 10 368 tetrahedra and 7.9 at 105 456, where the gather
+/// runs from the last-level cache (the scalar sweep, built and run right after: 15.5 and
+/// 17.0). The target of 3 force passes per sweep is not met. In
+/// iterations VBD gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s
+/// (tolerance 2e-3) 2239 sweeps with Chebyshev 0.95 (all 180 steps converge) against the
+/// relaxation's 5351 iterations, 2.0 times the relaxation's wall time (1.96 times its CPU
+/// time). On the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 663 sweeps with the
+/// estimated `rho` (30 of 30 steps converge; see [`MAX_ESTIMATED_RHO`]) or 724 with Chebyshev
+/// 0.95 (30 of 30) against 1798 iterations (28 of 30), 1.7-1.8 times its wall time (the
+/// relaxation's whole run there is about 6 ms, so these ratios vary most). On the free stiff
+/// block, where both sit at the rounding floor and use their budget (6 and 4 of 30 steps
+/// converge), VBD took 0.22-0.37 of the relaxation's wall time. So the target of half the
+/// relaxation's wall time at the same residual is not met on the bouncy cube or the clamped
+/// block; only on the free block, where neither reaches the tolerance. Pick it for what the
+/// count of iterations cannot show: every accepted vertex update lowers `Phi` (sweeps are
 /// monotone, accelerated ones checked), so a small fixed budget of sweeps is always safe, and
 /// its per-vertex Newton steps (with the exact local Hessian) resolve stiff local modes the
 /// diagonal preconditioner of the relaxation does not; and for threads: the colour-parallel
@@ -462,7 +479,7 @@ pub struct VbdReport {
 /// search, and still monotone) or no line search at all
 /// ([`VbdSettings::with_line_search`]`(0)`), with Chebyshev acceleration
 /// ([`VbdSettings::with_chebyshev`]`(0.95, 2)` was best on the bouncy cube, the estimate
-/// [`VbdSettings::with_estimated_chebyshev`] on the stiff blocks).
+/// [`VbdSettings::with_estimated_chebyshev`] on the clamped stiff block).
 ///
 /// ```
 /// use softfem::element::TetRest;
@@ -641,7 +658,7 @@ fn ensure_topology(
     let (colours, order) = rest.split_at_mut_checked(vertex_count).unwrap_or_default();
     build_vertex_adjacency(tets, vertex_count, offsets, incident)?;
     let count = colour_vertices(tets, offsets, incident, colours)?;
-    vertex_order(colours, count, order)?;
+    vertex_order_by_degree(colours, count, offsets, order)?;
     scratch.topology = Some((vertex_count, tets.len(), count));
     Ok(count)
 }

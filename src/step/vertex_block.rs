@@ -34,10 +34,16 @@ use super::super::types::{Mat3, Real, Vec3};
 /// `a = 1, 2, 3`, minus their sum for `a = 0` (zero out of range).
 #[inline(always)]
 pub(super) fn shape_gradient(rest: &TetRest, corner: usize) -> Vec3 {
-    let rows = [rest.dm_inv.row(0), rest.dm_inv.row(1), rest.dm_inv.row(2)];
-    match corner.checked_sub(1) {
-        Some(k) => rows.get(k).copied().unwrap_or(Vec3::ZERO),
-        None => -(rows.iter().copied().sum::<Vec3>()),
+    // A match on the corner, not an index into an array of rows: the array would go through
+    // the stack, and loading a row written there a moment ago stalls the sweep's gather.
+    let m = &rest.dm_inv;
+    let (r0, r1, r2) = (m.row(0), m.row(1), m.row(2));
+    match corner {
+        0 => -(r0 + r1 + r2),
+        1 => r0,
+        2 => r1,
+        3 => r2,
+        _ => Vec3::ZERO,
     }
 }
 

@@ -17,7 +17,8 @@ use super::super::loads::Loads;
 use super::super::points::{Grouped, Point};
 use super::super::vertex_block::{VertexFactor, shape_gradient};
 use super::super::vertex_passes::{TrialPoint, trial_pass};
-use super::super::{Ground, TetElastic, pinned_flags};
+use super::super::vertex_sums::{Elements, SumsPass, VertexSums, VertexVisitor, sum_vertices};
+use super::super::{Ground, TetElastic};
 use super::line_search::{copy, slope_along};
 use super::objective::Objective;
 use super::stopping::rounding_floor;
@@ -138,16 +139,24 @@ fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
 }
 
 impl<M: Material> Sweep<'_, M> {
-    /// One Gauss–Seidel sweep over the free vertices in colour order, in place.
+    /// One Gauss–Seidel sweep over the free vertices in colour order, in place: each colour's
+    /// vertices summed a lane group at a time (`vertex_sums.rs`), each group's updates applied
+    /// after its sums.
     fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) {
-        for &vertex in self.colour_runs().flatten() {
-            let i = vertex as usize;
-            if let Some(x) = self.updated(positions, i, counts, line_search)
-                && let Some(slot) = positions.get_mut(i)
-            {
-                *slot = x;
-            }
-        }
+        let line_search = line_search && self.max_backtracks > 0;
+        let visitor = sum_vertices(SumsPass {
+            elements: &self.mesh(),
+            skip: self.pinned,
+            runs: self.colour_runs(),
+            energy: line_search,
+            visitor: InPlace {
+                sweep: self,
+                positions,
+                counts: *counts,
+                line_search,
+            },
+        });
+        *counts = visitor.counts;
     }
 
     /// One sweep colour by colour on the current rayon pool: the updates of a colour, which
@@ -164,6 +173,8 @@ impl<M: Material> Sweep<'_, M> {
         M: Sync,
     {
         use rayon::prelude::*;
+        let line_search = line_search && self.max_backtracks > 0;
+        let elements = self.mesh();
         for members in self.colour_runs() {
             let staged = staging.get_mut(..members.len()).unwrap_or_default();
             let read: &[Vec3] = positions;
@@ -171,15 +182,24 @@ impl<M: Material> Sweep<'_, M> {
                 .par_chunks_mut(VERTEX_CHUNK)
                 .zip(members.par_chunks(VERTEX_CHUNK))
                 .map(|(out, chunk)| {
-                    let mut counted = SweepCounts::default();
+                    // Pinned vertices are not visited: they keep their positions.
                     for (slot, &vertex) in out.iter_mut().zip(chunk) {
-                        let i = vertex as usize;
-                        let old = read.get(i).copied().unwrap_or(Vec3::ZERO);
-                        *slot = self
-                            .updated(read, i, &mut counted, line_search)
-                            .unwrap_or(old);
+                        *slot = read.get(vertex as usize).copied().unwrap_or(Vec3::ZERO);
                     }
-                    counted
+                    let visitor = sum_vertices(SumsPass {
+                        elements: &elements,
+                        skip: self.pinned,
+                        runs: core::iter::once(chunk),
+                        energy: line_search,
+                        visitor: Staged {
+                            sweep: self,
+                            read,
+                            out,
+                            counts: SweepCounts::default(),
+                            line_search,
+                        },
+                    });
+                    visitor.counts
                 })
                 .reduce(SweepCounts::default, SweepCounts::plus);
             *counts = counts.plus(counted);
@@ -188,6 +208,18 @@ impl<M: Material> Sweep<'_, M> {
                     *slot = x;
                 }
             }
+        }
+    }
+
+    /// The mesh and adjacency the sums visit.
+    #[inline]
+    fn mesh(&self) -> Elements<'_, M> {
+        Elements {
+            tets: self.tets,
+            rest: self.rest,
+            material: self.material,
+            offsets: self.offsets,
+            incident: self.incident,
         }
     }
 
@@ -216,19 +248,18 @@ impl<M: Material> Sweep<'_, M> {
         })
     }
 
-    /// The local Newton update of vertex `i` (see [`vbd_step`]): its new position, or `None`
-    /// where it stays (pinned, skipped, stationary). Reads the positions of `i` and of the
-    /// vertices sharing an element with it, which have other colours.
+    /// The local Newton update of vertex `i` (see [`vbd_step`]) given the sums of its elements
+    /// at `positions` (with the energy where `line_search`): its new position, or `None` where
+    /// it stays (skipped, stationary). Reads the positions of `i` and of the vertices sharing an
+    /// element with it, which have other colours.
     fn updated(
         &self,
         positions: &[Vec3],
         i: usize,
+        sums: &VertexSums,
         counts: &mut SweepCounts,
         line_search: bool,
     ) -> Option<Vec3> {
-        if self.pinned.get(i).copied().unwrap_or(false) {
-            return None;
-        }
         let x = *positions.get(i)?;
         let m = self.masses.get(i).copied().unwrap_or(0.0);
         let x0 = self.start.get(i).copied().unwrap_or(x);
@@ -237,29 +268,14 @@ impl<M: Material> Sweep<'_, M> {
             None => x0,
         };
         let weight = m * self.inertia;
-        let line_search = line_search && self.max_backtracks > 0;
         let external = self.loads.force(i);
         let fixed = self.loads.fixed(i);
-        let mut gradient = (x - y) * weight - self.gravity * m - external;
-        let mut hessian = Mat3::ZERO;
-        let mut elastic = 0.0;
+        let mut gradient = (x - y) * weight - self.gravity * m - external + sums.gradient;
+        let mut hessian = sums.hessian;
+        let elastic = sums.elastic;
         // What the local energy can resolve: 64 eps sum_e V_e W_e-scale, the scale from the
         // element block, tr(K_e) / |g_a|^2 ~ V_e times the elastic modulus (J).
-        let mut resolution = 0.0;
-        // One deformation gradient, stress and exact corner block per element: the force
-        // -V P g and the block V K(g) (no SVD; see `vertex_block`).
-        for (corners, corner, rest) in self.elements(i) {
-            let f = rest.deformation_gradient(gather(positions, corners));
-            let g = shape_gradient(rest, corner);
-            let (stress, stiffness) = self.material.corner_stress_and_stiffness(f, g);
-            gradient += stress * rest.volume;
-            hessian += stiffness * rest.volume;
-            if line_search {
-                elastic += rest.volume * self.material.energy_density(f);
-                let trace = stiffness.x_axis.x + stiffness.y_axis.y + stiffness.z_axis.z;
-                resolution += (trace * rest.volume).abs() / g.dot(g);
-            }
-        }
+        let resolution = sums.resolution;
         if fixed != 0 {
             // The step on the free subspace exactly: the reduced system, its fixed rows and
             // columns replaced by the identity and its fixed gradient components by zero.
@@ -373,6 +389,94 @@ impl<M: Material> Sweep<'_, M> {
     }
 }
 
+/// The sequential sweep's visitor: each update applied in place.
+struct InPlace<'a, 's, M: Material> {
+    sweep: &'a Sweep<'s, M>,
+    positions: &'a mut [Vec3],
+    counts: SweepCounts,
+    line_search: bool,
+}
+
+impl<M: Material> VertexVisitor for InPlace<'_, '_, M> {
+    #[inline]
+    fn positions(&self) -> &[Vec3] {
+        self.positions
+    }
+
+    #[inline]
+    fn visit(&mut self, _index: usize, vertex: u32, sums: &VertexSums) {
+        let i = vertex as usize;
+        let update =
+            self.sweep
+                .updated(self.positions, i, sums, &mut self.counts, self.line_search);
+        if let Some(x) = update
+            && let Some(slot) = self.positions.get_mut(i)
+        {
+            *slot = x;
+        }
+    }
+}
+
+/// The parallel sweep's visitor: each update written to the staging entry of its vertex.
+#[cfg(feature = "rayon")]
+struct Staged<'a, 's, M: Material> {
+    sweep: &'a Sweep<'s, M>,
+    read: &'a [Vec3],
+    out: &'a mut [Vec3],
+    counts: SweepCounts,
+    line_search: bool,
+}
+
+#[cfg(feature = "rayon")]
+impl<M: Material> VertexVisitor for Staged<'_, '_, M> {
+    #[inline]
+    fn positions(&self) -> &[Vec3] {
+        self.read
+    }
+
+    #[inline]
+    fn visit(&mut self, index: usize, vertex: u32, sums: &VertexSums) {
+        let update = self.sweep.updated(
+            self.read,
+            vertex as usize,
+            sums,
+            &mut self.counts,
+            self.line_search,
+        );
+        if let Some(x) = update
+            && let Some(slot) = self.out.get_mut(index)
+        {
+            *slot = x;
+        }
+    }
+}
+
+/// The visitor of [`VbdSweep::begin`]: `sum_i |m_i/h^2 I + sum_e V_e K_e,ii|_F^2` and the
+/// elements' energy scale.
+struct BlockNorms<'a> {
+    masses: &'a [Real],
+    inertia: Real,
+    positions: &'a [Vec3],
+    stiffness_squared: Real,
+    resolution: Real,
+}
+
+impl VertexVisitor for BlockNorms<'_> {
+    #[inline]
+    fn positions(&self) -> &[Vec3] {
+        self.positions
+    }
+
+    #[inline]
+    fn visit(&mut self, _index: usize, vertex: u32, sums: &VertexSums) {
+        let m = self.masses.get(vertex as usize).copied().unwrap_or(0.0);
+        let block = sums.hessian + Mat3::from_diagonal(Vec3::splat(m * self.inertia));
+        let columns = [block.x_axis, block.y_axis, block.z_axis];
+        self.stiffness_squared += columns.iter().map(|c| c.dot(*c)).sum::<Real>();
+        self.resolution += sums.resolution;
+    }
+}
+
 impl<M: Material> Clone for Sweep<'_, M> {
     #[inline]
     fn clone(&self) -> Self {
@@ -445,29 +549,20 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
         let reach = x
             .iter()
             .fold(0.0, |a: Real, p| a.max(p.abs().max_element()));
-        let mut stiffness_squared = 0.0;
-        let mut resolution = 0.0;
-        for (i, (&m, pinned)) in sweep
-            .masses
-            .iter()
-            .zip(pinned_flags(sweep.pinned))
-            .enumerate()
-        {
-            if pinned {
-                continue;
-            }
-            let mut block = Mat3::from_diagonal(Vec3::splat(m * sweep.inertia));
-            for (corners, corner, rest) in sweep.elements(i) {
-                let f = rest.deformation_gradient(gather(x, corners));
-                let g = shape_gradient(rest, corner);
-                let (_, stiffness) = sweep.material.corner_stress_and_stiffness(f, g);
-                block += stiffness * rest.volume;
-                let trace = stiffness.x_axis.x + stiffness.y_axis.y + stiffness.z_axis.z;
-                resolution += (trace * rest.volume).abs() / g.dot(g);
-            }
-            let columns = [block.x_axis, block.y_axis, block.z_axis];
-            stiffness_squared += columns.iter().map(|c| c.dot(*c)).sum::<Real>();
-        }
+        let blocks = sum_vertices(SumsPass {
+            elements: &sweep.mesh(),
+            skip: sweep.pinned,
+            runs: core::iter::once(sweep.order),
+            energy: true,
+            visitor: BlockNorms {
+                masses: sweep.masses,
+                inertia: sweep.inertia,
+                positions: x,
+                stiffness_squared: 0.0,
+                resolution: 0.0,
+            },
+        });
+        let (stiffness_squared, resolution) = (blocks.stiffness_squared, blocks.resolution);
         self.floor = rounding_floor(reach, stiffness_squared);
         // The energy of a nearly undeformed element is a difference of `O(mu V)` terms: its
         // rounding, which the relative `sqrt(eps) |Phi|` of the loop misses when `Phi` is
