@@ -299,6 +299,12 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
     }
     let Some(velocities) = velocities else {
         translate(positions, origin);
+        // Shifting back can overflow what was finite next to the body (a ground or collider
+        // near the largest float), so the state is checked where the caller gets it.
+        if let Some(vertex) = first_non_finite(positions, &[]) {
+            restore(positions);
+            return Err(StepError::NonFiniteState { vertex });
+        }
         return Ok(summary);
     };
     // v = (x_{n+1} - x_n) / h, then Coulomb friction at the contacts.
@@ -311,12 +317,13 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
         (positions, start, gradient),
         velocities,
     );
-    if let Some(vertex) = first_non_finite(velocities, &[]) {
+    translate(positions, origin);
+    // Checked after the shift back, which can overflow (see above).
+    if let Some(vertex) = first_non_finite(positions, velocities) {
         restore(positions);
         copy(velocities, backup);
         return Err(StepError::NonFiniteState { vertex });
     }
-    translate(positions, origin);
     Ok(summary)
 }
 
