@@ -293,10 +293,6 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
             return Err(error);
         }
     };
-    if let Some(vertex) = first_non_finite(positions, &[]) {
-        restore(positions);
-        return Err(StepError::NonFiniteState { vertex });
-    }
     let Some(velocities) = velocities else {
         translate(positions, origin);
         // Shifting back can overflow what was finite next to the body (a ground or collider
@@ -318,8 +314,10 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
         velocities,
     );
     translate(positions, origin);
-    // Checked after the shift back, which can overflow (see above).
-    if let Some(vertex) = first_non_finite(positions, velocities) {
+    // Checked after the shift back, which can overflow (see above); positions first.
+    if let Some(vertex) =
+        first_non_finite(positions, &[]).or_else(|| first_non_finite(velocities, &[]))
+    {
         restore(positions);
         copy(velocities, backup);
         return Err(StepError::NonFiniteState { vertex });
