@@ -786,6 +786,12 @@ pub enum StepError {
         /// What is wrong with it.
         problem: ColliderProblem,
     },
+    /// The owning body has no vertices: it was never built ([`Body::empty`]) or its last
+    /// rebuild failed ([`Body::rebuild_from_box`]).
+    ///
+    /// [`Body::empty`]: crate::body::Body::empty
+    /// [`Body::rebuild_from_box`]: crate::body::Body::rebuild_from_box
+    EmptyBody,
 }
 
 /// What is wrong with a collider ([`StepError::Collider`]).
@@ -833,6 +839,9 @@ impl fmt::Display for StepError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             StepError::TimeStep => f.write_str("the time step must be finite and positive"),
+            StepError::EmptyBody => f.write_str(
+                "the body has no vertices: build it first (a failed rebuild leaves it empty)",
+            ),
             StepError::Substeps => {
                 f.write_str("the number of substeps must be at least 1 and at most 65536")
             }

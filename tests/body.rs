@@ -620,3 +620,156 @@ fn fixed_storage_takes_the_memory_its_documentation_states() {
         "{size} against {buffers}"
     );
 }
+
+/// The material of [`jelly`], as a `const` for the static body.
+const JELLY: StableNeoHookean = match softfem::material::Lame::from_young_poisson(5.0e4, 0.45) {
+    Ok(lame) => StableNeoHookean::new(lame),
+    Err(_) => panic!("the jelly's parameters are valid"),
+};
+
+/// A fixed-capacity body in a `static` (the firmware's way: built in place, never on the stack).
+static STATIC_BODY: std::sync::Mutex<Body<Small, StableNeoHookean>> =
+    std::sync::Mutex::new(Body::empty(JELLY));
+
+#[test]
+fn a_static_body_rebuilt_in_place_matches_the_low_level_calls_bit_for_bit() {
+    assert_eq!(JELLY, jelly());
+    let mut body = STATIC_BODY.lock().unwrap();
+    // Nothing built yet: stepping is an error, not a panic, and changes nothing.
+    assert_eq!((body.vertex_count(), body.tet_count()), (0, 0));
+    assert_eq!(body.step(0.01), Err(StepError::EmptyBody));
+    body.set_gravity(GRAVITY);
+    body.set_ground(Some(ground()));
+    body.rebuild_from_box(LOW, HIGH, CELLS, DENSITY).unwrap();
+
+    let mut reference = Reference::new();
+    assert_eq!(body.masses(), &reference.masses[..]);
+    assert_eq!(body.rest_positions(), reference.rest);
+    assert_eq!(body.positions(), reference.rest);
+    pin_wall(&mut body, &mut reference);
+    let dt = 0.5 * body.stable_time_step().unwrap();
+    let settings = ExplicitSettings::new(dt)
+        .with_gravity(GRAVITY)
+        .with_ground(ground());
+    body.set_solver(Solver::Explicit {
+        settings: ExplicitSettings::new(1.0),
+        stable_fraction: None,
+    })
+    .unwrap();
+    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(36)];
+    let mut scratch = ExplicitScratch::new(&mut buffer);
+    for step in 0..40 {
+        let expected = step_explicit(
+            &reference.model,
+            &reference.masses,
+            &reference.pinned,
+            &settings,
+            &mut reference.x,
+            &mut reference.v,
+            &mut scratch,
+        )
+        .unwrap();
+        assert_eq!(body.step(dt).unwrap(), StepReport::Explicit(expected));
+        assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
+        assert_eq!(bits(body.velocities()), bits(&reference.v), "step {step}");
+    }
+    assert!(
+        reference
+            .x
+            .iter()
+            .zip(reference.rest)
+            .any(|(x, r)| (*x - *r).length() > 1e-4)
+    );
+}
+
+#[test]
+fn rebuilding_keeps_the_settings_and_replaces_geometry_state_pins_and_history() {
+    let relax = Solver::Relax(
+        RelaxSettings::new(1.0)
+            .with_tolerance(1e-3, 200)
+            .with_chebyshev(0.995, 2.0, 10),
+    );
+    // A used body: relaxation, pins, a few steps taken (history and preconditioner cached).
+    let mut used = small_body();
+    used.set_solver(relax).unwrap();
+    used.set_pinned(0, true).unwrap();
+    used.set_target(0, LOW + Vec3::X * 0.01).unwrap();
+    for _ in 0..5 {
+        used.step(1.0 / 60.0).unwrap();
+    }
+    // Rebuilt as a smaller box of arrays: 2 x 1 x 1 cells.
+    let (n, t) = box_counts(2, 1, 1, BoxSplit::Alternating5).unwrap();
+    let (mut rest, mut tets) = (vec![Vec3::ZERO; n], vec![[0; 4]; t]);
+    fill_box(
+        LOW,
+        HIGH,
+        2,
+        1,
+        1,
+        BoxSplit::Alternating5,
+        &mut rest,
+        &mut tets,
+    )
+    .unwrap();
+    used.rebuild_from_arrays(&rest, &tets, DENSITY).unwrap();
+    assert_eq!((used.vertex_count(), used.tet_count()), (n, t));
+    assert_eq!(used.positions(), &rest[..]);
+    assert!(used.velocities().iter().all(|v| *v == Vec3::ZERO));
+    assert!(used.pinned().iter().all(|p| !p) && used.target(0).is_none());
+    assert_eq!(used.solver(), &relax);
+    assert_eq!(used.gravity(), GRAVITY);
+    assert_eq!(used.ground(), Some(ground()));
+
+    // It steps as a body built fresh with the same settings, bit for bit (nothing of the old
+    // body's history or cached preconditioner is used).
+    let mut fresh = Body::<Small, _>::from_arrays(&rest, &tets, DENSITY, jelly()).unwrap();
+    fresh.set_gravity(GRAVITY);
+    fresh.set_ground(Some(ground()));
+    fresh.set_solver(relax).unwrap();
+    for step in 0..20 {
+        assert_eq!(
+            used.step(1.0 / 60.0).unwrap(),
+            fresh.step(1.0 / 60.0).unwrap()
+        );
+        assert_eq!(
+            bits(used.positions()),
+            bits(fresh.positions()),
+            "step {step}"
+        );
+        assert_eq!(
+            bits(used.velocities()),
+            bits(fresh.velocities()),
+            "step {step}"
+        );
+    }
+    assert!(fresh.positions()[5].y < rest[5].y - 1e-4, "it fell");
+}
+
+#[test]
+fn a_failed_rebuild_leaves_an_empty_body_that_refuses_to_step() {
+    let mut body = small_body();
+    let too_big = body.rebuild_from_box(LOW, HIGH, [4, 2, 2], DENSITY);
+    assert_eq!(
+        too_big,
+        Err(BodyError::Capacity {
+            buffer: BodyBuffer::Vertices,
+            needed: 45
+        })
+    );
+    assert_eq!((body.vertex_count(), body.tet_count()), (0, 0));
+    assert_eq!(body.step(0.01), Err(StepError::EmptyBody));
+
+    let mut rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+    rest[2].y = f32::NAN;
+    let nan = body.rebuild_from_arrays(&rest, &[[0, 1, 2, 3]], DENSITY);
+    assert!(matches!(nan, Err(BodyError::Mesh(_))), "{nan:?}");
+    assert_eq!((body.vertex_count(), body.tet_count()), (0, 0));
+    let out_of_range = body.rebuild_from_arrays(&rest, &[[0, 1, 2, 4]], DENSITY);
+    assert!(matches!(out_of_range, Err(BodyError::Mesh(_))));
+    assert_eq!(body.step(0.01), Err(StepError::EmptyBody));
+
+    // And it can be built again.
+    body.rebuild_from_box(LOW, HIGH, CELLS, DENSITY).unwrap();
+    assert_eq!(body.masses(), &Reference::new().masses[..]);
+    body.step(0.01).unwrap();
+}

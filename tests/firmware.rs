@@ -59,8 +59,8 @@ fn host_records() -> Records {
     let mut body64 = Box::new(double::DropBody::EMPTY);
     let mut descent32 = Box::new(single::DescentScratch::EMPTY);
     let mut descent64 = Box::new(double::DescentScratch::EMPTY);
-    let mut owned32 = Box::new(None);
-    let mut owned64 = Box::new(None);
+    let mut owned32 = Box::new(single::COLLIDER_BODY);
+    let mut owned64 = Box::new(double::COLLIDER_BODY);
     single::run(
         &mut NoMeter,
         &mut records,
@@ -416,7 +416,7 @@ const PIECES: [(&str, &str); 21] = [
     ("relax_step", "relax_step (stable NH)"),
     ("newton_step", "newton_step (stable NH)"),
     ("vbd_step", "vbd_step (stable NH)"),
-    ("body_new", "Body::from_box (fixed storage)"),
+    ("body_new", "Body::rebuild_from_box (fixed storage)"),
     ("body_step", "Body::step_with_colliders"),
 ];
 

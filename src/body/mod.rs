@@ -9,6 +9,12 @@
 //! stepper's blow-up history, the relaxation's preconditioner, Vertex Block Descent's
 //! colouring). The results are those of the low-level calls, bit for bit.
 //!
+//! The constructors (`from_box`, `from_arrays`, `from_tetgen`) return the body by value, which
+//! for a large fixed-capacity body costs stack several times its size while it is built and
+//! moved. Where the stack is small (firmware), start from the `const` [`Body::empty`] in a
+//! `static` and build in place with [`Body::rebuild_from_box`] or
+//! [`Body::rebuild_from_arrays`]; the same methods reuse a body's storage for a new mesh.
+//!
 //! A jelly cube dropped onto the ground and stepped explicitly for a second (y up), no heap:
 //! ```
 //! use softfem::body::{Body, FixedStorage};
@@ -58,7 +64,7 @@ pub use storage::{Fixed, FixedStorage, Slots, Storage};
 
 use core::fmt;
 
-use super::element::TetRest;
+use super::element::{TetHessian, TetRest};
 use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
 use super::mesh::TetMesh;
@@ -66,7 +72,7 @@ use super::step::{
     Collider, ExplicitMemory, ExplicitScratch, Ground, NewtonScratch, RelaxScratch, TetElastic,
     VbdScratch, VbdTopology, newton_step, relax_step, stable_time_step, step_explicit, vbd_step,
 };
-use super::types::{Real, Vec3};
+use super::types::{Mat3, Real, Vec3};
 use crate::error::{BodyBuffer, BodyError, StepError};
 
 /// An elastic tetrahedral body that owns everything a step needs; see the
@@ -166,20 +172,8 @@ impl<S: Storage, M: Material> Body<S, M> {
         density: Real,
         material: M,
     ) -> Result<Self, BodyError> {
-        let [nx, ny, nz] = cells;
-        let (vertices, tets) = box_counts(nx, ny, nz, split)?;
-        let mut body = Self::sized(vertices, tets, material)?;
-        fill_box(
-            min,
-            max,
-            nx,
-            ny,
-            nz,
-            split,
-            body.rest_positions.slice_mut(),
-            body.tets.slice_mut(),
-        )?;
-        body.validate(density)?;
+        let mut body = Self::unbuilt(material);
+        body.rebuild_from_box_split(min, max, cells, split, density)?;
         Ok(body)
     }
 
@@ -195,10 +189,8 @@ impl<S: Storage, M: Material> Body<S, M> {
         density: Real,
         material: M,
     ) -> Result<Self, BodyError> {
-        let mut body = Self::sized(rest_positions.len(), tets.len(), material)?;
-        copy_into(body.rest_positions.slice_mut(), rest_positions);
-        copy_into(body.tets.slice_mut(), tets);
-        body.validate(density)?;
+        let mut body = Self::unbuilt(material);
+        body.rebuild_from_arrays(rest_positions, tets, density)?;
         Ok(body)
     }
 
@@ -215,7 +207,8 @@ impl<S: Storage, M: Material> Body<S, M> {
         density: Real,
         material: M,
     ) -> Result<Self, BodyError> {
-        let mut body = Self::sized(mesh.positions.len(), mesh.tets.len(), material)?;
+        let mut body = Self::unbuilt(material);
+        body.reshape(mesh.positions.len(), mesh.tets.len())?;
         copy_into(body.rest_positions.slice_mut(), &mesh.positions);
         for (slot, &tet) in body.tets.slice_mut().iter_mut().zip(&mesh.tets) {
             let corner = |i: u32| mesh.positions.get(i as usize).copied();
@@ -231,9 +224,106 @@ impl<S: Storage, M: Material> Body<S, M> {
         Ok(body)
     }
 
-    /// An unvalidated body with buffers of `vertices` and `tets` entries.
-    fn sized(vertices: usize, tets: usize, material: M) -> Result<Self, BodyError> {
-        let mut body: Self = Body {
+    /// Rebuilds the body in place as the box of [`from_box`](Self::from_box): no second
+    /// body on the stack, which matters for a large fixed-capacity body (see
+    /// [`Body::empty`]). The material, the solver, gravity and the ground are kept; the
+    /// geometry, the state (at rest at the rest shape), the pins, the targets and the
+    /// solvers' history are replaced.
+    ///
+    /// # Errors
+    /// As [`from_box`](Self::from_box); the body is then left with no vertices and no
+    /// tetrahedra (stepping it is [`StepError::EmptyBody`]) until rebuilt.
+    pub fn rebuild_from_box(
+        &mut self,
+        min: Vec3,
+        max: Vec3,
+        cells: [usize; 3],
+        density: Real,
+    ) -> Result<(), BodyError> {
+        self.rebuild_from_box_split(min, max, cells, BoxSplit::Alternating5, density)
+    }
+
+    /// As [`rebuild_from_box`](Self::rebuild_from_box), each cube split by `split`.
+    ///
+    /// # Errors
+    /// As [`rebuild_from_box`](Self::rebuild_from_box).
+    pub fn rebuild_from_box_split(
+        &mut self,
+        min: Vec3,
+        max: Vec3,
+        cells: [usize; 3],
+        split: BoxSplit,
+        density: Real,
+    ) -> Result<(), BodyError> {
+        let built = self.fill_from_box(min, max, cells, split, density);
+        self.emptied_on_error(built)
+    }
+
+    /// Rebuilds the body in place from the caller's rest positions (m) and tetrahedra, as
+    /// [`from_arrays`](Self::from_arrays) builds a new one; what is kept and replaced is as
+    /// in [`rebuild_from_box`](Self::rebuild_from_box).
+    ///
+    /// # Errors
+    /// As [`from_arrays`](Self::from_arrays); the body is then left with no vertices and no
+    /// tetrahedra until rebuilt.
+    pub fn rebuild_from_arrays(
+        &mut self,
+        rest_positions: &[Vec3],
+        tets: &[[u32; 4]],
+        density: Real,
+    ) -> Result<(), BodyError> {
+        let built = self.fill_from_arrays(rest_positions, tets, density);
+        self.emptied_on_error(built)
+    }
+
+    fn fill_from_box(
+        &mut self,
+        min: Vec3,
+        max: Vec3,
+        cells: [usize; 3],
+        split: BoxSplit,
+        density: Real,
+    ) -> Result<(), BodyError> {
+        let [nx, ny, nz] = cells;
+        let (vertices, tets) = box_counts(nx, ny, nz, split)?;
+        self.reshape(vertices, tets)?;
+        fill_box(
+            min,
+            max,
+            nx,
+            ny,
+            nz,
+            split,
+            self.rest_positions.slice_mut(),
+            self.tets.slice_mut(),
+        )?;
+        self.validate(density)
+    }
+
+    fn fill_from_arrays(
+        &mut self,
+        rest_positions: &[Vec3],
+        tets: &[[u32; 4]],
+        density: Real,
+    ) -> Result<(), BodyError> {
+        self.reshape(rest_positions.len(), tets.len())?;
+        copy_into(self.rest_positions.slice_mut(), rest_positions);
+        copy_into(self.tets.slice_mut(), tets);
+        self.validate(density)
+    }
+
+    /// Empties the body if `built` failed, so that no half-built geometry is ever stepped.
+    fn emptied_on_error(&mut self, built: Result<(), BodyError>) -> Result<(), BodyError> {
+        if built.is_err() {
+            // Length zero always fits.
+            let _ = self.reshape(0, 0);
+        }
+        built
+    }
+
+    /// A body with no vertices and no tetrahedra, the explicit solver, no gravity or ground.
+    fn unbuilt(material: M) -> Self {
+        Body {
             rest_positions: S::Vectors::empty(),
             tets: S::Tets::empty(),
             rest_data: S::Rests::empty(),
@@ -258,22 +348,32 @@ impl<S: Storage, M: Material> Body<S, M> {
             preconditioner_ready: false,
             topology: None,
             stable_step: None,
-        };
-        let fits = body.rest_positions.resize(vertices, Vec3::ZERO)
-            && body.masses.resize(vertices, 0.0)
-            && body.pinned.resize(vertices, false)
-            && body.kinematic.resize(vertices, false)
-            && body.targets.resize(vertices, Vec3::ZERO)
-            && body.held_velocities.resize(vertices, Vec3::ZERO)
-            && body.positions.resize(vertices, Vec3::ZERO)
-            && body.velocities.resize(vertices, Vec3::ZERO)
-            && body.scalars.resize(vertices, 0.0);
+        }
+    }
+
+    /// Sets every buffer to `vertices` and `tets` zeroed entries (unvalidated) and forgets the
+    /// solvers' history; sizes the scratch of the current solver.
+    fn reshape(&mut self, vertices: usize, tets: usize) -> Result<(), BodyError> {
+        self.gradient_gain = 0.0;
+        self.explicit_memory = ExplicitMemory::FRESH;
+        self.preconditioner_ready = false;
+        self.topology = None;
+        self.stable_step = None;
+        let fits = self.rest_positions.resize(vertices, Vec3::ZERO)
+            && self.masses.resize(vertices, 0.0)
+            && self.pinned.resize(vertices, false)
+            && self.kinematic.resize(vertices, false)
+            && self.targets.resize(vertices, Vec3::ZERO)
+            && self.held_velocities.resize(vertices, Vec3::ZERO)
+            && self.positions.resize(vertices, Vec3::ZERO)
+            && self.velocities.resize(vertices, Vec3::ZERO)
+            && self.scalars.resize(vertices, 0.0);
         capacity(fits, BodyBuffer::Vertices, vertices)?;
         let fits =
-            body.tets.resize(tets, [0; 4]) && body.rest_data.resize(tets, TetRest::default());
+            self.tets.resize(tets, [0; 4]) && self.rest_data.resize(tets, TetRest::default());
         capacity(fits, BodyBuffer::Tetrahedra, tets)?;
-        body.size_scratch(&Solver::explicit())?;
-        Ok(body)
+        let solver = self.solver;
+        self.size_scratch(&solver)
     }
 
     /// Validates the mesh once ([`TetMesh::new`]) and computes the masses.
@@ -551,10 +651,13 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// free vertices), computed once and cached until the pins or the material change.
     ///
     /// # Errors
-    /// As [`stable_time_step`].
+    /// [`StepError::EmptyBody`] for a body with no vertices, otherwise as [`stable_time_step`].
     pub fn stable_time_step(&mut self) -> Result<Real, StepError> {
         if let Some(dt) = self.stable_step {
             return Ok(dt);
+        }
+        if self.vertex_count() == 0 {
+            return Err(StepError::EmptyBody);
         }
         let mesh = TetMesh::from_validated(
             self.tets.slice(),
@@ -579,7 +682,8 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// targets, then one call of the solver's stepper with the body's gravity and ground.
     ///
     /// # Errors
-    /// [`StepError::TimeStep`] if `dt` is not finite and positive, [`StepError::Substeps`] if
+    /// [`StepError::TimeStep`] if `dt` is not finite and positive, [`StepError::EmptyBody`] if
+    /// the body has no vertices (never built, or its last rebuild failed), [`StepError::Substeps`] if
     /// the explicit solver's `stable_fraction` is not positive or asks for more than
     /// [`MAX_SUBSTEPS`](super::step::MAX_SUBSTEPS) substeps (nothing touched in both cases), or the
     /// stepper's error, with positions, velocities and targets restored bit for bit.
@@ -617,6 +721,9 @@ impl<S: Storage, M: Material> Body<S, M> {
     ) -> Result<StepReport, StepError> {
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(StepError::TimeStep);
+        }
+        if self.vertex_count() == 0 {
+            return Err(StepError::EmptyBody);
         }
         let substeps = match self.solver {
             Solver::Explicit {
@@ -756,6 +863,68 @@ impl<S: Storage, M: Material> Body<S, M> {
 fn copy_into<X: Copy>(target: &mut [X], source: &[X]) {
     for (slot, &value) in target.iter_mut().zip(source) {
         *slot = value;
+    }
+}
+
+impl<const V: usize, const T: usize, M: Material> Body<FixedStorage<V, T>, M> {
+    /// A fixed-capacity body with no vertices and no tetrahedra, the explicit solver, no
+    /// gravity or ground: a `const` value, so the body can be a `static` (in `.bss`, never on
+    /// the stack), then built in place with [`rebuild_from_box`](Body::rebuild_from_box) or
+    /// [`rebuild_from_arrays`](Body::rebuild_from_arrays). This is the firmware way: the
+    /// constructors that return a body by value ([`from_box`](Body::from_box) and the others)
+    /// need stack for the body several times over while it is built and moved (about five
+    /// times its size in the Cortex-M4F check), while the in-place rebuild needs none of it.
+    /// Stepping the empty body is an error ([`StepError::EmptyBody`]).
+    ///
+    /// ```
+    /// use softfem::body::{Body, FixedStorage};
+    /// use softfem::material::{Lame, StableNeoHookean};
+    /// use softfem::{StepError, glam::Vec3};
+    ///
+    /// type Ball = Body<FixedStorage<27, 40>, StableNeoHookean>;
+    /// const RUBBER: StableNeoHookean = match Lame::from_young_poisson(1e6, 0.45) {
+    ///     Ok(lame) => StableNeoHookean::new(lame),
+    ///     Err(_) => panic!("invalid material"),
+    /// };
+    /// static BODY: std::sync::Mutex<Ball> = std::sync::Mutex::new(Ball::empty(RUBBER));
+    ///
+    /// let mut body = BODY.lock().unwrap();
+    /// assert_eq!(body.step(0.01), Err(StepError::EmptyBody)); // nothing built yet
+    /// body.rebuild_from_box(Vec3::ZERO, Vec3::splat(0.1), [2, 2, 1], 1000.0)?;
+    /// body.set_gravity(Vec3::new(0.0, 0.0, -9.81));
+    /// body.step(0.01)?;
+    /// assert_eq!((body.vertex_count(), body.tet_count()), (18, 20));
+    /// assert!(body.velocities().iter().all(|v| v.z < 0.0));
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    #[must_use]
+    pub const fn empty(material: M) -> Self {
+        Body {
+            rest_positions: Fixed::filled(Vec3::ZERO),
+            tets: Fixed::filled([0; 4]),
+            rest_data: Fixed::filled(TetRest::ZERO),
+            gradient_gain: 0.0,
+            masses: Fixed::filled(0.0),
+            pinned: Fixed::filled(false),
+            kinematic: Fixed::filled(false),
+            targets: Fixed::filled(Vec3::ZERO),
+            held_velocities: Fixed::filled(Vec3::ZERO),
+            positions: Fixed::filled(Vec3::ZERO),
+            velocities: Fixed::filled(Vec3::ZERO),
+            vectors: Fixed::filled(Vec3::ZERO),
+            scalars: Fixed::filled(0.0),
+            blocks: Fixed::filled(Mat3::ZERO),
+            hessians: Fixed::filled(TetHessian::ZERO),
+            indices: Fixed::filled(0),
+            material,
+            solver: Solver::explicit(),
+            gravity: Vec3::ZERO,
+            ground: None,
+            explicit_memory: ExplicitMemory::FRESH,
+            preconditioner_ready: false,
+            topology: None,
+            stable_step: None,
+        }
     }
 }
 

@@ -44,7 +44,7 @@ impl Solver {
     /// Explicit, undamped, one substep per half the stable time step.
     #[inline]
     #[must_use]
-    pub fn explicit() -> Solver {
+    pub const fn explicit() -> Solver {
         Solver::Explicit {
             settings: ExplicitSettings::new(1.0),
             stable_fraction: Some(0.5),

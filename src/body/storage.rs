@@ -57,6 +57,19 @@ pub struct Fixed<X, const ROWS: usize, const N: usize> {
     len: usize,
 }
 
+impl<X: Copy, const ROWS: usize, const N: usize> Fixed<X, ROWS, N> {
+    /// A buffer of length zero whose whole capacity holds `fill`: a `const` initial value, so
+    /// a fixed-capacity body can sit in a `static` (see [`Body::empty`](super::Body::empty)).
+    #[inline]
+    #[must_use]
+    pub const fn filled(fill: X) -> Self {
+        Fixed {
+            rows: [[fill; N]; ROWS],
+            len: 0,
+        }
+    }
+}
+
 impl<X: Copy + Default, const ROWS: usize, const N: usize> Slots<X> for Fixed<X, ROWS, N> {
     #[inline]
     fn empty() -> Self {

@@ -57,6 +57,12 @@ pub struct TetHessian {
 }
 
 impl TetHessian {
+    /// All stiffness entries zero: only a buffer's initial value (as `Default`), never the
+    /// Hessian of a valid element.
+    pub const ZERO: TetHessian = TetHessian {
+        stiffness: StressDerivative::ZERO,
+    };
+
     /// The projected (SPD) Hessian data of `material` on the tetrahedron `rest` at deformed
     /// positions `corners` (m): one SVD of `F`.
     #[inline]

@@ -19,6 +19,13 @@ pub struct TetRest {
 }
 
 impl TetRest {
+    /// `Dm^-1 = 0` and zero volume, as `Default`: only a buffer's initial value, never the rest
+    /// data of a valid element.
+    pub const ZERO: TetRest = TetRest {
+        dm_inv: Mat3::ZERO,
+        volume: 0.0,
+    };
+
     /// The rest data of the tetrahedron with rest positions `x` (m).
     ///
     /// # Errors

@@ -63,12 +63,17 @@ pub struct StressDerivative {
     packed: [Real; PACKED],
 }
 
+impl StressDerivative {
+    /// All entries zero (a buffer's initial value).
+    pub const ZERO: StressDerivative = StressDerivative {
+        packed: [0.0; PACKED],
+    };
+}
+
 impl Default for StressDerivative {
     #[inline]
     fn default() -> Self {
-        StressDerivative {
-            packed: [0.0; PACKED],
-        }
+        StressDerivative::ZERO
     }
 }
 

@@ -33,7 +33,7 @@ impl Lame {
     /// finite and positive. A negative `lambda` is valid as long as `K > 0` (auxetic materials,
     /// Poisson ratio below zero).
     #[inline]
-    pub fn new(lambda: Real, mu: Real) -> Result<Lame, MaterialError> {
+    pub const fn new(lambda: Real, mu: Real) -> Result<Lame, MaterialError> {
         if !lambda.is_finite() {
             return Err(MaterialError::Lambda);
         }
@@ -56,7 +56,7 @@ impl Lame {
     /// error of [`Lame::new`], which can still occur when `nu` is so close to a bound that the
     /// converted values overflow or lose the sign of `K` to rounding.
     #[inline]
-    pub fn from_young_poisson(e: Real, nu: Real) -> Result<Lame, MaterialError> {
+    pub const fn from_young_poisson(e: Real, nu: Real) -> Result<Lame, MaterialError> {
         if !(e > 0.0 && e.is_finite()) {
             return Err(MaterialError::YoungModulus);
         }
@@ -71,21 +71,21 @@ impl Lame {
     /// The first Lamé parameter `lambda` (Pa).
     #[inline]
     #[must_use]
-    pub fn lambda(&self) -> Real {
+    pub const fn lambda(&self) -> Real {
         self.lambda
     }
 
     /// The shear modulus `mu` (Pa), the second Lamé parameter.
     #[inline]
     #[must_use]
-    pub fn mu(&self) -> Real {
+    pub const fn mu(&self) -> Real {
         self.mu
     }
 
     /// The bulk modulus `K = lambda + 2 mu / 3` (Pa), always positive.
     #[inline]
     #[must_use]
-    pub fn bulk_modulus(&self) -> Real {
+    pub const fn bulk_modulus(&self) -> Real {
         self.lambda + 2.0 * self.mu / 3.0
     }
 }

@@ -58,7 +58,7 @@ impl NeoHookean {
     /// The model with the given (already validated) Lamé parameters.
     #[inline]
     #[must_use]
-    pub fn new(lame: Lame) -> NeoHookean {
+    pub const fn new(lame: Lame) -> NeoHookean {
         NeoHookean {
             lame,
             bulk_modulus: lame.bulk_modulus(),

@@ -57,7 +57,7 @@ impl StableNeoHookean {
     /// The model with the given (already validated) Lamé parameters.
     #[inline]
     #[must_use]
-    pub fn new(lame: Lame) -> StableNeoHookean {
+    pub const fn new(lame: Lame) -> StableNeoHookean {
         StableNeoHookean {
             lame,
             volume_stiffness: lame.lambda() + 5.0 * lame.mu() / 6.0,

@@ -86,7 +86,7 @@ impl<'a, V: Vector> ExplicitSettings<'a, V> {
     /// One substep of `dt` (s), no gravity, damping or ground, the default growth limit.
     #[inline]
     #[must_use]
-    pub fn new(dt: Real) -> Self {
+    pub const fn new(dt: Real) -> Self {
         ExplicitSettings {
             external_forces: &[],
             fixed_axes: &[],

@@ -438,10 +438,10 @@ static mut BODY_F64: double::DropBody = double::DropBody::EMPTY;
 static mut DESCENT_F32: single::DescentScratch = single::DescentScratch::EMPTY;
 static mut DESCENT_F64: double::DescentScratch = double::DescentScratch::EMPTY;
 static mut RECORDS: Records = Records::new();
-/// softfem's owning bodies of the collider scene: `None` until built (a `Body` has no `const`
-/// constructor), in statics because the f64 one is tens of KB.
-static mut OWNED_F32: Option<single::ColliderBody> = None;
-static mut OWNED_F64: Option<double::ColliderBody> = None;
+/// softfem's owning bodies of the collider scene: `Body::empty` until built in place
+/// (`Body::rebuild_from_box`), in statics because the f64 one is tens of KB.
+static mut OWNED_F32: single::ColliderBody = single::COLLIDER_BODY;
+static mut OWNED_F64: double::ColliderBody = double::COLLIDER_BODY;
 
 /// Compares the records with [`EXPECTED`], one line each; returns the number of mismatches.
 fn compare(records: &Records) -> u64 {

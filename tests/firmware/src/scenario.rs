@@ -9,8 +9,8 @@
 //!
 //! Everything here is `no_std` and allocation-free: the drop body lives in a caller-owned
 //! `DropBody` of each precision and the descent solvers' scratch in a `DescentScratch`, the
-//! collider scene's `softfem::body::Body` in a caller-owned `Option<ColliderBody>` (statics in
-//! the firmware), Newton's cached element Hessians on the stack.
+//! collider scene's `softfem::body::Body` in a caller-owned `ColliderBody` (statics in the
+//! firmware, `Body::empty` and rebuilt in place), Newton's cached element Hessians on the stack.
 
 /// The most records one run produces (both precisions).
 pub const MAX_RECORDS: usize = 128;
@@ -220,7 +220,7 @@ macro_rules! precision {
             use $($softfem)::+::element::{TetHessian, TetRest};
             use $($softfem)::+::generate::{BoxSplit, fill_box};
             use $($softfem)::+::MeshError;
-            use $($softfem)::+::material::{NeoHookean, StVK, StableNeoHookean};
+            use $($softfem)::+::material::{Lame, NeoHookean, StVK, StableNeoHookean};
             use $($softfem)::+::mesh::TetMesh;
             use $($softfem)::+::step::{
                 Collider, ExplicitScratch, ExplicitSettings, Ground, NewtonReport, NewtonScratch,
@@ -336,18 +336,18 @@ macro_rules! precision {
                     $($softfem)::+::step::vbd_step(model, masses, &[], settings, positions, velocities, scratch)
                 }
 
-                /// `Body::from_box` of the body dropped onto the colliders, written into `slot`
-                /// (a static in the firmware).
+                /// `Body::rebuild_from_box` of the body dropped onto the colliders, in place in
+                /// `slot` (a static in the firmware).
                 #[inline(never)]
                 pub fn body_new(
-                    slot: &mut Option<ColliderBody>,
+                    slot: &mut ColliderBody,
                     min: Vec3,
                     max: Vec3,
                     density: Real,
                     material: StableNeoHookean,
                 ) -> Result<(), BodyError> {
-                    *slot = Some(ColliderBody::from_box(min, max, super::COLLIDER_CELLS, density, material)?);
-                    Ok(())
+                    slot.set_material(material);
+                    slot.rebuild_from_box(min, max, super::COLLIDER_CELLS, density)
                 }
 
                 /// `Body::step_with_colliders` of that body, whichever its solver.
@@ -442,9 +442,9 @@ macro_rules! precision {
             }
 
             /// Cells along x, y and z of the cube dropped onto the colliders: one layer of 2 x 2
-            /// cubes, the bottom face a 3 x 3 grid of vertices. (Two layers, 27 vertices, do not
-            /// fit: `Body::from_box` of `FixedStorage<27, 40>` takes 170 KB of stack in f64
-            /// here, about five copies of the 33 KB body, more than the RAM the statics leave.)
+            /// cubes, the bottom face a 3 x 3 grid of vertices. (Built in place by
+            /// `Body::rebuild_from_box`; `Body::from_box`, which returns the body by value,
+            /// took about five times the body's size in stack here: 97 KB in f64.)
             pub const COLLIDER_CELLS: [usize; 3] = [2, 1, 2];
             /// Its vertices: 3 x 2 x 3.
             pub const COLLIDER_VERTICES: usize = (COLLIDER_CELLS[0] + 1) * (COLLIDER_CELLS[1] + 1) * (COLLIDER_CELLS[2] + 1);
@@ -454,6 +454,15 @@ macro_rules! precision {
             /// the scratch of every solver (Newton's `TetHessian`s included), so this is the
             /// largest static of the firmware per vertex.
             pub type ColliderBody = owning::Body<FixedStorage<COLLIDER_VERTICES, COLLIDER_TETS>, StableNeoHookean>;
+            /// The jelly of the collider scene (E = 50 kPa, nu = 0.4) as a `const`, for the
+            /// body's `static` (the run sets the same material again, computed at run time).
+            pub const COLLIDER_MATERIAL: StableNeoHookean = match Lame::from_young_poisson(5.0e4, 0.4) {
+                Ok(lame) => StableNeoHookean::new(lame),
+                Err(_) => panic!("the collider jelly's parameters are valid"),
+            };
+            /// The collider scene's body before it is built: a `const`, so the firmware's body
+            /// is a static in `.bss`, built in place (`Body::rebuild_from_box`).
+            pub const COLLIDER_BODY: ColliderBody = ColliderBody::empty(COLLIDER_MATERIAL);
             /// Explicit steps (60 Hz) of the cube on the colliders.
             pub const COLLIDER_EXPLICIT_STEPS: u32 = 30;
             /// Implicit steps (60 Hz, the relaxation) of the cube on the colliders, from the same
@@ -1002,13 +1011,13 @@ macro_rules! precision {
 
             /// A 10 cm jelly cube (stable neo-Hookean, E = 50 kPa; 18 vertices, 20 tetrahedra),
             /// softfem's owning `Body` in
-            /// fixed storage ([`ColliderBody`], built in `slot`), dropped from 5 cm onto a sphere
+            /// fixed storage ([`ColliderBody`], rebuilt in place), dropped from 5 cm onto a sphere
             /// and a capsule ([`colliders`]) and stepped at 60 Hz by `Body::step_with_colliders`:
             /// explicitly (substeps of half the stable step) and, rebuilt at rest, by implicit
             /// Euler (the relaxation, the stepper the README recommends for soft bodies at
             /// display rates).
             #[inline(never)]
-            fn on_colliders(meter: &mut impl Meter, records: &mut Records, slot: &mut Option<ColliderBody>) {
+            fn on_colliders(meter: &mut impl Meter, records: &mut Records, body: &mut ColliderBody) {
                 let material = StableNeoHookean::from_young_poisson(black_box(5.0e4), black_box(0.4));
                 let Ok(material) = material else {
                     push(records, concat!($prefix, " body setup"), Digest::new(), Real::NAN);
@@ -1047,10 +1056,10 @@ macro_rules! precision {
                 };
                 for (index, run) in [explicit, relax].into_iter().enumerate() {
                     // Each run from rest: the body is built afresh.
-                    let built = meter.measure(concat!($prefix, " Body::from_box"), || {
-                        pieces::body_new(slot, low, high, 1000.0, material)
+                    let built = meter.measure(concat!($prefix, " Body::rebuild_from_box"), || {
+                        pieces::body_new(body, low, high, 1000.0, material)
                     });
-                    let (Ok(()), Some(body)) = (built, slot.as_mut()) else {
+                    let Ok(()) = built else {
                         push(records, concat!($prefix, " body build"), Digest::new(), Real::NAN);
                         return;
                     };
@@ -1115,7 +1124,7 @@ macro_rules! precision {
             }
 
             /// The whole workload in this precision.
-            pub fn run(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody, descent: &mut DescentScratch, owned: &mut Option<ColliderBody>) {
+            pub fn run(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody, descent: &mut DescentScratch, owned: &mut ColliderBody) {
                 svds(meter, records);
                 forces(meter, records);
                 drop(meter, records, body, descent);
