@@ -102,6 +102,44 @@ fn pin_wall(body: &mut Body<Small, StableNeoHookean>, reference: &mut Reference)
     }
 }
 
+/// Steps `body` and the low-level `step_explicit` of `reference` with `settings` side by side
+/// for `steps` steps of `settings.dt`, asserting the same report and bits each step; then that
+/// the body moved by more than `moved` (m) somewhere, so the comparison is not of two bodies at
+/// rest.
+fn assert_explicit_matches(
+    body: &mut Body<Small, StableNeoHookean>,
+    reference: &mut Reference,
+    settings: &ExplicitSettings<'_, Vec3>,
+    steps: usize,
+    moved: f32,
+) {
+    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(36)];
+    let mut scratch = ExplicitScratch::new(&mut buffer);
+    for step in 0..steps {
+        let expected = step_explicit(
+            &reference.model,
+            &reference.masses,
+            &reference.pinned,
+            settings,
+            &mut reference.x,
+            &mut reference.v,
+            &mut scratch,
+        )
+        .unwrap();
+        let report = body.step(settings.dt).unwrap();
+        assert_eq!(report, StepReport::Explicit(expected), "step {step}");
+        assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
+        assert_eq!(bits(body.velocities()), bits(&reference.v), "step {step}");
+    }
+    assert!(
+        reference
+            .x
+            .iter()
+            .zip(reference.rest)
+            .any(|(x, r)| (*x - *r).length() > moved)
+    );
+}
+
 #[test]
 fn explicit_body_matches_the_low_level_calls_bit_for_bit() {
     let mut reference = Reference::new();
@@ -128,32 +166,7 @@ fn explicit_body_matches_the_low_level_calls_bit_for_bit() {
         stable_fraction: Some(0.5),
     })
     .unwrap();
-    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(36)];
-    let mut scratch = ExplicitScratch::new(&mut buffer);
-    for step in 0..60 {
-        let expected = step_explicit(
-            &model,
-            &reference.masses,
-            &reference.pinned,
-            &settings,
-            &mut reference.x,
-            &mut reference.v,
-            &mut scratch,
-        )
-        .unwrap();
-        let report = body.step(dt).unwrap();
-        assert_eq!(report, StepReport::Explicit(expected), "step {step}");
-        assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
-        assert_eq!(bits(body.velocities()), bits(&reference.v), "step {step}");
-    }
-    // It fell and moved: the comparison is not of two bodies at rest.
-    assert!(
-        reference
-            .x
-            .iter()
-            .zip(reference.rest)
-            .any(|(x, r)| (*x - *r).length() > 1e-3)
-    );
+    assert_explicit_matches(&mut body, &mut reference, &settings, 60, 1e-3);
 }
 
 #[test]
@@ -656,30 +669,7 @@ fn a_static_body_rebuilt_in_place_matches_the_low_level_calls_bit_for_bit() {
         stable_fraction: None,
     })
     .unwrap();
-    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(36)];
-    let mut scratch = ExplicitScratch::new(&mut buffer);
-    for step in 0..40 {
-        let expected = step_explicit(
-            &reference.model,
-            &reference.masses,
-            &reference.pinned,
-            &settings,
-            &mut reference.x,
-            &mut reference.v,
-            &mut scratch,
-        )
-        .unwrap();
-        assert_eq!(body.step(dt).unwrap(), StepReport::Explicit(expected));
-        assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
-        assert_eq!(bits(body.velocities()), bits(&reference.v), "step {step}");
-    }
-    assert!(
-        reference
-            .x
-            .iter()
-            .zip(reference.rest)
-            .any(|(x, r)| (*x - *r).length() > 1e-4)
-    );
+    assert_explicit_matches(&mut body, &mut reference, &settings, 40, 1e-4);
 }
 
 #[test]
