@@ -124,9 +124,15 @@ pub(crate) fn map_lane_matrices<L: Lane>(
     m: LaneMat3<L>,
     mut each: impl FnMut(Mat3) -> (Real, Mat3),
 ) -> (L, LaneMat3<L>) {
+    map_lanes(|lane| each(lane_mat3(&m, lane)))
+}
+
+/// `each(lane)` for every lane of `L`, one lane at a time, back in lanes.
+#[inline(always)]
+pub(crate) fn map_lanes<L: Lane>(mut each: impl FnMut(usize) -> (Real, Mat3)) -> (L, LaneMat3<L>) {
     let mut results = [(0.0, [0.0; 9]); MAX_WIDTH];
     for (lane, slot) in results.iter_mut().enumerate().take(L::WIDTH) {
-        let (value, matrix) = each(lane_mat3(&m, lane));
+        let (value, matrix) = each(lane);
         *slot = (value, matrix.to_cols_array());
     }
     let entry = |k: usize| {
@@ -148,6 +154,38 @@ pub(crate) fn map_lane_matrices<L: Lane>(
             c2: column(2),
         },
     )
+}
+
+/// The SVDs of a group of matrices, one per lane, as [`svd3`](super::svd::svd3) returns them
+/// ([`Svd3`](super::svd::Svd3)): lane `i` of each field is the field of lane `i`'s
+/// decomposition. What the principal-path force kernels hand to
+/// [`Material::first_piola_from_svd_wide`](super::material::Material::first_piola_from_svd_wide).
+#[derive(Clone, Copy)]
+pub struct LaneSvd3<L> {
+    /// Left singular vectors as columns (a proper rotation in every lane).
+    pub u: LaneMat3<L>,
+    /// Signed singular values, `sigma.x >= sigma.y >= |sigma.z|` in every lane.
+    pub sigma: LaneVec3<L>,
+    /// Right singular vectors as columns (a proper rotation in every lane).
+    pub v: LaneMat3<L>,
+}
+
+impl<L: Lane> LaneSvd3<L> {
+    /// The decomposition in lane `lane`.
+    #[inline(always)]
+    #[must_use]
+    pub fn lane(&self, lane: usize) -> super::svd::Svd3 {
+        let sigma = &self.sigma;
+        super::svd::Svd3 {
+            u: lane_mat3(&self.u, lane),
+            sigma: Vec3::new(
+                sigma.x.value_of_lane(lane),
+                sigma.y.value_of_lane(lane),
+                sigma.z.value_of_lane(lane),
+            ),
+            v: lane_mat3(&self.v, lane),
+        }
+    }
 }
 
 /// `each` of the matrix and vector in every lane of `(m, v)`, one lane at a time, back in

@@ -50,7 +50,7 @@ use super::types::{Mat3, Real, Vec3};
 
 #[path = "svd_batch.rs"]
 mod batch;
-pub(crate) use batch::{UNWRITTEN, svd3_of_lanes};
+pub(crate) use batch::svd3_of_lanes;
 pub use batch::{svd3_batch, svd3_batch_sweeps};
 
 /// The most Jacobi sweeps [`svd3`] runs: 4 in both precisions (each sweep is three rotations;
@@ -215,7 +215,14 @@ impl Prescale {
             .max(a.y_axis.abs())
             .max(a.z_axis.abs())
             .max_element();
-        if !a.is_finite() || max_abs == 0.0 {
+        Prescale::of_max_abs(max_abs, a.is_finite())
+    }
+
+    /// [`Prescale::of`] a matrix whose largest entry magnitude is `max_abs`, and which is
+    /// `finite` or not (the batched SVD finds both in lanes).
+    #[inline(always)]
+    fn of_max_abs(max_abs: Real, finite: bool) -> Option<Prescale> {
+        if !finite || max_abs == 0.0 {
             return None;
         }
         let e = math::exponent(max_abs);

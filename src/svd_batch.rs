@@ -16,7 +16,7 @@
 #[cfg(not(debug_assertions))]
 use super::super::lanes::LanePair;
 use super::super::lanes::{
-    LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH as MAX_GROUP, lane_mat3,
+    LaneArray, LaneMat3, LaneSvd3, LaneVec3, Lanes, MAX_WIDTH as MAX_GROUP, lane_mat3,
 };
 use super::super::math;
 use super::super::types::{Mat3, Real, Vec3};
@@ -195,37 +195,99 @@ fn set_lane<L: LaneArray, const N: usize>(
 }
 
 /// `out[i]` = the SVD of `matrices[i]`, for up to `L::WIDTH` matrices in one group of lanes
-/// (padded with the identity). The scaling of step 1 is applied and undone in the lanes, with
-/// the scalar code's operations in its order (`a * 2^-e_lo * 2^-e_hi`, `sigma * 2^e_lo * 2^e_hi`),
-/// so that every lane gives the bits of [`svd3_sweeps`].
+/// (padded with the identity), through [`decompose_entries`].
 #[inline(always)]
 fn decompose_group<L: LaneArray>(matrices: &[Mat3], out: &mut [Svd3], sweeps: u32) {
-    const { assert!(L::WIDTH <= MAX_GROUP) };
-    let mut prescales: [Option<Prescale>; MAX_GROUP] = [None; MAX_GROUP];
-    // The entries (columns first), and the factors of the scaling down and back up.
     let mut entries = [L::ZEROS; 9];
+    for lane in 0..L::WIDTH {
+        let a = matrices.get(lane).copied().unwrap_or(Mat3::IDENTITY);
+        set_lane::<L, 9>(&mut entries, lane, a.to_cols_array());
+    }
+    let (svd, decomposed) = decompose_entries::<L>(entries, sweeps);
+    let sigma = [
+        svd.sigma.x.to_lane_array(),
+        svd.sigma.y.to_lane_array(),
+        svd.sigma.z.to_lane_array(),
+    ];
+    let (u, v) = (matrix_entries(svd.u), matrix_entries(svd.v));
+    for (lane, (a, svd)) in matrices.iter().zip(out).enumerate() {
+        // Hidden from the optimiser, which would otherwise turn the lanes' stores into
+        // scatter instructions (one per entry, across the matrices), several times slower on
+        // current AMD processors than plain stores of each matrix's 21 values.
+        let lane = core::hint::black_box(lane);
+        *svd = match decomposed.get(lane) {
+            Some(true) => Svd3 {
+                u: Mat3::from_cols_array(&lane_values::<L, 9>(&u, lane)),
+                sigma: Vec3::from_array(lane_values::<L, 3>(&sigma, lane)),
+                v: Mat3::from_cols_array(&lane_values::<L, 9>(&v, lane)),
+            },
+            _ => Svd3::without_decomposition(*a),
+        };
+    }
+}
+
+/// The entries of `m`, columns first, each as the array of its lanes.
+#[inline(always)]
+fn matrix_entries<L: LaneArray>(m: LaneMat3<L>) -> [L::Array; 9] {
+    let (c0, c1, c2) = (m.c0, m.c1, m.c2);
+    [
+        c0.x.to_lane_array(),
+        c0.y.to_lane_array(),
+        c0.z.to_lane_array(),
+        c1.x.to_lane_array(),
+        c1.y.to_lane_array(),
+        c1.z.to_lane_array(),
+        c2.x.to_lane_array(),
+        c2.y.to_lane_array(),
+        c2.z.to_lane_array(),
+    ]
+}
+
+/// The SVD of the matrix in each lane of `entries` (its entries columns first, each as the
+/// array of its lanes), and which lanes had one: a zero or non-finite matrix has no
+/// decomposition to run ([`Prescale::of`]); its lane runs on the identity, which keeps every
+/// lane finite, and the caller replaces its result by `Svd3::without_decomposition`. The
+/// scaling of step 1 is applied and undone in the lanes, with the scalar code's operations in
+/// its order (`a * 2^-e_lo * 2^-e_hi`, `sigma * 2^e_lo * 2^e_hi`), so that every decomposed
+/// lane gives the bits of [`svd3_sweeps`].
+#[inline(always)]
+fn decompose_entries<L: LaneArray>(
+    mut entries: [L::Array; 9],
+    sweeps: u32,
+) -> (LaneSvd3<L>, [bool; MAX_GROUP]) {
+    const { assert!(L::WIDTH <= MAX_GROUP) };
+    let mut decomposed = [false; MAX_GROUP];
+    // The largest entry magnitude of every lane's matrix (exact, so in any order), and zero
+    // where every entry is finite, NaN where one is not (`0 x`).
+    let zero = L::splat(0.0);
+    let (mut max_abs, mut non_finite) = (zero, zero);
+    for column in &entries {
+        let x = L::from_lane_array(*column);
+        max_abs = max_abs.max(x.abs());
+        non_finite = non_finite + x * zero;
+    }
+    let (max_abs, non_finite) = (max_abs.to_lane_array(), non_finite.to_lane_array());
+    // The factors of the scaling down and back up.
     let mut factors = [L::ZEROS; 4];
     for lane in 0..L::WIDTH {
-        let a = matrices.get(lane).copied();
-        let prescale = a.and_then(Prescale::of);
-        if let Some(slot) = prescales.get_mut(lane) {
-            *slot = prescale;
-        }
-        // Lanes without a decomposition (zero or non-finite input, padding) run on the
-        // identity, which keeps every lane finite, and are replaced afterwards.
-        let (matrix, lane_factors) = match (a, prescale) {
-            (Some(a), Some(prescale)) => (
-                a,
+        let finite = L::lane_value(&non_finite, lane) == 0.0;
+        let lane_factors = match Prescale::of_max_abs(L::lane_value(&max_abs, lane), finite) {
+            Some(prescale) => {
+                if let Some(flag) = decomposed.get_mut(lane) {
+                    *flag = true;
+                }
                 [
                     math::pow2(-prescale.e_lo),
                     math::pow2(-prescale.e_hi),
                     math::pow2(prescale.e_lo),
                     math::pow2(prescale.e_hi),
-                ],
-            ),
-            _ => (Mat3::IDENTITY, [1.0; 4]),
+                ]
+            }
+            None => {
+                set_lane::<L, 9>(&mut entries, lane, Mat3::IDENTITY.to_cols_array());
+                [1.0; 4]
+            }
         };
-        set_lane::<L, 9>(&mut entries, lane, matrix.to_cols_array());
         set_lane::<L, 4>(&mut factors, lane, lane_factors);
     }
     // Destructured rather than `<[_; N]>::map`, which is not always inlined: a call would run
@@ -241,52 +303,63 @@ fn decompose_group<L: LaneArray>(matrices: &[Mat3], out: &mut [Svd3], sweeps: u3
         c2: LaneVec3::new(down(a02), down(a12), down(a22)),
     };
     let (u, sigma, v) = decompose_scaled(scaled, sweeps);
-    let up = |s: L| (s * up_lo * up_hi).to_lane_array();
-    let sigma = [up(sigma.x), up(sigma.y), up(sigma.z)];
-    let matrix_entries = |m: LaneMat3<L>| {
-        let (c0, c1, c2) = (m.c0, m.c1, m.c2);
-        [
-            c0.x.to_lane_array(),
-            c0.y.to_lane_array(),
-            c0.z.to_lane_array(),
-            c1.x.to_lane_array(),
-            c1.y.to_lane_array(),
-            c1.z.to_lane_array(),
-            c2.x.to_lane_array(),
-            c2.y.to_lane_array(),
-            c2.z.to_lane_array(),
-        ]
-    };
-    let (u, v) = (matrix_entries(u), matrix_entries(v));
-    for (lane, (a, svd)) in matrices.iter().zip(out).enumerate() {
-        // Hidden from the optimiser, which would otherwise turn the lanes' stores into
-        // scatter instructions (one per entry, across the matrices), several times slower on
-        // current AMD processors than plain stores of each matrix's 21 values.
-        let lane = core::hint::black_box(lane);
-        *svd = match prescales.get(lane) {
-            Some(Some(_)) => Svd3 {
-                u: Mat3::from_cols_array(&lane_values::<L, 9>(&u, lane)),
-                sigma: Vec3::from_array(lane_values::<L, 3>(&sigma, lane)),
-                v: Mat3::from_cols_array(&lane_values::<L, 9>(&v, lane)),
-            },
-            _ => Svd3::without_decomposition(*a),
-        };
-    }
+    let up = |s: L| s * up_lo * up_hi;
+    let sigma = LaneVec3::new(up(sigma.x), up(sigma.y), up(sigma.z));
+    (LaneSvd3 { u, sigma, v }, decomposed)
 }
 
-/// [`svd3`](super::svd3) of the matrix in each lane of `a`, in `out[lane]` for the first
-/// `L::WIDTH` entries (the others are left as they are): the principal-path force kernels'
-/// batch, whose deformation gradients are already in lanes.
+/// [`svd3`](super::svd3) of the matrix in each lane of `a`, in lanes: the principal-path force
+/// kernels' decomposition, whose deformation gradients are already in lanes and whose stresses
+/// and nodal forces are formed in lanes too. Every lane holds the bits of `svd3` of its matrix.
 #[inline(always)]
-pub(crate) fn svd3_of_lanes<L: LaneArray>(a: &LaneMat3<L>, out: &mut [Svd3; MAX_GROUP]) {
-    let mut matrices = [Mat3::ZERO; MAX_GROUP];
-    for (lane, matrix) in matrices.iter_mut().enumerate().take(L::WIDTH) {
-        *matrix = lane_mat3(a, lane);
+pub(crate) fn svd3_of_lanes<L: LaneArray>(a: &LaneMat3<L>) -> LaneSvd3<L> {
+    let (mut svd, decomposed) = decompose_entries::<L>(matrix_entries(*a), DEFAULT_SWEEPS);
+    if decomposed.iter().take(L::WIDTH).all(|&flag| flag) {
+        return svd;
     }
-    if let (Some(matrices), Some(out)) = (matrices.get(..L::WIDTH), out.get_mut(..L::WIDTH)) {
-        decompose_group::<L>(matrices, out, DEFAULT_SWEEPS);
+    // Rare (a collapsed element, non-finite input): the lanes without a decomposition get what
+    // `svd3` returns for them, lane by lane.
+    let mut u = matrix_entries(svd.u);
+    let mut v = matrix_entries(svd.v);
+    let mut sigma = [
+        svd.sigma.x.to_lane_array(),
+        svd.sigma.y.to_lane_array(),
+        svd.sigma.z.to_lane_array(),
+    ];
+    for (lane, _) in decomposed
+        .iter()
+        .enumerate()
+        .take(L::WIDTH)
+        .filter(|(_, d)| !**d)
+    {
+        let lane_svd = Svd3::without_decomposition(lane_mat3(a, lane));
+        set_lane::<L, 9>(&mut u, lane, lane_svd.u.to_cols_array());
+        set_lane::<L, 9>(&mut v, lane, lane_svd.v.to_cols_array());
+        set_lane::<L, 3>(&mut sigma, lane, lane_svd.sigma.to_array());
     }
+    let matrix = |[a00, a10, a20, a01, a11, a21, a02, a12, a22]: [L::Array; 9]| {
+        let column = |x, y, z| {
+            LaneVec3::new(
+                L::from_lane_array(x),
+                L::from_lane_array(y),
+                L::from_lane_array(z),
+            )
+        };
+        LaneMat3 {
+            c0: column(a00, a10, a20),
+            c1: column(a01, a11, a21),
+            c2: column(a02, a12, a22),
+        }
+    };
+    let [sx, sy, sz] = sigma;
+    svd = LaneSvd3 {
+        u: matrix(u),
+        sigma: LaneVec3::new(
+            L::from_lane_array(sx),
+            L::from_lane_array(sy),
+            L::from_lane_array(sz),
+        ),
+        v: matrix(v),
+    };
+    svd
 }
-
-/// An output slot for [`svd3_of_lanes`] before it is written.
-pub(crate) const UNWRITTEN: Svd3 = Svd3::NON_FINITE;

@@ -365,6 +365,7 @@ macro_rules! mesh_tests {
             use $($crate_path)::+::element::TetRest;
             use $($crate_path)::+::material::{Material, NeoHookean, StVK, StableNeoHookean};
             use $($crate_path)::+::mesh::TetMesh;
+            use $($crate_path)::+::types::Mat3 as M3;
             use $($crate_path)::+::step::{
                 ElasticEnergy, ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings,
                 TetElastic, explicit_scratch_len, relax_scratch_len, relax_step, step_explicit,
@@ -583,6 +584,59 @@ macro_rules! mesh_tests {
             fn mesh_kernels_are_bitwise_on_strong_and_inverting_deformations() {
                 check_all(4, 0.3, 0, &[384]);
                 check_all(4, 0.3, 7, &[33, 384]);
+            }
+
+            /// Elements collapsed to a point (`F = 0`, which `svd3` does not decompose: it returns
+            /// `u = v = I`, `sigma = 0`) in lanes of a group whose other lanes are decomposed: the
+            /// principal and clamped passes (the clamped stress of `F = 0` is not zero) keep the
+            /// bits of the element loop at every width.
+            #[test]
+            fn principal_paths_are_bitwise_with_collapsed_elements_in_a_group() {
+                let (rest_x, mut x, tets) = deformed_box(3, 0.08, 0);
+                // Elements at different lanes of 4-, 8- and 16-wide groups.
+                for &e in &[5usize, 22, 43, 60] {
+                    let point = x[tets[e][0] as usize];
+                    for &i in &tets[e] {
+                        x[i as usize] = point;
+                    }
+                }
+                let mut rest = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest_x, &tets, &mut rest).unwrap();
+                let collapsed = tets
+                    .iter()
+                    .zip(mesh.rest())
+                    .filter(|(tet, r)| r.deformation_gradient(tet.map(|i| x[i as usize])) == M3::ZERO)
+                    .count();
+                assert!(collapsed >= 4, "only {collapsed} collapsed elements");
+                check_forces(&StVK::from_young_poisson(1.0e6, 0.45).unwrap(), &mesh, &x, "StVK");
+                check_forces(&StableNeoHookean::from_young_poisson(1.0e6, 0.45).unwrap(), &mesh, &x, "stable neo-Hookean");
+            }
+
+            /// A model from outside the crate, with only the required methods: the provided lane
+            /// methods (one lane at a time through the scalar ones) keep every width's bits.
+            #[test]
+            fn a_model_with_only_the_required_methods_is_bitwise_at_every_width() {
+                #[derive(Clone, Copy, Debug)]
+                struct Outside(StVK);
+                impl Material for Outside {
+                    fn energy_density(&self, f: M3) -> Real {
+                        self.0.energy_density(f)
+                    }
+                    fn first_piola(&self, f: M3) -> M3 {
+                        self.0.first_piola(f)
+                    }
+                    fn principal_energy(&self, s: V) -> Real {
+                        self.0.principal_energy(s)
+                    }
+                    fn principal_stress(&self, s: V) -> V {
+                        // Not the lane form of StVK: a different, exact-at-rest grouping.
+                        self.0.principal_stress(s) * 0.5 + self.0.principal_stress(s) * 0.5
+                    }
+                }
+                let (rest_x, x, tets) = deformed_box(3, 0.3, 7);
+                let mut rest = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest_x, &tets, &mut rest).unwrap();
+                check_forces(&Outside(StVK::from_young_poisson(1.0e6, 0.45).unwrap()), &mesh, &x, "outside model");
             }
 
             /// Explicit steps (stable neo-Hookean, gravity, half the stable step) and relaxation

@@ -44,7 +44,9 @@
 
 use core::fmt::Debug;
 
-use super::lanes::{Lane, LaneMat3, LaneVec3, Lanes, map_lane_corners, map_lane_matrices};
+use super::lanes::{
+    Lane, LaneMat3, LaneSvd3, LaneVec3, Lanes, map_lane_corners, map_lane_matrices, map_lanes,
+};
 use super::math;
 use super::svd::{Svd3, svd3};
 use super::types::{Mat3, Real, Vec3};
@@ -111,6 +113,33 @@ macro_rules! lame_constructors {
     };
 }
 
+/// The lane forms of [`Material::first_piola_from_svd`] and
+/// [`Material::first_piola_clamped_from_svd`] for a model that keeps those two provided
+/// methods and gives [`Material::principal_stress_wide`]: the same operations on every lane, so
+/// the principal-path force kernels form stresses a group at a time with the bits of one
+/// element at a time.
+macro_rules! principal_wide_methods {
+    () => {
+        #[inline(always)]
+        fn first_piola_from_svd_wide<L: super::Lane>(
+            &self,
+            svd: &super::LaneSvd3<L>,
+        ) -> super::LaneMat3<L> {
+            super::diagonal_product(svd, self.principal_stress_wide(svd.sigma))
+        }
+
+        #[inline(always)]
+        fn first_piola_clamped_from_svd_wide<L: super::Lane>(
+            &self,
+            svd: &super::LaneSvd3<L>,
+            threshold: super::Real,
+        ) -> super::LaneMat3<L> {
+            let clamped = super::clamp_stretches(svd.sigma, threshold);
+            super::diagonal_product(svd, self.principal_stress_wide(clamped))
+        }
+    };
+}
+
 /// The methods of [`Material`] that a model written as `W(I_C, J)` forms the same way, from its
 /// own `stress_coefficients(I_C, J)` (`(2 dW/dI_C, dW/dJ)`, generic over [`Lane`]) and
 /// `energy_and_stress(F)` (generic over [`Lane`]): the direct stress, the fused energy and
@@ -140,8 +169,25 @@ macro_rules! invariant_stress_methods {
 
         #[inline]
         fn principal_stress(&self, s: Vec3) -> Vec3 {
-            invariant_principal_stress(s, |ic, j| self.stress_coefficients(ic, j))
+            self.principal_stress_wide(super::LaneVec3::from(s)).into()
         }
+
+        // `dW/ds = a s + b (s_y s_z, s_z s_x, s_x s_y)` from `dI_C/ds = 2 s` and
+        // `dJ/ds = (s_y s_z, s_z s_x, s_x s_y)`, with `(a, b)` of `W(I_C, J)` at
+        // `(I_C, J) = (|s|^2, s_x s_y s_z)`. Written out without a closure, as
+        // `first_piola_wide`.
+        #[inline(always)]
+        fn principal_stress_wide<L: super::Lane>(
+            &self,
+            s: super::LaneVec3<L>,
+        ) -> super::LaneVec3<L> {
+            let (ic, j) = (s.dot(s), s.x * s.y * s.z);
+            let (a, b) = self.stress_coefficients(ic, j);
+            let products = super::LaneVec3::new(s.y * s.z, s.z * s.x, s.x * s.y);
+            s.scale(a) + products.scale(b)
+        }
+
+        principal_wide_methods!();
 
         // Written out without the closures of `invariant_first_piola` (the same operations):
         // a closure is not `inline(always)`, and one left out of line runs without the wide
@@ -385,6 +431,43 @@ pub trait Material: Copy + Debug {
         let clamp = |s: Real| math::select(s < threshold, threshold, s);
         let clamped = Vec3::new(clamp(svd.sigma.x), clamp(svd.sigma.y), clamp(svd.sigma.z));
         svd.u.mul_diagonal_scale(self.principal_stress(clamped)) * svd.v.transpose()
+    }
+
+    /// [`principal_stress`](Material::principal_stress) of every lane of `s`, bit for bit; see
+    /// [`energy_density_wide`](Material::energy_density_wide).
+    #[inline(always)]
+    #[must_use]
+    fn principal_stress_wide<L: Lane>(&self, s: LaneVec3<L>) -> LaneVec3<L> {
+        let each = |_, s| (self.principal_stress(s), Mat3::ZERO);
+        map_lane_corners(LaneMat3::identity(), s, each).0
+    }
+
+    /// [`first_piola_from_svd`](Material::first_piola_from_svd) of the SVD in every lane of
+    /// `svd`, bit for bit: the principal force kernels' stresses, a group at a time. The
+    /// provided method calls `first_piola_from_svd` once per lane (so it agrees with an
+    /// overridden one); the models here compute every lane at once.
+    #[inline(always)]
+    #[must_use]
+    fn first_piola_from_svd_wide<L: Lane>(&self, svd: &LaneSvd3<L>) -> LaneMat3<L> {
+        map_lanes(|lane| (0.0, self.first_piola_from_svd(&svd.lane(lane)))).1
+    }
+
+    /// [`first_piola_clamped_from_svd`](Material::first_piola_clamped_from_svd) of the SVD in
+    /// every lane of `svd`, bit for bit; see
+    /// [`first_piola_from_svd_wide`](Material::first_piola_from_svd_wide). **Not the gradient
+    /// of any energy: for explicit time stepping only.**
+    #[inline(always)]
+    #[must_use]
+    fn first_piola_clamped_from_svd_wide<L: Lane>(
+        &self,
+        svd: &LaneSvd3<L>,
+        threshold: Real,
+    ) -> LaneMat3<L> {
+        map_lanes(|lane| {
+            let stress = self.first_piola_clamped_from_svd(&svd.lane(lane), threshold);
+            (0.0, stress)
+        })
+        .1
     }
 
     /// The principal Hessian `d^2 W / ds^2` (Pa), a symmetric 3x3 matrix, at the signed singular
@@ -668,16 +751,28 @@ fn symmetric<L: Lane>(d: LaneVec3<L>, o: LaneVec3<L>) -> LaneMat3<L> {
     }
 }
 
-/// `dW/ds` of a model written as `W(I_C, J)`: `dI_C/ds_i = 2 s_i` and `dJ/ds_i = p_i`, the
-/// product of the other two stretches, give `dW/ds_i = a s_i + b p_i` with `(a, b)` as in
-/// [`invariant_first_piola`].
+/// `U diag(psi) V^T` of the SVD in every lane (glam's `mul_diagonal_scale` and product, in
+/// their order): the principal-path stress of [`principal_wide_methods`].
 #[inline(always)]
-fn invariant_principal_stress(
-    s: Vec3,
-    coefficients: impl FnOnce(Real, Real) -> (Real, Real),
-) -> Vec3 {
-    let (ic, j) = principal_invariants(s);
-    let (a, b) = coefficients(ic, j);
-    let p = Vec3::new(s.y * s.z, s.z * s.x, s.x * s.y);
-    s * a + p * b
+fn diagonal_product<L: Lane>(svd: &LaneSvd3<L>, psi: LaneVec3<L>) -> LaneMat3<L> {
+    let u = svd.u;
+    let scaled = LaneMat3 {
+        c0: u.c0.scale(psi.x),
+        c1: u.c1.scale(psi.y),
+        c2: u.c2.scale(psi.z),
+    };
+    scaled * svd.v.transpose()
+}
+
+/// The stretches `s` clamped from below at `threshold`, as
+/// [`Material::first_piola_clamped_from_svd`] clamps them (a NaN stretch stays NaN).
+#[inline(always)]
+fn clamp_stretches<L: Lane>(s: LaneVec3<L>, threshold: Real) -> LaneVec3<L> {
+    let t = L::splat(threshold);
+    // `t > s` is `s < t`, false for NaN as in the scalar `select`.
+    LaneVec3::new(
+        L::select(t.gt(s.x), t, s.x),
+        L::select(t.gt(s.y), t, s.y),
+        L::select(t.gt(s.z), t, s.z),
+    )
 }

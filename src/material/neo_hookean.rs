@@ -2,8 +2,7 @@
 
 use super::{
     Lame, Lane, LaneMat3, Lanes, Mat3, Material, MaterialError, Real, Vec3, cofactor,
-    frobenius_squared, invariant_first_piola, invariant_principal_stress, invariants, math,
-    principal_invariants,
+    frobenius_squared, invariant_first_piola, invariants, math, principal_invariants,
 };
 
 /// The isochoric neo-Hookean model (`docs/math.md` section 2): with `I_C = tr(F^T F)`,

@@ -2,8 +2,8 @@
 
 use super::{
     Lame, Lane, LaneMat3, Lanes, Mat3, Material, MaterialError, Real, Vec3, cofactor,
-    frobenius_squared, invariant_deviations, invariant_first_piola, invariant_principal_stress,
-    math, principal_invariant_deviations,
+    frobenius_squared, invariant_deviations, invariant_first_piola, math,
+    principal_invariant_deviations,
 };
 
 /// Stable neo-Hookean: Smith, de Goes, Kim, "Stable Neo-Hookean Flesh Simulation" (ACM TOG

@@ -150,10 +150,29 @@ impl Material for StVK {
 
     #[inline]
     fn principal_stress(&self, s: Vec3) -> Vec3 {
-        let g = (s * s - Vec3::ONE) * 0.5;
-        let trace = g.element_sum();
-        s * (Vec3::splat(self.lame.lambda() * trace) + g * (2.0 * self.lame.mu()))
+        self.principal_stress_wide(LaneVec3::from(s)).into()
     }
+
+    /// `dW/ds = s (lambda tr(G) + 2 mu g)` with `g = (s^2 - 1) / 2` per axis (the operations
+    /// of glam's `Vec3` in their order, so one value and a group give the same bits).
+    #[inline(always)]
+    fn principal_stress_wide<L: Lane>(&self, s: LaneVec3<L>) -> LaneVec3<L> {
+        let (one, half) = (L::splat(1.0), L::splat(0.5));
+        let g = LaneVec3::new(
+            (s.x * s.x - one) * half,
+            (s.y * s.y - one) * half,
+            (s.z * s.z - one) * half,
+        );
+        let volumetric = L::splat(self.lame.lambda()) * (g.x + g.y + g.z);
+        let shear = L::splat(2.0 * self.lame.mu());
+        LaneVec3::new(
+            s.x * (volumetric + g.x * shear),
+            s.y * (volumetric + g.y * shear),
+            s.z * (volumetric + g.z * shear),
+        )
+    }
+
+    principal_wide_methods!();
 
     /// `H = diag(c + 3 mu s_i^2) + lambda s s^T` with `c = lambda tr(G) - mu`, from
     /// `psi_i = c s_i + mu s_i^3`.

@@ -3,13 +3,13 @@
 //! energies are bit for bit those of the scalar loop.
 
 use super::super::element::TetRest;
-use super::super::lanes::{LANES, LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH, each_lane};
+use super::super::lanes::{LANES, Lane, LaneArray, LaneMat3, LaneSvd3, LaneVec3, Lanes, each_lane};
 #[cfg(target_arch = "x86_64")]
 use super::super::lanes_avx2::Avx2Lanes;
 #[cfg(target_arch = "x86_64")]
 use super::super::lanes_avx512::Avx512Lanes;
 use super::super::material::Material;
-use super::super::svd::{Svd3, UNWRITTEN, svd3, svd3_of_lanes};
+use super::super::svd::{Svd3, svd3, svd3_of_lanes};
 use super::super::types::{Mat3, Real, Vec3};
 use super::{gather, scatter_add};
 use crate::simd::WidthKernel;
@@ -611,15 +611,62 @@ impl<E: FnMut(usize, Real)> PassJob for Energies<E> {
     }
 }
 
+/// The stress a principal-path pass forms from the SVD of `F`, for one element and, with the
+/// same bits, for a group in lanes: [`PrincipalStress`] or [`ClampedStress`].
+pub(super) trait SvdStress {
+    /// `P` (Pa) of one element from the SVD of its `F`.
+    fn stress(&self, svd: &Svd3) -> Mat3;
+    /// `P` (Pa) of every lane from the SVDs of their `F`, lane by lane the bits of
+    /// [`stress`](Self::stress).
+    fn stress_wide<L: Lane>(&self, svd: &LaneSvd3<L>) -> LaneMat3<L>;
+}
+
+/// `U diag(dW/ds) V^T`: [`Material::first_piola_from_svd`].
+pub(super) struct PrincipalStress<'m, M>(pub &'m M);
+
+impl<M: Material> SvdStress for PrincipalStress<'_, M> {
+    #[inline(always)]
+    fn stress(&self, svd: &Svd3) -> Mat3 {
+        self.0.first_piola_from_svd(svd)
+    }
+
+    #[inline(always)]
+    fn stress_wide<L: Lane>(&self, svd: &LaneSvd3<L>) -> LaneMat3<L> {
+        self.0.first_piola_from_svd_wide(svd)
+    }
+}
+
+/// The stress with the stretches clamped from below at `threshold`:
+/// [`Material::first_piola_clamped_from_svd`] (not an energy gradient).
+pub(super) struct ClampedStress<'m, M> {
+    pub material: &'m M,
+    pub threshold: Real,
+}
+
+impl<M: Material> SvdStress for ClampedStress<'_, M> {
+    #[inline(always)]
+    fn stress(&self, svd: &Svd3) -> Mat3 {
+        self.material
+            .first_piola_clamped_from_svd(svd, self.threshold)
+    }
+
+    #[inline(always)]
+    fn stress_wide<L: Lane>(&self, svd: &LaneSvd3<L>) -> LaneMat3<L> {
+        self.material
+            .first_piola_clamped_from_svd_wide(svd, self.threshold)
+    }
+}
+
 /// Adds the principal-path forces (`stress` maps the SVD of `F` to `P`) into a [`ForceSink`]:
-/// the SVDs a group at a time ([`svd3_of_lanes`], the bits of `svd3`), the stresses and nodal
-/// forces element by element.
+/// a group at a time, all in lanes (the SVDs by [`svd3_of_lanes`], the bits of `svd3`; the
+/// stresses by [`SvdStress::stress_wide`]; the nodal forces as in the direct pass), the
+/// forces added element by element in order.
 pub(super) struct SvdForces<F, S> {
     pub forces: F,
     pub stress: S,
 }
 
-impl<F: ForceSink, S: Fn(&Svd3) -> Mat3> PassJob for SvdForces<F, S> {
+impl<F: ForceSink, S: SvdStress> PassJob for SvdForces<F, S> {
     #[inline(always)]
     fn groups<L: LaneArray, M: Material>(
         &mut self,
@@ -629,7 +676,6 @@ impl<F: ForceSink, S: Fn(&Svd3) -> Mat3> PassJob for SvdForces<F, S> {
         tets: &[[u32; 4]],
         rests: &[TetRest],
     ) {
-        let mut svds = [UNWRITTEN; MAX_WIDTH];
         for (tets, rests) in tets
             .chunks_exact(L::WIDTH)
             .zip(rests.chunks_exact(L::WIDTH))
@@ -638,11 +684,9 @@ impl<F: ForceSink, S: Fn(&Svd3) -> Mat3> PassJob for SvdForces<F, S> {
                 continue;
             }
             let gradients = WideGradients::<L>::new(positions, tets, rests);
-            svd3_of_lanes(&gradients.f, &mut svds);
-            for ((corners, rest), svd) in tets.iter().zip(rests).zip(&svds) {
-                self.forces
-                    .add(corners, rest.nodal_forces((self.stress)(svd)));
-            }
+            let svd = svd3_of_lanes(&gradients.f);
+            self.forces
+                .add_group(&gradients, tets, self.stress.stress_wide(&svd));
         }
     }
 
@@ -660,6 +704,6 @@ impl<F: ForceSink, S: Fn(&Svd3) -> Mat3> PassJob for SvdForces<F, S> {
         }
         let svd = svd3(rest.deformation_gradient(gather(positions, corners)));
         self.forces
-            .add(corners, rest.nodal_forces((self.stress)(&svd)));
+            .add(corners, rest.nodal_forces(self.stress.stress(&svd)));
     }
 }

@@ -4,11 +4,10 @@ use super::super::element::TetRest;
 use super::super::lanes::LANES;
 use super::super::material::Material;
 use super::super::math::{BATCH_FORCES, BATCH_SVD};
-use super::super::svd::Svd3;
 use super::super::types::{Mat3, Real, Vec3};
 use super::grouped::{
-    DirectForces, Energies, EnergyAndForces, FusedEnergy, Pass, PassJob, SvdForces, TetGroup,
-    tet_groups,
+    ClampedStress, DirectForces, Energies, EnergyAndForces, FusedEnergy, Pass, PassJob,
+    PrincipalStress, SvdForces, SvdStress, TetGroup, tet_groups,
 };
 use super::{check_length, check_positions, gather, validate};
 use crate::error::{Buffer, MeshError};
@@ -188,9 +187,7 @@ impl<'a> TetMesh<'a> {
     ) -> Result<(), MeshError> {
         self.check_positions(positions)?;
         self.check_deformation(material, positions)?;
-        self.add_svd_forces(material, positions, forces, |svd| {
-            material.first_piola_from_svd(svd)
-        })
+        self.add_svd_forces(material, positions, forces, PrincipalStress(material))
     }
 
     /// **Not the gradient of any energy: for explicit time stepping only.** As
@@ -214,9 +211,11 @@ impl<'a> TetMesh<'a> {
         check_clamp_threshold(threshold)?;
         self.check_positions(positions)?;
         self.check_deformation(material, positions)?;
-        self.add_svd_forces(material, positions, forces, |svd| {
-            material.first_piola_clamped_from_svd(svd, threshold)
-        })
+        let stress = ClampedStress {
+            material,
+            threshold,
+        };
+        self.add_svd_forces(material, positions, forces, stress)
     }
 
     /// The total elastic energy (J) and, added into `forces`, the elastic forces (N) of
@@ -444,7 +443,7 @@ impl<'a> TetMesh<'a> {
         material: &M,
         positions: &[Vec3],
         forces: &mut [Vec3],
-        stress: impl Fn(&Svd3) -> Mat3,
+        stress: impl SvdStress,
     ) -> Result<(), MeshError> {
         self.check_positions(positions)?;
         check_length(Buffer::Forces, self.vertex_count, forces.len())?;

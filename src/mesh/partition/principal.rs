@@ -5,11 +5,11 @@
 use super::super::super::lanes::LANES;
 use super::super::super::material::Material;
 use super::super::super::math::BATCH_SVD;
-use super::super::super::svd::{Svd3, svd3, svd3_lanes};
+use super::super::super::svd::{svd3, svd3_lanes};
 use super::super::super::types::{Mat3, Real, Vec3};
 #[cfg(doc)]
 use super::super::TetMesh;
-use super::super::grouped::{SvdForces, tet_groups};
+use super::super::grouped::{ClampedStress, PrincipalStress, SvdForces, SvdStress, tet_groups};
 use super::super::{check_clamp_threshold, check_length, check_positions, gather};
 use super::owner::OwnerSlice;
 use super::{ElementForces, TetPartition, grouped_len};
@@ -72,9 +72,7 @@ impl TetPartition<'_> {
         piece: usize,
         out: &mut [ElementForces],
     ) -> Result<(), MeshError> {
-        self.element_svd_forces(positions, piece, out, |svd| {
-            material.first_piola_from_svd(svd)
-        })
+        self.element_svd_forces(positions, piece, out, PrincipalStress(material))
     }
 
     /// Element piece `piece` of the clamped force pass (**not an energy gradient: explicit
@@ -96,9 +94,11 @@ impl TetPartition<'_> {
         out: &mut [ElementForces],
     ) -> Result<(), MeshError> {
         check_clamp_threshold(threshold)?;
-        self.element_svd_forces(positions, piece, out, |svd| {
-            material.first_piola_clamped_from_svd(svd, threshold)
-        })
+        let stress = ClampedStress {
+            material,
+            threshold,
+        };
+        self.element_svd_forces(positions, piece, out, stress)
     }
 
     /// Owner piece `piece` of the owner-computes principal force pass: adds into `out` (vertex
@@ -117,9 +117,7 @@ impl TetPartition<'_> {
         piece: usize,
         out: &mut [Vec3],
     ) -> Result<(), MeshError> {
-        self.owner_svd_forces(material, positions, piece, out, |svd| {
-            material.first_piola_from_svd(svd)
-        })
+        self.owner_svd_forces(material, positions, piece, out, PrincipalStress(material))
     }
 
     /// Owner piece `piece` of the owner-computes clamped force pass (**not an energy gradient:
@@ -141,9 +139,11 @@ impl TetPartition<'_> {
         out: &mut [Vec3],
     ) -> Result<(), MeshError> {
         check_clamp_threshold(threshold)?;
-        self.owner_svd_forces(material, positions, piece, out, |svd| {
-            material.first_piola_clamped_from_svd(svd, threshold)
-        })
+        let stress = ClampedStress {
+            material,
+            threshold,
+        };
+        self.owner_svd_forces(material, positions, piece, out, stress)
     }
 
     /// The owner piece of the principal-path passes, with `stress` mapping an SVD of `F` to
@@ -155,7 +155,7 @@ impl TetPartition<'_> {
         positions: &[Vec3],
         piece: usize,
         out: &mut [Vec3],
-        stress: impl Fn(&Svd3) -> Mat3,
+        stress: impl SvdStress,
     ) -> Result<(), MeshError> {
         let vertices = self.owner_vertices(positions, piece, out.len())?;
         let Some(elements) = self.incident_elements(piece) else {
@@ -179,7 +179,7 @@ impl TetPartition<'_> {
         positions: &[Vec3],
         piece: usize,
         out: &mut [ElementForces],
-        stress: impl Fn(&Svd3) -> Mat3,
+        stress: impl SvdStress,
     ) -> Result<(), MeshError> {
         let (tets, rests) = self.element_inputs(piece, positions, out.len())?;
         let grouped = grouped_len(
@@ -200,12 +200,12 @@ impl TetPartition<'_> {
             });
             let svds = svd3_lanes(&gradients);
             for ((rest, svd), slot) in rests.iter().zip(&svds).zip(slots) {
-                *slot = rest.nodal_forces(stress(svd));
+                *slot = rest.nodal_forces(stress.stress(svd));
             }
         }
         for ((corners, rest), slot) in tets_tail.iter().zip(rests_tail).zip(out_tail) {
             let svd = svd3(rest.deformation_gradient(gather(positions, corners)));
-            *slot = rest.nodal_forces(stress(&svd));
+            *slot = rest.nodal_forces(stress.stress(&svd));
         }
         Ok(())
     }
