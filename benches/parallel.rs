@@ -12,11 +12,12 @@
 //!   by piece on this thread (`TetPartition::energy_and_add_forces`) and
 //!   `parallel::energy_and_add_forces` on each pool.
 //! * `explicit step`: one `step_explicit` of stable neo-Hookean (half the proven stable step, the
-//!   box falling from rest) at 105k tets, on `TetElastic` and on `ParallelTetElastic`.
+//!   box falling from rest) at 105k tets, on `TetElastic` and on `ParallelTetElastic` (called
+//!   from the timing thread, and with the whole step inside the pool's `install`).
 //! * `relaxation iteration`: `relax_step` (1/60 s, Chebyshev defaults, tolerance 0 so it runs its
 //!   whole budget of 10 iterations) of the box resting on the ground under gravity, from the same
 //!   state every run; the time per iteration (initial guess and end of step included, spread
-//!   over the 10).
+//!   over the 10); the parallel body as for the explicit step, both ways.
 //!
 //! The steppers' own passes over the vertices run on the pool too (in blocks of
 //! `step::VERTEX_BLOCK` vertices through `ElasticModel::run_vertex_pass`); the tables give their
