@@ -18,10 +18,14 @@ use core::marker::PhantomData;
 
 use super::super::types::Real;
 
-/// The vertices per block of the steppers' passes over the vertices: every sum over the vertices
-/// is taken block by block and the block totals added over a fixed tree (see the module docs),
-/// whatever the thread count. A multiple of the SIMD lane count, so that a block's groups of
-/// vertices are the groups of the whole pass.
+/// The vertices per block of the steppers' passes over the vertices (integration, contact
+/// projection, trial points, residuals). Every sum over the vertices is taken block by block, in
+/// vertex order within a block (four lanes at a time where the pass is vectorised), and the block
+/// totals are added over one fixed binary tree: the blocks of a range split into the first
+/// `blocks / 2` and the rest, recursively. The tree depends only on the number of vertices, so
+/// the sums have the same bits on any number of threads; a body of at most `VERTEX_BLOCK`
+/// vertices sums in plain vertex order. A multiple of the SIMD lane count, so that a block's
+/// groups of vertices are the groups of the whole pass.
 pub const VERTEX_BLOCK: usize = 1024;
 
 /// A way to run two closures, one after the other or at the same time: the thread pool's `join`
