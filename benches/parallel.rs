@@ -12,15 +12,17 @@
 //!   by piece on this thread (`TetPartition::energy_and_add_forces`) and
 //!   `parallel::energy_and_add_forces` on each pool.
 //! * `explicit step`: one `step_explicit` of stable neo-Hookean (half the proven stable step, the
-//!   box falling from rest) at 105k tets, on `TetElastic` and on `ParallelTetElastic`.
+//!   box falling from rest) at 105k tets, on `TetElastic` and on `ParallelTetElastic` (called
+//!   from the timing thread, and with the whole step inside the pool's `install`).
 //! * `relaxation iteration`: `relax_step` (1/60 s, Chebyshev defaults, tolerance 0 so it runs its
 //!   whole budget of 10 iterations) of the box resting on the ground under gravity, from the same
 //!   state every run; the time per iteration (initial guess and end of step included, spread
-//!   over the 10).
+//!   over the 10); the parallel body as for the explicit step, both ways.
 //!
-//! The steppers' own passes over the vertices run on the calling thread; the tables give their
+//! The steppers' own passes over the vertices run on the pool too (in blocks of
+//! `step::VERTEX_BLOCK` vertices through `ElasticModel::run_vertex_pass`); the tables give their
 //! share of a sequential step (1 - element passes / step, from the stable neo-Hookean force and
-//! fused-pass rows measured in the same run), which bounds the step's speed-up (Amdahl).
+//! fused-pass rows measured in the same run).
 //!
 //! Every row is timed by one round-robin pass over all variants of a workload (the minimum of
 //! several rounds, a 20 ms pause before every timed block so that the pools' idle workers have
@@ -315,11 +317,12 @@ fn fused_variants(scene: &Scene, pools: &[(usize, &'static rayon::ThreadPool)]) 
 }
 
 /// One explicit step of any model, falling from rest (the state carries on between runs).
-fn explicit_variant<F: ElasticModel<Vector = Vec3> + Send + 'static>(
+fn explicit_variant<F: ElasticModel<Vector = Vec3> + Send + Sync + 'static>(
     label: String,
     threads: usize,
     model: F,
     scene: &Scene,
+    installed: Option<&'static rayon::ThreadPool>,
 ) -> Variant {
     let n = scene.mesh.vertex_count();
     let mut masses = vec![0.0; n];
@@ -334,28 +337,49 @@ fn explicit_variant<F: ElasticModel<Vector = Vec3> + Send + 'static>(
         label,
         threads,
         run: Box::new(move || {
-            step_explicit(
-                &model,
-                &masses,
-                &[],
-                &settings,
-                &mut x,
-                &mut v,
-                &mut scratch,
-            )
-            .unwrap();
+            let step = || {
+                step_explicit(
+                    &model,
+                    &masses,
+                    &[],
+                    &settings,
+                    &mut x,
+                    &mut v,
+                    &mut scratch,
+                )
+                .unwrap();
+            };
+            on_installed(installed, step);
         }),
     }
+}
+
+/// `run` inside `pool.install` if given (the whole step on the pool: its passes then start
+/// there without crossing threads), else on the timing thread.
+fn on_installed<T: Send>(
+    pool: Option<&'static rayon::ThreadPool>,
+    run: impl FnOnce() -> T + Send,
+) -> T {
+    match pool {
+        Some(pool) => pool.install(run),
+        None => run(),
+    }
+}
+
+/// The label of a step variant run inside `pool.install`.
+fn installed(threads: usize) -> String {
+    format!("{}, step inside pool.install", on(threads))
 }
 
 /// The relaxation's step: from the box at rest on the ground, `RELAX_ITERATIONS` iterations;
 /// the state is restored before every run. Returns the variant and its (iterations, energy
 /// evaluations) per run.
-fn relax_variant<F: ElasticEnergy<Vector = Vec3> + Send + 'static>(
+fn relax_variant<F: ElasticEnergy<Vector = Vec3> + Send + Sync + 'static>(
     label: String,
     threads: usize,
     model: F,
     scene: &Scene,
+    installed: Option<&'static rayon::ThreadPool>,
 ) -> (Variant, (u32, u32)) {
     let n = scene.mesh.vertex_count();
     let mut masses = vec![0.0; n];
@@ -372,16 +396,19 @@ fn relax_variant<F: ElasticEnergy<Vector = Vec3> + Send + 'static>(
     let mut step = move || {
         x.copy_from_slice(start);
         v.fill(Vec3::ZERO);
-        relax_step(
-            &model,
-            &masses,
-            &[],
-            &settings,
-            &mut x,
-            &mut v,
-            &mut scratch,
-        )
-        .unwrap()
+        let step = || {
+            relax_step(
+                &model,
+                &masses,
+                &[],
+                &settings,
+                &mut x,
+                &mut v,
+                &mut scratch,
+            )
+            .unwrap()
+        };
+        on_installed(installed, step)
     };
     // The first run computes the preconditioner (kept in the scratch, as in a simulation).
     let report = step();
@@ -708,15 +735,13 @@ fn main() {
     ));
 
     let (body, _) = scene.stable_bodies(None);
-    let mut variants = vec![explicit_variant(on(0), 0, body, scene)];
+    let mut variants = vec![explicit_variant(on(0), 0, body, scene, None)];
     for &(threads, pool) in &pools {
-        let (_, parallel) = scene.stable_bodies(Some(pool));
-        variants.push(explicit_variant(
-            on(threads),
-            threads,
-            parallel.unwrap(),
-            scene,
-        ));
+        for (label, installed) in [(on(threads), None), (installed(threads), Some(pool))] {
+            let (_, parallel) = scene.stable_bodies(Some(pool));
+            let parallel = parallel.unwrap();
+            variants.push(explicit_variant(label, threads, parallel, scene, installed));
+        }
     }
     variants.push(component_variant(scene, false));
     let (seconds, _) = time(&mut variants, &plan);
@@ -735,17 +760,19 @@ fn main() {
     rows.push(vertex_share_row("explicit step", tets, share));
 
     let (body, _) = scene.stable_bodies(None);
-    let (sequential, counts) = relax_variant(on(0), 0, body, scene);
+    let (sequential, counts) = relax_variant(on(0), 0, body, scene, None);
     let mut variants = vec![sequential];
     for &(threads, pool) in &pools {
-        let (_, parallel) = scene.stable_bodies(Some(pool));
-        let (variant, parallel_counts) =
-            relax_variant(on(threads), threads, parallel.unwrap(), scene);
-        assert_eq!(
-            parallel_counts, counts,
-            "the parallel run must take the same path"
-        );
-        variants.push(variant);
+        for (label, installed) in [(on(threads), None), (installed(threads), Some(pool))] {
+            let (_, parallel) = scene.stable_bodies(Some(pool));
+            let (variant, parallel_counts) =
+                relax_variant(label, threads, parallel.unwrap(), scene, installed);
+            assert_eq!(
+                parallel_counts, counts,
+                "the parallel run must take the same path"
+            );
+            variants.push(variant);
+        }
     }
     variants.push(component_variant(scene, true));
     let (seconds, _) = time(&mut variants, &plan);

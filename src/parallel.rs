@@ -5,13 +5,18 @@
 //! relaxation, Newton), **bit for bit** the results of the sequential code for any number of
 //! threads and any schedule (see [`TetPartition`] for why).
 //!
-//! The steppers' own passes over the vertices (integration, preconditioner, dot products, line
-//! search updates) stay on the calling thread: only the element passes behind the model traits
-//! run on the pool.
+//! The steppers' own passes over the vertices (the explicit update, the relaxation's gradient,
+//! direction and trial points, with their sums) run on the pool too, in blocks of
+//! [`VERTEX_BLOCK`](super::step::VERTEX_BLOCK) vertices ([`RayonJoin`]) whose sums are combined
+//! over a fixed tree, so their bits do not depend on the thread count either. Newton's and VBD's
+//! own vector operations (conjugate gradients, sweeps) stay on the calling thread.
 //!
 //! The functions run on the pool they are called from: the global pool, or a pool of your own
 //! through [`rayon::ThreadPool::install`], which picks the thread count. [`ParallelTetElastic`]
-//! takes an optional pool and installs it around every force evaluation.
+//! takes an optional pool and installs it around every force evaluation and every pass over the
+//! vertices. Called from outside the pool, each install hands the pass to the pool and wakes
+//! the caller when it is done; a whole step run inside `pool.install(|| step(...))` starts every
+//! pass on the pool's own threads instead (see the `parallel` bench for what that saves).
 //!
 //! ```
 //! use softfem::element::TetRest;
@@ -53,7 +58,9 @@ use rayon::prelude::*;
 use super::element::{TetHessian, TetRest};
 use super::material::Material;
 use super::mesh::{ElementForces, TetMesh, TetPartition};
-use super::step::{ElasticEnergy, ElasticHessian, ElasticModel, TetClamped, TetElastic};
+use super::step::{
+    ElasticEnergy, ElasticHessian, ElasticModel, Join, TetClamped, TetElastic, VertexPass,
+};
 use super::types::{Mat3, Real, Vec3};
 use crate::error::MeshError;
 
@@ -264,10 +271,12 @@ fn vertex_pieces<T: Send>(
 /// [`step_explicit`](super::step::step_explicit), [`relax_step`](super::step::relax_step),
 /// [`newton_step`](super::step::newton_step) (any stepper taking an [`ElasticModel`],
 /// [`ElasticEnergy`] or [`ElasticHessian`]) for a parallel step whose result does not depend on
-/// the thread count. The steppers' passes over the vertices stay sequential.
+/// the thread count. The steppers' passes over the vertices run on the pool too
+/// ([`ElasticModel::run_vertex_pass`]).
 ///
 /// The scratch buffers sit behind a mutex (force evaluations of one body do not overlap); the
-/// optional pool is installed around every evaluation (else the caller's current pool runs it).
+/// optional pool is installed around every evaluation and every pass over the vertices (else
+/// the caller's current pool runs them).
 ///
 /// ```
 /// use softfem::element::TetRest;
@@ -364,6 +373,24 @@ impl<'a, M: Material + Sync> ParallelTetElastic<'a, M> {
     }
 }
 
+/// [`Join`] by `rayon::join`, on the current pool: the steppers' passes over the vertices split
+/// into blocks on the pool's threads.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RayonJoin;
+
+impl Join for RayonJoin {
+    #[inline]
+    fn join<A, B, RA, RB>(&self, a: A, b: B) -> (RA, RB)
+    where
+        A: FnOnce() -> RA + Send,
+        B: FnOnce() -> RB + Send,
+        RA: Send,
+        RB: Send,
+    {
+        rayon::join(a, b)
+    }
+}
+
 /// `run` on `pool` if there is one, else on the current pool.
 fn on_pool<T: Send>(pool: Option<&ThreadPool>, run: impl FnOnce() -> T + Send) -> T {
     match pool {
@@ -425,6 +452,9 @@ impl<M: Material + Sync> ElasticModel for ParallelTetElastic<'_, M> {
     }
     fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
         self.body.for_each_element_stiffness(visit);
+    }
+    fn run_vertex_pass<P: VertexPass>(&self, pass: P) -> P::Output {
+        on_pool(self.pool, || pass.run_with(&RayonJoin))
     }
 }
 
@@ -599,5 +629,8 @@ impl<M: Material + Sync> ElasticModel for ParallelTetClamped<'_, M> {
     }
     fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
         self.body.for_each_element_stiffness(visit);
+    }
+    fn run_vertex_pass<P: VertexPass>(&self, pass: P) -> P::Output {
+        on_pool(self.pool, || pass.run_with(&RayonJoin))
     }
 }

@@ -722,6 +722,27 @@ macro_rules! precision_tests {
                     TetPartition::new(mesh, pieces, offsets, incident).unwrap()
                 }
 
+                /// `run` of `body` made parallel: partitioned into `pieces`, on a pool of
+                /// `threads` threads.
+                fn on_parallel_body<M: Material + Sync, R>(
+                    body: TetElastic<'_, M>,
+                    pieces: usize,
+                    threads: usize,
+                    run: impl FnOnce(&ParallelTetElastic<'_, M>) -> R,
+                ) -> R {
+                    let (mut offsets, mut incident) = (Vec::new(), Vec::new());
+                    let p = partition(body.mesh, pieces, &mut offsets, &mut incident);
+                    let ne = body.mesh.element_count();
+                    let (mut element_forces, mut energies) =
+                        (vec![[Vec3::ZERO; 4]; ne], vec![0.0; ne]);
+                    let pool = pool(threads);
+                    let parallel_body =
+                        ParallelTetElastic::new(body, p, &mut element_forces, &mut energies)
+                            .unwrap()
+                            .with_pool(&pool);
+                    run(&parallel_body)
+                }
+
                 type RunBits = (Vec<[u64; 3]>, Vec<[u64; 3]>, String);
 
                 /// `steps` explicit steps of `model` from `start` at rest, onto the ground:
@@ -963,6 +984,193 @@ macro_rules! precision_tests {
                                 .unwrap();
                         });
                         assert!(got == expected, "{threads} threads: explicit run differs");
+                    }
+                }
+
+                /// Explicit steps of a free box of more vertices than one block of the vertex
+                /// passes, with pinned vertices and external loads in every block, against the
+                /// symplectic Euler update written out here vertex by vertex (forces from the
+                /// sequential kernel): every block updates its own vertices with their own
+                /// masses, flags and loads, bit for bit, sequential and on 2 and 3 threads.
+                #[test]
+                fn split_explicit_update_matches_the_update_written_out_vertex_by_vertex() {
+                    let (start, tets) = box_mesh(13); // 2744 vertices: three blocks
+                    let mut rest_data = vec![TetRest::default(); tets.len()];
+                    let mesh = TetMesh::new(&start, &tets, &mut rest_data).unwrap();
+                    let nv = mesh.vertex_count();
+                    let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
+                    let body = TetElastic::new(mesh, material);
+                    let mut masses = vec![0.0; nv];
+                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                    let pinned: Vec<bool> = (0..nv).map(|i| i % 97 == 5).collect();
+                    let loads: Vec<Vec3> = (0..nv)
+                        .map(|i| Vec3::new(0.01, -0.02, 0.005) * (i % 13) as Real)
+                        .collect();
+                    let (gravity, damping, substeps) = (Vec3::new(0.0, -9.81, 0.0), 3.0, 2);
+                    let mut stiffness = vec![0.0; nv];
+                    let dt = 0.5 * stable_time_step(&body, &masses, &pinned, &mut stiffness).unwrap();
+                    let settings = ExplicitSettings::new(dt)
+                        .with_gravity(gravity)
+                        .with_damping(damping)
+                        .with_substeps(substeps)
+                        .with_external_forces(&loads);
+                    // The update of `step_explicit`'s docs, one vertex at a time.
+                    let (mut x, mut v) = (deformed(&start), vec![Vec3::ZERO; nv]);
+                    let h = dt / substeps as Real;
+                    let drag = 1.0 / (1.0 + damping * h);
+                    for _ in 0..6 * substeps {
+                        let mut f = vec![Vec3::ZERO; nv];
+                        mesh.add_elastic_forces(&material, &x, &mut f).unwrap();
+                        for i in (0..nv).filter(|&i| !pinned[i]) {
+                            let mut acceleration = f[i] * (1.0 / masses[i]) + gravity;
+                            acceleration += loads[i] * (1.0 / masses[i]);
+                            v[i] = (v[i] + acceleration * h) * drag;
+                            x[i] += v[i] * h;
+                        }
+                    }
+                    let expected = (bits(&x), bits(&v));
+                    let run = |model: &dyn Fn(
+                        &mut [Vec3],
+                        &mut [Vec3],
+                        &mut ExplicitScratch<'_, Vec3>,
+                    )| {
+                        let (mut x, mut v) = (deformed(&start), vec![Vec3::ZERO; nv]);
+                        let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(nv)];
+                        let mut scratch = ExplicitScratch::new(&mut buffer);
+                        for _ in 0..6 {
+                            model(&mut x, &mut v, &mut scratch);
+                        }
+                        (bits(&x), bits(&v))
+                    };
+                    let sequential = run(&|x, v, scratch| {
+                        step_explicit(&body, &masses, &pinned, &settings, x, v, scratch).unwrap();
+                    });
+                    assert!(sequential == expected, "sequential: the update differs");
+                    for threads in [2, 3] {
+                        let got = on_parallel_body(body, threads, threads, |parallel_body| {
+                            run(&|x, v, scratch| {
+                                step_explicit(parallel_body, &masses, &pinned, &settings, x, v, scratch)
+                                    .unwrap();
+                            })
+                        });
+                        assert!(got == expected, "{threads} threads: the update differs");
+                    }
+                }
+
+                /// A box resting on the ground with more vertices than one block of the
+                /// steppers' vertex passes (`VERTEX_BLOCK`, so that the passes split and their
+                /// sums go over the block tree): explicit and relaxation runs, sequential
+                /// against `ParallelTetElastic` on 1, 2, 3 and 8 threads, every position,
+                /// velocity and report bit; and the explicit report's kinetic energy against a
+                /// recomputation in f64.
+                #[test]
+                fn runs_with_vertex_passes_split_in_blocks_on_1_2_3_8_threads_give_the_sequential_bits()
+                {
+                    let (start, tets) = box_mesh(13); // 2744 vertices: three blocks
+                    let mut rest_data = vec![TetRest::default(); tets.len()];
+                    let mesh = TetMesh::new(&start, &tets, &mut rest_data).unwrap();
+                    let nv = mesh.vertex_count();
+                    assert!(nv > 2 * sf::step::VERTEX_BLOCK && nv < 3 * sf::step::VERTEX_BLOCK);
+                    let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
+                    let body = TetElastic::new(mesh, material);
+                    let mut masses = vec![0.0; nv];
+                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                    let mut stiffness = vec![0.0; nv];
+                    let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
+                    let explicit_settings = ExplicitSettings::new(dt)
+                        .with_gravity(Vec3::new(0.0, -9.81, 0.0))
+                        .with_damping(2.0)
+                        .with_substeps(2)
+                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                    let relax_settings = RelaxSettings::new(1.0 / 60.0)
+                        .with_gravity(Vec3::new(0.0, -9.81, 0.0))
+                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5))
+                        .with_tolerance(0.0, 12);
+                    let explicit = |model: &dyn Fn(
+                        &mut [Vec3],
+                        &mut [Vec3],
+                        &mut ExplicitScratch<'_, Vec3>,
+                    ) -> sf::step::ExplicitReport| {
+                        let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; nv]);
+                        let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(nv)];
+                        let mut scratch = ExplicitScratch::new(&mut buffer);
+                        let mut reports = String::new();
+                        for _ in 0..8 {
+                            let report = model(&mut x, &mut v, &mut scratch);
+                            reports += &format!("{report:?} {}\n", report.kinetic_energy.to_bits());
+                            // The report's kinetic energy is the state's, to the rounding of
+                            // a sum of 2744 positive terms (relative 2744 eps bounds it).
+                            let exact: f64 = v
+                                .iter()
+                                .zip(&masses)
+                                .map(|(v, &m)| 0.5 * m as f64 * (v.dot(*v) as f64))
+                                .sum();
+                            let tolerance = 2744.0 * Real::EPSILON as f64 * exact;
+                            assert!(
+                                (report.kinetic_energy as f64 - exact).abs() <= tolerance,
+                                "kinetic energy {} against {exact}",
+                                report.kinetic_energy
+                            );
+                        }
+                        (bits(&x), bits(&v), reports)
+                    };
+                    let expected_explicit = explicit(&|x, v, scratch| {
+                        step_explicit(&body, &masses, &[], &explicit_settings, x, v, scratch)
+                            .unwrap()
+                    });
+                    assert!(
+                        !expected_explicit.2.contains("ground_contacts: 0 }"),
+                        "the box must touch the ground"
+                    );
+                    let relax = |model: &dyn Fn(
+                        &mut [Vec3],
+                        &mut [Vec3],
+                        &mut RelaxScratch<'_, Vec3>,
+                    ) -> String| {
+                        let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; nv]);
+                        let mut vectors = vec![Vec3::ZERO; relax_scratch_len(nv)];
+                        let mut scalars = vec![0.0; nv];
+                        let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+                        let reports: String =
+                            (0..2).map(|_| model(&mut x, &mut v, &mut scratch)).collect();
+                        (bits(&x), bits(&v), reports)
+                    };
+                    let expected_relax = relax(&|x, v, scratch| {
+                        let report =
+                            relax_step(&body, &masses, &[], &relax_settings, x, v, scratch)
+                                .unwrap();
+                        format!("{report:?}\n")
+                    });
+                    for threads in THREADS {
+                        on_parallel_body(body, 2 * threads, threads, |parallel_body| {
+                            let got = explicit(&|x, v, scratch| {
+                                step_explicit(
+                                    parallel_body,
+                                    &masses,
+                                    &[],
+                                    &explicit_settings,
+                                    x,
+                                    v,
+                                    scratch,
+                                )
+                                .unwrap()
+                            });
+                            assert!(got == expected_explicit, "{threads} threads: explicit differs");
+                            let got = relax(&|x, v, scratch| {
+                                let report = relax_step(
+                                    parallel_body,
+                                    &masses,
+                                    &[],
+                                    &relax_settings,
+                                    x,
+                                    v,
+                                    scratch,
+                                )
+                                .unwrap();
+                                format!("{report:?}\n")
+                            });
+                            assert!(got == expected_relax, "{threads} threads: relaxation differs");
+                        });
                     }
                 }
             }

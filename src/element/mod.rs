@@ -100,6 +100,8 @@ pub trait Vector:
     + Neg<Output = Self>
     + AddAssign
     + SubAssign
+    + Send
+    + Sync
     + sealed::Sealed
 {
     /// The zero vector.

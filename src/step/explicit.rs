@@ -5,10 +5,8 @@ use super::super::types::Real;
 use super::collider::{Collider, check_colliders};
 use super::descent::line_search::copy;
 use super::loads::Loads;
-use super::points::Grouped;
-use super::{
-    ElasticModel, Ground, Vector, check_length, check_state, first_non_finite, pinned_flags,
-};
+use super::split::Blocks;
+use super::{ElasticModel, Ground, Vector, check_length, check_state, pinned_flags};
 use crate::error::{MeshError, StepBuffer, StepError};
 
 /// The default [`ExplicitSettings::max_energy_growth`]: 100.
@@ -400,14 +398,21 @@ pub fn step_explicit<F: ElasticModel>(
     let (backup_positions, backup_velocities) = backup.split_at_mut_checked(n).unwrap_or_default();
     // Entry by entry: the lengths were checked, but an out-of-line call (the body calls this
     // stepper too) hides them from the optimiser, and `copy_from_slice` would keep a panic path.
-    copy(backup_positions, positions);
-    copy(backup_velocities, velocities);
+    let save = |_, ((backup_x, backup_v), (x, v)): (State<'_, F::Vector>, _)| {
+        copy(backup_x, x);
+        copy(backup_v, v);
+    };
+    let buffers = (
+        (&mut *backup_positions, &mut *backup_velocities),
+        (&*positions, &*velocities),
+    );
+    model.run_vertex_pass(Blocks::new(n, buffers, &save));
 
     let h = settings.dt / settings.substeps as Real;
     if scratch.history.is_some_and(|history| history.h != h) {
         scratch.history = None;
     }
-    let mut ground_contacts = 0;
+    let (mut ground_contacts, mut kinetic_energy) = (0, 0.0);
     for _ in 0..settings.substeps {
         // The new forces go where the older of the two force buffers is.
         let (forces, previous_forces) = if scratch.latest_first {
@@ -429,7 +434,7 @@ pub fn step_explicit<F: ElasticModel>(
         );
         scratch.latest_first = !scratch.latest_first;
         match outcome {
-            Ok(contacts) => ground_contacts = contacts,
+            Ok((contacts, kinetic)) => (ground_contacts, kinetic_energy) = (contacts, kinetic),
             Err(error) => {
                 copy(positions, backup_positions);
                 copy(velocities, backup_velocities);
@@ -438,11 +443,6 @@ pub fn step_explicit<F: ElasticModel>(
             }
         }
     }
-    let kinetic_energy = velocities
-        .iter()
-        .zip(masses)
-        .map(|(v, m)| 0.5 * m * v.dot(*v))
-        .sum();
     Ok(ExplicitReport {
         substeps: settings.substeps,
         kinetic_energy,
@@ -471,8 +471,9 @@ fn validate<V: Vector>(settings: &ExplicitSettings<'_, V>) -> Result<Option<Grou
     settings.ground.as_ref().map(Ground::validated).transpose()
 }
 
-/// One substep; returns the number of ground contacts. `forces` receives the new forces;
-/// `previous_forces` holds those of the last accepted substep when `history` is `Some`.
+/// One substep; returns the number of ground contacts and the kinetic energy (J) after it.
+/// `forces` receives the new forces; `previous_forces` holds those of the last accepted substep
+/// when `history` is `Some`. On an error the state may be half updated: the caller restores it.
 #[allow(clippy::too_many_arguments)]
 fn substep<F: ElasticModel>(
     model: &F,
@@ -485,8 +486,10 @@ fn substep<F: ElasticModel>(
     velocities: &mut [F::Vector],
     (forces, previous_forces): (&mut [F::Vector], &[F::Vector]),
     history: &mut Option<History>,
-) -> Result<usize, StepError> {
-    forces.fill(F::Vector::ZERO);
+) -> Result<(usize, Real), StepError> {
+    let n = forces.len();
+    let clear = |_, forces: &mut [F::Vector]| forces.fill(F::Vector::ZERO);
+    model.run_vertex_pass(Blocks::new(n, &mut *forces, &clear));
     model
         .add_forces(positions, forces)
         .map_err(|error| match error {
@@ -497,21 +500,25 @@ fn substep<F: ElasticModel>(
             other => StepError::Mesh(other),
         })?;
 
-    let gravity = settings.gravity;
-    let gravity_squared = gravity.dot(gravity);
-    let mut indicator = 0.0;
-    let mut force_norm = 0.0;
-    let mut reversal = 0.0; // sum f_n . f_(n-1) / m
-    let rows = velocities.iter().zip(&*forces).zip(previous_forces);
-    for ((((v, f), previous), &m), pinned) in rows.zip(masses).zip(pinned_flags(pinned)) {
-        if !pinned {
-            let inverse_mass = 1.0 / m;
-            let f_squared = f.dot(*f) * inverse_mass;
-            indicator += 0.5 * m * (v.dot(*v) + h * h * gravity_squared) + h * h * f_squared / 8.0;
-            force_norm += f_squared;
-            reversal += f.dot(*previous) * inverse_mass;
-        }
-    }
+    // One pass over the vertices: the blow-up indicator's sums at the state before the update,
+    // the update, and the kinetic energy and first non-finite vertex after it. The sums are
+    // checked after the pass; a blow-up found then returns an error and the caller restores the
+    // state, so updating first changes nothing the caller sees.
+    let frame = Update {
+        settings,
+        ground,
+        h,
+        gravity_squared: settings.gravity.dot(settings.gravity),
+    };
+    let update = |first, ((x, v), (f, previous, m, pinned)): Rows<'_, F::Vector>| {
+        frame.block(first, (x, v), (f, previous, m, pinned))
+    };
+    let state = (&mut *positions, &mut *velocities);
+    let inputs = (&*forces, previous_forces, masses, pinned);
+    let (sums, contacts, kinetic_energy, non_finite) =
+        model.run_vertex_pass(Blocks::new(n, (state, inputs), &update));
+    // sum of the indicator terms, of |f|^2 / m, and of f_n . f_(n-1) / m
+    let (indicator, force_norm, reversal) = sums;
     let mut streak = 0;
     if let Some(previous) = *history {
         // A NaN indicator counts as growth. A zero previous indicator (exactly at rest, no
@@ -529,47 +536,97 @@ fn substep<F: ElasticModel>(
             return Err(StepError::EnergyBlowUp);
         }
     }
+    if let Some(vertex) = non_finite {
+        return Err(StepError::NonFiniteState { vertex });
+    }
     *history = Some(History {
         h,
         indicator,
         force_norm,
         streak,
     });
+    Ok((contacts, kinetic_energy))
+}
 
-    let drag = 1.0 / (1.0 + settings.damping * h);
-    let resting_speed = 2.0 * h * super::super::math::sqrt(gravity_squared);
-    let mut contacts = 0;
-    let loads = Loads {
-        forces: settings.external_forces,
-        fixed_axes: settings.fixed_axes,
-    };
-    let state = positions.iter_mut().zip(velocities.iter_mut());
-    let rows = state.zip(&*forces).zip(masses).zip(pinned_flags(pinned));
-    for (i, ((((x, v), f), &m), pinned)) in rows.enumerate() {
-        if pinned {
-            continue;
+/// A block's share of the positions and velocities.
+type State<'r, V> = (&'r mut [V], &'r mut [V]);
+
+/// A block's share of the substep's buffers: positions and velocities, then forces, previous
+/// forces, masses and pinned flags.
+type Rows<'r, V> = (State<'r, V>, (&'r [V], &'r [V], &'r [Real], &'r [bool]));
+
+/// What the update pass of a substep needs besides the buffers.
+struct Update<'s, 'a, V: Vector> {
+    settings: &'s ExplicitSettings<'a, V>,
+    ground: Option<&'s Ground<V>>,
+    h: Real,
+    gravity_squared: Real,
+}
+
+impl<V: Vector> Update<'_, '_, V> {
+    /// The update of the vertices from `first` on: returns the blow-up indicator's three sums
+    /// (from the state before the update), the contacts, the kinetic energy (J) after it and the
+    /// first vertex left non-finite.
+    #[inline(always)]
+    #[allow(clippy::type_complexity)]
+    fn block(
+        &self,
+        first: usize,
+        (positions, velocities): (&mut [V], &mut [V]),
+        (forces, previous_forces, masses, pinned): (&[V], &[V], &[Real], &[bool]),
+    ) -> ((Real, Real, Real), usize, Real, Option<usize>) {
+        let (settings, h) = (self.settings, self.h);
+        let gravity = settings.gravity;
+        let drag = 1.0 / (1.0 + settings.damping * h);
+        let resting_speed = 2.0 * h * super::super::math::sqrt(self.gravity_squared);
+        let loads = Loads {
+            forces: settings.external_forces,
+            fixed_axes: settings.fixed_axes,
+        };
+        let (mut indicator, mut force_norm, mut reversal) = (0.0, 0.0, 0.0);
+        let (mut contacts, mut kinetic_energy, mut non_finite) = (0, 0.0, None);
+        let state = positions.iter_mut().zip(velocities.iter_mut());
+        let rows = state.zip(forces.iter().zip(previous_forces));
+        let rows = rows.zip(masses).zip(pinned_flags(pinned)).enumerate();
+        for (j, ((((x, v), (f, previous)), &m), pinned)) in rows {
+            let i = first + j;
+            if !pinned {
+                let inverse_mass = 1.0 / m;
+                let f_squared = f.dot(*f) * inverse_mass;
+                indicator +=
+                    0.5 * m * (v.dot(*v) + h * h * self.gravity_squared) + h * h * f_squared / 8.0;
+                force_norm += f_squared;
+                reversal += f.dot(*previous) * inverse_mass;
+
+                let mut acceleration = *f * (1.0 / m) + gravity;
+                if !loads.forces.is_empty() {
+                    acceleration += loads.force(i) * (1.0 / m);
+                }
+                // Fixed axes: no velocity along them, so the coordinate keeps its bits.
+                *v = loads.free_part(i, (*v + acceleration * h) * drag);
+                let before = *x;
+                *x += *v * h;
+                if let Some(ground) = self.ground {
+                    contacts += usize::from(ground.resolve(x, v, resting_speed));
+                    *x = loads.keep_fixed(i, *x, before);
+                    *v = loads.free_part(i, *v);
+                }
+                if !settings.colliders.is_empty() {
+                    contacts += V::resolve_colliders(settings.colliders, x, v, resting_speed);
+                    *x = loads.keep_fixed(i, *x, before);
+                    *v = loads.free_part(i, *v);
+                }
+            }
+            kinetic_energy += 0.5 * m * v.dot(*v);
+            if non_finite.is_none() && !(x.is_finite() && v.is_finite()) {
+                non_finite = Some(i);
+            }
         }
-        let mut acceleration = *f * (1.0 / m) + gravity;
-        if !loads.forces.is_empty() {
-            acceleration += loads.force(i) * (1.0 / m);
-        }
-        // Fixed axes: no velocity along them, so the coordinate keeps its bits.
-        *v = loads.free_part(i, (*v + acceleration * h) * drag);
-        let before = *x;
-        *x += *v * h;
-        if let Some(ground) = ground {
-            contacts += usize::from(ground.resolve(x, v, resting_speed));
-            *x = loads.keep_fixed(i, *x, before);
-            *v = loads.free_part(i, *v);
-        }
-        if !settings.colliders.is_empty() {
-            contacts += F::Vector::resolve_colliders(settings.colliders, x, v, resting_speed);
-            *x = loads.keep_fixed(i, *x, before);
-            *v = loads.free_part(i, *v);
-        }
-    }
-    match first_non_finite(positions, velocities) {
-        Some(vertex) => Err(StepError::NonFiniteState { vertex }),
-        None => Ok(contacts),
+        (
+            (indicator, force_norm, reversal),
+            contacts,
+            kinetic_energy,
+            non_finite,
+        )
     }
 }

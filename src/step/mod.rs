@@ -208,6 +208,7 @@ mod loads;
 mod newton;
 pub(crate) mod points;
 mod relax;
+mod split;
 mod stability;
 mod vbd;
 mod vertex_block;
@@ -237,6 +238,7 @@ pub use relax::{
     MAX_ESTIMATED_RELAX_RHO, RelaxReport, RelaxScratch, RelaxSettings, relax_quasi_static,
     relax_scratch_len, relax_step,
 };
+pub use split::{InOrder, Join, VERTEX_BLOCK, VertexPass};
 pub use stability::{element_stable_time_step, linearised_moduli, stable_time_step};
 pub use vbd::{
     MAX_ESTIMATED_RHO, VbdReport, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_quasi_static,
@@ -275,6 +277,16 @@ pub trait ElasticModel {
     /// rest volume or area (m^3 or m^2). Used by [`stable_time_step`] and by the relaxation's
     /// preconditioner; see `stability.rs` for the derivation.
     fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real));
+
+    /// Runs one of the steppers' passes over the vertices (integration, contact projection,
+    /// trial points, residuals), split into blocks of [`VERTEX_BLOCK`] vertices. The default
+    /// runs it on the calling thread ([`InOrder`]); a model whose forces run on a thread pool
+    /// (as `parallel::ParallelTetElastic`, feature `rayon`) returns
+    /// `pass.run_with(&join)` with its pool's [`Join`], which gives the same bits.
+    #[inline]
+    fn run_vertex_pass<P: VertexPass>(&self, pass: P) -> P::Output {
+        pass.run_with(&InOrder)
+    }
 }
 
 /// An [`ElasticModel`] whose forces are minus the gradient of an energy, as the relaxation

@@ -7,8 +7,10 @@
 use super::super::lanes::{LANES, Lane, LaneSum, Lanes, each_lane};
 use super::super::math::BATCH_VERTICES;
 use super::super::types::Real;
+use super::descent::line_search::copy;
 use super::points::{Floor, Grouped, Point};
-use super::{Collider, Ground};
+use super::split::{Blocks, Split};
+use super::{Collider, ElasticModel, Ground, Vector, first_non_finite};
 
 /// What every vertex pass needs besides the buffers, for points of type `P`.
 #[derive(Clone, Copy)]
@@ -243,7 +245,7 @@ impl<'a, V: Grouped> Vertices<'a, V> {
 /// Turns the elastic forces in `gradient` (N, added by the kernel at `x`) into the gradient of
 /// `Phi` (zero at pinned vertices). Returns the inertia and gravity part of `Phi` (J) and the
 /// squared residual `|grad Phi|^2` (N^2) projected on the contact constraints.
-pub(super) fn gradient_pass<V: Grouped>(
+fn gradient_block<V: Grouped>(
     frames: &Frames<V>,
     vertices: &Vertices<'_, V>,
     x: &[V],
@@ -322,7 +324,7 @@ impl<V> TrialPoint<'_, V> {
 /// given) into `direction`, and in the same pass the trial point `x + alpha d` (projected on the
 /// ground; `x` at pinned vertices) into `trial`, zeroing its gradient buffer. Returns the slope
 /// `grad.d`.
-pub(super) fn direction_pass<V: Grouped>(
+fn direction_block<V: Grouped>(
     frames: &Frames<V>,
     vertices: &Vertices<'_, V>,
     (x, gradient): (&[V], &[V]),
@@ -411,7 +413,7 @@ pub(super) fn trial_pass<V: Grouped>(
 /// `trial` (whose positions hold `x_{k-1}` if `stepped`; the last step is zero otherwise),
 /// zeroing its gradient buffer. `step` is `omega alpha`.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn chebyshev_pass<V: Grouped>(
+fn chebyshev_block<V: Grouped>(
     frames: &Frames<V>,
     vertices: &Vertices<'_, V>,
     (x, gradient): (&[V], &[V]),
@@ -457,6 +459,178 @@ pub(super) fn chebyshev_pass<V: Grouped>(
     }
 }
 
+/// A vector type the blocked passes can share between threads.
+pub(super) trait Shared: Grouped + Send + Sync {}
+impl<V: Grouped + Send + Sync> Shared for V {}
+
+impl<V: Shared> Split for Vertices<'_, V> {
+    #[inline(always)]
+    fn split(self, at: usize) -> (Self, Self) {
+        let parts = (self.masses, self.pinned, self.stiffness);
+        let ((masses, pinned, stiffness), (masses_after, pinned_after, stiffness_after)) =
+            parts.split(at);
+        let ((start, velocities), (start_after, velocities_after)) =
+            (self.start, self.velocities).split(at);
+        (
+            Vertices {
+                masses,
+                pinned,
+                stiffness,
+                start,
+                velocities,
+            },
+            Vertices {
+                masses: masses_after,
+                pinned: pinned_after,
+                stiffness: stiffness_after,
+                start: start_after,
+                velocities: velocities_after,
+            },
+        )
+    }
+}
+
+impl<'t, V: Send> Split for TrialPoint<'t, V> {
+    #[inline(always)]
+    fn split(self, at: usize) -> (Self, Self) {
+        let ((positions, gradient), (positions_after, gradient_after)) =
+            (self.positions, self.gradient).split(at);
+        (
+            TrialPoint {
+                positions,
+                gradient,
+            },
+            TrialPoint {
+                positions: positions_after,
+                gradient: gradient_after,
+            },
+        )
+    }
+}
+
+/// The gradient pass (see `gradient_block`) in blocks of
+/// [`VERTEX_BLOCK`](super::VERTEX_BLOCK) vertices run by `model`
+/// ([`ElasticModel::run_vertex_pass`]): the sums are block sums added over the fixed tree.
+pub(super) fn gradient_pass<V: Shared>(
+    model: &impl ElasticModel,
+    frames: &Frames<V>,
+    vertices: &Vertices<'_, V>,
+    x: &[V],
+    gradient: &mut [V],
+) -> (Real, Real) {
+    let block = |_, (vertices, x, gradient): (Vertices<'_, V>, &[V], &mut [V])| {
+        gradient_block(frames, &vertices, x, gradient)
+    };
+    model.run_vertex_pass(Blocks::new(x.len(), (*vertices, x, gradient), &block))
+}
+
+/// The direction pass (see `direction_block`) in blocks run by `model`: the slope is a block
+/// sum added over the fixed tree.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn direction_pass<V: Shared>(
+    model: &impl ElasticModel,
+    frames: &Frames<V>,
+    vertices: &Vertices<'_, V>,
+    (x, gradient): (&[V], &[V]),
+    direction: &mut [V],
+    momentum: Option<Real>,
+    trial: TrialPoint<'_, V>,
+    alpha: Real,
+) -> Real {
+    let block = |_, ((vertices, x, gradient), direction, trial): DirectionParts<'_, V>| {
+        direction_block(
+            frames,
+            &vertices,
+            (x, gradient),
+            direction,
+            momentum,
+            trial,
+            alpha,
+        )
+    };
+    let parts = ((*vertices, x, gradient), direction, trial);
+    model.run_vertex_pass(Blocks::new(x.len(), parts, &block))
+}
+
+/// A block's share of the direction pass's buffers.
+type DirectionParts<'p, V> = (
+    (Vertices<'p, V>, &'p [V], &'p [V]),
+    &'p mut [V],
+    TrialPoint<'p, V>,
+);
+
+/// A block's share of the Chebyshev pass's buffers.
+type ChebyshevParts<'p, V> = ((Vertices<'p, V>, &'p [V], &'p [V]), TrialPoint<'p, V>);
+
+/// The trial pass (see `trial_block`) in blocks run by `model`.
+pub(super) fn split_trial_pass<V: Shared>(
+    model: &impl ElasticModel,
+    frames: &Frames<V>,
+    pinned: &[bool],
+    (x, direction): (&[V], &[V]),
+    alpha: Real,
+    trial: TrialPoint<'_, V>,
+) {
+    let block = |_, (pinned, x, direction, trial): (&[bool], &[V], &[V], TrialPoint<'_, V>)| {
+        trial_pass(frames, pinned, (x, direction), alpha, trial);
+    };
+    model.run_vertex_pass(Blocks::new(x.len(), (pinned, x, direction, trial), &block));
+}
+
+/// Copies `source` into `target` (as far as the shorter goes) in blocks run by `model`.
+pub(super) fn split_copy<V: Copy + Send + Sync>(
+    model: &impl ElasticModel,
+    target: &mut [V],
+    source: &[V],
+) {
+    let block = |_, (target, source): (&mut [V], &[V])| copy(target, source);
+    model.run_vertex_pass(Blocks::new(target.len(), (target, source), &block));
+}
+
+/// The first vertex at which `positions` or (where given) `velocities` is not finite, in blocks
+/// run by `model`.
+pub(super) fn split_first_non_finite<V: Vector>(
+    model: &impl ElasticModel,
+    positions: &[V],
+    velocities: &[V],
+) -> Option<usize> {
+    let block = |first: usize, (positions, velocities): (&[V], &[V])| {
+        first_non_finite(positions, velocities).map(|vertex| first + vertex)
+    };
+    model.run_vertex_pass(Blocks::new(
+        positions.len(),
+        (positions, velocities),
+        &block,
+    ))
+}
+
+/// The Chebyshev pass (see `chebyshev_block`) in blocks run by `model`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn chebyshev_pass<V: Shared>(
+    model: &impl ElasticModel,
+    frames: &Frames<V>,
+    vertices: &Vertices<'_, V>,
+    (x, gradient): (&[V], &[V]),
+    stepped: bool,
+    trial: TrialPoint<'_, V>,
+    step: Real,
+    omega: Real,
+) {
+    let block = |_, ((vertices, x, gradient), trial): ChebyshevParts<'_, V>| {
+        chebyshev_block(
+            frames,
+            &vertices,
+            (x, gradient),
+            stepped,
+            trial,
+            step,
+            omega,
+        );
+    };
+    let parts = ((*vertices, x, gradient), trial);
+    model.run_vertex_pass(Blocks::new(x.len(), parts, &block));
+}
+
 #[cfg(test)]
 // Compiled for both precisions: the conversions are no-ops in one of them.
 #[allow(clippy::unnecessary_cast)]
@@ -470,7 +644,7 @@ mod tests {
     use super::super::Ground;
     use super::super::points::{Grouped, Point};
     use super::{
-        Frame, Frames, TrialPoint, Vertices, chebyshev_pass, direction_pass, gradient_pass,
+        Frame, Frames, TrialPoint, Vertices, chebyshev_block, direction_block, gradient_block,
         trial_pass,
     };
 
@@ -532,7 +706,7 @@ mod tests {
             let bits = |v: &[V]| format!("{v:?}");
 
             let mut gradient = forces.clone();
-            let (phi, residual) = gradient_pass(&frames, &vertices, &x, &mut gradient);
+            let (phi, residual) = gradient_block(&frames, &vertices, &x, &mut gradient);
             let expected: Vec<_> = (0..n)
                 .map(|i| {
                     one.gradient(
@@ -563,7 +737,7 @@ mod tests {
                 let mut direction = vec![zero; n];
                 let mut trial = start.clone();
                 let mut next_gradient = forces.clone();
-                let slope = direction_pass(
+                let slope = direction_block(
                     &frames,
                     &vertices,
                     (&x, &gradient),
@@ -626,7 +800,7 @@ mod tests {
             for stepped in [false, true] {
                 let mut trial = start.clone();
                 let mut next_gradient = forces.clone();
-                chebyshev_pass(
+                chebyshev_block(
                     &frames,
                     &vertices,
                     (&x, &gradient),

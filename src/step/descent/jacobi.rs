@@ -30,6 +30,7 @@ impl<F: ElasticEnergy> Direction<F> for Jacobi {
         step: Real,
     ) -> Result<Real, crate::error::StepError> {
         Ok(direction_pass(
+            objective.model,
             &objective.frames,
             &objective.vertices,
             (at.x, at.gradient),
@@ -49,6 +50,7 @@ impl<F: ElasticEnergy> Direction<F> for Jacobi {
         (step, omega): (Real, Real),
     ) {
         chebyshev_pass(
+            objective.model,
             &objective.frames,
             &objective.vertices,
             (at.x, at.gradient),

@@ -44,7 +44,9 @@ use super::chebyshev::{Acceleration, AccelerationSettings};
 use super::collider::Collider;
 use super::loads::Loads;
 use super::points::Floor;
-use super::vertex_passes::{Frames, TrialPoint, Vertices, trial_pass};
+use super::vertex_passes::{
+    Frames, TrialPoint, Vertices, split_copy, split_first_non_finite, split_trial_pass,
+};
 use super::{ElasticEnergy, Ground, Vector, first_non_finite};
 use crate::error::StepError;
 use line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
@@ -248,7 +250,7 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
         F::Vector::ZERO
     };
     translate(positions, -origin);
-    copy(start, positions);
+    split_copy(problem.model, start, positions);
     let start: &[F::Vector] = start;
     let restore = |positions: &mut [F::Vector]| {
         copy(positions, start);
@@ -297,14 +299,14 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
         translate(positions, origin);
         // Shifting back can overflow what was finite next to the body (a ground or collider
         // near the largest float), so the state is checked where the caller gets it.
-        if let Some(vertex) = first_non_finite(positions, &[]) {
+        if let Some(vertex) = split_first_non_finite(problem.model, positions, &[]) {
             restore(positions);
             return Err(StepError::NonFiniteState { vertex });
         }
         return Ok(summary);
     };
     // v = (x_{n+1} - x_n) / h, then Coulomb friction at the contacts.
-    copy(backup, velocities);
+    split_copy(problem.model, backup, velocities);
     implicit_velocities(
         ground.as_ref(),
         &floor,
@@ -315,9 +317,8 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
     );
     translate(positions, origin);
     // Checked after the shift back, which can overflow (see above); positions first.
-    if let Some(vertex) =
-        first_non_finite(positions, &[]).or_else(|| first_non_finite(velocities, &[]))
-    {
+    let non_finite = |values: &[F::Vector]| split_first_non_finite(problem.model, values, &[]);
+    if let Some(vertex) = non_finite(positions).or_else(|| non_finite(velocities)) {
         restore(positions);
         copy(velocities, backup);
         return Err(StepError::NonFiniteState { vertex });
@@ -515,7 +516,8 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
         let mut redo = false;
         for attempt in 0..=settings.max_backtracks {
             if attempt > 0 {
-                trial_pass(
+                split_trial_pass(
+                    objective.model,
                     &objective.frames,
                     objective.vertices.pinned,
                     (current, direction),
@@ -580,7 +582,7 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     }
     if swapped {
         // `other` is `positions`.
-        copy(other, current);
+        split_copy(objective.model, other, current);
     }
     let rounding_floor = rule.rounding_floor();
     let summary = Summary {

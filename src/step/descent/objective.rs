@@ -65,7 +65,7 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     ) -> Result<Evaluation, StepError> {
         let elastic = self.model.energy_and_add_forces(x, gradient)?;
         let (mut inertia_and_gravity, mut residual_squared) =
-            gradient_pass(&self.frames, &self.vertices, x, gradient);
+            gradient_pass(self.model, &self.frames, &self.vertices, x, gradient);
         if !self.loads.is_none() {
             let vertices = &self.vertices;
             let (loads_phi, loaded_residual) = self.loads.apply(
