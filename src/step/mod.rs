@@ -210,6 +210,7 @@ pub(crate) mod points;
 mod relax;
 mod stability;
 mod vbd;
+mod vbd_layout;
 mod vertex_block;
 mod vertex_passes;
 mod vertex_sums;
@@ -242,6 +243,7 @@ pub use vbd::{
     MAX_ESTIMATED_RHO, VbdReport, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_quasi_static,
     vbd_scratch_len, vbd_step,
 };
+pub use vbd_layout::{vbd_layout_corners_len, vbd_layout_len};
 
 pub use super::element::Vector;
 
