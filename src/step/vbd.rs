@@ -97,10 +97,12 @@ impl<'a> VbdScratch<'a> {
     /// sweep in sweep order, the element's corner indices, `Dm^-1`, volume and the corner's
     /// shape gradient, already laid out for the SIMD lanes, so that the sweeps load them
     /// instead of gathering them element by element. The results are the same bits with or
-    /// without it (`tests/vbd.rs`); only the time differs: measured on one thread, a sweep on
-    /// the 1296-tetrahedron bouncy cube and on 10k-100k tetrahedra boxes costs fewer force
-    /// evaluations with it (see [`vbd_step`](vbd_step#cost-and-when-to-pick-it)). A mesh whose
-    /// vertex valences are so uneven that its layout does not fit is swept without it.
+    /// without it, at every SIMD width and thread count (`tests/vbd.rs`, `tests/simd.rs`);
+    /// only the time differs: measured on one thread, a sweep costs 0.6-0.9 of the gathered
+    /// one (see [`vbd_step`](vbd_step#when-to-pick-it)). A mesh whose vertex valences are so
+    /// uneven that its layout does not fit is swept without it (see
+    /// [`layout_in_use`](Self::layout_in_use)). The layout copies the mesh's rest data: after
+    /// changing the mesh call [`reset_topology`](Self::reset_topology).
     #[inline]
     #[must_use]
     pub fn with_layout(self, values: &'a mut [Real], corners: &'a mut [u32]) -> Self {
@@ -515,7 +517,14 @@ pub struct VbdReport {
 /// where a force pass gathers once per element. `cargo bench --features rayon --bench vbd`
 /// (load 3) gave 6.3 force passes at 10 368 tetrahedra and 7.9 at 105 456, where the gather
 /// runs from the last-level cache (the scalar sweep, built and run right after: 15.5 and
-/// 17.0). The target of 3 force passes per sweep is not met. In
+/// 17.0). With the packed layout of [`VbdScratch::with_layout`] a visit loads its rest data
+/// instead of gathering it: `measure_sweep_cost` (load 5-8) gave 5.9-6.4 force passes on the
+/// bouncy cube where the gathered sweep gave 6.7-7.5 in the same run, and the criterion medians
+/// of `cargo bench --features rayon --bench vbd` (load 5-7, one run) 4.7 force passes at
+/// 10 368 tetrahedra (gathered: 6.2) and 6.7 at 105 456 (gathered: 11.7), the same bits. The
+/// target of 3 force passes per sweep is still not met: the corner positions are gathered
+/// lane by lane, and a sweep computes `F`, `P g` and the 3x3 block once per element and corner,
+/// where a force pass computes `F` and `P` once per element. In
 /// iterations VBD gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s
 /// (tolerance 2e-3) 2239 sweeps with Chebyshev 0.95 (all 180 steps converge) against the
 /// relaxation's 5351 iterations, 2.0 times the relaxation's wall time (1.96 times its CPU

@@ -176,6 +176,8 @@ impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_
             mut visitor,
         } = self;
         let mut sums = [EMPTY; MAX_WIDTH];
+        // The gathered corner positions, initialised once per pass rather than per group.
+        let mut buffer = [[L::ZEROS; 12]; STEPS];
         for run in runs {
             for (b, block) in run.vertices.chunks(BLOCK).enumerate() {
                 let rows = layout.rows(run.block + b);
@@ -193,7 +195,7 @@ impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_
                         at,
                         (group, skip),
                         energy,
-                        &mut sums,
+                        (&mut sums, &mut buffer),
                     );
                     for (j, (&vertex, sums)) in vertices.iter().zip(&sums).enumerate() {
                         if !skip.get(vertex as usize).copied().unwrap_or(false) {
@@ -458,7 +460,7 @@ fn sum_packed_group<L: LaneArray, M: Material>(
     positions: &[Vec3],
     (group, skip): (PackedGroup<'_>, &[bool]),
     energy: bool,
-    out: &mut [VertexSums; MAX_WIDTH],
+    (out, buffer): (&mut [VertexSums; MAX_WIDTH], &mut [[L::Array; 12]; STEPS]),
 ) where
     L::Array: for<'a> TryFrom<&'a [Real]>,
 {
@@ -486,8 +488,8 @@ fn sum_packed_group<L: LaneArray, M: Material>(
             .map_or(L::splat(0.0), L::from_lane_array)
     };
     let mut sums = Accumulator::<L>::new();
-    // Corner positions gathered `STEPS` visits ahead, as in `sum_group`.
-    let mut buffer = [[L::ZEROS; 12]; STEPS];
+    // Corner positions gathered `STEPS` visits ahead, as in `sum_group` (lanes of masked
+    // visits keep earlier values: never used).
     for first in (0..longest).step_by(STEPS) {
         for (offset, values) in buffer.iter_mut().enumerate().take(longest - first) {
             let row = first_row + first + offset;

@@ -15,7 +15,9 @@ use super::super::adjacency::incident_elements;
 use super::super::collider::Collider;
 use super::super::loads::Loads;
 use super::super::points::{Grouped, Point};
-use super::super::vbd_layout::{BLOCK, Layout, Run, colour_runs};
+#[cfg(feature = "rayon")]
+use super::super::vbd_layout::BLOCK;
+use super::super::vbd_layout::{Layout, Run, colour_runs};
 use super::super::vertex_block::{VertexFactor, shape_gradient};
 use super::super::vertex_passes::{TrialPoint, trial_pass};
 use super::super::vertex_sums::{Elements, SumsPass, VertexSums, VertexVisitor, sum_vertices};
