@@ -116,13 +116,6 @@ impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_
     where
         L::Array: for<'a> TryFrom<&'a [Real]>,
     {
-        // Every width divides the layout's blocks (see `vbd_layout.rs`); one that did not
-        // would take the gather path, with the same results.
-        if let Some(layout) = self.elements.layout
-            && BLOCK.is_multiple_of(L::WIDTH)
-        {
-            return self.run_packed::<L>(layout);
-        }
         let SumsPass {
             elements,
             skip,
@@ -130,6 +123,13 @@ impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_
             energy,
             mut visitor,
         } = self;
+        // Every width divides the layout's blocks (see `vbd_layout.rs`); one that did not
+        // would take the gather path, with the same results.
+        if let Some(layout) = elements.layout
+            && BLOCK.is_multiple_of(L::WIDTH)
+        {
+            return run_packed::<L, M, R, V>((elements, &layout), skip, runs, energy, visitor);
+        }
         let mut batch = [(0usize, 0u32); MAX_WIDTH];
         let mut sums = [EMPTY; MAX_WIDTH];
         for run in runs {
@@ -161,52 +161,51 @@ impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_
         }
         visitor
     }
+}
 
-    /// The pass over the layout's blocks, `L::WIDTH` lanes of a block at a time.
-    #[inline(always)]
-    fn run_packed<L: LaneArray>(self, layout: Layout<'_>) -> V
-    where
-        L::Array: for<'a> TryFrom<&'a [Real]>,
-    {
-        let SumsPass {
-            elements,
-            skip,
-            runs,
-            energy,
-            mut visitor,
-        } = self;
-        let mut sums = [EMPTY; MAX_WIDTH];
-        // The gathered corner positions, initialised once per pass rather than per group.
-        let mut buffer = [[L::ZEROS; 12]; STEPS];
-        for run in runs {
-            for (b, block) in run.vertices.chunks(BLOCK).enumerate() {
-                let rows = layout.rows(run.block + b);
-                for (s, vertices) in block.chunks(L::WIDTH).enumerate() {
-                    let lane = s * L::WIDTH;
-                    let group = PackedGroup {
-                        vertices,
-                        lane,
-                        rows,
-                    };
-                    let at = visitor.positions();
-                    sum_packed_group::<L, M>(
-                        elements,
-                        &layout,
-                        at,
-                        (group, skip),
-                        energy,
-                        (&mut sums, &mut buffer),
-                    );
-                    for (j, (&vertex, sums)) in vertices.iter().zip(&sums).enumerate() {
-                        if !skip.get(vertex as usize).copied().unwrap_or(false) {
-                            visitor.visit(b * BLOCK + lane + j, vertex, sums);
-                        }
+/// The pass over the layout's blocks, `L::WIDTH` lanes of a block at a time.
+#[inline(always)]
+fn run_packed<'r, L: LaneArray, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor>(
+    (elements, layout): (&Elements<'_, M>, &Layout<'_>),
+    skip: &[bool],
+    runs: R,
+    energy: bool,
+    mut visitor: V,
+) -> V
+where
+    L::Array: for<'a> TryFrom<&'a [Real]>,
+{
+    let mut sums = [EMPTY; MAX_WIDTH];
+    // The gathered corner positions, initialised once per pass rather than per group.
+    let mut buffer = [[L::ZEROS; 12]; STEPS];
+    for run in runs {
+        for (b, block) in run.vertices.chunks(BLOCK).enumerate() {
+            let rows = layout.rows(run.block + b);
+            for (s, vertices) in block.chunks(L::WIDTH).enumerate() {
+                let lane = s * L::WIDTH;
+                let group = PackedGroup {
+                    vertices,
+                    lane,
+                    rows,
+                };
+                let at = visitor.positions();
+                sum_packed_group::<L, M>(
+                    elements,
+                    layout,
+                    at,
+                    (group, skip),
+                    energy,
+                    (&mut sums, &mut buffer),
+                );
+                for (j, (&vertex, sums)) in vertices.iter().zip(&sums).enumerate() {
+                    if !skip.get(vertex as usize).copied().unwrap_or(false) {
+                        visitor.visit(b * BLOCK + lane + j, vertex, sums);
                     }
                 }
             }
         }
-        visitor
     }
+    visitor
 }
 
 impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> WidthKernel
@@ -310,6 +309,31 @@ struct Visit<L: Lane> {
     volume: L,
     gradient: LaneVec3<L>,
     active: L::Mask,
+}
+
+impl<L: Lane> Visit<L> {
+    /// The visit with corner `c` at `corner(3 c)`, `Dm^-1` by columns at `rest(dm_inv)`,
+    /// `rest(dm_inv + 3)` and `rest(dm_inv + 6)`, and the shape gradient at `rest(gradient)`.
+    #[inline(always)]
+    fn new(
+        corner: impl Fn(usize) -> LaneVec3<L>,
+        rest: impl Fn(usize) -> LaneVec3<L>,
+        (dm_inv, gradient): (usize, usize),
+        volume: L,
+        active: L::Mask,
+    ) -> Self {
+        Visit {
+            corners: [corner(0), corner(3), corner(6), corner(9)],
+            dm_inv: LaneMat3 {
+                c0: rest(dm_inv),
+                c1: rest(dm_inv + 3),
+                c2: rest(dm_inv + 6),
+            },
+            volume,
+            gradient: rest(gradient),
+            active,
+        }
+    }
 }
 
 impl<L: LaneArray> Accumulator<L> {
@@ -425,18 +449,14 @@ fn sum_group<L: LaneArray, M: Material>(
         }
         for values in buffer.iter().take(longest - first) {
             let vector = |k: usize| lane_vector::<L>(values, k);
-            let visit = Visit {
-                corners: [vector(0), vector(3), vector(6), vector(9)],
-                dm_inv: LaneMat3 {
-                    c0: vector(12),
-                    c1: vector(15),
-                    c2: vector(18),
-                },
-                volume: L::from_lane_array(values.get(VOLUME).copied().unwrap_or(L::ZEROS)),
-                gradient: vector(GRADIENT),
-                active: L::from_lane_array(values.get(ACTIVE).copied().unwrap_or(L::ZEROS))
-                    .gt(L::splat(0.0)),
-            };
+            let value = |k: usize| L::from_lane_array(values.get(k).copied().unwrap_or(L::ZEROS));
+            let visit = Visit::new(
+                vector,
+                vector,
+                (12, GRADIENT),
+                value(VOLUME),
+                value(ACTIVE).gt(L::splat(0.0)),
+            );
             sums.add(elements.material, &visit, energy);
         }
     }
@@ -512,17 +532,13 @@ fn sum_packed_group<L: LaneArray, M: Material>(
             let value = |k: usize| load(base + k * BLOCK);
             let vector = |k: usize| LaneVec3::new(value(k), value(k + 1), value(k + 2));
             let corner = |k: usize| lane_vector::<L>(values, k);
-            let visit = Visit {
-                corners: [corner(0), corner(3), corner(6), corner(9)],
-                dm_inv: LaneMat3 {
-                    c0: vector(0),
-                    c1: vector(3),
-                    c2: vector(6),
-                },
-                volume: value(vbd_layout::VOLUME),
-                gradient: vector(vbd_layout::GRADIENT),
-                active: lengths.gt(L::splat(t as Real)),
-            };
+            let visit = Visit::new(
+                corner,
+                vector,
+                (0, vbd_layout::GRADIENT),
+                value(vbd_layout::VOLUME),
+                lengths.gt(L::splat(t as Real)),
+            );
             sums.add(elements.material, &visit, energy);
         }
     }
