@@ -62,7 +62,7 @@ const fn layout_rows(element_count: usize) -> usize {
 /// [`VbdScratch::with_layout`](super::VbdScratch::with_layout)) for a mesh of `element_count`
 /// tetrahedra: 13 values (`Dm^-1`, the rest volume and the corner's shape gradient) per element
 /// visit and lane, for about one and a half times the `4 * element_count` visits of a sweep
-/// plus a margin (208 bytes per tetrahedron in f32 beyond the margin, 416 in f64). A mesh whose
+/// plus a margin (78 values, 312 bytes, per tetrahedron in f32 beyond the margin, 624 in f64). A mesh whose
 /// vertex valences are so uneven that its layout needs more is swept without it.
 #[inline]
 #[must_use]
@@ -75,7 +75,7 @@ pub const fn vbd_layout_len(element_count: usize) -> usize {
 /// The length of the index buffer of the packed sweep layout (see
 /// [`VbdScratch::with_layout`](super::VbdScratch::with_layout)) for `vertex_count` vertices
 /// and `element_count` tetrahedra: the blocks' first rows (`vertex_count + 1`) and the four
-/// corner indices of every visit of [`vbd_layout_len`]'s room (64 bytes per tetrahedron).
+/// corner indices of every visit of [`vbd_layout_len`]'s room (24 indices, 96 bytes, per tetrahedron).
 #[inline]
 #[must_use]
 pub const fn vbd_layout_corners_len(vertex_count: usize, element_count: usize) -> usize {
