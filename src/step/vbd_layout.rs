@@ -43,7 +43,7 @@ pub(super) const VOLUME: usize = 9;
 pub(super) const GRADIENT: usize = 10;
 
 /// The visit rows (of [`BLOCK`] lanes each) the layout of a mesh of `element_count`
-/// tetrahedra has room for: `(3 * element_count + 1) / 2 + 8 * 64`, room for half the element
+/// tetrahedra has room for: `ceil(6 * element_count / BLOCK) + 8 * 64`, room for half the element
 /// visits (`4 * element_count`, one per element and corner) again in masked lanes, plus 64
 /// visits of every lane of eight blocks. Vertices are ordered by their number of elements
 /// within each colour, so a block's lanes have rows of about equal length; a mesh with very
