@@ -16,8 +16,11 @@
 //!   (the adjacency and colouring are built by the first, untimed call). A call costs one fused
 //!   pass for the initial guess, then per sweep the sweep and one fused pass; the marginal
 //!   iteration `(T_3 - T_1) / 2` minus the fused pass is the sweep alone;
-//! * with feature `rayon`, the same through `vbd_step_parallel` on a pool of 2 threads (its
-//!   result is the sequential one bit for bit; only the sweep is parallel).
+//! * **VBD, packed layout**: the same with the scratch's packed sweep layout
+//!   (`VbdScratch::with_layout`; the same bits, the visits' rest data loaded instead of
+//!   gathered);
+//! * with feature `rayon`, the same with the layout through `vbd_step_parallel` on a pool of
+//!   2 threads (its result is the sequential one bit for bit; only the sweep is parallel).
 //!
 //! `cargo bench --bench vbd [--features rayon]` runs criterion (one group per mesh, flat
 //! sampling, 10 samples) and then a plain `Instant` pass that times every operation round-robin,
@@ -38,8 +41,8 @@ use softfem::glam::Vec3;
 use softfem::material::StableNeoHookean;
 use softfem::mesh::TetMesh;
 use softfem::step::{
-    ElasticEnergy, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_scratch_len,
-    vbd_step,
+    ElasticEnergy, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len,
+    vbd_layout_corners_len, vbd_layout_len, vbd_scratch_len, vbd_step,
 };
 
 /// Cubes per axis of the two meshes: 10 368 and 105 456 tetrahedra.
@@ -124,12 +127,18 @@ fn operations<'a>(
         },
     ];
     let settings = VbdSettings::new(1.0 / 60.0).with_line_search(0);
-    let vbd = |budget: u32, parallel: bool| -> Box<dyn FnMut() + 'a> {
+    let vbd = |budget: u32, (parallel, layout): (bool, bool)| -> Box<dyn FnMut() + 'a> {
         let vectors: &'a mut [Vec3] =
             Box::leak(vec![Vec3::ZERO; vbd_scratch_len(n)].into_boxed_slice());
         let indices: &'a mut [u32] =
             Box::leak(vec![0; vbd_index_scratch_len(n, t)].into_boxed_slice());
         let mut scratch = VbdScratch::new(vectors, indices);
+        if layout {
+            let values: &'a mut [f32] = Box::leak(vec![0.0; vbd_layout_len(t)].into_boxed_slice());
+            let corners: &'a mut [u32] =
+                Box::leak(vec![0; vbd_layout_corners_len(n, t)].into_boxed_slice());
+            scratch = scratch.with_layout(values, corners);
+        }
         let (mut x, mut v) = (x0.to_vec(), vec![Vec3::ZERO; n]);
         let settings = settings.with_tolerance(0.0, budget);
         #[cfg(feature = "rayon")]
@@ -160,31 +169,35 @@ fn operations<'a>(
                 vbd_step(body, masses, &[], &settings, &mut x, &mut v, &mut scratch)
             };
             assert_eq!(report.unwrap().iterations, budget);
+            assert_eq!(scratch.layout_in_use(), layout);
         };
-        // The first call builds the topology.
+        // The first call builds the topology (and the layout).
         call();
         Box::new(call)
     };
-    operations.push(Operation {
-        id: "vbd_1_sweep",
-        run: vbd(BUDGETS[0], false),
-    });
-    operations.push(Operation {
-        id: "vbd_3_sweeps",
-        run: vbd(BUDGETS[1], false),
-    });
-    if cfg!(feature = "rayon") {
-        operations.push(Operation {
-            id: "vbd_parallel_1_sweep",
-            run: vbd(BUDGETS[0], true),
-        });
-        operations.push(Operation {
-            id: "vbd_parallel_3_sweeps",
-            run: vbd(BUDGETS[1], true),
-        });
+    for &(schedule, ids) in SCHEDULES {
+        if schedule.0 && !cfg!(feature = "rayon") {
+            continue;
+        }
+        for (&budget, id) in BUDGETS.iter().zip(ids) {
+            operations.push(Operation {
+                id,
+                run: vbd(budget, schedule),
+            });
+        }
     }
     operations
 }
+
+/// The VBD rows: (parallel, packed layout), and the ids of the calls of [`BUDGETS`] sweeps.
+const SCHEDULES: &[((bool, bool), [&str; 2])] = &[
+    ((false, false), ["vbd_1_sweep", "vbd_3_sweeps"]),
+    ((false, true), ["vbd_layout_1_sweep", "vbd_layout_3_sweeps"]),
+    (
+        (true, true),
+        ["vbd_parallel_1_sweep", "vbd_parallel_3_sweeps"],
+    ),
+];
 
 fn criterion_group(c: &mut Criterion, tets: usize, operations: &mut [Operation<'_>]) {
     let mut group = c.benchmark_group(format!("vbd_{}k", (tets + 500) / 1000));
@@ -229,7 +242,12 @@ fn rows(tets: usize, ns: &[f64]) -> Vec<Vec<String>> {
     let (force, fused) = (ns[0], ns[1]);
     let extra = f64::from(BUDGETS[1] - BUDGETS[0]);
     let mut rows = Vec::new();
-    for (schedule, pair) in ["sequential", "parallel"].iter().zip(ns[2..].chunks(2)) {
+    let names = [
+        "sequential, gathered",
+        "sequential, packed layout",
+        "parallel, packed layout",
+    ];
+    for (schedule, pair) in names.iter().zip(ns[2..].chunks(2)) {
         let iteration = (pair[1] - pair[0]) / extra;
         let sweep = iteration - fused;
         rows.push(vec![

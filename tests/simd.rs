@@ -682,7 +682,8 @@ macro_rules! mesh_tests {
             #[test]
             fn vbd_runs_are_bitwise_the_scalar_run_at_every_width() {
                 use $($crate_path)::+::step::{
-                    VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_scratch_len, vbd_step,
+                    VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_layout_corners_len,
+                    vbd_layout_len, vbd_scratch_len, vbd_step,
                 };
                 fn check<M: Material>(material: M, label: &str) {
                     let (rest_x, deformed, tets) = deformed_box(3, 0.05, 0);
@@ -703,24 +704,34 @@ macro_rules! mesh_tests {
                     let base = VbdSettings::new(1.0 / 60.0).with_gravity(gravity).with_tolerance(0.0, 12);
                     let run = || {
                         let mut results = Vec::new();
-                        for settings in [
-                            base.with_estimated_chebyshev(3),
-                            base.with_line_search(0).with_chebyshev(0.9, 2),
+                        // With and without the packed sweep layout (the same bits either way).
+                        for (settings, packed) in [
+                            (base.with_estimated_chebyshev(3), false),
+                            (base.with_line_search(0).with_chebyshev(0.9, 2), false),
+                            (base.with_estimated_chebyshev(3), true),
+                            (base.with_line_search(0).with_chebyshev(0.9, 2), true),
                         ] {
                             let (mut x, mut v) = (start.clone(), vec![V::ZERO; n]);
                             let mut vectors = vec![V::ZERO; vbd_scratch_len(n)];
                             let mut indices = vec![0; vbd_index_scratch_len(n, tets.len())];
+                            let mut values = vec![0.0; vbd_layout_len(tets.len())];
+                            let mut corners = vec![0; vbd_layout_corners_len(n, tets.len())];
                             let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                            if packed {
+                                scratch = scratch.with_layout(&mut values, &mut corners);
+                            }
                             for _ in 0..2 {
                                 vbd_step(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)
                                     .unwrap();
                             }
+                            assert_eq!(scratch.layout_in_use(), packed);
                             results.push((bits(&x), bits(&v)));
                         }
                         results
                     };
                     let scalar = same_at_every_width(&format!("{label} VBD"), run);
                     assert_ne!(scalar[0].0, bits(&start), "{label}: the run moved");
+                    assert!(scalar[..2] == scalar[2..], "{label}: the packed layout changed the bits");
                 }
                 check(StVK::from_young_poisson(1.0e6, 0.45).unwrap(), "StVK");
                 check(NeoHookean::from_young_poisson(1.0e6, 0.45).unwrap(), "neo-Hookean");

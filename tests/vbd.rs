@@ -23,7 +23,7 @@ macro_rules! vbd_tests {
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
                 Ground, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len,
-                vbd_quasi_static, vbd_scratch_len, vbd_step,
+                vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static, vbd_scratch_len, vbd_step,
             };
             use $($api)::+::types::{Mat3, Real, Vec3};
 
@@ -50,6 +50,144 @@ macro_rules! vbd_tests {
             /// Scratch buffers for `n` vertices and `t` tetrahedra.
             fn buffers(n: usize, t: usize) -> (Vec<Vec3>, Vec<u32>) {
                 (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)])
+            }
+
+            /// Packed-layout buffers for `n` vertices and `t` tetrahedra, full of garbage (NaN
+            /// values, arbitrary indices): the layout overwrites what it reads.
+            fn layout_buffers(n: usize, t: usize) -> (Vec<Real>, Vec<u32>) {
+                let corners = (0..vbd_layout_corners_len(n, t) as u32).map(|i| i.wrapping_mul(2_654_435_761)).collect();
+                (vec![Real::NAN; vbd_layout_len(t)], corners)
+            }
+
+            /// The scene of the layout and parallel tests: a block (12 x 10 x 3 cubes: 8
+            /// colours of 43 or more vertices) pinned at one end, pressed sideways by external
+            /// loads, with a roller axis, thrown onto a frictional ground, with the line search
+            /// and Chebyshev on (StVK, which is projected where compressed).
+            struct Pressed {
+                cube: Boxed,
+                masses: Vec<Real>,
+                pinned: Vec<bool>,
+                loads: Vec<Vec3>,
+                fixed: Vec<u8>,
+            }
+
+            fn pressed() -> Pressed {
+                let cube = boxed(Vec3::new(0.24, 0.06, 0.2), [12, 3, 10]);
+                let mut rest_data = vec![TetRest::default(); cube.tets.len()];
+                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                let mut masses = vec![0.0; cube.rest.len()];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let pinned = cube.rest.iter().map(|p| p.x < 1e-6).collect();
+                let loads = cube.rest.iter().map(|p| Vec3::new(0.0, 0.0, -0.05 * p.x)).collect();
+                let fixed = cube.rest.iter().map(|p| u8::from(p.z < 1e-6) * 4).collect();
+                Pressed { cube, masses, pinned, loads, fixed }
+            }
+
+            /// The bits and reports of three steps and a quasi-static sag of the [`pressed`]
+            /// scene, through `step` and `sag` (sequential or parallel), with the packed
+            /// layout in buffers of `layout` lengths (values, corners) or without one.
+            #[allow(clippy::type_complexity)]
+            fn pressed_run(
+                scene: &Pressed,
+                layout: Option<(usize, usize)>,
+                step: &dyn Fn(&TetElastic<'_, StVK>, &Pressed, &VbdSettings<'_>, &mut [Vec3], &mut [Vec3], &mut VbdScratch<'_>) -> String,
+                sag: &dyn Fn(&TetElastic<'_, StVK>, &Pressed, &VbdSettings<'_>, &mut [Vec3], &mut VbdScratch<'_>) -> String,
+            ) -> (Vec<[u64; 3]>, Vec<[u64; 3]>, Vec<String>, bool) {
+                let cube = &scene.cube;
+                let mut rest_data = vec![TetRest::default(); cube.tets.len()];
+                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StVK::from_young_poisson(2.0e5, 0.4).unwrap());
+                let (n, t) = (cube.rest.len(), cube.tets.len());
+                let ground = Ground::new(Vec3::Y, -2e-3).with_friction(0.5);
+                let settings = VbdSettings::new(1.0 / 60.0)
+                    .with_gravity(GRAVITY)
+                    .with_ground(ground)
+                    .with_tolerance(0.0, 8)
+                    .with_chebyshev(0.9, 2)
+                    .with_external_forces(&scene.loads)
+                    .with_fixed_axes(&scene.fixed);
+                let (mut x, mut v) = (cube.rest.clone(), vec![Vec3::new(0.5, -1.0, 0.2); n]);
+                let (mut vectors, mut indices) = buffers(n, t);
+                let (mut values, mut corners) = layout_buffers(n, t);
+                let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                if let Some((values_len, corners_len)) = layout {
+                    values.truncate(values_len);
+                    corners.truncate(corners_len);
+                    scratch = scratch.with_layout(&mut values, &mut corners);
+                }
+                let mut reports = Vec::new();
+                for _ in 0..3 {
+                    reports.push(step(&body, scene, &settings, &mut x, &mut v, &mut scratch));
+                }
+                let still = settings.with_tolerance(1e-6, 6);
+                reports.push(sag(&body, scene, &still, &mut x, &mut scratch));
+                (bits(&x), bits(&v), reports, scratch.layout_in_use())
+            }
+
+            /// [`pressed_run`] through the sequential solvers.
+            fn pressed_sequential(scene: &Pressed, layout: Option<(usize, usize)>) -> (Vec<[u64; 3]>, Vec<[u64; 3]>, Vec<String>, bool) {
+                pressed_run(
+                    scene,
+                    layout,
+                    &|body, scene, settings, x, v, scratch| {
+                        format!("{:?}", vbd_step(body, &scene.masses, &scene.pinned, settings, x, v, scratch).unwrap())
+                    },
+                    &|body, scene, settings, x, scratch| {
+                        format!("{:?}", vbd_quasi_static(body, &scene.masses, &scene.pinned, settings, x, scratch).unwrap())
+                    },
+                )
+            }
+
+            /// The packed layout fits its documented lengths on the generator's boxes, both
+            /// splits, from one cell to thin and flat bars (where the vertex valences vary
+            /// most): vertices ordered by valence within each colour leave few masked lanes.
+            #[test]
+            fn packed_layout_fits_the_generators_boxes() {
+                for split in [BoxSplit::Kuhn6, BoxSplit::Alternating5] {
+                    for [nx, ny, nz] in [[1, 1, 1], [2, 2, 2], [6, 6, 6], [4, 2, 2], [20, 1, 1], [12, 3, 10], [10, 10, 1]] {
+                        let (nv, nt) = box_counts(nx, ny, nz, split).unwrap();
+                        let mut rest = vec![Vec3::ZERO; nv];
+                        let mut tets = vec![[0; 4]; nt];
+                        fill_box(Vec3::ZERO, Vec3::splat(0.1), nx, ny, nz, split, &mut rest, &mut tets).unwrap();
+                        let mut rest_data = vec![TetRest::default(); nt];
+                        let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                        let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap());
+                        let mut masses = vec![0.0; nv];
+                        mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                        let (mut vectors, mut indices) = buffers(nv, nt);
+                        let (mut values, mut corners) = layout_buffers(nv, nt);
+                        let mut scratch = VbdScratch::new(&mut vectors, &mut indices).with_layout(&mut values, &mut corners);
+                        let settings = VbdSettings::new(1.0 / 60.0).with_gravity(GRAVITY).with_tolerance(0.0, 1);
+                        let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; nv]);
+                        vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        assert!(scratch.layout_in_use(), "{split:?} {nx} x {ny} x {nz}");
+                    }
+                }
+            }
+
+            /// The packed sweep layout changes no bit: positions, velocities and reports of
+            /// steps with contact, friction, loads, fixed axes, pinned vertices, the line search
+            /// and Chebyshev, and of a quasi-static sag, are those of the gathered sweep, from
+            /// layout buffers full of garbage; buffers one entry too short leave the layout
+            /// unused, with the same results.
+            #[test]
+            fn packed_layout_gives_the_gathered_bits() {
+                let scene = pressed();
+                let (n, t) = (scene.cube.rest.len(), scene.cube.tets.len());
+                let gathered = pressed_sequential(&scene, None);
+                assert!(!gathered.3);
+                // The scene exercises the contact, the line search and the projection.
+                assert!(gathered.2.iter().any(|r| !r.contains("backtracks: 0,")), "{:?}", gathered.2);
+                let full = (vbd_layout_len(t), vbd_layout_corners_len(n, t));
+                let packed = pressed_sequential(&scene, Some(full));
+                assert!(packed.3, "the layout fits its documented length");
+                assert!(packed.0 == gathered.0 && packed.1 == gathered.1, "{:?} vs {:?}", packed.2, gathered.2);
+                assert_eq!(packed.2, gathered.2);
+                for short in [(0, full.1), (full.0, n)] {
+                    let unused = pressed_sequential(&scene, Some(short));
+                    assert!(!unused.3, "{short:?}");
+                    assert_eq!((&unused.0, &unused.1, &unused.2), (&gathered.0, &gathered.1, &gathered.2));
+                }
             }
 
             /// One sweep on a tetrahedron with one free vertex is one Newton step on `Phi` in
@@ -329,34 +467,16 @@ macro_rules! vbd_tests {
             }
 
             /// The colour-parallel sweeps give the sequential solver's bits, positions,
-            /// velocities and reports, on pools of 1, 2, 3 and 8 threads: a block (12 x 10 x 3
-            /// cubes: 8 colours of 43 or more vertices, over the 32 a task takes, so every colour is split)
-            /// pinned at one end, pressed sideways by external loads, with a roller axis, thrown
-            /// onto a frictional ground, with the line search and Chebyshev on (StVK, which is
-            /// projected where compressed); and a quasi-static sag.
+            /// velocities and reports, on pools of 1, 2, 3 and 8 threads, with and without the
+            /// packed layout: the [`pressed`] scene (8 colours of 43 or more vertices, over the
+            /// 32 a task takes, so every colour is split), three steps and a quasi-static sag.
             #[cfg(feature = "rayon")]
             #[test]
             fn parallel_sweeps_give_the_sequential_bits_for_any_thread_count() {
                 use $($api)::+::step::{vbd_quasi_static_parallel, vbd_step_parallel};
-                let cube = boxed(Vec3::new(0.24, 0.06, 0.2), [12, 3, 10]);
-                let mut rest_data = vec![TetRest::default(); cube.tets.len()];
-                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
-                let body = TetElastic::new(mesh, StVK::from_young_poisson(2.0e5, 0.4).unwrap());
-                let n = cube.rest.len();
-                let t = cube.tets.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
-                let pinned: Vec<bool> = cube.rest.iter().map(|p| p.x < 1e-6).collect();
-                let loads: Vec<Vec3> = cube.rest.iter().map(|p| Vec3::new(0.0, 0.0, -0.05 * p.x)).collect();
-                let fixed: Vec<u8> = cube.rest.iter().map(|p| u8::from(p.z < 1e-6) * 4).collect();
-                let ground = Ground::new(Vec3::Y, -2e-3).with_friction(0.5);
-                let settings = VbdSettings::new(1.0 / 60.0)
-                    .with_gravity(GRAVITY)
-                    .with_ground(ground)
-                    .with_tolerance(0.0, 8)
-                    .with_chebyshev(0.9, 2)
-                    .with_external_forces(&loads)
-                    .with_fixed_axes(&fixed);
+                let scene = pressed();
+                let cube = &scene.cube;
+                let (n, t) = (cube.rest.len(), cube.tets.len());
                 // The colouring splits every colour over several tasks.
                 let (mut offsets, mut incident) = (vec![0; n + 1], vec![0; 4 * t]);
                 softfem::step::build_vertex_adjacency(&cube.tets, n, &mut offsets, &mut incident).unwrap();
@@ -364,36 +484,32 @@ macro_rules! vbd_tests {
                 let count = softfem::step::colour_vertices(&cube.tets, &offsets, &incident, &mut colours).unwrap();
                 let smallest = (0..count).map(|c| colours.iter().filter(|&&k| k == c).count()).min().unwrap();
                 assert!(smallest > 32, "{count} colours, the smallest of {smallest} vertices");
-                type Run = (Vec<[u64; 3]>, Vec<[u64; 3]>, Vec<String>);
-                let run = |parallel: bool| -> Run {
-                    let (mut x, mut v) = (cube.rest.clone(), vec![Vec3::new(0.5, -1.0, 0.2); n]);
-                    let (mut vectors, mut indices) = buffers(n, t);
-                    let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                    let mut reports = Vec::new();
-                    for _ in 0..3 {
-                        let report = if parallel {
-                            vbd_step_parallel(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)
-                        } else {
-                            vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)
-                        };
-                        reports.push(format!("{:?}", report.unwrap()));
-                    }
-                    let still = settings.with_tolerance(1e-6, 6);
-                    let report = if parallel {
-                        vbd_quasi_static_parallel(&body, &masses, &pinned, &still, &mut x, &mut scratch)
-                    } else {
-                        vbd_quasi_static(&body, &masses, &pinned, &still, &mut x, &mut scratch)
-                    };
-                    reports.push(format!("{:?}", report.unwrap()));
-                    (bits(&x), bits(&v), reports)
-                };
-                let sequential = run(false);
-                // The scene exercises the contact, the line search and the projection.
-                assert!(sequential.2.iter().any(|r| !r.contains("backtracks: 0,")), "{:?}", sequential.2);
+                let sequential = pressed_sequential(&scene, None);
+                let full = (vbd_layout_len(t), vbd_layout_corners_len(n, t));
                 for threads in [1, 2, 3, 8] {
                     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-                    let parallel = pool.install(|| run(true));
-                    assert!(parallel == sequential, "{threads} threads differ: {:?} vs {:?}", parallel.2, sequential.2);
+                    for layout in [None, Some(full)] {
+                        let parallel = pool.install(|| {
+                            pressed_run(
+                                &scene,
+                                layout,
+                                &|body, scene, settings, x, v, scratch| {
+                                    format!("{:?}", vbd_step_parallel(body, &scene.masses, &scene.pinned, settings, x, v, scratch).unwrap())
+                                },
+                                &|body, scene, settings, x, scratch| {
+                                    format!("{:?}", vbd_quasi_static_parallel(body, &scene.masses, &scene.pinned, settings, x, scratch).unwrap())
+                                },
+                            )
+                        });
+                        assert_eq!(parallel.3, layout.is_some());
+                        assert!(
+                            (&parallel.0, &parallel.1, &parallel.2) == (&sequential.0, &sequential.1, &sequential.2),
+                            "{threads} threads, layout {}: {:?} vs {:?}",
+                            layout.is_some(),
+                            parallel.2,
+                            sequential.2
+                        );
+                    }
                 }
             }
         }
@@ -1111,21 +1227,22 @@ mod measure {
                 std::hint::black_box(body.energy_and_add_forces(&x, &mut forces).unwrap());
             }
         }) / rounds as f64;
-        for (name, settings) in [
-            (
-                "line search",
-                VbdSettings::new(1.0 / 60.0).with_tolerance(0.0, rounds),
-            ),
-            (
-                "no line search",
-                VbdSettings::new(1.0 / 60.0)
-                    .with_tolerance(0.0, rounds)
-                    .with_line_search(0),
-            ),
+        let line_search = VbdSettings::new(1.0 / 60.0).with_tolerance(0.0, rounds);
+        let plain = line_search.with_line_search(0);
+        for (name, settings, packed) in [
+            ("line search", line_search, false),
+            ("line search, packed layout", line_search, true),
+            ("no line search", plain, false),
+            ("no line search, packed layout", plain, true),
         ] {
             let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
             let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
+            let mut values = vec![0.0; vbd_layout_len(nt)];
+            let mut corners = vec![0; vbd_layout_corners_len(nv, nt)];
             let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+            if packed {
+                scratch = scratch.with_layout(&mut values, &mut corners);
+            }
             // Build the topology outside the timing.
             vbd_step(
                 &body,

@@ -40,7 +40,7 @@ use softfem::step::{
     ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonSettings, RelaxScratch,
     RelaxSettings, TetElastic, VbdScratch, VbdSettings, explicit_scratch_len, newton_scratch_len,
     newton_step, relax_scratch_len, relax_step, stable_time_step, step_explicit,
-    vbd_index_scratch_len, vbd_scratch_len, vbd_step,
+    vbd_index_scratch_len, vbd_layout_corners_len, vbd_layout_len, vbd_scratch_len, vbd_step,
 };
 
 /// Mass-proportional damping (1/s) of the explicit stepper: a little, so the wobble settles
@@ -453,9 +453,14 @@ fn simulate<M: Material>(
                  {} plain sweeps; tolerance {:.0e} of the load, at most {} sweeps",
                 settings.chebyshev_delay, settings.tolerance, settings.max_iterations
             ));
+            let elements = body.mesh.element_count();
             let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(n)];
-            let mut indices = vec![0; vbd_index_scratch_len(n, body.mesh.element_count())];
-            let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+            let mut indices = vec![0; vbd_index_scratch_len(n, elements)];
+            // The packed sweep layout: the same steps, cheaper sweeps.
+            let mut values = vec![0.0; vbd_layout_len(elements)];
+            let mut corners = vec![0; vbd_layout_corners_len(n, elements)];
+            let mut scratch =
+                VbdScratch::new(&mut vectors, &mut indices).with_layout(&mut values, &mut corners);
             scene::run(
                 state,
                 &config,

@@ -15,7 +15,8 @@
 //! * GD + Chebyshev: the same with Chebyshev acceleration (`rho = 0.995` for time steps, the
 //!   convergence chart's 0.9999 for the static solve);
 //! * VBD: `vbd_step` / `vbd_quasi_static` without the per-vertex line search, Chebyshev with the
-//!   `rho` it estimates from 4 plain sweeps (the bouncy example's settings);
+//!   `rho` it estimates from 4 plain sweeps (the bouncy example's settings), with the packed
+//!   sweep layout (`VbdScratch::with_layout`);
 //! * Newton: `newton_step` / `newton_quasi_static` with its defaults (block-Jacobi CG, forcing
 //!   term, 200 CG iterations per Newton iteration).
 //!
@@ -52,7 +53,8 @@ use softfem::f64::step::{
     ElasticEnergy, Ground, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, TetElastic,
     VbdScratch, VbdSettings, gradient_descent_quasi_static, gradient_descent_step,
     newton_quasi_static, newton_scratch_len, newton_step, relax_quasi_static, relax_scratch_len,
-    relax_step, vbd_index_scratch_len, vbd_quasi_static, vbd_scratch_len, vbd_step,
+    relax_step, vbd_index_scratch_len, vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static,
+    vbd_scratch_len, vbd_step,
 };
 use softfem::glam::{DMat3, DVec3};
 
@@ -185,7 +187,10 @@ impl Scene<'_> {
         let mut relax_scratch = RelaxScratch::new(&mut relax_vectors, &mut relax_scalars);
         let mut vbd_vectors = vec![DVec3::ZERO; vbd_scratch_len(n)];
         let mut vbd_indices = vec![0; vbd_index_scratch_len(n, elements)];
-        let mut vbd_scratch = VbdScratch::new(&mut vbd_vectors, &mut vbd_indices);
+        let mut vbd_values = vec![0.0; vbd_layout_len(elements)];
+        let mut vbd_corners = vec![0; vbd_layout_corners_len(n, elements)];
+        let mut vbd_scratch = VbdScratch::new(&mut vbd_vectors, &mut vbd_indices)
+            .with_layout(&mut vbd_values, &mut vbd_corners);
         let len = newton_scratch_len(n, elements);
         let mut newton_vectors = vec![DVec3::ZERO; len.vectors];
         let mut blocks = vec![DMat3::ZERO; len.blocks];

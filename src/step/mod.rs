@@ -211,6 +211,7 @@ mod relax;
 mod split;
 mod stability;
 mod vbd;
+mod vbd_layout;
 mod vertex_block;
 mod vertex_passes;
 mod vertex_sums;
@@ -244,6 +245,7 @@ pub use vbd::{
     MAX_ESTIMATED_RHO, VbdReport, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_quasi_static,
     vbd_scratch_len, vbd_step,
 };
+pub use vbd_layout::{vbd_layout_corners_len, vbd_layout_len};
 
 pub use super::element::Vector;
 

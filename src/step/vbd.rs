@@ -20,6 +20,7 @@ use super::descent::vbd::OnPool;
 use super::descent::vbd::{InOrder, Schedule, Sweep, VbdSweep};
 use super::descent::{self, LoopSettings, Problem, Work};
 use super::loads::Loads;
+use super::vbd_layout::{Layout, LayoutSource, build_layout};
 use super::{Ground, TetElastic, check_length, check_state};
 use crate::error::{StepBuffer, StepError};
 
@@ -52,12 +53,26 @@ pub const fn vbd_index_scratch_len(vertex_count: usize, element_count: usize) ->
 /// element count) and reused after. After changing the mesh's connectivity at equal counts, call
 /// [`reset_topology`](VbdScratch::reset_topology). The previous contents of both buffers never
 /// matter.
+///
+/// Optionally ([`with_layout`](VbdScratch::with_layout)) two more buffers hold the packed
+/// element visits of the sweep, which make a sweep cheaper at the same results.
 #[derive(Debug)]
 pub struct VbdScratch<'a> {
     vectors: &'a mut [Vec3],
     indices: &'a mut [u32],
     /// The vertex count, element count and colour count of the topology in `indices`.
     topology: Option<(usize, usize, u32)>,
+    layout: Option<LayoutBuffers<'a>>,
+}
+
+/// The caller's buffers of the packed sweep layout, and whether they hold the layout of the
+/// current topology.
+#[derive(Debug)]
+struct LayoutBuffers<'a> {
+    values: &'a mut [Real],
+    corners: &'a mut [u32],
+    /// `Some(true)`: built for the topology; `Some(false)`: it did not fit; `None`: not built.
+    built: Option<bool>,
 }
 
 impl<'a> VbdScratch<'a> {
@@ -69,13 +84,56 @@ impl<'a> VbdScratch<'a> {
             vectors,
             indices,
             topology: None,
+            layout: None,
         }
+    }
+
+    /// This scratch with room for the packed sweep layout: `values` of
+    /// [`vbd_layout_len`](super::vbd_layout_len)`(element_count)` entries and `corners` of
+    /// [`vbd_layout_corners_len`](super::vbd_layout_corners_len)`(vertex_count,
+    /// element_count)` (longer buffers are fine, shorter ones leave the layout unused).
+    ///
+    /// The first solve (after a change of topology) stores there, for every element visit of a
+    /// sweep in sweep order, the element's corner indices, `Dm^-1`, volume and the corner's
+    /// shape gradient, already laid out for the SIMD lanes, so that the sweeps load them
+    /// instead of gathering them element by element. The results are the same bits with or
+    /// without it, at every SIMD width and thread count (`tests/vbd.rs`, `tests/simd.rs`);
+    /// only the time differs: measured on one thread, a sweep costs 0.6-0.9 of the gathered
+    /// one (see [`vbd_step`](vbd_step#when-to-pick-it)). A mesh whose vertex valences are so
+    /// uneven that its layout does not fit is swept without it (see
+    /// [`layout_in_use`](Self::layout_in_use)). The layout copies the mesh's rest data: after
+    /// changing the mesh call [`reset_topology`](Self::reset_topology).
+    #[inline]
+    #[must_use]
+    pub fn with_layout(self, values: &'a mut [Real], corners: &'a mut [u32]) -> Self {
+        VbdScratch {
+            layout: Some(LayoutBuffers {
+                values,
+                corners,
+                built: None,
+            }),
+            ..self
+        }
+    }
+
+    /// Whether the last solve swept with the packed layout of
+    /// [`with_layout`](VbdScratch::with_layout) (`false` without one, before the first solve, or
+    /// where it did not fit the buffers).
+    #[inline]
+    #[must_use]
+    pub fn layout_in_use(&self) -> bool {
+        self.layout
+            .as_ref()
+            .is_some_and(|layout| layout.built == Some(true))
     }
 
     /// Makes the next solve rebuild the adjacency and colouring (after a change of the mesh).
     #[inline]
     pub fn reset_topology(&mut self) {
         self.topology = None;
+        if let Some(layout) = &mut self.layout {
+            layout.built = None;
+        }
     }
 }
 
@@ -96,6 +154,7 @@ impl<'a> VbdScratch<'a> {
             vectors,
             indices,
             topology,
+            layout: None,
         }
     }
 
@@ -458,7 +517,14 @@ pub struct VbdReport {
 /// where a force pass gathers once per element. `cargo bench --features rayon --bench vbd`
 /// (load 3) gave 6.3 force passes at 10 368 tetrahedra and 7.9 at 105 456, where the gather
 /// runs from the last-level cache (the scalar sweep, built and run right after: 15.5 and
-/// 17.0). The target of 3 force passes per sweep is not met. In
+/// 17.0). With the packed layout of [`VbdScratch::with_layout`] a visit loads its rest data
+/// instead of gathering it: `measure_sweep_cost` (load 5-8) gave 5.9-6.4 force passes on the
+/// bouncy cube where the gathered sweep gave 6.7-7.5 in the same run, and the criterion medians
+/// of `cargo bench --features rayon --bench vbd` (load 5-7, one run) 4.7 force passes at
+/// 10 368 tetrahedra (gathered: 6.2) and 6.7 at 105 456 (gathered: 11.7), the same bits. The
+/// target of 3 force passes per sweep is still not met: the corner positions are gathered
+/// lane by lane, and a sweep computes `F`, `P g` and the 3x3 block once per element and corner,
+/// where a force pass computes `F` and `P` once per element. In
 /// iterations VBD gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s
 /// (tolerance 2e-3) 2239 sweeps with Chebyshev 0.95 (all 180 steps converge) against the
 /// relaxation's 5351 iterations, 2.0 times the relaxation's wall time (1.96 times its CPU
@@ -660,6 +726,9 @@ fn ensure_topology(
     let count = colour_vertices(tets, offsets, incident, colours)?;
     vertex_order_by_degree(colours, count, offsets, order)?;
     scratch.topology = Some((vertex_count, tets.len(), count));
+    if let Some(layout) = &mut scratch.layout {
+        layout.built = None;
+    }
     Ok(count)
 }
 
@@ -706,6 +775,30 @@ fn minimise<M: Material, S: Schedule<M>>(
         .split_at_checked(adjacency_incident_len(tets.len()))
         .unwrap_or_default();
     let (colours_of, order) = rest.split_at_checked(n).unwrap_or_default();
+    if let Some(buffers) = &mut scratch.layout
+        && buffers.built.is_none()
+    {
+        let source = LayoutSource {
+            tets,
+            rest: model.mesh.rest(),
+            offsets,
+            incident,
+            colours: colours_of,
+            order,
+        };
+        buffers.built = Some(build_layout(&source, buffers.corners, buffers.values).is_some());
+    }
+    let layout = scratch.layout.as_ref().and_then(|buffers| {
+        if buffers.built != Some(true) {
+            return None;
+        }
+        let (starts, corners) = buffers.corners.split_at_checked(n + 1)?;
+        Some(Layout {
+            starts,
+            corners,
+            values: buffers.values,
+        })
+    });
 
     let (start, rest) = scratch.vectors.split_at_mut_checked(n).unwrap_or_default();
     let (gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
@@ -727,6 +820,7 @@ fn minimise<M: Material, S: Schedule<M>>(
         incident,
         colours: colours_of,
         order,
+        layout,
         masses,
         pinned,
         start: &[],

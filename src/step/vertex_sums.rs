@@ -14,13 +14,14 @@
 //! summed, give the sequential sweep's result.
 
 use super::super::element::TetRest;
-use super::super::lanes::{LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH};
+use super::super::lanes::{Lane, LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH};
 #[cfg(target_arch = "x86_64")]
 use super::super::lanes_avx2::Avx2Lanes;
 #[cfg(target_arch = "x86_64")]
 use super::super::lanes_avx512::Avx512Lanes;
 use super::super::material::Material;
 use super::super::types::{Mat3, Real, Vec3};
+use super::vbd_layout::{self, BLOCK, LAYOUT_VALUES, Layout, Run};
 use super::vertex_block::shape_gradient;
 use crate::simd::{WidthKernel, dispatch};
 
@@ -47,13 +48,15 @@ const EMPTY: VertexSums = VertexSums {
 };
 
 /// The mesh a sweep visits: elements, rest data, material and vertex adjacency
-/// (`adjacency.rs`).
+/// (`adjacency.rs`), and the packed visits of `vbd_layout.rs` where the caller gave room for
+/// them (the same sums, bit for bit, without the gather of the rest data).
 pub(super) struct Elements<'s, M> {
     pub tets: &'s [[u32; 4]],
     pub rest: &'s [TetRest],
     pub material: &'s M,
     pub offsets: &'s [u32],
     pub incident: &'s [u32],
+    pub layout: Option<Layout<'s>>,
 }
 
 impl<M> Clone for Elements<'_, M> {
@@ -86,6 +89,8 @@ pub(super) trait VertexVisitor {
 /// One pass over runs of vertices, each run of one colour: the vertices not `skip`ped are
 /// summed a lane group at a time and handed to the visitor in run order, each group after it
 /// is summed whole (so the visitor may move a group's vertices, never their neighbours').
+/// With the layout, a run starts at a layout block (a colour's first vertex, or a multiple of
+/// [`BLOCK`] after it) and its groups are the lanes of the blocks, skipped vertices masked.
 pub(super) struct SumsPass<'a, 's, M, R, V> {
     pub elements: &'a Elements<'s, M>,
     /// Vertices left out (pinned), indexed by vertex; empty for none.
@@ -98,16 +103,19 @@ pub(super) struct SumsPass<'a, 's, M, R, V> {
 
 /// Runs `pass` at the active SIMD width and returns its visitor.
 #[inline]
-pub(super) fn sum_vertices<'r, M: Material, R: Iterator<Item = &'r [u32]>, V: VertexVisitor>(
+pub(super) fn sum_vertices<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor>(
     pass: SumsPass<'_, '_, M, R, V>,
 ) -> V {
     dispatch(pass)
 }
 
-impl<'r, M: Material, R: Iterator<Item = &'r [u32]>, V: VertexVisitor> SumsPass<'_, '_, M, R, V> {
+impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_, '_, M, R, V> {
     /// The pass with groups of `L::WIDTH` vertices.
     #[inline(always)]
-    fn run<L: LaneArray>(self) -> V {
+    fn run<L: LaneArray>(self) -> V
+    where
+        L::Array: for<'a> TryFrom<&'a [Real]>,
+    {
         let SumsPass {
             elements,
             skip,
@@ -115,11 +123,18 @@ impl<'r, M: Material, R: Iterator<Item = &'r [u32]>, V: VertexVisitor> SumsPass<
             energy,
             mut visitor,
         } = self;
+        // Every width divides the layout's blocks (see `vbd_layout.rs`); one that did not
+        // would take the gather path, with the same results.
+        if let Some(layout) = elements.layout
+            && BLOCK.is_multiple_of(L::WIDTH)
+        {
+            return run_packed::<L, M, R, V>((elements, &layout), skip, runs, energy, visitor);
+        }
         let mut batch = [(0usize, 0u32); MAX_WIDTH];
         let mut sums = [EMPTY; MAX_WIDTH];
         for run in runs {
             let mut filled = 0;
-            let mut members = run.iter().enumerate();
+            let mut members = run.vertices.iter().enumerate();
             loop {
                 let next = members.next();
                 if let Some((index, &vertex)) = next {
@@ -148,7 +163,52 @@ impl<'r, M: Material, R: Iterator<Item = &'r [u32]>, V: VertexVisitor> SumsPass<
     }
 }
 
-impl<'r, M: Material, R: Iterator<Item = &'r [u32]>, V: VertexVisitor> WidthKernel
+/// The pass over the layout's blocks, `L::WIDTH` lanes of a block at a time.
+#[inline(always)]
+fn run_packed<'r, L: LaneArray, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor>(
+    (elements, layout): (&Elements<'_, M>, &Layout<'_>),
+    skip: &[bool],
+    runs: R,
+    energy: bool,
+    mut visitor: V,
+) -> V
+where
+    L::Array: for<'a> TryFrom<&'a [Real]>,
+{
+    let mut sums = [EMPTY; MAX_WIDTH];
+    // The gathered corner positions, initialised once per pass rather than per group.
+    let mut buffer = [[L::ZEROS; 12]; STEPS];
+    for run in runs {
+        for (b, block) in run.vertices.chunks(BLOCK).enumerate() {
+            let rows = layout.rows(run.block + b);
+            for (s, vertices) in block.chunks(L::WIDTH).enumerate() {
+                let lane = s * L::WIDTH;
+                let group = PackedGroup {
+                    vertices,
+                    lane,
+                    rows,
+                };
+                let at = visitor.positions();
+                sum_packed_group::<L, M>(
+                    elements,
+                    layout,
+                    at,
+                    (group, skip),
+                    energy,
+                    (&mut sums, &mut buffer),
+                );
+                for (j, (&vertex, sums)) in vertices.iter().zip(&sums).enumerate() {
+                    if !skip.get(vertex as usize).copied().unwrap_or(false) {
+                        visitor.visit(b * BLOCK + lane + j, vertex, sums);
+                    }
+                }
+            }
+        }
+    }
+    visitor
+}
+
+impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> WidthKernel
     for SumsPass<'_, '_, M, R, V>
 {
     type Output = V;
@@ -232,6 +292,135 @@ fn gather_visit<L: LaneArray, M>(
     put(ACTIVE, 1.0);
 }
 
+/// The running sums of a lane group: each lane's vertex's, in its row order.
+struct Accumulator<L> {
+    gradient: LaneVec3<L>,
+    /// xx, yy, zz, xy, xz, yz.
+    hessian: [L; 6],
+    elastic: L,
+    resolution: L,
+}
+
+/// One element visit per lane: the four corner positions, `Dm^-1`, the rest volume, the
+/// corner's shape gradient, and which lanes have an element at this step.
+struct Visit<L: Lane> {
+    corners: [LaneVec3<L>; 4],
+    dm_inv: LaneMat3<L>,
+    volume: L,
+    gradient: LaneVec3<L>,
+    active: L::Mask,
+}
+
+impl<L: Lane> Visit<L> {
+    /// The visit with corner `c` at `corner(3 c)`, `Dm^-1` by columns at `rest(dm_inv)`,
+    /// `rest(dm_inv + 3)` and `rest(dm_inv + 6)`, and the shape gradient at `rest(gradient)`.
+    #[inline(always)]
+    fn new(
+        corner: impl Fn(usize) -> LaneVec3<L>,
+        rest: impl Fn(usize) -> LaneVec3<L>,
+        (dm_inv, gradient): (usize, usize),
+        volume: L,
+        active: L::Mask,
+    ) -> Self {
+        Visit {
+            corners: [corner(0), corner(3), corner(6), corner(9)],
+            dm_inv: LaneMat3 {
+                c0: rest(dm_inv),
+                c1: rest(dm_inv + 3),
+                c2: rest(dm_inv + 6),
+            },
+            volume,
+            gradient: rest(gradient),
+            active,
+        }
+    }
+}
+
+impl<L: LaneArray> Accumulator<L> {
+    #[inline(always)]
+    fn new() -> Self {
+        let zero = L::splat(0.0);
+        Accumulator {
+            gradient: LaneVec3::new(zero, zero, zero),
+            hessian: [zero; 6],
+            elastic: zero,
+            resolution: zero,
+        }
+    }
+
+    /// Adds the visit's terms to its active lanes.
+    #[inline(always)]
+    fn add<M: Material>(&mut self, material: &M, visit: &Visit<L>, energy: bool) {
+        let [x0, x1, x2, x3] = visit.corners;
+        // F = Ds Dm^-1 as `TetRest::deformation_gradient` forms it.
+        let edges = LaneMat3 {
+            c0: x1 - x0,
+            c1: x2 - x0,
+            c2: x3 - x0,
+        };
+        let f = edges * visit.dm_inv;
+        let (volume, g, active) = (visit.volume, visit.gradient, visit.active);
+        let (stress, k) = material.corner_stress_and_stiffness_wide(f, g);
+        self.gradient =
+            LaneVec3::select(active, self.gradient + stress.scale(volume), self.gradient);
+        let entries = [k.c0.x, k.c1.y, k.c2.z, k.c1.x, k.c2.x, k.c2.y];
+        for (sum, entry) in self.hessian.iter_mut().zip(entries) {
+            *sum = L::select(active, *sum + entry * volume, *sum);
+        }
+        if energy {
+            let density = material.energy_density_wide(f);
+            self.elastic = L::select(active, self.elastic + volume * density, self.elastic);
+            let trace = k.c0.x + k.c1.y + k.c2.z;
+            let scale = (trace * volume).abs() / g.dot(g);
+            self.resolution = L::select(active, self.resolution + scale, self.resolution);
+        }
+    }
+
+    /// The sums of the first `count` lanes into `out`.
+    #[inline(always)]
+    fn write(self, count: usize, out: &mut [VertexSums; MAX_WIDTH]) {
+        let [xx, yy, zz, xy, xz, yz] = self.hessian;
+        // Written out rather than `<[T; N]>::map`, which is not always inlined.
+        let sums = [
+            self.gradient.x.to_lane_array(),
+            self.gradient.y.to_lane_array(),
+            self.gradient.z.to_lane_array(),
+            xx.to_lane_array(),
+            yy.to_lane_array(),
+            zz.to_lane_array(),
+            xy.to_lane_array(),
+            xz.to_lane_array(),
+            yz.to_lane_array(),
+            self.elastic.to_lane_array(),
+            self.resolution.to_lane_array(),
+        ];
+        for (lane, slot) in out.iter_mut().enumerate().take(count) {
+            let at = |k: usize| {
+                sums.get(k)
+                    .map_or(0.0, |values| L::lane_value(values, lane))
+            };
+            let (xy, xz, yz) = (at(6), at(7), at(8));
+            *slot = VertexSums {
+                gradient: Vec3::new(at(0), at(1), at(2)),
+                hessian: Mat3::from_cols(
+                    Vec3::new(at(3), xy, xz),
+                    Vec3::new(xy, at(4), yz),
+                    Vec3::new(xz, yz, at(5)),
+                ),
+                elastic: at(9),
+                resolution: at(10),
+            };
+        }
+    }
+}
+
+/// The lane group of vector `k` of `values` (three consecutive arrays).
+#[inline(always)]
+fn lane_vector<L: LaneArray>(values: &[L::Array], k: usize) -> LaneVec3<L> {
+    let value = |k: usize| L::from_lane_array(values.get(k).copied().unwrap_or(L::ZEROS));
+    LaneVec3::new(value(k), value(k + 1), value(k + 2))
+}
+
 /// The sums of the vertices `group` (at most `L::WIDTH`, one colour) into `out`, in order.
 #[inline(always)]
 fn sum_group<L: LaneArray, M: Material>(
@@ -247,11 +436,7 @@ fn sum_group<L: LaneArray, M: Material>(
         *row = elements.row(vertex as usize);
         longest = longest.max(row.len());
     }
-    let zero = L::splat(0.0);
-    let mut gradient = LaneVec3::new(zero, zero, zero);
-    // xx, yy, zz, xy, xz, yz.
-    let mut hessian = [zero; 6];
-    let (mut elastic, mut resolution) = (zero, zero);
+    let mut sums = Accumulator::<L>::new();
     // The values of `STEPS` element visits per lane are gathered first, lane by lane, then
     // computed on: a lane group loaded right after its lanes were stored one by one would wait
     // for the stores (no store-to-load forwarding from several stores into one wide load).
@@ -263,68 +448,99 @@ fn sum_group<L: LaneArray, M: Material>(
             }
         }
         for values in buffer.iter().take(longest - first) {
+            let vector = |k: usize| lane_vector::<L>(values, k);
             let value = |k: usize| L::from_lane_array(values.get(k).copied().unwrap_or(L::ZEROS));
-            let vector = |k: usize| LaneVec3::new(value(k), value(k + 1), value(k + 2));
-            // F = Ds Dm^-1 as `TetRest::deformation_gradient` forms it.
-            let x0 = vector(0);
-            let edges = LaneMat3 {
-                c0: vector(3) - x0,
-                c1: vector(6) - x0,
-                c2: vector(9) - x0,
-            };
-            let dm_inv = LaneMat3 {
-                c0: vector(12),
-                c1: vector(15),
-                c2: vector(18),
-            };
-            let f = edges * dm_inv;
-            let (volume, g) = (value(VOLUME), vector(GRADIENT));
-            let active = value(ACTIVE).gt(L::splat(0.0));
-            let (stress, k) = elements.material.corner_stress_and_stiffness_wide(f, g);
-            gradient = LaneVec3::select(active, gradient + stress.scale(volume), gradient);
-            let entries = [k.c0.x, k.c1.y, k.c2.z, k.c1.x, k.c2.x, k.c2.y];
-            for (sum, entry) in hessian.iter_mut().zip(entries) {
-                *sum = L::select(active, *sum + entry * volume, *sum);
-            }
-            if energy {
-                let density = elements.material.energy_density_wide(f);
-                elastic = L::select(active, elastic + volume * density, elastic);
-                let trace = k.c0.x + k.c1.y + k.c2.z;
-                let scale = (trace * volume).abs() / g.dot(g);
-                resolution = L::select(active, resolution + scale, resolution);
-            }
+            let visit = Visit::new(
+                vector,
+                vector,
+                (12, GRADIENT),
+                value(VOLUME),
+                value(ACTIVE).gt(L::splat(0.0)),
+            );
+            sums.add(elements.material, &visit, energy);
         }
     }
-    let [xx, yy, zz, xy, xz, yz] = hessian;
-    // Written out rather than `<[T; N]>::map`, which is not always inlined.
-    let sums = [
-        gradient.x.to_lane_array(),
-        gradient.y.to_lane_array(),
-        gradient.z.to_lane_array(),
-        xx.to_lane_array(),
-        yy.to_lane_array(),
-        zz.to_lane_array(),
-        xy.to_lane_array(),
-        xz.to_lane_array(),
-        yz.to_lane_array(),
-        elastic.to_lane_array(),
-        resolution.to_lane_array(),
-    ];
-    for (lane, slot) in out.iter_mut().enumerate().take(group.len()) {
-        let at = |k: usize| {
-            sums.get(k)
-                .map_or(0.0, |values| L::lane_value(values, lane))
+    sums.write(group.len(), out);
+}
+
+/// A lane group of a layout block: its vertices, the lane of the first, and the block's
+/// visit rows (first, end).
+struct PackedGroup<'g> {
+    vertices: &'g [u32],
+    lane: usize,
+    rows: (usize, usize),
+}
+
+/// The sums of the vertices of `group` from the layout (skipped vertices masked) into `out`,
+/// in order: the bits of [`sum_group`] for every vertex not skipped.
+#[inline(always)]
+fn sum_packed_group<L: LaneArray, M: Material>(
+    elements: &Elements<'_, M>,
+    layout: &Layout<'_>,
+    positions: &[Vec3],
+    (group, skip): (PackedGroup<'_>, &[bool]),
+    energy: bool,
+    (out, buffer): (&mut [VertexSums; MAX_WIDTH], &mut [[L::Array; 12]; STEPS]),
+) where
+    L::Array: for<'a> TryFrom<&'a [Real]>,
+{
+    // Each lane's row length (0 for a skipped vertex): a lane is active at visit `t` while
+    // `t < length`, as in `sum_group`.
+    let mut lengths = L::ZEROS;
+    let mut longest = 0;
+    for (lane, &vertex) in group.vertices.iter().enumerate().take(L::WIDTH) {
+        let length = if skip.get(vertex as usize).copied().unwrap_or(false) {
+            0
+        } else {
+            elements.row(vertex as usize).len()
         };
-        let (xy, xz, yz) = (at(6), at(7), at(8));
-        *slot = VertexSums {
-            gradient: Vec3::new(at(0), at(1), at(2)),
-            hessian: Mat3::from_cols(
-                Vec3::new(at(3), xy, xz),
-                Vec3::new(xy, at(4), yz),
-                Vec3::new(xz, yz, at(5)),
-            ),
-            elastic: at(9),
-            resolution: at(10),
-        };
+        L::set_lane_value(&mut lengths, lane, length as Real);
+        longest = longest.max(length);
     }
+    let (first_row, end_row) = group.rows;
+    let longest = longest.min(end_row - first_row);
+    let lengths = L::from_lane_array(lengths);
+    let load = |at: usize| {
+        layout
+            .values
+            .get(at..at + L::WIDTH)
+            .and_then(|values| L::Array::try_from(values).ok())
+            .map_or(L::splat(0.0), L::from_lane_array)
+    };
+    let mut sums = Accumulator::<L>::new();
+    // Corner positions gathered `STEPS` visits ahead, as in `sum_group` (lanes of masked
+    // visits keep earlier values: never used).
+    for first in (0..longest).step_by(STEPS) {
+        for (offset, values) in buffer.iter_mut().enumerate().take(longest - first) {
+            let row = first_row + first + offset;
+            for lane in 0..group.vertices.len().min(L::WIDTH) {
+                for c in 0..4 {
+                    let at = (row * 4 + c) * BLOCK + group.lane + lane;
+                    let index = layout.corners.get(at).copied().unwrap_or(0);
+                    let x = positions.get(index as usize).copied().unwrap_or(Vec3::ZERO);
+                    for (k, value) in [x.x, x.y, x.z].into_iter().enumerate() {
+                        if let Some(array) = values.get_mut(3 * c + k) {
+                            L::set_lane_value(array, lane, value);
+                        }
+                    }
+                }
+            }
+        }
+        for (offset, values) in buffer.iter().enumerate().take(longest - first) {
+            let t = first + offset;
+            let base = (first_row + t) * LAYOUT_VALUES * BLOCK + group.lane;
+            let value = |k: usize| load(base + k * BLOCK);
+            let vector = |k: usize| LaneVec3::new(value(k), value(k + 1), value(k + 2));
+            let corner = |k: usize| lane_vector::<L>(values, k);
+            let visit = Visit::new(
+                corner,
+                vector,
+                (0, vbd_layout::GRADIENT),
+                value(vbd_layout::VOLUME),
+                lengths.gt(L::splat(t as Real)),
+            );
+            sums.add(elements.material, &visit, energy);
+        }
+    }
+    sums.write(group.vertices.len(), out);
 }

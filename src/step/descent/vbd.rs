@@ -15,6 +15,9 @@ use super::super::adjacency::incident_elements;
 use super::super::collider::Collider;
 use super::super::loads::Loads;
 use super::super::points::{Grouped, Point};
+#[cfg(feature = "rayon")]
+use super::super::vbd_layout::BLOCK;
+use super::super::vbd_layout::{Layout, Run, colour_runs};
 use super::super::vertex_block::{VertexFactor, shape_gradient};
 use super::super::vertex_passes::{TrialPoint, trial_pass};
 use super::super::vertex_sums::{Elements, SumsPass, VertexSums, VertexVisitor, sum_vertices};
@@ -42,6 +45,8 @@ pub(in super::super) struct Sweep<'s, M: Material> {
     /// The colour of every vertex.
     pub colours: &'s [u32],
     pub order: &'s [u32],
+    /// The packed visits of `vbd_layout.rs`, if built (the same sums either way).
+    pub layout: Option<Layout<'s>>,
     pub masses: &'s [Real],
     pub pinned: &'s [bool],
     pub start: &'s [Vec3],
@@ -102,8 +107,12 @@ pub(in super::super) struct OnPool;
 
 /// The vertices a task of a parallel sweep updates: small enough to split the colours of
 /// small meshes over the threads, large enough to pay for a task.
+/// A multiple of the layout's blocks, so that every task starts at a block.
 #[cfg(feature = "rayon")]
 const VERTEX_CHUNK: usize = 32;
+
+#[cfg(feature = "rayon")]
+const _: () = assert!(VERTEX_CHUNK.is_multiple_of(BLOCK));
 
 #[cfg(feature = "rayon")]
 impl<M: Material + Sync> Schedule<M> for OnPool {
@@ -175,15 +184,21 @@ impl<M: Material> Sweep<'_, M> {
         use rayon::prelude::*;
         let line_search = line_search && self.max_backtracks > 0;
         let elements = self.mesh();
-        for members in self.colour_runs() {
+        for run in self.colour_runs() {
+            let members = run.vertices;
             let staged = staging.get_mut(..members.len()).unwrap_or_default();
             let read: &[Vec3] = positions;
             let counted = staged
                 .par_chunks_mut(VERTEX_CHUNK)
                 .zip(members.par_chunks(VERTEX_CHUNK))
-                .map(|(out, chunk)| {
+                .enumerate()
+                .map(|(task, (out, chunk))| {
+                    let chunk = Run {
+                        vertices: chunk,
+                        block: run.block + task * (VERTEX_CHUNK / BLOCK),
+                    };
                     // Pinned vertices are not visited: they keep their positions.
-                    for (slot, &vertex) in out.iter_mut().zip(chunk) {
+                    for (slot, &vertex) in out.iter_mut().zip(chunk.vertices) {
                         *slot = read.get(vertex as usize).copied().unwrap_or(Vec3::ZERO);
                     }
                     let visitor = sum_vertices(SumsPass {
@@ -220,23 +235,13 @@ impl<M: Material> Sweep<'_, M> {
             material: self.material,
             offsets: self.offsets,
             incident: self.incident,
+            layout: self.layout,
         }
     }
 
     /// The colour runs of the vertex order: each colour's vertices, in order.
-    fn colour_runs(&self) -> impl Iterator<Item = &[u32]> + '_ {
-        let colour = |v: u32| self.colours.get(v as usize).copied();
-        let mut rest = self.order;
-        core::iter::from_fn(move || {
-            let first = colour(*rest.first()?);
-            let len = rest
-                .iter()
-                .position(|&v| colour(v) != first)
-                .unwrap_or(rest.len());
-            let (run, tail) = rest.split_at(len);
-            rest = tail;
-            Some(run)
-        })
+    fn colour_runs(&self) -> impl Iterator<Item = Run<'_>> + '_ {
+        colour_runs(self.colours, self.order)
     }
 
     /// The elements around `i`: index, corner, corner indices and rest data.
@@ -552,7 +557,7 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
         let blocks = sum_vertices(SumsPass {
             elements: &sweep.mesh(),
             skip: sweep.pinned,
-            runs: core::iter::once(sweep.order),
+            runs: sweep.colour_runs(),
             energy: true,
             visitor: BlockNorms {
                 masses: sweep.masses,
