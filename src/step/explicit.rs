@@ -558,12 +558,12 @@ fn substep<F: ElasticModel>(
         let before = *x;
         *x += *v * h;
         if let Some(ground) = ground {
-            contacts += usize::from(ground.resolve(x, v, resting_speed));
+            contacts += usize::from(ground.resolve(x, v, resting_speed, h));
             *x = loads.keep_fixed(i, *x, before);
             *v = loads.free_part(i, *v);
         }
         if !settings.colliders.is_empty() {
-            contacts += F::Vector::resolve_colliders(settings.colliders, x, v, resting_speed);
+            contacts += F::Vector::resolve_colliders(settings.colliders, x, v, (resting_speed, h));
             *x = loads.keep_fixed(i, *x, before);
             *v = loads.free_part(i, *v);
         }
