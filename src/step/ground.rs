@@ -230,4 +230,23 @@ mod tests {
         assert!(ground.resolve(&mut x, &mut v, resting_speed, 0.01));
         assert_eq!(v.z, 1.5);
     }
+
+    /// The sticking speed is 0 (off) by default, any finite value `>= 0` is valid, and friction
+    /// moves into the implicit objective only with both a positive coefficient and a positive
+    /// sticking speed.
+    #[test]
+    fn sticking_speed_is_opt_in_and_validated() {
+        use super::{Real, StepError};
+        let ground = Ground::new(Vec3::Z, 0.0).with_friction(0.5);
+        assert_eq!(ground.sticking_speed, 0.0);
+        assert!(!ground.validated().unwrap().friction_in_objective());
+        let rough = ground.with_sticking_speed(1e-3).validated().unwrap();
+        assert!(rough.friction_in_objective());
+        let smooth = rough.with_friction(0.0);
+        assert!(!smooth.friction_in_objective());
+        for bad in [-1e-3, Real::NAN, Real::INFINITY] {
+            let error = ground.with_sticking_speed(bad).validated().unwrap_err();
+            assert_eq!(error, StepError::Friction, "{bad}");
+        }
+    }
 }
