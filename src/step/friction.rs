@@ -256,9 +256,8 @@ impl<'a, V> Lag<'a, V> {
 
 impl Friction<'_, Vec3> {
     /// The tangent block of `D` (N/m) at a vertex moved from `start` to `x`, `lambda` from the
-    /// lagging gradient `lagged` there; `None` without a frictional contact. Out of line, so that
-    /// the frictionless loops that call it stay small.
-    #[inline(never)]
+    /// lagging gradient `lagged` there; `None` without a frictional contact.
+    #[inline]
     pub fn block(&self, x: Vec3, start: Vec3, lagged: Vec3) -> Option<Mat3> {
         self.slip(x, start, lagged)
             .map(|(slip, force)| slip.hessian() * force)

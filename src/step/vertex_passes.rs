@@ -170,30 +170,11 @@ impl<'a, V: Grouped> Frames<'a, V> {
     /// `b = mu lambda f1(y) / y` bounds the tangent block). Unchanged without a frictional
     /// contact.
     #[inline(always)]
-    fn damped(&self, at: (V, V, V), p: Real, direction: (V, Real)) -> (V, Real)
+    fn damped(&self, (x, start, g): (V, V, V), p: Real, (d, slope): (V, Real)) -> (V, Real)
     where
         V: Vector,
     {
-        match &self.friction {
-            None => direction,
-            Some(friction) => self.damped_by(friction, at, p, direction),
-        }
-    }
-
-    /// [`damped`](Self::damped) with `friction`; out of line, so that the frictionless passes
-    /// (and their stack frames, which the firmware check measures) stay as they were.
-    #[inline(never)]
-    fn damped_by(
-        &self,
-        friction: &Friction<'a, V>,
-        (x, start, g): (V, V, V),
-        p: Real,
-        (d, slope): (V, Real),
-    ) -> (V, Real)
-    where
-        V: Vector,
-    {
-        let Some((slip, force)) = friction.slip(x, start, g) else {
+        let Some((slip, force)) = self.friction.and_then(|f| f.slip(x, start, g)) else {
             return (d, slope);
         };
         let curvature = force * slip.curvature();

@@ -134,7 +134,6 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     /// Returns friction's change of `Phi` (J) and the squared residual of the result projected
     /// on the contact constraints (N^2), which replaces the passes' one; `None` (and nothing
     /// changed) if no vertex got a term.
-    #[inline(never)]
     fn add_friction(
         &self,
         x: &[F::Vector],

@@ -405,7 +405,8 @@ impl<M: Material> Sweep<'_, M> {
         if !friction.is_active() {
             return None;
         }
-        lagged_slip(friction, lag, i, (x, x0))
+        let reference = (*lag.x.get(i)?, *lag.gradient.get(i)?);
+        friction.lagged_slip((x, x0), reference)
     }
 
     /// Calls `visit(corner, rest, f)` for every element around `i` with vertex `i` moved to
@@ -714,17 +715,4 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
     fn rounding_floor(&self) -> Real {
         self.floor
     }
-}
-
-/// Friction's slip and force factor at vertex `i` moved from `x0` to `x`, lagged to `lag`; out
-/// of line, so that the frictionless sweep's stack frame stays as it was.
-#[inline(never)]
-fn lagged_slip(
-    friction: &Friction<'_, Vec3>,
-    lag: &Lag<'_, Vec3>,
-    i: usize,
-    (x, x0): (Vec3, Vec3),
-) -> Option<(Slip<Vec3>, Real)> {
-    let reference = (*lag.x.get(i)?, *lag.gradient.get(i)?);
-    friction.lagged_slip((x, x0), reference)
 }
