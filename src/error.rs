@@ -715,7 +715,8 @@ pub enum StepError {
     Ground,
     /// The restitution coefficient is NaN or outside `[0, 1]`.
     Restitution,
-    /// The friction coefficient is NaN, infinite or negative.
+    /// The friction coefficient is NaN, infinite or negative, or the sticking speed is not
+    /// finite and `>= 0`.
     Friction,
     /// The blow-up growth limit is NaN or not greater than 1.
     GrowthLimit,
@@ -809,7 +810,8 @@ pub enum ColliderProblem {
     Velocity,
     /// The restitution lies outside `[0, 1]`.
     Restitution,
-    /// The friction coefficient is NaN, infinite or negative.
+    /// The friction coefficient is NaN, infinite or negative, or the sticking speed is not
+    /// finite and `>= 0`.
     Friction,
     /// Colliders were given to a 2D body: they act on 3D bodies only.
     Dimension,
@@ -823,7 +825,7 @@ impl fmt::Display for ColliderProblem {
             ColliderProblem::Rotation => "its rotation is not a finite unit quaternion",
             ColliderProblem::Velocity => "its linear or angular velocity is not finite",
             ColliderProblem::Restitution => "its restitution is outside [0, 1]",
-            ColliderProblem::Friction => "its friction coefficient is not finite and >= 0",
+            ColliderProblem::Friction => "its friction coefficient is not finite and >= 0, or its sticking speed not finite and >= 0",
             ColliderProblem::Dimension => "colliders act on 3D bodies only",
         })
     }
@@ -865,7 +867,7 @@ impl fmt::Display for StepError {
                 f.write_str("the ground needs a finite non-zero normal and a finite offset")
             }
             StepError::Restitution => f.write_str("the restitution must lie in [0, 1]"),
-            StepError::Friction => f.write_str("the friction coefficient must be finite and >= 0"),
+            StepError::Friction => f.write_str("the friction coefficient must be finite and >= 0, the sticking speed finite and >= 0"),
             StepError::GrowthLimit => {
                 f.write_str("the blow-up growth limit must be a number greater than 1")
             }

@@ -6,12 +6,16 @@
 //! Every stepper treats a collider as it treats the [`Ground`](super::Ground): a vertex found
 //! inside is projected onto the surface along the outward normal (the gradient of the signed
 //! distance), the implicit solvers project every iterate onto the admissible set and drop the
-//! gradient and direction components into the surface at the vertices in contact, and the
-//! velocity update after a step applies friction to the velocity *relative to the surface*,
-//! `v - (v_c + w_c x (x - p_c))`.
+//! gradient and direction components into the surface at the vertices in contact. Friction acts
+//! on the motion *relative to the surface*, `v - (v_c + w_c x (x - p_c))`: in the explicit
+//! stepper on the velocity (and the substep's move) after each substep, in the implicit solvers
+//! on the velocity after the solve or, opted in with a positive
+//! [`sticking_speed`](Collider::sticking_speed), inside the step's objective (`friction.rs`:
+//! the smoothed, lagged dissipation potential of Li et al. 2020).
 
 use super::super::math;
 use super::super::types::{Quat, Real, Vec3};
+use super::friction::Contact;
 use crate::error::{ColliderProblem, StepError};
 
 /// A shape given by its signed distance, for anything the built-in [`Shape`]s do not cover
@@ -172,6 +176,11 @@ pub struct Collider<'a> {
     pub restitution: Real,
     /// The Coulomb friction coefficient `>= 0` (dimensionless).
     pub friction: Real,
+    /// The implicit solvers' sticking speed `eps_v` (m/s, finite `>= 0`; default 0: friction on
+    /// the velocity after the solve; positive: friction in the step's objective), as the
+    /// [`Ground`](super::Ground)'s [`sticking_speed`](super::Ground::sticking_speed), relative
+    /// to the collider's surface velocity.
+    pub sticking_speed: Real,
 }
 
 /// The contact tolerance's factor: a vertex projected onto a curved surface lands within a few
@@ -234,6 +243,7 @@ impl<'a> Collider<'a> {
             angular_velocity: Vec3::ZERO,
             restitution: 0.0,
             friction: 0.0,
+            sticking_speed: 0.0,
         }
     }
 
@@ -313,6 +323,17 @@ impl<'a> Collider<'a> {
         Collider { friction, ..self }
     }
 
+    /// This collider with the implicit solvers' sticking speed `sticking_speed` (m/s, finite
+    /// `>= 0`; see [`Ground::sticking_speed`](super::Ground::sticking_speed)).
+    #[inline]
+    #[must_use]
+    pub fn with_sticking_speed(self, sticking_speed: Real) -> Self {
+        Collider {
+            sticking_speed,
+            ..self
+        }
+    }
+
     /// This collider `dt` (s) later: moved by `linear_velocity dt` and turned by the angle
     /// `|angular_velocity| dt` about `angular_velocity` (exactly, not to first order); the
     /// velocities are kept.
@@ -360,6 +381,7 @@ impl<'a> Collider<'a> {
     /// friction.
     pub fn check(&self) -> Result<(), ColliderProblem> {
         let positive = |r: Real| r > 0.0 && r.is_finite();
+        let non_negative = |r: Real| r >= 0.0 && r.is_finite();
         let shape = match self.shape {
             Shape::HalfSpace | Shape::Custom(_) => true,
             Shape::Sphere { radius } => positive(radius),
@@ -388,7 +410,8 @@ impl<'a> Collider<'a> {
         if !(0.0..=1.0).contains(&self.restitution) {
             return Err(ColliderProblem::Restitution);
         }
-        if !(self.friction >= 0.0 && self.friction.is_finite()) {
+        if !(self.friction >= 0.0 && self.friction.is_finite() && non_negative(self.sticking_speed))
+        {
             return Err(ColliderProblem::Friction);
         }
         Ok(())
@@ -562,14 +585,15 @@ fn coulomb(tangential: Vec3, reduction: Real) -> Vec3 {
 
 /// The explicit stepper's contact response at one vertex: pushed out of every collider it is
 /// inside, in order, and for each the velocity relative to the surface gets restitution (for
-/// approaches faster than `resting_speed`, m/s) and Coulomb friction as at the ground. Returns
-/// the number of colliders the vertex was inside.
+/// approaches faster than `resting_speed`, m/s) and Coulomb friction as at the ground, whose
+/// tangential change also corrects the substep's move `h v` (`h` in s, see `Ground::resolve`).
+/// Returns the number of colliders the vertex was inside.
 #[inline]
 pub(super) fn resolve(
     colliders: &[Collider<'_>],
     x: &mut Vec3,
     v: &mut Vec3,
-    resting_speed: Real,
+    (resting_speed, h): (Real, Real),
 ) -> usize {
     let mut contacts = 0;
     for collider in colliders {
@@ -587,18 +611,24 @@ pub(super) fn resolve(
             let restitution = math::select(-vn > resting_speed, collider.restitution, 0.0);
             let normal_change = (1.0 + restitution) * -vn;
             let tangential = relative - normal * vn;
-            *v = surface
-                + coulomb(tangential, collider.friction * normal_change)
-                + normal * (-restitution * vn);
+            let kept = coulomb(tangential, collider.friction * normal_change);
+            *v = surface + kept + normal * (-restitution * vn);
+            if collider.friction > 0.0 {
+                // Along the tangent plane: back onto a curved surface by the projection.
+                *x += (kept - tangential) * h;
+                collider.push_out(x);
+            }
         }
     }
     contacts
 }
 
 /// The implicit solvers' velocity at a vertex at `x` touching a collider, after
-/// `v = (x_{n+1} - x_n) / h`: relative to the surface, the normal approach removed and Coulomb
-/// friction with the normal impulse `h R` (`R` the reaction: the normal component of the
-/// gradient `g` of `Phi`, N; `m` the mass, kg). `v` unchanged away from every collider.
+/// `v = (x_{n+1} - x_n) / h`: relative to the surface, the normal approach removed and, unless
+/// the collider's friction was part of the step's objective (a positive
+/// [`sticking_speed`](Collider::sticking_speed), `friction.rs`), Coulomb friction with the
+/// normal impulse `h R` (`R` the reaction: the normal component of the gradient `g` of `Phi`, N;
+/// `m` the mass, kg). `v` unchanged away from every collider.
 #[inline]
 pub(super) fn implicit_velocity(
     colliders: &[Collider<'_>],
@@ -614,7 +644,39 @@ pub(super) fn implicit_velocity(
     let reaction = normal.dot(g).max(0.0);
     let normal_change = h * reaction / m + (-along).max(0.0);
     let tangential = relative - normal * along;
-    surface + coulomb(tangential, collider.friction * normal_change) + normal * along.max(0.0)
+    let friction = if collider.sticking_speed > 0.0 {
+        0.0
+    } else {
+        collider.friction
+    };
+    surface + coulomb(tangential, friction * normal_change) + normal * along.max(0.0)
+}
+
+/// The first collider the move from `x` to `target` ends inside, as a plane for a local step:
+/// the signed distance of `x` (m) and the outward normal there (at `target` where `x` gives
+/// none). `None` if `target` is inside none.
+#[inline]
+pub(super) fn entered(colliders: &[Collider<'_>], x: Vec3, target: Vec3) -> Option<(Real, Vec3)> {
+    colliders.iter().find_map(|c| {
+        let (inside, normal_inside) = c.probe(target);
+        if inside >= 0.0 {
+            return None;
+        }
+        let (distance, normal) = c.probe(x);
+        Some((distance, normal.or(normal_inside)?))
+    })
+}
+
+/// The friction data of the first collider `x` touches: its normal there, its surface velocity,
+/// friction coefficient and sticking speed.
+#[inline]
+pub(super) fn contact(colliders: &[Collider<'_>], x: Vec3) -> Option<Contact<Vec3>> {
+    touching(colliders, x).map(|(collider, normal)| Contact {
+        normal,
+        surface_velocity: collider.surface_velocity(x),
+        friction: collider.friction,
+        sticking_speed: collider.sticking_speed,
+    })
 }
 
 #[cfg(test)]

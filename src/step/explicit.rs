@@ -607,12 +607,12 @@ impl<V: Vector> Update<'_, '_, V> {
                 let before = *x;
                 *x += *v * h;
                 if let Some(ground) = self.ground {
-                    contacts += usize::from(ground.resolve(x, v, resting_speed));
+                    contacts += usize::from(ground.resolve(x, v, resting_speed, h));
                     *x = loads.keep_fixed(i, *x, before);
                     *v = loads.free_part(i, *v);
                 }
                 if !settings.colliders.is_empty() {
-                    contacts += V::resolve_colliders(settings.colliders, x, v, resting_speed);
+                    contacts += V::resolve_colliders(settings.colliders, x, v, (resting_speed, h));
                     *x = loads.keep_fixed(i, *x, before);
                     *v = loads.free_part(i, *v);
                 }

@@ -22,6 +22,13 @@
 //!   ground whose normal is not a coordinate axis, the contact projection is applied first and
 //!   the fixed coordinates restored after it).
 //! * The ground is a half-space, see [`Ground`].
+//! * Friction: the explicit stepper applies Coulomb's law to the velocity (and the substep's
+//!   move) at each contact. The implicit solvers apply it to the velocity after the solve by
+//!   default, or, opted in with a positive [`sticking_speed`](Ground::sticking_speed) `eps_v`
+//!   (m/s, [`SUGGESTED_STICKING_SPEED`] 1 mm/s) on the ground or a collider, minimise it with
+//!   the step as the lagged, smoothed dissipation potential of Incremental Potential Contact
+//!   (`docs/math.md` section 4.6): a contact held below the Coulomb limit then creeps at most at
+//!   `eps_v`, one sliding faster has the Coulomb force.
 //! * Rigid colliders (half-spaces, spheres, capsules, oriented boxes, any [`SignedDistance`];
 //!   static or kinematic) act on 3D bodies in every stepper as the ground does, see [`Collider`]
 //!   and each settings type's `with_colliders`.
@@ -203,6 +210,7 @@ mod collider;
 mod descent;
 mod explicit;
 mod frequency;
+mod friction;
 mod ground;
 mod loads;
 mod newton;
@@ -229,6 +237,7 @@ pub use explicit::{
 pub use frequency::{
     FREQUENCY_MARGIN, FrequencyEstimate, estimate_max_frequency, frequency_scratch_len,
 };
+pub use friction::SUGGESTED_STICKING_SPEED;
 pub use ground::Ground;
 pub use loads::{FIXED_X, FIXED_Y, FIXED_Z};
 pub use newton::{

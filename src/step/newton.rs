@@ -77,7 +77,9 @@ pub struct NewtonSettings<'a, V> {
     /// The gravitational acceleration (m/s^2).
     pub gravity: V,
     /// An optional ground half-space: an active set in the linear solves, projection of the
-    /// trial points, friction on the velocity after the step (as the relaxation).
+    /// trial points, friction on the velocity after the step or, opted in with a positive
+    /// [`Ground::sticking_speed`], in the objective with its tangent blocks in the linear solves (as
+    /// the relaxation, [`RelaxSettings::ground`](super::RelaxSettings::ground)).
     pub ground: Option<Ground<V>>,
     /// Rigid colliders (empty, the default, for none): projection and friction as the
     /// ground's, relative to each collider's surface velocity; see [`Collider`].

@@ -14,6 +14,7 @@ use super::super::lanes::{LANES, Lane, LaneVec3, Lanes, each_lane};
 use super::super::types::{Real, Vec2, Vec3};
 use super::Ground;
 use super::collider::{self, Collider};
+use super::friction::Contact;
 
 /// One vertex vector, or [`LANES`] of them. Public in a private module: the hidden half of the
 /// sealed [`Vector`](super::Vector) trait.
@@ -61,7 +62,7 @@ pub trait Grouped: Point<Scalar = Real, Vector = Self> {
         colliders: &[Collider<'_>],
         x: &mut Self,
         v: &mut Self,
-        resting_speed: Real,
+        resting_speed_and_step: (Real, Real),
     ) -> usize;
     /// The implicit solvers' velocity `v` at a vertex at `x` with gradient `g`, mass `m` and
     /// step `h` after the colliders' friction (see `collider::implicit_velocity`; `v` in 2D).
@@ -73,6 +74,9 @@ pub trait Grouped: Point<Scalar = Real, Vector = Self> {
         h: Real,
         v: Self,
     ) -> Self;
+    /// The friction data of the first collider `x` touches (see `collider::contact`; none in
+    /// 2D).
+    fn collider_contact(colliders: &[Collider<'_>], x: Self) -> Option<Contact<Self>>;
 }
 
 /// `source`'s coordinate where `bit` is set in `fixed`, else `own`.
@@ -215,12 +219,16 @@ impl Grouped for Vec2 {
     }
     const ALL_AXES: u8 = 0b11;
     #[inline(always)]
-    fn resolve_colliders(_: &[Collider<'_>], _: &mut Self, _: &mut Self, _: Real) -> usize {
+    fn resolve_colliders(_: &[Collider<'_>], _: &mut Self, _: &mut Self, _: (Real, Real)) -> usize {
         0
     }
     #[inline(always)]
     fn collider_velocity(_: &[Collider<'_>], _: Self, _: Self, _: Real, _: Real, v: Self) -> Self {
         v
+    }
+    #[inline(always)]
+    fn collider_contact(_: &[Collider<'_>], _: Self) -> Option<Contact<Self>> {
+        None
     }
     #[inline(always)]
     fn axes_from(self, source: Vec2, fixed: u8) -> Vec2 {
@@ -335,9 +343,9 @@ impl Grouped for Vec3 {
         colliders: &[Collider<'_>],
         x: &mut Self,
         v: &mut Self,
-        resting_speed: Real,
+        resting_speed_and_step: (Real, Real),
     ) -> usize {
-        collider::resolve(colliders, x, v, resting_speed)
+        collider::resolve(colliders, x, v, resting_speed_and_step)
     }
     #[inline(always)]
     fn collider_velocity(
@@ -349,6 +357,10 @@ impl Grouped for Vec3 {
         v: Self,
     ) -> Self {
         collider::implicit_velocity(colliders, (x, g, m, h), v)
+    }
+    #[inline(always)]
+    fn collider_contact(colliders: &[Collider<'_>], x: Self) -> Option<Contact<Self>> {
+        collider::contact(colliders, x)
     }
     #[inline(always)]
     fn axes_from(self, source: Vec3, fixed: u8) -> Vec3 {

@@ -99,7 +99,9 @@ pub struct RelaxSettings<'a, V> {
     /// The gravitational acceleration (m/s^2).
     pub gravity: V,
     /// An optional ground half-space, enforced by projection (a projected descent). Friction
-    /// acts on the velocity after the solve; restitution is ignored (implicit Euler does not
+    /// acts on the velocity after the solve, or, opted in with a positive
+    /// [`Ground::sticking_speed`], is part of the step's objective (the lagged, smoothed Coulomb
+    /// potential of `docs/math.md` section 4.6); restitution is ignored (implicit Euler does not
     /// bounce).
     pub ground: Option<Ground<V>>,
     /// Rigid colliders (empty, the default, for none): projection and friction as the

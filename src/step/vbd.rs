@@ -175,7 +175,7 @@ pub struct VbdSettings<'a> {
     /// The gravitational acceleration (m/s^2).
     pub gravity: Vec3,
     /// An optional ground half-space (see [`vbd_step`](vbd_step#contact)); friction
-    /// acts on the velocity after the solve, restitution is ignored, as in
+    /// after the solve or (opted in) in the objective, restitution ignored, as in
     /// [`RelaxSettings::ground`](super::RelaxSettings::ground).
     pub ground: Option<Ground<Vec3>>,
     /// Rigid colliders (empty, the default, for none): projection and friction as the
@@ -464,7 +464,10 @@ pub struct VbdReport {
 /// local quadratic model on the ground plane (one more 3x3 solve with the same factor; the
 /// multiplier is the contact reaction), then projected onto the plane for rounding: the exact
 /// solution of the local contact problem for the quadratic model, where the relaxation only
-/// projects. Friction acts on the velocity after the solve, as in the relaxation.
+/// projects; a step into a [`Collider`] is replaced the same way on its tangent plane at the
+/// vertex. Friction acts on the velocity after the solve, or, opted in with a positive
+/// [`Ground::sticking_speed`], is part of the objective (`docs/math.md` section 4.6): its gradient and
+/// tangent block join the vertex's, lagged to the loop's iterate.
 ///
 /// # The descent loop
 /// The sweeps run in the descent loop every implicit solver here shares (`docs/math.md`
@@ -834,6 +837,7 @@ fn minimise<M: Material, S: Schedule<M>>(
             ..g
         }),
         colliders: settings.colliders,
+        friction: None,
         armijo: settings.armijo,
         backtrack: settings.backtrack,
         max_backtracks: settings.max_backtracks,

@@ -8,6 +8,7 @@ use super::super::lanes::{LANES, Lane, LaneSum, Lanes, each_lane};
 use super::super::math::BATCH_VERTICES;
 use super::super::types::Real;
 use super::descent::line_search::copy;
+use super::friction::Friction;
 use super::points::{Floor, Grouped, Point};
 use super::split::{Blocks, Split};
 use super::{Collider, ElasticModel, Ground, Vector, first_non_finite};
@@ -110,6 +111,9 @@ impl<P: Point> Frame<'_, P> {
 #[derive(Clone, Copy)]
 pub(super) struct Frames<'a, V: Grouped> {
     single: Frame<'a, V>,
+    /// Friction, whose tangent curvature the relaxation's direction adds to its bound at the
+    /// vertices in contact (`None` for none).
+    friction: Option<Friction<'a, V>>,
 }
 
 impl<'a, V: Grouped> Frames<'a, V> {
@@ -118,6 +122,16 @@ impl<'a, V: Grouped> Frames<'a, V> {
     pub fn new(h: Real, inertia: Real, gravity: V, ground: Option<&Ground<V>>) -> Self {
         Frames {
             single: Frame::new(h, inertia, gravity, ground),
+            friction: None,
+        }
+    }
+
+    /// These frames with `friction` (ignored if it is inactive): the direction passes then run
+    /// one vertex at a time and scale the tangential direction at the vertices in contact.
+    pub fn with_friction(self, friction: Friction<'a, V>) -> Self {
+        Frames {
+            friction: friction.is_active().then_some(friction),
+            ..self
         }
     }
 
@@ -126,7 +140,7 @@ impl<'a, V: Grouped> Frames<'a, V> {
     pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
         let mut single = self.single;
         single.floor = single.floor.with_colliders(colliders);
-        Frames { single }
+        Frames { single, ..self }
     }
 
     /// The frame for groups of [`LANES`] vertices: every value in every lane.
@@ -144,6 +158,37 @@ impl<'a, V: Grouped> Frames<'a, V> {
     /// The ground and the colliders, for one vertex.
     pub fn floor(&self) -> &Floor<'a, V> {
         &self.single.floor
+    }
+
+    /// Whether the passes group vertices: on `math::BATCH_VERTICES` targets, without friction.
+    #[inline(always)]
+    fn batched(&self) -> bool {
+        BATCH_VERTICES && self.friction.is_none()
+    }
+
+    /// The direction `d` (slope term `slope`) of a vertex at `x` moved from `start`, with
+    /// gradient `g` and isotropic bound `p`, with friction's tangent curvature `b` added to the
+    /// bound across the contact: `d - b / (p + b) d_t`, `d_t` the tangential part (`friction.rs`:
+    /// `b = mu lambda f1(y) / y` bounds the tangent block). Unchanged without a frictional
+    /// contact.
+    #[inline(always)]
+    fn damped(&self, (x, start, g): (V, V, V), p: Real, (d, slope): (V, Real)) -> (V, Real)
+    where
+        V: Vector,
+    {
+        let Some((slip, force)) = self.friction.and_then(|f| f.slip(x, start, g)) else {
+            return (d, slope);
+        };
+        let curvature = force * slip.curvature();
+        let share = curvature / (p + curvature);
+        if !(share > 0.0 && share <= 1.0) {
+            return (d, slope);
+        }
+        let normal = slip.normal();
+        let tangential = d - normal * normal.dot(d);
+        let floor = &self.single.floor;
+        let g = floor.constrain(floor.contact(x), x, g, 1.0);
+        (d - tangential * share, slope - share * g.dot(tangential))
     }
 }
 
@@ -324,7 +369,7 @@ impl<V> TrialPoint<'_, V> {
 /// given) into `direction`, and in the same pass the trial point `x + alpha d` (projected on the
 /// ground; `x` at pinned vertices) into `trial`, zeroing its gradient buffer. Returns the slope
 /// `grad.d`.
-fn direction_block<V: Grouped>(
+fn direction_block<V: Grouped + Vector>(
     frames: &Frames<V>,
     vertices: &Vertices<'_, V>,
     (x, gradient): (&[V], &[V]),
@@ -335,7 +380,7 @@ fn direction_block<V: Grouped>(
 ) -> Real {
     let mut slope = LaneSum::new(x.len());
     let mut done = 0;
-    if BATCH_VERTICES {
+    if frames.batched() {
         let frame = &frames.group();
         let (lanes_alpha, lanes_momentum) = (Lanes::splat(alpha), momentum.map(Lanes::splat));
         let groups = direction
@@ -368,6 +413,8 @@ fn direction_block<V: Grouped>(
         let p = vertices.diagonal_one(frame.inertia, i);
         let heavy_ball = momentum.map(|m| (*t_slot, m));
         let (d, slope_term) = frame.direction(x, g, p, heavy_ball);
+        let start = vertices.start.get(i).copied().unwrap_or(x);
+        let (d, slope_term) = frames.damped((x, start, g), p, (d, slope_term));
         *d_slot = d;
         *t_slot = frame.moved(x, x + d.scale(alpha), free_one(vertices.pinned, i));
         *g_slot = V::zero();
@@ -413,7 +460,7 @@ pub(super) fn trial_pass<V: Grouped>(
 /// `trial` (whose positions hold `x_{k-1}` if `stepped`; the last step is zero otherwise),
 /// zeroing its gradient buffer. `step` is `omega alpha`.
 #[allow(clippy::too_many_arguments)]
-fn chebyshev_block<V: Grouped>(
+fn chebyshev_block<V: Grouped + Vector>(
     frames: &Frames<V>,
     vertices: &Vertices<'_, V>,
     (x, gradient): (&[V], &[V]),
@@ -423,7 +470,7 @@ fn chebyshev_block<V: Grouped>(
     omega: Real,
 ) {
     let mut done = 0;
-    if BATCH_VERTICES {
+    if frames.batched() {
         let frame = &frames.group();
         let (lanes_step, lanes_weight) = (Lanes::splat(step), Lanes::splat(omega - 1.0));
         let groups = trial
@@ -452,7 +499,9 @@ fn chebyshev_block<V: Grouped>(
     for (i, ((t_slot, g_slot), (&x, &g))) in rows.skip(done) {
         let last_step = if stepped { x - *t_slot } else { V::zero() };
         let p = vertices.diagonal_one(frame.inertia, i);
-        let (d, _) = frame.direction(x, g, p, None);
+        let direction = frame.direction(x, g, p, None);
+        let start = vertices.start.get(i).copied().unwrap_or(x);
+        let (d, _) = frames.damped((x, start, g), p, direction);
         let target = x + d.scale(step) + last_step.scale(omega - 1.0);
         *t_slot = frame.moved(x, target, free_one(vertices.pinned, i));
         *g_slot = V::zero();
@@ -527,7 +576,7 @@ pub(super) fn gradient_pass<V: Shared>(
 /// The direction pass (see `direction_block`) in blocks run by `model`: the slope is a block
 /// sum added over the fixed tree.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn direction_pass<V: Shared>(
+pub(super) fn direction_pass<V: Shared + Vector>(
     model: &impl ElasticModel,
     frames: &Frames<V>,
     vertices: &Vertices<'_, V>,
@@ -606,7 +655,7 @@ pub(super) fn split_first_non_finite<V: Vector>(
 
 /// The Chebyshev pass (see `chebyshev_block`) in blocks run by `model`.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn chebyshev_pass<V: Shared>(
+pub(super) fn chebyshev_pass<V: Shared + Vector>(
     model: &impl ElasticModel,
     frames: &Frames<V>,
     vertices: &Vertices<'_, V>,

@@ -3,7 +3,7 @@
 
 use p::body::{Body, FixedStorage, Solver};
 use p::material::StableNeoHookean;
-use p::step::{Collider, SignedDistance};
+use p::step::{Collider, ExplicitSettings, Ground, SignedDistance};
 use p::types::{Quat, Real, Vec3};
 
 /// A 0.2 m cube of 2 x 2 x 2 cells: 27 vertices, 40 tetrahedra.
@@ -104,7 +104,6 @@ fn shapes() -> [(&'static str, Collider<'static>); 5] {
 #[test]
 #[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test colliders")]
 fn a_body_rests_on_every_shape_with_every_solver() {
-    use p::step::ExplicitSettings;
     for (name, shape) in shapes() {
         let colliders = [shape.with_friction(0.8)];
         for (solver_name, solver) in solvers() {
@@ -142,65 +141,201 @@ fn a_body_rests_on_every_shape_with_every_solver() {
     }
 }
 
-/// The incline: a half-space through the origin tilted by `theta` about z, the cube lying on
-/// it (turned with it, so at rest), friction `mu`. Returns the mean velocity along the downhill
-/// direction at 1 s and at 2 s (m/s).
-fn incline(solver: Solver, theta: Real, mu: Real) -> (Real, Real) {
+/// The incline: a plane through the origin tilted by `theta` about z, a half-space collider or
+/// (`on_ground`) the body's ground, with friction `mu` and sticking speed `eps_v` (m/s), the cube
+/// lying on it (turned with it, so at rest). Returns the mean velocity along the downhill
+/// direction at 1 s and at 2 s (m/s) and the mean displacement downhill between them (m).
+fn incline(
+    solver: Solver,
+    theta: Real,
+    (mu, eps_v): (Real, Real),
+    on_ground: bool,
+) -> (Real, Real, Real) {
     let turn = Quat::from_rotation_z(theta);
     let normal = turn * Vec3::Y;
     let downhill = -(turn * Vec3::X);
-    let colliders = [Collider::half_space(Vec3::ZERO, normal).with_friction(mu)];
+    let plane = [Collider::half_space(Vec3::ZERO, normal)
+        .with_friction(mu)
+        .with_sticking_speed(eps_v)];
+    let colliders: &[Collider<'_>] = if on_ground { &[] } else { &plane };
     // Stiff, so that the block slides as a whole instead of rolling its bottom layer.
     let mut body = cube(Vec3::new(-0.1, 0.0, -0.1), 1.0e6);
     body.set_solver(solver).unwrap();
+    if on_ground {
+        body.set_ground(Some(
+            Ground::new(normal, 0.0)
+                .with_friction(mu)
+                .with_sticking_speed(eps_v),
+        ));
+    }
     for x in body.positions_mut() {
         *x = turn * *x;
     }
     let dt = 1.0 / 100.0;
     let mut speeds = [0.0; 2];
+    let mut places = [0.0; 2];
     for step in 1..=200 {
-        body.step_with_colliders(dt, &colliders).unwrap();
-        assert!(penetration(&body, &colliders) <= PROJECTION_BOUND);
+        body.step_with_colliders(dt, colliders).unwrap();
+        assert!(penetration(&body, &plane) <= PROJECTION_BOUND);
         if step % 100 == 0 {
             speeds[step / 100 - 1] = mean(&body, body.velocities()).dot(downhill);
+            places[step / 100 - 1] = mean(&body, body.positions()).dot(downhill);
         }
     }
-    (speeds[0], speeds[1])
+    (speeds[0], speeds[1], places[1] - places[0])
 }
 
-/// `tan(theta) < mu` sticks: no acceleration (the mean velocity changes by less than 1 % of
-/// `g sin(theta)` between 1 s and 2 s). The friction acts on the contact vertices' velocities
-/// after each (sub)step, so a stuck block still creeps at a constant speed (printed; a known
-/// limitation shared with the ground: about 1 cm/s explicit, 0.2 to 0.3 m/s with Newton at
-/// 100 Hz). Otherwise the block slides with `g (sin(theta) - mu cos(theta))`, measured as the change of its mean
-/// velocity between 1 s and 2 s (after the landing transient), within 2 %. The explicit
-/// stepper and Newton's method.
+/// The explicit stepper with a light damping (2/s) for the sticking runs: undamped, the jelly
+/// block rings after its release for seconds, its bottom vertices leave the plane by up to
+/// 0.4 mm and land further down (measured: 2.3 mm walked between 1 s and 2 s at `mu = 1`).
+fn damped_explicit() -> Solver {
+    Solver::Explicit {
+        settings: ExplicitSettings::new(1.0).with_damping(2.0),
+        stable_fraction: Some(0.5),
+    }
+}
+
+/// `tan(theta) < mu` sticks, on a half-space collider and on the ground. The implicit solvers,
+/// with friction in their objective (`with_sticking_speed`, opt-in),
+/// smooth static friction below the sticking speed `eps_v` (1 mm/s here; see
+/// `step::Ground::sticking_speed`): a contact held by a tangential load `F < mu lambda` creeps
+/// at `eps_v (1 - sqrt(1 - F / (mu lambda)))`, for the block `F / (mu lambda) = tan(theta) /
+/// mu` (0.58 mm/s at `mu = 0.7`, 0.35 mm/s at `mu = 1`): between 1 s and 2 s it moves that far
+/// within 10 % (the load is not shared exactly evenly by the contact vertices, and the solves
+/// stop at their tolerance), and its mean velocity stays below `eps_v`. The explicit stepper's
+/// static friction cancels the tangential velocity and the move it made in the substep: the
+/// block moves less than 0.1 mm in that second.
+///
+/// Otherwise the block slides with `g (sin(theta) - mu cos(theta))`, measured as the change of
+/// its mean velocity between 1 s and 2 s (after the landing transient), within 2 %. Every
+/// stepper; VBD in f32 within 10 %: its solves stop at the f32 rounding floor short of the
+/// exact acceleration even without friction (measured on this incline at `mu = 0`: 4.63
+/// against 4.91 m/s^2, 5.5 % or 0.27 m/s^2 short; 6.1 and 8.2 % at `mu = 0.1` and 0.3), with
+/// the iterate in world coordinates 4 to 8 m from the origin by then.
 #[test]
 #[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test colliders")]
 fn a_block_on_an_incline_sticks_or_slides_by_coulomb_law() {
     let theta = core::f64::consts::FRAC_PI_6 as Real; // 30 degrees: tan = 0.577
     let (sin, cos) = (theta.sin(), theta.cos());
-    for (name, solver) in [("explicit", Solver::explicit()), ("newton", Solver::newton())] {
-        for mu in [0.7, 1.0] {
-            let (early, late) = incline(solver, theta, mu);
-            let gained = late - early; // over 1 s
-            println!(
-                "{name}, mu {mu}: creeps at {early:.2e} m/s after 1 s, {late:.2e} m/s after 2 s"
-            );
-            assert!(gained.abs() < 0.01 * G * sin, "{name}, mu {mu}: {early} -> {late}");
-        }
-        for mu in [0.1, 0.3] {
-            let (early, late) = incline(solver, theta, mu);
-            let measured = late - early; // over 1 s
-            let expected = G * (sin - mu * cos);
-            let error = (measured / expected - 1.0).abs();
-            println!(
-                "{name}, mu {mu}: {measured:.4} m/s^2, expected {expected:.4} ({:.2} %)",
-                100.0 * error
-            );
-            assert!(error < 0.02, "{name}, mu {mu}: {measured} against {expected}");
+    let eps_v = p::step::SUGGESTED_STICKING_SPEED;
+    let single = Real::EPSILON > 1e-10;
+    let mut failures = Vec::new();
+    for on_ground in [false, true] {
+        let surface = if on_ground { "ground" } else { "half-space" };
+        for (name, solver) in solvers() {
+            for mu in [0.7, 1.0] {
+                let solver = match solver {
+                    Solver::Explicit { .. } => damped_explicit(),
+                    other => other,
+                };
+                let (early, late, moved) = incline(solver, theta, (mu, eps_v), on_ground);
+                let creep = eps_v * (1.0 - (1.0 - (sin / cos) / mu).sqrt());
+                println!(
+                    "{surface} {name}, mu {mu}: {early:.2e} m/s after 1 s, {late:.2e} m/s after \
+                     2 s, moved {moved:.2e} m in between (creep {creep:.2e} m/s)"
+                );
+                let sticks = match solver {
+                    Solver::Explicit { .. } => moved.abs() < 1e-4,
+                    _ => {
+                        (moved / creep - 1.0).abs() < 0.1
+                            && early.abs() < eps_v
+                            && late.abs() < eps_v
+                    }
+                };
+                if !sticks {
+                    failures.push(format!(
+                        "{surface} {name}, mu {mu}: {early} -> {late}, {moved} m"
+                    ));
+                }
+            }
+            for mu in [0.1, 0.3] {
+                let (early, late, _) = incline(solver, theta, (mu, eps_v), on_ground);
+                let measured = late - early; // over 1 s
+                let expected = G * (sin - mu * cos);
+                let error = (measured / expected - 1.0).abs();
+                println!(
+                    "{surface} {name}, mu {mu}: {measured:.4} m/s^2, expected {expected:.4} \
+                     ({:.2} %)",
+                    100.0 * error
+                );
+                let bound = if single && name == "vbd" { 0.1 } else { 0.02 };
+                let within = error < bound; // false for NaN
+                if !within {
+                    failures.push(format!(
+                        "{surface} {name}, mu {mu}: {measured} against {expected}"
+                    ));
+                }
+            }
         }
     }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// Without the opt-in (sticking speed 0, the default) the implicit solvers apply Coulomb's law
+/// to the velocity after the solve: a block that should stick on the 30 degree incline stops
+/// accelerating (its mean velocity changes by less than 1 % of `g sin(theta)` between 1 s and
+/// 2 s) but creeps at a constant speed (printed; measured 0.2 to 0.3 m/s with Newton at 100 Hz),
+/// and one that slides does so with `g (sin(theta) - mu cos(theta))` within 2 %. Newton's
+/// method on the half-space, the case the velocity-level friction was first measured on.
+#[test]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test colliders")]
+fn without_the_opt_in_friction_acts_on_the_velocity_after_the_solve() {
+    let theta = core::f64::consts::FRAC_PI_6 as Real;
+    let (sin, cos) = (theta.sin(), theta.cos());
+    for mu in [0.7, 1.0] {
+        let (early, late, _) = incline(Solver::newton(), theta, (mu, 0.0), false);
+        println!("velocity-level newton, mu {mu}: creeps at {early:.2e} then {late:.2e} m/s");
+        assert!((late - early).abs() < 0.01 * G * sin, "mu {mu}: {early} -> {late}");
+    }
+    for mu in [0.1, 0.3] {
+        let (early, late, _) = incline(Solver::newton(), theta, (mu, 0.0), false);
+        let expected = G * (sin - mu * cos);
+        let error = ((late - early) / expected - 1.0).abs();
+        println!("velocity-level newton, mu {mu}: {:.4} m/s^2 ({:.2} %)", late - early, 100.0 * error);
+        assert!(error < 0.02, "mu {mu}: {} against {expected}", late - early);
+    }
+}
+
+/// A conveyor: a half-space moving along its own surface at 0.5 m/s (its geometry does not
+/// change, only its surface velocity), friction 0.5, under a cube released at rest on it.
+/// Friction relative to the surface accelerates the cube (at `mu g`, about 0.1 s) until it
+/// sticks and rides along: between 1 s and 2 s its centroid moves 0.5 m within 1 %, for every
+/// stepper (the implicit ones creep at most `eps_v` = 1 mm/s relative to the belt, 0.2 %).
+#[test]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test colliders")]
+fn a_body_on_a_moving_surface_is_carried_at_its_speed() {
+    let speed: Real = 0.5;
+    let belt = Collider::half_space(Vec3::ZERO, Vec3::Y)
+        .with_velocity(Vec3::new(speed, 0.0, 0.0), Vec3::ZERO)
+        .with_friction(0.5)
+        .with_sticking_speed(p::step::SUGGESTED_STICKING_SPEED);
+    let mut failures = Vec::new();
+    for (name, solver) in solvers() {
+        let solver = match solver {
+            Solver::Explicit { .. } => damped_explicit(),
+            other => other,
+        };
+        let mut body = cube(Vec3::new(-0.1, 0.0, -0.1), 1.0e5);
+        body.set_solver(solver).unwrap();
+        let dt = 1.0 / 100.0;
+        let mut at_one_second = Vec3::ZERO;
+        let mut colliders = [belt];
+        for step in 1..=200 {
+            body.step_with_colliders(dt, &colliders).unwrap();
+            colliders[0] = colliders[0].advanced(dt);
+            assert!(penetration(&body, &colliders) <= PROJECTION_BOUND);
+            if step == 100 {
+                at_one_second = mean(&body, body.positions());
+            }
+        }
+        let moved = (mean(&body, body.positions()) - at_one_second).x;
+        println!("{name}: {moved:.4} m in 1 s on a belt at {speed} m/s");
+        let within = (moved / speed - 1.0).abs() < 0.01; // false for NaN
+        if !within {
+            failures.push(format!("{name}: {moved}"));
+        }
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
 }
 
 /// A cube dropped at 10 m/s from 5 cm above each shape, at half the stable step (the body's
@@ -288,6 +423,8 @@ fn bad_colliders_are_refused_with_their_index() {
             ColliderProblem::Rotation,
         ),
         (good.with_friction(Real::INFINITY), ColliderProblem::Friction),
+        (good.with_sticking_speed(-1e-3), ColliderProblem::Friction),
+        (good.with_sticking_speed(Real::NAN), ColliderProblem::Friction),
     ];
     for (solver_name, solver) in solvers() {
         body.set_solver(solver).unwrap();

@@ -122,10 +122,22 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
         let model = objective.model;
         let (masses, pinned) = (objective.vertices.masses, objective.vertices.pinned);
         model.projected_hessians(at.x, self.hessians)?;
+        // Friction's tangent blocks at the iterate, with its own normal forces (`friction.rs`).
+        let friction = &objective.friction;
+        let start = objective.vertices.start;
+        let rough = |i: usize| -> Option<Mat3> {
+            if !friction.is_active() {
+                return None;
+            }
+            let at_vertex = |values: &[Vec3]| values.get(i).copied();
+            let (x, x0, g) = (at_vertex(at.x)?, at_vertex(start)?, at_vertex(at.gradient)?);
+            friction.block(x, x0, g)
+        };
         let stiffness_squared = invert_blocks(
             model,
             self.hessians,
             (masses, pinned, self.inertia),
+            &rough,
             self.blocks,
         )?;
         self.floor = rounding_floor(self.reach, stiffness_squared);
@@ -141,6 +153,7 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
         self.cg_iterations += conjugate_gradients(
             model,
             (self.hessians, self.blocks, masses, self.inertia),
+            &rough,
             &constraints,
             (eta, self.max_cg_iterations),
             direction,
@@ -223,8 +236,8 @@ impl Constraints<'_> {
     }
 }
 
-/// Writes the inverted preconditioner blocks `(B_i + m_i / h^2 I)^-1` into `blocks`, `B_i` the
-/// diagonal blocks of the projected Hessian. A block whose determinant is below
+/// Writes the inverted preconditioner blocks `(B_i + m_i / h^2 I + F_i)^-1` into `blocks`, `B_i`
+/// the diagonal blocks of the projected Hessian, `F_i` friction's tangent block (`rough`). A block whose determinant is below
 /// `eps max(diag)^3` (singular or nearly: a vertex with no stiffness and no inertia) is
 /// replaced by the inverse of its diagonal, zero where a diagonal entry is not positive.
 /// Returns `sum |B_i + m_i / h^2 I|_F^2` over the free vertices (N^2/m^2), for the rounding
@@ -233,13 +246,18 @@ fn invert_blocks<F: ElasticHessian>(
     model: &F,
     hessians: &[TetHessian],
     (masses, pinned, inertia): (&[Real], &[bool], Real),
+    rough: &impl Fn(usize) -> Option<Mat3>,
     blocks: &mut [Mat3],
 ) -> Result<Real, StepError> {
     blocks.fill(Mat3::ZERO);
     model.add_vertex_hessian_blocks(hessians, blocks)?;
     let mut stiffness_squared = 0.0;
-    for ((block, &m), pinned) in blocks.iter_mut().zip(masses).zip(pinned_flags(pinned)) {
-        let b = *block + Mat3::from_diagonal(Vec3::splat(m * inertia));
+    let rows = blocks.iter_mut().zip(masses).zip(pinned_flags(pinned));
+    for (i, ((block, &m), pinned)) in rows.enumerate() {
+        let mut b = *block + Mat3::from_diagonal(Vec3::splat(m * inertia));
+        if let Some(friction) = rough(i) {
+            b += friction;
+        }
         if !pinned {
             stiffness_squared +=
                 b.x_axis.length_squared() + b.y_axis.length_squared() + b.z_axis.length_squared();
@@ -277,10 +295,11 @@ fn dot(a: &[Vec3], b: &[Vec3]) -> Real {
 /// Preconditioned conjugate gradients on `S A S d = -S g` from `d = 0` (Hestenes and Stiefel;
 /// Saad, "Iterative Methods for Sparse Linear Systems", algorithm 9.1), `A = M / h^2 + H` with
 /// `H` in `hessians` and the preconditioner `S B^-1 S` from the inverted `blocks`, until
-/// `|r| <= eta |r_0|` or `max` iterations. Writes `d` into `direction`; returns the iterations.
+/// `|r| <= eta |r_0|` or `max` iterations; friction's blocks (`rough`) are part of `A`. Writes `d` into `direction`; returns the iterations.
 fn conjugate_gradients<F: ElasticHessian>(
     model: &F,
     (hessians, blocks, masses, inertia): (&[TetHessian], &[Mat3], &[Real], Real),
+    rough: &impl Fn(usize) -> Option<Mat3>,
     constraints: &Constraints<'_>,
     (eta, max): (Real, u32),
     direction: &mut [Vec3],
@@ -309,8 +328,11 @@ fn conjugate_gradients<F: ElasticHessian>(
     while iterations < max {
         product.fill(Vec3::ZERO);
         model.add_hessian_product(hessians, conjugate, product)?;
-        for ((q, &p), &m) in product.iter_mut().zip(&**conjugate).zip(masses) {
+        for (i, ((q, &p), &m)) in product.iter_mut().zip(&**conjugate).zip(masses).enumerate() {
             *q += p * (m * inertia);
+            if let Some(friction) = rough(i) {
+                *q += friction * p;
+            }
         }
         constraints.project(product);
         let curvature = dot(conjugate, product);

@@ -1,14 +1,17 @@
 //! The objective every implicit solver here minimises (`docs/math.md` section 4): the incremental
 //! potential `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)` of an implicit Euler
 //! step (`y = x_n + h v_n`), or without inertia the static energy `E(x) - sum m g.(x - x_0)`;
-//! its evaluation with the residual every solver stops on, and the velocity update with Coulomb
-//! friction after a step. Shared by every direction of the descent loop (`mod.rs`): the
-//! relaxation, gradient descent and Newton's method.
+//! its evaluation with the residual every solver stops on, and the velocity update after a step.
+//! With friction at the contacts of a step, `Phi` gains the lagged dissipation potential
+//! `sum mu lambda_i f0(|u_i|)` of `friction.rs`, `lambda_i` the normal force of a lagging
+//! gradient (see [`Objective::evaluate`] and [`Objective::relag`]). Shared by every direction of
+//! the descent loop (`mod.rs`): the relaxation, gradient descent, Newton's method and VBD.
 
 use super::super::super::math;
 use super::super::super::types::Real;
+use super::super::friction::{Friction, Lag};
 use super::super::loads::Loads;
-use super::super::points::Floor;
+use super::super::points::{Floor, Point};
 use super::super::vertex_passes::{Frames, TrialPoint, Vertices, gradient_pass};
 use super::super::{ElasticEnergy, Ground, Vector, pinned_flags};
 use crate::error::StepError;
@@ -27,6 +30,8 @@ pub(in super::super) struct Objective<'p, F: ElasticEnergy> {
     pub gravity: F::Vector,
     /// External forces and fixed axes (both empty for none).
     pub loads: Loads<'p, F::Vector>,
+    /// The frictional contacts (inactive for none, and in the quasi-static mode).
+    pub friction: Friction<'p, F::Vector>,
 }
 
 impl<F: ElasticEnergy> Objective<'_, F> {
@@ -58,10 +63,16 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     /// `Phi(x)`, `E(x)` and the residual at `x`, writing the unprojected gradient (N, zero at
     /// pinned vertices) into `gradient`, which must be zero on entry (the pass that writes a
     /// trial point zeroes it, saving a pass of its own). Non-finite if `x` is.
+    ///
+    /// Friction's contacts and normal forces `lambda_i` are lagged to `lagged` (the iterate a
+    /// trial is taken from), or without it to `x` itself (its gradient before friction, which
+    /// is tangential and does not change it): within one line search `Phi` is then one smooth
+    /// function, whose contact set does not change when a trial point lands on a surface.
     pub fn evaluate(
         &self,
         x: &[F::Vector],
         gradient: &mut [F::Vector],
+        lagged: Option<Lag<'_, F::Vector>>,
     ) -> Result<Evaluation, StepError> {
         let elastic = self.model.energy_and_add_forces(x, gradient)?;
         let (mut inertia_and_gravity, mut residual_squared) =
@@ -77,11 +88,101 @@ impl<F: ElasticEnergy> Objective<'_, F> {
             inertia_and_gravity += loads_phi;
             residual_squared = loaded_residual;
         }
+        if let Some((friction_phi, rough_residual)) = self.add_friction(x, gradient, lagged, None) {
+            inertia_and_gravity += friction_phi;
+            residual_squared = rough_residual;
+        }
         Ok(Evaluation {
             phi: elastic + inertia_and_gravity,
             elastic,
             residual: math::sqrt(residual_squared),
         })
+    }
+
+    /// Re-lags an accepted point `x` whose `gradient` and `evaluation` were computed with
+    /// friction lagged to `lagged` (the previous iterate): afterwards they hold `Phi`, its
+    /// gradient and residual with friction lagged to `x` itself, so that the next line search
+    /// minimises the friction potential of the new iterate (the fixed point is the lagged
+    /// model's solution with its own contact forces). A no-op without friction.
+    pub fn relag(
+        &self,
+        x: &[F::Vector],
+        gradient: &mut [F::Vector],
+        lagged: Lag<'_, F::Vector>,
+        evaluation: &mut Evaluation,
+    ) {
+        if let Some((friction_phi, residual_squared)) =
+            self.add_friction(x, gradient, None, Some(lagged))
+        {
+            evaluation.phi += friction_phi;
+            evaluation.residual = math::sqrt(residual_squared);
+        }
+    }
+
+    /// Whether any free vertex at `x` is in a frictional contact.
+    pub fn in_rough_contact(&self, x: &[F::Vector]) -> bool {
+        let friction = &self.friction;
+        friction.is_active()
+            && x.iter()
+                .zip(pinned_flags(self.vertices.pinned))
+                .any(|(&x, pinned)| !pinned && friction.contact(x).is_some())
+    }
+
+    /// Adds friction to `gradient` at `x`: at every free vertex, the potential and gradient of
+    /// `friction.rs` lagged to `lagged` (or to `x` and `gradient` itself if `None`), minus those
+    /// lagged to `included` (whose friction `gradient` holds already; nothing if `None`).
+    /// Returns friction's change of `Phi` (J) and the squared residual of the result projected
+    /// on the contact constraints (N^2), which replaces the passes' one; `None` (and nothing
+    /// changed) if no vertex got a term.
+    fn add_friction(
+        &self,
+        x: &[F::Vector],
+        gradient: &mut [F::Vector],
+        lagged: Option<Lag<'_, F::Vector>>,
+        included: Option<Lag<'_, F::Vector>>,
+    ) -> Option<(Real, Real)> {
+        let friction = &self.friction;
+        if !friction.is_active() {
+            return None;
+        }
+        let Vertices { pinned, start, .. } = self.vertices;
+        let mut phi = 0.0;
+        let mut changed = false;
+        for (i, g) in gradient.iter_mut().enumerate() {
+            let free = !pinned.get(i).copied().unwrap_or(false);
+            let (Some(&x), Some(&x0), true) = (x.get(i), start.get(i), free) else {
+                continue;
+            };
+            let term = |lag: Option<Lag<'_, F::Vector>>, sign: Real| {
+                let reference = match lag {
+                    Some(lag) => (lag.x.get(i).copied()?, lag.gradient.get(i).copied()?),
+                    None => (x, *g),
+                };
+                let (slip, force) = friction.lagged_slip((x, x0), reference)?;
+                let force = sign * force;
+                Some((force * slip.potential(), slip.gradient() * force))
+            };
+            let added = term(lagged, 1.0);
+            let removed = included.and_then(|lag| term(Some(lag), -1.0));
+            for (energy, force) in [added, removed].into_iter().flatten() {
+                phi += energy;
+                *g += self.loads.free_part(i, force);
+                changed = true;
+            }
+        }
+        if !changed {
+            return None;
+        }
+        let floor = self.frames.floor();
+        let mut residual = 0.0;
+        let rows = gradient.iter().zip(x).zip(pinned_flags(pinned));
+        for ((&g, &x), pinned) in rows {
+            if !pinned {
+                let projected = floor.constrain(floor.contact(x), x, g, 1.0);
+                residual += projected.inner(projected);
+            }
+        }
+        Some((phi, residual))
     }
 
     /// `|M g|` (N), the norm of the gravity load on the free vertices (`|M g + f_ext|` over the
@@ -126,9 +227,11 @@ pub(in super::super) struct Evaluation {
 }
 
 /// The velocities after an implicit Euler step from `start` to `positions`:
-/// `v = (x_{n+1} - x_n) / h` at free vertices, then at vertices resting on the ground Coulomb
-/// friction with the normal impulse `h R`, `R` the reaction (the normal component of
-/// `gradient`, the gradient of `Phi` at the result). Pinned vertices keep their velocity.
+/// `v = (x_{n+1} - x_n) / h` at free vertices, then at vertices resting on the ground or a
+/// collider the approach along the normal removed and, where the contact's friction was not part
+/// of the objective (a zero sticking speed), Coulomb friction with the normal impulse `h R`, `R`
+/// the reaction (the normal component of `gradient`, the gradient of `Phi` at the result).
+/// Pinned vertices keep their velocity.
 pub(in super::super) fn implicit_velocities<V: Vector>(
     ground: Option<&Ground<V>>,
     floor: &Floor<V>,
@@ -150,7 +253,12 @@ pub(in super::super) fn implicit_velocities<V: Vector>(
         if let (Some(ground), Some(true)) = (ground, floor.contact(x)) {
             let normal = ground.normal.dot(*v);
             let reaction = ground.normal.dot(g).max(0.0);
-            let normal_change = h * reaction / m + (-normal).max(0.0);
+            // No impulse (friction keeps the tangential velocity) where it acted in Phi.
+            let normal_change = if ground.friction_in_objective() {
+                0.0
+            } else {
+                h * reaction / m + (-normal).max(0.0)
+            };
             let tangential = *v - ground.normal * normal;
             *v = ground.friction_applied(tangential, normal_change)
                 + ground.normal * normal.max(0.0);

@@ -12,7 +12,8 @@ use super::super::super::element::TetRest;
 use super::super::super::material::Material;
 use super::super::super::types::{Mat3, Real, Vec3};
 use super::super::adjacency::incident_elements;
-use super::super::collider::Collider;
+use super::super::collider::{self, Collider};
+use super::super::friction::{Friction, Lag, Slip};
 use super::super::loads::Loads;
 use super::super::points::{Grouped, Point};
 #[cfg(feature = "rayon")]
@@ -59,6 +60,8 @@ pub(in super::super) struct Sweep<'s, M: Material> {
     pub loads: Loads<'s, Vec3>,
     pub ground: Option<Ground<Vec3>>,
     pub colliders: &'s [Collider<'s>],
+    /// Friction and the iterate it is lagged to (`None` for none: set per sweep).
+    pub friction: Option<(Friction<'s, Vec3>, Lag<'s, Vec3>)>,
     pub armijo: Real,
     pub backtrack: Real,
     pub max_backtracks: u32,
@@ -281,6 +284,12 @@ impl<M: Material> Sweep<'_, M> {
         // What the local energy can resolve: 64 eps sum_e V_e W_e-scale, the scale from the
         // element block, tr(K_e) / |g_a|^2 ~ V_e times the elastic modulus (J).
         let resolution = sums.resolution;
+        // Friction lagged to the loop's iterate (`friction.rs`): its gradient and tangent block.
+        let rough = self.rough(i, x, x0);
+        if let Some((slip, force)) = &rough {
+            gradient += slip.gradient() * *force;
+            hessian += slip.hessian() * *force;
+        }
         if fixed != 0 {
             // The step on the free subspace exactly: the reduced system, its fixed rows and
             // columns replaced by the identity and its fixed gradient components by zero.
@@ -319,6 +328,16 @@ impl<M: Material> Sweep<'_, M> {
             let excess = ground.normal.dot(step) + ground.height(x);
             step -= towards * (excess / curvature);
         }
+        if let Some((height, normal)) = collider::entered(self.colliders, x, x + step) {
+            // The same minimiser on the collider's tangent plane at x (exact for a half-space,
+            // to first order on a curved surface, where the projection below finishes): the
+            // vertex slides along the surface instead of being pushed back out of it.
+            let towards = factor.solve(normal);
+            let curvature = normal.dot(towards);
+            if curvature > 0.0 {
+                step -= towards * ((normal.dot(step) + height) / curvature);
+            }
+        }
         let step = step.axes_from(Vec3::ZERO, fixed);
         let slope = gradient.dot(step);
         if !(slope < 0.0 && step.is_finite()) {
@@ -346,11 +365,17 @@ impl<M: Material> Sweep<'_, M> {
             self.for_each_trial_element(positions, i, trial, |_, rest, f| {
                 trial_elastic += rest.volume * self.material.energy_density(f);
             });
+            let trial_rough = rough.and_then(|_| self.rough(i, trial, x0));
+            let potential = |term: &Option<(Slip<Vec3>, Real)>| {
+                term.as_ref()
+                    .map_or(0.0, |(slip, force)| force * slip.potential())
+            };
             // The inertia and gravity change in a form without cancellation.
             let change = 0.5 * weight * moved.dot(moved + (x - y) * 2.0)
                 - m * self.gravity.dot(moved)
                 - external.dot(moved)
-                + (trial_elastic - elastic);
+                + (trial_elastic - elastic)
+                + (potential(&trial_rough) - potential(&rough));
             // Armijo where the energy resolves the predicted decrease; below that, Hager and
             // Zhang's approximate Armijo test from the two slopes (SIAM J. Optim. 2005), as
             // the relaxation's line search does, with the trial's gradient computed only then.
@@ -362,6 +387,9 @@ impl<M: Material> Sweep<'_, M> {
                         let g = shape_gradient(rest, corner);
                         trial_gradient += self.material.first_piola(f) * g * rest.volume;
                     });
+                    if let Some((slip, force)) = &trial_rough {
+                        trial_gradient += slip.gradient() * *force;
+                    }
                     trial_gradient.dot(step) <= (2.0 * self.armijo - 1.0) * slope
                 });
             if sufficient {
@@ -372,6 +400,18 @@ impl<M: Material> Sweep<'_, M> {
         }
         counts.skipped += 1;
         None
+    }
+
+    /// Friction's slip and force factor at vertex `i` moved from `x0` to `x`, lagged to the
+    /// loop's iterate; `None` without friction there.
+    #[inline(always)]
+    fn rough(&self, i: usize, x: Vec3, x0: Vec3) -> Option<(Slip<Vec3>, Real)> {
+        let (friction, lag) = self.friction.as_ref()?;
+        if !friction.is_active() {
+            return None;
+        }
+        let reference = (*lag.x.get(i)?, *lag.gradient.get(i)?);
+        friction.lagged_slip((x, x0), reference)
     }
 
     /// Calls `visit(corner, rest, f)` for every element around `i` with vertex `i` moved to
@@ -533,14 +573,20 @@ impl<'s, M: Material, S: Schedule<M>> VbdSweep<'s, M, S> {
         }
     }
 
-    /// The sweep at the objective's start positions, velocities and time step.
-    fn at<'o>(&'o self, objective: &'o Objective<'_, TetElastic<'_, M>>) -> Sweep<'o, M> {
+    /// The sweep at the objective's start positions, velocities and time step, with its
+    /// friction lagged to `lag` (none if `None`).
+    fn at<'o>(
+        &'o self,
+        objective: &'o Objective<'_, TetElastic<'_, M>>,
+        lag: Option<Lag<'o, Vec3>>,
+    ) -> Sweep<'o, M> {
         let h = objective.h;
         Sweep {
             start: objective.vertices.start,
             velocities: objective.vertices.velocities,
             h,
             inertia: if h > 0.0 { 1.0 / (h * h) } else { 0.0 },
+            friction: lag.map(|lag| (objective.friction, lag)),
             ..self.sweep
         }
     }
@@ -550,7 +596,7 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
     fn begin(&mut self, objective: &Objective<'_, TetElastic<'m, M>>, x: &[Vec3]) {
         // The relaxation's estimate with the exact vertex blocks in place of the diagonal
         // bounds: `eps/2 max |x| (sum_i |m_i/h^2 I + sum_e V_e K_e,ii|_F^2)^(1/2)`.
-        let sweep = self.at(objective);
+        let sweep = self.at(objective, None);
         let reach = x
             .iter()
             .fold(0.0, |a: Real, p| a.max(p.abs().max_element()));
@@ -579,6 +625,10 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
         self.resolution
     }
 
+    fn accelerates_with_friction(&self) -> bool {
+        false
+    }
+
     fn fall_back(&mut self) -> bool {
         // The full steps did not lower `Phi` enough: redo the sweep with the line search.
         let redo = !self.searched_safely && self.sweep.max_backtracks > 0;
@@ -598,7 +648,8 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
         trial: TrialPoint<'_, Vec3>,
         step: Real,
     ) -> Result<Real, StepError> {
-        let sweep = self.at(objective);
+        let lag = Lag::new(at.x, at.gradient);
+        let sweep = self.at(objective, Some(lag));
         let TrialPoint {
             positions: swept,
             gradient,
@@ -640,7 +691,8 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
         trial: TrialPoint<'_, Vec3>,
         (step, omega): (Real, Real),
     ) {
-        let sweep = self.at(objective);
+        let lag = Lag::new(at.x, at.gradient);
+        let sweep = self.at(objective, Some(lag));
         let TrialPoint {
             positions: older,
             gradient: swept,
