@@ -334,6 +334,13 @@ impl<'a> Collider<'a> {
         }
     }
 
+    /// Whether the implicit solvers minimise this collider's friction with the step (a positive
+    /// friction coefficient and sticking speed) rather than apply it to the velocity after it.
+    #[inline(always)]
+    pub(super) fn friction_in_objective(&self) -> bool {
+        super::friction::in_objective(self.friction, self.sticking_speed)
+    }
+
     /// This collider `dt` (s) later: moved by `linear_velocity dt` and turned by the angle
     /// `|angular_velocity| dt` about `angular_velocity` (exactly, not to first order); the
     /// velocities are kept.
@@ -644,7 +651,7 @@ pub(super) fn implicit_velocity(
     let reaction = normal.dot(g).max(0.0);
     let normal_change = h * reaction / m + (-along).max(0.0);
     let tangential = relative - normal * along;
-    let friction = if collider.sticking_speed > 0.0 {
+    let friction = if collider.friction_in_objective() {
         0.0
     } else {
         collider.friction

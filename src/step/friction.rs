@@ -38,6 +38,14 @@ use super::{Collider, Ground, Vector};
 /// the solve, which lets a loaded contact creep, see the field's documentation).
 pub const SUGGESTED_STICKING_SPEED: Real = 1e-3;
 
+/// Whether a contact with Coulomb coefficient `friction` and sticking speed `sticking_speed`
+/// (m/s) has its friction in the implicit objective (both positive) rather than on the velocity
+/// after the solve: the one test behind `Ground`'s, `Collider`'s and [`Contact`]'s.
+#[inline(always)]
+pub(super) fn in_objective(friction: Real, sticking_speed: Real) -> bool {
+    friction > 0.0 && sticking_speed > 0.0
+}
+
 /// What friction needs of one contact at a vertex.
 #[derive(Clone, Copy, Debug)]
 pub struct Contact<V> {
@@ -184,9 +192,7 @@ impl<'a, V: Grouped + Vector> Friction<'a, V> {
     /// (unit normal) and the validated `colliders`.
     pub fn new(ground: Option<&Ground<V>>, colliders: &'a [Collider<'a>], h: Real) -> Self {
         let rough_ground = ground.is_some_and(Ground::friction_in_objective);
-        let rough_collider = colliders
-            .iter()
-            .any(|c| c.friction > 0.0 && c.sticking_speed > 0.0);
+        let rough_collider = colliders.iter().any(Collider::friction_in_objective);
         Friction {
             floor: Floor::new(ground).with_colliders(colliders),
             ground: ground.copied(),
@@ -211,7 +217,7 @@ impl<'a, V: Grouped + Vector> Friction<'a, V> {
             });
         }
         V::collider_contact(self.floor.colliders(), x)
-            .filter(|contact| contact.friction > 0.0 && contact.sticking_speed > 0.0)
+            .filter(|contact| in_objective(contact.friction, contact.sticking_speed))
     }
 
     /// The slip at a vertex moved from `start` to `x` and the force factor `mu lambda` (N),

@@ -190,7 +190,7 @@ impl<V: Vector> Ground<V> {
     /// friction coefficient and sticking speed) rather than apply it to the velocity after it.
     #[inline(always)]
     pub(super) fn friction_in_objective(&self) -> bool {
-        self.friction > 0.0 && self.sticking_speed > 0.0
+        super::friction::in_objective(self.friction, self.sticking_speed)
     }
 
     /// The tangential velocity `tangential` reduced by Coulomb friction for a normal velocity
