@@ -70,8 +70,12 @@ pub(super) struct Iterate<'a, V> {
 
 /// The relative change of friction's force factors `mu lambda` from one re-lag to the next
 /// below which the directions that do not accelerate through re-lagging
-/// ([`Direction::accelerates_with_friction`]) run the Chebyshev semi-iteration again.
-const LAG_SETTLED: Real = 1e-2;
+/// ([`Direction::accelerates_with_friction`]) run the Chebyshev semi-iteration again. Measured
+/// on the bouncy drop with VBD (ground friction 0.6, sticking speed 1 mm/s and 1 cm/s): 1e-3
+/// took 24.5 and 19.8 sweeps per step on average with 89 and 90 of 90 steps converged, against
+/// 32.4 and 27.3 sweeps, 88 and 90 converged, without acceleration in contact; 1e-2 and 1e-1
+/// took fewer sweeps but each left one step more unconverged in one of the two runs.
+const LAG_SETTLED: Real = 1e-3;
 
 /// A search direction `d = -P^-1 grad Phi`: the one thing that distinguishes the solvers.
 pub(super) trait Direction<F: ElasticEnergy> {
