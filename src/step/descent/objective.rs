@@ -137,11 +137,10 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     /// lagged to `included` (whose friction `gradient` holds already; nothing if `None`).
     /// Returns friction's change of `Phi` (J), the squared residual of the result projected on
     /// the contact constraints (N^2; 0, not summed, with `lagged` given), which replaces the
-    /// passes' one, and how far the lag moved
-    /// between `included` and `lagged` (see [`relag`](Self::relag)); `None` (and nothing
-    /// changed) if no vertex got a term. One pass: a vertex's residual depends on its own
-    /// gradient only, so it is summed as soon as that is final (in vertex order, as a second
-    /// pass would).
+    /// passes' one, and how far the lag moved between `included` and `lagged` (see
+    /// [`relag`](Self::relag)); `None` (and nothing changed) if no vertex got a term. One pass:
+    /// a vertex's residual depends on its own gradient only, so it is summed as soon as that is
+    /// final (in vertex order, as a second pass would).
     fn add_friction(
         &self,
         x: &[F::Vector],
