@@ -56,6 +56,12 @@ pub struct Args {
     #[arg(long, value_name = "PATH.node")]
     pub mesh: Option<PathBuf>,
 
+    /// The ground's sticking speed for the implicit steppers (m/s, >= 0): positive puts the
+    /// ground's Coulomb friction into the step's objective (`softfem::step::Ground::
+    /// sticking_speed`), 0 applies it to the velocity after each solve. Default: the library's.
+    #[arg(long, value_parser = non_negative_finite)]
+    pub sticking_speed: Option<f32>,
+
     /// Young's modulus (Pa).
     #[arg(long, visible_alias = "young", default_value_t = 5.0e4, value_parser = positive_finite)]
     pub young_modulus: f32,

@@ -325,6 +325,10 @@ fn simulate<M: Material>(
     };
     estimate.check(args.yes, &hint).map_err(Failure::Refused)?;
     let ground = Ground::new(Vec3::Z, 0.0).with_friction(FRICTION);
+    let ground = match args.sticking_speed {
+        Some(speed) => ground.with_sticking_speed(speed),
+        None => ground,
+    };
     // The implicit solvers' common scale for their tolerance: max(|grad Phi(x_0)|, |M g|) (N).
     let weight = body
         .masses

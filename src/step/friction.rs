@@ -202,8 +202,9 @@ impl<'a, V: Grouped + Vector> Friction<'a, V> {
     }
 
     /// The contact at a vertex at `x`: the ground if `x` touches it, else the first collider it
-    /// touches; `None` without contact or friction.
-    #[inline]
+    /// touches; `None` without contact or friction. Inlined into every pass over the vertices,
+    /// most of which are in no contact: those take the ground's height test only.
+    #[inline(always)]
     pub fn contact(&self, x: V) -> Option<Contact<V>> {
         if !self.active {
             return None;
@@ -216,7 +217,11 @@ impl<'a, V: Grouped + Vector> Friction<'a, V> {
                 sticking_speed: ground.sticking_speed,
             });
         }
-        V::collider_contact(self.floor.colliders(), x)
+        let colliders = self.floor.colliders();
+        if colliders.is_empty() {
+            return None;
+        }
+        V::collider_contact(colliders, x)
             .filter(|contact| in_objective(contact.friction, contact.sticking_speed))
     }
 
@@ -224,7 +229,7 @@ impl<'a, V: Grouped + Vector> Friction<'a, V> {
     /// with the contact and the normal force `lambda` lagged to the vertex at `lagged_x` with
     /// gradient `lagged` (its contact normal, surface velocity and coefficients; `lambda` the
     /// normal force of `lagged` there). `None` without contact or normal force there.
-    #[inline]
+    #[inline(always)]
     pub fn lagged_slip(
         &self,
         (x, start): (V, V),
@@ -239,7 +244,7 @@ impl<'a, V: Grouped + Vector> Friction<'a, V> {
     }
 
     /// [`lagged_slip`](Self::lagged_slip) lagged to the vertex itself, at `x` with gradient `g`.
-    #[inline]
+    #[inline(always)]
     pub fn slip(&self, x: V, start: V, g: V) -> Option<(Slip<V>, Real)> {
         self.lagged_slip((x, start), (x, g))
     }

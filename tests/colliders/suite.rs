@@ -3,7 +3,7 @@
 
 use p::body::{Body, FixedStorage, Solver};
 use p::material::StableNeoHookean;
-use p::step::{Collider, ExplicitSettings, Ground, SignedDistance};
+use p::step::{Collider, ExplicitSettings, Ground, SignedDistance, VbdSettings};
 use p::types::{Quat, Real, Vec3};
 
 /// A 0.2 m cube of 2 x 2 x 2 cells: 27 vertices, 40 tetrahedra.
@@ -208,10 +208,21 @@ fn damped_explicit() -> Solver {
 ///
 /// Otherwise the block slides with `g (sin(theta) - mu cos(theta))`, measured as the change of
 /// its mean velocity between 1 s and 2 s (after the landing transient), within 2 %. Every
-/// stepper; VBD in f32 within 10 %: its solves stop at the f32 rounding floor short of the
-/// exact acceleration even without friction (measured on this incline at `mu = 0`: 4.63
-/// against 4.91 m/s^2, 5.5 % or 0.27 m/s^2 short; 6.1 and 8.2 % at `mu = 0.1` and 0.3), with
-/// the iterate in world coordinates 4 to 8 m from the origin by then.
+/// stepper; VBD in f32 within 10 %: its solves end short of the exact acceleration even
+/// without friction (measured on this incline at `mu = 0`: 4.63 against 4.91 m/s^2, 5.6 %
+/// short on the half-space, 0.7 % on the ground). Measured why: none of VBD's f32 solves here
+/// converges (all 200 steps of each run); most end before their budget of 100 sweeps (after
+/// 41 to 98), every sweep's first trial accepted, when the sweep's direction is no longer
+/// downhill, at residuals of 0.05 to 0.9 N that grow as the block slides away from the origin
+/// (0.13 N after 0.4 s, 0.45 to 0.5 N after 1.6 to 2 s on the half-space at mu 0.3). Estimated
+/// cause: a vertex's Newton step near the solution, residual over block stiffness (0.1 N over
+/// roughly 1e5 N/m for this `E = 1e6` Pa cube), is about 1e-6 m, a few ulp of coordinates 1
+/// to 8 m from the origin (1.2e-7 to 4.8e-7 m): with colliders the loop does not shift its
+/// coordinates next to the body, and on the ground it shifts an axis only once the body is four
+/// extents away. In f64 the same solves run their 100 sweeps and land within 0.4 %; in f32 with
+/// `E = 1e5` Pa (steps ten times larger) within 1.6 % (half-space) and 0.7 % (ground) at
+/// `mu = 0.3`. Iterating in displacements from `x_n` would remove the position's magnitude
+/// from that rounding (not done).
 #[test]
 #[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test colliders")]
 fn a_block_on_an_incline_sticks_or_slides_by_coulomb_law() {
@@ -220,9 +231,15 @@ fn a_block_on_an_incline_sticks_or_slides_by_coulomb_law() {
     let eps_v = p::step::SUGGESTED_STICKING_SPEED;
     let single = Real::EPSILON > 1e-10;
     let mut failures = Vec::new();
+    // VBD also with the Chebyshev semi-iteration (rho estimated from 4 plain sweeps), which
+    // runs in contact once the re-lagging stops moving the normal forces (`docs/math.md` 4.6).
+    let accelerated = (
+        "vbd chebyshev",
+        Solver::Vbd(VbdSettings::new(1.0).with_estimated_chebyshev(4)),
+    );
     for on_ground in [false, true] {
         let surface = if on_ground { "ground" } else { "half-space" };
-        for (name, solver) in solvers() {
+        for (name, solver) in solvers().into_iter().chain([accelerated]) {
             for mu in [0.7, 1.0] {
                 let solver = match solver {
                     Solver::Explicit { .. } => damped_explicit(),
@@ -258,7 +275,7 @@ fn a_block_on_an_incline_sticks_or_slides_by_coulomb_law() {
                      ({:.2} %)",
                     100.0 * error
                 );
-                let bound = if single && name == "vbd" { 0.1 } else { 0.02 };
+                let bound = if single && name.starts_with("vbd") { 0.1 } else { 0.02 };
                 let within = error < bound; // false for NaN
                 if !within {
                     failures.push(format!(

@@ -11,7 +11,7 @@ use super::super::super::math;
 use super::super::super::types::Real;
 use super::super::friction::{Friction, Lag};
 use super::super::loads::Loads;
-use super::super::points::{Floor, Point};
+use super::super::points::{Floor, Grouped, Point};
 use super::super::vertex_passes::{Frames, TrialPoint, Vertices, gradient_pass};
 use super::super::{ElasticEnergy, Ground, Vector, pinned_flags};
 use crate::error::StepError;
@@ -68,6 +68,9 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     /// trial is taken from), or without it to `x` itself (its gradient before friction, which
     /// is tangential and does not change it): within one line search `Phi` is then one smooth
     /// function, whose contact set does not change when a trial point lands on a surface.
+    /// Lagged to another iterate, the residual is that of the gradient before friction: a trial
+    /// point's residual is only read once it is accepted, after [`relag`](Self::relag) has
+    /// replaced it, so the pass that sums it with friction is saved.
     pub fn evaluate(
         &self,
         x: &[F::Vector],
@@ -88,9 +91,11 @@ impl<F: ElasticEnergy> Objective<'_, F> {
             inertia_and_gravity += loads_phi;
             residual_squared = loaded_residual;
         }
-        if let Some((friction_phi, rough_residual)) = self.add_friction(x, gradient, lagged, None) {
-            inertia_and_gravity += friction_phi;
-            residual_squared = rough_residual;
+        if let Some(rough) = self.add_friction(x, gradient, lagged, None) {
+            inertia_and_gravity += rough.phi;
+            if lagged.is_none() {
+                residual_squared = rough.residual_squared;
+            }
         }
         Ok(Evaluation {
             phi: elastic + inertia_and_gravity,
@@ -103,86 +108,91 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     /// friction lagged to `lagged` (the previous iterate): afterwards they hold `Phi`, its
     /// gradient and residual with friction lagged to `x` itself, so that the next line search
     /// minimises the friction potential of the new iterate (the fixed point is the lagged
-    /// model's solution with its own contact forces). A no-op without friction.
+    /// model's solution with its own contact forces). Returns how far the lag moved: the
+    /// largest relative change of a vertex's force factor `mu lambda` (1 where a vertex entered
+    /// or left a frictional contact), 0 without friction.
     pub fn relag(
         &self,
         x: &[F::Vector],
         gradient: &mut [F::Vector],
         lagged: Lag<'_, F::Vector>,
         evaluation: &mut Evaluation,
-    ) {
-        if let Some((friction_phi, residual_squared)) =
-            self.add_friction(x, gradient, None, Some(lagged))
-        {
-            evaluation.phi += friction_phi;
-            evaluation.residual = math::sqrt(residual_squared);
+    ) -> Real {
+        match self.add_friction(x, gradient, None, Some(lagged)) {
+            Some(Relagged {
+                phi,
+                residual_squared,
+                moved,
+            }) => {
+                evaluation.phi += phi;
+                evaluation.residual = math::sqrt(residual_squared);
+                moved
+            }
+            None => 0.0,
         }
-    }
-
-    /// Whether any free vertex at `x` is in a frictional contact.
-    pub fn in_rough_contact(&self, x: &[F::Vector]) -> bool {
-        let friction = &self.friction;
-        friction.is_active()
-            && x.iter()
-                .zip(pinned_flags(self.vertices.pinned))
-                .any(|(&x, pinned)| !pinned && friction.contact(x).is_some())
     }
 
     /// Adds friction to `gradient` at `x`: at every free vertex, the potential and gradient of
     /// `friction.rs` lagged to `lagged` (or to `x` and `gradient` itself if `None`), minus those
     /// lagged to `included` (whose friction `gradient` holds already; nothing if `None`).
-    /// Returns friction's change of `Phi` (J) and the squared residual of the result projected
-    /// on the contact constraints (N^2), which replaces the passes' one; `None` (and nothing
-    /// changed) if no vertex got a term.
+    /// Returns friction's change of `Phi` (J), the squared residual of the result projected on
+    /// the contact constraints (N^2; 0, not summed, with `lagged` given), which replaces the
+    /// passes' one, and how far the lag moved between `included` and `lagged` (see
+    /// [`relag`](Self::relag)); `None` (and nothing changed) if no vertex got a term. One pass:
+    /// a vertex's residual depends on its own gradient only, so it is summed as soon as that is
+    /// final (in vertex order, as a second pass would).
     fn add_friction(
         &self,
         x: &[F::Vector],
         gradient: &mut [F::Vector],
         lagged: Option<Lag<'_, F::Vector>>,
         included: Option<Lag<'_, F::Vector>>,
-    ) -> Option<(Real, Real)> {
+    ) -> Option<Relagged> {
         let friction = &self.friction;
         if !friction.is_active() {
             return None;
         }
         let Vertices { pinned, start, .. } = self.vertices;
-        let mut phi = 0.0;
-        let mut changed = false;
-        for (i, g) in gradient.iter_mut().enumerate() {
-            let free = !pinned.get(i).copied().unwrap_or(false);
-            let (Some(&x), Some(&x0), true) = (x.get(i), start.get(i), free) else {
-                continue;
-            };
-            let term = |lag: Option<Lag<'_, F::Vector>>, sign: Real| {
-                let reference = match lag {
-                    Some(lag) => (lag.x.get(i).copied()?, lag.gradient.get(i).copied()?),
-                    None => (x, *g),
-                };
-                let (slip, force) = friction.lagged_slip((x, x0), reference)?;
-                let force = sign * force;
-                Some((force * slip.potential(), slip.gradient() * force))
-            };
-            let added = term(lagged, 1.0);
-            let removed = included.and_then(|lag| term(Some(lag), -1.0));
-            for (energy, force) in [added, removed].into_iter().flatten() {
-                phi += energy;
-                *g += self.loads.free_part(i, force);
-                changed = true;
-            }
-        }
-        if !changed {
-            return None;
-        }
         let floor = self.frames.floor();
-        let mut residual = 0.0;
-        let rows = gradient.iter().zip(x).zip(pinned_flags(pinned));
-        for ((&g, &x), pinned) in rows {
-            if !pinned {
-                let projected = floor.constrain(floor.contact(x), x, g, 1.0);
-                residual += projected.inner(projected);
+        let mut phi = 0.0;
+        let mut residual_squared = 0.0;
+        let mut moved: Real = 0.0;
+        let mut changed = false;
+        // Lagged to another iterate (a trial point), the residual is not read (see `evaluate`).
+        let summed = lagged.is_none();
+        let rows = gradient.iter_mut().zip(x).zip(start);
+        for (i, ((g, &x), &x0)) in rows.enumerate() {
+            if pinned.get(i).copied().unwrap_or(false) {
+                continue;
+            }
+            let added = friction_term(friction, i, (x, x0, *g), lagged);
+            let removed =
+                included.and_then(|lag| friction_term(friction, i, (x, x0, *g), Some(lag)));
+            if included.is_some() {
+                moved = moved.max(match (added, removed) {
+                    (Some((new, ..)), Some((old, ..))) => (new - old).abs() / new.max(old),
+                    (None, None) => 0.0,
+                    _ => 1.0,
+                });
+            }
+            for (force, sign) in [(added, 1.0), (removed, -1.0)] {
+                if let Some((force, potential, direction)) = force {
+                    let force = sign * force;
+                    phi += force * potential;
+                    *g += self.loads.free_part(i, direction * force);
+                    changed = true;
+                }
+            }
+            if summed {
+                let projected = floor.constrain(floor.contact(x), x, *g, 1.0);
+                residual_squared += projected.inner(projected);
             }
         }
-        Some((phi, residual))
+        changed.then_some(Relagged {
+            phi,
+            residual_squared,
+            moved,
+        })
     }
 
     /// `|M g|` (N), the norm of the gravity load on the free vertices (`|M g + f_ext|` over the
@@ -213,6 +223,35 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         let relative_squared: Real = free_masses().map(|m| (m / heaviest) * (m / heaviest)).sum();
         heaviest * math::sqrt(relative_squared) * math::sqrt(self.gravity.dot(self.gravity))
     }
+}
+
+/// Friction's term at vertex `i` at `x` moved from `x0`, lagged to `lag` (or to `x` with its
+/// gradient `g` if `None`): the force factor `mu lambda` (N), `f0(|u|)` (m) and `grad f0`;
+/// `None` without a frictional contact or normal force there. Inlined into the one pass over
+/// the vertices, where most vertices leave at the contact test.
+#[inline(always)]
+fn friction_term<V: Grouped + Vector>(
+    friction: &Friction<'_, V>,
+    i: usize,
+    (x, x0, g): (V, V, V),
+    lag: Option<Lag<'_, V>>,
+) -> Option<(Real, Real, V)> {
+    let reference = match lag {
+        Some(lag) => (lag.x.get(i).copied()?, lag.gradient.get(i).copied()?),
+        None => (x, g),
+    };
+    let (slip, force) = friction.lagged_slip((x, x0), reference)?;
+    Some((force, slip.potential(), slip.gradient()))
+}
+
+/// What adding (or re-lagging) friction changed: see `Objective::add_friction`.
+struct Relagged {
+    /// Friction's change of `Phi` (J).
+    phi: Real,
+    /// The squared residual with friction (N^2).
+    residual_squared: Real,
+    /// The largest relative change of a force factor `mu lambda` between the two lags.
+    moved: Real,
 }
 
 /// What one evaluation of `Phi` gives.
