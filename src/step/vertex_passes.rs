@@ -7,7 +7,7 @@
 use super::super::lanes::{LANES, Lane, LaneSum, Lanes, each_lane};
 use super::super::math::BATCH_VERTICES;
 use super::super::types::Real;
-use super::descent::line_search::copy;
+use super::descent::line_search::{copy, slope_along};
 use super::friction::Friction;
 use super::points::{Floor, Grouped, Point};
 use super::split::{Blocks, Split};
@@ -679,6 +679,28 @@ pub(super) fn chebyshev_pass<V: Shared + Vector>(
     let parts = ((*vertices, x, gradient), trial);
     model.run_vertex_pass(Blocks::new(x.len(), parts, &block));
 }
+
+/// The slope `g.d` (each block's sum in vertex order, the block sums added over the fixed tree)
+/// and the trial points `x + alpha d` (as
+/// [`split_trial_pass`]) in one pass of blocks run by `model`.
+pub(super) fn slope_and_trial_pass<V: Shared + Vector>(
+    model: &impl ElasticModel,
+    frames: &Frames<V>,
+    pinned: &[bool],
+    (x, gradient, direction): (&[V], &[V], &[V]),
+    alpha: Real,
+    trial: TrialPoint<'_, V>,
+) -> Real {
+    let block = |_, (pinned, x, gradient, direction, trial): SlopeParts<'_, V>| {
+        trial_pass(frames, pinned, (x, direction), alpha, trial);
+        slope_along(gradient, direction)
+    };
+    let parts = (pinned, x, gradient, direction, trial);
+    model.run_vertex_pass(Blocks::new(x.len(), parts, &block))
+}
+
+/// A block's share of the slope-and-trial pass's buffers.
+type SlopeParts<'p, V> = (&'p [bool], &'p [V], &'p [V], &'p [V], TrialPoint<'p, V>);
 
 #[cfg(test)]
 // Compiled for both precisions: the conversions are no-ops in one of them.
