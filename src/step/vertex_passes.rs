@@ -11,7 +11,10 @@ use super::descent::line_search::{copy, slope_along};
 use super::friction::Friction;
 use super::points::{Floor, Grouped, Point};
 use super::split::{Blocks, Split};
-use super::{Collider, ElasticModel, Ground, Vector, first_non_finite};
+use super::{
+    Collider, ElasticModel, Ground, Vector, check_state_lengths, first_bad_mass, first_non_finite,
+};
+use crate::error::StepError;
 
 /// What every vertex pass needs besides the buffers, for points of type `P`.
 #[derive(Clone, Copy)]
@@ -678,6 +681,32 @@ pub(super) fn chebyshev_pass<V: Shared + Vector>(
     };
     let parts = ((*vertices, x, gradient), trial);
     model.run_vertex_pass(Blocks::new(x.len(), parts, &block));
+}
+
+/// [`check_state`](super::check_state) with its scans (masses in range, finite positions and
+/// velocities) in blocks run by `model`: the same error, naming the same first vertex.
+pub(super) fn split_check_state<V: Vector + Send + Sync>(
+    model: &impl ElasticModel,
+    masses: &[Real],
+    pinned: &[bool],
+    positions: &[V],
+    velocities: Option<&[V]>,
+) -> Result<(), StepError> {
+    let n = model.vertex_count();
+    check_state_lengths(n, masses, pinned, positions, velocities)?;
+    let block = |first: usize, (masses, positions, velocities): (&[Real], &[V], &[V])| {
+        let at = |vertex: usize| first + vertex;
+        (
+            first_bad_mass(masses).map(at),
+            first_non_finite(positions, velocities).map(at),
+        )
+    };
+    let parts = (masses, positions, velocities.unwrap_or(&[]));
+    match model.run_vertex_pass(Blocks::new(n, parts, &block)) {
+        (Some(vertex), _) => Err(StepError::Mass { vertex }),
+        (None, Some(vertex)) => Err(StepError::NonFiniteInput { vertex }),
+        (None, None) => Ok(()),
+    }
 }
 
 /// The slope `g.d` (each block's sum in vertex order, the block sums added over the fixed tree)
