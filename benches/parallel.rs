@@ -18,6 +18,10 @@
 //!   whole budget of 10 iterations) of the box resting on the ground under gravity, from the same
 //!   state every run; the time per iteration (initial guess and end of step included, spread
 //!   over the 10); the parallel body as for the explicit step, both ways.
+//! * `Newton step`: `newton_step` (1/60 s, tolerance 0, 1 Newton iteration of at most 20 CG
+//!   iterations) of the box resting on the ground, from the same state every run; the
+//!   parallel body as for the explicit step, both ways (Hessians, products and CG vector
+//!   operations on the pool).
 //!
 //! The steppers' own passes over the vertices run on the pool too (in blocks of
 //! `step::VERTEX_BLOCK` vertices through `ElasticModel::run_vertex_pass`); the tables give their
@@ -43,6 +47,7 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use common::{CsvRow, TablePass};
+use softfem::element::TetHessian;
 use softfem::element::TetRest;
 use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::{Mat3, Vec3};
@@ -53,9 +58,10 @@ use softfem::mesh::{
 };
 use softfem::parallel::ParallelTetElastic;
 use softfem::step::{
-    ElasticEnergy, ElasticModel, ExplicitScratch, ExplicitSettings, Ground, RelaxScratch,
-    RelaxSettings, TetElastic, explicit_scratch_len, relax_scratch_len, relax_step,
-    stable_time_step, step_explicit,
+    ElasticEnergy, ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, Ground,
+    NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, TetElastic, explicit_scratch_len,
+    newton_scratch_len, newton_step, relax_scratch_len, relax_step, stable_time_step,
+    step_explicit,
 };
 
 /// Cells per axis of the two boxes: 105 456 and 998 250 tetrahedra.
@@ -67,6 +73,10 @@ const POISSON: f32 = 0.45;
 
 /// The relaxation's iteration budget per timed step.
 const RELAX_ITERATIONS: u32 = 10;
+
+/// Newton's iteration budget per timed step, and its CG budget per iteration.
+const NEWTON_ITERATIONS: u32 = 1;
+const NEWTON_CG_ITERATIONS: u32 = 20;
 
 /// Element and vertex pieces per thread of the largest pool. One: the direct force pass
 /// evaluates the elements cut by a vertex-piece boundary once per piece, so the fewer pieces the
@@ -114,6 +124,13 @@ struct Scene {
 }
 
 impl Scene {
+    /// The lumped masses (kg) of the box at 1000 kg/m^3.
+    fn masses(&self) -> Vec<f32> {
+        let mut masses = vec![0.0; self.mesh.vertex_count()];
+        self.mesh.lumped_masses(1000.0, &mut masses).unwrap();
+        masses
+    }
+
     fn new(cells: usize, pieces: usize) -> Self {
         let (vertices, tets) = box_counts(cells, cells, cells, BoxSplit::Kuhn6).unwrap();
         let rest_positions = vec![Vec3::ZERO; vertices].leak();
@@ -324,9 +341,7 @@ fn explicit_variant<F: ElasticModel<Vector = Vec3> + Send + Sync + 'static>(
     scene: &Scene,
     installed: Option<&'static rayon::ThreadPool>,
 ) -> Variant {
-    let n = scene.mesh.vertex_count();
-    let mut masses = vec![0.0; n];
-    scene.mesh.lumped_masses(1000.0, &mut masses).unwrap();
+    let (n, masses) = (scene.mesh.vertex_count(), scene.masses());
     let mut stiffness = vec![0.0; n];
     let dt = 0.5 * stable_time_step(&model, &masses, &[], &mut stiffness).unwrap();
     let settings = ExplicitSettings::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
@@ -381,42 +396,69 @@ fn relax_variant<F: ElasticEnergy<Vector = Vec3> + Send + Sync + 'static>(
     scene: &Scene,
     installed: Option<&'static rayon::ThreadPool>,
 ) -> (Variant, (u32, u32)) {
-    let n = scene.mesh.vertex_count();
-    let mut masses = vec![0.0; n];
-    scene.mesh.lumped_masses(1000.0, &mut masses).unwrap();
+    let (n, masses) = (scene.mesh.vertex_count(), scene.masses());
     let settings = RelaxSettings::new(1.0 / 60.0)
         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
         .with_ground(Ground::new(Vec3::Y, 0.0))
         .with_tolerance(0.0, RELAX_ITERATIONS);
-    let start = scene.rest_positions;
-    let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
     let vectors = vec![Vec3::ZERO; relax_scratch_len(n)].leak();
     let scalars = vec![0.0; n].leak();
     let mut scratch = RelaxScratch::new(vectors, scalars);
+    let solve = move |x: &mut [Vec3], v: &mut [Vec3]| {
+        let report = relax_step(&model, &masses, &[], &settings, x, v, &mut scratch).unwrap();
+        (report.iterations, report.energy_evaluations)
+    };
+    // The first run computes the preconditioner (kept in the scratch, as in a simulation).
+    repeated_solve(label, threads, scene.rest_positions, installed, solve)
+}
+
+/// Newton's step: from the box at rest on the ground, `NEWTON_ITERATIONS` Newton iterations of
+/// at most `NEWTON_CG_ITERATIONS` CG iterations each; the state is restored before every run.
+/// Returns the variant and its (Newton, CG) iterations per run.
+fn newton_variant<F: ElasticHessian + Send + Sync + 'static>(
+    label: String,
+    threads: usize,
+    model: F,
+    scene: &Scene,
+    installed: Option<&'static rayon::ThreadPool>,
+) -> (Variant, (u32, u32)) {
+    let (n, ne) = (scene.mesh.vertex_count(), scene.mesh.element_count());
+    let masses = scene.masses();
+    let settings = NewtonSettings::new(1.0 / 60.0)
+        .with_gravity(Vec3::new(0.0, -9.81, 0.0))
+        .with_ground(Ground::new(Vec3::Y, 0.0))
+        .with_tolerance(0.0, NEWTON_ITERATIONS)
+        .with_cg_iterations(NEWTON_CG_ITERATIONS);
+    let lengths = newton_scratch_len(n, ne);
+    let vectors = vec![Vec3::ZERO; lengths.vectors].leak();
+    let blocks = vec![Mat3::ZERO; lengths.blocks].leak();
+    let hessians = vec![TetHessian::default(); lengths.hessians].leak();
+    let mut scratch = NewtonScratch::new(vectors, blocks, hessians);
+    let solve = move |x: &mut [Vec3], v: &mut [Vec3]| {
+        let report = newton_step(&model, &masses, &[], &settings, x, v, &mut scratch).unwrap();
+        (report.newton_iterations, report.cg_iterations)
+    };
+    repeated_solve(label, threads, scene.rest_positions, installed, solve)
+}
+
+/// The variant that runs `solve` from `start` at rest (restored before every run), inside
+/// `installed` if given, and its counts from a first run, which every later run must repeat
+/// (the same path through the solver).
+fn repeated_solve(
+    label: String,
+    threads: usize,
+    start: &'static [Vec3],
+    installed: Option<&'static rayon::ThreadPool>,
+    mut solve: impl FnMut(&mut [Vec3], &mut [Vec3]) -> (u32, u32) + Send + 'static,
+) -> (Variant, (u32, u32)) {
+    let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; start.len()]);
     let mut step = move || {
         x.copy_from_slice(start);
         v.fill(Vec3::ZERO);
-        let step = || {
-            relax_step(
-                &model,
-                &masses,
-                &[],
-                &settings,
-                &mut x,
-                &mut v,
-                &mut scratch,
-            )
-            .unwrap()
-        };
-        on_installed(installed, step)
+        on_installed(installed, || solve(&mut x, &mut v))
     };
-    // The first run computes the preconditioner (kept in the scratch, as in a simulation).
-    let report = step();
-    let counts = (report.iterations, report.energy_evaluations);
-    let run = Box::new(move || {
-        let report = step();
-        assert_eq!((report.iterations, report.energy_evaluations), counts);
-    });
+    let counts = step();
+    let run = Box::new(move || assert_eq!(step(), counts));
     (
         Variant {
             label,
@@ -759,21 +801,12 @@ fn main() {
     );
     rows.push(vertex_share_row("explicit step", tets, share));
 
-    let (body, _) = scene.stable_bodies(None);
-    let (sequential, counts) = relax_variant(on(0), 0, body, scene, None);
-    let mut variants = vec![sequential];
-    for &(threads, pool) in &pools {
-        for (label, installed) in [(on(threads), None), (installed(threads), Some(pool))] {
-            let (_, parallel) = scene.stable_bodies(Some(pool));
-            let (variant, parallel_counts) =
-                relax_variant(label, threads, parallel.unwrap(), scene, installed);
-            assert_eq!(
-                parallel_counts, counts,
-                "the parallel run must take the same path"
-            );
-            variants.push(variant);
-        }
-    }
+    let (mut variants, counts) = solver_variants(
+        scene,
+        &pools,
+        |body| relax_variant(on(0), 0, body, scene, None),
+        |label, threads, body, installed| relax_variant(label, threads, body, scene, installed),
+    );
     variants.push(component_variant(scene, true));
     let (seconds, _) = time(&mut variants, &plan);
     let (iterations, evaluations) = counts;
@@ -792,7 +825,56 @@ fn main() {
         share * 100.0
     );
     rows.push(vertex_share_row("relaxation iteration", tets, share));
+
+    let (mut variants, counts) = solver_variants(
+        scene,
+        &pools,
+        |body| newton_variant(on(0), 0, body, scene, None),
+        |label, threads, body, installed| newton_variant(label, threads, body, scene, installed),
+    );
+    let (seconds, _) = time(&mut variants, &plan);
+    let (newton_iterations, cg_iterations) = counts;
+    rows.extend(report(
+        "Newton step",
+        tets,
+        &variants,
+        &seconds,
+        PerRun::Step,
+    ));
+    println!("{newton_iterations} Newton and {cg_iterations} CG iterations a step.");
     common::append_csv_rows(&rows);
+}
+
+/// The sequential variant of a solver (`sequential` on the sequential body) and the parallel
+/// ones on every pool, called from the timing thread and inside the pool's `install`
+/// (`parallel(label, threads, body, installed)`); checks that every run takes the sequential
+/// run's path (its counts), which it returns.
+fn solver_variants(
+    scene: &Scene,
+    pools: &[(usize, &'static rayon::ThreadPool)],
+    sequential: impl FnOnce(TetElastic<'static, StableNeoHookean>) -> (Variant, (u32, u32)),
+    parallel: impl Fn(
+        String,
+        usize,
+        ParallelTetElastic<'static, StableNeoHookean>,
+        Option<&'static rayon::ThreadPool>,
+    ) -> (Variant, (u32, u32)),
+) -> (Vec<Variant>, (u32, u32)) {
+    let (body, _) = scene.stable_bodies(None);
+    let (variant, counts) = sequential(body);
+    let mut variants = vec![variant];
+    for &(threads, pool) in pools {
+        for (label, installed) in [(on(threads), None), (installed(threads), Some(pool))] {
+            let (_, body) = scene.stable_bodies(Some(pool));
+            let (variant, parallel_counts) = parallel(label, threads, body.unwrap(), installed);
+            assert_eq!(
+                parallel_counts, counts,
+                "the parallel run must take the same path"
+            );
+            variants.push(variant);
+        }
+    }
+    (variants, counts)
 }
 
 /// The CSV row of the vertex passes' share of a sequential step.

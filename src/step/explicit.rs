@@ -6,7 +6,8 @@ use super::collider::{Collider, check_colliders};
 use super::descent::line_search::copy;
 use super::loads::Loads;
 use super::split::Blocks;
-use super::{ElasticModel, Ground, Vector, check_length, check_state, pinned_flags};
+use super::vertex_passes::split_check_state;
+use super::{ElasticModel, Ground, Vector, check_length, pinned_flags};
 use crate::error::{MeshError, StepBuffer, StepError};
 
 /// The default [`ExplicitSettings::max_energy_growth`]: 100.
@@ -382,7 +383,7 @@ pub fn step_explicit<F: ElasticModel>(
 ) -> Result<ExplicitReport, StepError> {
     let n = model.vertex_count();
     let ground = validate(settings)?;
-    check_state(n, masses, pinned, positions, Some(velocities))?;
+    split_check_state(model, masses, pinned, positions, Some(velocities))?;
     let loads = Loads {
         forces: settings.external_forces,
         fixed_axes: settings.fixed_axes,

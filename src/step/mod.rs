@@ -557,6 +557,22 @@ fn check_state<V: Vector>(
     positions: &[V],
     velocities: Option<&[V]>,
 ) -> Result<(), StepError> {
+    check_state_lengths(vertex_count, masses, pinned, positions, velocities)?;
+    if let Some(vertex) = first_bad_mass(masses) {
+        return Err(StepError::Mass { vertex });
+    }
+    first_non_finite(positions, velocities.unwrap_or(&[]))
+        .map_or(Ok(()), |vertex| Err(StepError::NonFiniteInput { vertex }))
+}
+
+/// The length checks of [`check_state`].
+fn check_state_lengths<V>(
+    vertex_count: usize,
+    masses: &[Real],
+    pinned: &[bool],
+    positions: &[V],
+    velocities: Option<&[V]>,
+) -> Result<(), StepError> {
     check_length(StepBuffer::Positions, vertex_count, positions.len())?;
     if let Some(velocities) = velocities {
         check_length(StepBuffer::Velocities, vertex_count, velocities.len())?;
@@ -565,11 +581,12 @@ fn check_state<V: Vector>(
     if !pinned.is_empty() {
         check_length(StepBuffer::Pinned, vertex_count, pinned.len())?;
     }
-    if let Some(vertex) = masses.iter().position(|&m| !mass_in_range(m)) {
-        return Err(StepError::Mass { vertex });
-    }
-    first_non_finite(positions, velocities.unwrap_or(&[]))
-        .map_or(Ok(()), |vertex| Err(StepError::NonFiniteInput { vertex }))
+    Ok(())
+}
+
+/// The first of `masses` out of the steppers' range ([`mass_in_range`]).
+fn first_bad_mass(masses: &[Real]) -> Option<usize> {
+    masses.iter().position(|&m| !mass_in_range(m))
 }
 
 /// Whether `m` (kg) is a mass the steppers accept: a finite normal positive number, so that

@@ -13,7 +13,8 @@ use super::descent::newton::{CgVectors, Newton};
 use super::descent::stopping::StallRule;
 use super::descent::{self, LoopSettings, Problem, Work};
 use super::loads::Loads;
-use super::{ElasticHessian, Ground, Vector, check_length, check_state};
+use super::vertex_passes::split_check_state;
+use super::{ElasticHessian, Ground, Vector, check_length};
 use crate::error::{StepBuffer, StepError};
 
 pub use super::descent::stopping::FLOOR_FACTOR;
@@ -408,7 +409,7 @@ fn solve<F: ElasticHessian>(
 ) -> Result<NewtonReport, StepError> {
     let n = model.vertex_count();
     let ground = validate(settings)?;
-    check_state(n, masses, pinned, positions, velocities.as_deref())?;
+    split_check_state(model, masses, pinned, positions, velocities.as_deref())?;
     let loads = Loads {
         forces: settings.external_forces,
         fixed_axes: settings.fixed_axes,

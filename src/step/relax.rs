@@ -13,7 +13,8 @@ use super::descent::stopping::StallRule;
 use super::descent::{self, Direction, LoopSettings, Problem, Work};
 use super::loads::Loads;
 use super::stability::vertex_stiffness;
-use super::{ElasticEnergy, Ground, Vector, check_length, check_state};
+use super::vertex_passes::split_check_state;
+use super::{ElasticEnergy, Ground, Vector, check_length};
 use crate::error::{StepBuffer, StepError};
 
 /// The length of the vector scratch buffer the relaxation needs for `vertex_count` vertices:
@@ -468,7 +469,7 @@ pub(super) fn minimise<F: ElasticEnergy, D: Direction<F>>(
 ) -> Result<RelaxReport, StepError> {
     let n = model.vertex_count();
     let ground = validate(settings)?;
-    check_state(n, masses, pinned, positions, velocities.as_deref())?;
+    split_check_state(model, masses, pinned, positions, velocities.as_deref())?;
     let loads = Loads {
         forces: settings.external_forces,
         fixed_axes: settings.fixed_axes,

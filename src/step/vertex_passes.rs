@@ -7,11 +7,14 @@
 use super::super::lanes::{LANES, Lane, LaneSum, Lanes, each_lane};
 use super::super::math::BATCH_VERTICES;
 use super::super::types::Real;
-use super::descent::line_search::copy;
+use super::descent::line_search::{copy, slope_along};
 use super::friction::Friction;
 use super::points::{Floor, Grouped, Point};
 use super::split::{Blocks, Split};
-use super::{Collider, ElasticModel, Ground, Vector, first_non_finite};
+use super::{
+    Collider, ElasticModel, Ground, Vector, check_state_lengths, first_bad_mass, first_non_finite,
+};
+use crate::error::StepError;
 
 /// What every vertex pass needs besides the buffers, for points of type `P`.
 #[derive(Clone, Copy)]
@@ -679,6 +682,54 @@ pub(super) fn chebyshev_pass<V: Shared + Vector>(
     let parts = ((*vertices, x, gradient), trial);
     model.run_vertex_pass(Blocks::new(x.len(), parts, &block));
 }
+
+/// [`check_state`](super::check_state) with its scans (masses in range, finite positions and
+/// velocities) in blocks run by `model`: the same error, naming the same first vertex.
+pub(super) fn split_check_state<V: Vector + Send + Sync>(
+    model: &impl ElasticModel,
+    masses: &[Real],
+    pinned: &[bool],
+    positions: &[V],
+    velocities: Option<&[V]>,
+) -> Result<(), StepError> {
+    let n = model.vertex_count();
+    check_state_lengths(n, masses, pinned, positions, velocities)?;
+    let block = |first: usize, (masses, positions, velocities): (&[Real], &[V], &[V])| {
+        let at = |vertex: usize| first + vertex;
+        (
+            first_bad_mass(masses).map(at),
+            first_non_finite(positions, velocities).map(at),
+        )
+    };
+    let parts = (masses, positions, velocities.unwrap_or(&[]));
+    match model.run_vertex_pass(Blocks::new(n, parts, &block)) {
+        (Some(vertex), _) => Err(StepError::Mass { vertex }),
+        (None, Some(vertex)) => Err(StepError::NonFiniteInput { vertex }),
+        (None, None) => Ok(()),
+    }
+}
+
+/// The slope `g.d` (each block's sum in vertex order, the block sums added over the fixed tree)
+/// and the trial points `x + alpha d` (as
+/// [`split_trial_pass`]) in one pass of blocks run by `model`.
+pub(super) fn slope_and_trial_pass<V: Shared + Vector>(
+    model: &impl ElasticModel,
+    frames: &Frames<V>,
+    pinned: &[bool],
+    (x, gradient, direction): (&[V], &[V], &[V]),
+    alpha: Real,
+    trial: TrialPoint<'_, V>,
+) -> Real {
+    let block = |_, (pinned, x, gradient, direction, trial): SlopeParts<'_, V>| {
+        trial_pass(frames, pinned, (x, direction), alpha, trial);
+        slope_along(gradient, direction)
+    };
+    let parts = (pinned, x, gradient, direction, trial);
+    model.run_vertex_pass(Blocks::new(x.len(), parts, &block))
+}
+
+/// A block's share of the slope-and-trial pass's buffers.
+type SlopeParts<'p, V> = (&'p [bool], &'p [V], &'p [V], &'p [V], TrialPoint<'p, V>);
 
 #[cfg(test)]
 // Compiled for both precisions: the conversions are no-ops in one of them.

@@ -47,10 +47,11 @@ use super::collider::Collider;
 use super::friction::{Friction, Lag};
 use super::loads::Loads;
 use super::points::Floor;
+use super::split::{Blocks, Total};
 use super::vertex_passes::{
     Frames, TrialPoint, Vertices, split_copy, split_first_non_finite, split_trial_pass,
 };
-use super::{ElasticEnergy, Ground, Vector, first_non_finite};
+use super::{ElasticEnergy, ElasticModel, Ground, Vector, first_non_finite};
 use crate::error::StepError;
 use line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
 use objective::{Evaluation, Objective, implicit_velocities};
@@ -208,25 +209,67 @@ pub(super) struct Work<'b, V> {
 /// documentation): along every axis on which `min_i |x_i| > 4 max_i |x_i - x_0|`, the first
 /// vertex's coordinate; zero along the others. Every `x_i - c` is then exact.
 pub(super) fn reference_point<V: Vector>(positions: &[V]) -> V {
+    positions.first().map_or(V::ZERO, |&first| {
+        Extents::of(positions, first).reference_point(first)
+    })
+}
+
+/// [`reference_point`] with the extents taken in blocks run by `model`: the same point (a
+/// minimum and a maximum do not depend on how the vertices are grouped).
+fn split_reference_point<V: Vector + Send + Sync>(model: &impl ElasticModel, positions: &[V]) -> V {
     let Some(&first) = positions.first() else {
         return V::ZERO;
     };
-    let mut far = 0;
-    for axis in [1u8, 2, 4] {
-        if axis & V::ALL_AXES == 0 {
-            continue;
+    let block = |_, positions: &[V]| Extents::of(positions, first);
+    let extents = model.run_vertex_pass(Blocks::new(positions.len(), positions, &block));
+    extents.reference_point(first)
+}
+
+/// Along each axis (x, y, z), the least `|x_i|` and the largest `|x_i - x_0|` over some
+/// vertices (`INFINITY` and 0 over none).
+#[derive(Clone, Copy)]
+struct Extents([(Real, Real); 3]);
+
+/// The bit of each axis in a fixed-axis mask.
+const AXES: [u8; 3] = [1, 2, 4];
+
+impl Extents {
+    /// The extents of `positions` about `first`.
+    fn of<V: Vector>(positions: &[V], first: V) -> Self {
+        let along = |v: V, axis: u8| V::ZERO.axes_from(v, axis).abs_sum();
+        let mut extents: [(Real, Real); 3] = [(Real::INFINITY, 0.0); 3];
+        for &x in positions {
+            for ((nearest, extent), axis) in extents.iter_mut().zip(AXES) {
+                *nearest = nearest.min(along(x, axis));
+                *extent = extent.max(along(x - first, axis));
+            }
         }
-        let along = |v: V| V::ZERO.axes_from(v, axis).abs_sum();
-        let (nearest, extent) = positions
-            .iter()
-            .fold((Real::INFINITY, 0.0), |(n, e): (Real, Real), &x| {
-                (n.min(along(x)), e.max(along(x - first)))
-            });
-        if nearest > 4.0 * extent {
-            far |= axis;
-        }
+        Extents(extents)
     }
-    V::ZERO.axes_from(first, far)
+
+    /// The reference point of vertices with these extents about the first vertex, `first`.
+    fn reference_point<V: Vector>(self, first: V) -> V {
+        let far = self
+            .0
+            .iter()
+            .zip(AXES)
+            .filter(|&(&(nearest, extent), axis)| axis & V::ALL_AXES != 0 && nearest > 4.0 * extent)
+            .fold(0, |far, (_, axis)| far | axis);
+        V::ZERO.axes_from(first, far)
+    }
+}
+
+impl Total for Extents {
+    #[inline(always)]
+    fn combine(left: Self, right: Self) -> Self {
+        let mut extents = left.0;
+        for ((nearest, extent), &(right_nearest, right_extent)) in extents.iter_mut().zip(&right.0)
+        {
+            *nearest = nearest.min(right_nearest);
+            *extent = extent.max(right_extent);
+        }
+        Extents(extents)
+    }
 }
 
 /// Adds `shift` to every entry of `values` (`-c` into the loop's coordinates, `c` back).
@@ -236,6 +279,21 @@ fn translate<V: Vector>(values: &mut [V], shift: V) {
             *value += shift;
         }
     }
+}
+
+/// [`translate`] in blocks run by `model`, then (where `copy_to` is not empty) the result
+/// copied into `copy_to`, in the same pass.
+fn split_translate<V: Vector + Send + Sync>(
+    model: &impl ElasticModel,
+    values: &mut [V],
+    shift: V,
+    copy_to: &mut [V],
+) {
+    let block = |_, (values, copy_to): (&mut [V], &mut [V])| {
+        translate(values, shift);
+        copy(copy_to, values);
+    };
+    model.run_vertex_pass(Blocks::new(values.len(), (values, copy_to), &block));
 }
 
 /// Runs one solve: shifts the state next to the body, descends from the initial guess along
@@ -263,12 +321,11 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
     // The colliders' geometry is given in world coordinates: with colliders the loop stays
     // there (no shift), so that their contact tests see the caller's positions.
     let origin = if problem.colliders.is_empty() {
-        reference_point(positions)
+        split_reference_point(problem.model, positions)
     } else {
         F::Vector::ZERO
     };
-    translate(positions, -origin);
-    split_copy(problem.model, start, positions);
+    split_translate(problem.model, positions, -origin, start);
     let start: &[F::Vector] = start;
     let restore = |positions: &mut [F::Vector]| {
         copy(positions, start);
@@ -317,7 +374,7 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
         }
     };
     let Some(velocities) = velocities else {
-        translate(positions, origin);
+        split_translate(problem.model, positions, origin, &mut []);
         // Shifting back can overflow what was finite next to the body (a ground or collider
         // near the largest float), so the state is checked where the caller gets it.
         if let Some(vertex) = split_first_non_finite(problem.model, positions, &[]) {
@@ -337,7 +394,7 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
         (positions, start, gradient),
         velocities,
     );
-    translate(positions, origin);
+    split_translate(problem.model, positions, origin, &mut []);
     // Checked after the shift back, which can overflow (see above); positions first.
     let non_finite = |values: &[F::Vector]| split_first_non_finite(problem.model, values, &[]);
     if let Some(vertex) = non_finite(positions).or_else(|| non_finite(velocities)) {
@@ -662,7 +719,8 @@ mod tests {
     use std::vec::Vec;
 
     use super::super::super::types::{Real, Vec2, Vec3};
-    use super::reference_point;
+    use super::super::split::{Total, VERTEX_BLOCK};
+    use super::{Extents, reference_point};
 
     /// A 0.4 x 0.1 x 0.1 m grid of points, moved by `offset`.
     fn grid(offset: Vec3) -> Vec<Vec3> {
@@ -717,5 +775,39 @@ mod tests {
             Vec2::new(60.25, 0.05),
         ];
         assert_eq!(reference_point(&points), Vec2::new(60.0, 0.0));
+    }
+
+    /// The extents of a body taken in two parts and combined are those of the whole body, bit
+    /// for bit, wherever it is cut (the split reference point is the one-pass one), on a body
+    /// far from the origin whose points are not sorted along any axis.
+    #[test]
+    fn extents_combined_over_any_cut_are_the_whole_body_s() {
+        let points: Vec<Vec3> = (0..3 * VERTEX_BLOCK + 5)
+            .map(|i| {
+                let t = i as Real;
+                Vec3::new(
+                    60.0 + (t * 0.37).sin(),
+                    -1e3 + (t * 1.3).cos(),
+                    0.25 * (t * 0.11).sin(),
+                )
+            })
+            .collect();
+        let first = points[0];
+        let whole = Extents::of(&points, first);
+        for cut in [0, 1, VERTEX_BLOCK, 2 * VERTEX_BLOCK + 3, points.len()] {
+            let (left, right) = points.split_at(cut);
+            let combined = Extents::combine(Extents::of(left, first), Extents::of(right, first));
+            for ((a, b), (c, d)) in combined.0.iter().zip(&whole.0) {
+                assert_eq!(
+                    (a.to_bits(), b.to_bits()),
+                    (c.to_bits(), d.to_bits()),
+                    "cut {cut}"
+                );
+            }
+            assert_eq!(combined.reference_point(first), reference_point(&points));
+        }
+        // Far along x (|x| >= 59 against an extent of at most 2) and y (|y| ~ 1e3, extent 2),
+        // near along z (|z| down to 0), as the rule says.
+        assert_eq!(reference_point(&points), Vec3::new(first.x, first.y, 0.0));
     }
 }

@@ -7,10 +7,10 @@
 use super::super::super::element::TetHessian;
 use super::super::super::math;
 use super::super::super::types::{Mat3, Real, Vec3};
+use super::super::ElasticHessian;
 use super::super::points::{Floor, Grouped};
-use super::super::vertex_passes::{TrialPoint, trial_pass};
-use super::super::{ElasticHessian, pinned_flags};
-use super::line_search::{copy, slope_along};
+use super::super::split::Blocks;
+use super::super::vertex_passes::{TrialPoint, slope_and_trial_pass, split_copy};
 use super::objective::Objective;
 use super::stopping::rounding_floor;
 use super::{Direction, Iterate};
@@ -159,9 +159,14 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
             direction,
             &mut self.cg,
         )?;
-        let slope = slope_along(at.gradient, direction);
-        trial_pass(&objective.frames, pinned, (at.x, direction), step, trial);
-        Ok(slope)
+        Ok(slope_and_trial_pass(
+            model,
+            &objective.frames,
+            pinned,
+            (at.x, at.gradient, direction),
+            step,
+            trial,
+        ))
     }
 
     fn extrapolate(
@@ -227,13 +232,6 @@ impl Constraints<'_> {
             v
         }
     }
-
-    /// `S v` in place.
-    fn project(&self, v: &mut [Vec3]) {
-        for (i, value) in v.iter_mut().enumerate() {
-            *value = self.apply(i, *value);
-        }
-    }
 }
 
 /// Writes the inverted preconditioner blocks `(B_i + m_i / h^2 I + F_i)^-1` into `blocks`, `B_i`
@@ -241,44 +239,54 @@ impl Constraints<'_> {
 /// `eps max(diag)^3` (singular or nearly: a vertex with no stiffness and no inertia) is
 /// replaced by the inverse of its diagonal, zero where a diagonal entry is not positive.
 /// Returns `sum |B_i + m_i / h^2 I|_F^2` over the free vertices (N^2/m^2), for the rounding
-/// floor.
+/// floor: a sum over vertex blocks (`split.rs`), as every sum of this file.
 fn invert_blocks<F: ElasticHessian>(
     model: &F,
     hessians: &[TetHessian],
     (masses, pinned, inertia): (&[Real], &[bool], Real),
-    rough: &impl Fn(usize) -> Option<Mat3>,
+    rough: &(impl Fn(usize) -> Option<Mat3> + Sync),
     blocks: &mut [Mat3],
 ) -> Result<Real, StepError> {
-    blocks.fill(Mat3::ZERO);
+    let clear = |_, blocks: &mut [Mat3]| blocks.fill(Mat3::ZERO);
+    model.run_vertex_pass(Blocks::new(blocks.len(), &mut *blocks, &clear));
     model.add_vertex_hessian_blocks(hessians, blocks)?;
-    let mut stiffness_squared = 0.0;
-    let rows = blocks.iter_mut().zip(masses).zip(pinned_flags(pinned));
-    for (i, ((block, &m), pinned)) in rows.enumerate() {
-        let mut b = *block + Mat3::from_diagonal(Vec3::splat(m * inertia));
-        if let Some(friction) = rough(i) {
-            b += friction;
+    let invert = |first: usize, (blocks, masses): (&mut [Mat3], &[Real])| {
+        let mut stiffness_squared = 0.0;
+        for (j, (block, &m)) in blocks.iter_mut().zip(masses).enumerate() {
+            let i = first + j;
+            let mut b = *block + Mat3::from_diagonal(Vec3::splat(m * inertia));
+            if let Some(friction) = rough(i) {
+                b += friction;
+            }
+            if !pinned.get(i).copied().unwrap_or(false) {
+                stiffness_squared += b.x_axis.length_squared()
+                    + b.y_axis.length_squared()
+                    + b.z_axis.length_squared();
+            }
+            *block = inverted(b);
         }
-        if !pinned {
-            stiffness_squared +=
-                b.x_axis.length_squared() + b.y_axis.length_squared() + b.z_axis.length_squared();
-        }
-        let diagonal = Vec3::new(b.x_axis.x, b.y_axis.y, b.z_axis.z);
-        let largest = diagonal.max_element();
-        let determinant = b.determinant();
-        *block = if determinant > Real::EPSILON * largest * largest * largest
-            && determinant.is_finite()
-        {
-            b.inverse()
-        } else {
-            let invert = |d: Real| if d > 0.0 { 1.0 / d } else { 0.0 };
-            Mat3::from_diagonal(Vec3::new(
-                invert(diagonal.x),
-                invert(diagonal.y),
-                invert(diagonal.z),
-            ))
-        };
+        stiffness_squared
+    };
+    Ok(model.run_vertex_pass(Blocks::new(blocks.len(), (blocks, masses), &invert)))
+}
+
+/// `b^-1`, or the inverse of its diagonal (zero where a diagonal entry is not positive) where
+/// its determinant is below `eps max(diag)^3` or not finite.
+#[inline(always)]
+fn inverted(b: Mat3) -> Mat3 {
+    let diagonal = Vec3::new(b.x_axis.x, b.y_axis.y, b.z_axis.z);
+    let largest = diagonal.max_element();
+    let determinant = b.determinant();
+    if determinant > Real::EPSILON * largest * largest * largest && determinant.is_finite() {
+        b.inverse()
+    } else {
+        let invert = |d: Real| if d > 0.0 { 1.0 / d } else { 0.0 };
+        Mat3::from_diagonal(Vec3::new(
+            invert(diagonal.x),
+            invert(diagonal.y),
+            invert(diagonal.z),
+        ))
     }
-    Ok(stiffness_squared)
 }
 
 /// Whether `x > 0` (false for NaN).
@@ -287,19 +295,29 @@ fn positive(x: Real) -> bool {
     x > 0.0
 }
 
-/// `sum a_i . b_i`.
-fn dot(a: &[Vec3], b: &[Vec3]) -> Real {
-    a.iter().zip(b).map(|(&x, &y)| x.dot(y)).sum()
-}
+/// A block's share of conjugate gradients' five vectors.
+type CgParts<'p> = (
+    &'p mut [Vec3],
+    &'p mut [Vec3],
+    &'p mut [Vec3],
+    &'p mut [Vec3],
+    &'p mut [Vec3],
+);
 
 /// Preconditioned conjugate gradients on `S A S d = -S g` from `d = 0` (Hestenes and Stiefel;
 /// Saad, "Iterative Methods for Sparse Linear Systems", algorithm 9.1), `A = M / h^2 + H` with
 /// `H` in `hessians` and the preconditioner `S B^-1 S` from the inverted `blocks`, until
 /// `|r| <= eta |r_0|` or `max` iterations; friction's blocks (`rough`) are part of `A`. Writes `d` into `direction`; returns the iterations.
+///
+/// Besides the Hessian product, an iteration is three passes over the vertices in blocks run by
+/// `model` (`split.rs`): the product's vertex terms with its projection and curvature `p.q`; the
+/// updates of `d` and `r` with `|r|^2`, the preconditioned residual `z` and `r.z`; the next
+/// conjugate direction with the product cleared. Every sum is a sum of block sums over the
+/// fixed tree, so `d` has the same bits on any number of threads.
 fn conjugate_gradients<F: ElasticHessian>(
     model: &F,
     (hessians, blocks, masses, inertia): (&[TetHessian], &[Mat3], &[Real], Real),
-    rough: &impl Fn(usize) -> Option<Mat3>,
+    rough: &(impl Fn(usize) -> Option<Mat3> + Sync),
     constraints: &Constraints<'_>,
     (eta, max): (Real, u32),
     direction: &mut [Vec3],
@@ -311,60 +329,128 @@ fn conjugate_gradients<F: ElasticHessian>(
         conjugate,
         product,
     } = cg;
-    for (i, (r, &g)) in residual.iter_mut().zip(constraints.gradient).enumerate() {
-        *r = constraints.apply(i, -g);
-    }
-    let stop = eta * math::sqrt(dot(residual, residual));
-    let mut iterations = 0;
-    direction.fill(Vec3::ZERO);
-    let precondition = |r: &[Vec3], z: &mut [Vec3]| {
-        for (i, ((z, &r), block)) in z.iter_mut().zip(r).zip(blocks).enumerate() {
-            *z = constraints.apply(i, *block * constraints.apply(i, r));
-        }
+    let n = direction.len();
+    // `S B^-1 S r` at vertex `i`.
+    let precondition = |i: usize, r: Vec3| {
+        let block = blocks.get(i).copied().unwrap_or(Mat3::ZERO);
+        constraints.apply(i, block * constraints.apply(i, r))
     };
-    precondition(residual, preconditioned);
-    copy(conjugate, preconditioned);
-    let mut rz = dot(residual, preconditioned);
-    while iterations < max {
-        product.fill(Vec3::ZERO);
-        model.add_hessian_product(hessians, conjugate, product)?;
-        for (i, ((q, &p), &m)) in product.iter_mut().zip(&**conjugate).zip(masses).enumerate() {
+    // r = -S g, d = 0, z = p = S B^-1 S r, q = 0; |r|^2 and r.z.
+    let start =
+        |first: usize, (residual, direction, preconditioned, conjugate, product): CgParts| {
+            let (mut rr, mut rz) = (-0.0, -0.0);
+            let rows = residual
+                .iter_mut()
+                .zip(direction)
+                .zip(preconditioned.iter_mut().zip(conjugate).zip(product));
+            for (j, ((r, d), ((z, p), q))) in rows.enumerate() {
+                let i = first + j;
+                let g = constraints.gradient.get(i).copied().unwrap_or(Vec3::ZERO);
+                *r = constraints.apply(i, -g);
+                *d = Vec3::ZERO;
+                *z = precondition(i, *r);
+                *p = *z;
+                *q = Vec3::ZERO;
+                rr += r.dot(*r);
+                rz += r.dot(*z);
+            }
+            (rr, rz)
+        };
+    let parts = (
+        &mut **residual,
+        &mut *direction,
+        &mut **preconditioned,
+        &mut **conjugate,
+        &mut **product,
+    );
+    let (rr, mut rz) = model.run_vertex_pass(Blocks::new(n, parts, &start));
+    let stop = eta * math::sqrt(rr);
+    let mut iterations = 0;
+    // q = S (H p + M / h^2 p + F p) from q = H p; the curvature p.q.
+    let complete = |first: usize, (product, conjugate): (&mut [Vec3], &[Vec3])| {
+        let mut curvature = -0.0;
+        for (j, (q, &p)) in product.iter_mut().zip(conjugate).enumerate() {
+            let i = first + j;
+            let m = masses.get(i).copied().unwrap_or(0.0);
             *q += p * (m * inertia);
             if let Some(friction) = rough(i) {
                 *q += friction * p;
             }
+            *q = constraints.apply(i, *q);
+            curvature += p.dot(*q);
         }
-        constraints.project(product);
-        let curvature = dot(conjugate, product);
+        curvature
+    };
+    while iterations < max {
+        model.add_hessian_product(hessians, conjugate, product)?;
+        let parts = (&mut **product, &**conjugate);
+        let curvature = model.run_vertex_pass(Blocks::new(n, parts, &complete));
         if !positive(curvature) {
             if iterations == 0 {
                 // No curvature along the preconditioned gradient (a body free to move rigidly
                 // without inertia): take that descent direction for the line search.
-                copy(direction, preconditioned);
+                split_copy(model, direction, preconditioned);
             }
             break;
         }
         let step = rz / curvature;
-        for (d, &p) in direction.iter_mut().zip(&**conjugate) {
-            *d += p * step;
-        }
-        for (r, &q) in residual.iter_mut().zip(&**product) {
-            *r -= q * step;
-        }
+        // d += step p, r -= step q, z = S B^-1 S r; |r|^2 and r.z. The last iteration's `z`
+        // is not used.
+        let update =
+            |first: usize,
+             (direction, residual, preconditioned, conjugate, product): UpdateParts| {
+                let (mut rr, mut rz) = (-0.0, -0.0);
+                let rows = direction
+                    .iter_mut()
+                    .zip(residual.iter_mut().zip(preconditioned))
+                    .zip(conjugate.iter().zip(product));
+                for (j, ((d, (r, z)), (&p, &q))) in rows.enumerate() {
+                    *d += p * step;
+                    *r -= q * step;
+                    *z = precondition(first + j, *r);
+                    rr += r.dot(*r);
+                    rz += r.dot(*z);
+                }
+                (rr, rz)
+            };
+        let parts = (
+            &mut *direction,
+            &mut **residual,
+            &mut **preconditioned,
+            &**conjugate,
+            &**product,
+        );
+        let (rr, rz_next) = model.run_vertex_pass(Blocks::new(n, parts, &update));
         iterations += 1;
-        if math::sqrt(dot(residual, residual)) <= stop {
+        if math::sqrt(rr) <= stop {
             break;
         }
-        precondition(residual, preconditioned);
-        let rz_next = dot(residual, preconditioned);
         if !positive(rz_next) {
             break;
         }
         let beta = rz_next / rz;
         rz = rz_next;
-        for (p, &z) in conjugate.iter_mut().zip(&**preconditioned) {
-            *p = z + *p * beta;
-        }
+        // p = z + beta p, q = 0.
+        let next = |_, (conjugate, product, preconditioned): NextParts| {
+            for ((p, q), &z) in conjugate.iter_mut().zip(product).zip(preconditioned) {
+                *p = z + *p * beta;
+                *q = Vec3::ZERO;
+            }
+        };
+        let parts = (&mut **conjugate, &mut **product, &**preconditioned);
+        model.run_vertex_pass(Blocks::new(n, parts, &next));
     }
     Ok(iterations)
 }
+
+/// A block's share of the update pass's buffers.
+type UpdateParts<'p> = (
+    &'p mut [Vec3],
+    &'p mut [Vec3],
+    &'p mut [Vec3],
+    &'p [Vec3],
+    &'p [Vec3],
+);
+
+/// A block's share of the next-direction pass's buffers.
+type NextParts<'p> = (&'p mut [Vec3], &'p mut [Vec3], &'p [Vec3]);

@@ -12,9 +12,13 @@ use super::super::super::types::Real;
 use super::super::friction::{Friction, Lag};
 use super::super::loads::Loads;
 use super::super::points::{Floor, Grouped, Point};
+use super::super::split::Blocks;
 use super::super::vertex_passes::{Frames, TrialPoint, Vertices, gradient_pass};
 use super::super::{ElasticEnergy, Ground, Vector, pinned_flags};
 use crate::error::StepError;
+
+/// A block's share of the initial guess's buffers: the point, `x_n`, `v_n` and pinned flags.
+type GuessParts<'p, V> = (TrialPoint<'p, V>, &'p [V], &'p [V], &'p [bool]);
 
 /// `Phi` and its gradient, without the buffers that change.
 pub(in super::super) struct Objective<'p, F: ElasticEnergy> {
@@ -44,20 +48,30 @@ impl<F: ElasticEnergy> Objective<'_, F> {
             pinned,
             ..
         } = self.vertices;
-        let rows = point.positions.iter_mut().zip(point.gradient.iter_mut());
-        for (i, (((x, g), &x0), pinned)) in rows.zip(start).zip(pinned_flags(pinned)).enumerate() {
-            *g = F::Vector::ZERO;
-            let target = match velocities.get(i) {
-                Some(&v) => x0 + v * self.h,
-                None => x0,
+        // In blocks run by the model (`split.rs`): every vertex on its own.
+        let (h, floor, loads) = (self.h, self.frames.floor(), &self.loads);
+        let block =
+            |first: usize, (point, start, velocities, pinned): GuessParts<'_, F::Vector>| {
+                let rows = point.positions.iter_mut().zip(point.gradient.iter_mut());
+                for (j, (((x, g), &x0), pinned)) in
+                    rows.zip(start).zip(pinned_flags(pinned)).enumerate()
+                {
+                    *g = F::Vector::ZERO;
+                    let target = match velocities.get(j) {
+                        Some(&v) => x0 + v * h,
+                        None => x0,
+                    };
+                    *x = if pinned {
+                        x0
+                    } else {
+                        let guess = floor.project(target + offset);
+                        loads.keep_fixed(first + j, guess, x0)
+                    };
+                }
             };
-            *x = if pinned {
-                x0
-            } else {
-                let guess = self.frames.floor().project(target + offset);
-                self.loads.keep_fixed(i, guess, x0)
-            };
-        }
+        let n = point.positions.len();
+        let parts = (point, start, velocities, pinned);
+        self.model.run_vertex_pass(Blocks::new(n, parts, &block));
     }
 
     /// `Phi(x)`, `E(x)` and the residual at `x`, writing the unprojected gradient (N, zero at
