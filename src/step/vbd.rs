@@ -582,7 +582,13 @@ pub struct VbdReport {
 /// search, and still monotone) or no line search at all
 /// ([`VbdSettings::with_line_search`]`(0)`), with Chebyshev acceleration
 /// ([`VbdSettings::with_chebyshev`]`(0.95, 2)` was best on the bouncy cube, the estimate
-/// [`VbdSettings::with_estimated_chebyshev`] on the clamped stiff block).
+/// [`VbdSettings::with_estimated_chebyshev`] on the 30 steps of the clamped stiff block). On
+/// the single solves of the descent chart (`cargo run --release --example tradeoffs -- --only
+/// descent`, f64, no line search) `(0.95, 2)` took 41 sweeps on the bouncy cube's landing and
+/// 31 on the stiff block's first step, where the estimate from 4 plain sweeps took 111 and 81
+/// (0.9: 65 and 42; 0.98: 40 and 41); in wall time, back to back at a load of 4 to 6, 0.5 to
+/// 0.9 of GD + Chebyshev's on the landing (the estimate: 1.6 to 2.3) and 2.1 to 3.3 of it on
+/// the stiff block (the estimate: 3.4 to 5.5).
 ///
 /// ```
 /// use softfem::element::TetRest;
