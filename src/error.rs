@@ -653,6 +653,9 @@ pub enum StepBuffer {
     ExternalForces,
     /// The per-vertex fixed-axis masks of a solver's settings: empty (none) or one per vertex.
     FixedAxes,
+    /// The previous step's velocities of Vertex Block Descent's settings: empty (none) or one
+    /// per vertex.
+    PreviousVelocities,
 }
 
 impl fmt::Display for StepBuffer {
@@ -673,6 +676,7 @@ impl fmt::Display for StepBuffer {
             StepBuffer::HessianScratch => "Hessian scratch",
             StepBuffer::ExternalForces => "external forces",
             StepBuffer::FixedAxes => "fixed axes",
+            StepBuffer::PreviousVelocities => "previous velocities",
         })
     }
 }

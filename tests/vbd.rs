@@ -47,6 +47,31 @@ macro_rules! vbd_tests {
                 x.iter().map(|p| p.to_array().map(|c| f64::from(c).to_bits())).collect()
             }
 
+            /// The tetrahedron of the single-vertex tests: three corners pinned, the fourth
+            /// free, 0.1 m edges.
+            const HANGING: [Vec3; 4] = [
+                Vec3::ZERO,
+                Vec3::new(0.1, 0.0, 0.0),
+                Vec3::new(0.0, 0.0, 0.1),
+                Vec3::new(0.0, -0.1, 0.0),
+            ];
+            const HANGING_PINNED: [bool; 4] = [true, true, true, false];
+            const HANGING_STEP: Real = 1.0 / 60.0;
+            /// The free corner's velocity.
+            const HANGING_VELOCITY: Vec3 = Vec3::new(0.3, -0.5, 0.2);
+
+            /// Runs `test` on [`HANGING`] made of stable neo-Hookean with Young's modulus
+            /// `young` (Pa, Poisson 0.3, 1000 kg/m^3), with its lumped masses.
+            fn with_hanging_tetrahedron(young: Real, test: impl FnOnce(&TetElastic<'_, StableNeoHookean>, [Real; 4])) {
+                let tets = [[0, 1, 2, 3]];
+                let mut rest_data = [TetRest::default(); 1];
+                let mesh = TetMesh::new(&HANGING, &tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(young, 0.3).unwrap());
+                let mut masses = [0.0; 4];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                test(&body, masses);
+            }
+
             /// Scratch buffers for `n` vertices and `t` tetrahedra.
             fn buffers(n: usize, t: usize) -> (Vec<Vec3>, Vec<u32>) {
                 (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)])
@@ -199,46 +224,104 @@ macro_rules! vbd_tests {
             /// positive definite, so the projected block the solver uses is the exact one.
             #[test]
             fn one_sweep_on_a_single_free_vertex_is_its_newton_step() {
-                let rest = [Vec3::ZERO, Vec3::X, Vec3::Z, -Vec3::Y].map(|x| x * 0.1);
-                let tets = [[0, 1, 2, 3]];
-                let mut rest_data = [TetRest::default(); 1];
-                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
-                let material = StableNeoHookean::from_young_poisson(1.0e5, 0.3).unwrap();
-                let body = TetElastic::new(mesh, material);
-                let mut masses = [0.0; 4];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
-                let pinned = [true, true, true, false];
-                let h: Real = 1.0 / 60.0;
-                let velocity = Vec3::new(0.3, -0.5, 0.2);
-                let (mut x, mut v) = (rest, [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity]);
-                let y = rest[3] + velocity * h;
+                with_hanging_tetrahedron(1.0e5, |body, masses| {
+                    let (rest, mesh, material) = (HANGING, body.mesh, body.material);
+                    let (pinned, h, velocity) = (HANGING_PINNED, HANGING_STEP, HANGING_VELOCITY);
+                    let (mut x, mut v) = (rest, [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity]);
+                    let y = rest[3] + velocity * h;
 
-                // The reference Newton step, in f64 whatever the precision under test.
-                let force_at = |p: Vec3| {
-                    let mut corners = rest;
-                    corners[3] = p;
-                    let mut f = [Vec3::ZERO; 4];
-                    mesh.add_elastic_forces(&material, &corners, &mut f).unwrap();
-                    f[3]
-                };
-                let epsilon: Real = 1e-7;
-                let column = |axis: Vec3| {
-                    (force_at(y + axis * epsilon) - force_at(y - axis * epsilon)) * (-0.5 / epsilon)
-                };
-                let stiffness = Mat3::from_cols(column(Vec3::X), column(Vec3::Y), column(Vec3::Z));
-                let hessian = Mat3::from_diagonal(Vec3::splat(masses[3] / (h * h))) + stiffness;
-                let step = hessian.inverse() * force_at(y);
-                let expected = y + step;
+                    // The reference Newton step, in f64 whatever the precision under test.
+                    let force_at = |p: Vec3| {
+                        let mut corners = rest;
+                        corners[3] = p;
+                        let mut f = [Vec3::ZERO; 4];
+                        mesh.add_elastic_forces(&material, &corners, &mut f).unwrap();
+                        f[3]
+                    };
+                    let epsilon: Real = 1e-7;
+                    let column = |axis: Vec3| {
+                        (force_at(y + axis * epsilon) - force_at(y - axis * epsilon)) * (-0.5 / epsilon)
+                    };
+                    let stiffness = Mat3::from_cols(column(Vec3::X), column(Vec3::Y), column(Vec3::Z));
+                    let hessian = Mat3::from_diagonal(Vec3::splat(masses[3] / (h * h))) + stiffness;
+                    let step = hessian.inverse() * force_at(y);
+                    let expected = y + step;
 
-                let settings = VbdSettings::new(h).with_tolerance(0.0, 1);
-                let (mut vectors, mut indices) = buffers(4, 1);
-                let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                let report = vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
-                println!("{}: {report:?}; step {step}, VBD - Newton {}", stringify!($precision), x[3] - expected);
-                assert_eq!((report.iterations, report.backtracks, report.skipped), (1, 0, 0));
-                assert!(step.length() > 1e-3 * 0.1, "a real step: {step}");
-                assert!((x[3] - expected).length() <= $newton_tolerance * step.length(), "{} vs {}", x[3], expected);
-                assert_eq!(&x[..3], &rest[..3]);
+                    let settings = VbdSettings::new(h).with_tolerance(0.0, 1);
+                    let (mut vectors, mut indices) = buffers(4, 1);
+                    let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                    let report = vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    println!("{}: {report:?}; step {step}, VBD - Newton {}", stringify!($precision), x[3] - expected);
+                    assert_eq!((report.iterations, report.backtracks, report.skipped), (1, 0, 0));
+                    assert!(step.length() > 1e-3 * 0.1, "a real step: {step}");
+                    assert!((x[3] - expected).length() <= $newton_tolerance * step.length(), "{} vs {}", x[3], expected);
+                    assert_eq!(&x[..3], &rest[..3]);
+                });
+            }
+
+            /// The adaptive initial guess: with a budget of no sweeps the step returns its
+            /// initial guess, which is the lower-`Phi` (computed here from its definition) of
+            /// `y + h^2 g` and `y + h^2 a~`, `a~` the previous acceleration's component along
+            /// `g`, clamped to `[0, |g|]`; with `v_(n-1) = v_n` (no acceleration) the solve is
+            /// the default's, bit for bit.
+            #[test]
+            fn adaptive_initial_guess_is_the_clamped_previous_acceleration() {
+                use $($api)::+::step::ElasticEnergy;
+                // Soft enough that the minimiser of `Phi` along `g` from `y` lies between `y`
+                // and `y + h^2 g`.
+                with_hanging_tetrahedron(2.0e3, |body, masses| {
+                    let rest = HANGING;
+                    let (pinned, h, velocity) = (HANGING_PINNED, HANGING_STEP, HANGING_VELOCITY);
+                    let y = rest[3] + velocity * h;
+                    let phi = |p: Vec3| {
+                        let mut corners = rest;
+                        corners[3] = p;
+                        let mut forces = [Vec3::ZERO; 4];
+                        let elastic = body.energy_and_add_forces(&corners, &mut forces).unwrap();
+                        let m = masses[3];
+                        m / (2.0 * h * h) * (p - y).length_squared() - m * GRAVITY.dot(p - rest[3]) + elastic
+                    };
+                    let drop = y + GRAVITY * (h * h);
+                    let sideways = Vec3::new(4.0, 0.0, -3.0);
+                    let mut adaptive_won = 0;
+                    // (previous acceleration along g in units of g, the clamped fraction).
+                    for (along, clamped) in [(0.5, 0.5), (0.3, 0.3), (2.0, 1.0), (-1.0, 0.0), (0.0, 0.0)] {
+                        let acceleration = GRAVITY * along + sideways;
+                        let previous = [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity - acceleration * h];
+                        let settings = VbdSettings::new(h)
+                            .with_gravity(GRAVITY)
+                            .with_tolerance(0.0, 0)
+                            .with_previous_velocities(&previous);
+                        let (mut x, mut v) = (rest, [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity]);
+                        let (mut vectors, mut indices) = buffers(4, 1);
+                        let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                        let report = vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        assert_eq!(report.iterations, 0);
+                        let adaptive = y + GRAVITY * (clamped * h * h);
+                        let expected = if phi(adaptive) < phi(drop) { adaptive } else { drop };
+                        adaptive_won += usize::from(phi(adaptive) < phi(drop));
+                        // The guess's rounding: a few eps of the step h^2 |g| (2.7 mm).
+                        assert!((x[3] - expected).length() <= 1e-5 * h * h * 9.81, "{along}: {} vs {expected}", x[3]);
+                        assert_eq!(&x[..3], &rest[..3]);
+                    }
+                    // The scene tells the candidates apart: the halfway guesses, and y, beat y + h^2 g.
+                    assert!(adaptive_won >= 3, "{adaptive_won}");
+
+                    // No acceleration: the adaptive guess is y, the default's second candidate.
+                    let run = |previous: &[Vec3]| {
+                        let settings = VbdSettings::new(h)
+                            .with_gravity(GRAVITY)
+                            .with_tolerance(1e-6, 50)
+                            .with_previous_velocities(previous);
+                        let (mut x, mut v) = (rest, [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity]);
+                        let (mut vectors, mut indices) = buffers(4, 1);
+                        let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                        let report = vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        (report, bits(&x), bits(&v))
+                    };
+                    let still = [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity];
+                    assert_eq!(run(&still), run(&[]));
+                });
             }
 
             /// The stiff block of tests/stability.rs (2 x 1 x 1 cubes of 5 cm, E = 1e8 Pa,
@@ -391,7 +474,13 @@ macro_rules! vbd_tests {
                 let mut masses = vec![0.0; n];
                 mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let good = VbdSettings::new(0.01).with_gravity(GRAVITY);
+                let short_previous = vec![Vec3::ZERO; n - 1];
+                let mut bad_previous = vec![Vec3::ZERO; n];
+                bad_previous[2].y = Real::INFINITY;
                 let cases = [
+                    (good.with_previous_velocities(&short_previous),
+                        StepError::LengthMismatch { buffer: softfem::StepBuffer::PreviousVelocities, expected: n, actual: n - 1 }),
+                    (good.with_previous_velocities(&bad_previous), StepError::NonFiniteInput { vertex: 2 }),
                     (VbdSettings { dt: 0.0, ..good }, StepError::TimeStep),
                     (VbdSettings { dt: Real::INFINITY, ..good }, StepError::TimeStep),
                     (good.with_gravity(Vec3::splat(Real::NAN)), StepError::Gravity),

@@ -25,8 +25,10 @@ const SECONDS_PER_TET_PASS: f64 = 9e-8;
 /// step on the default jelly cube (1080 tets, 1.4 Newton and 7 CG iterations per step; two
 /// runs at different loads) is 23 to 33 of them.
 const NEWTON_PASSES_PER_STEP: f64 = 30.0;
-/// VBD's, likewise: 3.6 ms per step on the default cube (6.6 sweeps per step) is 37 passes.
-const VBD_PASSES_PER_STEP: f64 = 40.0;
+/// VBD's, likewise: 3.6 ms per step on the default cube (6.6 sweeps per step, with the
+/// estimated Chebyshev `rho`) was 37 passes; with the fixed `rho` now 4.5 sweeps per step, in
+/// proportion about 25.
+const VBD_PASSES_PER_STEP: f64 = 25.0;
 /// Wall time per tetrahedron (s) of building and checking the mesh, its surface and masses,
 /// and drawing the filmstrip.
 const SETUP_SECONDS_PER_TET: f64 = 1e-5;

@@ -225,6 +225,12 @@ pub struct VbdSettings<'a> {
     /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
     /// bits.
     pub fixed_axes: &'a [u8],
+    /// The velocities `v_(n-1)` before the previous step (m/s), one per vertex, or empty (the
+    /// default) for none: [`vbd_step`] then starts from the paper's adaptive initial guess
+    /// (see [`vbd_step`](vbd_step#initial-guess)) in place of `y`. Ignored by
+    /// [`vbd_quasi_static`]. Checked finite
+    /// ([`StepError::NonFiniteInput`](crate::error::StepError::NonFiniteInput)).
+    pub previous_velocities: &'a [Vec3],
 }
 
 /// The largest spectral radius [`VbdSettings::estimate_chebyshev`] uses: 0.98.
@@ -249,6 +255,7 @@ impl<'a> VbdSettings<'a> {
         VbdSettings {
             external_forces: &[],
             fixed_axes: &[],
+            previous_velocities: &[],
             dt,
             gravity: Vec3::ZERO,
             ground: None,
@@ -364,6 +371,22 @@ impl<'a> VbdSettings<'a> {
         }
     }
 
+    /// These settings with the adaptive initial guess from `previous_velocities`, the
+    /// velocities before the previous step (m/s, one per vertex; see
+    /// [`previous_velocities`](Self::previous_velocities)).
+    #[inline]
+    #[must_use]
+    pub fn with_previous_velocities<'b>(self, previous_velocities: &'b [Vec3]) -> VbdSettings<'b>
+    where
+        'a: 'b,
+    {
+        let shorter: VbdSettings<'b> = self;
+        VbdSettings {
+            previous_velocities,
+            ..shorter
+        }
+    }
+
     /// These settings with per-vertex fixed-axis masks `fixed_axes` (see
     /// [`fixed_axes`](Self::fixed_axes)).
     #[inline]
@@ -432,6 +455,17 @@ pub struct VbdReport {
 /// Pinned vertices keep position and velocity. Not converging within the budget is not an
 /// error: the last iterate is used and [`VbdReport::converged`] is false. The result does not
 /// depend on the previous contents of the scratch buffers, and is the same on every target.
+///
+/// # Initial guess
+/// The relaxation's lower-`Phi` of `y` and `y + h^2 g` by default. Given the velocities
+/// `v_(n-1)` before the previous step ([`VbdSettings::with_previous_velocities`]), the paper's
+/// adaptive guess replaces `y`: `y_i + h^2 a~_i`, `a~_i` the previous step's acceleration
+/// `(v_n - v_(n-1)) / h` projected on the direction of gravity and clamped to `[0, |g|]` along
+/// it (`docs/math.md` section 7.2), still compared with `y + h^2 g`. A time loop keeps
+/// `v_(n-1)` by copying the velocities before each step. Measured on the bouncy example
+/// (180 steps of 1/60 s, tolerance 2e-3, Chebyshev 0.95 after 2 sweeps) it did not pay: 5.0
+/// sweeps a step on average against 4.5 without it (4.5 and 5.3 where it replaced
+/// `y + h^2 g` instead); the default two candidates already hold the free fall and the rest.
 ///
 /// # One sweep
 /// For every free vertex `i`, colour by colour (the colouring of
@@ -548,7 +582,13 @@ pub struct VbdReport {
 /// search, and still monotone) or no line search at all
 /// ([`VbdSettings::with_line_search`]`(0)`), with Chebyshev acceleration
 /// ([`VbdSettings::with_chebyshev`]`(0.95, 2)` was best on the bouncy cube, the estimate
-/// [`VbdSettings::with_estimated_chebyshev`] on the clamped stiff block).
+/// [`VbdSettings::with_estimated_chebyshev`] on the 30 steps of the clamped stiff block). On
+/// the single solves of the descent chart (`cargo run --release --example tradeoffs -- --only
+/// descent`, f64, no line search) `(0.95, 2)` took 41 sweeps on the bouncy cube's landing and
+/// 31 on the stiff block's first step, where the estimate from 4 plain sweeps took 111 and 81
+/// (0.9: 65 and 42; 0.98: 40 and 41); in wall time, back to back at a load of 4 to 6, 0.5 to
+/// 0.9 of GD + Chebyshev's on the landing (the estimate: 1.6 to 2.3) and 2.1 to 3.3 of it on
+/// the stiff block (the estimate: 3.4 to 5.5).
 ///
 /// ```
 /// use softfem::element::TetRest;
@@ -759,6 +799,17 @@ fn minimise<M: Material, S: Schedule<M>>(
         fixed_axes: settings.fixed_axes,
     };
     loads.check(n)?;
+    // The previous velocities matter only with inertia.
+    let previous = match (&velocities, settings.previous_velocities) {
+        (Some(_), previous) if !previous.is_empty() => {
+            check_length(StepBuffer::PreviousVelocities, n, previous.len())?;
+            if let Some(vertex) = previous.iter().position(|v| !v.is_finite()) {
+                return Err(StepError::NonFiniteInput { vertex });
+            }
+            Some(previous)
+        }
+        _ => None,
+    };
     check_length(
         StepBuffer::Scratch,
         vbd_scratch_len(n),
@@ -844,6 +895,9 @@ fn minimise<M: Material, S: Schedule<M>>(
     };
     let lazy = settings.line_search_on_increase && settings.max_backtracks > 0;
     let mut direction = VbdSweep::<M, S>::new(sweep, !lazy);
+    if let Some(previous) = previous {
+        direction = direction.with_previous_velocities(previous);
+    }
     let problem = Problem {
         model,
         masses,

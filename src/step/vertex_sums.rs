@@ -111,7 +111,16 @@ pub(super) fn sum_vertices<'r, M: Material, R: Iterator<Item = Run<'r>>, V: Vert
 
 impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_, '_, M, R, V> {
     /// The pass with groups of `L::WIDTH` vertices.
-    #[inline(always)]
+    ///
+    /// Inlined on x86_64, where it must be compiled inside [`dispatch`]'s AVX2 and AVX-512
+    /// functions to use their lanes; elsewhere a function of its own per width, so that the
+    /// caller's frame does not hold the buffers of both widths' passes (the scalar and the
+    /// 4-lane one), each gathered and packed. Measured by the firmware check on thumbv7em,
+    /// `vbd_step`'s stack: f32 7 888 B with both inlined, 6 168 B so (f64 11 348 and
+    /// 11 452 B); with only the packed pass out of line 6 496 and 15 924 B; 3 408 B in f32
+    /// before the packed layout.
+    #[cfg_attr(target_arch = "x86_64", inline(always))]
+    #[cfg_attr(not(target_arch = "x86_64"), inline(never))]
     fn run<L: LaneArray>(self) -> V
     where
         L::Array: for<'a> TryFrom<&'a [Real]>,

@@ -136,6 +136,13 @@ pub(super) trait Direction<F: ElasticEnergy> {
     fn fall_back(&mut self) -> bool {
         false
     }
+
+    /// The previous step's velocities `v_(n-1)` (one per vertex) if the solver was given them:
+    /// the loop's second initial guess is then [`Objective::adaptive_guess`] instead of `y`.
+    /// `None` (the default) for none.
+    fn previous_velocities(&self) -> Option<&[F::Vector]> {
+        None
+    }
 }
 
 /// The settings of the loop (validated by each solver).
@@ -457,13 +464,16 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     let mut evaluation = objective.evaluate(current, gradient, None)?;
     let mut energy_evaluations = 1;
     if drop != F::Vector::ZERO {
-        objective.initial_guess(
-            TrialPoint {
-                positions: other,
-                gradient: trial_gradient,
-            },
-            F::Vector::ZERO,
-        );
+        let second = TrialPoint {
+            positions: other,
+            gradient: trial_gradient,
+        };
+        // With the previous velocities, the adaptive guess (between y and y + h^2 g, vertex
+        // by vertex) takes the place of y.
+        match rule.previous_velocities() {
+            Some(previous) => objective.adaptive_guess(second, previous),
+            None => objective.initial_guess(second, F::Vector::ZERO),
+        }
         let inertial = objective.evaluate(other, trial_gradient, None)?;
         energy_evaluations += 1;
         // y also wins when y + h^2 g is not finite (NaN compares false).

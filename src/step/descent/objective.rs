@@ -42,6 +42,34 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     /// Writes `y + offset` (`x_n + offset` without inertia) projected on the ground into
     /// `point.positions` at free vertices, `x_n` at pinned ones, and zeroes `point.gradient`.
     pub fn initial_guess(&self, point: TrialPoint<'_, F::Vector>, offset: F::Vector) {
+        self.guess(point, |_| offset);
+    }
+
+    /// The adaptive initial guess of Vertex Block Descent (Chen et al. 2024, its adaptive
+    /// initialisation; `docs/math.md` section 7.2): `y_i + h^2 a~_i`, where
+    /// `a~_i = g clamp(a_i.g / |g|^2, 0, 1)` is the previous step's acceleration
+    /// `a_i = (v_n - v_(n-1)) / h` projected on the gravity direction and clamped to `[0, |g|]`
+    /// along it, `v_(n-1)` from `previous`: `y + h^2 g` in free fall, `y` where the fall was
+    /// stopped. Without inertia (or gravity) it is [`initial_guess`](Self::initial_guess)`(0)`,
+    /// and it is written as that is.
+    pub fn adaptive_guess(&self, point: TrialPoint<'_, F::Vector>, previous: &[F::Vector]) {
+        let (h, g, velocities) = (self.h, self.gravity, self.vertices.velocities);
+        let weight = g.dot(g);
+        self.guess(point, |i| match (velocities.get(i), previous.get(i)) {
+            (Some(&v), Some(&before)) if weight > 0.0 && h > 0.0 => {
+                // a.g / |g|^2 = (v - v_(n-1)).g / (h |g|^2), clamped to [0, 1]; a NaN (0 / 0
+                // where h |g|^2 underflows) to 0.
+                let along = (v - before).dot(g) / (h * weight);
+                let fraction = if along > 0.0 { along.min(1.0) } else { 0.0 };
+                g * (fraction * (h * h))
+            }
+            _ => F::Vector::ZERO,
+        });
+    }
+
+    /// [`initial_guess`](Self::initial_guess) with the offset of vertex `i` `offset(i)`.
+    #[inline(always)]
+    fn guess(&self, point: TrialPoint<'_, F::Vector>, offset: impl Fn(usize) -> F::Vector + Sync) {
         let Vertices {
             start,
             velocities,
@@ -64,7 +92,7 @@ impl<F: ElasticEnergy> Objective<'_, F> {
                     *x = if pinned {
                         x0
                     } else {
-                        let guess = floor.project(target + offset);
+                        let guess = floor.project(target + offset(first + j));
                         loads.keep_fixed(first + j, guess, x0)
                     };
                 }

@@ -553,6 +553,8 @@ pub(in super::super) struct VbdSweep<'s, M: Material, S> {
     /// What the sweeps counted so far.
     pub counts: SweepCounts,
     floor: Real,
+    /// `v_(n-1)` for the adaptive initial guess, if given.
+    previous: Option<&'s [Vec3]>,
     schedule: PhantomData<S>,
 }
 
@@ -569,7 +571,17 @@ impl<'s, M: Material, S: Schedule<M>> VbdSweep<'s, M, S> {
             resolution: 0.0,
             counts: SweepCounts::default(),
             floor: 0.0,
+            previous: None,
             schedule: PhantomData,
+        }
+    }
+
+    /// This direction with the adaptive initial guess from the previous velocities
+    /// `previous` (see [`Direction::previous_velocities`]).
+    pub fn with_previous_velocities(self, previous: &'s [Vec3]) -> Self {
+        VbdSweep {
+            previous: Some(previous),
+            ..self
         }
     }
 
@@ -719,5 +731,9 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
 
     fn rounding_floor(&self) -> Real {
         self.floor
+    }
+
+    fn previous_velocities(&self) -> Option<&[Vec3]> {
+        self.previous
     }
 }
