@@ -10,6 +10,7 @@ use super::math;
 use super::types::{Mat3, Real, Vec3};
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
+pub(crate) use super::lane_repr::transpose4;
 pub use super::lane_repr::{LaneMask, Lanes, transpose_vec3, untranspose_vec3};
 
 /// Number of values a [`Lanes`] holds: 4 in both precisions (one SSE register of f32, two of f64).
@@ -399,6 +400,30 @@ pub(crate) trait LaneArray: Lane {
     fn lane_value(values: &Self::Array, lane: usize) -> Real;
     /// Sets the value of lane `lane` (nothing past the last lane).
     fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real);
+    /// `[2^-e_lo, 2^-e_hi, 2^e_lo, 2^e_hi]` in each lane, with `e` the binary exponent of the
+    /// lane's value, `e_lo = e / 2` (rounded toward zero) and `e_hi = e - e_lo`: the batched
+    /// SVD's prescaling factors (`svd.rs`, step 1), for lanes that all hold positive normal
+    /// numbers. `None` where the type has no lane-parallel form; the caller then forms them
+    /// lane by lane.
+    #[inline(always)]
+    fn prescale_factors(max_abs: Self) -> Option<[Self; 4]> {
+        let _ = max_abs;
+        None
+    }
+    /// Lanes `4 q..4 q + 4` of `values` as a group of [`Lanes`] (zero past the last lane).
+    #[inline(always)]
+    fn quarter(values: &Self::Array, q: usize) -> Lanes {
+        Lanes::from_array(core::array::from_fn(|j| {
+            Self::lane_value(values, q * LANES + j)
+        }))
+    }
+    /// Sets lanes `4 q..4 q + 4` of `values` to `quarter` (nothing past the last lane).
+    #[inline(always)]
+    fn set_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+        for (j, value) in quarter.to_array().into_iter().enumerate() {
+            Self::set_lane_value(values, q * LANES + j, value);
+        }
+    }
     /// The group whose lanes `4 q..4 q + 4` hold `quarters[q]` (quarters past the width are
     /// ignored): how the kernels build a wide group from 4-lane transposes, which the compiler
     /// keeps in registers (lane-by-lane stores measured slower than the SSE lanes).
@@ -418,6 +443,26 @@ pub(crate) trait LaneArray: Lane {
 #[inline(always)]
 pub(crate) fn array_lane_value(values: &[Real], lane: usize) -> Real {
     values.get(lane).copied().unwrap_or(0.0)
+}
+
+/// [`LaneArray::quarter`] for a plain array: one bounds check for the four values.
+#[inline(always)]
+pub(crate) fn array_quarter(values: &[Real], q: usize) -> Lanes {
+    values
+        .chunks_exact(LANES)
+        .nth(q)
+        .and_then(|quarter| <[Real; LANES]>::try_from(quarter).ok())
+        .map_or(Lanes::splat(0.0), Lanes::from_array)
+}
+
+/// [`LaneArray::set_quarter`] for a plain array.
+#[inline(always)]
+pub(crate) fn set_array_quarter(values: &mut [Real], q: usize, quarter: Lanes) {
+    if let Some(slots) = values.chunks_exact_mut(LANES).nth(q) {
+        for (slot, value) in slots.iter_mut().zip(quarter.to_array()) {
+            *slot = value;
+        }
+    }
 }
 
 /// [`LaneArray::set_lane_value`] for a plain array.
@@ -604,6 +649,34 @@ impl<L: LaneArray> LaneArray for LanePair<L> {
         match lane.checked_sub(L::WIDTH) {
             None => L::lane_value(&values.0, lane),
             Some(upper) => L::lane_value(&values.1, upper),
+        }
+    }
+
+    #[inline(always)]
+    fn prescale_factors(max_abs: Self) -> Option<[Self; 4]> {
+        let [a0, a1, a2, a3] = L::prescale_factors(max_abs.0)?;
+        let [b0, b1, b2, b3] = L::prescale_factors(max_abs.1)?;
+        Some([
+            LanePair(a0, b0),
+            LanePair(a1, b1),
+            LanePair(a2, b2),
+            LanePair(a3, b3),
+        ])
+    }
+
+    #[inline(always)]
+    fn quarter(values: &Self::Array, q: usize) -> Lanes {
+        match q.checked_sub(L::WIDTH / LANES) {
+            None => L::quarter(&values.0, q),
+            Some(upper) => L::quarter(&values.1, upper),
+        }
+    }
+
+    #[inline(always)]
+    fn set_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+        match q.checked_sub(L::WIDTH / LANES) {
+            None => L::set_quarter(&mut values.0, q, quarter),
+            Some(upper) => L::set_quarter(&mut values.1, upper, quarter),
         }
     }
 
