@@ -400,15 +400,11 @@ pub(crate) trait LaneArray: Lane {
     fn lane_value(values: &Self::Array, lane: usize) -> Real;
     /// Sets the value of lane `lane` (nothing past the last lane).
     fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real);
-    /// `[2^-e_lo, 2^-e_hi, 2^e_lo, 2^e_hi]` in each lane, with `e` the binary exponent of the
-    /// lane's value, `e_lo = e / 2` (rounded toward zero) and `e_hi = e - e_lo`: the batched
-    /// SVD's prescaling factors (`svd.rs`, step 1), for lanes that all hold positive normal
-    /// numbers. `None` where the type has no lane-parallel form; the caller then forms them
-    /// lane by lane.
+    /// `2^floor(log2 |x|)` of every lane `x` holding a normal number: its exponent field
+    /// alone (sign and fraction bits cleared), exact.
     #[inline(always)]
-    fn prescale_factors(max_abs: Self) -> Option<[Self; 4]> {
-        let _ = max_abs;
-        None
+    fn exponent_part(self) -> Self {
+        self.map(|x| Real::from_bits(x.to_bits() & Real::INFINITY.to_bits()))
     }
     /// Lanes `4 q..4 q + 4` of `values` as a group of [`Lanes`] (zero past the last lane).
     #[inline(always)]
@@ -653,15 +649,8 @@ impl<L: LaneArray> LaneArray for LanePair<L> {
     }
 
     #[inline(always)]
-    fn prescale_factors(max_abs: Self) -> Option<[Self; 4]> {
-        let [a0, a1, a2, a3] = L::prescale_factors(max_abs.0)?;
-        let [b0, b1, b2, b3] = L::prescale_factors(max_abs.1)?;
-        Some([
-            LanePair(a0, b0),
-            LanePair(a1, b1),
-            LanePair(a2, b2),
-            LanePair(a3, b3),
-        ])
+    fn exponent_part(self) -> Self {
+        LanePair(self.0.exponent_part(), self.1.exponent_part())
     }
 
     #[inline(always)]

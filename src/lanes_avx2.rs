@@ -23,24 +23,13 @@ use super::wide_ops::{
     AVX2_WIDTH, Reg256, add256, and256, andnot256, blendv256, cmp256, div256, max256, movemask256,
     mul256, or256, set1_256, sqrt256, sub256, xor256,
 };
-use core::arch::x86_64::{
-    __m256i, _CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q, _mm256_add_epi32, _mm256_set1_epi32,
-    _mm256_set1_epi64x, _mm256_slli_epi32, _mm256_slli_epi64, _mm256_srai_epi32, _mm256_srli_epi32,
-    _mm256_srli_epi64, _mm256_sub_epi32,
-};
+use core::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q};
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
 /// [`AVX2_WIDTH`] independent values processed together (structure of arrays), in one AVX
 /// register.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Avx2Lanes(Reg256);
-
-/// Bits of a value's fraction field (23 for f32, 52 for f64).
-const MANTISSA_BITS: i32 = Real::MANTISSA_DIGITS as i32 - 1;
-/// The exponent bias (127 for f32, 1023 for f64).
-const EXPONENT_BIAS: i32 = Real::MAX_EXP - 1;
-/// Whether a value takes 64 bits (f64), so that its exponent field moves with 64-bit shifts.
-const WIDE_VALUES: bool = MANTISSA_BITS > 32;
 
 /// Per-lane comparison results: all bits set where true.
 #[derive(Clone, Copy, Debug)]
@@ -175,46 +164,9 @@ impl LaneArray for Avx2Lanes {
     }
 
     #[inline(always)]
-    fn prescale_factors(max_abs: Self) -> Option<[Self; 4]> {
-        // SAFETY: see the module comment; the transmutes reinterpret a 256-bit register (same
-        // size, every bit pattern valid). Integer operations on the bits of positive normal
-        // numbers: the biased exponent field is below 2^11, so every intermediate fits the low
-        // 32 bits of its lane (for f64 the high 32 bits stay zero through the 32-bit integer
-        // operations, and the final 64-bit shift moves the field into place).
-        unsafe {
-            let int_splat = |value: i32| {
-                if WIDE_VALUES {
-                    _mm256_set1_epi64x(i64::from(value))
-                } else {
-                    _mm256_set1_epi32(value)
-                }
-            };
-            let bits = core::mem::transmute::<Reg256, __m256i>(max_abs.0);
-            let biased = if WIDE_VALUES {
-                _mm256_srli_epi64::<{ MANTISSA_BITS }>(bits)
-            } else {
-                _mm256_srli_epi32::<{ MANTISSA_BITS }>(bits)
-            };
-            let bias = int_splat(EXPONENT_BIAS);
-            let e = _mm256_sub_epi32(biased, bias);
-            // `e / 2` rounded toward zero, as Rust's integer division: add the sign bit first.
-            let e_lo = _mm256_srai_epi32::<1>(_mm256_add_epi32(e, _mm256_srli_epi32::<31>(e)));
-            let e_hi = _mm256_sub_epi32(e, e_lo);
-            // `math::pow2(n)`: the biased exponent `n + bias` into the exponent field.
-            let pow2 = |biased_exponent| {
-                Avx2Lanes(core::mem::transmute::<__m256i, Reg256>(if WIDE_VALUES {
-                    _mm256_slli_epi64::<{ MANTISSA_BITS }>(biased_exponent)
-                } else {
-                    _mm256_slli_epi32::<{ MANTISSA_BITS }>(biased_exponent)
-                }))
-            };
-            Some([
-                pow2(_mm256_sub_epi32(bias, e_lo)),
-                pow2(_mm256_sub_epi32(bias, e_hi)),
-                pow2(_mm256_add_epi32(bias, e_lo)),
-                pow2(_mm256_add_epi32(bias, e_hi)),
-            ])
-        }
+    fn exponent_part(self) -> Self {
+        // SAFETY: see the module comment. The bits of +inf are the exponent field's mask.
+        Avx2Lanes(unsafe { and256(self.0, set1_256(Real::INFINITY)) })
     }
 
     #[inline(always)]

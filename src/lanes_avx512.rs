@@ -25,9 +25,7 @@ use super::wide_ops::{
     mul512, set1_512, sqrt512, sub512, to_bits512,
 };
 use core::arch::x86_64::{
-    _CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q, _mm512_add_epi32, _mm512_and_si512, _mm512_or_si512,
-    _mm512_set1_epi32, _mm512_set1_epi64, _mm512_slli_epi32, _mm512_slli_epi64, _mm512_srai_epi32,
-    _mm512_srli_epi32, _mm512_srli_epi64, _mm512_sub_epi32, _mm512_xor_si512,
+    _CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q, _mm512_and_si512, _mm512_or_si512, _mm512_xor_si512,
 };
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -35,13 +33,6 @@ use core::ops::{Add, Div, Mul, Neg, Sub};
 /// AVX-512 register.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Avx512Lanes(Reg512);
-
-/// Bits of a value's fraction field (23 for f32, 52 for f64).
-const MANTISSA_BITS: u32 = Real::MANTISSA_DIGITS - 1;
-/// The exponent bias (127 for f32, 1023 for f64).
-const EXPONENT_BIAS: i32 = Real::MAX_EXP - 1;
-/// Whether a value takes 64 bits (f64), so that its exponent field moves with 64-bit shifts.
-const WIDE_VALUES: bool = MANTISSA_BITS > 32;
 
 /// Per-lane comparison results: one bit per lane, in a mask register.
 #[derive(Clone, Copy, Debug)]
@@ -183,44 +174,11 @@ impl LaneArray for Avx512Lanes {
     }
 
     #[inline(always)]
-    fn prescale_factors(max_abs: Self) -> Option<[Self; 4]> {
-        // SAFETY: see the module comment. Integer operations on the bits of positive normal
-        // numbers: the biased exponent field is below 2^11, so every intermediate fits the low
-        // 32 bits of its lane (for f64 the high 32 bits stay zero through the 32-bit integer
-        // operations, and the final 64-bit shift moves the field into place).
+    fn exponent_part(self) -> Self {
+        // SAFETY: see the module comment. The bits of +inf are the exponent field's mask.
         unsafe {
-            let int_splat = |value: i32| {
-                if WIDE_VALUES {
-                    _mm512_set1_epi64(i64::from(value))
-                } else {
-                    _mm512_set1_epi32(value)
-                }
-            };
-            let bits = to_bits512(max_abs.0);
-            let biased = if WIDE_VALUES {
-                _mm512_srli_epi64::<{ MANTISSA_BITS }>(bits)
-            } else {
-                _mm512_srli_epi32::<{ MANTISSA_BITS }>(bits)
-            };
-            let bias = int_splat(EXPONENT_BIAS);
-            let e = _mm512_sub_epi32(biased, bias);
-            // `e / 2` rounded toward zero, as Rust's integer division: add the sign bit first.
-            let e_lo = _mm512_srai_epi32::<1>(_mm512_add_epi32(e, _mm512_srli_epi32::<31>(e)));
-            let e_hi = _mm512_sub_epi32(e, e_lo);
-            // `math::pow2(n)`: the biased exponent `n + bias` into the exponent field.
-            let pow2 = |biased_exponent| {
-                Avx512Lanes(from_bits512(if WIDE_VALUES {
-                    _mm512_slli_epi64::<{ MANTISSA_BITS }>(biased_exponent)
-                } else {
-                    _mm512_slli_epi32::<{ MANTISSA_BITS }>(biased_exponent)
-                }))
-            };
-            Some([
-                pow2(_mm512_sub_epi32(bias, e_lo)),
-                pow2(_mm512_sub_epi32(bias, e_hi)),
-                pow2(_mm512_add_epi32(bias, e_lo)),
-                pow2(_mm512_add_epi32(bias, e_hi)),
-            ])
+            let mask = to_bits512(set1_512(Real::INFINITY));
+            Avx512Lanes(from_bits512(_mm512_and_si512(to_bits512(self.0), mask)))
         }
     }
 

@@ -369,7 +369,7 @@ fn decompose_entries<L: LaneArray>(
         non_finite = non_finite + x * zero;
     }
     // Every lane a positive normal `max_abs` and finite entries (`non_finite` is 0 or NaN):
-    // the common case, whose factors the wide lanes form in registers.
+    // the common case, whose factors are formed in the lanes.
     let one = L::splat(1.0);
     let checked = max_abs + non_finite;
     let irregular = L::select(
@@ -377,14 +377,13 @@ fn decompose_entries<L: LaneArray>(
         L::select(L::splat(Real::MAX).ge(checked), zero, one),
         one,
     );
-    let factors = match L::prescale_factors(max_abs) {
-        Some(factors) if L::none(irregular.gt(zero)) => {
-            for flag in decomposed.iter_mut().take(L::WIDTH) {
-                *flag = true;
-            }
-            factors
+    let factors = if L::none(irregular.gt(zero)) {
+        for flag in decomposed.iter_mut().take(L::WIDTH) {
+            *flag = true;
         }
-        _ => lane_prescale_factors::<L>(max_abs, non_finite, &mut entries, &mut decomposed),
+        prescale_factors(max_abs)
+    } else {
+        lane_prescale_factors::<L>(max_abs, non_finite, &mut entries, &mut decomposed)
     };
     // Destructured rather than `<[_; N]>::map`, which is not always inlined: a call would run
     // its lane operations outside the function compiled for the wide registers.
@@ -402,8 +401,25 @@ fn decompose_entries<L: LaneArray>(
     (LaneSvd3 { u, sigma, v }, decomposed)
 }
 
-/// The prescaling factors `[2^-e_lo, 2^-e_hi, 2^e_lo, 2^e_hi]` of [`decompose_entries`], lane
-/// by lane: a lane without a decomposition (zero or non-finite matrix, as `non_finite` and
+/// The prescaling factors `[2^-e_lo, 2^-e_hi, 2^e_lo, 2^e_hi]` of [`Prescale::of_max_abs`]
+/// (`e` the exponent of `max_abs`, `e_lo = e / 2` rounded toward zero, `e_hi = e - e_lo`) in
+/// lanes, for lanes that all hold positive normal numbers. Every step is exact: powers of two,
+/// their products and quotients in the normal range, and the square root of `2^e`, which rounds
+/// to a value whose exponent is `floor(e / 2)`.
+#[inline(always)]
+fn prescale_factors<L: LaneArray>(max_abs: L) -> [L; 4] {
+    let one = L::splat(1.0);
+    let whole = max_abs.exponent_part();
+    let floor_half = whole.sqrt().exponent_part();
+    let ceil_half = whole / floor_half;
+    // `e / 2` rounds toward zero: down for `e >= 0`, up below.
+    let non_negative = whole.ge(one);
+    let lo = L::select(non_negative, floor_half, ceil_half);
+    let hi = L::select(non_negative, ceil_half, floor_half);
+    [one / lo, one / hi, lo, hi]
+}
+
+/// The prescaling factors of [`decompose_entries`], lane by lane: a lane without a decomposition (zero or non-finite matrix, as `non_finite` and
 /// `max_abs` tell) gets the identity in `entries` and factors of one, the others are marked in
 /// `decomposed`.
 #[inline(always)]
