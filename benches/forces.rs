@@ -422,13 +422,8 @@ impl<'a> Variant<'a> {
         rest: &'a [Vec3],
         threads: usize,
     ) -> Self {
-        let body = TetElastic::new(
-            mesh,
-            StableNeoHookean::from_young_poisson(YOUNG, POISSON).unwrap(),
-        );
+        let (body, masses) = rubber_body(mesh);
         let n = mesh.vertex_count();
-        let mut masses = vec![0.0; n];
-        mesh.lumped_masses(1000.0, &mut masses).unwrap();
         let mut stiffness = vec![0.0; n];
         let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
         let settings = ExplicitSettings::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
@@ -483,13 +478,8 @@ impl<'a> Variant<'a> {
     /// evaluations of the energy and forces, backtracks), so that the table's time per step
     /// divides into a time per iteration and per evaluation.
     fn relax_step(mesh: TetMesh<'a>, positions: &'a [Vec3]) -> Self {
-        let body = TetElastic::new(
-            mesh,
-            StableNeoHookean::from_young_poisson(YOUNG, POISSON).unwrap(),
-        );
+        let (body, masses) = rubber_body(mesh);
         let n = mesh.vertex_count();
-        let mut masses = vec![0.0; n];
-        mesh.lumped_masses(1000.0, &mut masses).unwrap();
         let settings = RelaxSettings::new(1.0 / 60.0)
             .with_gravity(Vec3::new(0.0, -9.81, 0.0))
             .with_tolerance(0.0, RELAX_ITERATIONS);
@@ -522,6 +512,18 @@ impl<'a> Variant<'a> {
             threads: 1,
         }
     }
+}
+
+/// The stepped body of the step variants: stable neo-Hookean rubber on `mesh`, and its lumped
+/// masses (density 1000 kg/m^3).
+fn rubber_body(mesh: TetMesh<'_>) -> (TetElastic<'_, StableNeoHookean>, Vec<f32>) {
+    let body = TetElastic::new(
+        mesh,
+        StableNeoHookean::from_young_poisson(YOUNG, POISSON).unwrap(),
+    );
+    let mut masses = vec![0.0; mesh.vertex_count()];
+    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+    (body, masses)
 }
 
 /// The criterion group of one mesh size, one benchmark per variant.
