@@ -442,6 +442,7 @@ pub(crate) fn array_lane_value(values: &[Real], lane: usize) -> Real {
 }
 
 /// [`LaneArray::quarter`] for a plain array: one bounds check for the four values.
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub(crate) fn array_quarter(values: &[Real], q: usize) -> Lanes {
     values
@@ -452,6 +453,7 @@ pub(crate) fn array_quarter(values: &[Real], q: usize) -> Lanes {
 }
 
 /// [`LaneArray::set_quarter`] for a plain array.
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub(crate) fn set_array_quarter(values: &mut [Real], q: usize, quarter: Lanes) {
     if let Some(slots) = values.chunks_exact_mut(LANES).nth(q) {

@@ -256,6 +256,7 @@ fn run_avx512<K: WidthKernel>(kernel: K) -> K::Output {
 
 /// A piece of a batched kernel that runs in a function of its own ([`outlined_avx2`],
 /// [`outlined_avx512`]).
+#[cfg(target_arch = "x86_64")]
 pub(crate) trait Outlined {
     /// What the piece returns.
     type Output;

@@ -213,6 +213,7 @@ impl<'a, 'b, L: LaneArray> crate::simd::Outlined for Groups<'a, 'b, L> {
 
 /// Decomposes the matrices in whole groups of `L::WIDTH`; returns the rest (fewer than
 /// `L::WIDTH`) and their outputs.
+#[cfg(any(target_arch = "x86_64", not(debug_assertions)))]
 #[inline(always)]
 fn whole_groups<'a, 'b, L: LaneArray>(
     matrices: &'a [Mat3],
