@@ -30,7 +30,8 @@
 //! Threads: `stvk_direct_partitioned_f32` is the deterministic partitioned scheme
 //! (`mesh::TetPartition`: element pieces into a buffer, then a gather by vertex) run on this
 //! thread, its cost against `stvk_direct_f32`; `explicit_step_f32` is one `step_explicit` of stable
-//! neo-Hookean at half the proven stable step (the body falling from rest). With
+//! neo-Hookean at half the proven stable step (the body falling from rest); `relax_step_f32` is
+//! one `relax_step` of ten descent iterations (its evaluation count printed first). With
 //! `--features rayon` the same passes run on rayon pools of 1 and 2 threads
 //! (`softfem::parallel`, `ParallelTetElastic`), and the tables are followed by the one-thread cost
 //! and the 2-thread speed-ups. `SOFTFEM_BENCH_CSV=<path>` appends every row (Mtets/s, with its
@@ -63,8 +64,8 @@ use softfem::mesh::{
 use softfem::parallel::ParallelTetElastic;
 use softfem::simd::{self, Width};
 use softfem::step::{
-    ElasticEnergy, ExplicitScratch, ExplicitSettings, TetElastic, explicit_scratch_len,
-    stable_time_step, step_explicit,
+    ElasticEnergy, ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings, TetElastic,
+    explicit_scratch_len, relax_scratch_len, relax_step, stable_time_step, step_explicit,
 };
 
 /// Cubes per axis of the benchmarked boxes, 6 tetrahedra per cube: 10 368, 105 456 and 998 250
@@ -84,6 +85,9 @@ const POISSON: f32 = 0.45;
 
 /// One `step_explicit` call on positions, velocities and scratch.
 type StepFn<'s> = dyn Fn(&mut [Vec3], &mut [Vec3], &mut ExplicitScratch<'_, Vec3>) + 's;
+
+/// Descent iterations of the relaxation variant (its label says 10).
+const RELAX_ITERATIONS: u32 = 10;
 
 /// Pieces of the partitioned variants.
 const PIECES: usize = 8;
@@ -317,6 +321,7 @@ impl DeformedBox {
             rest_positions,
             1,
         ));
+        variants.push(Variant::relax_step(mesh, positions));
         #[cfg(feature = "rayon")]
         for threads in THREADS {
             variants.push(Variant::rayon_forces(partition, stvk, positions, threads));
@@ -417,13 +422,8 @@ impl<'a> Variant<'a> {
         rest: &'a [Vec3],
         threads: usize,
     ) -> Self {
-        let body = TetElastic::new(
-            mesh,
-            StableNeoHookean::from_young_poisson(YOUNG, POISSON).unwrap(),
-        );
+        let (body, masses) = rubber_body(mesh);
         let n = mesh.vertex_count();
-        let mut masses = vec![0.0; n];
-        mesh.lumped_masses(1000.0, &mut masses).unwrap();
         let mut stiffness = vec![0.0; n];
         let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
         let settings = ExplicitSettings::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
@@ -468,6 +468,62 @@ impl<'a> Variant<'a> {
             threads,
         }
     }
+}
+
+impl<'a> Variant<'a> {
+    /// One `relax_step` (stable neo-Hookean, `1/60` s, gravity, no ground) of exactly
+    /// [`RELAX_ITERATIONS`] descent iterations (tolerance 0) from the deformed `positions` at
+    /// rest, the state reset before each run; the preconditioner is computed once, before the
+    /// timing (the scratch keeps it, as in a simulation). Prints what one step does (iterations,
+    /// evaluations of the energy and forces, backtracks), so that the table's time per step
+    /// divides into a time per iteration and per evaluation.
+    fn relax_step(mesh: TetMesh<'a>, positions: &'a [Vec3]) -> Self {
+        let (body, masses) = rubber_body(mesh);
+        let n = mesh.vertex_count();
+        let settings = RelaxSettings::new(1.0 / 60.0)
+            .with_gravity(Vec3::new(0.0, -9.81, 0.0))
+            .with_tolerance(0.0, RELAX_ITERATIONS);
+        let (mut x, mut v) = (positions.to_vec(), vec![Vec3::ZERO; n]);
+        // Leaked so that the scratch, and the preconditioner it keeps, lives across the runs.
+        let mut scratch = RelaxScratch::new(
+            vec![Vec3::ZERO; relax_scratch_len(n)].leak(),
+            vec![0.0; n].leak(),
+        );
+        let mut step = move || {
+            x.copy_from_slice(positions);
+            v.fill(Vec3::ZERO);
+            relax_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap()
+        };
+        let report = step();
+        println!(
+            "relax_step on {} tets: {} iterations, {} energy and force evaluations, {} \
+             backtracks per step",
+            mesh.element_count(),
+            report.iterations,
+            report.energy_evaluations,
+            report.backtracks,
+        );
+        Variant {
+            label: "stable neo-Hookean relax_step (10 iterations), sequential, f32",
+            id: "relax_step_f32",
+            run: Box::new(move || {
+                black_box(step());
+            }),
+            threads: 1,
+        }
+    }
+}
+
+/// The stepped body of the step variants: stable neo-Hookean rubber on `mesh`, and its lumped
+/// masses (density 1000 kg/m^3).
+fn rubber_body(mesh: TetMesh<'_>) -> (TetElastic<'_, StableNeoHookean>, Vec<f32>) {
+    let body = TetElastic::new(
+        mesh,
+        StableNeoHookean::from_young_poisson(YOUNG, POISSON).unwrap(),
+    );
+    let mut masses = vec![0.0; mesh.vertex_count()];
+    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+    (body, masses)
 }
 
 /// The criterion group of one mesh size, one benchmark per variant.

@@ -10,6 +10,7 @@ use super::math;
 use super::types::{Mat3, Real, Vec3};
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
+pub(crate) use super::lane_repr::transpose4;
 pub use super::lane_repr::{LaneMask, Lanes, transpose_vec3, untranspose_vec3};
 
 /// Number of values a [`Lanes`] holds: 4 in both precisions (one SSE register of f32, two of f64).
@@ -399,6 +400,26 @@ pub(crate) trait LaneArray: Lane {
     fn lane_value(values: &Self::Array, lane: usize) -> Real;
     /// Sets the value of lane `lane` (nothing past the last lane).
     fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real);
+    /// `2^floor(log2 |x|)` of every lane `x` holding a normal number: its exponent field
+    /// alone (sign and fraction bits cleared), exact.
+    #[inline(always)]
+    fn exponent_part(self) -> Self {
+        self.map(|x| Real::from_bits(x.to_bits() & Real::INFINITY.to_bits()))
+    }
+    /// Lanes `4 q..4 q + 4` of `values` as a group of [`Lanes`] (zero past the last lane).
+    #[inline(always)]
+    fn quarter(values: &Self::Array, q: usize) -> Lanes {
+        Lanes::from_array(core::array::from_fn(|j| {
+            Self::lane_value(values, q * LANES + j)
+        }))
+    }
+    /// Sets lanes `4 q..4 q + 4` of `values` to `quarter` (nothing past the last lane).
+    #[inline(always)]
+    fn set_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+        for (j, value) in quarter.to_array().into_iter().enumerate() {
+            Self::set_lane_value(values, q * LANES + j, value);
+        }
+    }
     /// The group whose lanes `4 q..4 q + 4` hold `quarters[q]` (quarters past the width are
     /// ignored): how the kernels build a wide group from 4-lane transposes, which the compiler
     /// keeps in registers (lane-by-lane stores measured slower than the SSE lanes).
@@ -418,6 +439,28 @@ pub(crate) trait LaneArray: Lane {
 #[inline(always)]
 pub(crate) fn array_lane_value(values: &[Real], lane: usize) -> Real {
     values.get(lane).copied().unwrap_or(0.0)
+}
+
+/// [`LaneArray::quarter`] for a plain array: one bounds check for the four values.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) fn array_quarter(values: &[Real], q: usize) -> Lanes {
+    values
+        .chunks_exact(LANES)
+        .nth(q)
+        .and_then(|quarter| <[Real; LANES]>::try_from(quarter).ok())
+        .map_or(Lanes::splat(0.0), Lanes::from_array)
+}
+
+/// [`LaneArray::set_quarter`] for a plain array.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) fn set_array_quarter(values: &mut [Real], q: usize, quarter: Lanes) {
+    if let Some(slots) = values.chunks_exact_mut(LANES).nth(q) {
+        for (slot, value) in slots.iter_mut().zip(quarter.to_array()) {
+            *slot = value;
+        }
+    }
 }
 
 /// [`LaneArray::set_lane_value`] for a plain array.
@@ -604,6 +647,27 @@ impl<L: LaneArray> LaneArray for LanePair<L> {
         match lane.checked_sub(L::WIDTH) {
             None => L::lane_value(&values.0, lane),
             Some(upper) => L::lane_value(&values.1, upper),
+        }
+    }
+
+    #[inline(always)]
+    fn exponent_part(self) -> Self {
+        LanePair(self.0.exponent_part(), self.1.exponent_part())
+    }
+
+    #[inline(always)]
+    fn quarter(values: &Self::Array, q: usize) -> Lanes {
+        match q.checked_sub(L::WIDTH / LANES) {
+            None => L::quarter(&values.0, q),
+            Some(upper) => L::quarter(&values.1, upper),
+        }
+    }
+
+    #[inline(always)]
+    fn set_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+        match q.checked_sub(L::WIDTH / LANES) {
+            None => L::set_quarter(&mut values.0, q, quarter),
+            Some(upper) => L::set_quarter(&mut values.1, upper, quarter),
         }
     }
 

@@ -14,7 +14,10 @@
 // AVX2 and the OS's support of the YMM state. The intrinsics have no memory operands or other
 // preconditions.
 
-use super::lanes::{Lane, LaneArray, array_lane_value, set_array_lane_value};
+use super::lanes::{
+    Lane, LaneArray, Lanes, array_lane_value, array_quarter, set_array_lane_value,
+    set_array_quarter,
+};
 use super::types::Real;
 use super::wide_ops::{
     AVX2_WIDTH, Reg256, add256, and256, andnot256, blendv256, cmp256, div256, max256, movemask256,
@@ -158,6 +161,22 @@ impl LaneArray for Avx2Lanes {
     #[inline(always)]
     fn lane_value(values: &Self::Array, lane: usize) -> Real {
         array_lane_value(values, lane)
+    }
+
+    #[inline(always)]
+    fn exponent_part(self) -> Self {
+        // SAFETY: see the module comment. The bits of +inf are the exponent field's mask.
+        Avx2Lanes(unsafe { and256(self.0, set1_256(Real::INFINITY)) })
+    }
+
+    #[inline(always)]
+    fn quarter(values: &Self::Array, q: usize) -> Lanes {
+        array_quarter(values, q)
+    }
+
+    #[inline(always)]
+    fn set_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+        set_array_quarter(values, q, quarter);
     }
 
     #[inline(always)]

@@ -15,7 +15,10 @@
 // `simd::detected_width` found AVX-512F and the OS's support of the ZMM and mask state. The
 // intrinsics have no memory operands or other preconditions.
 
-use super::lanes::{Lane, LaneArray, array_lane_value, set_array_lane_value};
+use super::lanes::{
+    Lane, LaneArray, Lanes, array_lane_value, array_quarter, set_array_lane_value,
+    set_array_quarter,
+};
 use super::types::Real;
 use super::wide_ops::{
     AVX512_WIDTH, Mask512, Reg512, abs512, add512, blend512, cmp512, div512, from_bits512, max512,
@@ -168,6 +171,25 @@ impl LaneArray for Avx512Lanes {
     #[inline(always)]
     fn lane_value(values: &Self::Array, lane: usize) -> Real {
         array_lane_value(values, lane)
+    }
+
+    #[inline(always)]
+    fn exponent_part(self) -> Self {
+        // SAFETY: see the module comment. The bits of +inf are the exponent field's mask.
+        unsafe {
+            let mask = to_bits512(set1_512(Real::INFINITY));
+            Avx512Lanes(from_bits512(_mm512_and_si512(to_bits512(self.0), mask)))
+        }
+    }
+
+    #[inline(always)]
+    fn quarter(values: &Self::Array, q: usize) -> Lanes {
+        array_quarter(values, q)
+    }
+
+    #[inline(always)]
+    fn set_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+        set_array_quarter(values, q, quarter);
     }
 
     #[inline(always)]

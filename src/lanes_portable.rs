@@ -133,6 +133,20 @@ impl Lane for Lanes {
     }
 }
 
+/// The 4x4 transpose of `rows`: lane `j` of result `i` is lane `i` of `rows[j]`.
+#[inline(always)]
+#[must_use]
+pub(crate) fn transpose4(rows: [Lanes; 4]) -> [Lanes; 4] {
+    core::array::from_fn(|i| {
+        Lanes(core::array::from_fn(|j| {
+            rows.get(j)
+                .and_then(|row| row.0.get(i))
+                .copied()
+                .unwrap_or(0.0)
+        }))
+    })
+}
+
 /// The vectors of [`LANES`] elements as lanes of coordinates (lane `i` holds `v[i]`).
 #[inline(always)]
 #[must_use]

@@ -150,6 +150,27 @@ impl Lane for Lanes {
     }
 }
 
+/// The 4x4 transpose of `rows`: lane `j` of result `i` is lane `i` of `rows[j]` (how the
+/// batched SVD turns four groups of entries into four matrices' rows, in registers).
+#[inline(always)]
+#[must_use]
+pub(crate) fn transpose4(rows: [Lanes; 4]) -> [Lanes; 4] {
+    let [Lanes(r0), Lanes(r1), Lanes(r2), Lanes(r3)] = rows;
+    // SAFETY: see the module comment.
+    unsafe {
+        let a0_b0_a1_b1 = _mm_unpacklo_ps(r0, r1);
+        let c0_d0_c1_d1 = _mm_unpacklo_ps(r2, r3);
+        let a2_b2_a3_b3 = _mm_unpackhi_ps(r0, r1);
+        let c2_d2_c3_d3 = _mm_unpackhi_ps(r2, r3);
+        [
+            Lanes(_mm_movelh_ps(a0_b0_a1_b1, c0_d0_c1_d1)),
+            Lanes(_mm_movehl_ps(c0_d0_c1_d1, a0_b0_a1_b1)),
+            Lanes(_mm_movelh_ps(a2_b2_a3_b3, c2_d2_c3_d3)),
+            Lanes(_mm_movehl_ps(c2_d2_c3_d3, a2_b2_a3_b3)),
+        ]
+    }
+}
+
 /// One vector as `[x, y, z, 0]`.
 #[inline(always)]
 fn packed(v: Vec3) -> __m128 {

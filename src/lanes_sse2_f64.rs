@@ -14,7 +14,7 @@ use super::types::{Real, Vec3};
 use core::arch::x86_64::{
     __m128d, _mm_add_pd, _mm_and_pd, _mm_andnot_pd, _mm_cmpge_pd, _mm_cmpgt_pd, _mm_cmpunord_pd,
     _mm_div_pd, _mm_max_pd, _mm_movemask_pd, _mm_mul_pd, _mm_or_pd, _mm_set1_pd, _mm_setr_pd,
-    _mm_sqrt_pd, _mm_sub_pd, _mm_xor_pd,
+    _mm_sqrt_pd, _mm_sub_pd, _mm_unpackhi_pd, _mm_unpacklo_pd, _mm_xor_pd,
 };
 use core::ops::{Add, Div, Mul, Neg, Sub};
 
@@ -175,6 +175,28 @@ impl Lane for Lanes {
     #[inline(always)]
     fn map(self, f: impl Fn(Real) -> Real) -> Self {
         Lanes::from_array(each_lane(self.to_array(), f))
+    }
+}
+
+/// The 4x4 transpose of `rows`: lane `j` of result `i` is lane `i` of `rows[j]` (how the
+/// batched SVD turns four groups of entries into four matrices' rows, in registers).
+#[inline(always)]
+#[must_use]
+pub(crate) fn transpose4(rows: [Lanes; 4]) -> [Lanes; 4] {
+    let [
+        Lanes([a01, a23]),
+        Lanes([b01, b23]),
+        Lanes([c01, c23]),
+        Lanes([d01, d23]),
+    ] = rows;
+    // SAFETY: see the module comment.
+    unsafe {
+        [
+            Lanes([_mm_unpacklo_pd(a01, b01), _mm_unpacklo_pd(c01, d01)]),
+            Lanes([_mm_unpackhi_pd(a01, b01), _mm_unpackhi_pd(c01, d01)]),
+            Lanes([_mm_unpacklo_pd(a23, b23), _mm_unpacklo_pd(c23, d23)]),
+            Lanes([_mm_unpackhi_pd(a23, b23), _mm_unpackhi_pd(c23, d23)]),
+        ]
     }
 }
 

@@ -253,3 +253,38 @@ fn run_avx512<K: WidthKernel>(kernel: K) -> K::Output {
     // SAFETY: as in `run_avx2`, for AVX-512F.
     unsafe { kernel.avx512() }
 }
+
+/// A piece of a batched kernel that runs in a function of its own ([`outlined_avx2`],
+/// [`outlined_avx512`]).
+#[cfg(target_arch = "x86_64")]
+pub(crate) trait Outlined {
+    /// What the piece returns.
+    type Output;
+    /// The piece's work. Implementations are `#[inline(always)]`, so that their code is
+    /// compiled inside the outlined function, with its CPU features enabled.
+    fn run(self) -> Self::Output;
+}
+
+/// Runs `body` in a function of its own, compiled with AVX2 enabled: for a kernel whose code
+/// for several lane types is too large to inline whole into [`dispatch`]'s function (LLVM then
+/// stops inlining parts of it, down to single intrinsics, which cost a call each).
+///
+/// # Safety
+/// As [`WidthKernel::avx2`]: the CPU must support AVX2; call it only from there.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline(never)]
+pub(crate) unsafe fn outlined_avx2<B: Outlined>(body: B) -> B::Output {
+    body.run()
+}
+
+/// [`outlined_avx2`] for AVX-512F.
+///
+/// # Safety
+/// As [`WidthKernel::avx512`]: the CPU must support AVX-512F; call it only from there.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline(never)]
+pub(crate) unsafe fn outlined_avx512<B: Outlined>(body: B) -> B::Output {
+    body.run()
+}

@@ -78,6 +78,41 @@ impl Svd3 {
         self.u * Mat3::from_diagonal(self.sigma) * self.v.transpose()
     }
 
+    /// The decomposition whose `u`, `sigma` and `v` are `values[0..9]`, `values[9..12]` and
+    /// `values[12..21]` (the matrices columns first); later values are ignored.
+    #[inline(always)]
+    fn from_values(values: &[Real; 24]) -> Svd3 {
+        let [
+            u0,
+            u1,
+            u2,
+            u3,
+            u4,
+            u5,
+            u6,
+            u7,
+            u8,
+            s0,
+            s1,
+            s2,
+            v0,
+            v1,
+            v2,
+            v3,
+            v4,
+            v5,
+            v6,
+            v7,
+            v8,
+            ..,
+        ] = *values;
+        Svd3 {
+            u: Mat3::from_cols_array(&[u0, u1, u2, u3, u4, u5, u6, u7, u8]),
+            sigma: Vec3::new(s0, s1, s2),
+            v: Mat3::from_cols_array(&[v0, v1, v2, v3, v4, v5, v6, v7, v8]),
+        }
+    }
+
     /// What [`svd3`] returns for a non-finite input.
     const NON_FINITE: Svd3 = Svd3 {
         u: Mat3::IDENTITY,
@@ -470,10 +505,9 @@ impl<L: Lane> SymmetricEntries<L> {
             self.s11.abs().sqrt(),
             self.s22.abs().sqrt(),
         );
-        let excess = |spq: L, rp: L, rq: L| spq.abs() - eps * (rp * rq);
-        excess(self.s01, r0, r1)
-            .max(excess(self.s02, r0, r2))
-            .max(excess(self.s12, r1, r2))
+        off_diagonal_excess(self.s01, r0, r1, eps)
+            .max(off_diagonal_excess(self.s02, r0, r2, eps))
+            .max(off_diagonal_excess(self.s12, r1, r2, eps))
     }
 
     /// `mask ? a : b`, per lane.
@@ -488,6 +522,14 @@ impl<L: Lane> SymmetricEntries<L> {
             s12: L::select(mask, a.s12, b.s12),
         }
     }
+}
+
+/// `|spq| - eps (rp rq)`: one term of [`SymmetricEntries::convergence_excess`]. A function
+/// rather than a closure so that it is always inlined: a closure left out of line is compiled
+/// without the CPU features of the wide kernels that call it, and so are its lane operations.
+#[inline(always)]
+fn off_diagonal_excess<L: Lane>(spq: L, rp: L, rq: L, eps: L) -> L {
+    spq.abs() - eps * (rp * rq)
 }
 
 /// A plane rotation `[[c, s], [-s, c]]` acting on a pair of indices `(p, q)`, with
