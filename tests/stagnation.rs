@@ -2,7 +2,8 @@
 //! the rounding floor stops early as stagnated instead of burning the budget, with the floor
 //! reached reported, in both precisions; the residual it stops at is recomputed from the force
 //! kernel; and the loop's displacement coordinates, which keep floor, stop and iteration
-//! counts of a problem translated 60 m (1e4 m in f64) from the origin those at the origin.
+//! counts of a problem translated 60 m (1e4 m in f64) from the origin those at the origin, on
+//! a collider as without.
 
 macro_rules! stagnation_tests {
     ($precision:ident, $($api:ident)::+, $far:expr, $relax_tolerance:expr, $newton_tolerance:expr) => {
@@ -11,7 +12,7 @@ macro_rules! stagnation_tests {
             use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
             use $($api)::+::material::StableNeoHookean;
             use $($api)::+::mesh::TetMesh;
-            use $($api)::+::step::{FLOOR_FACTOR, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, TetElastic, newton_quasi_static, newton_scratch_len, relax_quasi_static, relax_scratch_len};
+            use $($api)::+::step::{Collider, FLOOR_FACTOR, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, TetElastic, newton_quasi_static, newton_scratch_len, relax_quasi_static, relax_scratch_len};
             use $($api)::+::types::{Mat3, Real, Vec3};
 
             const GRAVITY: Vec3 = Vec3::new(0.0, -9.81, 0.0);
@@ -26,6 +27,12 @@ macro_rules! stagnation_tests {
             /// iterations; returns the report and `|f + m g|` over the free vertices recomputed
             /// from the force kernel.
             fn cantilever(offset: Vec3, tolerance: Real, budget: u32) -> ($($api)::+::step::RelaxReport, f64) {
+                let (report, imbalance, _) = cantilever_on(offset, tolerance, budget, &[]);
+                (report, imbalance)
+            }
+
+            /// [`cantilever`] with `colliders`; also returns the final positions.
+            fn cantilever_on(offset: Vec3, tolerance: Real, budget: u32, colliders: &[Collider<'_>]) -> ($($api)::+::step::RelaxReport, f64, Vec<Vec3>) {
                 let (nv, nt) = box_counts(4, 1, 1, BoxSplit::Kuhn6).unwrap();
                 let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
                 fill_box(offset, offset + Vec3::new(0.4, 0.1, 0.1), 4, 1, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
@@ -39,7 +46,8 @@ macro_rules! stagnation_tests {
                 let settings = RelaxSettings::new(1.0)
                     .with_gravity(GRAVITY)
                     .with_tolerance(tolerance, budget)
-                    .with_chebyshev(0.999, 2.0, 0);
+                    .with_chebyshev(0.999, 2.0, 0)
+                    .with_colliders(colliders);
                 let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let mut x = rest.clone();
@@ -48,7 +56,7 @@ macro_rules! stagnation_tests {
                 mesh.add_elastic_forces(&material, &x, &mut f).unwrap();
                 let imbalance = f.iter().zip(&masses).zip(&pinned).filter(|(_, p)| !**p)
                     .map(|((f, m), _)| (*f + GRAVITY * *m).length_squared() as f64).sum::<f64>().sqrt();
-                (report, imbalance)
+                (report, imbalance, x)
             }
 
             #[test]
@@ -68,6 +76,11 @@ macro_rules! stagnation_tests {
 
             /// Newton's method on the same cantilever moved by `offset` at `tolerance`.
             fn newton_cantilever(offset: Vec3, tolerance: Real) -> $($api)::+::step::NewtonReport {
+                newton_cantilever_on(offset, tolerance, &[])
+            }
+
+            /// [`newton_cantilever`] with `colliders`.
+            fn newton_cantilever_on(offset: Vec3, tolerance: Real, colliders: &[Collider<'_>]) -> $($api)::+::step::NewtonReport {
                 let (nv, nt) = box_counts(4, 1, 1, BoxSplit::Kuhn6).unwrap();
                 let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
                 fill_box(offset, offset + Vec3::new(0.4, 0.1, 0.1), 4, 1, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
@@ -77,7 +90,7 @@ macro_rules! stagnation_tests {
                 let mut masses = vec![0.0; nv];
                 mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let pinned: Vec<bool> = rest.iter().map(|x| x.x == offset.x).collect();
-                let settings = NewtonSettings::new(1.0).with_gravity(GRAVITY).with_tolerance(tolerance, 50);
+                let settings = NewtonSettings::new(1.0).with_gravity(GRAVITY).with_tolerance(tolerance, 50).with_colliders(colliders);
                 let len = newton_scratch_len(nv, nt);
                 let mut vectors = vec![Vec3::ZERO; len.vectors];
                 let mut blocks = vec![Mat3::ZERO; len.blocks];
@@ -120,6 +133,33 @@ macro_rules! stagnation_tests {
                     assert!(far.converged, "{offset} m: {far:?}");
                     // The translated rest shape is rounded to the ulp of 60 m: a perturbation of
                     // relative size eps 60 m / 0.1 m that may move the count a little.
+                    let margin = |n: u32| n / 10 + 2;
+                    assert!(far.iterations.abs_diff(near.iterations) <= margin(near.iterations), "{offset} m: {far:?} against {near:?}");
+                    assert!(newton_far.residual <= newton_far.target, "{offset} m: {newton_far:?}");
+                    assert!(newton_far.newton_iterations.abs_diff(newton_near.newton_iterations) <= 1, "{offset} m: {newton_far:?} against {newton_near:?}");
+                }
+            }
+
+            #[test]
+            fn on_a_collider_a_translated_problem_converges_like_at_the_origin() {
+                // The same, the cantilever's free end resting on a half-space collider 5 mm
+                // below its clamp (the plane y = -5 mm, the same world plane for every offset):
+                // the colliders are seen from the shifted coordinates too, so the contact does
+                // not bring back the rounding of the absolute positions.
+                let plane = [Collider::half_space(Vec3::new(0.0, -0.005, 0.0), Vec3::Y)];
+                let (near, _, x) = cantilever_on(Vec3::ZERO, RELAX_TOLERANCE, 200_000, &plane);
+                let lowest = |x: &[Vec3]| x.iter().map(|p| p.y).fold(Real::INFINITY, Real::min);
+                // In contact: the lowest vertex on the plane (to the projection's rounding).
+                assert!((lowest(&x) + 0.005).abs() < 1e-5, "{}", lowest(&x));
+                let newton_near = newton_cantilever_on(Vec3::ZERO, NEWTON_TOLERANCE, &plane);
+                assert!(near.converged && newton_near.residual <= newton_near.target, "{near:?}\n{newton_near:?}");
+                for &offset in FAR {
+                    let at = Vec3::new(offset, 0.0, 0.0);
+                    let (far, _, x) = cantilever_on(at, RELAX_TOLERANCE, 200_000, &plane);
+                    let newton_far = newton_cantilever_on(at, NEWTON_TOLERANCE, &plane);
+                    println!("{offset} m on the plane: relaxation {} against {} iterations, Newton {} against {}", far.iterations, near.iterations, newton_far.newton_iterations, newton_near.newton_iterations);
+                    assert!((lowest(&x) + 0.005).abs() < 1e-5, "{offset} m: {}", lowest(&x));
+                    assert!(far.converged, "{offset} m: {far:?}");
                     let margin = |n: u32| n / 10 + 2;
                     assert!(far.iterations.abs_diff(near.iterations) <= margin(near.iterations), "{offset} m: {far:?} against {near:?}");
                     assert!(newton_far.residual <= newton_far.target, "{offset} m: {newton_far:?}");

@@ -378,7 +378,14 @@ impl<'a> Collider<'a> {
     #[inline]
     #[must_use]
     pub fn surface_velocity(&self, x: Vec3) -> Vec3 {
-        self.linear_velocity + self.angular_velocity.cross(x - self.position)
+        self.surface_velocity_from(x, self.position)
+    }
+
+    /// [`surface_velocity`](Self::surface_velocity) at `x` in coordinates in which the
+    /// collider's frame origin is at `position` (its own, or shifted by `-origin`).
+    #[inline(always)]
+    fn surface_velocity_from(&self, x: Vec3, position: Vec3) -> Vec3 {
+        self.linear_velocity + self.angular_velocity.cross(x - position)
     }
 
     /// Checks the parameters (see [`ColliderProblem`]).
@@ -437,8 +444,38 @@ impl<'a> Collider<'a> {
     /// the normal where the shape gives no direction.
     #[inline]
     fn probe(&self, x: Vec3) -> (Real, Option<Vec3>) {
+        self.probe_from(x, self.position)
+    }
+
+    /// Where the collider's frame origin lies in coordinates shifted by `-origin` (m), for its
+    /// geometry: `position - origin`, except for a half-space, whose frame origin may be any
+    /// point of its plane: there the point of the plane nearest `origin` (shifted), so that the
+    /// difference a query takes, `x - frame`, is as small as the shifted `x` and keeps its
+    /// digits (`position - origin` can be metres long when the plane passes through the world
+    /// origin and the body slides far along it). The plane moves by the rounding of that point
+    /// only, once per solve (a few ulp of `|position - origin|` along the normal). `origin`
+    /// zero: `position`, bit for bit.
+    #[inline]
+    fn frame(&self, origin: Vec3) -> Vec3 {
+        if origin == Vec3::ZERO {
+            return self.position;
+        }
+        let relative = self.position - origin;
+        match self.shape {
+            Shape::HalfSpace => {
+                let normal = rotate(self.unit_rotation(), Vec3::Z);
+                normal * normal.dot(relative)
+            }
+            _ => relative,
+        }
+    }
+
+    /// [`probe`](Self::probe) with the collider's frame origin at `frame` (see
+    /// [`frame`](Self::frame)).
+    #[inline]
+    fn probe_from(&self, x: Vec3, frame: Vec3) -> (Real, Option<Vec3>) {
         let q = self.unit_rotation();
-        let local = rotate_back(q, x - self.position);
+        let local = rotate_back(q, x - frame);
         let (distance, gradient) = match self.shape {
             Shape::HalfSpace => (local.z, Some(Vec3::Z)),
             Shape::Sphere { radius } => {
@@ -476,19 +513,21 @@ impl<'a> Collider<'a> {
     }
 
     /// The outward normal at `x` if `x` touches the surface within rounding of the projection
-    /// (signed distance at most `64 eps (|x|_1 + |position|_1 + size)`).
+    /// (signed distance at most `64 eps (|x|_1 + |frame|_1 + size)`), the frame origin at
+    /// `frame` (see [`frame`](Self::frame)).
     #[inline]
-    fn touching(&self, x: Vec3) -> Option<Vec3> {
-        let (distance, normal) = self.probe(x);
+    fn touching(&self, x: Vec3, frame: Vec3) -> Option<Vec3> {
+        let (distance, normal) = self.probe_from(x, frame);
         let l1 = |v: Vec3| v.x.abs() + v.y.abs() + v.z.abs();
-        let tolerance = CONTACT_EPS * (l1(x) + l1(self.position) + self.size());
+        let tolerance = CONTACT_EPS * (l1(x) + l1(frame) + self.size());
         if distance <= tolerance { normal } else { None }
     }
 
-    /// `x` moved onto the surface along the normal if it is inside; whether it was.
+    /// `x` moved onto the surface along the normal if it is inside, the frame origin at `frame`
+    /// (see [`frame`](Self::frame)); whether it was.
     #[inline]
-    fn push_out(&self, x: &mut Vec3) -> bool {
-        let (distance, normal) = self.probe(*x);
+    fn push_out(&self, x: &mut Vec3, frame: Vec3) -> bool {
+        let (distance, normal) = self.probe_from(*x, frame);
         match normal {
             Some(normal) if distance < 0.0 => {
                 *x -= normal * distance;
@@ -541,41 +580,88 @@ pub(super) fn check_colliders(colliders: &[Collider<'_>], three_d: bool) -> Resu
     Ok(())
 }
 
-/// `x` pushed out of every collider, in order.
-#[inline]
-pub(super) fn pushed_out(colliders: &[Collider<'_>], x: Vec3) -> Vec3 {
-    let mut x = x;
-    for collider in colliders {
-        collider.push_out(&mut x);
-    }
-    x
+/// The validated colliders as a solve sees them: in its coordinates, shifted by `-origin`
+/// (the reference point the descent loop iterates next to, `descent/mod.rs`; zero for world
+/// coordinates). Every contact query here takes a point in those coordinates and answers in
+/// them: the geometry is queried relative to the collider's frame origin shifted with the
+/// point (see [`Collider::frame`]), so a body far from the world origin is tested with the
+/// digits of its shifted coordinates, and the surface velocity is unchanged (it depends on
+/// `x - position` only). With a zero origin every query is bit for bit the world one.
+#[derive(Clone, Copy)]
+pub struct Colliders<'a> {
+    list: &'a [Collider<'a>],
+    origin: Vec3,
 }
 
-/// The first collider `x` touches and its outward normal there.
-#[inline]
-pub(super) fn touching<'c, 'a>(
-    colliders: &'c [Collider<'a>],
-    x: Vec3,
-) -> Option<(&'c Collider<'a>, Vec3)> {
-    colliders
-        .iter()
-        .find_map(|c| c.touching(x).map(|normal| (c, normal)))
-}
-
-/// `v` without its component into the first collider `x` touches: `sign` +1 for a gradient
-/// (whose descent is `-v`), -1 for a direction.
-#[inline]
-pub(super) fn constrained(colliders: &[Collider<'_>], x: Vec3, v: Vec3, sign: Real) -> Vec3 {
-    match touching(colliders, x) {
-        Some((_, normal)) => {
-            let along = normal.dot(v);
-            if along * sign > 0.0 {
-                v - normal * along
-            } else {
-                v
-            }
+impl<'a> Colliders<'a> {
+    /// `list` in world coordinates.
+    #[inline(always)]
+    pub fn new(list: &'a [Collider<'a>]) -> Self {
+        Colliders {
+            list,
+            origin: Vec3::ZERO,
         }
-        None => v,
+    }
+
+    /// These colliders seen from coordinates shifted by `-origin` (m).
+    #[inline(always)]
+    #[must_use]
+    pub fn shifted(self, origin: Vec3) -> Self {
+        Colliders { origin, ..self }
+    }
+
+    /// Whether there are none.
+    #[inline(always)]
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+
+    /// The colliders, in slice order.
+    #[inline(always)]
+    pub fn iter(&self) -> core::slice::Iter<'a, Collider<'a>> {
+        self.list.iter()
+    }
+
+    /// `x` pushed out of every collider, in order.
+    #[inline]
+    pub fn pushed_out(&self, x: Vec3) -> Vec3 {
+        let mut x = x;
+        for collider in self.list {
+            collider.push_out(&mut x, collider.frame(self.origin));
+        }
+        x
+    }
+
+    /// The first collider `x` touches and its outward normal there.
+    #[inline]
+    pub fn touching(&self, x: Vec3) -> Option<(&'a Collider<'a>, Vec3)> {
+        self.list.iter().find_map(|c| {
+            c.touching(x, c.frame(self.origin))
+                .map(|normal| (c, normal))
+        })
+    }
+
+    /// The velocity of `collider`'s material at `x` (m/s).
+    #[inline(always)]
+    fn surface_velocity(&self, collider: &Collider<'_>, x: Vec3) -> Vec3 {
+        collider.surface_velocity_from(x, collider.position - self.origin)
+    }
+
+    /// `v` without its component into the first collider `x` touches: `sign` +1 for a gradient
+    /// (whose descent is `-v`), -1 for a direction.
+    #[inline]
+    pub fn constrained(&self, x: Vec3, v: Vec3, sign: Real) -> Vec3 {
+        match self.touching(x) {
+            Some((_, normal)) => {
+                let along = normal.dot(v);
+                if along * sign > 0.0 {
+                    v - normal * along
+                } else {
+                    v
+                }
+            }
+            None => v,
+        }
     }
 }
 
@@ -604,7 +690,9 @@ pub(super) fn resolve(
 ) -> usize {
     let mut contacts = 0;
     for collider in colliders {
-        if !collider.push_out(x) {
+        // World coordinates: the collider's own frame origin.
+        let frame = collider.position;
+        if !collider.push_out(x, frame) {
             continue;
         }
         contacts += 1;
@@ -623,74 +711,73 @@ pub(super) fn resolve(
             if collider.friction > 0.0 {
                 // Along the tangent plane: back onto a curved surface by the projection.
                 *x += (kept - tangential) * h;
-                collider.push_out(x);
+                collider.push_out(x, frame);
             }
         }
     }
     contacts
 }
 
-/// The implicit solvers' velocity at a vertex at `x` touching a collider, after
-/// `v = (x_{n+1} - x_n) / h`: relative to the surface, the normal approach removed and, unless
-/// the collider's friction was part of the step's objective (a positive
-/// [`sticking_speed`](Collider::sticking_speed), `friction.rs`), Coulomb friction with the
-/// normal impulse `h R` (`R` the reaction: the normal component of the gradient `g` of `Phi`, N;
-/// `m` the mass, kg). `v` unchanged away from every collider.
-#[inline]
-pub(super) fn implicit_velocity(
-    colliders: &[Collider<'_>],
-    (x, g, m, h): (Vec3, Vec3, Real, Real),
-    v: Vec3,
-) -> Vec3 {
-    let Some((collider, normal)) = touching(colliders, x) else {
-        return v;
-    };
-    let surface = collider.surface_velocity(x);
-    let relative = v - surface;
-    let along = normal.dot(relative);
-    let reaction = normal.dot(g).max(0.0);
-    let normal_change = h * reaction / m + (-along).max(0.0);
-    let tangential = relative - normal * along;
-    let friction = if collider.friction_in_objective() {
-        0.0
-    } else {
-        collider.friction
-    };
-    surface + coulomb(tangential, friction * normal_change) + normal * along.max(0.0)
-}
+impl Colliders<'_> {
+    /// The implicit solvers' velocity at a vertex at `x` touching a collider, after
+    /// `v = (x_{n+1} - x_n) / h`: relative to the surface, the normal approach removed and,
+    /// unless the collider's friction was part of the step's objective (a positive
+    /// [`sticking_speed`](Collider::sticking_speed), `friction.rs`), Coulomb friction with the
+    /// normal impulse `h R` (`R` the reaction: the normal component of the gradient `g` of
+    /// `Phi`, N; `m` the mass, kg). `v` unchanged away from every collider.
+    #[inline]
+    pub fn implicit_velocity(&self, (x, g, m, h): (Vec3, Vec3, Real, Real), v: Vec3) -> Vec3 {
+        let Some((collider, normal)) = self.touching(x) else {
+            return v;
+        };
+        let surface = self.surface_velocity(collider, x);
+        let relative = v - surface;
+        let along = normal.dot(relative);
+        let reaction = normal.dot(g).max(0.0);
+        let normal_change = h * reaction / m + (-along).max(0.0);
+        let tangential = relative - normal * along;
+        let friction = if collider.friction_in_objective() {
+            0.0
+        } else {
+            collider.friction
+        };
+        surface + coulomb(tangential, friction * normal_change) + normal * along.max(0.0)
+    }
 
-/// The first collider the move from `x` to `target` ends inside, as a plane for a local step:
-/// the signed distance of `x` (m) and the outward normal there (at `target` where `x` gives
-/// none). `None` if `target` is inside none.
-#[inline]
-pub(super) fn entered(colliders: &[Collider<'_>], x: Vec3, target: Vec3) -> Option<(Real, Vec3)> {
-    colliders.iter().find_map(|c| {
-        let (inside, normal_inside) = c.probe(target);
-        if inside >= 0.0 {
-            return None;
-        }
-        let (distance, normal) = c.probe(x);
-        Some((distance, normal.or(normal_inside)?))
-    })
-}
+    /// The first collider the move from `x` to `target` ends inside, as a plane for a local
+    /// step: the signed distance of `x` (m) and the outward normal there (at `target` where `x`
+    /// gives none). `None` if `target` is inside none.
+    #[inline]
+    pub fn entered(&self, x: Vec3, target: Vec3) -> Option<(Real, Vec3)> {
+        self.list.iter().find_map(|c| {
+            let frame = c.frame(self.origin);
+            let (inside, normal_inside) = c.probe_from(target, frame);
+            if inside >= 0.0 {
+                return None;
+            }
+            let (distance, normal) = c.probe_from(x, frame);
+            Some((distance, normal.or(normal_inside)?))
+        })
+    }
 
-/// The friction data of the first collider `x` touches: its normal there, its surface velocity,
-/// friction coefficient and sticking speed.
-#[inline]
-pub(super) fn contact(colliders: &[Collider<'_>], x: Vec3) -> Option<Contact<Vec3>> {
-    touching(colliders, x).map(|(collider, normal)| Contact {
-        normal,
-        surface_velocity: collider.surface_velocity(x),
-        friction: collider.friction,
-        sticking_speed: collider.sticking_speed,
-    })
+    /// The friction data of the first collider `x` touches: its normal there, its surface
+    /// velocity, friction coefficient and sticking speed.
+    #[inline]
+    pub fn contact(&self, x: Vec3) -> Option<Contact<Vec3>> {
+        self.touching(x).map(|(collider, normal)| Contact {
+            normal,
+            surface_velocity: self.surface_velocity(collider, x),
+            friction: collider.friction,
+            sticking_speed: collider.sticking_speed,
+        })
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::super::super::math::sqrt;
     use super::super::super::types::{Quat, Real, Vec3};
-    use super::{Collider, SignedDistance, pushed_out};
+    use super::{Collider, Colliders, SignedDistance};
     use crate::error::ColliderProblem;
 
     /// Distances of each shape at points whose answer is known by hand.
@@ -742,9 +829,9 @@ mod tests {
         for (k, shape) in shapes.iter().enumerate() {
             let inside = shape.position + Vec3::new(0.1, -0.2, -0.15);
             assert!(shape.distance(inside) < 0.0, "shape {k}");
-            let out = pushed_out(core::slice::from_ref(shape), inside);
+            let out = Colliders::new(core::slice::from_ref(shape)).pushed_out(inside);
             assert!(shape.distance(out).abs() < 1e-5, "shape {k}");
-            assert!(shape.touching(out).is_some(), "shape {k}");
+            assert!(shape.touching(out, shape.position).is_some(), "shape {k}");
         }
     }
 
@@ -801,5 +888,108 @@ mod tests {
                 .length()
                 < 1e-6
         );
+    }
+
+    /// Shapes placed 8 m from the origin, kinematic (turning at 2 rad/s), at points next to
+    /// their surfaces.
+    fn far_shapes() -> ([Collider<'static>; 4], Vec3) {
+        let far = Vec3::new(6.0, -5.0, 2.5);
+        let turned = Quat::from_rotation_x(0.3);
+        let spin = |c: Collider<'static>| {
+            c.with_velocity(Vec3::new(0.5, 0.0, -0.25), Vec3::new(0.0, 2.0, 1.0))
+        };
+        let shapes = [
+            spin(Collider::half_space(Vec3::ZERO, Vec3::new(0.3, 1.0, 0.2))),
+            spin(Collider::sphere(far + Vec3::new(0.0, -1.0, 0.0), 0.9)),
+            spin(Collider::capsule(far, far + Vec3::new(0.0, 0.5, 0.5), 0.3)),
+            spin(Collider::cuboid(far, Vec3::new(0.5, 1.0, 0.2), turned)),
+        ];
+        (shapes, far)
+    }
+
+    /// The shifted view answers as the world one: a point inside pushed out lands at the same
+    /// place (to the rounding of world coordinates 8 m out), on the same contact with the same
+    /// normal and surface velocity (the kinematic collider's motion is unchanged by the
+    /// shift), for every shape; a zero origin gives the world answers bit for bit.
+    #[test]
+    fn shifted_colliders_answer_as_in_the_world() {
+        let (shapes, far) = far_shapes();
+        let close = |a: Vec3, b: Vec3, scale: Real| {
+            (a - b).abs().max_element() <= 64.0 * Real::EPSILON * scale
+        };
+        for (k, shape) in shapes.iter().enumerate() {
+            let list = core::slice::from_ref(shape);
+            let world = Colliders::new(list);
+            // Nearest the body: the reference point a solve would take is one of its vertices.
+            let inside = if k == 0 {
+                far - shape.rotation
+                    * Vec3::Z
+                    * (far - shape.position).dot(shape.rotation * Vec3::Z)
+                    - shape.rotation * Vec3::Z * 0.01
+            } else {
+                shape.position + Vec3::new(0.05, -0.1, 0.02)
+            };
+            assert!(shape.distance(inside) < 0.0, "shape {k}");
+            let origin = inside + Vec3::new(0.125, 0.25, -0.125);
+            let view = world.shifted(origin);
+            let out = world.pushed_out(inside);
+            let shifted_out = view.pushed_out(inside - origin);
+            assert!(
+                close(shifted_out + origin, out, 8.0),
+                "shape {k}: {shifted_out} {out}"
+            );
+            let (a, b) = (
+                world.contact(out).unwrap(),
+                view.contact(shifted_out).unwrap(),
+            );
+            assert!(close(a.normal, b.normal, 8.0), "shape {k}");
+            assert!(
+                close(a.surface_velocity, b.surface_velocity, 8.0 * 3.0),
+                "shape {k}"
+            );
+            assert_eq!(a.friction, b.friction);
+            // The surface velocity is the collider's motion at the world point.
+            let expected =
+                shape.linear_velocity + shape.angular_velocity.cross(out - shape.position);
+            assert!(close(b.surface_velocity, expected, 8.0 * 3.0), "shape {k}");
+            // Zero origin: the world's bits.
+            let zero = world.shifted(Vec3::ZERO);
+            assert_eq!(zero.pushed_out(inside), out);
+            assert_eq!(
+                zero.contact(out).map(|c| c.surface_velocity),
+                Some(a.surface_velocity)
+            );
+        }
+    }
+
+    /// The point of the shift: next to a body 8 m out on a tilted half-space through the world
+    /// origin, the shifted view resolves a move of one `eps` m along the normal (the distance
+    /// changes by it within 1 %), where world coordinates (ulp of 8 m: `8 eps`) cannot; the
+    /// half-space's frame is re-anchored next to the body for this (measured from its own
+    /// frame origin the difference would be 8 m long and lose those digits).
+    #[test]
+    fn a_shifted_half_space_resolves_moves_below_the_ulp_of_world_coordinates() {
+        let (shapes, far) = far_shapes();
+        let plane = shapes[0];
+        let normal = plane.rotation * Vec3::Z;
+        let on_plane = far - normal * (far - plane.position).dot(normal);
+        let view = Colliders::new(core::slice::from_ref(&plane)).shifted(on_plane);
+        let step = Real::EPSILON;
+        for (k, x) in [Vec3::new(1e-4, 2e-4, -3e-4), Vec3::new(-1e-3, 5e-4, 2e-3)]
+            .into_iter()
+            .enumerate()
+        {
+            let deep = |x: Vec3| view.entered(x, x - normal).unwrap();
+            let (d0, n0) = deep(x);
+            let (d1, _) = deep(x + normal * step);
+            assert!(
+                ((d1 - d0) / step - 1.0).abs() < 0.01,
+                "point {k}: {d0:e} -> {d1:e}"
+            );
+            assert!((n0 - normal).length() < 1e-6, "point {k}");
+        }
+        // In world coordinates the same move is below the resolution of the point itself.
+        let world = on_plane + Vec3::new(1e-4, 2e-4, -3e-4);
+        assert_eq!(world + normal * step, world);
     }
 }

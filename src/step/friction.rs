@@ -29,6 +29,7 @@
 
 use super::super::math;
 use super::super::types::{Mat3, Real, Vec3};
+use super::collider::Colliders;
 use super::points::{Floor, Grouped};
 use super::{Collider, Ground, Vector};
 
@@ -189,8 +190,8 @@ impl<V: Grouped> Friction<'_, V> {
 
 impl<'a, V: Grouped + Vector> Friction<'a, V> {
     /// The friction of a step of `h` (0 for the quasi-static mode, which has none) on `ground`
-    /// (unit normal) and the validated `colliders`.
-    pub fn new(ground: Option<&Ground<V>>, colliders: &'a [Collider<'a>], h: Real) -> Self {
+    /// (unit normal) and the validated `colliders`, both in the solve's coordinates.
+    pub fn new(ground: Option<&Ground<V>>, colliders: Colliders<'a>, h: Real) -> Self {
         let rough_ground = ground.is_some_and(Ground::friction_in_objective);
         let rough_collider = colliders.iter().any(Collider::friction_in_objective);
         Friction {

@@ -13,7 +13,7 @@ use core::ops::{Add, Neg, Sub};
 use super::super::lanes::{LANES, Lane, LaneVec3, Lanes, each_lane};
 use super::super::types::{Real, Vec2, Vec3};
 use super::Ground;
-use super::collider::{self, Collider};
+use super::collider::{self, Collider, Colliders};
 use super::friction::Contact;
 
 /// One vertex vector, or [`LANES`] of them. Public in a private module: the hidden half of the
@@ -37,10 +37,10 @@ pub trait Point: Copy + Add<Output = Self> + Sub<Output = Self> + Neg<Output = S
     fn select(mask: <Self::Scalar as Lane>::Mask, a: Self, b: Self) -> Self;
     /// `self` pushed out of every collider, in order (colliders act on 3D points only: the
     /// identity in 2D). Lane by lane for groups.
-    fn pushed_out(self, colliders: &[Collider<'_>]) -> Self;
+    fn pushed_out(self, colliders: Colliders<'_>) -> Self;
     /// `v` without its component into the first collider touching `self`, `sign` as in
     /// [`Floor::constrain`] (the identity in 2D). Lane by lane for groups.
-    fn constrained_by(self, colliders: &[Collider<'_>], v: Self, sign: Real) -> Self;
+    fn constrained_by(self, colliders: Colliders<'_>, v: Self, sign: Real) -> Self;
 }
 
 /// A vector type that also comes in groups of [`LANES`]: `Vec2` and `Vec3`.
@@ -65,18 +65,21 @@ pub trait Grouped: Point<Scalar = Real, Vector = Self> {
         resting_speed_and_step: (Real, Real),
     ) -> usize;
     /// The implicit solvers' velocity `v` at a vertex at `x` with gradient `g`, mass `m` and
-    /// step `h` after the colliders' friction (see `collider::implicit_velocity`; `v` in 2D).
+    /// step `h` after the colliders' friction (see `Colliders::implicit_velocity`; `v` in 2D).
     fn collider_velocity(
-        colliders: &[Collider<'_>],
+        colliders: Colliders<'_>,
         x: Self,
         g: Self,
         m: Real,
         h: Real,
         v: Self,
     ) -> Self;
-    /// The friction data of the first collider `x` touches (see `collider::contact`; none in
+    /// The friction data of the first collider `x` touches (see `Colliders::contact`; none in
     /// 2D).
-    fn collider_contact(colliders: &[Collider<'_>], x: Self) -> Option<Contact<Self>>;
+    fn collider_contact(colliders: Colliders<'_>, x: Self) -> Option<Contact<Self>>;
+    /// `colliders` seen from coordinates shifted by `-origin` (see `Colliders::shifted`; 2D
+    /// bodies take no colliders: unshifted).
+    fn shifted_colliders<'a>(colliders: &'a [Collider<'a>], origin: Self) -> Colliders<'a>;
 }
 
 /// `source`'s coordinate where `bit` is set in `fixed`, else `own`.
@@ -153,11 +156,11 @@ impl Point for Vec2 {
         if mask { a } else { b }
     }
     #[inline(always)]
-    fn pushed_out(self, _: &[Collider<'_>]) -> Self {
+    fn pushed_out(self, _: Colliders<'_>) -> Self {
         self
     }
     #[inline(always)]
-    fn constrained_by(self, _: &[Collider<'_>], v: Self, _: Real) -> Self {
+    fn constrained_by(self, _: Colliders<'_>, v: Self, _: Real) -> Self {
         v
     }
 }
@@ -199,11 +202,11 @@ impl Point for LaneVec2 {
         }
     }
     #[inline(always)]
-    fn pushed_out(self, _: &[Collider<'_>]) -> Self {
+    fn pushed_out(self, _: Colliders<'_>) -> Self {
         self
     }
     #[inline(always)]
-    fn constrained_by(self, _: &[Collider<'_>], v: Self, _: Real) -> Self {
+    fn constrained_by(self, _: Colliders<'_>, v: Self, _: Real) -> Self {
         v
     }
 }
@@ -223,12 +226,16 @@ impl Grouped for Vec2 {
         0
     }
     #[inline(always)]
-    fn collider_velocity(_: &[Collider<'_>], _: Self, _: Self, _: Real, _: Real, v: Self) -> Self {
+    fn collider_velocity(_: Colliders<'_>, _: Self, _: Self, _: Real, _: Real, v: Self) -> Self {
         v
     }
     #[inline(always)]
-    fn collider_contact(_: &[Collider<'_>], _: Self) -> Option<Contact<Self>> {
+    fn collider_contact(_: Colliders<'_>, _: Self) -> Option<Contact<Self>> {
         None
+    }
+    #[inline(always)]
+    fn shifted_colliders<'a>(colliders: &'a [Collider<'a>], _: Self) -> Colliders<'a> {
+        Colliders::new(colliders)
     }
     #[inline(always)]
     fn axes_from(self, source: Vec2, fixed: u8) -> Vec2 {
@@ -277,12 +284,12 @@ impl Point for Vec3 {
         if mask { a } else { b }
     }
     #[inline(always)]
-    fn pushed_out(self, colliders: &[Collider<'_>]) -> Self {
-        collider::pushed_out(colliders, self)
+    fn pushed_out(self, colliders: Colliders<'_>) -> Self {
+        colliders.pushed_out(self)
     }
     #[inline(always)]
-    fn constrained_by(self, colliders: &[Collider<'_>], v: Self, sign: Real) -> Self {
-        collider::constrained(colliders, self, v, sign)
+    fn constrained_by(self, colliders: Colliders<'_>, v: Self, sign: Real) -> Self {
+        colliders.constrained(self, v, sign)
     }
 }
 
@@ -314,18 +321,15 @@ impl Point for LaneVec3<Lanes> {
         LaneVec3::select(mask, a, b)
     }
     #[inline(always)]
-    fn pushed_out(self, colliders: &[Collider<'_>]) -> Self {
-        LaneVec3::from_vectors(
-            self.to_vectors()
-                .map(|x| collider::pushed_out(colliders, x)),
-        )
+    fn pushed_out(self, colliders: Colliders<'_>) -> Self {
+        LaneVec3::from_vectors(self.to_vectors().map(|x| colliders.pushed_out(x)))
     }
     #[inline(always)]
-    fn constrained_by(self, colliders: &[Collider<'_>], v: Self, sign: Real) -> Self {
+    fn constrained_by(self, colliders: Colliders<'_>, v: Self, sign: Real) -> Self {
         let (x, v) = (self.to_vectors(), v.to_vectors());
         let lane = |k: usize| {
             let at = |values: &[Vec3; LANES]| values.get(k).copied().unwrap_or(Vec3::ZERO);
-            collider::constrained(colliders, at(&x), at(&v), sign)
+            colliders.constrained(at(&x), at(&v), sign)
         };
         LaneVec3::from_vectors(core::array::from_fn(lane))
     }
@@ -349,18 +353,22 @@ impl Grouped for Vec3 {
     }
     #[inline(always)]
     fn collider_velocity(
-        colliders: &[Collider<'_>],
+        colliders: Colliders<'_>,
         x: Self,
         g: Self,
         m: Real,
         h: Real,
         v: Self,
     ) -> Self {
-        collider::implicit_velocity(colliders, (x, g, m, h), v)
+        colliders.implicit_velocity((x, g, m, h), v)
     }
     #[inline(always)]
-    fn collider_contact(colliders: &[Collider<'_>], x: Self) -> Option<Contact<Self>> {
-        collider::contact(colliders, x)
+    fn collider_contact(colliders: Colliders<'_>, x: Self) -> Option<Contact<Self>> {
+        colliders.contact(x)
+    }
+    #[inline(always)]
+    fn shifted_colliders<'a>(colliders: &'a [Collider<'a>], origin: Self) -> Colliders<'a> {
+        Colliders::new(colliders).shifted(origin)
     }
     #[inline(always)]
     fn axes_from(self, source: Vec3, fixed: u8) -> Vec3 {
@@ -386,8 +394,8 @@ pub(crate) struct Floor<'a, P: Point> {
     plane: Option<(P, P::Scalar)>,
     /// `16 eps |offset|`, the part of the contact tolerance that does not depend on `x`.
     slack: P::Scalar,
-    /// The validated colliders (empty for none).
-    colliders: &'a [Collider<'a>],
+    /// The validated colliders, in the floor's coordinates (empty for none).
+    colliders: Colliders<'a>,
 }
 
 /// The contact tolerance's factor: `16 eps`.
@@ -400,19 +408,19 @@ impl<'a, P: Point> Floor<'a, P> {
         Floor {
             plane: ground.map(|g| (P::splat(g.normal), P::Scalar::splat(g.offset))),
             slack: P::Scalar::splat(ground.map_or(0.0, |g| CONTACT_EPS * g.offset.abs())),
-            colliders: &[],
+            colliders: Colliders::new(&[]),
         }
     }
 
-    /// This floor with the (validated) `colliders` too.
+    /// This floor with the (validated) `colliders` too, seen from the floor's coordinates.
     #[inline(always)]
-    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
+    pub fn with_colliders(self, colliders: Colliders<'a>) -> Self {
         Floor { colliders, ..self }
     }
 
     /// The colliders (empty for none).
     #[inline(always)]
-    pub fn colliders(&self) -> &'a [Collider<'a>] {
+    pub fn colliders(&self) -> Colliders<'a> {
         self.colliders
     }
 
@@ -508,7 +516,7 @@ impl Floor<'_, Vec3> {
     /// The outward normal of the first collider `x` touches (Newton's active set).
     #[inline(always)]
     pub fn collider_normal(&self, x: Vec3) -> Option<Vec3> {
-        collider::touching(self.colliders, x).map(|(_, normal)| normal)
+        self.colliders.touching(x).map(|(_, normal)| normal)
     }
 }
 

@@ -13,7 +13,7 @@ use super::adjacency::{
     vertex_order_by_degree,
 };
 use super::chebyshev::AccelerationSettings;
-use super::collider::{Collider, check_colliders};
+use super::collider::{Collider, Colliders, check_colliders};
 use super::descent::stopping::StallRule;
 #[cfg(feature = "rayon")]
 use super::descent::vbd::OnPool;
@@ -860,12 +860,9 @@ fn minimise<M: Material, S: Schedule<M>>(
     let (trial, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
     let direction_buffer = rest.get_mut(..n).unwrap_or_default();
 
-    // The sweeps see the ground in the loop's coordinates, shifted as the loop shifts it.
-    let origin = if settings.colliders.is_empty() {
-        descent::reference_point(positions)
-    } else {
-        Vec3::ZERO
-    };
+    // The sweeps see the ground and the colliders in the loop's coordinates, shifted as the
+    // loop shifts them.
+    let origin = descent::reference_point(positions);
     let sweep = Sweep {
         tets,
         rest: model.mesh.rest(),
@@ -887,7 +884,7 @@ fn minimise<M: Material, S: Schedule<M>>(
             offset: g.offset - g.normal.dot(origin),
             ..g
         }),
-        colliders: settings.colliders,
+        colliders: Colliders::new(settings.colliders).shifted(origin),
         friction: None,
         armijo: settings.armijo,
         backtrack: settings.backtrack,

@@ -7,13 +7,12 @@
 use super::super::lanes::{LANES, Lane, LaneSum, Lanes, each_lane};
 use super::super::math::BATCH_VERTICES;
 use super::super::types::Real;
+use super::collider::Colliders;
 use super::descent::line_search::{copy, slope_along};
 use super::friction::Friction;
 use super::points::{Floor, Grouped, Point};
 use super::split::{Blocks, Split};
-use super::{
-    Collider, ElasticModel, Ground, Vector, check_state_lengths, first_bad_mass, first_non_finite,
-};
+use super::{ElasticModel, Ground, Vector, check_state_lengths, first_bad_mass, first_non_finite};
 use crate::error::StepError;
 
 /// What every vertex pass needs besides the buffers, for points of type `P`.
@@ -138,9 +137,9 @@ impl<'a, V: Grouped> Frames<'a, V> {
         }
     }
 
-    /// These frames with the (validated) `colliders`, which every pass then applies after the
-    /// ground.
-    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
+    /// These frames with the (validated) `colliders` (in the frames' coordinates), which every
+    /// pass then applies after the ground.
+    pub fn with_colliders(self, colliders: Colliders<'a>) -> Self {
         let mut single = self.single;
         single.floor = single.floor.with_colliders(colliders);
         Frames { single, ..self }

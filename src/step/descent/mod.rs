@@ -21,15 +21,19 @@
 //!
 //! # Displacements
 //! The loop iterates in coordinates shifted by a reference point `c` of the start positions
-//! ([`reference_point`]): along every axis on which the body lies far from the origin (its
-//! nearest coordinate more than four times its extent away), `c` takes the first vertex's
+//! ([`reference_point`]): along every axis on which the body does not straddle the origin (its
+//! nearest coordinate farther from the origin than its extent), `c` takes the first vertex's
 //! coordinate, so that the iterate holds displacements from the body rather than absolute
-//! positions. The shift is exact (Sterbenz: every coordinate is within a factor 1.25 of `c`'s), so
+//! positions. The shift is exact (Sterbenz: every coordinate is within a factor 2 of `c`'s), so
 //! pinned vertices and fixed coordinates keep their bits and a failed solve restores them; the
-//! elastic energy, inertia and gravity terms depend on differences only, and the ground is
-//! shifted with them. A body 60 m (or 1e4 m) from the origin thus converges like the same body
-//! at the origin, with a rounding floor relative to its size (`tests/stagnation.rs`). Near the
-//! origin `c = 0` and nothing changes.
+//! elastic energy, inertia and gravity terms depend on differences only, and the ground and
+//! the colliders are shifted with them (`Colliders::shifted`: each collider queried relative to
+//! its frame origin shifted by `-c`, a half-space's re-anchored at its point nearest `c`; the
+//! surface velocities unchanged). A body 60 m (or 1e4 m) from the origin thus converges like
+//! the same body at the origin, with a rounding floor relative to its size
+//! (`tests/stagnation.rs`), on the ground or on a collider; and a block sliding metres down an
+//! incline keeps its Newton steps of a micrometre (`tests/colliders`). A body straddling the
+//! origin has `c = 0` and nothing changes.
 
 pub(super) mod gradient;
 pub(super) mod jacobi;
@@ -46,7 +50,7 @@ use super::chebyshev::{Acceleration, AccelerationSettings};
 use super::collider::Collider;
 use super::friction::{Friction, Lag};
 use super::loads::Loads;
-use super::points::Floor;
+use super::points::{Floor, Grouped};
 use super::split::{Blocks, Total};
 use super::vertex_passes::{
     Frames, TrialPoint, Vertices, split_copy, split_first_non_finite, split_trial_pass,
@@ -213,8 +217,16 @@ pub(super) struct Work<'b, V> {
 }
 
 /// The reference point the loop's coordinates are measured from (see the module
-/// documentation): along every axis on which `min_i |x_i| > 4 max_i |x_i - x_0|`, the first
-/// vertex's coordinate; zero along the others. Every `x_i - c` is then exact.
+/// documentation): along every axis on which `m = min_i |x_i| > e = max_i |x_i - x_0|`, the
+/// first vertex's coordinate `c = x_0`; zero along the others.
+///
+/// Every `x_i - c` is then exact. Along such an axis every coordinate has `c`'s sign: one of
+/// the other sign would be `|x_i| + |c| >= 2 m > e` from `c`. Say `c > 0` (the negative case is
+/// its mirror image) and take any `y = x_i`. Then `y <= c + e < c + m <= 2c`, and `y >= c / 2`:
+/// if `m >= c / 2` because `y >= m`, else because `y >= c - e > c - m > c / 2`. So
+/// `c / 2 <= y <= 2c`, and `y - c` is exact by Sterbenz's lemma (Goldberg 1991, theorem 11; no
+/// underflow: `m > 0`). A body straddling the origin along an axis (`m <= e`) has coordinates no
+/// larger than its extent there already, and is not shifted along it.
 pub(super) fn reference_point<V: Vector>(positions: &[V]) -> V {
     positions.first().map_or(V::ZERO, |&first| {
         Extents::of(positions, first).reference_point(first)
@@ -260,7 +272,7 @@ impl Extents {
             .0
             .iter()
             .zip(AXES)
-            .filter(|&(&(nearest, extent), axis)| axis & V::ALL_AXES != 0 && nearest > 4.0 * extent)
+            .filter(|&(&(nearest, extent), axis)| axis & V::ALL_AXES != 0 && nearest > extent)
             .fold(0, |far, (_, axis)| far | axis);
         V::ZERO.axes_from(first, far)
     }
@@ -325,13 +337,9 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
         trial,
         direction,
     } = work;
-    // The colliders' geometry is given in world coordinates: with colliders the loop stays
-    // there (no shift), so that their contact tests see the caller's positions.
-    let origin = if problem.colliders.is_empty() {
-        split_reference_point(problem.model, positions)
-    } else {
-        F::Vector::ZERO
-    };
+    // The colliders are seen from the shifted coordinates too (`Colliders::shifted`).
+    let origin = split_reference_point(problem.model, positions);
+    let colliders = F::Vector::shifted_colliders(problem.colliders, origin);
     split_translate(problem.model, positions, -origin, start);
     let start: &[F::Vector] = start;
     let restore = |positions: &mut [F::Vector]| {
@@ -346,7 +354,7 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
         Some(dt) => (dt, 1.0 / (dt * dt)),
         None => (0.0, 0.0),
     };
-    let friction = Friction::new(ground.as_ref(), problem.colliders, h);
+    let friction = Friction::new(ground.as_ref(), colliders, h);
     let objective = Objective {
         model: problem.model,
         vertices: Vertices {
@@ -357,7 +365,7 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
             velocities: velocities.as_deref().unwrap_or(&[]),
         },
         frames: Frames::new(h, inertia, problem.gravity, ground.as_ref())
-            .with_colliders(problem.colliders)
+            .with_colliders(colliders)
             .with_friction(friction),
         h,
         gravity: problem.gravity,
@@ -372,7 +380,7 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
     };
     let outcome = descend(&objective, settings, direction_rule, positions, buffers);
     // The ground of the solve, for the velocity update below.
-    let floor = Floor::new(ground.as_ref()).with_colliders(problem.colliders);
+    let floor = Floor::new(ground.as_ref()).with_colliders(colliders);
     let (summary, gradient, backup) = match outcome {
         Ok(result) => result,
         Err(error) => {
@@ -747,34 +755,102 @@ mod tests {
     }
 
     #[test]
-    fn near_the_origin_nothing_is_shifted() {
+    fn a_body_straddling_the_origin_is_not_shifted() {
         assert_eq!(reference_point(&grid(Vec3::ZERO)), Vec3::ZERO);
-        // 1.5 m away along x is within four extents (1.6 m): not shifted either.
-        assert_eq!(reference_point(&grid(Vec3::new(1.5, 0.0, 0.0))), Vec3::ZERO);
+        // 0.35 m away along x is within the body's extent (0.4 m): not shifted along x; 0.05 m
+        // along y and z, within 0.1 m: not shifted there either.
+        let near = Vec3::new(0.35, 0.05, -0.15);
+        assert_eq!(reference_point(&grid(near)), Vec3::ZERO);
         assert_eq!(reference_point::<Vec3>(&[]), Vec3::ZERO);
+        // A coordinate of zero (or minus zero) everywhere is never shifted: `m > e` fails.
+        let flat = [Vec3::new(0.0, -0.0, 1.0), Vec3::new(0.0, -0.0, 1.0)];
+        assert_eq!(
+            reference_point(&flat).to_array().map(Real::to_bits)[..2],
+            [0, 0]
+        );
     }
 
     #[test]
     fn far_axes_take_the_first_vertex_and_the_shift_is_exact() {
         for offset in [
+            Vec3::new(0.45, 0.0, 0.0),
             Vec3::new(60.0, 0.0, 0.0),
             Vec3::new(-60.0, 0.0, 0.25),
             Vec3::new(1e4, -1e4, 1e4),
         ] {
             let points = grid(offset);
             let c = reference_point(&points);
-            // Along x the body is 0.4 m wide, along y and z 0.1 m: far where |offset| > 4 of it.
+            // Along x the body is 0.4 m wide, along y and z 0.1 m: far where |offset| > that.
             let expected = |far: bool, value: Real| if far { value } else { 0.0 };
             let first = points[0];
-            assert_eq!(c.x, expected(offset.x.abs() > 1.6, first.x), "{offset}");
-            assert_eq!(c.y, expected(offset.y.abs() > 0.4, first.y), "{offset}");
-            assert_eq!(c.z, expected(offset.z.abs() > 0.4, first.z), "{offset}");
+            assert_eq!(c.x, expected(offset.x.abs() > 0.4, first.x), "{offset}");
+            assert_eq!(c.y, expected(offset.y.abs() > 0.1, first.y), "{offset}");
+            assert_eq!(c.z, expected(offset.z.abs() > 0.1, first.z), "{offset}");
             for &p in &points {
                 // Exact both ways (Sterbenz): the shifted point comes back bit for bit.
                 assert_eq!((p - c) + c, p, "{offset}: {p}");
                 assert!((p - c).abs().max_element() <= 0.41, "{offset}: {p}");
             }
         }
+    }
+
+    /// `a - b` is exact: the rounding error of the difference by Knuth's TwoSum (itself exact
+    /// in round-to-nearest) is zero.
+    fn exact_difference(a: Real, b: Real) -> bool {
+        let (a, b) = (a, -b);
+        let s = a + b;
+        let b_part = s - a;
+        let error = (a - (s - b_part)) + (b - b_part);
+        error == 0.0
+    }
+
+    /// The proof in [`reference_point`]'s documentation, checked on point sets built at the edge
+    /// of the rule: pseudo-random sets whose nearest coordinate lies just above, at or just
+    /// below their extent, in both signs and over many magnitudes, with the first vertex
+    /// anywhere in the set. Wherever the rule shifts, every difference from the reference point
+    /// is exact; and it shifts the sets just above the edge.
+    #[test]
+    fn wherever_the_rule_shifts_every_difference_is_exact() {
+        let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut shifted = 0;
+        for set in 0..4000 {
+            // The set spans [lo, hi] with lo = width * ratio, the ratio near 1 (the edge).
+            let scale = libm::pow(10.0, 6.0 * next() - 3.0);
+            let ratio = [1.0 + 1e-6, 1.0, 1.0 - 1e-6, 1.0 + next(), 0.5 + next()][set % 5];
+            let sign = if next() < 0.5 { -1.0 } else { 1.0 };
+            let width = scale;
+            let lo = width * ratio;
+            let values: Vec<Real> = (0..17)
+                .map(|k| {
+                    let t = match k {
+                        0 => next(),
+                        1 => 0.0,
+                        2 => 1.0,
+                        _ => next(),
+                    };
+                    (sign * (lo + width * t)) as Real
+                })
+                .collect();
+            let points: Vec<Vec3> = values.iter().map(|&v| Vec3::new(v, 0.0, 0.0)).collect();
+            let c = reference_point(&points).x;
+            if c == 0.0 {
+                continue;
+            }
+            shifted += 1;
+            assert_eq!(c, values[0]);
+            for &y in &values {
+                assert!(exact_difference(y, c), "set {set}: {y} - {c}");
+            }
+        }
+        // Every set whose rounded nearest coordinate exceeds its rounded extent shifts: most
+        // of those above the edge, none of those well below it.
+        assert!(shifted > 1500, "{shifted} of 4000");
     }
 
     #[test]

@@ -12,7 +12,7 @@ use super::super::super::element::TetRest;
 use super::super::super::material::Material;
 use super::super::super::types::{Mat3, Real, Vec3};
 use super::super::adjacency::incident_elements;
-use super::super::collider::{self, Collider};
+use super::super::collider::Colliders;
 use super::super::friction::{Friction, Lag, Slip};
 use super::super::loads::Loads;
 use super::super::points::{Grouped, Point};
@@ -59,7 +59,8 @@ pub(in super::super) struct Sweep<'s, M: Material> {
     /// External forces and fixed axes (both empty for none).
     pub loads: Loads<'s, Vec3>,
     pub ground: Option<Ground<Vec3>>,
-    pub colliders: &'s [Collider<'s>],
+    /// The colliders, in the sweep's (shifted) coordinates.
+    pub colliders: Colliders<'s>,
     /// Friction and the iterate it is lagged to (`None` for none: set per sweep).
     pub friction: Option<(Friction<'s, Vec3>, Lag<'s, Vec3>)>,
     pub armijo: Real,
@@ -328,7 +329,7 @@ impl<M: Material> Sweep<'_, M> {
             let excess = ground.normal.dot(step) + ground.height(x);
             step -= towards * (excess / curvature);
         }
-        if let Some((height, normal)) = collider::entered(self.colliders, x, x + step) {
+        if let Some((height, normal)) = self.colliders.entered(x, x + step) {
             // The same minimiser on the collider's tangent plane at x (exact for a half-space,
             // to first order on a curved surface, where the projection below finishes): the
             // vertex slides along the surface instead of being pushed back out of it.
