@@ -308,11 +308,7 @@ impl<M: Material> Sweep<'_, M> {
                 hessian.z_axis * keep.z + Vec3::Z * unit.z,
             );
         }
-        let Some(VertexFactor {
-            cholesky: factor,
-            projected,
-        }) = VertexFactor::new(weight, &hessian)
-        else {
+        let Some(VertexFactor { factor, projected }) = VertexFactor::new(weight, &hessian) else {
             counts.skipped += 1;
             return None;
         };
