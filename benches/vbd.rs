@@ -293,6 +293,11 @@ fn main() {
         }
         if let Some((block, rounds)) = plan {
             let ns = table_pass(&mut operations, block, rounds);
+            // The raw minima, for comparing runs of two builds (the rows below are
+            // differences of these).
+            for (operation, ns) in operations.iter().zip(&ns) {
+                eprintln!("raw {} {} {ns:.0} ns", scene.tets.len(), operation.id);
+            }
             table.extend(rows(scene.tets.len(), &ns));
         }
     }

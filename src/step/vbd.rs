@@ -482,7 +482,9 @@ pub struct VbdReport {
 /// 7.2). These sums are formed for several vertices of a colour at once, one vertex per SIMD
 /// lane at the width [`simd`](crate::simd) picks
 /// ([`Material::corner_stress_and_stiffness_wide`]), each lane over its own vertex's elements
-/// in their adjacency order: every width gives the same bits. `H_i` is factored by Cholesky where it is positive definite (always for
+/// in their adjacency order: every width gives the same bits. `H_i` is factored as `L D L^T`
+/// (Cholesky without square roots: three divisions, and a solve of multiplications only) where
+/// it is positive definite (always for
 /// [`StableNeoHookean`](super::super::material::StableNeoHookean), whose element blocks all
 /// are); elsewhere the elastic sum is replaced by its positive semi-definite part (one 3x3
 /// eigen-decomposition for that vertex, counted in [`VbdReport::projected`]) and regularised
@@ -654,7 +656,7 @@ pub fn vbd_step<M: Material>(
 /// [`relax_quasi_static`](super::relax_quasi_static). `settings.dt` is ignored.
 ///
 /// Without inertia a vertex block is only as definite as its elements' exact blocks (which
-/// may be indefinite or singular, and a vertex in no element has none): a block whose Cholesky
+/// may be indefinite or singular, and a vertex in no element has none): a block whose `L D L^T`
 /// factorisation finds a pivot at or below `64 eps tr(H)` is replaced by its positive
 /// semi-definite part, which is regularised once by `sqrt(eps) tr(H) / 3` on the diagonal
 /// where that is singular too (a Levenberg–Marquardt step, still a descent direction), and the

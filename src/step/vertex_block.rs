@@ -6,13 +6,14 @@
 //! (no SVD, some 60 operations on top of the stress). The exact blocks are summed per vertex
 //! with the inertia `m / h^2 I`, and only that sum is made positive definite (the approach of
 //! Chen et al., "Vertex Block Descent", TOG 2024, which use the local Hessian as is and guard
-//! its definiteness): [`VertexFactor::new`] factors it by Cholesky where it is positive
-//! definite, which it is for [`StableNeoHookean`](super::super::material::StableNeoHookean)
-//! always (every element term is, see below) and for the other models unless elements are
-//! strongly compressed with little inertia; otherwise it factors
+//! its definiteness): [`VertexFactor::new`] factors it by `L D L^T` (Cholesky without square
+//! roots) where it is positive definite, which it is for
+//! [`StableNeoHookean`](super::super::material::StableNeoHookean) always (every element term
+//! is, see below) and for the other models unless elements are strongly compressed with little
+//! inertia; otherwise it factors
 //! `m / h^2 I + (sum_e V_e K_e)+`, the positive semi-definite part of the elastic sum from its
 //! eigen-decomposition (one 3x3 symmetric SVD for that vertex, not one per element), with the
-//! Levenberg–Marquardt shift of [`Cholesky::regularised`] where even that is singular. Either
+//! Levenberg–Marquardt shift of [`Ldlt::regularised`] where even that is singular. Either
 //! way the factored matrix `H` is symmetric positive definite, so `d = -H^-1 grad` satisfies
 //! `grad . d = -grad^T H^-1 grad < 0`: a descent direction of the vertex's local energy, and
 //! with the line search every accepted update lowers `Phi`.
@@ -26,7 +27,6 @@
 //! outweigh it.
 
 use super::super::element::TetRest;
-use super::super::math;
 use super::super::svd::svd3;
 use super::super::types::{Mat3, Real, Vec3};
 
@@ -58,68 +58,76 @@ fn positive_part(s: Mat3) -> Mat3 {
     (half + half.transpose()) * 0.5
 }
 
-/// A Cholesky pivot must exceed this times the block's trace.
+/// A pivot of the `L D L^T` factorisation must exceed this times the block's trace.
 const PIVOT_FLOOR: Real = 64.0 * Real::EPSILON;
 
-/// `sqrt(eps)`: the relative Levenberg–Marquardt shift of [`Cholesky::regularised`].
+/// `sqrt(eps)`: the relative Levenberg–Marquardt shift of [`Ldlt::regularised`].
 const SHIFT: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
 
-/// The Cholesky factor `L` of a symmetric 3x3 matrix (`H = L L^T`), lower triangle by rows.
-pub(super) struct Cholesky {
-    l00: Real,
+/// The square-root-free Cholesky factorisation `H = L D L^T` of a symmetric 3x3 matrix (`L`
+/// unit lower triangular, `D` diagonal; Golub and Van Loan, "Matrix Computations", 4th ed.,
+/// section 4.1.2), kept as the three sub-diagonal entries of `L` and the reciprocals of the
+/// pivots `D`.
+///
+/// The pivots are those of the Cholesky factorisation squared (`d_k = l_kk^2`), so the
+/// definiteness test "every pivot above the floor" is the same; the factor costs three
+/// divisions (one per pivot, one after the other) and no square root, and a solve is
+/// multiplications only, where the Cholesky factor took three square roots and two divisions,
+/// and six divisions per solve.
+pub(super) struct Ldlt {
     l10: Real,
-    l11: Real,
     l20: Real,
     l21: Real,
-    l22: Real,
+    /// `1 / d_0`, `1 / d_1`, `1 / d_2`.
+    inverse_pivots: Vec3,
 }
 
-impl Cholesky {
+impl Ldlt {
     /// The factor of `h` (its lower triangle is read), if every pivot exceeds `floor`.
     #[inline]
-    fn new(h: &Mat3, floor: Real) -> Option<Cholesky> {
+    fn new(h: &Mat3, floor: Real) -> Option<Ldlt> {
         let (a00, a10, a20) = (h.x_axis.x, h.x_axis.y, h.x_axis.z);
         let (a11, a21, a22) = (h.y_axis.y, h.y_axis.z, h.z_axis.z);
-        let pivot = |d: Real| (d > floor).then(|| math::sqrt(d));
-        let l00 = pivot(a00)?;
-        let (l10, l20) = (a10 / l00, a20 / l00);
-        let l11 = pivot(a11 - l10 * l10)?;
-        let l21 = (a21 - l20 * l10) / l11;
-        let l22 = pivot(a22 - l20 * l20 - l21 * l21)?;
-        Some(Cholesky {
-            l00,
+        let pivot = |d: Real| (d > floor).then(|| 1.0 / d);
+        let i0 = pivot(a00)?;
+        let (l10, l20) = (a10 * i0, a20 * i0);
+        let i1 = pivot(a11 - l10 * a10)?;
+        // `d_1 l_21`, the (2, 1) entry of the first elimination step.
+        let e21 = a21 - l20 * a10;
+        let l21 = e21 * i1;
+        let i2 = pivot(a22 - l20 * a20 - l21 * e21)?;
+        Some(Ldlt {
             l10,
-            l11,
             l20,
             l21,
-            l22,
+            inverse_pivots: Vec3::new(i0, i1, i2),
         })
     }
 
     /// The factor of `h`, or of `h + sqrt(eps) tr(h) / 3 I` if `h` has a pivot at or below
     /// `64 eps tr(h)`; `None` if that fails too, or `tr(h)` is not finite and positive.
     #[inline]
-    pub(super) fn regularised(h: &Mat3) -> Option<Cholesky> {
+    pub(super) fn regularised(h: &Mat3) -> Option<Ldlt> {
         let trace = h.x_axis.x + h.y_axis.y + h.z_axis.z;
         if !(trace > 0.0 && trace.is_finite()) {
             return None;
         }
         let floor = PIVOT_FLOOR * trace;
-        Cholesky::new(h, floor).or_else(|| {
+        Ldlt::new(h, floor).or_else(|| {
             let shift = Mat3::from_diagonal(Vec3::splat(SHIFT * trace / 3.0));
-            Cholesky::new(&(*h + shift), floor)
+            Ldlt::new(&(*h + shift), floor)
         })
     }
 
-    /// `H^-1 r`.
+    /// `H^-1 r`: forward substitution with `L`, the pivots, back substitution with `L^T`.
     #[inline]
     pub(super) fn solve(&self, r: Vec3) -> Vec3 {
-        let z0 = r.x / self.l00;
-        let z1 = (r.y - self.l10 * z0) / self.l11;
-        let z2 = (r.z - self.l20 * z0 - self.l21 * z1) / self.l22;
-        let x2 = z2 / self.l22;
-        let x1 = (z1 - self.l21 * x2) / self.l11;
-        let x0 = (z0 - self.l10 * x1 - self.l20 * x2) / self.l00;
+        let z1 = r.y - self.l10 * r.x;
+        let z2 = r.z - self.l20 * r.x - self.l21 * z1;
+        let y = Vec3::new(r.x, z1, z2) * self.inverse_pivots;
+        let x2 = y.z;
+        let x1 = y.y - self.l21 * x2;
+        let x0 = y.x - self.l10 * x1 - self.l20 * x2;
         Vec3::new(x0, x1, x2)
     }
 }
@@ -127,7 +135,7 @@ impl Cholesky {
 /// The SPD system of one vertex update, see the [module documentation](self).
 pub(super) struct VertexFactor {
     /// The factor of the matrix solved with.
-    pub(super) cholesky: Cholesky,
+    pub(super) factor: Ldlt,
     /// Whether the elastic sum had to be replaced by its positive part.
     pub(super) projected: bool,
 }
@@ -141,17 +149,17 @@ impl VertexFactor {
         let diagonal = Mat3::from_diagonal(Vec3::splat(inertia));
         let exact = *elastic + diagonal;
         let trace = exact.x_axis.x + exact.y_axis.y + exact.z_axis.z;
-        if let Some(cholesky) = Cholesky::new(&exact, PIVOT_FLOOR * trace)
+        if let Some(factor) = Ldlt::new(&exact, PIVOT_FLOOR * trace)
             && trace.is_finite()
         {
             return Some(VertexFactor {
-                cholesky,
+                factor,
                 projected: false,
             });
         }
-        let cholesky = Cholesky::regularised(&(positive_part(*elastic) + diagonal))?;
+        let factor = Ldlt::regularised(&(positive_part(*elastic) + diagonal))?;
         Some(VertexFactor {
-            cholesky,
+            factor,
             projected: true,
         })
     }
@@ -163,7 +171,7 @@ mod tests {
     use super::super::super::material::{Material, NeoHookean, StVK, StableNeoHookean};
     use super::super::super::math;
     use super::super::super::types::{Mat3, Real, Vec3};
-    use super::{VertexFactor, shape_gradient};
+    use super::{PIVOT_FLOOR, SHIFT, VertexFactor, shape_gradient};
 
     /// The largest entry's modulus.
     fn largest(m: Mat3) -> Real {
@@ -366,6 +374,49 @@ mod tests {
         assert!(compared >= 8, "only {compared} definite cases");
     }
 
+    /// The `L D L^T` solve is backward stable on random symmetric positive definite blocks
+    /// `B B^T + c I` (condition numbers up to about `1 / c`): the residual `|H x - r|` is
+    /// within a few `eps |H| |x|` (Higham, "Accuracy and Stability of Numerical Algorithms",
+    /// theorem 10.4, for Cholesky, whose pivots these are); and the factor refuses a matrix with
+    /// a zero or negative pivot, which the regularised factor accepts shifted.
+    #[test]
+    fn ldlt_solves_to_rounding_and_refuses_singular_pivots() {
+        use super::Ldlt;
+        let mut stream = Stream(11);
+        for k in 0..200 {
+            let b = Mat3::from_cols(stream.vector(), stream.vector(), stream.vector());
+            let c = [1.0, 1e-2, 1e-4][k % 3];
+            let h = b * b.transpose() + Mat3::from_diagonal(Vec3::splat(c));
+            let factor = Ldlt::regularised(&h).unwrap();
+            let r = stream.vector();
+            let x = factor.solve(r);
+            assert!(
+                (h * x - r).length() <= 32.0 * Real::EPSILON * largest(h) * x.length(),
+                "{h} {r}: {x}"
+            );
+        }
+        // A zero second pivot, and a negative one.
+        for a11 in [1.0, 0.5] {
+            let h = Mat3::from_cols(
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(1.0, a11, 0.0),
+                Vec3::new(0.0, 0.0, 1.0),
+            );
+            assert!(Ldlt::new(&h, PIVOT_FLOOR).is_none());
+        }
+        let singular = Mat3::from_cols(
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+        );
+        let shifted = Ldlt::regularised(&singular).unwrap();
+        // Trace 3: the shift is `sqrt(eps)`.
+        let h = singular + Mat3::from_diagonal(Vec3::splat(SHIFT));
+        let r = Vec3::new(1.0, -1.0, 2.0);
+        let x = shifted.solve(r);
+        assert!((h * x - r).length() <= 64.0 * Real::EPSILON * largest(h) * x.length());
+    }
+
     /// The vertex factor solves with the exact block where that is definite, and with a
     /// positive definite replacement (every solve a descent direction) where it is not.
     #[test]
@@ -379,7 +430,7 @@ mod tests {
         assert!(!factor.projected);
         let r = Vec3::new(1.0, -2.0, 0.5);
         let h = definite + Mat3::from_diagonal(Vec3::splat(0.5));
-        assert!((h * factor.cholesky.solve(r) - r).length() <= 64.0 * Real::EPSILON * 4.0);
+        assert!((h * factor.factor.solve(r) - r).length() <= 64.0 * Real::EPSILON * 4.0);
         // Eigenvalues 3, -2, 1 (in a rotated frame) with inertia 1: indefinite.
         let rotation = Mat3::from_axis_angle(Vec3::new(1.0, 1.0, 0.0).normalize(), 0.4);
         let indefinite =
@@ -392,7 +443,7 @@ mod tests {
         let mut stream = Stream(3);
         for _ in 0..20 {
             let g = stream.vector();
-            let d = factor.cholesky.solve(-g);
+            let d = factor.factor.solve(-g);
             assert!(g.dot(d) < 0.0);
             assert!((expected * d + g).length() <= 1e3 * Real::EPSILON * g.length());
         }

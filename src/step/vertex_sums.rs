@@ -32,11 +32,23 @@ pub(super) struct VertexSums {
     pub gradient: Vec3,
     /// `sum_e V_e K_e(g_e)` (N/m): the exact elastic block.
     pub hessian: Mat3,
-    /// `sum_e V_e W_e` (J), with the energy only (else 0).
+    /// `sum_e V_e W_e` (J), with [`Extras::EnergyAndScale`] only (else 0).
     pub elastic: Real,
-    /// `sum_e |V_e tr K_e| / |g_e|^2` (J), the energy scale of the elements, with the energy
-    /// only (else 0).
+    /// `sum_e |V_e tr K_e| / |g_e|^2` (J), the energy scale of the elements, with
+    /// [`Extras::Scale`] or [`Extras::EnergyAndScale`] only (else 0).
     pub resolution: Real,
+}
+
+/// What a [`SumsPass`] sums besides the gradient and the block.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(super) enum Extras {
+    /// Nothing more (a sweep without the line search).
+    Nothing,
+    /// The energy scale only: no energy density (whose logarithms, one per lane, cost more
+    /// than the rest of a visit).
+    Scale,
+    /// The energy and its scale (a sweep with the line search).
+    EnergyAndScale,
 }
 
 /// Sums of a vertex in no element.
@@ -96,8 +108,8 @@ pub(super) struct SumsPass<'a, 's, M, R, V> {
     /// Vertices left out (pinned), indexed by vertex; empty for none.
     pub skip: &'a [bool],
     pub runs: R,
-    /// Whether to sum the energy and its scale too.
-    pub energy: bool,
+    /// What to sum besides the gradient and the block.
+    pub extras: Extras,
     pub visitor: V,
 }
 
@@ -129,7 +141,7 @@ impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_
             elements,
             skip,
             runs,
-            energy,
+            extras,
             mut visitor,
         } = self;
         // Every width divides the layout's blocks (see `vbd_layout.rs`); one that did not
@@ -137,7 +149,7 @@ impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_
         if let Some(layout) = elements.layout
             && BLOCK.is_multiple_of(L::WIDTH)
         {
-            return run_packed::<L, M, R, V>((elements, &layout), skip, runs, energy, visitor);
+            return run_packed::<L, M, R, V>((elements, &layout), skip, runs, extras, visitor);
         }
         let mut batch = [(0usize, 0u32); MAX_WIDTH];
         let mut sums = [EMPTY; MAX_WIDTH];
@@ -157,7 +169,7 @@ impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_
                 }
                 if filled > 0 && (filled >= L::WIDTH || next.is_none()) {
                     let group = batch.get(..filled).unwrap_or(&[]);
-                    sum_group::<L, M>(elements, visitor.positions(), group, energy, &mut sums);
+                    sum_group::<L, M>(elements, visitor.positions(), group, extras, &mut sums);
                     for (&(index, vertex), sums) in group.iter().zip(&sums) {
                         visitor.visit(index, vertex, sums);
                     }
@@ -178,7 +190,7 @@ fn run_packed<'r, L: LaneArray, M: Material, R: Iterator<Item = Run<'r>>, V: Ver
     (elements, layout): (&Elements<'_, M>, &Layout<'_>),
     skip: &[bool],
     runs: R,
-    energy: bool,
+    extras: Extras,
     mut visitor: V,
 ) -> V
 where
@@ -203,7 +215,7 @@ where
                     layout,
                     at,
                     (group, skip),
-                    energy,
+                    extras,
                     (&mut sums, &mut buffer),
                 );
                 for (j, (&vertex, sums)) in vertices.iter().zip(&sums).enumerate() {
@@ -359,7 +371,7 @@ impl<L: LaneArray> Accumulator<L> {
 
     /// Adds the visit's terms to its active lanes.
     #[inline(always)]
-    fn add<M: Material>(&mut self, material: &M, visit: &Visit<L>, energy: bool) {
+    fn add<M: Material>(&mut self, material: &M, visit: &Visit<L>, extras: Extras) {
         let [x0, x1, x2, x3] = visit.corners;
         // F = Ds Dm^-1 as `TetRest::deformation_gradient` forms it.
         let edges = LaneMat3 {
@@ -376,9 +388,11 @@ impl<L: LaneArray> Accumulator<L> {
         for (sum, entry) in self.hessian.iter_mut().zip(entries) {
             *sum = L::select(active, *sum + entry * volume, *sum);
         }
-        if energy {
+        if extras == Extras::EnergyAndScale {
             let density = material.energy_density_wide(f);
             self.elastic = L::select(active, self.elastic + volume * density, self.elastic);
+        }
+        if extras != Extras::Nothing {
             let trace = k.c0.x + k.c1.y + k.c2.z;
             let scale = (trace * volume).abs() / g.dot(g);
             self.resolution = L::select(active, self.resolution + scale, self.resolution);
@@ -436,7 +450,7 @@ fn sum_group<L: LaneArray, M: Material>(
     elements: &Elements<'_, M>,
     positions: &[Vec3],
     group: &[(usize, u32)],
-    energy: bool,
+    extras: Extras,
     out: &mut [VertexSums; MAX_WIDTH],
 ) {
     let mut rows: [&[u32]; MAX_WIDTH] = [&[]; MAX_WIDTH];
@@ -466,7 +480,7 @@ fn sum_group<L: LaneArray, M: Material>(
                 value(VOLUME),
                 value(ACTIVE).gt(L::splat(0.0)),
             );
-            sums.add(elements.material, &visit, energy);
+            sums.add(elements.material, &visit, extras);
         }
     }
     sums.write(group.len(), out);
@@ -488,7 +502,7 @@ fn sum_packed_group<L: LaneArray, M: Material>(
     layout: &Layout<'_>,
     positions: &[Vec3],
     (group, skip): (PackedGroup<'_>, &[bool]),
-    energy: bool,
+    extras: Extras,
     (out, buffer): (&mut [VertexSums; MAX_WIDTH], &mut [[L::Array; 12]; STEPS]),
 ) where
     L::Array: for<'a> TryFrom<&'a [Real]>,
@@ -548,7 +562,7 @@ fn sum_packed_group<L: LaneArray, M: Material>(
                 value(vbd_layout::VOLUME),
                 lengths.gt(L::splat(t as Real)),
             );
-            sums.add(elements.material, &visit, energy);
+            sums.add(elements.material, &visit, extras);
         }
     }
     sums.write(group.vertices.len(), out);

@@ -21,7 +21,9 @@ use super::super::vbd_layout::BLOCK;
 use super::super::vbd_layout::{Layout, Run, colour_runs};
 use super::super::vertex_block::{VertexFactor, shape_gradient};
 use super::super::vertex_passes::{TrialPoint, trial_pass};
-use super::super::vertex_sums::{Elements, SumsPass, VertexSums, VertexVisitor, sum_vertices};
+use super::super::vertex_sums::{
+    Elements, Extras, SumsPass, VertexSums, VertexVisitor, sum_vertices,
+};
 use super::super::{Ground, TetElastic};
 use super::line_search::{copy, slope_along};
 use super::objective::Objective;
@@ -35,6 +37,17 @@ const ROUNDING: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
 
 /// The energy resolution's factor: `64 eps`.
 const RESOLUTION: Real = 64.0 * Real::EPSILON;
+
+/// What a sweep's sums need besides the gradient and the block: the energy and its scale for
+/// the vertex line search, nothing without it.
+#[inline]
+fn line_search_extras(line_search: bool) -> Extras {
+    if line_search {
+        Extras::EnergyAndScale
+    } else {
+        Extras::Nothing
+    }
+}
 
 /// Everything a sweep reads besides the positions.
 pub(in super::super) struct Sweep<'s, M: Material> {
@@ -161,7 +174,7 @@ impl<M: Material> Sweep<'_, M> {
             elements: &self.mesh(),
             skip: self.pinned,
             runs: self.colour_runs(),
-            energy: line_search,
+            extras: line_search_extras(line_search),
             visitor: InPlace {
                 sweep: self,
                 positions,
@@ -209,7 +222,7 @@ impl<M: Material> Sweep<'_, M> {
                         elements: &elements,
                         skip: self.pinned,
                         runs: core::iter::once(chunk),
-                        energy: line_search,
+                        extras: line_search_extras(line_search),
                         visitor: Staged {
                             sweep: self,
                             read,
@@ -309,11 +322,7 @@ impl<M: Material> Sweep<'_, M> {
                 hessian.z_axis * keep.z + Vec3::Z * unit.z,
             );
         }
-        let Some(VertexFactor {
-            cholesky: factor,
-            projected,
-        }) = VertexFactor::new(weight, &hessian)
-        else {
+        let Some(VertexFactor { factor, projected }) = VertexFactor::new(weight, &hessian) else {
             counts.skipped += 1;
             return None;
         };
@@ -617,7 +626,8 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
             elements: &sweep.mesh(),
             skip: sweep.pinned,
             runs: sweep.colour_runs(),
-            energy: true,
+            // The scale, not the energy: the norms and the resolution read no energy.
+            extras: Extras::Scale,
             visitor: BlockNorms {
                 masses: sweep.masses,
                 inertia: sweep.inertia,
