@@ -129,8 +129,8 @@ impl<'a, V: Grouped> Frames<'a, V> {
         }
     }
 
-    /// These frames with `friction` (ignored if it is inactive): the direction passes then run
-    /// one vertex at a time and scale the tangential direction at the vertices in contact.
+    /// These frames with `friction` (ignored if it is inactive): the direction passes then
+    /// scale the tangential direction at the vertices in contact.
     pub fn with_friction(self, friction: Friction<'a, V>) -> Self {
         Frames {
             friction: friction.is_active().then_some(friction),
@@ -163,10 +163,10 @@ impl<'a, V: Grouped> Frames<'a, V> {
         &self.single.floor
     }
 
-    /// Whether the passes group vertices: on `math::BATCH_VERTICES` targets, without friction.
+    /// Whether the passes group vertices: on `math::BATCH_VERTICES` targets.
     #[inline(always)]
     fn batched(&self) -> bool {
-        BATCH_VERTICES && self.friction.is_none()
+        BATCH_VERTICES
     }
 
     /// The direction `d` (slope term `slope`) of a vertex at `x` moved from `start`, with
@@ -193,6 +193,46 @@ impl<'a, V: Grouped> Frames<'a, V> {
         let g = floor.constrain(floor.contact(x), x, g, 1.0);
         (d - tangential * share, slope - share * g.dot(tangential))
     }
+
+    /// [`damped`](Self::damped) for a group of [`LANES`] vertices at `x` (a chunk) moved from
+    /// `start` (the vertices from there on; `x` where it runs out) with gradients `g` (a chunk)
+    /// and bounds `p`: the grouped direction `d` and slope terms `slope` are unchanged unless a
+    /// vertex of the group has a frictional contact, and then go through the one-vertex code
+    /// lane by lane, so that every vertex gets the bits it gets alone. Most groups touch
+    /// nothing and pay only the contact test.
+    #[inline(always)]
+    fn damped_group(
+        &self,
+        (x, start, g): (&[V], &[V], &[V]),
+        p: Lanes,
+        (d, slope): (V::Group, Lanes),
+    ) -> (V::Group, Lanes)
+    where
+        V: Vector,
+    {
+        let Some(friction) = self.friction else {
+            return (d, slope);
+        };
+        if !x.iter().any(|&x| friction.contact(x).is_some()) {
+            return (d, slope);
+        }
+        let (mut d, mut slope) = (V::ungroup(d), slope.to_array());
+        let lanes = d.iter_mut().zip(slope.iter_mut()).zip(p.to_array());
+        for (lane, ((d, slope), p)) in lanes.enumerate() {
+            let (Some(&x), Some(&g)) = (x.get(lane), g.get(lane)) else {
+                continue;
+            };
+            let start = start.get(lane).copied().unwrap_or(x);
+            (*d, *slope) = self.damped((x, start, g), p, (*d, *slope));
+        }
+        (V::group(d), Lanes::from_array(slope))
+    }
+}
+
+/// The vertices of `values` from `first` on (empty past the end).
+#[inline(always)]
+fn from<V>(values: &[V], first: usize) -> &[V] {
+    values.get(first..).unwrap_or(&[])
 }
 
 /// The per-vertex inputs every pass shares.
@@ -394,7 +434,9 @@ fn direction_block<V: Grouped + Vector>(
         for (k, (((d_slot, (t_slot, g_slot)), (x, g)), p)) in groups.enumerate() {
             let position = load(x);
             let heavy_ball = lanes_momentum.map(|m| (load(t_slot), m));
-            let (d, slope_term) = frame.direction(position, load(g), p, heavy_ball);
+            let direction = frame.direction(position, load(g), p, heavy_ball);
+            let start = from(vertices.start, k * LANES);
+            let (d, slope_term) = frames.damped_group((x, start, g), p, direction);
             store(d_slot, d);
             let free = free_lanes(vertices.pinned, k);
             store(
@@ -487,7 +529,9 @@ fn chebyshev_block<V: Grouped + Vector>(
             } else {
                 V::Group::zero()
             };
-            let (d, _) = frame.direction(position, load(g), p, None);
+            let direction = frame.direction(position, load(g), p, None);
+            let start = from(vertices.start, k * LANES);
+            let (d, _) = frames.damped_group((x, start, g), p, direction);
             let target = position + d.scale(lanes_step) + last_step.scale(lanes_weight);
             store(
                 t_slot,
@@ -742,6 +786,7 @@ mod tests {
 
     use super::super::super::types::{Real, Vec2, Vec3};
     use super::super::Ground;
+    use super::super::friction::Friction;
     use super::super::points::{Grouped, Point};
     use super::{
         Frame, Frames, TrialPoint, Vertices, chebyshev_block, direction_block, gradient_block,
@@ -782,10 +827,27 @@ mod tests {
             .collect();
         let velocities: Vec<V> = (0..n).map(|i| make(i, 5)).collect();
         let forces: Vec<V> = (0..n).map(|i| make(i, 6).scale(10.0)).collect();
-        let ground = Ground::new(up, 0.0);
         let (h, inertia, gravity) = (0.01, 1.0e4, up.scale(-9.81));
-        for pinned in [&pinned[..], &[]] {
+        // Rough: friction in the objective, which damps the direction at the vertices in
+        // contact whose gradient presses into the ground.
+        let mut damped = 0;
+        for (rough, pinned) in [
+            (false, &pinned[..]),
+            (false, &[]),
+            (true, &pinned),
+            (true, &[]),
+        ] {
+            let ground = match rough {
+                true => Ground::new(up, 0.0)
+                    .with_friction(0.5)
+                    .with_sticking_speed(1e-3),
+                false => Ground::new(up, 0.0),
+            };
             let frames = Frames::new(h, inertia, gravity, Some(&ground));
+            let frames = match rough {
+                true => frames.with_friction(Friction::new(Some(&ground), &[], h)),
+                false => frames,
+            };
             let one = Frame::<V>::new(h, inertia, gravity, Some(&ground));
             let vertices = Vertices {
                 masses: &masses,
@@ -851,12 +913,17 @@ mod tests {
                 );
                 let expected: Vec<_> = (0..n)
                     .map(|i| {
-                        one.direction(
+                        let plain = one.direction(
                             x[i],
                             gradient[i],
                             diagonal(i),
                             momentum.map(|m| (start[i], m)),
-                        )
+                        );
+                        let friction =
+                            frames.damped((x[i], start[i], gradient[i]), diagonal(i), plain);
+                        damped += usize::from(format!("{friction:?}") != format!("{plain:?}"));
+                        assert!(rough || format!("{friction:?}") == format!("{plain:?}"));
+                        friction
                     })
                     .collect();
                 let expected_trial: Vec<V> = (0..n)
@@ -915,7 +982,9 @@ mod tests {
                 let expected: Vec<V> = (0..n)
                     .map(|i| {
                         let last = if stepped { x[i] - start[i] } else { zero };
-                        let (d, _) = one.direction(x[i], gradient[i], diagonal(i), None);
+                        let plain = one.direction(x[i], gradient[i], diagonal(i), None);
+                        let (d, _) =
+                            frames.damped((x[i], start[i], gradient[i]), diagonal(i), plain);
                         one.moved(
                             x[i],
                             x[i] + d.scale(1.5) + last.scale(1.2 - 1.0),
@@ -927,6 +996,8 @@ mod tests {
                 assert_eq!(bits(&next_gradient), bits(&vec![zero; n]));
             }
         }
+        // Friction changed some directions (else the rough runs would prove nothing).
+        assert!(damped > 0);
     }
 
     #[test]
