@@ -194,28 +194,30 @@ impl<'a, V: Grouped> Frames<'a, V> {
         (d - tangential * share, slope - share * g.dot(tangential))
     }
 
-    /// [`damped`](Self::damped) for a group of [`LANES`] vertices at `x` (a chunk) moved from
-    /// `start` (the vertices from there on; `x` where it runs out) with gradients `g` (a chunk)
-    /// and bounds `p`: the grouped direction `d` and slope terms `slope` are unchanged unless a
-    /// vertex of the group has a frictional contact, and then go through the one-vertex code
-    /// lane by lane, so that every vertex gets the bits it gets alone. Most groups touch
-    /// nothing and pay only the contact test.
+    /// [`damped`](Self::damped) for the group of [`LANES`] vertices from vertex `first` on, at
+    /// `x` (a chunk) moved from `start` (every vertex's `x_n`; `x` where it runs out) with
+    /// gradients `g` (a chunk) and bounds `p`: the grouped direction `d` and slope terms `slope`
+    /// are unchanged unless a vertex of the group has a frictional contact, and then go through
+    /// the one-vertex code lane by lane, so that every vertex gets the bits it gets alone. Most
+    /// groups touch nothing and pay only the contact test.
     #[inline(always)]
     fn damped_group(
         &self,
         (x, start, g): (&[V], &[V], &[V]),
+        first: usize,
         p: Lanes,
         (d, slope): (V::Group, Lanes),
     ) -> (V::Group, Lanes)
     where
         V: Vector,
     {
-        let Some(friction) = self.friction else {
+        let Some(friction) = &self.friction else {
             return (d, slope);
         };
         if !x.iter().any(|&x| friction.contact(x).is_some()) {
             return (d, slope);
         }
+        let start = start.get(first..).unwrap_or(&[]);
         let (mut d, mut slope) = (V::ungroup(d), slope.to_array());
         let lanes = d.iter_mut().zip(slope.iter_mut()).zip(p.to_array());
         for (lane, ((d, slope), p)) in lanes.enumerate() {
@@ -227,12 +229,6 @@ impl<'a, V: Grouped> Frames<'a, V> {
         }
         (V::group(d), Lanes::from_array(slope))
     }
-}
-
-/// The vertices of `values` from `first` on (empty past the end).
-#[inline(always)]
-fn from<V>(values: &[V], first: usize) -> &[V] {
-    values.get(first..).unwrap_or(&[])
 }
 
 /// The per-vertex inputs every pass shares.
@@ -424,29 +420,26 @@ fn direction_block<V: Grouped + Vector>(
     let mut slope = LaneSum::new(x.len());
     let mut done = 0;
     if frames.batched() {
-        let frame = &frames.group();
-        let (lanes_alpha, lanes_momentum) = (Lanes::splat(alpha), momentum.map(Lanes::splat));
-        let groups = direction
-            .chunks_exact_mut(LANES)
-            .zip(trial.groups())
-            .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
-            .zip(vertices.diagonal_groups(frame.inertia));
-        for (k, (((d_slot, (t_slot, g_slot)), (x, g)), p)) in groups.enumerate() {
-            let position = load(x);
-            let heavy_ball = lanes_momentum.map(|m| (load(t_slot), m));
-            let direction = frame.direction(position, load(g), p, heavy_ball);
-            let start = from(vertices.start, k * LANES);
-            let (d, slope_term) = frames.damped_group((x, start, g), p, direction);
-            store(d_slot, d);
-            let free = free_lanes(vertices.pinned, k);
-            store(
-                t_slot,
-                frame.moved(position, position + d.scale(lanes_alpha), free),
-            );
-            clear(g_slot);
-            slope.add_group(slope_term);
-            done = (k + 1) * LANES;
-        }
+        let buffers = ((x, gradient), &mut *direction, &mut trial);
+        // Monomorphised twice, so that the frictionless loop carries no friction test.
+        done = match frames.friction {
+            None => direction_groups(
+                frames,
+                vertices,
+                buffers,
+                (momentum, alpha),
+                &mut slope,
+                |_, _, _, direction| direction,
+            ),
+            Some(_) => direction_groups(
+                frames,
+                vertices,
+                buffers,
+                (momentum, alpha),
+                &mut slope,
+                |chunks, first, p, direction| frames.damped_group(chunks, first, p, direction),
+            ),
+        };
     }
     let frame = &frames.single;
     let rows = direction
@@ -466,6 +459,47 @@ fn direction_block<V: Grouped + Vector>(
         slope.add_single(i, slope_term);
     }
     slope.total()
+}
+
+/// `direction_block`'s buffers: the iterate and its gradient, the direction, the trial point.
+type DirectionBuffers<'a, 't, V> = ((&'a [V], &'a [V]), &'a mut [V], &'a mut TrialPoint<'t, V>);
+
+/// The direction pass of `direction_block` over the whole groups, the direction of each
+/// through `damp` (`(x, x_n, g)` chunks, first vertex, bound, direction and slope terms):
+/// returns the vertices done.
+#[inline(always)]
+fn direction_groups<V: Grouped + Vector>(
+    frames: &Frames<V>,
+    vertices: &Vertices<'_, V>,
+    ((x, gradient), direction, trial): DirectionBuffers<'_, '_, V>,
+    (momentum, alpha): (Option<Real>, Real),
+    slope: &mut LaneSum,
+    damp: impl Fn((&[V], &[V], &[V]), usize, Lanes, (V::Group, Lanes)) -> (V::Group, Lanes),
+) -> usize {
+    let mut done = 0;
+    let frame = &frames.group();
+    let (lanes_alpha, lanes_momentum) = (Lanes::splat(alpha), momentum.map(Lanes::splat));
+    let groups = direction
+        .chunks_exact_mut(LANES)
+        .zip(trial.groups())
+        .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
+        .zip(vertices.diagonal_groups(frame.inertia));
+    for (k, (((d_slot, (t_slot, g_slot)), (x, g)), p)) in groups.enumerate() {
+        let position = load(x);
+        let heavy_ball = lanes_momentum.map(|m| (load(t_slot), m));
+        let direction = frame.direction(position, load(g), p, heavy_ball);
+        let (d, slope_term) = damp((x, vertices.start, g), k * LANES, p, direction);
+        store(d_slot, d);
+        let free = free_lanes(vertices.pinned, k);
+        store(
+            t_slot,
+            frame.moved(position, position + d.scale(lanes_alpha), free),
+        );
+        clear(g_slot);
+        slope.add_group(slope_term);
+        done = (k + 1) * LANES;
+    }
+    done
 }
 
 /// Writes the trial point `x + alpha d` (projected on the ground; `x` at pinned vertices) into
@@ -516,30 +550,15 @@ fn chebyshev_block<V: Grouped + Vector>(
 ) {
     let mut done = 0;
     if frames.batched() {
-        let frame = &frames.group();
-        let (lanes_step, lanes_weight) = (Lanes::splat(step), Lanes::splat(omega - 1.0));
-        let groups = trial
-            .groups()
-            .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
-            .zip(vertices.diagonal_groups(frame.inertia));
-        for (k, (((t_slot, g_slot), (x, g)), p)) in groups.enumerate() {
-            let position = load(x);
-            let last_step = if stepped {
-                position - load(t_slot)
-            } else {
-                V::Group::zero()
-            };
-            let direction = frame.direction(position, load(g), p, None);
-            let start = from(vertices.start, k * LANES);
-            let (d, _) = frames.damped_group((x, start, g), p, direction);
-            let target = position + d.scale(lanes_step) + last_step.scale(lanes_weight);
-            store(
-                t_slot,
-                frame.moved(position, target, free_lanes(vertices.pinned, k)),
-            );
-            clear(g_slot);
-            done = (k + 1) * LANES;
-        }
+        let buffers = ((x, gradient), &mut trial);
+        let weights = (stepped, step, omega);
+        // Monomorphised twice, so that the frictionless loop carries no friction test.
+        done = match frames.friction {
+            None => chebyshev_groups(frames, vertices, buffers, weights, |_, _, _, d| d),
+            Some(_) => chebyshev_groups(frames, vertices, buffers, weights, |c, first, p, d| {
+                frames.damped_group(c, first, p, d)
+            }),
+        };
     }
     let frame = &frames.single;
     let rows = trial.rows().zip(x.iter().zip(gradient)).enumerate();
@@ -553,6 +572,43 @@ fn chebyshev_block<V: Grouped + Vector>(
         *t_slot = frame.moved(x, target, free_one(vertices.pinned, i));
         *g_slot = V::zero();
     }
+}
+
+/// The Chebyshev pass of `chebyshev_block` over the whole groups, the direction of each
+/// through `damp` (as [`direction_groups`]): returns the vertices done.
+#[inline(always)]
+fn chebyshev_groups<V: Grouped + Vector>(
+    frames: &Frames<V>,
+    vertices: &Vertices<'_, V>,
+    ((x, gradient), trial): ((&[V], &[V]), &mut TrialPoint<'_, V>),
+    (stepped, step, omega): (bool, Real, Real),
+    damp: impl Fn((&[V], &[V], &[V]), usize, Lanes, (V::Group, Lanes)) -> (V::Group, Lanes),
+) -> usize {
+    let mut done = 0;
+    let frame = &frames.group();
+    let (lanes_step, lanes_weight) = (Lanes::splat(step), Lanes::splat(omega - 1.0));
+    let groups = trial
+        .groups()
+        .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
+        .zip(vertices.diagonal_groups(frame.inertia));
+    for (k, (((t_slot, g_slot), (x, g)), p)) in groups.enumerate() {
+        let position = load(x);
+        let last_step = if stepped {
+            position - load(t_slot)
+        } else {
+            V::Group::zero()
+        };
+        let direction = frame.direction(position, load(g), p, None);
+        let (d, _) = damp((x, vertices.start, g), k * LANES, p, direction);
+        let target = position + d.scale(lanes_step) + last_step.scale(lanes_weight);
+        store(
+            t_slot,
+            frame.moved(position, target, free_lanes(vertices.pinned, k)),
+        );
+        clear(g_slot);
+        done = (k + 1) * LANES;
+    }
+    done
 }
 
 /// A vector type the blocked passes can share between threads.
