@@ -809,18 +809,22 @@ macro_rules! precision_tests {
                 }
 
                 /// `steps` relaxation steps of 1/60 s (Chebyshev, the defaults) of `model`
-                /// from `start` at rest, onto the ground: the final state's bits and every
-                /// step's report.
+                /// from `start` at rest, onto the ground with the sticking speed
+                /// `sticking_speed` (m/s; positive puts friction into the objective): the
+                /// final state's bits and every step's report.
                 fn relax_run<F: ElasticEnergy<Vector = Vec3>>(
                     model: &F,
                     masses: &[Real],
                     start: &[Vec3],
-                    steps: usize,
+                    (steps, sticking_speed): (usize, Real),
                 ) -> RunBits {
                     let n = start.len();
+                    let ground = Ground::new(Vec3::Y, 0.0)
+                        .with_friction(0.5)
+                        .with_sticking_speed(sticking_speed);
                     let settings = RelaxSettings::new(1.0 / 60.0)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5))
+                        .with_ground(ground)
                         .with_tolerance(1.0e-3, 300);
                     let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
                     let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
@@ -842,12 +846,15 @@ macro_rules! precision_tests {
                     model: &F,
                     masses: &[Real],
                     start: &[Vec3],
-                    steps: usize,
+                    (steps, sticking_speed): (usize, Real),
                 ) -> RunBits {
                     let (n, ne) = (start.len(), model.element_count());
+                    let ground = Ground::new(Vec3::Y, 0.0)
+                        .with_friction(0.5)
+                        .with_sticking_speed(sticking_speed);
                     let settings = NewtonSettings::new(1.0 / 30.0)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5))
+                        .with_ground(ground)
                         .with_tolerance(1.0e-4, 30);
                     let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
                     let lengths = newton_scratch_len(n, ne);
@@ -874,9 +881,17 @@ macro_rules! precision_tests {
 
                 /// Whole relaxation and Newton runs of the dropped box (landing included),
                 /// sequential against `ParallelTetElastic` on 1, 2, 3 and 8 threads: every
-                /// position, velocity and report bit.
+                /// position, velocity and report bit, with the ground's friction applied after
+                /// the solve and in the objective (`SUGGESTED_STICKING_SPEED`).
                 #[test]
                 fn relaxation_and_newton_runs_on_1_2_3_8_threads_give_the_sequential_bits() {
+                    for sticking_speed in [0.0, sf::step::SUGGESTED_STICKING_SPEED] {
+                        runs_on_1_2_3_8_threads_give_the_sequential_bits(sticking_speed);
+                    }
+                }
+
+                /// One sticking speed of the test above.
+                fn runs_on_1_2_3_8_threads_give_the_sequential_bits(sticking_speed: Real) {
                     let (start, tets) = lifted_box(4);
                     let mut rest_data = vec![TetRest::default(); tets.len()];
                     let mesh = TetMesh::new(&start, &tets, &mut rest_data).unwrap();
@@ -885,8 +900,8 @@ macro_rules! precision_tests {
                     let body = TetElastic::new(mesh, material);
                     let mut masses = vec![0.0; nv];
                     mesh.lumped_masses(1000.0, &mut masses).unwrap();
-                    let relaxed = relax_run(&body, &masses, &start, 6);
-                    let newton = newton_run(&body, &masses, &start, 4);
+                    let relaxed = relax_run(&body, &masses, &start, (6, sticking_speed));
+                    let newton = newton_run(&body, &masses, &start, (4, sticking_speed));
                     // Landed: some vertex is on the ground (y = 0) at the end.
                     for (x, _, _) in [&relaxed, &newton] {
                         assert!(x.iter().any(|p| p[1] == 0.0f64.to_bits()), "not landed");
@@ -901,9 +916,9 @@ macro_rules! precision_tests {
                             ParallelTetElastic::new(body, p, &mut element_forces, &mut energies)
                                 .unwrap()
                                 .with_pool(&pool);
-                        let got = relax_run(&parallel_body, &masses, &start, 6);
+                        let got = relax_run(&parallel_body, &masses, &start, (6, sticking_speed));
                         assert!(got == relaxed, "{threads} threads: relaxation run differs");
-                        let got = newton_run(&parallel_body, &masses, &start, 4);
+                        let got = newton_run(&parallel_body, &masses, &start, (4, sticking_speed));
                         assert!(got == newton, "{threads} threads: Newton run differs");
                     }
                 }

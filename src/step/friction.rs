@@ -25,7 +25,9 @@
 //! The Hessian in the tangent plane is `mu lambda [(f1/y) (T - u_hat u_hat^T) + f1'(y) u_hat
 //! u_hat^T]` with `T = I - n n^T`; both curvatures are non-negative (`f1' = 2/eps - 2y/eps^2`
 //! below `eps`, 0 beyond), so the block is positive semi-definite without projection, and its
-//! largest eigenvalue is `mu lambda f1(y)/y <= 2 mu lambda / eps`.
+//! largest eigenvalue is `mu lambda f1(y)/y <= 2 mu lambda / eps`. Newton's method takes the
+//! isotropic `mu lambda (f1/y) T` instead where its descent shortens the slip
+//! ([`Slip::newton_hessian`]).
 
 use super::super::math;
 use super::super::types::{Mat3, Real, Vec3};
@@ -153,6 +155,28 @@ impl Slip<Vec3> {
         };
         tangent_plane * across + slip
     }
+
+    /// The curvature of `f0(|u|)` Newton's method takes at a vertex where the gradient of
+    /// `Phi` is `g` (1/m): the exact [`hessian`](Self::hessian) where the descent `-g`
+    /// lengthens the slip (`g.u <= 0`), and the isotropic `(f1/y) T` where it shortens it.
+    ///
+    /// Beyond the threshold the exact curvature along the slip is `f1' = 0`, so the Newton
+    /// model of a vertex that friction decelerates has only inertia and elasticity along the
+    /// slip and overshoots into the sticking zone, where the curvature is up to `2/eps`: the
+    /// line search then cuts the whole step, on every iteration of a landing. `(f1/y) T`
+    /// majorises `f0(|u|)` in the tangent plane (`f1(y)/y` does not increase with `y`, so `f0`
+    /// is a concave function of `y^2`: the bound behind Weiszfeld's iteration), and the model
+    /// never promises a decrease the friction term does not deliver. Both are positive
+    /// semi-definite.
+    #[inline]
+    pub fn newton_hessian(&self, g: Vec3) -> Mat3 {
+        if self.tangential.dot(g) > 0.0 {
+            let n = self.normal;
+            (Mat3::IDENTITY - outer(n, n)) * self.curvature()
+        } else {
+            self.hessian()
+        }
+    }
 }
 
 /// `a b^T`.
@@ -267,12 +291,13 @@ impl<'a, V> Lag<'a, V> {
 }
 
 impl Friction<'_, Vec3> {
-    /// The tangent block of `D` (N/m) at a vertex moved from `start` to `x`, `lambda` from the
-    /// lagging gradient `lagged` there; `None` without a frictional contact.
+    /// Newton's tangent block of `D` (N/m, [`Slip::newton_hessian`]) at a vertex moved from
+    /// `start` to `x` with gradient `g` of `Phi`, `lambda` from `g` too; `None` without a
+    /// frictional contact.
     #[inline]
-    pub fn block(&self, x: Vec3, start: Vec3, lagged: Vec3) -> Option<Mat3> {
-        self.slip(x, start, lagged)
-            .map(|(slip, force)| slip.hessian() * force)
+    pub fn block(&self, x: Vec3, start: Vec3, g: Vec3) -> Option<Mat3> {
+        self.slip(x, start, g)
+            .map(|(slip, force)| slip.newton_hessian(g) * force)
     }
 }
 
@@ -356,6 +381,54 @@ mod tests {
                 Vec3::Y.dot(slip.hessian() * Vec3::Y).abs() < 1e-6 / eps,
                 "y {y}"
             );
+        }
+    }
+
+    /// Newton's block is the exact Hessian where the descent lengthens the slip, and where it
+    /// shortens it a quadratic bound above `f0` in the tangent plane: `f0(|u + s|) <= f0(y) +
+    /// f1 u_hat.s + (f1/y) |s|^2 / 2` for tangential moves `s` of every size, including ones
+    /// through the sticking zone and past `u = 0`, where the exact model (no curvature along
+    /// a fast slip) would promise a decrease that never comes. `h = 1` s, `eps = 1e-3` m.
+    #[test]
+    fn newton_block_is_exact_when_slipping_on_and_a_majoriser_when_slowing() {
+        let h = 1.0;
+        let eps: Real = 1e-3;
+        let at = |x: Vec3| Slip::new(&contact(false), x, Vec3::ZERO, h).unwrap();
+        for (y, z) in [
+            (0.3 * eps, 0.2 * eps),
+            (5.0 * eps, -3.0 * eps),
+            (40.0 * eps, eps),
+        ] {
+            let x = Vec3::new(y, 0.01, z);
+            let slip = at(x);
+            let u = slip.gradient() / slip.gradient().length();
+            // Lengthening: the exact Hessian, bit for bit.
+            let lengthening = slip.newton_hessian(-u + Vec3::Y);
+            assert_eq!(lengthening, slip.hessian(), "y {y}");
+            // Shortening: (f1/y) T, the bound.
+            let shortening = slip.newton_hessian(u + Vec3::Y);
+            let across = Vec3::Y.cross(u);
+            for direction in [u, across] {
+                assert!(
+                    (direction.dot(shortening * direction) - slip.curvature()).abs()
+                        < 1e-5 * slip.curvature()
+                );
+            }
+            assert!(Vec3::Y.dot(shortening * Vec3::Y).abs() < 1e-6 / eps);
+            let length = (x - Vec3::Y * 0.01).length();
+            for scale in [-2.5, -1.0, -0.99, -0.5, -0.1, 0.3, 2.0] {
+                for turn in [0.0, 0.4, 1.0] {
+                    let s = (u + across * turn) * (scale * length);
+                    let model =
+                        slip.potential() + slip.gradient().dot(s) + 0.5 * s.dot(shortening * s);
+                    let moved = at(x + s).potential();
+                    // Rounding of f0 and of the model's terms (~1e-6 of eps-sized values).
+                    assert!(
+                        moved <= model + 1e-6 * (eps + length),
+                        "y {y}, s {s}: {moved} above {model}"
+                    );
+                }
+            }
         }
     }
 }

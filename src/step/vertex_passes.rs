@@ -128,8 +128,8 @@ impl<'a, V: Grouped> Frames<'a, V> {
         }
     }
 
-    /// These frames with `friction` (ignored if it is inactive): the direction passes then run
-    /// one vertex at a time and scale the tangential direction at the vertices in contact.
+    /// These frames with `friction` (ignored if it is inactive): the direction passes then
+    /// scale the tangential direction at the vertices in contact.
     pub fn with_friction(self, friction: Friction<'a, V>) -> Self {
         Frames {
             friction: friction.is_active().then_some(friction),
@@ -162,10 +162,10 @@ impl<'a, V: Grouped> Frames<'a, V> {
         &self.single.floor
     }
 
-    /// Whether the passes group vertices: on `math::BATCH_VERTICES` targets, without friction.
+    /// Whether the passes group vertices: on `math::BATCH_VERTICES` targets.
     #[inline(always)]
     fn batched(&self) -> bool {
-        BATCH_VERTICES && self.friction.is_none()
+        BATCH_VERTICES
     }
 
     /// The direction `d` (slope term `slope`) of a vertex at `x` moved from `start`, with
@@ -191,6 +191,42 @@ impl<'a, V: Grouped> Frames<'a, V> {
         let floor = &self.single.floor;
         let g = floor.constrain(floor.contact(x), x, g, 1.0);
         (d - tangential * share, slope - share * g.dot(tangential))
+    }
+
+    /// [`damped`](Self::damped) for the group of [`LANES`] vertices from vertex `first` on, at
+    /// `x` (a chunk) moved from `start` (every vertex's `x_n`; `x` where it runs out) with
+    /// gradients `g` (a chunk) and bounds `p`: the grouped direction `d` and slope terms `slope`
+    /// are unchanged unless a vertex of the group has a frictional contact, and then go through
+    /// the one-vertex code lane by lane, so that every vertex gets the bits it gets alone. Most
+    /// groups touch nothing and pay only the contact test.
+    #[inline(always)]
+    fn damped_group(
+        &self,
+        (x, start, g): (&[V], &[V], &[V]),
+        first: usize,
+        p: Lanes,
+        (d, slope): (V::Group, Lanes),
+    ) -> (V::Group, Lanes)
+    where
+        V: Vector,
+    {
+        let Some(friction) = &self.friction else {
+            return (d, slope);
+        };
+        if !x.iter().any(|&x| friction.contact(x).is_some()) {
+            return (d, slope);
+        }
+        let start = start.get(first..).unwrap_or(&[]);
+        let (mut d, mut slope) = (V::ungroup(d), slope.to_array());
+        let lanes = d.iter_mut().zip(slope.iter_mut()).zip(p.to_array());
+        for (lane, ((d, slope), p)) in lanes.enumerate() {
+            let (Some(&x), Some(&g)) = (x.get(lane), g.get(lane)) else {
+                continue;
+            };
+            let start = start.get(lane).copied().unwrap_or(x);
+            (*d, *slope) = self.damped((x, start, g), p, (*d, *slope));
+        }
+        (V::group(d), Lanes::from_array(slope))
     }
 }
 
@@ -383,27 +419,26 @@ fn direction_block<V: Grouped + Vector>(
     let mut slope = LaneSum::new(x.len());
     let mut done = 0;
     if frames.batched() {
-        let frame = &frames.group();
-        let (lanes_alpha, lanes_momentum) = (Lanes::splat(alpha), momentum.map(Lanes::splat));
-        let groups = direction
-            .chunks_exact_mut(LANES)
-            .zip(trial.groups())
-            .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
-            .zip(vertices.diagonal_groups(frame.inertia));
-        for (k, (((d_slot, (t_slot, g_slot)), (x, g)), p)) in groups.enumerate() {
-            let position = load(x);
-            let heavy_ball = lanes_momentum.map(|m| (load(t_slot), m));
-            let (d, slope_term) = frame.direction(position, load(g), p, heavy_ball);
-            store(d_slot, d);
-            let free = free_lanes(vertices.pinned, k);
-            store(
-                t_slot,
-                frame.moved(position, position + d.scale(lanes_alpha), free),
-            );
-            clear(g_slot);
-            slope.add_group(slope_term);
-            done = (k + 1) * LANES;
-        }
+        let buffers = ((x, gradient), &mut *direction, &mut trial);
+        // Monomorphised twice, so that the frictionless loop carries no friction test.
+        done = match frames.friction {
+            None => direction_groups(
+                frames,
+                vertices,
+                buffers,
+                (momentum, alpha),
+                &mut slope,
+                |_, _, _, direction| direction,
+            ),
+            Some(_) => direction_groups(
+                frames,
+                vertices,
+                buffers,
+                (momentum, alpha),
+                &mut slope,
+                |chunks, first, p, direction| frames.damped_group(chunks, first, p, direction),
+            ),
+        };
     }
     let frame = &frames.single;
     let rows = direction
@@ -423,6 +458,47 @@ fn direction_block<V: Grouped + Vector>(
         slope.add_single(i, slope_term);
     }
     slope.total()
+}
+
+/// `direction_block`'s buffers: the iterate and its gradient, the direction, the trial point.
+type DirectionBuffers<'a, 't, V> = ((&'a [V], &'a [V]), &'a mut [V], &'a mut TrialPoint<'t, V>);
+
+/// The direction pass of `direction_block` over the whole groups, the direction of each
+/// through `damp` (`(x, x_n, g)` chunks, first vertex, bound, direction and slope terms):
+/// returns the vertices done.
+#[inline(always)]
+fn direction_groups<V: Grouped + Vector>(
+    frames: &Frames<V>,
+    vertices: &Vertices<'_, V>,
+    ((x, gradient), direction, trial): DirectionBuffers<'_, '_, V>,
+    (momentum, alpha): (Option<Real>, Real),
+    slope: &mut LaneSum,
+    damp: impl Fn((&[V], &[V], &[V]), usize, Lanes, (V::Group, Lanes)) -> (V::Group, Lanes),
+) -> usize {
+    let mut done = 0;
+    let frame = &frames.group();
+    let (lanes_alpha, lanes_momentum) = (Lanes::splat(alpha), momentum.map(Lanes::splat));
+    let groups = direction
+        .chunks_exact_mut(LANES)
+        .zip(trial.groups())
+        .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
+        .zip(vertices.diagonal_groups(frame.inertia));
+    for (k, (((d_slot, (t_slot, g_slot)), (x, g)), p)) in groups.enumerate() {
+        let position = load(x);
+        let heavy_ball = lanes_momentum.map(|m| (load(t_slot), m));
+        let direction = frame.direction(position, load(g), p, heavy_ball);
+        let (d, slope_term) = damp((x, vertices.start, g), k * LANES, p, direction);
+        store(d_slot, d);
+        let free = free_lanes(vertices.pinned, k);
+        store(
+            t_slot,
+            frame.moved(position, position + d.scale(lanes_alpha), free),
+        );
+        clear(g_slot);
+        slope.add_group(slope_term);
+        done = (k + 1) * LANES;
+    }
+    done
 }
 
 /// Writes the trial point `x + alpha d` (projected on the ground; `x` at pinned vertices) into
@@ -473,28 +549,15 @@ fn chebyshev_block<V: Grouped + Vector>(
 ) {
     let mut done = 0;
     if frames.batched() {
-        let frame = &frames.group();
-        let (lanes_step, lanes_weight) = (Lanes::splat(step), Lanes::splat(omega - 1.0));
-        let groups = trial
-            .groups()
-            .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
-            .zip(vertices.diagonal_groups(frame.inertia));
-        for (k, (((t_slot, g_slot), (x, g)), p)) in groups.enumerate() {
-            let position = load(x);
-            let last_step = if stepped {
-                position - load(t_slot)
-            } else {
-                V::Group::zero()
-            };
-            let (d, _) = frame.direction(position, load(g), p, None);
-            let target = position + d.scale(lanes_step) + last_step.scale(lanes_weight);
-            store(
-                t_slot,
-                frame.moved(position, target, free_lanes(vertices.pinned, k)),
-            );
-            clear(g_slot);
-            done = (k + 1) * LANES;
-        }
+        let buffers = ((x, gradient), &mut trial);
+        let weights = (stepped, step, omega);
+        // Monomorphised twice, so that the frictionless loop carries no friction test.
+        done = match frames.friction {
+            None => chebyshev_groups(frames, vertices, buffers, weights, |_, _, _, d| d),
+            Some(_) => chebyshev_groups(frames, vertices, buffers, weights, |c, first, p, d| {
+                frames.damped_group(c, first, p, d)
+            }),
+        };
     }
     let frame = &frames.single;
     let rows = trial.rows().zip(x.iter().zip(gradient)).enumerate();
@@ -508,6 +571,43 @@ fn chebyshev_block<V: Grouped + Vector>(
         *t_slot = frame.moved(x, target, free_one(vertices.pinned, i));
         *g_slot = V::zero();
     }
+}
+
+/// The Chebyshev pass of `chebyshev_block` over the whole groups, the direction of each
+/// through `damp` (as [`direction_groups`]): returns the vertices done.
+#[inline(always)]
+fn chebyshev_groups<V: Grouped + Vector>(
+    frames: &Frames<V>,
+    vertices: &Vertices<'_, V>,
+    ((x, gradient), trial): ((&[V], &[V]), &mut TrialPoint<'_, V>),
+    (stepped, step, omega): (bool, Real, Real),
+    damp: impl Fn((&[V], &[V], &[V]), usize, Lanes, (V::Group, Lanes)) -> (V::Group, Lanes),
+) -> usize {
+    let mut done = 0;
+    let frame = &frames.group();
+    let (lanes_step, lanes_weight) = (Lanes::splat(step), Lanes::splat(omega - 1.0));
+    let groups = trial
+        .groups()
+        .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
+        .zip(vertices.diagonal_groups(frame.inertia));
+    for (k, (((t_slot, g_slot), (x, g)), p)) in groups.enumerate() {
+        let position = load(x);
+        let last_step = if stepped {
+            position - load(t_slot)
+        } else {
+            V::Group::zero()
+        };
+        let direction = frame.direction(position, load(g), p, None);
+        let (d, _) = damp((x, vertices.start, g), k * LANES, p, direction);
+        let target = position + d.scale(lanes_step) + last_step.scale(lanes_weight);
+        store(
+            t_slot,
+            frame.moved(position, target, free_lanes(vertices.pinned, k)),
+        );
+        clear(g_slot);
+        done = (k + 1) * LANES;
+    }
+    done
 }
 
 /// A vector type the blocked passes can share between threads.
@@ -741,6 +841,7 @@ mod tests {
 
     use super::super::super::types::{Real, Vec2, Vec3};
     use super::super::Ground;
+    use super::super::friction::Friction;
     use super::super::points::{Grouped, Point};
     use super::{
         Frame, Frames, TrialPoint, Vertices, chebyshev_block, direction_block, gradient_block,
@@ -781,10 +882,27 @@ mod tests {
             .collect();
         let velocities: Vec<V> = (0..n).map(|i| make(i, 5)).collect();
         let forces: Vec<V> = (0..n).map(|i| make(i, 6).scale(10.0)).collect();
-        let ground = Ground::new(up, 0.0);
         let (h, inertia, gravity) = (0.01, 1.0e4, up.scale(-9.81));
-        for pinned in [&pinned[..], &[]] {
+        // Rough: friction in the objective, which damps the direction at the vertices in
+        // contact whose gradient presses into the ground.
+        let mut damped = 0;
+        for (rough, pinned) in [
+            (false, &pinned[..]),
+            (false, &[]),
+            (true, &pinned),
+            (true, &[]),
+        ] {
+            let ground = match rough {
+                true => Ground::new(up, 0.0)
+                    .with_friction(0.5)
+                    .with_sticking_speed(1e-3),
+                false => Ground::new(up, 0.0),
+            };
             let frames = Frames::new(h, inertia, gravity, Some(&ground));
+            let frames = match rough {
+                true => frames.with_friction(Friction::new(Some(&ground), &[], h)),
+                false => frames,
+            };
             let one = Frame::<V>::new(h, inertia, gravity, Some(&ground));
             let vertices = Vertices {
                 masses: &masses,
@@ -850,12 +968,17 @@ mod tests {
                 );
                 let expected: Vec<_> = (0..n)
                     .map(|i| {
-                        one.direction(
+                        let plain = one.direction(
                             x[i],
                             gradient[i],
                             diagonal(i),
                             momentum.map(|m| (start[i], m)),
-                        )
+                        );
+                        let friction =
+                            frames.damped((x[i], start[i], gradient[i]), diagonal(i), plain);
+                        damped += usize::from(format!("{friction:?}") != format!("{plain:?}"));
+                        assert!(rough || format!("{friction:?}") == format!("{plain:?}"));
+                        friction
                     })
                     .collect();
                 let expected_trial: Vec<V> = (0..n)
@@ -914,7 +1037,9 @@ mod tests {
                 let expected: Vec<V> = (0..n)
                     .map(|i| {
                         let last = if stepped { x[i] - start[i] } else { zero };
-                        let (d, _) = one.direction(x[i], gradient[i], diagonal(i), None);
+                        let plain = one.direction(x[i], gradient[i], diagonal(i), None);
+                        let (d, _) =
+                            frames.damped((x[i], start[i], gradient[i]), diagonal(i), plain);
                         one.moved(
                             x[i],
                             x[i] + d.scale(1.5) + last.scale(1.2 - 1.0),
@@ -926,6 +1051,8 @@ mod tests {
                 assert_eq!(bits(&next_gradient), bits(&vec![zero; n]));
             }
         }
+        // Friction changed some directions (else the rough runs would prove nothing).
+        assert!(damped > 0);
     }
 
     #[test]

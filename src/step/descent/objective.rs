@@ -202,9 +202,26 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         let mut changed = false;
         // Lagged to another iterate (a trial point), the residual is not read (see `evaluate`).
         let summed = lagged.is_none();
+        // Without colliders, a vertex off the ground at `x` and at the lag points gets no term,
+        // and its residual term is `|g|^2` (the constraint acts only on the ground): most
+        // vertices take this path, the same bits as the general one.
+        let plain = floor.colliders().is_empty();
+        let off = |i: usize, lag: Option<Lag<'_, F::Vector>>| {
+            lag.is_none_or(|lag| {
+                lag.x
+                    .get(i)
+                    .is_some_and(|&p| floor.contact(p) != Some(true))
+            })
+        };
         let rows = gradient.iter_mut().zip(x).zip(start);
         for (i, ((g, &x), &x0)) in rows.enumerate() {
             if pinned.get(i).copied().unwrap_or(false) {
+                continue;
+            }
+            if plain && floor.contact(x) != Some(true) && off(i, lagged) && off(i, included) {
+                if summed {
+                    residual_squared += g.inner(*g);
+                }
                 continue;
             }
             let added = friction_term(friction, i, (x, x0, *g), lagged);
