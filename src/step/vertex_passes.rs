@@ -841,6 +841,7 @@ mod tests {
 
     use super::super::super::types::{Real, Vec2, Vec3};
     use super::super::Ground;
+    use super::super::collider::Colliders;
     use super::super::friction::Friction;
     use super::super::points::{Grouped, Point};
     use super::{
@@ -900,7 +901,7 @@ mod tests {
             };
             let frames = Frames::new(h, inertia, gravity, Some(&ground));
             let frames = match rough {
-                true => frames.with_friction(Friction::new(Some(&ground), &[], h)),
+                true => frames.with_friction(Friction::new(Some(&ground), Colliders::new(&[]), h)),
                 false => frames,
             };
             let one = Frame::<V>::new(h, inertia, gravity, Some(&ground));
