@@ -47,7 +47,7 @@ use core::mem::swap;
 
 use super::super::types::Real;
 use super::chebyshev::{Acceleration, AccelerationSettings};
-use super::collider::Collider;
+use super::collider::{Collider, Colliders};
 use super::friction::{Friction, Lag};
 use super::loads::Loads;
 use super::points::{Floor, Grouped};
@@ -371,6 +371,7 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
         gravity: problem.gravity,
         loads: problem.loads,
         friction,
+        velocity_friction: velocity_friction(ground.as_ref(), colliders),
     };
     let buffers = Buffers {
         gradient,
@@ -418,6 +419,17 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
         return Err(StepError::NonFiniteState { vertex });
     }
     Ok(summary)
+}
+
+/// Whether the ground or a collider applies Coulomb friction to the velocity after the solve
+/// (friction with a zero sticking speed, see `implicit_velocities`).
+fn velocity_friction<V: Vector>(ground: Option<&Ground<V>>, colliders: Colliders<'_>) -> bool {
+    let at_velocity =
+        |friction: Real, sticking_speed: Real| friction > 0.0 && sticking_speed <= 0.0;
+    ground.is_some_and(|g| at_velocity(g.friction, g.sticking_speed))
+        || colliders
+            .iter()
+            .any(|c| at_velocity(c.friction, c.sticking_speed))
 }
 
 /// The mutable scratch of the descent loop.
@@ -490,6 +502,23 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
             swap(&mut gradient, &mut trial_gradient);
             swapped = !swapped;
             evaluation = inertial;
+        }
+    }
+    if objective.velocity_friction && drop != F::Vector::ZERO && evaluation.phi.is_finite() {
+        // After Coulomb friction on the velocity, the rigid guess (y without the shear of the
+        // contact vertices' impulse) when it is lower still.
+        let second = TrialPoint {
+            positions: other,
+            gradient: trial_gradient,
+        };
+        objective.rigid_guess(second);
+        let rigid = objective.evaluate(other, trial_gradient, None)?;
+        energy_evaluations += 1;
+        if rigid.phi < evaluation.phi {
+            swap(&mut current, &mut other);
+            swap(&mut gradient, &mut trial_gradient);
+            swapped = !swapped;
+            evaluation = rigid;
         }
     }
     if !evaluation.phi.is_finite() {
