@@ -506,7 +506,7 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     }
     if objective.velocity_friction && drop != F::Vector::ZERO && evaluation.phi.is_finite() {
         // After Coulomb friction on the velocity, the rigid guess (y without the shear of the
-        // contact vertices' impulse) when it is lower still.
+        // contact vertices' impulses) when it is lower still.
         let second = TrialPoint {
             positions: other,
             gradient: trial_gradient,
