@@ -298,12 +298,12 @@ fn a_block_on_an_incline_sticks_or_slides_by_coulomb_law() {
 /// shears the stiff block, with an elastic force many times the friction force (initial
 /// residual 240 N at `mu = 0.3`, 13 N without friction); the solvers' relative tolerance
 /// against it ended VBD's solves at 0.23 N, and VBD slid 4.5 to 4.8 % short at `mu = 0.3`,
-/// the relaxation in f32 3.3 % fast. The loop now also tries the rigid initial guess (`y` at
-/// the body's mean velocity, `descent::objective`; 11 to 21 N). Measured in one run, f64 / f32,
-/// at `mu = 0.3` (0.1): Newton -0.01 / -0.00 % (-0.01 / -0.00 %), the relaxation +0.40 /
-/// +0.82 % (+0.41 / +0.48 %), VBD -0.80 / -1.18 to -1.71 % (-0.46 / -0.67 to -0.94 %), VBD with
-/// Chebyshev -0.50 / -0.28 to -0.32 % (-0.29 / -0.19 %); VBD's f32 figures are those of the
-/// opt-in friction above (its unconverged f32 solves, see there).
+/// the relaxation in f32 3.3 % fast. The first-order solvers now also try the rigid initial
+/// guess (`y` at the body's mean velocity, `descent::objective`; 11 to 21 N). Measured in one
+/// run, f64 / f32, at `mu = 0.3` (0.1): Newton -0.02 to -0.03 % (-0.00 %; it does not take the
+/// guess), the relaxation +0.40 / +0.82 % (+0.41 / +0.48 %), VBD -0.80 / -1.18 to -1.71 %
+/// (-0.46 / -0.67 to -0.94 %), VBD with Chebyshev -0.50 / -0.28 to -0.32 % (-0.29 / -0.19 %);
+/// VBD's f32 figures are those of the opt-in friction above (its unconverged f32 solves).
 #[test]
 #[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test colliders")]
 fn without_the_opt_in_friction_acts_on_the_velocity_after_the_solve() {

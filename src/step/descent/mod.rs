@@ -504,9 +504,15 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
             evaluation = inertial;
         }
     }
-    if objective.velocity_friction && drop != F::Vector::ZERO && evaluation.phi.is_finite() {
-        // After Coulomb friction on the velocity, the rigid guess (y without the shear of the
-        // contact vertices' impulses) when it is lower still.
+    // After Coulomb friction on the velocity, the first-order directions also try the rigid
+    // guess (y without the shear of the contact vertices' impulses), whose far smaller initial
+    // residual sets their relative target; they stop close to it. Newton's method, which
+    // overshoots its target, does not: measured on the incline of `tests/colliders` (200 steps
+    // at mu 0.1 and 0.3), the guess cost it 29 to 38 % more energy evaluations in f64 and 21 to
+    // 32 % more Newton iterations in f32, for a slide within 0.03 % either way.
+    let first_order = settings.stall == StallRule::Window;
+    if objective.velocity_friction && first_order && objective.h > 0.0 && evaluation.phi.is_finite()
+    {
         let second = TrialPoint {
             positions: other,
             gradient: trial_gradient,
