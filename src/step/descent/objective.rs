@@ -37,7 +37,8 @@ pub(in super::super) struct Objective<'p, F: ElasticEnergy> {
     /// The frictional contacts (inactive for none, and in the quasi-static mode).
     pub friction: Friction<'p, F::Vector>,
     /// Whether a contact applies Coulomb friction to the velocity after the solve (friction
-    /// with a zero sticking speed): the loop then also tries [`rigid_guess`](Self::rigid_guess).
+    /// with a zero sticking speed): the loop then also tries [`rigid_guess`](Self::rigid_guess)
+    /// for the first-order directions.
     pub velocity_friction: bool,
 }
 
