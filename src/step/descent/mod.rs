@@ -170,6 +170,9 @@ pub(super) struct LoopSettings {
     pub acceleration: AccelerationSettings,
     /// The stagnation rule.
     pub stall: StallRule,
+    /// Whether to also try [`Objective::rigid_guess`] after Coulomb friction on the velocity
+    /// (VBD only, see `descend`).
+    pub rigid_guess: bool,
 }
 
 /// What the loop reports; each solver builds its public report from it.
@@ -504,14 +507,20 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
             evaluation = inertial;
         }
     }
-    // After Coulomb friction on the velocity, the first-order directions also try the rigid
-    // guess (y without the shear of the contact vertices' impulses), whose far smaller initial
-    // residual sets their relative target; they stop close to it. Newton's method, which
-    // overshoots its target, does not: measured on the incline of `tests/colliders` (200 steps
-    // at mu 0.1 and 0.3), the guess cost it 29 to 38 % more energy evaluations in f64 and 21 to
-    // 32 % more Newton iterations in f32, for a slide within 0.03 % either way.
-    let first_order = settings.stall == StallRule::Window;
-    if objective.velocity_friction && first_order && objective.h > 0.0 && evaluation.phi.is_finite()
+    // After Coulomb friction on the velocity, VBD also tries the rigid guess (y without the
+    // shear of the contact vertices' impulses), whose far smaller initial residual sets its
+    // relative target; it stops close to it. Measured on the incline of `tests/colliders`
+    // (200 steps at mu 0.1 and 0.3): VBD slid 4.7 % short without it, within 1.8 % with it.
+    // Newton's method, which overshoots its target, does not: the guess cost it 29 to 38 %
+    // more energy evaluations in f64 and 21 to 32 % more Newton iterations in f32, for a slide
+    // within 0.03 % either way. The relaxation does not either: its tighter target then left 2
+    // of the bouncy example's first 90 solves (the landing) at their 300-iteration budget, and
+    // it slides within 2 % without it in f64 (its f32 runs 3.3 % fast at mu 0.3, see
+    // `tests/colliders`).
+    if objective.velocity_friction
+        && settings.rigid_guess
+        && objective.h > 0.0
+        && evaluation.phi.is_finite()
     {
         let second = TrialPoint {
             positions: other,

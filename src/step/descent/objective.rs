@@ -38,7 +38,7 @@ pub(in super::super) struct Objective<'p, F: ElasticEnergy> {
     pub friction: Friction<'p, F::Vector>,
     /// Whether a contact applies Coulomb friction to the velocity after the solve (friction
     /// with a zero sticking speed): the loop then also tries [`rigid_guess`](Self::rigid_guess)
-    /// for the first-order directions.
+    /// where the solver asks for it (VBD).
     pub velocity_friction: bool,
 }
 
