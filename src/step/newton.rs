@@ -471,6 +471,7 @@ fn solve<F: ElasticHessian>(
         momentum: 0.0,
         acceleration: AccelerationSettings::NONE,
         stall: StallRule::Halving,
+        rigid_guess: false,
     };
     let work = Work {
         start,

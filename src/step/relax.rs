@@ -516,6 +516,7 @@ pub(super) fn minimise<F: ElasticEnergy, D: Direction<F>>(
             cap: MAX_ESTIMATED_RELAX_RHO,
         },
         stall: StallRule::Window,
+        rigid_guess: false,
     };
     let work = Work {
         start,

@@ -923,6 +923,7 @@ fn minimise<M: Material, S: Schedule<M>>(
             cap: MAX_ESTIMATED_RHO,
         },
         stall: StallRule::Window,
+        rigid_guess: true,
     };
     let work = Work {
         start,
