@@ -560,10 +560,13 @@ pub struct VbdReport {
 /// instead of gathering it: `measure_sweep_cost` (load 5-8) gave 5.9-6.4 force passes on the
 /// bouncy cube where the gathered sweep gave 6.7-7.5 in the same run, and the criterion medians
 /// of `cargo bench --features rayon --bench vbd` (load 5-7, one run) 4.7 force passes at
-/// 10 368 tetrahedra (gathered: 6.2) and 6.7 at 105 456 (gathered: 11.7), the same bits. The
-/// target of 3 force passes per sweep is still not met: the corner positions are gathered
-/// lane by lane, and a sweep computes `F`, `P g` and the 3x3 block once per element and corner,
-/// where a force pass computes `F` and `P` once per element. In
+/// 10 368 tetrahedra (gathered: 6.2) and 6.7 at 105 456 (gathered: 11.7), the same bits. With
+/// the vertex block factored as `L D L^T` without square roots, one run of `cargo bench
+/// --features rayon --bench vbd -- zzz` on a quiet machine (Intel Xeon with AVX-512, load
+/// below 1) gave 2.86 force passes per sweep at 10 368 tetrahedra and 2.91 at 105 456 with the
+/// packed layout (gathered: 4.65 and 5.75). What a visit still spends most on is the
+/// lane-by-lane gather of its corners' positions; a sweep computes `F`, `P g` and the 3x3 block
+/// once per element and corner, where a force pass computes `F` and `P` once per element. In
 /// iterations VBD gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s
 /// (tolerance 2e-3) 2239 sweeps with Chebyshev 0.95 (all 180 steps converge) against the
 /// relaxation's 5351 iterations, 2.0 times the relaxation's wall time (1.96 times its CPU
@@ -590,7 +593,8 @@ pub struct VbdReport {
 /// 31 on the stiff block's first step, where the estimate from 4 plain sweeps took 111 and 81
 /// (0.9: 65 and 42; 0.98: 40 and 41); in wall time, back to back at a load of 4 to 6, 0.5 to
 /// 0.9 of GD + Chebyshev's on the landing (the estimate: 1.6 to 2.3) and 2.1 to 3.3 of it on
-/// the stiff block (the estimate: 3.4 to 5.5).
+/// the stiff block (the estimate: 3.4 to 5.5); after the `L D L^T` solve, one quiet run: 40 and
+/// 31 sweeps, 0.62 and 2.0 times GD + Chebyshev's time.
 ///
 /// ```
 /// use softfem::element::TetRest;
