@@ -512,14 +512,49 @@ impl<'a> Collider<'a> {
         }
     }
 
+    /// The contact tolerance at `x` (m): `64 eps (|x|_1 + |frame|_1 + size)`.
+    #[inline(always)]
+    fn tolerance(&self, x: Vec3, frame: Vec3) -> Real {
+        let l1 = |v: Vec3| v.x.abs() + v.y.abs() + v.z.abs();
+        CONTACT_EPS * (l1(x) + l1(frame) + self.size())
+    }
+
+    /// Whether `x` is certainly farther than `margin` (m, `>= 0`) outside a bounded shape (a
+    /// sphere, capsule or box), from its distance to the frame origin alone: the broad phase
+    /// that spares the rotations and square roots of [`probe_from`](Self::probe_from) for the
+    /// many vertices nowhere near a collider. `false` for a half-space or a user shape (no
+    /// bound), for a non-finite `x` and whenever it cannot be sure.
+    ///
+    /// Every point of a bounded shape lies within `size` of its frame origin (the radius; half
+    /// the length plus the radius; the box's `|h|_1 >= |h|`), so the signed distance of a point
+    /// `r = |x - frame|` away is at least `r - size` (for the box, by the triangle inequality
+    /// through the nearest point of the box). `probe_from` computes that distance after a
+    /// rotation and a square root, within a relative `1e-5` of `r` even in f32; the test asks
+    /// for `r >= 1.01 (size + margin)` (compared squared), so the computed distance exceeds
+    /// `margin` by about `0.01 size` and the answers that skip `probe_from` are its own:
+    /// not touching, not inside (`broad_phase_answers_as_the_exact_probe` checks it at the
+    /// bound).
+    #[inline(always)]
+    fn certainly_outside(&self, x: Vec3, frame: Vec3, margin: Real) -> bool {
+        let size = match self.shape {
+            Shape::HalfSpace | Shape::Custom(_) => return false,
+            _ => self.size(),
+        };
+        let p = x - frame;
+        let bound = 1.01 * (size + margin);
+        p.dot(p) > bound * bound
+    }
+
     /// The outward normal at `x` if `x` touches the surface within rounding of the projection
     /// (signed distance at most `64 eps (|x|_1 + |frame|_1 + size)`), the frame origin at
     /// `frame` (see [`frame`](Self::frame)).
     #[inline]
     fn touching(&self, x: Vec3, frame: Vec3) -> Option<Vec3> {
+        let tolerance = self.tolerance(x, frame);
+        if self.certainly_outside(x, frame, tolerance) {
+            return None;
+        }
         let (distance, normal) = self.probe_from(x, frame);
-        let l1 = |v: Vec3| v.x.abs() + v.y.abs() + v.z.abs();
-        let tolerance = CONTACT_EPS * (l1(x) + l1(frame) + self.size());
         if distance <= tolerance { normal } else { None }
     }
 
@@ -527,6 +562,9 @@ impl<'a> Collider<'a> {
     /// (see [`frame`](Self::frame)); whether it was.
     #[inline]
     fn push_out(&self, x: &mut Vec3, frame: Vec3) -> bool {
+        if self.certainly_outside(*x, frame, 0.0) {
+            return false;
+        }
         let (distance, normal) = self.probe_from(*x, frame);
         match normal {
             Some(normal) if distance < 0.0 => {
@@ -751,6 +789,9 @@ impl Colliders<'_> {
     pub fn entered(&self, x: Vec3, target: Vec3) -> Option<(Real, Vec3)> {
         self.list.iter().find_map(|c| {
             let frame = c.frame(self.origin);
+            if c.certainly_outside(target, frame, 0.0) {
+                return None;
+            }
             let (inside, normal_inside) = c.probe_from(target, frame);
             if inside >= 0.0 {
                 return None;
@@ -888,6 +929,70 @@ mod tests {
                 .length()
                 < 1e-6
         );
+    }
+
+    /// The broad phase never changes an answer: at points on rays from every bounded shape's
+    /// frame origin, just past and well past its bound and inside it, wherever
+    /// `certainly_outside` holds the exact probe finds the point farther than the margin
+    /// (with room to spare: a hundredth of the shape's size, less rounding), so `touching`,
+    /// `push_out` and `entered` answer as without it; and the test does skip points (the
+    /// shapes 8 m out, turned, as in `far_shapes`, and at the origin).
+    #[test]
+    fn broad_phase_answers_as_the_exact_probe() {
+        let (far_list, far) = far_shapes();
+        let turned = Quat::from_rotation_y(1.1) * Quat::from_rotation_x(-0.4);
+        let near_list = [
+            Collider::sphere(Vec3::ZERO, 1e-3),
+            Collider::capsule(Vec3::new(-2.0, 0.0, 0.0), Vec3::new(2.0, 0.5, 0.0), 0.05),
+            Collider::cuboid(Vec3::new(0.1, 0.2, 0.3), Vec3::new(3.0, 0.01, 0.2), turned),
+        ];
+        let mut seed = 0x2545_f491_u32;
+        let mut unit_random = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as Real / (1u32 << 24) as Real * 2.0 - 1.0
+        };
+        let (mut skipped, mut probed) = (0, 0);
+        for c in far_list[1..].iter().chain(near_list.iter()) {
+            let frame = c.position;
+            let size = c.size();
+            for _ in 0..200 {
+                let direction = Vec3::new(unit_random(), unit_random(), unit_random());
+                let Some(direction) = super::unit(direction) else {
+                    continue;
+                };
+                for factor in [
+                    0.5, 0.98, 0.99, 0.9995, 1.0, 1.0099, 1.0101, 1.0105, 1.02, 2.0, 1e3,
+                ] {
+                    let x = frame + direction * (1.01 * size * factor);
+                    let tolerance = c.tolerance(x, frame);
+                    let (distance, _) = c.probe_from(x, frame);
+                    for margin in [0.0, tolerance] {
+                        if c.certainly_outside(x, frame, margin) {
+                            skipped += 1;
+                            assert!(
+                                distance > margin + 0.009 * size,
+                                "{:?} at {x}: {distance:e} against {margin:e}",
+                                c.shape
+                            );
+                        } else {
+                            probed += 1;
+                        }
+                    }
+                    let exact = (distance <= tolerance)
+                        .then_some(())
+                        .and(c.probe_from(x, frame).1);
+                    assert_eq!(c.touching(x, frame), exact);
+                    let mut pushed = x;
+                    assert_eq!(c.push_out(&mut pushed, frame), distance < 0.0);
+                }
+            }
+        }
+        assert!(skipped > 1000 && probed > 1000, "{skipped} {probed}");
+        // Unbounded shapes are always probed; so is a non-finite point.
+        let plane = far_list[0];
+        assert!(!plane.certainly_outside(far * 100.0, Vec3::ZERO, 0.0));
+        let ball = far_list[1];
+        assert!(!ball.certainly_outside(Vec3::NAN, ball.position, 0.0));
     }
 
     /// Shapes placed 8 m from the origin, kinematic (turning at 2 rad/s), at points next to
