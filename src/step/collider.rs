@@ -187,6 +187,22 @@ pub struct Collider<'a> {
 /// roundings of `|x| + |position| + size` of it.
 const CONTACT_EPS: Real = 64.0 * Real::EPSILON;
 
+/// How many colliders of a list [`Colliders`] poses once per solve (the first ones, in slice
+/// order): their normalised rotations, frame origins and half-space normals are formed when
+/// the view is made instead of at every contact query. Later colliders are posed at every
+/// query, with the same bits and more work.
+const POSED: usize = 4;
+
+/// A collider's pose as its contact queries use it, in the coordinates of the query: the
+/// normalised rotation, the frame origin (see [`Collider::frame`]) and, for a half-space, its
+/// outward normal (`rotation * z`; `+z` for other shapes, unused).
+#[derive(Clone, Copy)]
+struct Pose {
+    rotation: [Real; 4],
+    frame: Vec3,
+    normal: Vec3,
+}
+
 /// The unit quaternion whose rotation takes `+z` to the unit vector `to`.
 fn rotation_from_z(to: Vec3) -> Quat {
     // The half-way quaternion (1 + z.to, z x to), normalised; for `to = -z` any half turn.
@@ -447,6 +463,21 @@ impl<'a> Collider<'a> {
         self.probe_from(x, self.position)
     }
 
+    /// The pose of this collider with its frame origin at `frame` (see [`Pose`]).
+    #[inline]
+    fn posed_at(&self, frame: Vec3) -> Pose {
+        let rotation = self.unit_rotation();
+        let normal = match self.shape {
+            Shape::HalfSpace => rotate(rotation, Vec3::Z),
+            _ => Vec3::Z,
+        };
+        Pose {
+            rotation,
+            frame,
+            normal,
+        }
+    }
+
     /// Where the collider's frame origin lies in coordinates shifted by `-origin` (m), for its
     /// geometry: `position - origin`, except for a half-space, whose frame origin may be any
     /// point of its plane: there the point of the plane nearest `origin` (shifted), so that the
@@ -474,10 +505,17 @@ impl<'a> Collider<'a> {
     /// [`frame`](Self::frame)).
     #[inline]
     fn probe_from(&self, x: Vec3, frame: Vec3) -> (Real, Option<Vec3>) {
-        let q = self.unit_rotation();
-        let local = rotate_back(q, x - frame);
+        self.probe_posed(x, &self.posed_at(frame))
+    }
+
+    /// [`probe`](Self::probe) with the collider posed by `pose`.
+    #[inline]
+    fn probe_posed(&self, x: Vec3, pose: &Pose) -> (Real, Option<Vec3>) {
+        let q = pose.rotation;
+        let local = rotate_back(q, x - pose.frame);
         let (distance, gradient) = match self.shape {
-            Shape::HalfSpace => (local.z, Some(Vec3::Z)),
+            // The normal `rotate(q, z)`, formed with the pose.
+            Shape::HalfSpace => return (local.z, Some(pose.normal)),
             Shape::Sphere { radius } => {
                 let r = math::sqrt(local.dot(local));
                 (r - radius, Some(unit(local).unwrap_or(Vec3::Z)))
@@ -545,27 +583,45 @@ impl<'a> Collider<'a> {
         p.dot(p) > bound * bound
     }
 
+    /// The signed distance of `x` from a half-space posed by `pose`: the local `z`, exactly as
+    /// [`probe_posed`](Self::probe_posed) forms it, without its call and its match.
+    #[inline(always)]
+    fn half_space_distance(x: Vec3, pose: &Pose) -> Real {
+        rotate_back(pose.rotation, x - pose.frame).z
+    }
+
     /// The outward normal at `x` if `x` touches the surface within rounding of the projection
-    /// (signed distance at most `64 eps (|x|_1 + |frame|_1 + size)`), the frame origin at
-    /// `frame` (see [`frame`](Self::frame)).
-    #[inline]
-    fn touching(&self, x: Vec3, frame: Vec3) -> Option<Vec3> {
-        let tolerance = self.tolerance(x, frame);
-        if self.certainly_outside(x, frame, tolerance) {
+    /// (signed distance at most `64 eps (|x|_1 + |frame|_1 + size)`), the collider posed by
+    /// `pose` (see [`Pose`]).
+    #[inline(always)]
+    fn touching(&self, x: Vec3, pose: &Pose) -> Option<Vec3> {
+        let tolerance = self.tolerance(x, pose.frame);
+        if let Shape::HalfSpace = self.shape {
+            let distance = Self::half_space_distance(x, pose);
+            return (distance <= tolerance).then_some(pose.normal);
+        }
+        if self.certainly_outside(x, pose.frame, tolerance) {
             return None;
         }
-        let (distance, normal) = self.probe_from(x, frame);
+        let (distance, normal) = self.probe_posed(x, pose);
         if distance <= tolerance { normal } else { None }
     }
 
-    /// `x` moved onto the surface along the normal if it is inside, the frame origin at `frame`
-    /// (see [`frame`](Self::frame)); whether it was.
-    #[inline]
-    fn push_out(&self, x: &mut Vec3, frame: Vec3) -> bool {
-        if self.certainly_outside(*x, frame, 0.0) {
+    /// `x` moved onto the surface along the normal if it is inside, the collider posed by
+    /// `pose` (see [`Pose`]); whether it was.
+    #[inline(always)]
+    fn push_out(&self, x: &mut Vec3, pose: &Pose) -> bool {
+        if let Shape::HalfSpace = self.shape {
+            let distance = Self::half_space_distance(*x, pose);
+            if distance < 0.0 {
+                *x -= pose.normal * distance;
+            }
+            return distance < 0.0;
+        }
+        if self.certainly_outside(*x, pose.frame, 0.0) {
             return false;
         }
-        let (distance, normal) = self.probe_from(*x, frame);
+        let (distance, normal) = self.probe_posed(*x, pose);
         match normal {
             Some(normal) if distance < 0.0 => {
                 *x -= normal * distance;
@@ -629,23 +685,56 @@ pub(super) fn check_colliders(colliders: &[Collider<'_>], three_d: bool) -> Resu
 pub struct Colliders<'a> {
     list: &'a [Collider<'a>],
     origin: Vec3,
+    /// The poses of the first [`POSED`] colliders in these coordinates.
+    poses: [Pose; POSED],
 }
 
 impl<'a> Colliders<'a> {
     /// `list` in world coordinates.
     #[inline(always)]
     pub fn new(list: &'a [Collider<'a>]) -> Self {
-        Colliders {
-            list,
-            origin: Vec3::ZERO,
-        }
+        Colliders::posed(list, Vec3::ZERO)
     }
 
     /// These colliders seen from coordinates shifted by `-origin` (m).
-    #[inline(always)]
+    #[inline]
     #[must_use]
     pub fn shifted(self, origin: Vec3) -> Self {
-        Colliders { origin, ..self }
+        Colliders::posed(self.list, origin)
+    }
+
+    /// `list` seen from coordinates shifted by `-origin`, the first [`POSED`] posed.
+    #[inline]
+    fn posed(list: &'a [Collider<'a>], origin: Vec3) -> Self {
+        let unused = Pose {
+            rotation: [0.0, 0.0, 0.0, 1.0],
+            frame: Vec3::ZERO,
+            normal: Vec3::Z,
+        };
+        let mut poses = [unused; POSED];
+        for (pose, collider) in poses.iter_mut().zip(list) {
+            *pose = collider.posed_at(collider.frame(origin));
+        }
+        Colliders {
+            list,
+            origin,
+            poses,
+        }
+    }
+
+    /// The pose of `collider`, the `index`-th of the list: its cached one, or one formed now
+    /// in `slot`.
+    #[inline(always)]
+    fn pose<'p>(
+        &'p self,
+        index: usize,
+        collider: &Collider<'_>,
+        slot: &'p mut Option<Pose>,
+    ) -> &'p Pose {
+        match self.poses.get(index) {
+            Some(pose) => pose,
+            None => slot.insert(collider.posed_at(collider.frame(self.origin))),
+        }
     }
 
     /// Whether there are none.
@@ -664,8 +753,9 @@ impl<'a> Colliders<'a> {
     #[inline]
     pub fn pushed_out(&self, x: Vec3) -> Vec3 {
         let mut x = x;
-        for collider in self.list {
-            collider.push_out(&mut x, collider.frame(self.origin));
+        for (index, collider) in self.list.iter().enumerate() {
+            let mut slot = None;
+            collider.push_out(&mut x, self.pose(index, collider, &mut slot));
         }
         x
     }
@@ -673,10 +763,13 @@ impl<'a> Colliders<'a> {
     /// The first collider `x` touches and its outward normal there.
     #[inline]
     pub fn touching(&self, x: Vec3) -> Option<(&'a Collider<'a>, Vec3)> {
-        self.list.iter().find_map(|c| {
-            c.touching(x, c.frame(self.origin))
-                .map(|normal| (c, normal))
-        })
+        for (index, c) in self.list.iter().enumerate() {
+            let mut slot = None;
+            if let Some(normal) = c.touching(x, self.pose(index, c, &mut slot)) {
+                return Some((c, normal));
+            }
+        }
+        None
     }
 
     /// The velocity of `collider`'s material at `x` (m/s).
@@ -729,8 +822,8 @@ pub(super) fn resolve(
     let mut contacts = 0;
     for collider in colliders {
         // World coordinates: the collider's own frame origin.
-        let frame = collider.position;
-        if !collider.push_out(x, frame) {
+        let pose = collider.posed_at(collider.position);
+        if !collider.push_out(x, &pose) {
             continue;
         }
         contacts += 1;
@@ -749,7 +842,7 @@ pub(super) fn resolve(
             if collider.friction > 0.0 {
                 // Along the tangent plane: back onto a curved surface by the projection.
                 *x += (kept - tangential) * h;
-                collider.push_out(x, frame);
+                collider.push_out(x, &pose);
             }
         }
     }
@@ -787,16 +880,17 @@ impl Colliders<'_> {
     /// gives none). `None` if `target` is inside none.
     #[inline]
     pub fn entered(&self, x: Vec3, target: Vec3) -> Option<(Real, Vec3)> {
-        self.list.iter().find_map(|c| {
-            let frame = c.frame(self.origin);
-            if c.certainly_outside(target, frame, 0.0) {
+        self.list.iter().enumerate().find_map(|(index, c)| {
+            let mut slot = None;
+            let pose = self.pose(index, c, &mut slot);
+            if c.certainly_outside(target, pose.frame, 0.0) {
                 return None;
             }
-            let (inside, normal_inside) = c.probe_from(target, frame);
+            let (inside, normal_inside) = c.probe_posed(target, pose);
             if inside >= 0.0 {
                 return None;
             }
-            let (distance, normal) = c.probe_from(x, frame);
+            let (distance, normal) = c.probe_posed(x, pose);
             Some((distance, normal.or(normal_inside)?))
         })
     }
@@ -872,7 +966,12 @@ mod tests {
             assert!(shape.distance(inside) < 0.0, "shape {k}");
             let out = Colliders::new(core::slice::from_ref(shape)).pushed_out(inside);
             assert!(shape.distance(out).abs() < 1e-5, "shape {k}");
-            assert!(shape.touching(out, shape.position).is_some(), "shape {k}");
+            assert!(
+                shape
+                    .touching(out, &shape.posed_at(shape.position))
+                    .is_some(),
+                "shape {k}"
+            );
         }
     }
 
@@ -981,9 +1080,10 @@ mod tests {
                     let exact = (distance <= tolerance)
                         .then_some(())
                         .and(c.probe_from(x, frame).1);
-                    assert_eq!(c.touching(x, frame), exact);
+                    let pose = c.posed_at(frame);
+                    assert_eq!(c.touching(x, &pose), exact);
                     let mut pushed = x;
-                    assert_eq!(c.push_out(&mut pushed, frame), distance < 0.0);
+                    assert_eq!(c.push_out(&mut pushed, &pose), distance < 0.0);
                 }
             }
         }
@@ -993,6 +1093,54 @@ mod tests {
         assert!(!plane.certainly_outside(far * 100.0, Vec3::ZERO, 0.0));
         let ball = far_list[1];
         assert!(!ball.certainly_outside(Vec3::NAN, ball.position, 0.0));
+    }
+
+    /// The poses cached for the first [`POSED`](super::POSED) colliders and those formed at
+    /// every query for the rest give the answers of the collider-by-collider probe: a list of
+    /// ten (the four far shapes twice, then two more), shifted, at points inside and next to
+    /// each, against loops that pose every collider at the query.
+    #[test]
+    fn cached_and_per_query_poses_answer_as_the_probe() {
+        let (shapes, far) = far_shapes();
+        let extra = [
+            Collider::sphere(far + Vec3::new(3.0, 0.0, 0.0), 0.5),
+            Collider::cuboid(
+                far - Vec3::new(3.0, 0.0, 0.0),
+                Vec3::splat(0.4),
+                Quat::IDENTITY,
+            ),
+        ];
+        let mut list = [extra[0]; 10];
+        for (k, c) in shapes.iter().chain(&shapes).chain(&extra).enumerate() {
+            list[k] = *c;
+        }
+        let origin = far + Vec3::new(0.25, 0.5, -0.125);
+        let view = Colliders::new(&list).shifted(origin);
+        let pose = |c: &Collider<'_>| c.posed_at(c.frame(origin));
+        let mut touched = 0;
+        for c in &list[1..] {
+            for offset in [Vec3::new(0.01, -0.02, 0.015), Vec3::new(0.3, 0.45, -0.2)] {
+                let x = c.position + offset - origin;
+                let mut expected = x;
+                for d in &list {
+                    d.push_out(&mut expected, &pose(d));
+                }
+                assert_eq!(view.pushed_out(x), expected);
+                for y in [x, expected] {
+                    let first = list.iter().find_map(|d| d.touching(y, &pose(d)));
+                    assert_eq!(view.touching(y).map(|(_, n)| n), first);
+                    touched += usize::from(first.is_some());
+                }
+                let target = x - Vec3::Z;
+                let entered = list.iter().find_map(|d| {
+                    let (inside, normal_inside) = d.probe_posed(target, &pose(d));
+                    let (distance, normal) = d.probe_posed(x, &pose(d));
+                    (inside < 0.0).then(|| (distance, normal.or(normal_inside).unwrap()))
+                });
+                assert_eq!(view.entered(x, target), entered);
+            }
+        }
+        assert!(touched >= 9, "{touched}");
     }
 
     /// Shapes placed 8 m from the origin, kinematic (turning at 2 rad/s), at points next to
