@@ -70,7 +70,8 @@ use super::material::Material;
 use super::mesh::TetMesh;
 use super::step::{
     Collider, ExplicitMemory, ExplicitScratch, Ground, NewtonScratch, RelaxScratch, TetElastic,
-    VbdScratch, VbdTopology, newton_step, relax_step, stable_time_step, step_explicit, vbd_step,
+    VbdScratch, VbdTopology, newton_step, relax_step, stable_time_step, step_explicit,
+    vbd_layout_corners_len, vbd_layout_len, vbd_step,
 };
 use super::types::{Mat3, Real, Vec3};
 use crate::error::{BodyBuffer, BodyError, StepError};
@@ -132,6 +133,11 @@ pub struct Body<S: Storage, M: Material> {
     blocks: S::Blocks,
     hessians: S::Hessians,
     indices: S::Indices,
+    /// Vertex Block Descent's packed layout (empty where the storage cannot hold it) and
+    /// whether it is built for `topology`.
+    layout_values: S::LayoutValues,
+    layout_corners: S::LayoutCorners,
+    layout_built: Option<bool>,
     material: M,
     solver: Solver,
     gravity: Vec3,
@@ -340,6 +346,9 @@ impl<S: Storage, M: Material> Body<S, M> {
             blocks: S::Blocks::empty(),
             hessians: S::Hessians::empty(),
             indices: S::Indices::empty(),
+            layout_values: S::LayoutValues::empty(),
+            layout_corners: S::LayoutCorners::empty(),
+            layout_built: None,
             material,
             solver: Solver::explicit(),
             gravity: Vec3::ZERO,
@@ -358,6 +367,7 @@ impl<S: Storage, M: Material> Body<S, M> {
         self.explicit_memory = ExplicitMemory::FRESH;
         self.preconditioner_ready = false;
         self.topology = None;
+        self.layout_built = None;
         self.stable_step = None;
         let fits = self.rest_positions.resize(vertices, Vec3::ZERO)
             && self.masses.resize(vertices, 0.0)
@@ -406,6 +416,14 @@ impl<S: Storage, M: Material> Body<S, M> {
                 BodyBuffer::IndexScratch,
                 needed,
             )?;
+            // The packed layout where the storage holds it; without it the sweeps gather (the
+            // same bits).
+            let (values, corners) = (vbd_layout_len(t), vbd_layout_corners_len(n, t));
+            if !(self.layout_values.resize(values, 0.0) && self.layout_corners.resize(corners, 0)) {
+                // Empty buffers always fit.
+                let _ = self.layout_values.resize(0, 0.0) && self.layout_corners.resize(0, 0);
+            }
+            self.layout_built = None;
         }
         let vectors = match solver {
             Solver::Explicit { .. } => 4,
@@ -635,6 +653,7 @@ impl<S: Storage, M: Material> Body<S, M> {
             self.forget_history();
             self.preconditioner_ready = false;
             self.topology = None;
+            self.layout_built = None;
         }
         self.solver = solver;
         Ok(())
@@ -849,8 +868,14 @@ impl<S: Storage, M: Material> Body<S, M> {
                 let buffer = vectors.get_mut(..n.saturating_mul(5)).unwrap_or(&mut []);
                 let mut scratch =
                     VbdScratch::resume(buffer, self.indices.slice_mut(), self.topology);
+                let values = self.layout_values.slice_mut();
+                if !values.is_empty() {
+                    let corners = self.layout_corners.slice_mut();
+                    scratch = scratch.resume_layout(values, corners, self.layout_built);
+                }
                 let outcome = vbd_step(&model, masses, pinned, &settings, x, v, &mut scratch);
                 self.topology = scratch.topology();
+                self.layout_built = scratch.layout_built();
                 outcome.map(StepReport::Vbd)
             }
         }
@@ -916,6 +941,9 @@ impl<const V: usize, const T: usize, M: Material> Body<FixedStorage<V, T>, M> {
             blocks: Fixed::filled(Mat3::ZERO),
             hessians: Fixed::filled(TetHessian::ZERO),
             indices: Fixed::filled(0),
+            layout_values: Fixed::filled(0.0),
+            layout_corners: Fixed::filled(0),
+            layout_built: None,
             material,
             solver: Solver::explicit(),
             gravity: Vec3::ZERO,
@@ -965,4 +993,41 @@ fn substeps(dt: Real, limit: Real, minimum: u32) -> u32 {
         count += 1;
     }
     count.max(minimum).max(1)
+}
+
+#[cfg(all(test, feature = "alloc"))]
+mod tests {
+    use super::super::material::StableNeoHookean;
+    use super::super::types::{Real, Vec3};
+    use super::{Body, FixedStorage, Slots, Solver, VecStorage};
+
+    /// A growable body sweeps VBD with the packed layout, built on the first step and kept
+    /// for the next ones (until the solver or the mesh changes); a fixed-capacity one has no
+    /// room for it and sweeps without. (That both give the same bits is
+    /// `growable_storage_gives_the_bits_of_fixed_storage` in `tests/body.rs`.)
+    #[test]
+    fn a_growable_body_keeps_the_packed_vbd_layout_between_steps() {
+        let jelly = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
+        let (low, high) = (Vec3::ZERO, Vec3::new(0.3, 0.1, 0.1));
+        let mut growing =
+            Body::<VecStorage, _>::from_box(low, high, [6, 2, 2], 1000.0, jelly).unwrap();
+        let mut fixed =
+            Body::<FixedStorage<63, 120>, _>::from_box(low, high, [6, 2, 2], 1000.0, jelly)
+                .unwrap();
+        let gravity = Vec3::new(0.0, 0.0, -9.81);
+        growing.set_gravity(gravity);
+        fixed.set_gravity(gravity);
+        growing.set_solver(Solver::vbd()).unwrap();
+        fixed.set_solver(Solver::vbd()).unwrap();
+        assert_eq!(growing.layout_built, None);
+        for body_step in 0..3 {
+            let dt: Real = 1.0 / 60.0;
+            assert_eq!(growing.step(dt), fixed.step(dt));
+            assert_eq!(growing.layout_built, Some(true), "step {body_step}");
+            assert!(fixed.layout_values.slice().is_empty());
+            assert_eq!(fixed.layout_built, None);
+        }
+        growing.set_solver(Solver::relax()).unwrap();
+        assert_eq!(growing.layout_built, None);
+    }
 }

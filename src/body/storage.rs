@@ -47,6 +47,14 @@ pub trait Storage {
     type Hessians: Slots<TetHessian>;
     /// Vertex Block Descent's index scratch: `3 V + 1 + 4 T` entries.
     type Indices: Slots<u32>;
+    /// Vertex Block Descent's packed sweep layout, values
+    /// ([`vbd_layout_len`](crate::step::vbd_layout_len)): optional, a storage that cannot
+    /// hold it sweeps without it (the same bits, slower).
+    type LayoutValues: Slots<Real>;
+    /// Vertex Block Descent's packed sweep layout, corner indices
+    /// ([`vbd_layout_corners_len`](crate::step::vbd_layout_corners_len)); as
+    /// [`LayoutValues`](Self::LayoutValues).
+    type LayoutCorners: Slots<u32>;
 }
 
 /// `ROWS` rows of `N` entries, used as one buffer of up to `ROWS * N` entries: a fixed
@@ -114,7 +122,9 @@ impl<X: Copy + Default, const ROWS: usize, const N: usize> Slots<X> for Fixed<X,
 /// entries of Vertex Block Descent's index scratch (68), whose `3 V + 1 + 4 T` entries fit in
 /// `17 T` whenever `V <= 4 T` (every steppable body: a vertex in no tetrahedron has no mass).
 /// `core::mem::size_of::<Body<FixedStorage<V, T>, M>>()` is the total (the bar of
-/// `tests/body.rs`, 54 vertices and 120 tetrahedra, takes 48 KB).
+/// `tests/body.rs`, 54 vertices and 120 tetrahedra, takes 48 KB). It has no room for Vertex
+/// Block Descent's packed sweep layout (312 bytes per tetrahedron in f32), so its sweeps
+/// gather the rest data element by element (the same bits; `VecStorage` keeps the layout).
 #[derive(Clone, Copy, Debug)]
 pub struct FixedStorage<const V: usize, const T: usize>;
 
@@ -128,6 +138,8 @@ impl<const V: usize, const T: usize> Storage for FixedStorage<V, T> {
     type Blocks = Fixed<Mat3, 1, V>;
     type Hessians = Fixed<TetHessian, 1, T>;
     type Indices = Fixed<u32, 17, T>;
+    type LayoutValues = Fixed<Real, 0, 1>;
+    type LayoutCorners = Fixed<u32, 0, 1>;
 }
 
 #[cfg(feature = "alloc")]
@@ -162,7 +174,8 @@ impl<X: Copy> Slots<X> for alloc::vec::Vec<X> {
 }
 
 /// Growable storage on the heap (feature `alloc`): any number of vertices and tetrahedra, each
-/// solver's scratch allocated when it is chosen.
+/// solver's scratch allocated when it is chosen (for Vertex Block Descent with its packed sweep
+/// layout, 312 bytes per tetrahedron in f32, when that allocation succeeds).
 #[cfg(feature = "alloc")]
 #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 #[derive(Clone, Copy, Debug)]
@@ -179,4 +192,6 @@ impl Storage for VecStorage {
     type Blocks = alloc::vec::Vec<Mat3>;
     type Hessians = alloc::vec::Vec<TetHessian>;
     type Indices = alloc::vec::Vec<u32>;
+    type LayoutValues = alloc::vec::Vec<Real>;
+    type LayoutCorners = alloc::vec::Vec<u32>;
 }

@@ -164,6 +164,35 @@ impl<'a> VbdScratch<'a> {
     pub(crate) fn topology(&self) -> VbdTopology {
         self.topology
     }
+
+    /// This scratch with the packed layout of [`with_layout`](Self::with_layout) over buffers
+    /// whose state for the topology is `built`, as [`layout_built`](Self::layout_built)
+    /// reported it after the last solve over them.
+    #[inline]
+    #[must_use]
+    pub(crate) fn resume_layout(
+        self,
+        values: &'a mut [Real],
+        corners: &'a mut [u32],
+        built: Option<bool>,
+    ) -> Self {
+        VbdScratch {
+            layout: Some(LayoutBuffers {
+                values,
+                corners,
+                built,
+            }),
+            ..self
+        }
+    }
+
+    /// The state of the packed layout's buffers (for [`resume_layout`](Self::resume_layout)):
+    /// `None` without a layout or before it is built.
+    #[inline]
+    #[must_use]
+    pub(crate) fn layout_built(&self) -> Option<bool> {
+        self.layout.as_ref().and_then(|layout| layout.built)
+    }
 }
 
 /// The parameters of Vertex Block Descent.
