@@ -64,6 +64,10 @@ impl<F: ElasticEnergy> Direction<F> for Jacobi {
     fn rounding_floor(&self) -> Real {
         self.floor
     }
+
+    fn rigid_scale(&self) -> bool {
+        true
+    }
 }
 
 /// The rounding floor of the residual at `x` estimated from the diagonal bound (see

@@ -104,12 +104,14 @@ pub(in super::super) struct Stopping {
 
 impl Stopping {
     /// The test for a solve starting at `initial_residual` (N) with relative `tolerance`
-    /// against the larger of it and `load` (N): a step that starts at (or near) equilibrium,
+    /// against `scale` (N): the larger of the load and a residual of the start (the initial
+    /// residual, or for the relaxation after friction on the velocity the smaller of it and the
+    /// rigid guess's; see `descend`), so that a step that starts at (or near) equilibrium,
     /// whose initial residual is mostly rounding, is not asked to reduce it further.
-    pub fn new(rule: StallRule, tolerance: Real, initial_residual: Real, load: Real) -> Self {
+    pub fn new(rule: StallRule, tolerance: Real, initial_residual: Real, scale: Real) -> Self {
         Stopping {
             rule,
-            target: tolerance * initial_residual.max(load),
+            target: tolerance * scale,
             window: Stagnation::new(initial_residual),
             slow: 0,
             stagnated: false,
