@@ -409,11 +409,15 @@ impl<'a> VbdSettings<'a> {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct VbdReport {
     /// Accepted iterations of the descent loop, one sweep each (a rejected Chebyshev trial,
-    /// counted in [`restarts`](Self::restarts), costs one sweep more).
+    /// counted in [`restarts`](Self::restarts), costs one sweep more; accelerated sweeps
+    /// accepted without evaluation and later returned from count here too, see
+    /// [`vbd_step`](vbd_step#stopping-test-and-cost)).
     pub iterations: u32,
     /// Evaluations of `Phi` and its gradient: one or two for the initial guess (as the
-    /// relaxation's), one per sweep and one per shortened sweep step (the loop's Armijo
-    /// backtracking along `d = sweep(x) - x`).
+    /// relaxation's), one per plain sweep, one per accelerated sweep that is not deferred (see
+    /// [`vbd_step`](vbd_step#stopping-test-and-cost)), one after a solve that ends on a
+    /// deferred one, and one per shortened sweep step (the loop's Armijo backtracking along
+    /// `d = sweep(x) - x`).
     pub energy_evaluations: u32,
     /// `|grad Phi|` (N) at the initial guess (projected on the ground's constraint).
     pub initial_residual: Real,
@@ -526,13 +530,28 @@ pub struct VbdReport {
 /// relaxation.
 ///
 /// # Stopping test and cost
-/// After every sweep `Phi` and its gradient are evaluated with the relaxation's own passes,
-/// so the residual (`|grad Phi|` projected on the contacts) and the test
+/// `Phi` and its gradient are evaluated with the relaxation's own passes, so the residual
+/// (`|grad Phi|` projected on the contacts) and the test
 /// `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` are exactly the relaxation's, and
 /// so is the stall window (the rounding floor estimated from the exact vertex blocks at the
-/// initial guess). An iteration costs a sweep (per element and corner one deformation gradient, `P g` and the
-/// exact block, and with the line search one or two energy densities per trial) plus one fused
-/// energy-and-force pass.
+/// initial guess). They are evaluated after every plain sweep. Accelerated sweeps are
+/// evaluated too until three in a row since the last (re)start of the weights have passed
+/// the check on `Phi`; after that (without friction in `Phi`) the loop accepts up to 1, 2, 4,
+/// then 8 of them in a row unevaluated, and evaluates one early when the sweep's own
+/// Gauss–Seidel residual (the norm of the projected vertex gradients its updates start from),
+/// calibrated against the true residual at the last evaluated iterate, predicts that it meets
+/// the target, or rises. An evaluated sweep is checked against `Phi` at the last evaluated
+/// iterate, and a rise returns there (the sweeps since count in
+/// [`VbdReport::iterations`]) and restarts the weights; a solve that ends on an unevaluated
+/// sweep evaluates it (returning to the last evaluated iterate if `Phi` rose). So the
+/// residual and `Phi` reported are always those of the returned state, and
+/// [`VbdReport::converged`] only if that residual meets the tolerance (`docs/math.md`
+/// section 7.2). A plain iteration costs a sweep (per element and corner one deformation
+/// gradient, `P g` and the exact block, and with the line search one or two energy densities
+/// per trial) plus one fused energy-and-force pass; a deferred one, the sweep. On the single
+/// solves of the descent chart (f64, `with_chebyshev(0.95, 2)`, no line search) the landing
+/// step of the bouncy cube took the same 40 sweeps with 18 evaluations instead of 44, and the
+/// stiff block the same 31 sweeps with 20 instead of 35, the same final residuals.
 ///
 /// # Parallel sweeps
 /// `vbd_step_parallel` (feature `rayon`) runs each colour's updates on the current rayon
@@ -685,8 +704,8 @@ pub fn vbd_quasi_static<M: Material>(
 /// same result, bit for bit, for any number of threads and any schedule, because two vertices
 /// of one colour share no element (see [`colour_vertices`](super::colour_vertices)), so the
 /// updates of a colour read only positions that no update of that colour writes, and the
-/// sequential sweep gives them the same inputs. The evaluation of `Phi` after every sweep
-/// stays sequential.
+/// sequential sweep gives them the same inputs. The evaluations of `Phi` stay sequential, and
+/// so do the accelerated sweeps (see [`vbd_step`](vbd_step#parallel-sweeps)).
 ///
 /// # Errors
 /// As [`vbd_step`].
