@@ -525,9 +525,9 @@ pub struct VbdReport {
 /// `omega_2 = 2 / (2 - rho^2)` and `omega_n = 4 / (4 - rho^2 omega_(n-1))` (Wang, "A
 /// Chebyshev semi-iterative approach for accelerating projective and position-based dynamics",
 /// SIGGRAPH Asia 2015), applied per free vertex and projected onto the ground: the loop's
-/// Chebyshev trial. An accelerated iterate whose `Phi` is higher (beyond rounding) than the
-/// last one is rejected and the weights restart with a plain, line-searched sweep, as in the
-/// relaxation.
+/// Chebyshev trial. An evaluated accelerated iterate whose `Phi` is higher (beyond rounding)
+/// than the last evaluated one is rejected (with the unevaluated ones since, see below) and the
+/// weights restart with a plain, line-searched sweep, as in the relaxation.
 ///
 /// # Stopping test and cost
 /// `Phi` and its gradient are evaluated with the relaxation's own passes, so the residual
@@ -613,7 +613,16 @@ pub struct VbdReport {
 /// (0.9: 65 and 42; 0.98: 40 and 41); in wall time, back to back at a load of 4 to 6, 0.5 to
 /// 0.9 of GD + Chebyshev's on the landing (the estimate: 1.6 to 2.3) and 2.1 to 3.3 of it on
 /// the stiff block (the estimate: 3.4 to 5.5); after the `L D L^T` solve, one quiet run: 40 and
-/// 31 sweeps, 0.62 and 2.0 times GD + Chebyshev's time.
+/// 31 sweeps, 0.62 and 2.0 times GD + Chebyshev's time. With the deferred evaluations of
+/// accelerated sweeps (see [the stopping test](#stopping-test-and-cost)), one run of the chart
+/// at a load of 4 to 5: the same 40 and 31 sweeps and final residuals with 18 and 20
+/// evaluations (44 and 35 before), 2.7 and 5.2 force passes an iteration (3.3 and 5.6 before),
+/// 0.47 and 1.9 times GD + Chebyshev's time. On the stiff block's 96 tetrahedra a sweep alone
+/// costs about 4.4 force passes (8 colours of at most 6 vertices, so the 8 f64 lanes of a group
+/// are partly idle, and every element is visited once per corner), against GD + Chebyshev's
+/// 1.3 an iteration for 64 iterations (85 force passes in all): half its time, after VBD's start
+/// of about 7 force passes (the initial guesses and the block norms of the rounding floor),
+/// would leave 31 sweeps about 1.15 force passes each, or far fewer sweeps.
 ///
 /// ```
 /// use softfem::element::TetRest;
