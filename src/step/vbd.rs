@@ -438,11 +438,15 @@ impl<'a> VbdSettings<'a> {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct VbdReport {
     /// Accepted iterations of the descent loop, one sweep each (a rejected Chebyshev trial,
-    /// counted in [`restarts`](Self::restarts), costs one sweep more).
+    /// counted in [`restarts`](Self::restarts), costs one sweep more; accelerated sweeps
+    /// accepted without evaluation and later returned from count here too, see
+    /// [`vbd_step`](vbd_step#stopping-test-and-cost)).
     pub iterations: u32,
     /// Evaluations of `Phi` and its gradient: one or two for the initial guess (as the
-    /// relaxation's), one per sweep and one per shortened sweep step (the loop's Armijo
-    /// backtracking along `d = sweep(x) - x`).
+    /// relaxation's), one per plain sweep, one per accelerated sweep that is not deferred (see
+    /// [`vbd_step`](vbd_step#stopping-test-and-cost)), one after a solve that ends on a
+    /// deferred one, and one per shortened sweep step (the loop's Armijo backtracking along
+    /// `d = sweep(x) - x`).
     pub energy_evaluations: u32,
     /// `|grad Phi|` (N) at the initial guess (projected on the ground's constraint).
     pub initial_residual: Real,
@@ -550,18 +554,33 @@ pub struct VbdReport {
 /// `omega_2 = 2 / (2 - rho^2)` and `omega_n = 4 / (4 - rho^2 omega_(n-1))` (Wang, "A
 /// Chebyshev semi-iterative approach for accelerating projective and position-based dynamics",
 /// SIGGRAPH Asia 2015), applied per free vertex and projected onto the ground: the loop's
-/// Chebyshev trial. An accelerated iterate whose `Phi` is higher (beyond rounding) than the
-/// last one is rejected and the weights restart with a plain, line-searched sweep, as in the
-/// relaxation.
+/// Chebyshev trial. An evaluated accelerated iterate whose `Phi` is higher (beyond rounding)
+/// than the last evaluated one is rejected (with the unevaluated ones since, see below) and the
+/// weights restart with a plain, line-searched sweep, as in the relaxation.
 ///
 /// # Stopping test and cost
-/// After every sweep `Phi` and its gradient are evaluated with the relaxation's own passes,
-/// so the residual (`|grad Phi|` projected on the contacts) and the test
+/// `Phi` and its gradient are evaluated with the relaxation's own passes, so the residual
+/// (`|grad Phi|` projected on the contacts) and the test
 /// `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` are exactly the relaxation's, and
 /// so is the stall window (the rounding floor estimated from the exact vertex blocks at the
-/// initial guess). An iteration costs a sweep (per element and corner one deformation gradient, `P g` and the
-/// exact block, and with the line search one or two energy densities per trial) plus one fused
-/// energy-and-force pass.
+/// initial guess). They are evaluated after every plain sweep. Accelerated sweeps are
+/// evaluated too until three in a row since the last (re)start of the weights have passed
+/// the check on `Phi`; after that (without friction in `Phi`) the loop accepts up to 1, 2, 4,
+/// then 8 of them in a row unevaluated, and evaluates one early when the sweep's own
+/// Gauss–Seidel residual (the norm of the projected vertex gradients its updates start from),
+/// calibrated against the true residual at the last evaluated iterate, predicts that it meets
+/// the target, or rises. An evaluated sweep is checked against `Phi` at the last evaluated
+/// iterate, and a rise returns there (the sweeps since count in
+/// [`VbdReport::iterations`]) and restarts the weights; a solve that ends on an unevaluated
+/// sweep evaluates it (returning to the last evaluated iterate if `Phi` rose). So the
+/// residual and `Phi` reported are always those of the returned state, and
+/// [`VbdReport::converged`] only if that residual meets the tolerance (`docs/math.md`
+/// section 7.2). A plain iteration costs a sweep (per element and corner one deformation
+/// gradient, `P g` and the exact block, and with the line search one or two energy densities
+/// per trial) plus one fused energy-and-force pass; a deferred one, the sweep. On the single
+/// solves of the descent chart (f64, `with_chebyshev(0.95, 2)`, no line search) the landing
+/// step of the bouncy cube took the same 40 sweeps with 18 evaluations instead of 44, and the
+/// stiff block the same 31 sweeps with 20 instead of 35, the same final residuals.
 ///
 /// # Parallel sweeps
 /// `vbd_step_parallel` (feature `rayon`) runs each colour's updates on the current rayon
@@ -623,7 +642,16 @@ pub struct VbdReport {
 /// (0.9: 65 and 42; 0.98: 40 and 41); in wall time, back to back at a load of 4 to 6, 0.5 to
 /// 0.9 of GD + Chebyshev's on the landing (the estimate: 1.6 to 2.3) and 2.1 to 3.3 of it on
 /// the stiff block (the estimate: 3.4 to 5.5); after the `L D L^T` solve, one quiet run: 40 and
-/// 31 sweeps, 0.62 and 2.0 times GD + Chebyshev's time.
+/// 31 sweeps, 0.62 and 2.0 times GD + Chebyshev's time. With the deferred evaluations of
+/// accelerated sweeps (see [the stopping test](#stopping-test-and-cost)), one run of the chart
+/// at a load of 4 to 5: the same 40 and 31 sweeps and final residuals with 18 and 20
+/// evaluations (44 and 35 before), 2.7 and 5.2 force passes an iteration (3.3 and 5.6 before),
+/// 0.47 and 1.9 times GD + Chebyshev's time. On the stiff block's 96 tetrahedra a sweep alone
+/// costs about 4.4 force passes (8 colours of at most 6 vertices, so the 8 f64 lanes of a group
+/// are partly idle, and every element is visited once per corner), against GD + Chebyshev's
+/// 1.3 an iteration for 64 iterations (85 force passes in all): half its time, after VBD's start
+/// of about 7 force passes (the initial guesses and the block norms of the rounding floor),
+/// would leave 31 sweeps about 1.15 force passes each, or far fewer sweeps.
 ///
 /// ```
 /// use softfem::element::TetRest;
@@ -714,8 +742,8 @@ pub fn vbd_quasi_static<M: Material>(
 /// same result, bit for bit, for any number of threads and any schedule, because two vertices
 /// of one colour share no element (see [`colour_vertices`](super::colour_vertices)), so the
 /// updates of a colour read only positions that no update of that colour writes, and the
-/// sequential sweep gives them the same inputs. The evaluation of `Phi` after every sweep
-/// stays sequential.
+/// sequential sweep gives them the same inputs. The evaluations of `Phi` stay sequential, and
+/// so do the accelerated sweeps (see [`vbd_step`](vbd_step#parallel-sweeps)).
 ///
 /// # Errors
 /// As [`vbd_step`].

@@ -157,7 +157,36 @@ pub(super) trait Direction<F: ElasticEnergy> {
     fn previous_velocities(&self) -> Option<&[F::Vector]> {
         None
     }
+
+    /// After [`extrapolate`](Self::extrapolate): an estimate (N) of the residual at the iterate
+    /// the trial was extrapolated from, formed by the trial's own work (VBD's Gauss–Seidel
+    /// residual), or `None` (the default). With an estimate the loop may accept accelerated
+    /// trials without evaluating `Phi` (see [`MAX_DEFERRED`]).
+    fn residual_estimate(&self) -> Option<Real> {
+        None
+    }
 }
+
+/// The most accelerated trials in a row the loop accepts without evaluating `Phi`, for a
+/// direction that estimates the residual itself ([`Direction::residual_estimate`], VBD) and
+/// without friction in `Phi` (whose lag moves with every evaluated iterate). A trial is
+/// evaluated as usual (the Chebyshev check on `Phi`, the true residual) while the semi-iteration
+/// is young (see [`DEFER_AFTER`]), when the estimate rises, is not finite, or predicts that the
+/// trial meets the target (the estimate times the ratio of the true residual to the estimate
+/// at the last evaluated iterate, times the estimate's last contraction), or after this many
+/// unevaluated ones; the check then
+/// compares `Phi` with that of the last evaluated iterate, and a rise (beyond rounding) returns
+/// to that iterate, restarts the weights and takes a plain, line-searched step from it, as a
+/// rejected trial does. A solve that ends on unevaluated trials evaluates the last one (and
+/// returns to the last evaluated iterate if `Phi` rose), so the residual and `Phi` reported
+/// are always those of the returned state, and it converged only if that residual meets the
+/// tolerance.
+pub(super) const MAX_DEFERRED: u32 = 8;
+
+/// Accelerated trials the Chebyshev check must accept in a row after a (re)start before the
+/// loop defers any (see [`MAX_DEFERRED`]); after that the trials deferred between two
+/// evaluated ones double with every accepted check, 1, 2, 4, up to `MAX_DEFERRED`.
+pub(super) const DEFER_AFTER: u32 = 3;
 
 /// The settings of the loop (validated by each solver).
 #[derive(Clone, Copy)]
@@ -588,6 +617,16 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     // The step length of the accelerated trials: the one the last plain line search accepted.
     let mut alpha = settings.step_length;
     let mut acceleration = Acceleration::new(settings.acceleration);
+    // Accelerated trials accepted since the last evaluated iterate (see `MAX_DEFERRED`), which
+    // `direction` then holds, with its gradient in `gradient` and its `Phi` and residual in
+    // `phi` and `residual`.
+    let mut deferred: u32 = 0;
+    // Evaluated trials the Chebyshev check accepted since the last restart.
+    let mut accepted_in_row: u32 = 0;
+    // The estimate of the last trial (N), and the ratio of the true residual to the estimate at
+    // the last evaluated iterate.
+    let mut last_estimate = Real::INFINITY;
+    let mut calibration: Real = 1.0;
     // How far the last re-lag moved friction's force factors (relative; 1 until the first).
     let mut lag_moved: Real = if objective.friction.is_active() {
         1.0
@@ -595,6 +634,8 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
         0.0
     };
     while stopping.unmet(residual) && iterations < settings.max_iterations {
+        // Deferred trials count in the stall window as iterations without progress: the
+        // window stays one of sweeps, its progress seen at the evaluated ones.
         if stopping.stalled_before(iterations, residual, rule.rounding_floor()) {
             break;
         }
@@ -622,6 +663,34 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
                 gradient: trial_gradient,
             };
             rule.extrapolate(objective, &at, stepped, point, (omega * alpha, omega));
+            let estimate = rule.residual_estimate().unwrap_or(Real::NAN);
+            if deferred == 0 {
+                calibration = residual / estimate;
+                last_estimate = estimate;
+            }
+            // The trial's residual predicted from the estimate: calibrated at the last evaluated
+            // iterate, times the estimate's last contraction.
+            let predicted = estimate * calibration * (estimate / last_estimate);
+            let window = match accepted_in_row.checked_sub(DEFER_AFTER) {
+                Some(doublings) => MAX_DEFERRED.min(1 << doublings.min(8)),
+                None => 0,
+            };
+            let defer = deferred < window
+                && !objective.friction.is_active()
+                && predicted > target
+                && estimate <= last_estimate;
+            last_estimate = estimate;
+            if defer {
+                if deferred == 0 {
+                    copy(direction, current);
+                }
+                deferred += 1;
+                swap(&mut current, &mut other);
+                swapped = !swapped;
+                stepped = true;
+                iterations += 1;
+                continue;
+            }
             let lag = Lag::new(current, gradient);
             let mut extrapolated = objective.evaluate(other, trial_gradient, Some(lag))?;
             energy_evaluations += 1;
@@ -636,6 +705,8 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
             let noise = ROUNDING * (phi.abs() + trial_phi.abs() + trial_elastic.abs())
                 + rule.phi_resolution();
             if trial_phi <= phi + noise {
+                deferred = 0;
+                accepted_in_row = accepted_in_row.saturating_add(1);
                 lag_moved = objective.relag(
                     other,
                     trial_gradient,
@@ -654,6 +725,27 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
             restarts += 1;
             acceleration.restart();
             stepped = false;
+            accepted_in_row = 0;
+            if deferred > 0 {
+                // Back to the last evaluated iterate.
+                copy(current, direction);
+                deferred = 0;
+            }
+        }
+        if deferred > 0 {
+            // Not reached (trials are deferred only while accelerating), but a plain step
+            // needs the gradient of its iterate.
+            let settled = settle(
+                objective,
+                (&mut *current, &*direction),
+                &mut gradient,
+                &mut trial_gradient,
+                (&mut phi, &mut residual),
+                rule.phi_resolution(),
+            )?;
+            energy_evaluations += 1;
+            restarts += u32::from(!settled);
+            deferred = 0;
         }
         // d = -P^-1 g (+ momentum * last step), projected; plain descent if that is not
         // downhill. The same pass writes the first trial point, at the full step.
@@ -773,6 +865,18 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
             break;
         }
     }
+    if deferred > 0 {
+        let settled = settle(
+            objective,
+            (&mut *current, &*direction),
+            &mut gradient,
+            &mut trial_gradient,
+            (&mut phi, &mut residual),
+            rule.phi_resolution(),
+        )?;
+        energy_evaluations += 1;
+        restarts += u32::from(!settled);
+    }
     if swapped {
         // `other` is `positions`.
         split_copy(objective.model, other, current);
@@ -793,6 +897,37 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
         rho: acceleration.rho(),
     };
     Ok((summary, gradient, trial))
+}
+
+/// Evaluates the last of the accelerated trials the loop accepted without evaluating `Phi`,
+/// `current` (see [`MAX_DEFERRED`]): kept, with its gradient in `gradient` (swapped with the
+/// free `spare`) and its `Phi` and residual in `phi` and `residual`, if its `Phi` is not above
+/// the last evaluated iterate's (`checkpoint`, whose gradient, `Phi` and residual those hold)
+/// beyond rounding; otherwise `current` is returned to `checkpoint`. Returns whether it was
+/// kept. Only without friction in `Phi` (nothing to lag).
+///
+/// # Errors
+/// The model's.
+fn settle<'b, F: ElasticEnergy>(
+    objective: &Objective<'_, F>,
+    (current, checkpoint): (&mut [F::Vector], &[F::Vector]),
+    gradient: &mut &'b mut [F::Vector],
+    spare: &mut &'b mut [F::Vector],
+    (phi, residual): (&mut Real, &mut Real),
+    resolution: Real,
+) -> Result<bool, StepError> {
+    let evaluation = objective.evaluate(current, spare, None)?;
+    let noise =
+        ROUNDING * (phi.abs() + evaluation.phi.abs() + evaluation.elastic.abs()) + resolution;
+    if evaluation.phi <= *phi + noise {
+        swap(gradient, spare);
+        *phi = evaluation.phi;
+        *residual = evaluation.residual;
+        Ok(true)
+    } else {
+        copy(current, checkpoint);
+        Ok(false)
+    }
 }
 
 #[cfg(test)]

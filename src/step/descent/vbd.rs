@@ -10,12 +10,13 @@ use core::marker::PhantomData;
 
 use super::super::super::element::TetRest;
 use super::super::super::material::Material;
+use super::super::super::math;
 use super::super::super::types::{Mat3, Real, Vec3};
 use super::super::adjacency::incident_elements;
 use super::super::collider::Colliders;
 use super::super::friction::{Friction, Lag, Slip};
 use super::super::loads::Loads;
-use super::super::points::{Grouped, Point};
+use super::super::points::{Floor, Grouped, Point};
 #[cfg(feature = "rayon")]
 use super::super::vbd_layout::BLOCK;
 use super::super::vbd_layout::{Layout, Run, colour_runs};
@@ -167,8 +168,10 @@ fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
 impl<M: Material> Sweep<'_, M> {
     /// One Gauss–Seidel sweep over the free vertices in colour order, in place: each colour's
     /// vertices summed a lane group at a time (`vertex_sums.rs`), each group's updates applied
-    /// after its sums.
-    fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) {
+    /// after its sums. Returns the sweep's Gauss–Seidel residual (N): the norm of the vertex
+    /// gradients `g_i` each update started from (projected as the loop's residual is, see
+    /// [`updated`](Self::updated)), summed in the sweep's order.
+    fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) -> Real {
         let line_search = line_search && self.max_backtracks > 0;
         let visitor = sum_vertices(SumsPass {
             elements: &self.mesh(),
@@ -180,9 +183,11 @@ impl<M: Material> Sweep<'_, M> {
                 positions,
                 counts: *counts,
                 line_search,
+                residual_squared: 0.0,
             },
         });
         *counts = visitor.counts;
+        math::sqrt(visitor.residual_squared)
     }
 
     /// One sweep colour by colour on the current rayon pool: the updates of a colour, which
@@ -273,13 +278,16 @@ impl<M: Material> Sweep<'_, M> {
     /// The local Newton update of vertex `i` (see [`vbd_step`]) given the sums of its elements
     /// at `positions` (with the energy where `line_search`): its new position, or `None` where
     /// it stays (skipped, stationary). Reads the positions of `i` and of the vertices sharing an
-    /// element with it, which have other colours.
+    /// element with it, which have other colours. Adds to `residual_squared` the squared norm
+    /// of the vertex's gradient `g_i` at `positions`, without its fixed components and
+    /// projected on the contacts as the loop's residual is (`Frame::gradient`): the term of
+    /// `|grad Phi|^2` of vertex `i` at the positions the sweep has reached.
     fn updated(
         &self,
         positions: &[Vec3],
         i: usize,
         sums: &VertexSums,
-        counts: &mut SweepCounts,
+        (counts, residual_squared): (&mut SweepCounts, &mut Real),
         line_search: bool,
     ) -> Option<Vec3> {
         let x = *positions.get(i)?;
@@ -322,6 +330,9 @@ impl<M: Material> Sweep<'_, M> {
                 hessian.z_axis * keep.z + Vec3::Z * unit.z,
             );
         }
+        let floor = Floor::<Vec3>::new(self.ground.as_ref()).with_colliders(self.colliders);
+        let projected_gradient = floor.constrain(floor.contact(x), x, gradient, 1.0);
+        *residual_squared += projected_gradient.dot(projected_gradient);
         let Some(VertexFactor { factor, projected }) = VertexFactor::new(weight, &hessian) else {
             counts.skipped += 1;
             return None;
@@ -450,6 +461,8 @@ struct InPlace<'a, 's, M: Material> {
     positions: &'a mut [Vec3],
     counts: SweepCounts,
     line_search: bool,
+    /// The Gauss–Seidel residual's square so far (N^2), in sweep order.
+    residual_squared: Real,
 }
 
 impl<M: Material> VertexVisitor for InPlace<'_, '_, M> {
@@ -461,9 +474,13 @@ impl<M: Material> VertexVisitor for InPlace<'_, '_, M> {
     #[inline]
     fn visit(&mut self, _index: usize, vertex: u32, sums: &VertexSums) {
         let i = vertex as usize;
-        let update =
-            self.sweep
-                .updated(self.positions, i, sums, &mut self.counts, self.line_search);
+        let update = self.sweep.updated(
+            self.positions,
+            i,
+            sums,
+            (&mut self.counts, &mut self.residual_squared),
+            self.line_search,
+        );
         if let Some(x) = update
             && let Some(slot) = self.positions.get_mut(i)
         {
@@ -491,11 +508,13 @@ impl<M: Material> VertexVisitor for Staged<'_, '_, M> {
 
     #[inline]
     fn visit(&mut self, index: usize, vertex: u32, sums: &VertexSums) {
+        // The parallel sweep's residual is not used (its sum would depend on the tasks).
+        let mut residual_squared = 0.0;
         let update = self.sweep.updated(
             self.read,
             vertex as usize,
             sums,
-            &mut self.counts,
+            (&mut self.counts, &mut residual_squared),
             self.line_search,
         );
         if let Some(x) = update
@@ -565,6 +584,9 @@ pub(in super::super) struct VbdSweep<'s, M: Material, S> {
     floor: Real,
     /// `v_(n-1)` for the adaptive initial guess, if given.
     previous: Option<&'s [Vec3]>,
+    /// The Gauss–Seidel residual (N) of the last accelerated trial's sweep: an estimate of
+    /// `|grad Phi|` at the iterate it started from (see [`Direction::residual_estimate`]).
+    estimate: Real,
     schedule: PhantomData<S>,
 }
 
@@ -582,6 +604,7 @@ impl<'s, M: Material, S: Schedule<M>> VbdSweep<'s, M, S> {
             counts: SweepCounts::default(),
             floor: 0.0,
             previous: None,
+            estimate: Real::NAN,
             schedule: PhantomData,
         }
     }
@@ -724,7 +747,7 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
         // No buffer is free for the parallel schedule's staging here: the sequential sweep,
         // which gives the same bits.
         let mut counts = self.counts;
-        sweep.run(swept, &mut counts, self.line_search);
+        let estimate = sweep.run(swept, &mut counts, self.line_search);
         let floor = objective.frames.floor();
         let rows = older.iter_mut().zip(swept.iter()).zip(at.x);
         for (i, ((older, &s), &x)) in rows.enumerate() {
@@ -738,6 +761,7 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
         }
         swept.fill(Vec3::ZERO);
         self.counts = counts;
+        self.estimate = estimate;
     }
 
     fn rounding_floor(&self) -> Real {
@@ -746,5 +770,9 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
 
     fn previous_velocities(&self) -> Option<&[Vec3]> {
         self.previous
+    }
+
+    fn residual_estimate(&self) -> Option<Real> {
+        Some(self.estimate)
     }
 }
