@@ -37,8 +37,9 @@ pub(in super::super) struct Objective<'p, F: ElasticEnergy> {
     /// The frictional contacts (inactive for none, and in the quasi-static mode).
     pub friction: Friction<'p, F::Vector>,
     /// Whether a contact applies Coulomb friction to the velocity after the solve (friction
-    /// with a zero sticking speed): the loop then also tries [`rigid_guess`](Self::rigid_guess)
-    /// where the solver asks for it (VBD).
+    /// with a zero sticking speed): the loop then also evaluates
+    /// [`rigid_guess`](Self::rigid_guess) where the solver asks for it, as a start (VBD) or
+    /// as the scale of the relative residual target (the relaxation).
     pub velocity_friction: bool,
 }
 
