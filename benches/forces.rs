@@ -43,6 +43,11 @@
 //! Mtets/s at the bytes the layout streams per tetrahedron); with `SOFTFEM_BENCH_QUICK=1` too,
 //! only the two smaller meshes.
 //!
+//! `SOFTFEM_BENCH_ONLY=<patterns>` (with `SOFTFEM_BENCH_WIDTHS=1`) keeps only the (variant,
+//! width) pairs whose `"<id> <width>"` (`stvk_principal_f32 avx512`) contains one of the
+//! comma-separated patterns: `SOFTFEM_BENCH_ONLY='principal_f32 avx512,stvk_direct_f32 avx512'`
+//! times those three pairs alone, round-robin, for quick A/B runs of one kernel.
+//!
 //! `SOFTFEM_BENCH_QUICK=1` skips criterion and the 1M mesh and runs the table pass with few
 //! repetitions: a smoke test that finishes in seconds.
 
@@ -557,6 +562,19 @@ fn widths_mode() -> bool {
     std::env::var("SOFTFEM_BENCH_WIDTHS").is_ok_and(|value| value == "1")
 }
 
+/// Whether the (variant `id`, `width`) pair is one that `SOFTFEM_BENCH_ONLY` keeps (all of
+/// them when it is unset or empty).
+fn selected(id: &str, width: Width) -> bool {
+    let Ok(patterns) = std::env::var("SOFTFEM_BENCH_ONLY") else {
+        return true;
+    };
+    let name = format!("{id} {}", width.name());
+    patterns.trim().is_empty()
+        || patterns
+            .split(',')
+            .any(|pattern| name.contains(pattern.trim()))
+}
+
 /// The per-width table: every one-thread variant at every SIMD width this machine has
 /// (`softfem::simd::set_max_width`), all round-robin in one pass, so the ratios between widths
 /// come from one machine state.
@@ -572,6 +590,7 @@ fn print_width_table(info: &MeshInfo, variants: &mut [Variant<'_>], plan: &Table
         .enumerate()
         .filter(|(_, v)| v.threads == 1 && !v.id.contains("rayon") && !v.id.contains("partitioned"))
         .flat_map(|(i, _)| widths.iter().map(move |&w| (i, w)))
+        .filter(|&(i, w)| selected(variants[i].id, w))
         .collect();
     let ns = common::round_robin_min_ns(
         &mut items,
