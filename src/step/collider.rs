@@ -189,9 +189,12 @@ const CONTACT_EPS: Real = 64.0 * Real::EPSILON;
 
 /// How many colliders of a list [`Colliders`] poses once per solve (the first ones, in slice
 /// order): their normalised rotations, frame origins and half-space normals are formed when
-/// the view is made instead of at every contact query. Later colliders are posed at every
-/// query, with the same bits and more work.
-const POSED: usize = 4;
+/// the view is made instead of at every contact query. Later colliders are posed at a query
+/// that the broad phase does not settle, with the same bits and more work. One: every cached
+/// pose adds 40 bytes (f32) to each copy of the view that the solvers' passes hold, which
+/// with four cached poses cost the f32 relaxation 1.9 KB of stack on the Cortex-M4F; the
+/// first collider is typically the ground-like half-space every vertex is tested against.
+const POSED: usize = 1;
 
 /// A collider's pose as its contact queries use it, in the coordinates of the query: the
 /// normalised rotation, the frame origin (see [`Collider::frame`]) and, for a half-space, its
@@ -722,6 +725,30 @@ impl<'a> Colliders<'a> {
         }
     }
 
+    /// Whether the broad phase settles, before posing it, that `x` is farther than `margin`
+    /// (the contact tolerance where `tolerance`, else 0) outside `collider`, the `index`-th of
+    /// the list, when its pose is not cached: a bounded shape's frame origin needs no rotation.
+    /// The collider's own query would run the same test on the same frame origin.
+    #[inline(always)]
+    fn settled_outside(
+        &self,
+        index: usize,
+        collider: &Collider<'_>,
+        x: Vec3,
+        tolerance: bool,
+    ) -> bool {
+        if index < POSED || matches!(collider.shape, Shape::HalfSpace | Shape::Custom(_)) {
+            return false;
+        }
+        let frame = collider.frame(self.origin);
+        let margin = if tolerance {
+            collider.tolerance(x, frame)
+        } else {
+            0.0
+        };
+        collider.certainly_outside(x, frame, margin)
+    }
+
     /// The pose of `collider`, the `index`-th of the list: its cached one, or one formed now
     /// in `slot`.
     #[inline(always)]
@@ -754,6 +781,9 @@ impl<'a> Colliders<'a> {
     pub fn pushed_out(&self, x: Vec3) -> Vec3 {
         let mut x = x;
         for (index, collider) in self.list.iter().enumerate() {
+            if self.settled_outside(index, collider, x, false) {
+                continue;
+            }
             let mut slot = None;
             collider.push_out(&mut x, self.pose(index, collider, &mut slot));
         }
@@ -764,6 +794,9 @@ impl<'a> Colliders<'a> {
     #[inline]
     pub fn touching(&self, x: Vec3) -> Option<(&'a Collider<'a>, Vec3)> {
         for (index, c) in self.list.iter().enumerate() {
+            if self.settled_outside(index, c, x, true) {
+                continue;
+            }
             let mut slot = None;
             if let Some(normal) = c.touching(x, self.pose(index, c, &mut slot)) {
                 return Some((c, normal));
@@ -821,7 +854,11 @@ pub(super) fn resolve(
 ) -> usize {
     let mut contacts = 0;
     for collider in colliders {
-        // World coordinates: the collider's own frame origin.
+        // World coordinates: the collider's own frame origin. The broad phase first: posing
+        // takes a square root and a division (`push_out` would run the same test).
+        if collider.certainly_outside(*x, collider.position, 0.0) {
+            continue;
+        }
         let pose = collider.posed_at(collider.position);
         if !collider.push_out(x, &pose) {
             continue;
@@ -881,6 +918,9 @@ impl Colliders<'_> {
     #[inline]
     pub fn entered(&self, x: Vec3, target: Vec3) -> Option<(Real, Vec3)> {
         self.list.iter().enumerate().find_map(|(index, c)| {
+            if self.settled_outside(index, c, target, false) {
+                return None;
+            }
             let mut slot = None;
             let pose = self.pose(index, c, &mut slot);
             if c.certainly_outside(target, pose.frame, 0.0) {
