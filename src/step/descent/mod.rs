@@ -732,21 +732,13 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
                 deferred = 0;
             }
         }
-        if deferred > 0 {
-            // Not reached (trials are deferred only while accelerating), but a plain step
-            // needs the gradient of its iterate.
-            let settled = settle(
-                objective,
-                (&mut *current, &*direction),
-                &mut gradient,
-                &mut trial_gradient,
-                (&mut phi, &mut residual),
-                rule.phi_resolution(),
-            )?;
-            energy_evaluations += 1;
-            restarts += u32::from(!settled);
-            deferred = 0;
-        }
+        // Trials are deferred only inside the accelerated branch above, and every way out of it
+        // that falls through to here (a rejected trial) settles them first. Once a trial was
+        // deferred the semi-iteration's weight stays above 1 until a restart (the Chebyshev
+        // recurrence with rho > 0), friction is off (deferral needs it off, so `lag_moved` is
+        // 0) and the next pass takes the accelerated branch again: a plain step never sees a
+        // deferred iterate. Every debug-build test that runs accelerated descent checks it.
+        debug_assert_eq!(deferred, 0, "a plain descent step on a deferred iterate");
         // d = -P^-1 g (+ momentum * last step), projected; plain descent if that is not
         // downhill. The same pass writes the first trial point, at the full step.
         alpha = settings.step_length;
