@@ -510,7 +510,8 @@ fn sum_packed_group<L: LaneArray, M: Material>(
     // Each lane's row length (0 for a skipped vertex): a lane is active at visit `t` while
     // `t < length`, as in `sum_group`.
     let mut lengths = L::ZEROS;
-    let mut longest = 0;
+    // The longest row, its lane, and the longest of the other lanes' rows.
+    let (mut longest, mut last_lane, mut second) = (0, 0, 0);
     for (lane, &vertex) in group.vertices.iter().enumerate().take(L::WIDTH) {
         let length = if skip.get(vertex as usize).copied().unwrap_or(false) {
             0
@@ -518,10 +519,23 @@ fn sum_packed_group<L: LaneArray, M: Material>(
             elements.row(vertex as usize).len()
         };
         L::set_lane_value(&mut lengths, lane, length as Real);
-        longest = longest.max(length);
+        if length > longest {
+            (second, longest, last_lane) = (longest, length, lane);
+        } else {
+            second = second.max(length);
+        }
     }
     let (first_row, end_row) = group.rows;
-    let longest = longest.min(end_row - first_row);
+    let rows = end_row - first_row;
+    let (longest, second) = (longest.min(rows), second.min(rows));
+    // The visits where only the longest row's lane is active are summed on their own, one
+    // lane's operations in place of a group's (the same bits: every width gives the scalar
+    // code's): on small meshes a colour often has one vertex of many elements among few.
+    let (tail, longest) = if L::WIDTH > 1 && longest > second {
+        (Some(second..longest), second)
+    } else {
+        (None, longest)
+    };
     let lengths = L::from_lane_array(lengths);
     let load = |at: usize| {
         layout
@@ -566,4 +580,62 @@ fn sum_packed_group<L: LaneArray, M: Material>(
         }
     }
     sums.write(group.vertices.len(), out);
+    if let Some(tail) = tail
+        && let Some(slot) = out.get_mut(last_lane)
+    {
+        *slot = sum_packed_tail(
+            elements,
+            layout,
+            positions,
+            (first_row, group.lane + last_lane),
+            tail,
+            (extras, *slot),
+        );
+    }
+}
+
+/// The sums `partial` of one lane (`lane` of the layout's block whose rows start at
+/// `first_row`) continued over its visits `visits`, one at a time: the operations the lane
+/// group would run for that lane, in its order.
+#[inline(always)]
+fn sum_packed_tail<M: Material>(
+    elements: &Elements<'_, M>,
+    layout: &Layout<'_>,
+    positions: &[Vec3],
+    (first_row, lane): (usize, usize),
+    visits: core::ops::Range<usize>,
+    (extras, partial): (Extras, VertexSums),
+) -> VertexSums {
+    let h = partial.hessian;
+    let mut sums = Accumulator::<Real> {
+        gradient: LaneVec3::new(partial.gradient.x, partial.gradient.y, partial.gradient.z),
+        hessian: [
+            h.x_axis.x, h.y_axis.y, h.z_axis.z, h.x_axis.y, h.x_axis.z, h.y_axis.z,
+        ],
+        elastic: partial.elastic,
+        resolution: partial.resolution,
+    };
+    for t in visits {
+        let row = first_row + t;
+        let base = row * LAYOUT_VALUES * BLOCK + lane;
+        let value = |k: usize| layout.values.get(base + k * BLOCK).copied().unwrap_or(0.0);
+        let vector = |k: usize| LaneVec3::new(value(k), value(k + 1), value(k + 2));
+        let corner = |k: usize| {
+            let at = (row * 4 + k / 3) * BLOCK + lane;
+            let index = layout.corners.get(at).copied().unwrap_or(0);
+            let x = positions.get(index as usize).copied().unwrap_or(Vec3::ZERO);
+            LaneVec3::new(x.x, x.y, x.z)
+        };
+        let visit = Visit::new(
+            corner,
+            vector,
+            (0, vbd_layout::GRADIENT),
+            value(vbd_layout::VOLUME),
+            true,
+        );
+        sums.add(elements.material, &visit, extras);
+    }
+    let mut out = [EMPTY; MAX_WIDTH];
+    sums.write(1, &mut out);
+    out.first().copied().unwrap_or(EMPTY)
 }
