@@ -371,7 +371,10 @@ impl<M: Material> Sweep<'_, M> {
             if let Some(ground) = &self.ground {
                 ground.project(&mut p);
             }
-            let p = Point::pushed_out(p, self.colliders);
+            // (Without colliders, not even the call: it is not inlined.)
+            if !self.colliders.is_empty() {
+                p = Point::pushed_out(p, self.colliders);
+            }
             p.axes_from(x, fixed)
         };
         if !line_search {
