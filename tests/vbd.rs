@@ -215,6 +215,63 @@ macro_rules! vbd_tests {
                 }
             }
 
+            /// The packed sweep gives the gathered bits where a lane group's longest row is
+            /// longer than all its others, whose last visits the sweep sums for that lane
+            /// alone: the descent chart's stiff block (4 x 2 x 2 cubes of 6 tetrahedra, clamped
+            /// at x = 0, E = 1e8 Pa, 1/30 s, gravity, a perturbed start), where an interior
+            /// vertex of 24 elements shares its colour with vertices of at most 12 (checked
+            /// here on the colouring), with and without the line search, Chebyshev on.
+            #[test]
+            fn packed_layout_gives_the_gathered_bits_where_one_lane_runs_alone() {
+                let cube = boxed(Vec3::new(0.1, 0.05, 0.05), [4, 2, 2]);
+                let (n, t) = (cube.rest.len(), cube.tets.len());
+                let mut offsets = vec![0; softfem::step::adjacency_offsets_len(n)];
+                let mut incident = vec![0; softfem::step::adjacency_incident_len(t)];
+                softfem::step::build_vertex_adjacency(&cube.tets, n, &mut offsets, &mut incident).unwrap();
+                let mut colours = vec![0; n];
+                let count = softfem::step::colour_vertices(&cube.tets, &offsets, &incident, &mut colours).unwrap();
+                let degree = |v: usize| offsets[v + 1] - offsets[v];
+                let alone = (0..count).any(|c| {
+                    let mut rows: Vec<u32> = (0..n).filter(|&v| colours[v] == c).map(degree).collect();
+                    rows.sort_unstable();
+                    matches!(rows.as_slice(), [.., a, b] if b > a) || rows.len() == 1 && rows[0] > 1
+                });
+                assert!(alone, "no colour with a single longest row");
+                let mut rest_data = vec![TetRest::default(); t];
+                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e8, 0.3).unwrap());
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let pinned: Vec<bool> = cube.rest.iter().map(|p| p.x == 0.0).collect();
+                let mut rng = crate::common::Rng::new(3);
+                let start: Vec<Vec3> = cube.rest.iter().zip(&pinned).map(|(&p, &fixed)| {
+                    let mut unit = || (rng.unit() - 0.5) as Real;
+                    let offset = Vec3::new(unit(), unit(), unit()) * (2.0 * 1e-3 * 0.025);
+                    if fixed { p } else { p + offset }
+                }).collect();
+                for backtracks in [0, 8] {
+                    let settings = VbdSettings::new(1.0 / 30.0)
+                        .with_gravity(GRAVITY)
+                        .with_tolerance(0.0, 12)
+                        .with_line_search(backtracks)
+                        .with_chebyshev(0.95, 2);
+                    let run = |packed: bool| {
+                        let (mut vectors, mut indices) = buffers(n, t);
+                        let (mut values, mut corners) = layout_buffers(n, t);
+                        let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                        if packed {
+                            scratch = scratch.with_layout(&mut values, &mut corners);
+                        }
+                        let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; n]);
+                        let report = vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        assert_eq!(scratch.layout_in_use(), packed);
+                        (bits(&x), bits(&v), format!("{report:?}"))
+                    };
+                    let (gathered, packed) = (run(false), run(true));
+                    assert!(gathered == packed, "{backtracks} backtracks: {} vs {}", gathered.2, packed.2);
+                }
+            }
+
             /// One sweep on a tetrahedron with one free vertex is one Newton step on `Phi` in
             /// that vertex: `x = y - H^-1 g`, `g = -f(y)` (the inertia term vanishes at the
             /// initial guess `y`, without gravity) and `H = m / h^2 I + K`, `K` the 3x3

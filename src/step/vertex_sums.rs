@@ -12,6 +12,13 @@
 //! (its sums are selected, never added to), so it changes nothing either. Two vertices of one
 //! colour share no element, so the updates of a group's vertices, applied after the group is
 //! summed, give the sequential sweep's result.
+//!
+//! With the packed layout, the visits of a group's longest row past the end of all its other
+//! rows are summed for that one lane alone, by the scalar code (the same operations in the same
+//! order, so the same bits): on a small mesh a colour often holds one vertex of many elements
+//! among a few of fewer (on the descent chart's stiff block, 96 tetrahedra, 76 of the 152
+//! group visits of a sweep by 8 f64 lanes had one lane active, counted from its colouring),
+//! and a visit of one lane costs less than one of the whole group.
 
 use super::super::element::TetRest;
 use super::super::lanes::{Lane, LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH};
