@@ -642,7 +642,16 @@ fn sum_packed_tail<M: Material>(
         );
         sums.add(elements.material, &visit, extras);
     }
-    let mut out = [EMPTY; MAX_WIDTH];
-    sums.write(1, &mut out);
-    out.first().copied().unwrap_or(EMPTY)
+    // What `write` gives for one lane, without its buffer of `MAX_WIDTH` sums on the stack.
+    let [xx, yy, zz, xy, xz, yz] = sums.hessian;
+    VertexSums {
+        gradient: Vec3::new(sums.gradient.x, sums.gradient.y, sums.gradient.z),
+        hessian: Mat3::from_cols(
+            Vec3::new(xx, xy, xz),
+            Vec3::new(xy, yy, yz),
+            Vec3::new(xz, yz, zz),
+        ),
+        elastic: sums.elastic,
+        resolution: sums.resolution,
+    }
 }
