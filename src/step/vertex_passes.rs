@@ -738,23 +738,6 @@ pub(super) fn split_copy<V: Copy + Send + Sync>(
     model.run_vertex_pass(Blocks::new(target.len(), (target, source), &block));
 }
 
-/// The first vertex at which `positions` or (where given) `velocities` is not finite, in blocks
-/// run by `model`.
-pub(super) fn split_first_non_finite<V: Vector>(
-    model: &impl ElasticModel,
-    positions: &[V],
-    velocities: &[V],
-) -> Option<usize> {
-    let block = |first: usize, (positions, velocities): (&[V], &[V])| {
-        first_non_finite(positions, velocities).map(|vertex| first + vertex)
-    };
-    model.run_vertex_pass(Blocks::new(
-        positions.len(),
-        (positions, velocities),
-        &block,
-    ))
-}
-
 /// The Chebyshev pass (see `chebyshev_block`) in blocks run by `model`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn chebyshev_pass<V: Shared + Vector>(

@@ -46,8 +46,22 @@ pub(in super::super) struct Objective<'p, F: ElasticEnergy> {
 impl<F: ElasticEnergy> Objective<'_, F> {
     /// Writes `y + offset` (`x_n + offset` without inertia) projected on the ground into
     /// `point.positions` at free vertices, `x_n` at pinned ones, and zeroes `point.gradient`.
-    pub fn initial_guess(&self, point: TrialPoint<'_, F::Vector>, offset: F::Vector) {
-        self.guess(point, |_| offset);
+    /// Returns the number of free vertices at which the guess or `y` itself touches the ground
+    /// (within the contact tolerance; 0 without a ground): where none does, neither was
+    /// projected and the guess is `y` moved by `offset` at every free vertex.
+    pub fn initial_guess(&self, point: TrialPoint<'_, F::Vector>, offset: F::Vector) -> usize {
+        self.guess(point, |_| offset)
+    }
+
+    /// Whether `Phi` changes along a rigid translation of the free vertices only through its
+    /// inertia and gravity terms: no pinned vertex (which would not move with them), no
+    /// external load or fixed axis, no collider (whose contacts the ground's test in
+    /// [`initial_guess`](Self::initial_guess) does not see), and an elastic energy that, as
+    /// every energy of a deformation gradient, does not change under translation.
+    pub fn translation_invariant(&self) -> bool {
+        self.loads.is_none()
+            && self.frames.floor().colliders().is_empty()
+            && !self.vertices.pinned.contains(&true)
     }
 
     /// The adaptive initial guess of Vertex Block Descent (Chen et al. 2024, its adaptive
@@ -108,9 +122,14 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         });
     }
 
-    /// [`initial_guess`](Self::initial_guess) with the offset of vertex `i` `offset(i)`.
+    /// [`initial_guess`](Self::initial_guess) with the offset of vertex `i` `offset(i)`; returns
+    /// the number of free vertices at which the guess or `y` touches the ground.
     #[inline(always)]
-    fn guess(&self, point: TrialPoint<'_, F::Vector>, offset: impl Fn(usize) -> F::Vector + Sync) {
+    fn guess(
+        &self,
+        point: TrialPoint<'_, F::Vector>,
+        offset: impl Fn(usize) -> F::Vector + Sync,
+    ) -> usize {
         let Vertices {
             start,
             velocities,
@@ -122,6 +141,7 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         let block =
             |first: usize, (point, start, velocities, pinned): GuessParts<'_, F::Vector>| {
                 let rows = point.positions.iter_mut().zip(point.gradient.iter_mut());
+                let mut touching: usize = 0;
                 for (j, (((x, g), &x0), pinned)) in
                     rows.zip(start).zip(pinned_flags(pinned)).enumerate()
                 {
@@ -134,13 +154,16 @@ impl<F: ElasticEnergy> Objective<'_, F> {
                         x0
                     } else {
                         let guess = floor.project(target + offset(first + j));
+                        let touches = |p| floor.contact(p) == Some(true);
+                        touching += usize::from(touches(guess) || touches(target));
                         loads.keep_fixed(first + j, guess, x0)
                     };
                 }
+                touching
             };
         let n = point.positions.len();
         let parts = (point, start, velocities, pinned);
-        self.model.run_vertex_pass(Blocks::new(n, parts, &block));
+        self.model.run_vertex_pass(Blocks::new(n, parts, &block))
     }
 
     /// `Phi(x)`, `E(x)` and the residual at `x`, writing the unprojected gradient (N, zero at
@@ -365,45 +388,34 @@ pub(in super::super) struct Evaluation {
     pub residual: Real,
 }
 
-/// The velocities after an implicit Euler step from `start` to `positions`:
-/// `v = (x_{n+1} - x_n) / h` at free vertices, then at vertices resting on the ground or a
-/// collider the approach along the normal removed and, where the contact's friction was not part
-/// of the objective (a zero sticking speed), Coulomb friction with the normal impulse `h R`, `R`
-/// the reaction (the normal component of `gradient`, the gradient of `Phi` at the result).
-/// Pinned vertices keep their velocity.
-pub(in super::super) fn implicit_velocities<V: Vector>(
+/// The velocity after an implicit Euler step of a free vertex of mass `m` from `x0` to `x`:
+/// `v = (x - x0) / h`, then, resting on the ground or a collider, the approach along the normal
+/// removed and, where the contact's friction was not part of the objective (a zero sticking
+/// speed), Coulomb friction with the normal impulse `h R`, `R` the reaction (the normal
+/// component of `g`, the gradient of `Phi` at the result). Pinned vertices keep their velocity
+/// (the caller's).
+#[inline(always)]
+pub(in super::super) fn implicit_velocity<V: Vector>(
     ground: Option<&Ground<V>>,
     floor: &Floor<V>,
-    h: Real,
-    (masses, pinned): (&[Real], &[bool]),
-    (positions, start, gradient): (&[V], &[V], &[V]),
-    velocities: &mut [V],
-) {
-    let rows = velocities
-        .iter_mut()
-        .zip(positions)
-        .zip(start)
-        .zip(gradient);
-    for ((((v, &x), &x0), &g), (&m, pinned)) in rows.zip(masses.iter().zip(pinned_flags(pinned))) {
-        if pinned {
-            continue;
-        }
-        *v = (x - x0) * (1.0 / h);
-        if let (Some(ground), Some(true)) = (ground, floor.contact(x)) {
-            let normal = ground.normal.dot(*v);
-            let reaction = ground.normal.dot(g).max(0.0);
-            // No impulse (friction keeps the tangential velocity) where it acted in Phi.
-            let normal_change = if ground.friction_in_objective() {
-                0.0
-            } else {
-                h * reaction / m + (-normal).max(0.0)
-            };
-            let tangential = *v - ground.normal * normal;
-            *v = ground.friction_applied(tangential, normal_change)
-                + ground.normal * normal.max(0.0);
-        }
-        if !floor.colliders().is_empty() {
-            *v = V::collider_velocity(floor.colliders(), x, g, m, h, *v);
-        }
+    (h, m): (Real, Real),
+    (x, x0, g): (V, V, V),
+) -> V {
+    let mut v = (x - x0) * (1.0 / h);
+    if let (Some(ground), Some(true)) = (ground, floor.contact(x)) {
+        let normal = ground.normal.dot(v);
+        let reaction = ground.normal.dot(g).max(0.0);
+        // No impulse (friction keeps the tangential velocity) where it acted in Phi.
+        let normal_change = if ground.friction_in_objective() {
+            0.0
+        } else {
+            h * reaction / m + (-normal).max(0.0)
+        };
+        let tangential = v - ground.normal * normal;
+        v = ground.friction_applied(tangential, normal_change) + ground.normal * normal.max(0.0);
     }
+    if !floor.colliders().is_empty() {
+        v = V::collider_velocity(floor.colliders(), x, g, m, h, v);
+    }
+    v
 }
