@@ -85,15 +85,16 @@ impl<P: Point> Frame<'_, P> {
         p: P::Scalar,
         heavy_ball: Option<(P, P::Scalar)>,
     ) -> (P, P::Scalar) {
-        let contact = self.floor.contact(x);
-        let g = self.floor.constrain(contact, x, g, 1.0);
+        // One contact query for both constraints at `x`.
+        let touch = self.floor.touch(x);
+        let g = self.floor.constrain_at(&touch, g, 1.0);
         let zero = P::Scalar::splat(0.0);
         let plain = P::select(p.gt(zero), g.scale(P::Scalar::splat(-1.0) / p), P::zero());
         let direction = match heavy_ball {
             Some((previous, momentum)) => plain + (x - previous).scale(momentum),
             None => plain,
         };
-        let d = self.floor.constrain(contact, x, direction, -1.0);
+        let d = self.floor.constrain_at(&touch, direction, -1.0);
         (d, g.inner(d))
     }
 
