@@ -129,7 +129,19 @@ impl Gradient {
         g: V,
         heavy_ball: Option<(V, Real)>,
     ) -> (V, Real) {
-        // One contact query for both constraints at `x`.
+        // With colliders, one contact query for both constraints at `x`; written out twice
+        // rather than through closures, which the compiler did not always inline.
+        if floor.colliders().is_empty() {
+            let contact = floor.contact(x);
+            let g = floor.constrain(contact, x, g, 1.0);
+            let plain = g.scale(-self.inverse_scale);
+            let direction = match heavy_ball {
+                Some((previous, momentum)) => plain + (x - previous).scale(momentum),
+                None => plain,
+            };
+            let d = floor.constrain(contact, x, direction, -1.0);
+            return (d, g.inner(d));
+        }
         let touch = floor.touch(x);
         let g = floor.constrain_at(&touch, g, 1.0);
         let plain = g.scale(-self.inverse_scale);

@@ -646,19 +646,22 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     // pass of the two a free body's step began with). The evaluated comparison could only have
     // differed where the rounding of the two evaluations exceeded that margin.
     let drop = objective.gravity * (objective.h * objective.h);
-    let touching = objective.initial_guess(
-        TrialPoint {
-            positions: current,
-            gradient,
-        },
-        drop,
-    );
-    let mut evaluation = objective.evaluate(current, gradient, None)?;
-    let mut energy_evaluations = 1;
-    let translated = touching == 0
-        && evaluation.phi.is_finite()
+    let first = TrialPoint {
+        positions: current,
+        gradient,
+    };
+    let rigid_drop = drop != F::Vector::ZERO
         && rule.previous_velocities().is_none()
         && objective.translation_invariant();
+    let translated = if rigid_drop {
+        !objective.initial_guess_touching(first, drop)
+    } else {
+        objective.initial_guess(first, drop);
+        false
+    };
+    let mut evaluation = objective.evaluate(current, gradient, None)?;
+    let mut energy_evaluations = 1;
+    let translated = translated && evaluation.phi.is_finite();
     if drop != F::Vector::ZERO && !translated {
         let second = TrialPoint {
             positions: other,
@@ -668,9 +671,7 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
         // by vertex) takes the place of y.
         match rule.previous_velocities() {
             Some(previous) => objective.adaptive_guess(second, previous),
-            None => {
-                objective.initial_guess(second, F::Vector::ZERO);
-            }
+            None => objective.initial_guess(second, F::Vector::ZERO),
         }
         let inertial = objective.evaluate(other, trial_gradient, None)?;
         energy_evaluations += 1;

@@ -46,11 +46,20 @@ pub(in super::super) struct Objective<'p, F: ElasticEnergy> {
 impl<F: ElasticEnergy> Objective<'_, F> {
     /// Writes `y + offset` (`x_n + offset` without inertia) projected on the ground into
     /// `point.positions` at free vertices, `x_n` at pinned ones, and zeroes `point.gradient`.
-    /// Returns the number of free vertices at which the guess or `y` itself touches the ground
-    /// (within the contact tolerance; 0 without a ground): where none does, neither was
-    /// projected and the guess is `y` moved by `offset` at every free vertex.
-    pub fn initial_guess(&self, point: TrialPoint<'_, F::Vector>, offset: F::Vector) -> usize {
-        self.guess(point, |_| offset)
+    pub fn initial_guess(&self, point: TrialPoint<'_, F::Vector>, offset: F::Vector) {
+        self.guess(point, |_| offset, false);
+    }
+
+    /// [`initial_guess`](Self::initial_guess), and whether a free vertex touches the ground
+    /// (within the contact tolerance; never without a ground) at the guess or at `y` itself:
+    /// where none does, neither was projected and the guess is `y` moved by `offset` at every
+    /// free vertex.
+    pub fn initial_guess_touching(
+        &self,
+        point: TrialPoint<'_, F::Vector>,
+        offset: F::Vector,
+    ) -> bool {
+        self.guess(point, |_| offset, true) > 0
     }
 
     /// Whether `Phi` changes along a rigid translation of the free vertices only through its
@@ -74,7 +83,7 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     pub fn adaptive_guess(&self, point: TrialPoint<'_, F::Vector>, previous: &[F::Vector]) {
         let (h, g, velocities) = (self.h, self.gravity, self.vertices.velocities);
         let weight = g.dot(g);
-        self.guess(point, |i| match (velocities.get(i), previous.get(i)) {
+        let offset = |i: usize| match (velocities.get(i), previous.get(i)) {
             (Some(&v), Some(&before)) if weight > 0.0 && h > 0.0 => {
                 // a.g / |g|^2 = (v - v_(n-1)).g / (h |g|^2), clamped to [0, 1]; a NaN (0 / 0
                 // where h |g|^2 underflows) to 0.
@@ -83,7 +92,8 @@ impl<F: ElasticEnergy> Objective<'_, F> {
                 g * (fraction * (h * h))
             }
             _ => F::Vector::ZERO,
-        });
+        };
+        self.guess(point, offset, false);
     }
 
     /// The rigid initial guess `x_n + h v_mean` (projected, `x_n` at pinned vertices),
@@ -116,19 +126,22 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         } else {
             F::Vector::ZERO
         };
-        self.guess(point, |i| match velocities.get(i) {
+        let offset = |i: usize| match velocities.get(i) {
             Some(&v) => (mean - v) * h,
             None => F::Vector::ZERO,
-        });
+        };
+        self.guess(point, offset, false);
     }
 
-    /// [`initial_guess`](Self::initial_guess) with the offset of vertex `i` `offset(i)`; returns
-    /// the number of free vertices at which the guess or `y` touches the ground.
+    /// [`initial_guess`](Self::initial_guess) with the offset of vertex `i` `offset(i)`; where
+    /// `count`, returns the number of blocks in which a free vertex touches the ground at the
+    /// guess or at `y` (0 otherwise).
     #[inline(always)]
     fn guess(
         &self,
         point: TrialPoint<'_, F::Vector>,
         offset: impl Fn(usize) -> F::Vector + Sync,
+        count: bool,
     ) -> usize {
         let Vertices {
             start,
@@ -141,7 +154,8 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         let block =
             |first: usize, (point, start, velocities, pinned): GuessParts<'_, F::Vector>| {
                 let rows = point.positions.iter_mut().zip(point.gradient.iter_mut());
-                let mut touching: usize = 0;
+                // Tested until the block's first touching vertex.
+                let mut touching = !count;
                 for (j, (((x, g), &x0), pinned)) in
                     rows.zip(start).zip(pinned_flags(pinned)).enumerate()
                 {
@@ -154,12 +168,14 @@ impl<F: ElasticEnergy> Objective<'_, F> {
                         x0
                     } else {
                         let guess = floor.project(target + offset(first + j));
-                        let touches = |p| floor.contact(p) == Some(true);
-                        touching += usize::from(touches(guess) || touches(target));
+                        if !touching {
+                            let touches = |p| floor.contact(p) == Some(true);
+                            touching = touches(guess) || touches(target);
+                        }
                         loads.keep_fixed(first + j, guess, x0)
                     };
                 }
-                touching
+                usize::from(count && touching)
             };
         let n = point.positions.len();
         let parts = (point, start, velocities, pinned);
