@@ -646,22 +646,20 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     // pass of the two a free body's step began with). The evaluated comparison could only have
     // differed where the rounding of the two evaluations exceeded that margin.
     let drop = objective.gravity * (objective.h * objective.h);
-    let first = TrialPoint {
-        positions: current,
-        gradient,
-    };
-    let rigid_drop = drop != F::Vector::ZERO
-        && rule.previous_velocities().is_none()
-        && objective.translation_invariant();
-    let translated = if rigid_drop {
-        !objective.initial_guess_touching(first, drop)
-    } else {
-        objective.initial_guess(first, drop);
-        false
-    };
+    objective.initial_guess(
+        TrialPoint {
+            positions: current,
+            gradient,
+        },
+        drop,
+    );
     let mut evaluation = objective.evaluate(current, gradient, None)?;
     let mut energy_evaluations = 1;
-    let translated = translated && evaluation.phi.is_finite();
+    let translated = drop != F::Vector::ZERO
+        && evaluation.phi.is_finite()
+        && rule.previous_velocities().is_none()
+        && objective.translation_invariant()
+        && !objective.touches_ground(drop);
     if drop != F::Vector::ZERO && !translated {
         let second = TrialPoint {
             positions: other,

@@ -47,19 +47,38 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     /// Writes `y + offset` (`x_n + offset` without inertia) projected on the ground into
     /// `point.positions` at free vertices, `x_n` at pinned ones, and zeroes `point.gradient`.
     pub fn initial_guess(&self, point: TrialPoint<'_, F::Vector>, offset: F::Vector) {
-        self.guess(point, |_| offset, false);
+        self.guess(point, |_| offset);
     }
 
-    /// [`initial_guess`](Self::initial_guess), and whether a free vertex touches the ground
-    /// (within the contact tolerance; never without a ground) at the guess or at `y` itself:
-    /// where none does, neither was projected and the guess is `y` moved by `offset` at every
-    /// free vertex.
-    pub fn initial_guess_touching(
-        &self,
-        point: TrialPoint<'_, F::Vector>,
-        offset: F::Vector,
-    ) -> bool {
-        self.guess(point, |_| offset, true) > 0
+    /// Whether a free vertex touches the ground (within the contact tolerance) at
+    /// [`initial_guess`](Self::initial_guess)`(offset)` or at `y` itself, stopping at the first
+    /// that does; never without a ground (no pass then). Where none does, neither was projected
+    /// and that guess is `y` moved by `offset` at every free vertex. The guess's arithmetic,
+    /// vertex by vertex: the same points.
+    pub fn touches_ground(&self, offset: F::Vector) -> bool {
+        let floor = self.frames.floor();
+        if floor.contact(F::Vector::ZERO).is_none() {
+            return false;
+        }
+        let Vertices {
+            start,
+            velocities,
+            pinned,
+            ..
+        } = self.vertices;
+        let h = self.h;
+        let touches = |p| floor.contact(p) == Some(true);
+        start
+            .iter()
+            .zip(pinned_flags(pinned))
+            .enumerate()
+            .any(|(i, (&x0, pinned))| {
+                let target = match velocities.get(i) {
+                    Some(&v) => x0 + v * h,
+                    None => x0,
+                };
+                !pinned && (touches(floor.project(target + offset)) || touches(target))
+            })
     }
 
     /// Whether `Phi` changes along a rigid translation of the free vertices only through its
@@ -93,7 +112,7 @@ impl<F: ElasticEnergy> Objective<'_, F> {
             }
             _ => F::Vector::ZERO,
         };
-        self.guess(point, offset, false);
+        self.guess(point, offset);
     }
 
     /// The rigid initial guess `x_n + h v_mean` (projected, `x_n` at pinned vertices),
@@ -130,19 +149,12 @@ impl<F: ElasticEnergy> Objective<'_, F> {
             Some(&v) => (mean - v) * h,
             None => F::Vector::ZERO,
         };
-        self.guess(point, offset, false);
+        self.guess(point, offset);
     }
 
-    /// [`initial_guess`](Self::initial_guess) with the offset of vertex `i` `offset(i)`; where
-    /// `count`, returns the number of blocks in which a free vertex touches the ground at the
-    /// guess or at `y` (0 otherwise).
+    /// [`initial_guess`](Self::initial_guess) with the offset of vertex `i` `offset(i)`.
     #[inline(always)]
-    fn guess(
-        &self,
-        point: TrialPoint<'_, F::Vector>,
-        offset: impl Fn(usize) -> F::Vector + Sync,
-        count: bool,
-    ) -> usize {
+    fn guess(&self, point: TrialPoint<'_, F::Vector>, offset: impl Fn(usize) -> F::Vector + Sync) {
         let Vertices {
             start,
             velocities,
@@ -154,8 +166,6 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         let block =
             |first: usize, (point, start, velocities, pinned): GuessParts<'_, F::Vector>| {
                 let rows = point.positions.iter_mut().zip(point.gradient.iter_mut());
-                // Tested until the block's first touching vertex.
-                let mut touching = !count;
                 for (j, (((x, g), &x0), pinned)) in
                     rows.zip(start).zip(pinned_flags(pinned)).enumerate()
                 {
@@ -168,18 +178,13 @@ impl<F: ElasticEnergy> Objective<'_, F> {
                         x0
                     } else {
                         let guess = floor.project(target + offset(first + j));
-                        if !touching {
-                            let touches = |p| floor.contact(p) == Some(true);
-                            touching = touches(guess) || touches(target);
-                        }
                         loads.keep_fixed(first + j, guess, x0)
                     };
                 }
-                usize::from(count && touching)
             };
         let n = point.positions.len();
         let parts = (point, start, velocities, pinned);
-        self.model.run_vertex_pass(Blocks::new(n, parts, &block))
+        self.model.run_vertex_pass(Blocks::new(n, parts, &block));
     }
 
     /// `Phi(x)`, `E(x)` and the residual at `x`, writing the unprojected gradient (N, zero at
