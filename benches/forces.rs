@@ -30,8 +30,14 @@
 //! Threads: `stvk_direct_partitioned_f32` is the deterministic partitioned scheme
 //! (`mesh::TetPartition`: element pieces into a buffer, then a gather by vertex) run on this
 //! thread, its cost against `stvk_direct_f32`; `explicit_step_f32` is one `step_explicit` of stable
-//! neo-Hookean at half the proven stable step (the body falling from rest); `relax_step_f32` is
-//! one `relax_step` of ten descent iterations (its evaluation count printed first). With
+//! neo-Hookean at half the proven stable step (the body falling from rest); `relax_step_f32` and
+//! `relax_step_20_f32` are one `relax_step` of 10 and of 20 descent iterations from the same
+//! start (their evaluation counts printed first); after each table a second one gives the
+//! relaxation iteration against the stable neo-Hookean direct force pass of the same run, per
+//! width: per call (the 10-iteration call over 10) and marginal (the difference of the two
+//! calls over 10, the loop without the call's fixed work), also as CSV rows
+//! `relax_iteration_per_call_f32 <width>` and `relax_iteration_marginal_f32 <width>` (unit
+//! "force passes"). With
 //! `--features rayon` the same passes run on rayon pools of 1 and 2 threads
 //! (`softfem::parallel`, `ParallelTetElastic`), and the tables are followed by the one-thread cost
 //! and the 2-thread speed-ups. `SOFTFEM_BENCH_CSV=<path>` appends every row (Mtets/s, with its
@@ -91,8 +97,15 @@ const POISSON: f32 = 0.45;
 /// One `step_explicit` call on positions, velocities and scratch.
 type StepFn<'s> = dyn Fn(&mut [Vec3], &mut [Vec3], &mut ExplicitScratch<'_, Vec3>) + 's;
 
-/// Descent iterations of the relaxation variant (its label says 10).
-const RELAX_ITERATIONS: u32 = 10;
+/// Descent iterations of the two relaxation variants (their labels say 10 and 20): the
+/// marginal cost of an iteration is the difference of the two calls over 10.
+const RELAX_BUDGETS: [u32; 2] = [10, 20];
+
+/// The ids of the two relaxation variants.
+const RELAX_IDS: [&str; 2] = ["relax_step_f32", "relax_step_20_f32"];
+
+/// The force pass the relaxation is measured against.
+const RELAX_REFERENCE: &str = "stable_nh_direct_f32";
 
 /// Pieces of the partitioned variants.
 const PIECES: usize = 8;
@@ -307,6 +320,7 @@ impl DeformedBox {
                     black_box(mesh.elastic_energy(&stvk, black_box(positions)).unwrap());
                 }),
                 threads: 1,
+                iterations: 0,
             },
         ];
         let mut element_forces = vec![[Vec3::ZERO; 4]; element_forces_len(mesh.element_count())];
@@ -326,7 +340,8 @@ impl DeformedBox {
             rest_positions,
             1,
         ));
-        variants.push(Variant::relax_step(mesh, positions));
+        variants.push(Variant::relax_step(mesh, positions, 0));
+        variants.push(Variant::relax_step(mesh, positions, 1));
         #[cfg(feature = "rayon")]
         for threads in THREADS {
             variants.push(Variant::rayon_forces(partition, stvk, positions, threads));
@@ -354,6 +369,8 @@ struct Variant<'a> {
     run: Box<dyn FnMut() + 'a>,
     /// Threads the variant runs on.
     threads: usize,
+    /// Descent iterations per run of a relaxation variant (0 for the others).
+    iterations: u32,
 }
 
 impl<'a> Variant<'a> {
@@ -375,6 +392,7 @@ impl<'a> Variant<'a> {
                 black_box(&forces);
             }),
             threads: 1,
+            iterations: 0,
         }
     }
 
@@ -414,6 +432,7 @@ impl<'a> Variant<'a> {
                 black_box(&forces);
             }),
             threads,
+            iterations: 0,
         }
     }
 
@@ -471,23 +490,24 @@ impl<'a> Variant<'a> {
             id,
             run,
             threads,
+            iterations: 0,
         }
     }
 }
 
 impl<'a> Variant<'a> {
     /// One `relax_step` (stable neo-Hookean, `1/60` s, gravity, no ground) of exactly
-    /// [`RELAX_ITERATIONS`] descent iterations (tolerance 0) from the deformed `positions` at
-    /// rest, the state reset before each run; the preconditioner is computed once, before the
-    /// timing (the scratch keeps it, as in a simulation). Prints what one step does (iterations,
-    /// evaluations of the energy and forces, backtracks), so that the table's time per step
-    /// divides into a time per iteration and per evaluation.
-    fn relax_step(mesh: TetMesh<'a>, positions: &'a [Vec3]) -> Self {
+    /// `RELAX_BUDGETS[budget]` descent iterations (tolerance 0) from the deformed `positions`
+    /// at rest, the state reset before each run; the preconditioner is computed once, before
+    /// the timing (the scratch keeps it, as in a simulation). Prints what one step does
+    /// (iterations, evaluations of the energy and forces, backtracks), so that the table's time
+    /// per step divides into a time per iteration and per evaluation.
+    fn relax_step(mesh: TetMesh<'a>, positions: &'a [Vec3], budget: usize) -> Self {
         let (body, masses) = rubber_body(mesh);
         let n = mesh.vertex_count();
         let settings = RelaxSettings::new(1.0 / 60.0)
             .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-            .with_tolerance(0.0, RELAX_ITERATIONS);
+            .with_tolerance(0.0, RELAX_BUDGETS[budget]);
         let (mut x, mut v) = (positions.to_vec(), vec![Vec3::ZERO; n]);
         // Leaked so that the scratch, and the preconditioner it keeps, lives across the runs.
         let mut scratch = RelaxScratch::new(
@@ -509,14 +529,100 @@ impl<'a> Variant<'a> {
             report.backtracks,
         );
         Variant {
-            label: "stable neo-Hookean relax_step (10 iterations), sequential, f32",
-            id: "relax_step_f32",
+            label: [
+                "stable neo-Hookean relax_step (10 iterations), sequential, f32",
+                "stable neo-Hookean relax_step (20 iterations), sequential, f32",
+            ][budget],
+            id: RELAX_IDS[budget],
             run: Box::new(move || {
                 black_box(step());
             }),
             threads: 1,
+            iterations: report.iterations,
         }
     }
+}
+
+/// The relaxation iteration against the force pass of the same run (stable neo-Hookean direct,
+/// f32), per SIMD width (or at the width the machine picks): `force`, `short` and `long` are
+/// the ns per tetrahedron of one force pass and of one call of each budget (`None` where a
+/// variant was not timed). Prints the per-call cost (the short call's time over its
+/// iterations, the call's fixed work spread over them) and the marginal cost of an iteration
+/// (`common::marginal` of the two calls: the loop alone) in ns per tetrahedron and as a ratio
+/// to the force pass, and appends both ratios as CSV rows.
+fn print_relax_costs(tets: usize, iterations: [u32; 2], rows: &[(&str, usize, Option<[f64; 3]>)]) {
+    let timed: Vec<(&str, usize, [f64; 3])> = rows
+        .iter()
+        .filter_map(|&(width, lanes, ns)| ns.map(|ns| (width, lanes, ns)))
+        .collect();
+    if timed.is_empty() {
+        return;
+    }
+    let [short_budget, long_budget] = iterations;
+    println!();
+    println!(
+        "Relaxation iteration (relax_step, stable neo-Hookean, Chebyshev defaults, tolerance 0) \
+         against the stable neo-Hookean direct force pass of the same run: per call = the \
+         {short_budget}-iteration call / {short_budget}; marginal = ({long_budget}-iteration \
+         call - {short_budget}-iteration call) / {extra} (the same start; the call's fixed work \
+         cancels).",
+        extra = long_budget.saturating_sub(short_budget),
+    );
+    println!();
+    let costs: Vec<(&str, usize, f64, f64, f64)> = timed
+        .iter()
+        .map(|&(width, lanes, [force, short, long])| {
+            let per_call = short / f64::from(short_budget.max(1));
+            let marginal = common::marginal((short, short_budget), (long, long_budget));
+            (width, lanes, force, per_call, marginal)
+        })
+        .collect();
+    common::print_markdown_table(
+        &[
+            "width",
+            "force pass ns/tet",
+            "per call ns/tet/iteration",
+            "per call vs force pass",
+            "marginal ns/tet/iteration",
+            "marginal vs force pass",
+        ],
+        costs.iter().map(|&(width, _, force, per_call, marginal)| {
+            vec![
+                width.to_owned(),
+                format!("{force:.1}"),
+                format!("{per_call:.1}"),
+                format!("{:.2}x", per_call / force),
+                format!("{marginal:.1}"),
+                format!("{:.2}x", marginal / force),
+            ]
+        }),
+    );
+    common::append_csv_rows(
+        &costs
+            .iter()
+            .flat_map(|&(width, lanes, force, per_call, marginal)| {
+                [("per_call", per_call), ("marginal", marginal)].map(|(kind, ns)| common::CsvRow {
+                    bench: "forces",
+                    workload: format!("relax_iteration_{kind}_f32 {width}"),
+                    size: tets,
+                    lanes,
+                    threads: 1,
+                    value: ns / force,
+                    unit: "force passes",
+                })
+            })
+            .collect::<Vec<_>>(),
+    );
+}
+
+/// The iteration budgets of the two relaxation variants, as [`print_relax_costs`] reads them.
+fn relax_budgets(variants: &[Variant<'_>]) -> [u32; 2] {
+    RELAX_IDS.map(|id| {
+        variants
+            .iter()
+            .find(|v| v.id == id)
+            .map_or(0, |v| v.iterations)
+    })
 }
 
 /// The stepped body of the step variants: stable neo-Hookean rubber on `mesh`, and its lumped
@@ -678,6 +784,23 @@ fn print_width_table(info: &MeshInfo, variants: &mut [Variant<'_>], plan: &Table
             })
             .collect::<Vec<_>>(),
     );
+    let timed = |id: &str, width: Width| {
+        items
+            .iter()
+            .zip(&ns)
+            .find(|((i, w), _)| variants[*i].id == id && *w == width)
+            .map(|(_, &ns)| ns)
+    };
+    let relax_rows: Vec<(&str, usize, Option<[f64; 3]>)> = widths
+        .iter()
+        .map(|&width| {
+            let ns = [RELAX_REFERENCE, RELAX_IDS[0], RELAX_IDS[1]].map(|id| timed(id, width));
+            let [force, short, long] = ns;
+            let all = force.zip(short).zip(long).map(|((f, s), l)| [f, s, l]);
+            (width.name(), width.lanes_f32(), all)
+        })
+        .collect();
+    print_relax_costs(tets, relax_budgets(variants), &relax_rows);
 }
 
 /// The memory roofline of the force pass: a STREAM-like triad `a[i] = b[i] + s c[i]` over f32
@@ -801,6 +924,17 @@ fn print_table(info: &MeshInfo, variants: &mut [Variant<'_>], plan: &TablePlan) 
         percent(ratio("stvk_direct_partitioned_f32", "stvk_direct_f32")),
         percent(ratio("stvk_direct_rayon1_f32", "stvk_direct_f32")),
         percent(ratio("explicit_step_rayon1_f32", "explicit_step_f32")),
+    );
+    let relax = [RELAX_REFERENCE, RELAX_IDS[0], RELAX_IDS[1]].map(by_id);
+    let [force, short, long] = relax;
+    print_relax_costs(
+        tets,
+        relax_budgets(variants),
+        &[(
+            "native",
+            softfem::lanes::LANES,
+            force.zip(short).zip(long).map(|((f, s), l)| [f, s, l]),
+        )],
     );
     let speed_up = |r: Option<f64>| r.map_or("-".to_owned(), |r| format!("{r:.2}x"));
     println!(

@@ -560,22 +560,18 @@ fn print_tables(geometry: &Geometry, cases: &mut [Case<'_>], plan: &TablePlan) {
                 "iterations/s",
             ));
         }
-        let extra = f64::from(long.iterations.saturating_sub(short.iterations).max(1));
         rows.push(row(
             &format!(
                 "**relaxation iteration, marginal** (({}-call - {}-call) / extra iterations)",
                 RELAX_BUDGETS[1], RELAX_BUDGETS[0]
             ),
-            (ns[RELAX_LONG] - ns[RELAX_SHORT]) / extra,
+            common::marginal(
+                (ns[RELAX_SHORT], short.iterations),
+                (ns[RELAX_LONG], long.iterations),
+            ),
             "iterations/s",
         ));
         let [cheb_short, cheb_long] = case.chebyshev;
-        let cheb_extra = f64::from(
-            cheb_long
-                .iterations
-                .saturating_sub(cheb_short.iterations)
-                .max(1),
-        );
         rows.push(row(
             &format!(
                 "relaxation iteration, defaults (Chebyshev): {}-iteration call / {} iterations",
@@ -590,7 +586,10 @@ fn print_tables(geometry: &Geometry, cases: &mut [Case<'_>], plan: &TablePlan) {
                  extra iterations)",
                 RELAX_BUDGETS[1], RELAX_BUDGETS[0]
             ),
-            (ns[CHEBYSHEV_LONG] - ns[CHEBYSHEV_SHORT]) / cheb_extra,
+            common::marginal(
+                (ns[CHEBYSHEV_SHORT], cheb_short.iterations),
+                (ns[CHEBYSHEV_LONG], cheb_long.iterations),
+            ),
             "iterations/s",
         ));
         rows.push(row(
@@ -605,8 +604,7 @@ fn print_tables(geometry: &Geometry, cases: &mut [Case<'_>], plan: &TablePlan) {
             "products/s",
         ));
         let [vbd_short, vbd_long] = case.vbd_sweeps;
-        let vbd_extra = f64::from(vbd_long.saturating_sub(vbd_short).max(1));
-        let vbd_iteration = (ns[VBD_LONG] - ns[VBD_SHORT]) / vbd_extra;
+        let vbd_iteration = common::marginal((ns[VBD_SHORT], vbd_short), (ns[VBD_LONG], vbd_long));
         rows.push(row(
             &format!(
                 "VBD iteration, marginal (({}-sweep call - {}-sweep call) / extra sweeps; a \

@@ -291,8 +291,61 @@ macro_rules! relax_tests {
                 // The exact minimiser is the rigid translation x_n + h v_n + h^2 g, which is the
                 // initial guess: no descent iteration is needed.
                 assert!(report.converged && report.iterations == 0, "{report:?}");
+                // Nothing touches or holds the bar: y + h^2 g is y moved rigidly, lower in Phi
+                // by construction, and y is not evaluated.
+                assert_eq!(report.energy_evaluations, 1, "{report:?}");
                 let expected = Vec3::new(1.0, 2.0, 0.0) + GRAVITY * h;
                 assert!(v.iter().all(|v| (*v - expected).length() < 1e-3 * expected.length()));
+            }
+
+            /// A deformed, spinning bar in free fall starts from y + h^2 g without evaluating y
+            /// (the rigid translation wins by `h^2 |g|^2 sum m / 2`), and that is the start the
+            /// evaluated comparison of both guesses picks: with a collider far from the bar
+            /// (which rules out the shortcut and touches nothing) every step has the same bits,
+            /// for one more evaluation per step.
+            #[test]
+            fn a_free_body_skips_the_losing_guess_with_the_same_bits() {
+                use $($api)::+::step::Collider;
+                let bar = bar();
+                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
+                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.3).unwrap());
+                let n = bar.rest.len();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                // Stretched 20 % along x, sheared, spinning about z and moving up.
+                let start: Vec<Vec3> = bar
+                    .rest
+                    .iter()
+                    .map(|p| Vec3::new(1.2 * p.x + 0.1 * p.y, p.y, p.z + 0.05 * p.x))
+                    .collect();
+                let spin: Vec<Vec3> = start
+                    .iter()
+                    .map(|p| Vec3::new(-3.0 * p.y, 3.0 * p.x + 1.0, 0.0))
+                    .collect();
+                let far = [Collider::sphere(Vec3::new(0.0, 100.0, 0.0), 1.0)];
+                let bits = |x: &[Vec3]| -> Vec<[u64; 3]> {
+                    x.iter().map(|p| p.to_array().map(|c| f64::from(c).to_bits())).collect()
+                };
+                for (h, budget) in [(1.0 / 60.0, 30), (1.0 / 240.0, 5), (1e-3, 100)] {
+                    let settings = RelaxSettings::new(h).with_gravity(GRAVITY).with_tolerance(1e-4, budget);
+                    let run = |settings: &RelaxSettings<Vec3>| {
+                        let (mut x, mut v) = (start.clone(), spin.clone());
+                        let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                        let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+                        let mut evaluations = Vec::new();
+                        for _ in 0..5 {
+                            let report = relax_step(&body, &masses, &[], settings, &mut x, &mut v, &mut scratch).unwrap();
+                            evaluations.push(report.energy_evaluations);
+                        }
+                        (bits(&x), bits(&v), evaluations)
+                    };
+                    let (x, v, evaluations) = run(&settings);
+                    let (x_far, v_far, evaluations_far) = run(&settings.with_colliders(&far));
+                    assert!(x == x_far && v == v_far, "h = {h}");
+                    let fewer: Vec<u32> = evaluations_far.iter().map(|e| e - 1).collect();
+                    assert_eq!(evaluations, fewer, "h = {h}");
+                }
             }
 
             /// Pinned vertices are never projected onto the ground, even when they sit inside it:

@@ -193,3 +193,13 @@ pub fn append_csv_rows(rows: &[CsvRow]) {
     file.write_all(text.as_bytes())
         .unwrap_or_else(|error| panic!("SOFTFEM_BENCH_CSV={path:?}: {error}"));
 }
+
+/// The marginal cost of one iteration of an iterative call, from two calls from the same start
+/// that ran `short.1` and `long.1` iterations in `short.0` and `long.0` (any unit of time):
+/// `(T_long - T_short) / (iterations_long - iterations_short)`, the loop alone, without the
+/// call's fixed work (checks, initial evaluations, the final update), which cancels. At least
+/// one extra iteration is assumed, so that a call that stopped early does not divide by zero.
+pub fn marginal(short: (f64, u32), long: (f64, u32)) -> f64 {
+    let extra = f64::from(long.1.saturating_sub(short.1).max(1));
+    (long.0 - short.0) / extra
+}

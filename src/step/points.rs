@@ -41,6 +41,32 @@ pub trait Point: Copy + Add<Output = Self> + Sub<Output = Self> + Neg<Output = S
     /// `v` without its component into the first collider touching `self`, `sign` as in
     /// [`Floor::constrain`] (the identity in 2D). Lane by lane for groups.
     fn constrained_by(self, colliders: Colliders<'_>, v: Self, sign: Real) -> Self;
+    /// The outward normal of the first collider touching `self` (per lane for groups; nothing
+    /// in 2D), for several constraints at one point with one query ([`Floor::touch`]).
+    type Touch: Copy;
+    /// [`Touch`](Self::Touch) at `self`.
+    fn touch(self, colliders: Colliders<'_>) -> Self::Touch;
+    /// [`constrained_by`](Self::constrained_by) at the point `touch` was queried at: the same
+    /// bits.
+    fn constrained_at(touch: Self::Touch, v: Self, sign: Real) -> Self;
+}
+
+/// `v` without its component into `normal` (the outward normal of the collider a point touches,
+/// or `None`) where `sign` times that component is positive: the arithmetic of
+/// `Colliders::constrained`, given the normal its query finds.
+#[inline(always)]
+fn constrained_along(normal: Option<Vec3>, v: Vec3, sign: Real) -> Vec3 {
+    match normal {
+        Some(normal) => {
+            let along = normal.dot(v);
+            if along * sign > 0.0 {
+                v - normal * along
+            } else {
+                v
+            }
+        }
+        None => v,
+    }
 }
 
 /// A vector type that also comes in groups of [`LANES`]: `Vec2` and `Vec3`.
@@ -163,6 +189,13 @@ impl Point for Vec2 {
     fn constrained_by(self, _: Colliders<'_>, v: Self, _: Real) -> Self {
         v
     }
+    type Touch = ();
+    #[inline(always)]
+    fn touch(self, _: Colliders<'_>) {}
+    #[inline(always)]
+    fn constrained_at((): (), v: Self, _: Real) -> Self {
+        v
+    }
 }
 
 impl Point for LaneVec2 {
@@ -207,6 +240,13 @@ impl Point for LaneVec2 {
     }
     #[inline(always)]
     fn constrained_by(self, _: Colliders<'_>, v: Self, _: Real) -> Self {
+        v
+    }
+    type Touch = ();
+    #[inline(always)]
+    fn touch(self, _: Colliders<'_>) {}
+    #[inline(always)]
+    fn constrained_at((): (), v: Self, _: Real) -> Self {
         v
     }
 }
@@ -291,6 +331,15 @@ impl Point for Vec3 {
     fn constrained_by(self, colliders: Colliders<'_>, v: Self, sign: Real) -> Self {
         colliders.constrained(self, v, sign)
     }
+    type Touch = Option<Vec3>;
+    #[inline(always)]
+    fn touch(self, colliders: Colliders<'_>) -> Option<Vec3> {
+        colliders.touching(self).map(|(_, normal)| normal)
+    }
+    #[inline(always)]
+    fn constrained_at(touch: Option<Vec3>, v: Self, sign: Real) -> Self {
+        constrained_along(touch, v, sign)
+    }
 }
 
 impl Point for LaneVec3<Lanes> {
@@ -330,6 +379,20 @@ impl Point for LaneVec3<Lanes> {
         let lane = |k: usize| {
             let at = |values: &[Vec3; LANES]| values.get(k).copied().unwrap_or(Vec3::ZERO);
             colliders.constrained(at(&x), at(&v), sign)
+        };
+        LaneVec3::from_vectors(core::array::from_fn(lane))
+    }
+    type Touch = [Option<Vec3>; LANES];
+    #[inline(always)]
+    fn touch(self, colliders: Colliders<'_>) -> Self::Touch {
+        self.to_vectors().map(|x| x.touch(colliders))
+    }
+    #[inline(always)]
+    fn constrained_at(touch: Self::Touch, v: Self, sign: Real) -> Self {
+        let v = v.to_vectors();
+        let lane = |k: usize| {
+            let normal = touch.get(k).copied().flatten();
+            constrained_along(normal, v.get(k).copied().unwrap_or(Vec3::ZERO), sign)
         };
         LaneVec3::from_vectors(core::array::from_fn(lane))
     }
@@ -396,6 +459,15 @@ pub(crate) struct Floor<'a, P: Point> {
     slack: P::Scalar,
     /// The validated colliders, in the floor's coordinates (empty for none).
     colliders: Colliders<'a>,
+}
+
+/// A point's contacts, queried once ([`Floor::touch`]) for several constraints there.
+#[derive(Clone, Copy)]
+pub(crate) struct Touch<P: Point> {
+    /// The ground contact ([`Floor::contact`]).
+    ground: Option<<P::Scalar as Lane>::Mask>,
+    /// The colliders' normals, `None` without colliders.
+    colliders: Option<P::Touch>,
 }
 
 /// The contact tolerance's factor: `16 eps`.
@@ -496,6 +568,28 @@ impl<'a, P: Point> Floor<'a, P> {
         }
     }
 
+    /// What [`constrain_at`](Self::constrain_at) needs of `x`: its ground contact (as
+    /// [`contact`](Self::contact)) and the normal of the collider it touches, each queried
+    /// once for any number of constraints at `x`.
+    #[inline(always)]
+    pub fn touch(&self, x: P) -> Touch<P> {
+        Touch {
+            ground: self.contact(x),
+            colliders: (!self.colliders.is_empty()).then(|| x.touch(self.colliders)),
+        }
+    }
+
+    /// [`constrain`](Self::constrain) at the point `touch` was taken at: the same bits, without
+    /// querying the colliders again.
+    #[inline(always)]
+    pub fn constrain_at(&self, touch: &Touch<P>, v: P, sign: Real) -> P {
+        let v = self.constrain_ground(touch.ground, v, sign);
+        match touch.colliders {
+            Some(colliders) => P::constrained_at(colliders, v, sign),
+            None => v,
+        }
+    }
+
     /// The ground's part of [`constrain`](Self::constrain).
     #[inline(always)]
     fn constrain_ground(&self, contact: Option<<P::Scalar as Lane>::Mask>, v: P, sign: Real) -> P {
@@ -561,5 +655,75 @@ mod tests {
         let none = Floor::<Vec3>::new(None);
         assert_eq!(none.contact(Vec3::ZERO), None);
         assert_eq!(none.project(inside), inside);
+    }
+
+    /// One contact query for several constraints at a point gives the bits of querying for
+    /// each: a ground and four kinds of collider, points on, just off, inside and far from
+    /// their surfaces, gradients and directions into and out of them, one vertex at a time and
+    /// in groups (whose colliders are queried lane by lane).
+    #[test]
+    fn one_touch_constrains_as_a_query_per_constraint() {
+        use super::super::super::types::Quat;
+        use super::super::collider::{Collider, Colliders};
+        let ground = Ground::new(Vec3::Z, -0.5);
+        let list = [
+            Collider::sphere(Vec3::new(0.0, 0.0, 1.0), 0.5),
+            Collider::capsule(Vec3::new(-1.0, 1.0, 0.0), Vec3::new(1.0, 1.0, 0.5), 0.25),
+            Collider::cuboid(
+                Vec3::new(1.0, -1.0, 0.25),
+                Vec3::new(0.5, 0.25, 0.5),
+                Quat::from_rotation_z(0.3),
+            ),
+            Collider::half_space(Vec3::new(0.0, 0.0, 3.0), Vec3::new(0.1, 0.0, -1.0)),
+        ];
+        let colliders = Colliders::new(&list);
+        let one = Floor::<Vec3>::new(Some(&ground)).with_colliders(colliders);
+        let lanes = one.grouped();
+        let mut state: u32 = 12345;
+        let mut next = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as Real / (1u32 << 24) as Real * 2.0 - 1.0
+        };
+        let surface = [
+            Vec3::new(0.0, 0.0, 0.5),
+            Vec3::new(0.0, 1.25, 0.25),
+            Vec3::new(0.0, 0.0, -0.5),
+            Vec3::new(0.0, 0.0, 3.0),
+        ];
+        let bits = |v: Vec3| v.to_array().map(Real::to_bits);
+        let mut touched = 0;
+        for k in 0..400 {
+            // On a surface, within rounding of it, a little inside or off, or anywhere.
+            let base = surface
+                .get(k % surface.len())
+                .copied()
+                .unwrap_or(Vec3::ZERO);
+            let scale = [0.0, 1e-7, 1e-3, 0.05, 2.0][k % 5];
+            let mut points = [Vec3::ZERO; LANES];
+            let mut vectors = [Vec3::ZERO; LANES];
+            for (x, v) in points.iter_mut().zip(&mut vectors) {
+                *x = base + Vec3::new(next(), next(), next()) * scale;
+                *v = Vec3::new(next(), next(), next());
+            }
+            for sign in [1.0, -1.0] {
+                for (&x, &v) in points.iter().zip(&vectors) {
+                    let touch = one.touch(x);
+                    let expected = one.constrain(one.contact(x), x, v, sign);
+                    assert_eq!(
+                        bits(one.constrain_at(&touch, v, sign)),
+                        bits(expected),
+                        "{x} {v}"
+                    );
+                    touched += usize::from(expected != v);
+                }
+                let (x, v) = (Vec3::group(points), Vec3::group(vectors));
+                let expected = lanes.constrain(lanes.contact(x), x, v, sign);
+                let got = lanes.constrain_at(&lanes.touch(x), v, sign);
+                let [expected, got] = [expected, got].map(|g| Vec3::ungroup(g).map(bits));
+                assert_eq!(got, expected);
+            }
+        }
+        // The constraints acted on many of the points.
+        assert!(touched > 200, "{touched}");
     }
 }

@@ -335,7 +335,9 @@ pub struct RelaxReport {
     /// Accepted descent iterations.
     pub iterations: u32,
     /// Evaluations of `Phi` and its gradient (one per trial point, plus one to three for the
-    /// initial guess: `y + h^2 g`, `y`, and `x_n` if neither is finite; plus one for the
+    /// initial guess: `y + h^2 g`, `y` (not where `y + h^2 g` wins by construction: a rigid
+    /// translation of `y` touching no ground, see [`relax_step`]), and `x_n` if neither is
+    /// finite; plus one for the
     /// rigid guess of the stopping test's scale after friction on the velocity where the
     /// initial residual exceeds the load, see [`RelaxSettings::tolerance`]).
     pub energy_evaluations: u32,
@@ -375,7 +377,9 @@ pub const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 /// One implicit Euler step of `settings.dt` as the minimisation of
 /// `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`
 /// (`docs/math.md` section 4), by preconditioned descent from the better (lower `Phi`) of `y` and
-/// `y + h^2 g`, both projected onto the ground: `d = -P^-1 grad Phi` (see the
+/// `y + h^2 g`, both projected onto the ground (where neither touches the ground, no collider,
+/// pinned vertex, external load or fixed axis acts, `y + h^2 g` is `y` translated rigidly and
+/// lower by `h^2 |g|^2 sum m / 2`: it is taken without evaluating `y`): `d = -P^-1 grad Phi` (see the
 /// [module documentation](super)), optional momentum or Chebyshev acceleration, Armijo
 /// backtracking, projection of every free trial point onto the ground. Then `v = (x_{n+1} - x_n) / h`, and at vertices resting on the
 /// ground Coulomb friction removes up to `friction * h R / m` of the tangential velocity, `R`

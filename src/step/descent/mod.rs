@@ -52,13 +52,11 @@ use super::friction::{Friction, Lag};
 use super::loads::Loads;
 use super::points::{Floor, Grouped};
 use super::split::{Blocks, Total};
-use super::vertex_passes::{
-    Frames, TrialPoint, Vertices, split_copy, split_first_non_finite, split_trial_pass,
-};
-use super::{ElasticEnergy, ElasticModel, Ground, Vector, first_non_finite};
+use super::vertex_passes::{Frames, TrialPoint, Vertices, split_trial_pass};
+use super::{ElasticEnergy, ElasticModel, Ground, Vector, first_non_finite, pinned_flags};
 use crate::error::StepError;
 use line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
-use objective::{Evaluation, Objective, implicit_velocities};
+use objective::{Evaluation, Objective, implicit_velocity};
 use stopping::{StallRule, Stopping};
 
 /// The iterate a direction is computed at.
@@ -424,43 +422,157 @@ pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
     let outcome = descend(&objective, settings, direction_rule, positions, buffers);
     // The ground of the solve, for the velocity update below.
     let floor = Floor::new(ground.as_ref()).with_colliders(colliders);
-    let (summary, gradient, backup) = match outcome {
-        Ok(result) => result,
+    let descent = match outcome {
+        Ok(descent) => descent,
         Err(error) => {
             restore(positions);
             return Err(error);
         }
     };
-    let Some(velocities) = velocities else {
-        split_translate(problem.model, positions, origin, &mut []);
-        // Shifting back can overflow what was finite next to the body (a ground or collider
-        // near the largest float), so the state is checked where the caller gets it.
-        if let Some(vertex) = split_first_non_finite(problem.model, positions, &[]) {
-            restore(positions);
-            return Err(StepError::NonFiniteState { vertex });
-        }
-        return Ok(summary);
-    };
-    // v = (x_{n+1} - x_n) / h, then Coulomb friction at the contacts whose friction did not
-    // act in Phi (a zero sticking speed).
-    split_copy(problem.model, backup, velocities);
-    implicit_velocities(
-        ground.as_ref(),
-        &floor,
+    // One pass: the result into `positions` (where the loop left it in the scratch buffer),
+    // v = (x_{n+1} - x_n) / h with Coulomb friction at the contacts whose friction did not act
+    // in Phi (a zero sticking speed), the caller's velocities backed up into the free scratch
+    // buffer, the shift back, and the check of the state the caller gets (the shift back can
+    // overflow what was finite next to the body, a ground or collider near the largest float).
+    let Descent {
+        summary,
+        gradient,
+        spare,
+        in_spare,
+    } = descent;
+    let finish = Finish {
+        ground: ground.as_ref(),
+        floor: &floor,
         h,
-        (problem.masses, problem.pinned),
-        (positions, start, gradient),
-        velocities,
-    );
-    split_translate(problem.model, positions, origin, &mut []);
-    // Checked after the shift back, which can overflow (see above); positions first.
-    let non_finite = |values: &[F::Vector]| split_first_non_finite(problem.model, values, &[]);
-    if let Some(vertex) = non_finite(positions).or_else(|| non_finite(velocities)) {
-        restore(positions);
-        copy(velocities, backup);
-        return Err(StepError::NonFiniteState { vertex });
+        origin,
+        in_spare,
+    };
+    match velocities {
+        Some(velocities) => {
+            let state = (problem.masses, problem.pinned, start, &*gradient);
+            let parts = (&mut *positions, &mut *velocities, &mut *spare);
+            if let Some(vertex) = finish.implicit(problem.model, parts, state) {
+                restore(positions);
+                // `spare` holds the caller's velocities.
+                copy(velocities, spare);
+                return Err(StepError::NonFiniteState { vertex });
+            }
+        }
+        None => {
+            if let Some(vertex) = finish.quasi_static(problem.model, positions, spare) {
+                restore(positions);
+                return Err(StepError::NonFiniteState { vertex });
+            }
+        }
     }
     Ok(summary)
+}
+
+/// The last pass of a solve, over the vertices in blocks run by the model (see `solve`): the
+/// same bits as the passes it replaces (the copy of the result into `positions`, the backup of
+/// the velocities, their update, the shift back and the two finiteness checks), in one read of
+/// each buffer.
+struct Finish<'f, V: Grouped> {
+    /// The ground of the solve (shifted), with a unit normal.
+    ground: Option<&'f Ground<V>>,
+    /// The ground and colliders of the solve (shifted).
+    floor: &'f Floor<'f, V>,
+    /// `h` (s; unused in the quasi-static mode).
+    h: Real,
+    /// The reference point of the shift (see [`reference_point`]).
+    origin: V,
+    /// Whether the result is in the scratch buffer (see [`Descent`]).
+    in_spare: bool,
+}
+
+/// The mutable buffers of [`Finish::implicit`]: positions, velocities, the scratch buffer.
+type FinishBuffers<'p, V> = (&'p mut [V], &'p mut [V], &'p mut [V]);
+
+/// The per-vertex inputs of [`Finish::implicit`]: masses, pinned flags, `x_n` (shifted) and the
+/// gradient at the result.
+type FinishState<'p, V> = (&'p [Real], &'p [bool], &'p [V], &'p [V]);
+
+impl<V: Vector + Send + Sync> Finish<'_, V> {
+    /// `x` in the caller's coordinates: plus `origin` where there is a shift (`x + 0` would
+    /// turn a `-0` into `+0`).
+    #[inline(always)]
+    fn shifted_back(&self, x: V) -> V {
+        if self.origin == V::ZERO {
+            x
+        } else {
+            x + self.origin
+        }
+    }
+
+    /// After an implicit Euler step: per vertex, the result `x` (from the scratch buffer where
+    /// it is there), the caller's velocity saved into the scratch buffer, the velocity update
+    /// ([`implicit_velocity`]; pinned vertices keep theirs) and `x` shifted back into
+    /// `positions`. Returns the first vertex whose position is not finite, or else the first
+    /// whose velocity is not.
+    fn implicit(
+        &self,
+        model: &impl ElasticModel,
+        (positions, velocities, spare): FinishBuffers<'_, V>,
+        (masses, pinned, start, gradient): FinishState<'_, V>,
+    ) -> Option<usize> {
+        let n = positions.len();
+        let block = |first: usize,
+                     ((positions, velocities, spare), (masses, pinned, start, gradient)): (
+            FinishBuffers<'_, V>,
+            FinishState<'_, V>,
+        )| {
+            let mut non_finite: (Option<usize>, Option<usize>) = (None, None);
+            let rows = positions
+                .iter_mut()
+                .zip(velocities.iter_mut())
+                .zip(spare.iter_mut())
+                .zip(start.iter().zip(gradient))
+                .zip(masses.iter().zip(pinned_flags(pinned)));
+            for (i, ((((x, v), other), (&x0, &g)), (&m, pinned))) in rows.enumerate() {
+                let result = if self.in_spare { *other } else { *x };
+                *other = *v;
+                if !pinned {
+                    *v = implicit_velocity(self.ground, self.floor, (self.h, m), (result, x0, g));
+                }
+                *x = self.shifted_back(result);
+                if non_finite.0.is_none() && !x.is_finite() {
+                    non_finite.0 = Some(first + i);
+                }
+                if non_finite.1.is_none() && !v.is_finite() {
+                    non_finite.1 = Some(first + i);
+                }
+            }
+            non_finite
+        };
+        let parts = (
+            (positions, velocities, spare),
+            (masses, pinned, start, gradient),
+        );
+        let (position, velocity) = model.run_vertex_pass(Blocks::new(n, parts, &block));
+        position.or(velocity)
+    }
+
+    /// After a quasi-static solve: the result shifted back into `positions`. Returns the first
+    /// vertex whose position is not finite.
+    fn quasi_static(
+        &self,
+        model: &impl ElasticModel,
+        positions: &mut [V],
+        spare: &[V],
+    ) -> Option<usize> {
+        let block = |first: usize, (positions, spare): (&mut [V], &[V])| {
+            let mut non_finite = None;
+            for (i, (x, &other)) in positions.iter_mut().zip(spare).enumerate() {
+                let result = if self.in_spare { other } else { *x };
+                *x = self.shifted_back(result);
+                if non_finite.is_none() && !x.is_finite() {
+                    non_finite = Some(first + i);
+                }
+            }
+            non_finite
+        };
+        model.run_vertex_pass(Blocks::new(positions.len(), (positions, spare), &block))
+    }
 }
 
 /// Whether the ground or a collider applies Coulomb friction to the velocity after the solve
@@ -482,16 +594,26 @@ struct Buffers<'b, V> {
     direction: &'b mut [V],
 }
 
-/// What the descent loop hands back: the summary, the final gradient, a free buffer.
-type Descent<'b, V> = (Summary, &'b mut [V], &'b mut [V]);
+/// What the descent loop hands back.
+struct Descent<'b, V> {
+    summary: Summary,
+    /// The final (unprojected) gradient.
+    gradient: &'b mut [V],
+    /// The scratch point buffer: the result where `in_spare`, free otherwise.
+    spare: &'b mut [V],
+    /// Whether the result is in `spare` (an odd number of swaps) rather than in `positions`.
+    in_spare: bool,
+}
 
 /// The descent loop from the initial guess. Returns the summary, the buffer holding the final
-/// (unprojected) gradient and a free buffer of one vector per vertex.
+/// (unprojected) gradient and the scratch point buffer, which holds the result where the
+/// loop ended on it (see [`Descent`]).
 ///
 /// The iterate lives in `positions` or in `trial`, which trade places on every accepted step
 /// instead of being copied: after the swap the other buffer holds `x_{k-1}`, from which the
 /// next direction takes the last step `x_k - x_{k-1}` (for momentum and Chebyshev) before
-/// overwriting it with the next trial point. `positions` receives the result at the end.
+/// overwriting it with the next trial point. The caller's last pass (`finish`) moves the
+/// result into `positions` where it is in `trial`.
 fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     objective: &Objective<'_, F>,
     settings: &LoopSettings,
@@ -515,6 +637,14 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     // descent would have to find this lowest, slowest mode of the preconditioned system itself.
     // For a body resting on the ground it is a poor guess (the ground stops the bottom layer
     // and the drop compresses it): y wins there.
+    //
+    // Where no free vertex touches the ground at either guess (or there is none), and nothing
+    // else holds a vertex or pushes it (`Objective::translation_invariant`), y + h^2 g is y
+    // moved rigidly by t = h^2 g: the elastic energy is the same, the inertia term grows by
+    // sum m |t|^2 / (2 h^2) and the gravity term falls by sum m g.t, twice that, so
+    // Phi(y + h^2 g) = Phi(y) - h^2 |g|^2 sum m / 2 < Phi(y), and y is not evaluated (one fused
+    // pass of the two a free body's step began with). The evaluated comparison could only have
+    // differed where the rounding of the two evaluations exceeded that margin.
     let drop = objective.gravity * (objective.h * objective.h);
     objective.initial_guess(
         TrialPoint {
@@ -525,7 +655,12 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     );
     let mut evaluation = objective.evaluate(current, gradient, None)?;
     let mut energy_evaluations = 1;
-    if drop != F::Vector::ZERO {
+    let translated = drop != F::Vector::ZERO
+        && evaluation.phi.is_finite()
+        && rule.previous_velocities().is_none()
+        && objective.translation_invariant()
+        && !objective.touches_ground(drop);
+    if drop != F::Vector::ZERO && !translated {
         let second = TrialPoint {
             positions: other,
             gradient: trial_gradient,
@@ -869,10 +1004,6 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
         energy_evaluations += 1;
         restarts += u32::from(!settled);
     }
-    if swapped {
-        // `other` is `positions`.
-        split_copy(objective.model, other, current);
-    }
     let rounding_floor = rule.rounding_floor();
     let summary = Summary {
         iterations,
@@ -888,7 +1019,12 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
         stagnated: stopping.stagnated,
         rho: acceleration.rho(),
     };
-    Ok((summary, gradient, trial))
+    Ok(Descent {
+        summary,
+        gradient,
+        spare: trial,
+        in_spare: swapped,
+    })
 }
 
 /// Evaluates the last of the accelerated trials the loop accepted without evaluating `Phi`,

@@ -50,6 +50,48 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         self.guess(point, |_| offset);
     }
 
+    /// Whether a free vertex touches the ground (within the contact tolerance) at
+    /// [`initial_guess`](Self::initial_guess)`(offset)` or at `y` itself, stopping at the first
+    /// that does; never without a ground (no pass then). Where none does, neither was projected
+    /// and that guess is `y` moved by `offset` at every free vertex. The guess's arithmetic,
+    /// vertex by vertex: the same points.
+    pub fn touches_ground(&self, offset: F::Vector) -> bool {
+        let floor = self.frames.floor();
+        if floor.contact(F::Vector::ZERO).is_none() {
+            return false;
+        }
+        let Vertices {
+            start,
+            velocities,
+            pinned,
+            ..
+        } = self.vertices;
+        let h = self.h;
+        let touches = |p| floor.contact(p) == Some(true);
+        start
+            .iter()
+            .zip(pinned_flags(pinned))
+            .enumerate()
+            .any(|(i, (&x0, pinned))| {
+                let target = match velocities.get(i) {
+                    Some(&v) => x0 + v * h,
+                    None => x0,
+                };
+                !pinned && (touches(floor.project(target + offset)) || touches(target))
+            })
+    }
+
+    /// Whether `Phi` changes along a rigid translation of the free vertices only through its
+    /// inertia and gravity terms: no pinned vertex (which would not move with them), no
+    /// external load or fixed axis, no collider (whose contacts the ground's test in
+    /// [`initial_guess`](Self::initial_guess) does not see), and an elastic energy that, as
+    /// every energy of a deformation gradient, does not change under translation.
+    pub fn translation_invariant(&self) -> bool {
+        self.loads.is_none()
+            && self.frames.floor().colliders().is_empty()
+            && !self.vertices.pinned.contains(&true)
+    }
+
     /// The adaptive initial guess of Vertex Block Descent (Chen et al. 2024, its adaptive
     /// initialisation; `docs/math.md` section 7.2): `y_i + h^2 a~_i`, where
     /// `a~_i = g clamp(a_i.g / |g|^2, 0, 1)` is the previous step's acceleration
@@ -60,7 +102,7 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     pub fn adaptive_guess(&self, point: TrialPoint<'_, F::Vector>, previous: &[F::Vector]) {
         let (h, g, velocities) = (self.h, self.gravity, self.vertices.velocities);
         let weight = g.dot(g);
-        self.guess(point, |i| match (velocities.get(i), previous.get(i)) {
+        let offset = |i: usize| match (velocities.get(i), previous.get(i)) {
             (Some(&v), Some(&before)) if weight > 0.0 && h > 0.0 => {
                 // a.g / |g|^2 = (v - v_(n-1)).g / (h |g|^2), clamped to [0, 1]; a NaN (0 / 0
                 // where h |g|^2 underflows) to 0.
@@ -69,7 +111,8 @@ impl<F: ElasticEnergy> Objective<'_, F> {
                 g * (fraction * (h * h))
             }
             _ => F::Vector::ZERO,
-        });
+        };
+        self.guess(point, offset);
     }
 
     /// The rigid initial guess `x_n + h v_mean` (projected, `x_n` at pinned vertices),
@@ -102,10 +145,11 @@ impl<F: ElasticEnergy> Objective<'_, F> {
         } else {
             F::Vector::ZERO
         };
-        self.guess(point, |i| match velocities.get(i) {
+        let offset = |i: usize| match velocities.get(i) {
             Some(&v) => (mean - v) * h,
             None => F::Vector::ZERO,
-        });
+        };
+        self.guess(point, offset);
     }
 
     /// [`initial_guess`](Self::initial_guess) with the offset of vertex `i` `offset(i)`.
@@ -365,45 +409,34 @@ pub(in super::super) struct Evaluation {
     pub residual: Real,
 }
 
-/// The velocities after an implicit Euler step from `start` to `positions`:
-/// `v = (x_{n+1} - x_n) / h` at free vertices, then at vertices resting on the ground or a
-/// collider the approach along the normal removed and, where the contact's friction was not part
-/// of the objective (a zero sticking speed), Coulomb friction with the normal impulse `h R`, `R`
-/// the reaction (the normal component of `gradient`, the gradient of `Phi` at the result).
-/// Pinned vertices keep their velocity.
-pub(in super::super) fn implicit_velocities<V: Vector>(
+/// The velocity after an implicit Euler step of a free vertex of mass `m` from `x0` to `x`:
+/// `v = (x - x0) / h`, then, resting on the ground or a collider, the approach along the normal
+/// removed and, where the contact's friction was not part of the objective (a zero sticking
+/// speed), Coulomb friction with the normal impulse `h R`, `R` the reaction (the normal
+/// component of `g`, the gradient of `Phi` at the result). Pinned vertices keep their velocity
+/// (the caller's).
+#[inline(always)]
+pub(in super::super) fn implicit_velocity<V: Vector>(
     ground: Option<&Ground<V>>,
     floor: &Floor<V>,
-    h: Real,
-    (masses, pinned): (&[Real], &[bool]),
-    (positions, start, gradient): (&[V], &[V], &[V]),
-    velocities: &mut [V],
-) {
-    let rows = velocities
-        .iter_mut()
-        .zip(positions)
-        .zip(start)
-        .zip(gradient);
-    for ((((v, &x), &x0), &g), (&m, pinned)) in rows.zip(masses.iter().zip(pinned_flags(pinned))) {
-        if pinned {
-            continue;
-        }
-        *v = (x - x0) * (1.0 / h);
-        if let (Some(ground), Some(true)) = (ground, floor.contact(x)) {
-            let normal = ground.normal.dot(*v);
-            let reaction = ground.normal.dot(g).max(0.0);
-            // No impulse (friction keeps the tangential velocity) where it acted in Phi.
-            let normal_change = if ground.friction_in_objective() {
-                0.0
-            } else {
-                h * reaction / m + (-normal).max(0.0)
-            };
-            let tangential = *v - ground.normal * normal;
-            *v = ground.friction_applied(tangential, normal_change)
-                + ground.normal * normal.max(0.0);
-        }
-        if !floor.colliders().is_empty() {
-            *v = V::collider_velocity(floor.colliders(), x, g, m, h, *v);
-        }
+    (h, m): (Real, Real),
+    (x, x0, g): (V, V, V),
+) -> V {
+    let mut v = (x - x0) * (1.0 / h);
+    if let (Some(ground), Some(true)) = (ground, floor.contact(x)) {
+        let normal = ground.normal.dot(v);
+        let reaction = ground.normal.dot(g).max(0.0);
+        // No impulse (friction keeps the tangential velocity) where it acted in Phi.
+        let normal_change = if ground.friction_in_objective() {
+            0.0
+        } else {
+            h * reaction / m + (-normal).max(0.0)
+        };
+        let tangential = v - ground.normal * normal;
+        v = ground.friction_applied(tangential, normal_change) + ground.normal * normal.max(0.0);
     }
+    if !floor.colliders().is_empty() {
+        v = V::collider_velocity(floor.colliders(), x, g, m, h, v);
+    }
+    v
 }
