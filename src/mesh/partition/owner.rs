@@ -502,11 +502,23 @@ impl EnergySink for EnergySlots<'_> {
         start < self.end && start + count > self.first
     }
 
+    /// A group wholly in the piece is stored four lanes at a time; one that straddles its
+    /// ends lane by lane (each lane's slot is the same either way).
     #[inline(always)]
     fn add_group<L: LaneArray>(&mut self, i: usize, terms: L) {
         let values = terms.to_lane_array();
-        for lane in 0..L::WIDTH {
-            self.add_single(i + lane, L::lane_value(&values, lane));
+        // Below `first` the index wraps past any slice length.
+        let start = (self.pass_first + i).wrapping_sub(self.first);
+        let slots = self.energies.get_mut(start..).unwrap_or(&mut []);
+        if slots.len() >= L::WIDTH {
+            let quarters = slots.chunks_exact_mut(LANES).take(L::WIDTH / LANES);
+            for (q, quarter) in quarters.enumerate() {
+                quarter.copy_from_slice(&L::quarter(&values, q).to_array());
+            }
+        } else {
+            for lane in 0..L::WIDTH {
+                self.add_single(i + lane, L::lane_value(&values, lane));
+            }
         }
     }
 
