@@ -524,8 +524,9 @@ impl<'a> TetPartition<'a> {
     }
 
     /// The whole direct force pass on this thread, piece by piece in the owner-computes form
-    /// ([`add_forces_owned`](Self::add_forces_owned)): the one-thread cost of the scheme that
-    /// `softfem::parallel` runs (`element_forces` is checked, not used). Adds into `forces` as [`TetMesh::add_elastic_forces`] does,
+    /// ([`add_forces_owned`](Self::add_forces_owned)): the work, cut elements included, that the
+    /// pieces of the scheme `softfem::parallel` runs on a pool of as many threads do
+    /// (`element_forces` is checked, not used). Adds into `forces` as [`TetMesh::add_elastic_forces`] does,
     /// with the same bits.
     ///
     /// # Errors

@@ -180,8 +180,9 @@ impl TetPartition<'_> {
     }
 
     /// The whole fused pass on this thread, piece by piece in the owner-computes form
-    /// ([`energy_and_add_forces_owned`](Self::energy_and_add_forces_owned)): the one-thread
-    /// cost of the scheme that `softfem::parallel` runs. Returns the energy (J) and adds the
+    /// ([`energy_and_add_forces_owned`](Self::energy_and_add_forces_owned)): the work, cut
+    /// elements included, that the pieces of the scheme `softfem::parallel` runs on a pool of as
+    /// many threads do. Returns the energy (J) and adds the
     /// forces (N) into `forces` with the bits of the sequential fused pass; beyond the
     /// material's range the energy is infinite and `forces` is left alone, as there.
     /// `element_forces` is checked, not used; `energies` (one per element) receives every
