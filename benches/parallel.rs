@@ -5,8 +5,9 @@
 //! Workloads (f32):
 //! * `forces`: StVK direct forces (`TetMesh::add_elastic_forces`) at both sizes: the sequential
 //!   kernel, the partitioned scheme run piece by piece on this thread
-//!   (`TetPartition::add_elastic_forces`: its one-thread cost), and `parallel::add_elastic_forces`
-//!   on each pool.
+//!   (`TetPartition::add_elastic_forces`: the work the pieces of the largest pool do, cut
+//!   elements included, on one thread), and `parallel::add_elastic_forces` on each pool (the
+//!   one-thread pool runs all pieces as one span: nothing cut).
 //! * `fused pass`: the relaxation's fused energy-and-force pass (stable neo-Hookean) at 105k
 //!   tets: `ElasticEnergy::energy_and_add_forces` of `TetElastic`, the partitioned scheme piece
 //!   by piece on this thread (`TetPartition::energy_and_add_forces`) and

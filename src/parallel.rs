@@ -11,6 +11,13 @@
 //! over a fixed tree, so their bits do not depend on the thread count either. Newton's and VBD's
 //! own vector operations (conjugate gradients, sweeps) stay on the calling thread.
 //!
+//! The owner-computes passes (forces, fused pass, Hessian products and blocks) run one task per
+//! *span* of consecutive vertex pieces, evaluated as one owner: on a pool of one thread a single
+//! span of every piece (nothing is cut: the sequential kernel's work), else spans of as few
+//! pieces as keep the tasks to at most four per thread (so a partition made for many threads
+//! does not evaluate its cut elements again and again on a small pool, and stealing still has
+//! tasks to move). Spans change the work, never the bits.
+//!
 //! The functions run on the pool they are called from: the global pool, or a pool of your own
 //! through [`rayon::ThreadPool::install`], which picks the thread count. [`ParallelTetElastic`]
 //! takes an optional pool and installs it around every force evaluation and every pass over the
@@ -50,6 +57,7 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+use core::ops::Range;
 use std::sync::{Mutex, PoisonError};
 
 use rayon::ThreadPool;
@@ -66,8 +74,9 @@ use crate::error::MeshError;
 
 /// [`TetMesh::add_elastic_forces`] on the current rayon pool, through `partition`: adds the
 /// elastic forces (N) of `material` at `positions` (m) into `forces`, with the sequential bits,
-/// in the owner-computes form ([`TetPartition::add_forces_owned`]: one task per vertex piece,
-/// no gather; partition with about one piece per thread). `element_forces`
+/// in the owner-computes form ([`TetPartition::add_forces_owned`]: one task per span of
+/// consecutive vertex pieces, no gather; partition with about one piece per thread, see
+/// [module documentation](self) for the spans). `element_forces`
 /// ([`element_forces_len`](super::mesh::element_forces_len) entries) is checked as by the other
 /// force passes but not used.
 ///
@@ -83,8 +92,8 @@ pub fn add_elastic_forces<M: Material + Sync>(
     partition.check_forces(material, positions, forces, element_forces)?;
     // The owner-computes form: each vertex piece evaluates the elements at its vertices, the
     // elements cut by a piece boundary once per piece (no element buffer, no gather).
-    vertex_pieces(partition, forces, |piece, out| {
-        partition.add_forces_owned(material, positions, piece, out)
+    vertex_pieces(partition, forces, |pieces, out| {
+        partition.add_forces_span(material, positions, pieces, out)
     })
 }
 
@@ -132,21 +141,25 @@ pub fn energy_and_add_forces<M: Material + Sync>(
     if !partition.check_fused(material, positions, forces, element_forces, energies)? {
         return Ok(Real::INFINITY);
     }
-    let (vertex_chunk, energy_chunk) = (partition.vertex_chunk(), partition.energy_chunk());
-    // The last vertex pieces may have no energy piece: an empty slice each.
-    let energy_pieces = energies.len().div_ceil(energy_chunk);
-    let without = partition.vertex_piece_count().saturating_sub(energy_pieces);
+    let span = span_len(partition);
+    let vertex_chunk = partition.vertex_chunk().saturating_mul(span);
+    let energy_chunk = partition.energy_chunk().saturating_mul(span);
+    // The last spans may have no energies: an empty slice each.
+    let spans = partition.vertex_piece_count().div_ceil(span);
+    let without = spans.saturating_sub(energies.len().div_ceil(energy_chunk));
     let energy_slices = energies.par_chunks_mut(energy_chunk).chain(
         (0..without)
             .into_par_iter()
             .map(|_| <&mut [Real]>::default()),
     );
+    let pieces = partition.vertex_piece_count();
     forces
         .par_chunks_mut(vertex_chunk)
         .zip(energy_slices)
         .enumerate()
-        .try_for_each(|(piece, (out, energies))| {
-            partition.energy_and_add_forces_owned(material, positions, piece, out, energies)
+        .try_for_each(|(k, (out, energies))| {
+            let pieces = span_pieces(k, span, pieces);
+            partition.energy_and_add_forces_span(material, positions, pieces, out, energies)
         })?;
     partition.fused_total_energy(energies)
 }
@@ -154,7 +167,8 @@ pub fn energy_and_add_forces<M: Material + Sync>(
 /// [`TetMesh::add_elastic_forces_principal`] on the current rayon pool, through `partition`:
 /// adds the principal-path (SVD) forces (N) of `material` at `positions` (m) into `forces`,
 /// with the sequential bits, in the owner-computes form
-/// ([`TetPartition::add_forces_principal_owned`]: one task per vertex piece, no gather).
+/// ([`TetPartition::add_forces_principal_owned`]: one task per span of vertex pieces, no
+/// gather).
 /// `element_forces` ([`element_forces_len`](super::mesh::element_forces_len) entries) is
 /// checked but not used.
 ///
@@ -168,8 +182,8 @@ pub fn add_elastic_forces_principal<M: Material + Sync>(
     element_forces: &mut [ElementForces],
 ) -> Result<(), MeshError> {
     partition.check_principal(material, positions, forces, element_forces)?;
-    vertex_pieces(partition, forces, |piece, out| {
-        partition.add_forces_principal_owned(material, positions, piece, out)
+    vertex_pieces(partition, forces, |pieces, out| {
+        partition.add_forces_principal_span(material, positions, pieces, out)
     })
 }
 
@@ -191,8 +205,8 @@ pub fn add_elastic_forces_clamped<M: Material + Sync>(
     element_forces: &mut [ElementForces],
 ) -> Result<(), MeshError> {
     partition.check_clamped(material, threshold, positions, forces, element_forces)?;
-    vertex_pieces(partition, forces, |piece, out| {
-        partition.add_forces_clamped_owned(material, threshold, positions, piece, out)
+    vertex_pieces(partition, forces, |pieces, out| {
+        partition.add_forces_clamped_span(material, threshold, positions, pieces, out)
     })
 }
 
@@ -231,8 +245,8 @@ pub fn add_hessian_product(
     element_products: &mut [ElementForces],
 ) -> Result<(), MeshError> {
     partition.check_hessian_product(cache, direction, out, element_products)?;
-    vertex_pieces(partition, out, |piece, out| {
-        partition.add_hessian_product_owned(cache, direction, piece, out)
+    vertex_pieces(partition, out, |pieces, out| {
+        partition.add_hessian_product_span(cache, direction, pieces, out)
     })
 }
 
@@ -248,22 +262,50 @@ pub fn add_vertex_hessian_blocks(
     blocks: &mut [Mat3],
 ) -> Result<(), MeshError> {
     partition.check_vertex_blocks(cache, blocks)?;
-    vertex_pieces(partition, blocks, |piece, out| {
-        partition.gather_vertex_blocks(cache, piece, out)
+    vertex_pieces(partition, blocks, |pieces, out| {
+        partition.gather_vertex_blocks_span(cache, pieces, out)
     })
 }
 
-/// `piece(k, slice)` for every vertex piece `k` of `partition` and its slice of the per-vertex
-/// `buffer`, on the current pool.
+/// `span(pieces, slice)` for every span of [`span_len`] consecutive vertex pieces of
+/// `partition` and its slice of the per-vertex `buffer`, on the current pool.
 fn vertex_pieces<T: Send>(
     partition: &TetPartition<'_>,
     buffer: &mut [T],
-    piece: impl Fn(usize, &mut [T]) -> Result<(), MeshError> + Sync,
+    span: impl Fn(Range<usize>, &mut [T]) -> Result<(), MeshError> + Sync,
 ) -> Result<(), MeshError> {
+    let (len, pieces) = (span_len(partition), partition.vertex_piece_count());
     buffer
-        .par_chunks_mut(partition.vertex_chunk())
+        .par_chunks_mut(partition.vertex_chunk().saturating_mul(len))
         .enumerate()
-        .try_for_each(|(k, out)| piece(k, out))
+        .try_for_each(|(k, out)| span(span_pieces(k, len, pieces), out))
+}
+
+/// The most owner tasks per thread of the current pool: enough for work stealing to even out
+/// threads that fall behind (the `parallel` example's four pieces per thread), few enough that
+/// a partition made for many threads does not evaluate its cut elements again and again on a
+/// smaller pool.
+const SPANS_PER_THREAD: usize = 4;
+
+/// The vertex pieces that one owner task of the current pool takes, end to end: all of them on
+/// a pool of one thread (nothing is cut then: the sequential kernel's work), else as many as
+/// keep the tasks to at most [`SPANS_PER_THREAD`] per thread. Consecutive pieces run as one
+/// owner give the bits of each run alone, so this changes the work, never the result.
+fn span_len(partition: &TetPartition<'_>) -> usize {
+    let pieces = partition.vertex_piece_count().max(1);
+    let threads = rayon::current_num_threads();
+    let spans = if threads <= 1 {
+        1
+    } else {
+        pieces.min(threads.saturating_mul(SPANS_PER_THREAD))
+    };
+    pieces.div_ceil(spans.max(1))
+}
+
+/// The vertex pieces of span `k` of `len` pieces each, of `pieces` in all.
+fn span_pieces(k: usize, len: usize, pieces: usize) -> Range<usize> {
+    let start = k.saturating_mul(len);
+    start..start.saturating_add(len).min(pieces)
 }
 
 /// A [`TetElastic`] body whose force (and fused energy-and-force) passes run in parallel through

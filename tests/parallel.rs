@@ -593,13 +593,16 @@ macro_rules! precision_tests {
                     let expected_fused_energy = TetElastic::new(mesh, material)
                         .energy_and_add_forces(&x, &mut expected_fused)
                         .unwrap();
-                    for threads in THREADS {
-                        // Many pieces per thread: work stealing reorders them.
+                    // Many pieces per thread: work stealing reorders them, and the pool runs
+                    // them in spans of consecutive pieces (all of them on one thread; past the
+                    // 64 pieces whose element ranges the partition keeps, with 100).
+                    for (threads, pieces) in THREADS.map(|t| (t, 4 * t + 1)).into_iter().chain(
+                        THREADS.map(|t| (t, 100)),
+                    ) {
                         let mut offsets = vec![0; partition_offsets_len(nv)];
                         let mut incident = vec![0; partition_incident_len(ne)];
                         let partition =
-                            TetPartition::new(mesh, 4 * threads + 1, &mut offsets, &mut incident)
-                                .unwrap();
+                            TetPartition::new(mesh, pieces, &mut offsets, &mut incident).unwrap();
                         let mut element_forces = vec![[Vec3::ZERO; 4]; ne];
                         let mut energies = vec![0.0; ne];
                         let pool = pool(threads);
@@ -614,7 +617,7 @@ macro_rules! precision_tests {
                             )
                         })
                         .unwrap();
-                        assert_eq!(bits(&forces), bits(&expected), "{threads} threads");
+                        assert_eq!(bits(&forces), bits(&expected), "{threads} threads, {pieces} pieces");
                         let energy = pool
                             .install(|| {
                                 parallel::elastic_energy(&partition, &material, &x, &mut energies)
@@ -649,12 +652,14 @@ macro_rules! precision_tests {
                     let (x, d) = (deformed(&rest), direction(&rest));
                     let reference = SvdAndHessianReference::new(mesh, &material, &x, &d);
                     let body = TetElastic::new(mesh, material);
-                    for threads in THREADS {
+                    // As above: spans of pieces, also past the 64 kept ranges (100 pieces).
+                    for (threads, pieces) in THREADS.map(|t| (t, 4 * t + 1)).into_iter().chain(
+                        THREADS.map(|t| (t, 100)),
+                    ) {
                         let mut offsets = vec![0; partition_offsets_len(nv)];
                         let mut incident = vec![0; partition_incident_len(ne)];
-                        let p =
-                            TetPartition::new(mesh, 4 * threads + 1, &mut offsets, &mut incident)
-                                .unwrap();
+                        let p = TetPartition::new(mesh, pieces, &mut offsets, &mut incident)
+                            .unwrap();
                         let mut element_forces = vec![[Vec3::ZERO; 4]; ne];
                         let pool = pool(threads);
                         pool.install(|| {
@@ -700,6 +705,122 @@ macro_rules! precision_tests {
                             .add_vertex_hessian_blocks(&cache, &mut blocks)
                             .unwrap();
                         assert_eq!(mat_bits(&blocks), reference.blocks, "{threads} threads");
+                    }
+                }
+
+                /// Owner passes over a mesh whose element order is partly scrambled (every 29th
+                /// element swapped with one far away), so that each piece's element range holds
+                /// runs of elements that all touch it between elements that do not: the passes
+                /// run the runs without the test of whether a group touches the piece, the rest
+                /// with it. Direct, fused, principal and clamped forces, Hessian products and
+                /// blocks on 1 and 2 threads and piece by piece on this thread, against the
+                /// sequential kernels, bit for bit.
+                #[test]
+                fn owner_passes_on_a_scrambled_element_order_give_the_sequential_bits() {
+                    let (rest, mut tets) = box_mesh(7); // 2058 tets
+                    let ne = tets.len();
+                    for i in (0..ne).step_by(29) {
+                        tets.swap(i, (i * 7 + ne / 2) % ne);
+                    }
+                    let mut rest_data = vec![TetRest::default(); ne];
+                    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                    let nv = mesh.vertex_count();
+                    let material = StableNeoHookean::from_young_poisson(1.0e5, 0.45).unwrap();
+                    let (x, d) = (deformed(&rest), direction(&rest));
+                    let reference = SvdAndHessianReference::new(mesh, &material, &x, &d);
+                    let mut expected = initial_forces(nv);
+                    mesh.add_elastic_forces(&material, &x, &mut expected)
+                        .unwrap();
+                    let body = TetElastic::new(mesh, material);
+                    let mut expected_fused = initial_forces(nv);
+                    let expected_energy =
+                        body.energy_and_add_forces(&x, &mut expected_fused).unwrap();
+                    for (threads, pieces) in [(1, 3), (2, 2), (2, 7), (1, 100), (2, 100)] {
+                        let mut offsets = vec![0; partition_offsets_len(nv)];
+                        let mut incident = vec![0; partition_incident_len(ne)];
+                        let p =
+                            TetPartition::new(mesh, pieces, &mut offsets, &mut incident).unwrap();
+                        let mut element_forces = vec![[Vec3::ZERO; 4]; ne];
+                        let mut energies = vec![0.0; ne];
+                        let label = format!("{threads} threads, {pieces} pieces");
+                        // Piece by piece on this thread.
+                        let mut forces = initial_forces(nv);
+                        p.add_elastic_forces(&material, &x, &mut forces, &mut element_forces)
+                            .unwrap();
+                        assert_eq!(bits(&forces), bits(&expected), "{label}");
+                        let mut forces = initial_forces(nv);
+                        let energy = p
+                            .energy_and_add_forces(
+                                &material,
+                                &x,
+                                &mut forces,
+                                &element_forces,
+                                &mut energies,
+                            )
+                            .unwrap();
+                        assert_eq!(bits(&forces), bits(&expected_fused), "{label}");
+                        assert_eq!(energy.to_bits(), expected_energy.to_bits(), "{label}");
+                        // On the pool, in spans.
+                        let pool = pool(threads);
+                        pool.install(|| {
+                            let mut forces = initial_forces(nv);
+                            parallel::add_elastic_forces(
+                                &p,
+                                &material,
+                                &x,
+                                &mut forces,
+                                &mut element_forces,
+                            )
+                            .unwrap();
+                            assert_eq!(bits(&forces), bits(&expected), "{label}");
+                            let mut forces = initial_forces(nv);
+                            let energy = parallel::energy_and_add_forces(
+                                &p,
+                                &material,
+                                &x,
+                                &mut forces,
+                                &mut element_forces,
+                                &mut energies,
+                            )
+                            .unwrap();
+                            assert_eq!(bits(&forces), bits(&expected_fused), "{label}");
+                            assert_eq!(energy.to_bits(), expected_energy.to_bits(), "{label}");
+                            let mut forces = initial_forces(nv);
+                            parallel::add_elastic_forces_principal(
+                                &p,
+                                &material,
+                                &x,
+                                &mut forces,
+                                &mut element_forces,
+                            )
+                            .unwrap();
+                            assert_eq!(bits(&forces), reference.principal, "{label}");
+                            let mut forces = initial_forces(nv);
+                            parallel::add_elastic_forces_clamped(
+                                &p,
+                                &material,
+                                CLAMP,
+                                &x,
+                                &mut forces,
+                                &mut element_forces,
+                            )
+                            .unwrap();
+                            assert_eq!(bits(&forces), reference.clamped, "{label}");
+                            let mut product = initial_forces(nv);
+                            parallel::add_hessian_product(
+                                &p,
+                                &reference.cache,
+                                &d,
+                                &mut product,
+                                &mut element_forces,
+                            )
+                            .unwrap();
+                            assert_eq!(bits(&product), reference.product, "{label}");
+                            let mut blocks = initial_blocks(nv);
+                            parallel::add_vertex_hessian_blocks(&p, &reference.cache, &mut blocks)
+                                .unwrap();
+                            assert_eq!(mat_bits(&blocks), reference.blocks, "{label}");
+                        });
                     }
                 }
 

@@ -167,8 +167,11 @@ pub struct TetPartition<'a> {
     vertex_chunk: usize,
     /// The elements from the first to the last one incident to each of the first
     /// [`CACHED_PIECES`] vertex pieces (`start..end`, empty if none is), found once here rather
-    /// than by a scan of the piece's adjacency rows at every owner-computes pass.
-    piece_elements: [[u32; 2]; CACHED_PIECES],
+    /// than by a scan of the piece's adjacency rows at every owner-computes pass; then the
+    /// longest run of consecutive elements among them that all touch the piece
+    /// (`dense_start..dense_end`), which the owner-computes passes run without testing each
+    /// group for whether it touches the piece.
+    piece_elements: [[u32; 4]; CACHED_PIECES],
 }
 
 /// The vertex pieces whose incident element range a [`TetPartition`] keeps. The owner-computes
@@ -222,14 +225,15 @@ impl<'a> TetPartition<'a> {
             incident,
             element_chunk,
             vertex_chunk: vertices.div_ceil(pieces).max(1),
-            piece_elements: [[0; 2]; CACHED_PIECES],
+            piece_elements: [[0; 4]; CACHED_PIECES],
         };
-        let mut piece_elements = [[0; 2]; CACHED_PIECES];
+        let mut piece_elements = [[0; 4]; CACHED_PIECES];
         for (piece, range) in piece_elements.iter_mut().enumerate() {
-            if let Some(elements) = partition.scan_incident_elements(partition.vertex_piece(piece))
-            {
+            let vertices = partition.vertex_piece(piece);
+            if let Some(elements) = partition.scan_incident_elements(vertices.clone()) {
+                let dense = partition.touching_run(vertices, elements.clone());
                 // Below `u32::MAX / 4` elements (the adjacency's limit, checked above).
-                *range = [elements.start as u32, elements.end as u32];
+                *range = [elements.start, elements.end, dense.start, dense.end].map(|i| i as u32);
             }
         }
         partition.piece_elements = piece_elements;
@@ -520,8 +524,9 @@ impl<'a> TetPartition<'a> {
     }
 
     /// The whole direct force pass on this thread, piece by piece in the owner-computes form
-    /// ([`add_forces_owned`](Self::add_forces_owned)): the one-thread cost of the scheme that
-    /// `softfem::parallel` runs (`element_forces` is checked, not used). Adds into `forces` as [`TetMesh::add_elastic_forces`] does,
+    /// ([`add_forces_owned`](Self::add_forces_owned)): the work, cut elements included, that the
+    /// pieces of the scheme `softfem::parallel` runs on a pool of as many threads do
+    /// (`element_forces` is checked, not used). Adds into `forces` as [`TetMesh::add_elastic_forces`] does,
     /// with the same bits.
     ///
     /// # Errors

@@ -18,7 +18,7 @@ use super::super::super::types::{Mat3, Vec3};
 use super::super::TetMesh;
 use super::super::grouped::{ForceSink, tet_groups};
 use super::super::{check_finite, check_length, check_positions, gather};
-use super::owner::OwnerSlice;
+use super::owner::{OwnerSlice, one_piece};
 use super::{ElementForces, TetPartition, grouped_len};
 use crate::error::{Buffer, MeshError};
 
@@ -149,24 +149,34 @@ impl<'a> TetPartition<'a> {
         piece: usize,
         out: &mut [Vec3],
     ) -> Result<(), MeshError> {
+        self.add_hessian_product_span(cache, direction, one_piece(piece), out)
+    }
+
+    /// [`add_hessian_product_owned`](Self::add_hessian_product_owned) for the consecutive
+    /// vertex pieces `pieces` as one owner (`out` their slices, end to end).
+    pub(crate) fn add_hessian_product_span(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        pieces: Range<usize>,
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
         check_length(Buffer::Hessians, self.mesh.element_count(), cache.len())?;
         check_length(Buffer::Direction, self.mesh.vertex_count(), direction.len())?;
-        let vertices =
-            self.check_piece(piece, self.vertex_piece_count(), self.vertex_piece(piece))?;
+        let vertices = self.span_vertices(pieces.clone())?;
         check_length(Buffer::Products, vertices.len(), out.len())?;
-        let Some(elements) = self.incident_elements(piece) else {
+        let Some(elements) = self.span_elements(pieces) else {
             return Ok(()); // No element touches these vertices.
         };
-        let mut owner = OwnerSlice {
-            out,
-            first: vertices.start,
-        };
-        let tets = self.mesh.tets().get(elements.clone()).unwrap_or(&[]);
-        let rests = self.mesh.rest().get(elements.clone()).unwrap_or(&[]);
-        let hessians = cache.get(elements).unwrap_or(&[]);
-        for ((corners, rest), hessian) in tets.iter().zip(rests).zip(hessians) {
-            if owner.touches(corners) {
-                owner.add(corners, hessian.product(rest, gather(direction, corners)));
+        let mut owner = OwnerSlice::new(out, vertices.start);
+        for (range, dense) in elements.parts() {
+            let tets = self.mesh.tets().get(range.clone()).unwrap_or(&[]);
+            let rests = self.mesh.rest().get(range.clone()).unwrap_or(&[]);
+            let hessians = cache.get(range).unwrap_or(&[]);
+            for ((corners, rest), hessian) in tets.iter().zip(rests).zip(hessians) {
+                if dense || owner.touches(corners) {
+                    owner.add(corners, hessian.product(rest, gather(direction, corners)));
+                }
             }
         }
         Ok(())
@@ -202,9 +212,19 @@ impl<'a> TetPartition<'a> {
         piece: usize,
         out: &mut [Mat3],
     ) -> Result<(), MeshError> {
+        self.gather_vertex_blocks_span(cache, one_piece(piece), out)
+    }
+
+    /// [`gather_vertex_blocks`](Self::gather_vertex_blocks) for the consecutive vertex pieces
+    /// `pieces` (`out` their slices, end to end).
+    pub(crate) fn gather_vertex_blocks_span(
+        &self,
+        cache: &[TetHessian],
+        pieces: Range<usize>,
+        out: &mut [Mat3],
+    ) -> Result<(), MeshError> {
         check_length(Buffer::Hessians, self.mesh.element_count(), cache.len())?;
-        let vertices =
-            self.check_piece(piece, self.vertex_piece_count(), self.vertex_piece(piece))?;
+        let vertices = self.span_vertices(pieces)?;
         check_length(Buffer::Blocks, vertices.len(), out.len())?;
         let rests = self.mesh.rest();
         for (vertex, slot) in vertices.zip(out) {

@@ -20,6 +20,14 @@
 //! per thread for a uniform mesh. With one piece nothing is cut and the pass is the sequential
 //! kernel with a range test per group.
 //!
+//! The partition keeps, for each of its first vertex pieces, the longest run of consecutive
+//! elements in that range that all touch the piece (for a mesh numbered with locality, all of
+//! them): the pass runs it without the per-group test, in a separate pass over the run (its
+//! ends aligned to 16 elements from the range's start, so that no partial group falls before
+//! its end), the elements before and after it with the test. A caller may also run several
+//! consecutive pieces as one owner (a *span*, as `softfem::parallel` does on small pools): the
+//! elements cut only between pieces of the span are then evaluated once.
+//!
 //! The fused pass also writes each element's energy, once: vertex piece `k` writes those of
 //! [`energy_piece(k)`](TetPartition::energy_piece) (consecutive elements, evaluated by that piece
 //! whether or not they touch its vertices), and one sequential call then sums them in the
@@ -35,9 +43,10 @@ use super::super::super::types::{Real, Vec3};
 use super::super::TetMesh;
 use super::super::check_length;
 use super::super::grouped::{
-    DirectForces, EnergyAndForces, EnergySink, ForceSink, Pass, PassJob, WideGradients,
+    DirectForces, EnergyAndForces, EnergySink, ForceSink, Pass, PassJob, SvdForces, SvdStress,
+    WideGradients,
 };
-use super::{ElementForces, TetPartition};
+use super::{CACHED_PIECES, ElementForces, TetPartition};
 use crate::error::{Buffer, MeshError};
 use crate::simd::{WidthKernel, dispatch};
 
@@ -60,14 +69,24 @@ impl TetPartition<'_> {
         piece: usize,
         out: &mut [Vec3],
     ) -> Result<(), MeshError> {
-        let vertices = self.owner_vertices(positions, piece, out.len())?;
-        let Some(elements) = self.incident_elements(piece) else {
+        self.add_forces_span(material, positions, one_piece(piece), out)
+    }
+
+    /// [`add_forces_owned`](Self::add_forces_owned) for the consecutive vertex pieces `pieces`
+    /// as one owner (`out` their slices, end to end): the elements cut only between two of them
+    /// are evaluated once.
+    pub(crate) fn add_forces_span<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        pieces: Range<usize>,
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        let vertices = self.owner_vertices(positions, pieces.clone(), out.len())?;
+        let Some(elements) = self.span_elements(pieces) else {
             return Ok(()); // No element touches these vertices.
         };
-        let job = DirectForces(OwnerSlice {
-            out,
-            first: vertices.start,
-        });
+        let job = DirectForces(OwnerSlice::new(out, vertices.start));
         self.owner_pass(material, positions, elements, job, BATCH_FORCES);
         Ok(())
     }
@@ -119,26 +138,41 @@ impl TetPartition<'_> {
         out: &mut [Vec3],
         energies: &mut [Real],
     ) -> Result<(), MeshError> {
-        let vertices = self.owner_vertices(positions, piece, out.len())?;
-        let energy_elements = self.energy_piece(piece);
+        self.energy_and_add_forces_span(material, positions, one_piece(piece), out, energies)
+    }
+
+    /// [`energy_and_add_forces_owned`](Self::energy_and_add_forces_owned) for the consecutive
+    /// vertex pieces `pieces` as one owner: `out` and `energies` are their slices end to end.
+    pub(crate) fn energy_and_add_forces_span<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        pieces: Range<usize>,
+        out: &mut [Vec3],
+        energies: &mut [Real],
+    ) -> Result<(), MeshError> {
+        let vertices = self.owner_vertices(positions, pieces.clone(), out.len())?;
+        let energy_elements = chunk_span(&pieces, self.energy_chunk(), self.mesh.element_count());
         check_length(Buffer::Energies, energy_elements.len(), energies.len())?;
-        let elements = match self.incident_elements(piece) {
-            Some(incident) if !energy_elements.is_empty() => {
-                incident.start.min(energy_elements.start)..incident.end.max(energy_elements.end)
-            }
+        let elements = match self.span_elements(pieces) {
+            Some(incident) if !energy_elements.is_empty() => OwnerElements {
+                all: incident.all.start.min(energy_elements.start)
+                    ..incident.all.end.max(energy_elements.end),
+                dense: incident.dense,
+            },
             Some(incident) => incident,
-            None => energy_elements.clone(),
+            None => OwnerElements {
+                all: energy_elements.clone(),
+                dense: 0..0,
+            },
         };
         let job = EnergyAndForces {
-            forces: OwnerSlice {
-                out,
-                first: vertices.start,
-            },
+            forces: OwnerSlice::new(out, vertices.start),
             energy: EnergySlots {
                 energies,
                 first: energy_elements.start,
                 end: energy_elements.end,
-                pass_first: elements.start,
+                pass_first: elements.all.start,
             },
         };
         self.owner_pass(material, positions, elements, job, BATCH_FORCES);
@@ -146,8 +180,9 @@ impl TetPartition<'_> {
     }
 
     /// The whole fused pass on this thread, piece by piece in the owner-computes form
-    /// ([`energy_and_add_forces_owned`](Self::energy_and_add_forces_owned)): the one-thread
-    /// cost of the scheme that `softfem::parallel` runs. Returns the energy (J) and adds the
+    /// ([`energy_and_add_forces_owned`](Self::energy_and_add_forces_owned)): the work, cut
+    /// elements included, that the pieces of the scheme `softfem::parallel` runs on a pool of as
+    /// many threads do. Returns the energy (J) and adds the
     /// forces (N) into `forces` with the bits of the sequential fused pass; beyond the
     /// material's range the energy is infinite and `forces` is left alone, as there.
     /// `element_forces` is checked, not used; `energies` (one per element) receives every
@@ -176,53 +211,141 @@ impl TetPartition<'_> {
         self.fused_total_energy(energies)
     }
 
-    /// The vertices of owner piece `piece`, after checking the piece index, the output length
-    /// `out_len` and the positions' length.
+    /// The vertices of the owner span `pieces`, after checking the piece indices, the output
+    /// length `out_len` and the positions' length.
     pub(super) fn owner_vertices(
         &self,
         positions: &[Vec3],
-        piece: usize,
+        pieces: Range<usize>,
         out_len: usize,
     ) -> Result<Range<usize>, MeshError> {
         check_length(Buffer::Positions, self.mesh.vertex_count(), positions.len())?;
-        let vertices =
-            self.check_piece(piece, self.vertex_piece_count(), self.vertex_piece(piece))?;
+        let vertices = self.span_vertices(pieces)?;
         check_length(Buffer::Forces, vertices.len(), out_len)?;
         Ok(vertices)
     }
 
+    /// The vertices of the consecutive vertex pieces `pieces` (not empty, all below
+    /// [`vertex_piece_count`](Self::vertex_piece_count)), else [`MeshError::PieceIndex`] naming
+    /// the first piece past the last one (or `pieces.start` for an empty span).
+    pub(super) fn span_vertices(&self, pieces: Range<usize>) -> Result<Range<usize>, MeshError> {
+        let count = self.vertex_piece_count();
+        if pieces.is_empty() || pieces.start >= count {
+            return Err(MeshError::PieceIndex {
+                piece: pieces.start,
+                pieces: count,
+            });
+        }
+        if pieces.end > count {
+            return Err(MeshError::PieceIndex {
+                piece: count,
+                pieces: count,
+            });
+        }
+        Ok(chunk_span(
+            &pieces,
+            self.vertex_chunk,
+            self.mesh.vertex_count(),
+        ))
+    }
+
+    /// The elements from the first to the last one incident to any vertex of the vertex pieces
+    /// `pieces`, or `None` if none is, with a run of them that all touch those vertices: the
+    /// kept runs of the pieces, joined where they overlap or meet (else the longest), or none
+    /// past the kept pieces.
+    pub(super) fn span_elements(&self, pieces: Range<usize>) -> Option<OwnerElements> {
+        if pieces.end <= CACHED_PIECES {
+            pieces
+                .filter_map(|piece| self.incident_elements(piece))
+                .reduce(|a, b| OwnerElements {
+                    all: a.all.start.min(b.all.start)..a.all.end.max(b.all.end),
+                    dense: if !a.dense.is_empty()
+                        && !b.dense.is_empty()
+                        && b.dense.start <= a.dense.end
+                        && a.dense.start <= b.dense.end
+                    {
+                        a.dense.start.min(b.dense.start)..a.dense.end.max(b.dense.end)
+                    } else if b.dense.len() > a.dense.len() {
+                        b.dense
+                    } else {
+                        a.dense
+                    },
+                })
+        } else {
+            let vertices = chunk_span(&pieces, self.vertex_chunk, self.mesh.vertex_count());
+            let all = self.scan_incident_elements(vertices)?;
+            Some(OwnerElements { all, dense: 0..0 })
+        }
+    }
+
+    /// The longest run of consecutive elements of `elements` that all have a corner among
+    /// `vertices` (the first of equally long ones; empty if none has).
+    pub(super) fn touching_run(
+        &self,
+        vertices: Range<usize>,
+        elements: Range<usize>,
+    ) -> Range<usize> {
+        let tets = self.mesh.tets().get(elements.clone()).unwrap_or(&[]);
+        let touches =
+            |corners: &[u32; 4]| corners.iter().any(|&v| vertices.contains(&(v as usize)));
+        let (mut best, mut start) = (0..0, 0);
+        for (i, corners) in tets
+            .iter()
+            .enumerate()
+            .chain([(tets.len(), &[u32::MAX; 4])])
+        {
+            let inside = i < tets.len() && touches(corners);
+            if !inside {
+                if i - start > best.len() {
+                    best = start..i;
+                }
+                start = i + 1;
+            }
+        }
+        elements.start + best.start..elements.start + best.end
+    }
+
     /// Runs `job` over `elements` at the width the sequential kernels run at where `batch`,
-    /// else one element at a time.
+    /// else one element at a time: in order, the elements before the dense run, the dense run
+    /// (no test of whether a group touches the owner) and the elements after it.
     #[inline(always)]
-    pub(super) fn owner_pass<M: Material, J: PassJob>(
+    pub(super) fn owner_pass<M: Material, J: OwnerJob>(
         &self,
         material: &M,
         positions: &[Vec3],
-        elements: Range<usize>,
-        job: J,
+        elements: OwnerElements,
+        mut job: J,
         batch: bool,
     ) {
-        let pass = Pass {
-            material,
-            positions,
-            tets: self.mesh.tets().get(elements.clone()).unwrap_or(&[]),
-            rests: self.mesh.rest().get(elements).unwrap_or(&[]),
-            job,
-        };
-        if batch {
-            dispatch(pass);
-        } else {
-            pass.scalar();
+        for (range, dense) in elements.parts() {
+            if range.is_empty() {
+                continue;
+            }
+            job.part(range.start, dense);
+            let pass = Pass {
+                material,
+                positions,
+                tets: self.mesh.tets().get(range.clone()).unwrap_or(&[]),
+                rests: self.mesh.rest().get(range).unwrap_or(&[]),
+                job,
+            };
+            job = if batch { dispatch(pass) } else { pass.scalar() };
         }
     }
 
     /// The elements from the first to the last one incident to any vertex of vertex piece
     /// `piece`, or `None` if none is: kept by the partition for the first pieces, else found
     /// from the adjacency.
-    pub(super) fn incident_elements(&self, piece: usize) -> Option<Range<usize>> {
+    pub(super) fn incident_elements(&self, piece: usize) -> Option<OwnerElements> {
         match self.piece_elements.get(piece) {
-            Some(&[start, end]) => (start < end).then_some(start as usize..end as usize),
-            None => self.scan_incident_elements(self.vertex_piece(piece)),
+            Some(&[start, end, dense_start, dense_end]) => (start < end).then_some(OwnerElements {
+                all: start as usize..end as usize,
+                dense: dense_start as usize..dense_end as usize,
+            }),
+            None => Some(OwnerElements {
+                all: self.scan_incident_elements(self.vertex_piece(piece))?,
+                dense: 0..0,
+            }),
         }
     }
 
@@ -246,13 +369,85 @@ impl TetPartition<'_> {
     }
 }
 
+/// The elements an owner evaluates (`all`, from the first to the last one incident to its
+/// vertices), and a run of them that all touch its vertices (`dense`, within `all`, maybe
+/// empty).
+#[derive(Clone, Debug)]
+pub(super) struct OwnerElements {
+    pub all: Range<usize>,
+    pub dense: Range<usize>,
+}
+
+/// The alignment of the dense run's ends from the start of `all`: a multiple of the widest
+/// group (16 f32 lanes), so that splitting the pass there leaves no partial group before the
+/// run's end.
+const DENSE_ALIGN: usize = 16;
+
+impl OwnerElements {
+    /// `all` in three consecutive parts, in order, with whether every element of the part
+    /// touches the owner: before the dense run, the dense run shrunk to [`DENSE_ALIGN`] from
+    /// the start of `all`, and after it.
+    pub fn parts(&self) -> [(Range<usize>, bool); 3] {
+        let (start, end) = (self.all.start, self.all.end.max(self.all.start));
+        let dense_start = self.dense.start.clamp(start, end);
+        let dense_end = self.dense.end.clamp(dense_start, end);
+        let from = start + (dense_start - start).next_multiple_of(DENSE_ALIGN);
+        if from >= dense_end {
+            return [(start..end, false), (end..end, true), (end..end, false)];
+        }
+        let to = from + (dense_end - from) / DENSE_ALIGN * DENSE_ALIGN;
+        [(start..from, false), (from..to, true), (to..end, false)]
+    }
+}
+
+/// A [`PassJob`] of an owner: told before each part of [`OwnerElements::parts`] where the part
+/// starts and whether all its elements touch the owner.
+pub(super) trait OwnerJob: PassJob {
+    /// The next pass starts at element `first`; `dense`: every element touches the owner.
+    fn part(&mut self, first: usize, dense: bool);
+}
+
+impl OwnerJob for DirectForces<OwnerSlice<'_>> {
+    #[inline(always)]
+    fn part(&mut self, _first: usize, dense: bool) {
+        self.0.dense = dense;
+    }
+}
+
+impl OwnerJob for EnergyAndForces<OwnerSlice<'_>, EnergySlots<'_>> {
+    #[inline(always)]
+    fn part(&mut self, first: usize, dense: bool) {
+        self.forces.dense = dense;
+        self.energy.pass_first = first;
+    }
+}
+
+impl<S: SvdStress> OwnerJob for SvdForces<OwnerSlice<'_>, S> {
+    #[inline(always)]
+    fn part(&mut self, _first: usize, dense: bool) {
+        self.forces.dense = dense;
+    }
+}
+
 /// A vertex piece's slice of the forces, indexed by global vertex.
 pub(super) struct OwnerSlice<'o> {
     pub out: &'o mut [Vec3],
     pub first: usize,
+    /// Every element of the current part touches the slice (no test needed).
+    pub dense: bool,
 }
 
-impl OwnerSlice<'_> {
+impl<'o> OwnerSlice<'o> {
+    /// `out`, the forces of the vertices from `first`.
+    #[inline(always)]
+    pub fn new(out: &'o mut [Vec3], first: usize) -> Self {
+        OwnerSlice {
+            out,
+            first,
+            dense: false,
+        }
+    }
+
     /// Whether some corner is one of this piece's vertices.
     #[inline(always)]
     pub fn touches(&self, corners: &[u32; 4]) -> bool {
@@ -266,7 +461,7 @@ impl OwnerSlice<'_> {
 impl ForceSink for OwnerSlice<'_> {
     #[inline(always)]
     fn skips(&self, tets: &[[u32; 4]]) -> bool {
-        !tets.iter().any(|corners| self.touches(corners))
+        !self.dense && !tets.iter().any(|corners| self.touches(corners))
     }
 
     #[inline(always)]
@@ -292,7 +487,7 @@ impl ForceSink for OwnerSlice<'_> {
 
 /// The energies of one energy piece of the owner-computes fused pass, written element by
 /// element.
-struct EnergySlots<'o> {
+pub(super) struct EnergySlots<'o> {
     /// The energies of elements `first..end` (J).
     energies: &'o mut [Real],
     first: usize,
@@ -308,11 +503,23 @@ impl EnergySink for EnergySlots<'_> {
         start < self.end && start + count > self.first
     }
 
+    /// A group wholly in the piece is stored four lanes at a time; one that straddles its
+    /// ends lane by lane (each lane's slot is the same either way).
     #[inline(always)]
     fn add_group<L: LaneArray>(&mut self, i: usize, terms: L) {
         let values = terms.to_lane_array();
-        for lane in 0..L::WIDTH {
-            self.add_single(i + lane, L::lane_value(&values, lane));
+        // Below `first` the index wraps past any slice length.
+        let start = (self.pass_first + i).wrapping_sub(self.first);
+        let slots = self.energies.get_mut(start..).unwrap_or(&mut []);
+        if slots.len() >= L::WIDTH {
+            let quarters = slots.chunks_exact_mut(LANES).take(L::WIDTH / LANES);
+            for (q, quarter) in quarters.enumerate() {
+                quarter.copy_from_slice(&L::quarter(&values, q).to_array());
+            }
+        } else {
+            for lane in 0..L::WIDTH {
+                self.add_single(i + lane, L::lane_value(&values, lane));
+            }
         }
     }
 
@@ -324,4 +531,17 @@ impl EnergySink for EnergySlots<'_> {
             *energy = term;
         }
     }
+}
+
+/// The span of the one vertex piece `piece` (empty, and so refused, for `usize::MAX`).
+#[inline]
+pub(super) fn one_piece(piece: usize) -> Range<usize> {
+    piece..piece.saturating_add(1)
+}
+
+/// The union of chunks `pieces` of length `chunk` of `0..len` (empty past the end).
+#[inline]
+pub(super) fn chunk_span(pieces: &Range<usize>, chunk: usize, len: usize) -> Range<usize> {
+    let start = pieces.start.saturating_mul(chunk).min(len);
+    start..pieces.end.saturating_mul(chunk).clamp(start, len)
 }

@@ -2,6 +2,8 @@
 //! [`TetMesh::add_elastic_forces_principal`] and [`TetMesh::add_elastic_forces_clamped`]; their
 //! vertex pieces are [`gather_forces`](TetPartition::gather_forces), as for the direct pass.
 
+use core::ops::Range;
+
 use super::super::super::lanes::LANES;
 use super::super::super::material::Material;
 use super::super::super::math::BATCH_SVD;
@@ -11,7 +13,7 @@ use super::super::super::types::{Mat3, Real, Vec3};
 use super::super::TetMesh;
 use super::super::grouped::{ClampedStress, PrincipalStress, SvdForces, SvdStress, tet_groups};
 use super::super::{check_clamp_threshold, check_length, check_positions, gather};
-use super::owner::OwnerSlice;
+use super::owner::{OwnerSlice, one_piece};
 use super::{ElementForces, TetPartition, grouped_len};
 use crate::error::{Buffer, MeshError};
 
@@ -117,7 +119,20 @@ impl TetPartition<'_> {
         piece: usize,
         out: &mut [Vec3],
     ) -> Result<(), MeshError> {
-        self.owner_svd_forces(material, positions, piece, out, PrincipalStress(material))
+        let pieces = one_piece(piece);
+        self.owner_svd_forces(material, positions, pieces, out, PrincipalStress(material))
+    }
+
+    /// [`add_forces_principal_owned`](Self::add_forces_principal_owned) for the consecutive
+    /// vertex pieces `pieces` as one owner (`out` their slices, end to end).
+    pub(crate) fn add_forces_principal_span<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        pieces: Range<usize>,
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        self.owner_svd_forces(material, positions, pieces, out, PrincipalStress(material))
     }
 
     /// Owner piece `piece` of the owner-computes clamped force pass (**not an energy gradient:
@@ -138,33 +153,44 @@ impl TetPartition<'_> {
         piece: usize,
         out: &mut [Vec3],
     ) -> Result<(), MeshError> {
+        let pieces = one_piece(piece);
+        self.add_forces_clamped_span(material, threshold, positions, pieces, out)
+    }
+
+    /// [`add_forces_clamped_owned`](Self::add_forces_clamped_owned) for the consecutive vertex
+    /// pieces `pieces` as one owner (`out` their slices, end to end).
+    pub(crate) fn add_forces_clamped_span<M: Material>(
+        &self,
+        material: &M,
+        threshold: Real,
+        positions: &[Vec3],
+        pieces: Range<usize>,
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
         check_clamp_threshold(threshold)?;
         let stress = ClampedStress {
             material,
             threshold,
         };
-        self.owner_svd_forces(material, positions, piece, out, stress)
+        self.owner_svd_forces(material, positions, pieces, out, stress)
     }
 
-    /// The owner piece of the principal-path passes, with `stress` mapping an SVD of `F` to
-    /// `P`: the sequential loop ([`SvdForces`] at the SIMD width it runs at) over the elements
-    /// incident to the piece's vertices.
+    /// The owner span `pieces` of the principal-path passes, with `stress` mapping an SVD of
+    /// `F` to `P`: the sequential loop ([`SvdForces`] at the SIMD width it runs at) over the
+    /// elements incident to the span's vertices.
     fn owner_svd_forces<M: Material>(
         &self,
         material: &M,
         positions: &[Vec3],
-        piece: usize,
+        pieces: Range<usize>,
         out: &mut [Vec3],
         stress: impl SvdStress,
     ) -> Result<(), MeshError> {
-        let vertices = self.owner_vertices(positions, piece, out.len())?;
-        let Some(elements) = self.incident_elements(piece) else {
+        let vertices = self.owner_vertices(positions, pieces.clone(), out.len())?;
+        let Some(elements) = self.span_elements(pieces) else {
             return Ok(()); // No element touches these vertices.
         };
-        let forces = OwnerSlice {
-            out,
-            first: vertices.start,
-        };
+        let forces = OwnerSlice::new(out, vertices.start);
         let job = SvdForces { forces, stress };
         self.owner_pass(material, positions, elements, job, BATCH_SVD);
         Ok(())
