@@ -119,8 +119,7 @@ impl TetPartition<'_> {
         piece: usize,
         out: &mut [Vec3],
     ) -> Result<(), MeshError> {
-        let pieces = one_piece(piece);
-        self.owner_svd_forces(material, positions, pieces, out, PrincipalStress(material))
+        self.add_forces_principal_span(material, positions, one_piece(piece), out)
     }
 
     /// [`add_forces_principal_owned`](Self::add_forces_principal_owned) for the consecutive
