@@ -112,6 +112,8 @@ impl TetMesh<'_> {
             cache,
             direction,
             out,
+            first: 0,
+            dense: true,
         });
         Ok(())
     }
@@ -149,14 +151,38 @@ impl TetMesh<'_> {
 /// lane runs [`TetHessian::product`]'s arithmetic in its order; the products are added at the
 /// corners element by element and corner by corner in order. So every width gives the bits of
 /// the one-at-a-time loop.
-struct Product<'k> {
-    tets: &'k [[u32; 4]],
-    cache: &'k [TetHessian],
-    direction: &'k [Vec3],
-    out: &'k mut [Vec3],
+///
+/// `out` holds the products of the vertices from `first` on (0 for the whole mesh; an owner
+/// piece's slice in a partition, `partition/hessian.rs`): corners outside it are skipped. Unless
+/// `dense` (every element touches `out`), elements that touch none of its vertices are skipped
+/// one at a time, and groups where none does.
+pub(super) struct Product<'k> {
+    pub tets: &'k [[u32; 4]],
+    pub cache: &'k [TetHessian],
+    pub direction: &'k [Vec3],
+    pub out: &'k mut [Vec3],
+    pub first: usize,
+    pub dense: bool,
 }
 
 impl Product<'_> {
+    /// Whether some corner is one of `out`'s vertices (below `first` the index wraps past any
+    /// slice length).
+    #[inline(always)]
+    fn touches(&self, corners: &[u32; 4]) -> bool {
+        corners
+            .iter()
+            .any(|&v| (v as usize).wrapping_sub(self.first) < self.out.len())
+    }
+
+    /// Adds `value` at vertex `vertex` if it is one of `out`'s.
+    #[inline(always)]
+    fn add(&mut self, vertex: u32, value: Vec3) {
+        if let Some(slot) = self.out.get_mut((vertex as usize).wrapping_sub(self.first)) {
+            *slot += value;
+        }
+    }
+
     /// The whole groups of `L::WIDTH` elements from element `first` on; returns the first
     /// element after them.
     #[inline(always)]
@@ -171,6 +197,9 @@ impl Product<'_> {
             let Some(hessians) = cache.get(group * width..(group + 1) * width) else {
                 break;
             };
+            if !self.dense && !corners.iter().any(|tet| self.touches(tet)) {
+                continue;
+            }
             // The direction at the corners, `[corner][axis]`, one value per lane.
             let mut v = [[L::ZEROS; 3]; 4];
             // Lane by lane up to the constant width (not over the slice), so that the loops
@@ -217,13 +246,12 @@ impl Product<'_> {
                     continue;
                 };
                 for ([x, y, z], &i) in h.iter().zip(tet) {
-                    if let Some(slot) = self.out.get_mut(i as usize) {
-                        *slot += Vec3::new(
-                            L::lane_value(x, lane),
-                            L::lane_value(y, lane),
-                            L::lane_value(z, lane),
-                        );
-                    }
+                    let value = Vec3::new(
+                        L::lane_value(x, lane),
+                        L::lane_value(y, lane),
+                        L::lane_value(z, lane),
+                    );
+                    self.add(i, value);
                 }
             }
         }
@@ -236,6 +264,9 @@ impl Product<'_> {
         let tets = self.tets.get(first..).unwrap_or(&[]);
         let cache = self.cache.get(first..).unwrap_or(&[]);
         for (corners, hessian) in tets.iter().zip(cache) {
+            if !self.dense && !self.touches(corners) {
+                continue;
+            }
             let v = gather(self.direction, corners);
             let [v0, v1, v2, v3] = v;
             let [h0, h1, h2, h3] = TetHessian::lanes_product(
@@ -248,7 +279,9 @@ impl Product<'_> {
                 Vec3::from_array(h2),
                 Vec3::from_array(h3),
             ];
-            scatter_add(self.out, corners, h);
+            for (&i, value) in corners.iter().zip(h) {
+                self.add(i, value);
+            }
         }
     }
 }
