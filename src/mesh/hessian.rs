@@ -6,7 +6,9 @@
 //! The cache costs one SVD per element to build ([`TetMesh::projected_hessians`]) and 180
 //! bytes per element in f32 (360 in f64); products and blocks then read it without any SVD.
 //! Elements are visited in index order and their contributions added at their corners in corner
-//! order, so results are the same bits on every target.
+//! order, so results are the same bits on every target. The tetrahedral product takes the
+//! elements in groups of the SIMD width's lanes (as the force passes, [`crate::simd`]), each
+//! lane with one element's arithmetic in its order: the same bits at every width.
 
 use super::super::element::{MembraneHessian, TetHessian, TriHessian, TriangleStVK};
 use super::super::lanes::{LaneArray, Lanes};
