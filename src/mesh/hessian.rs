@@ -210,14 +210,11 @@ impl Product<'_> {
                 let Some(tet) = corners.get(lane) else {
                     continue;
                 };
-                for (axes, &i) in v.iter_mut().zip(tet) {
-                    let d = self
-                        .direction
-                        .get(i as usize)
-                        .copied()
-                        .unwrap_or(Vec3::ZERO);
-                    for (axis, value) in axes.iter_mut().zip([d.x, d.y, d.z]) {
-                        L::set_lane_value(axis, lane, value);
+                for ([x, y, z], &i) in v.iter_mut().zip(tet) {
+                    if let Some(d) = self.direction.get(i as usize) {
+                        L::set_lane_value(x, lane, d.x);
+                        L::set_lane_value(y, lane, d.y);
+                        L::set_lane_value(z, lane, d.z);
                     }
                 }
             }
