@@ -5,6 +5,17 @@
 
 mod common;
 
+use std::sync::{Mutex, MutexGuard};
+
+/// The SIMD width cap is process-wide; the tests that set it take turns.
+static WIDTH_LOCK: Mutex<()> = Mutex::new(());
+
+fn lock_width() -> MutexGuard<'static, ()> {
+    WIDTH_LOCK
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
 macro_rules! hessian_tests {
     ($precision:ident, $($api:ident)::+) => {
         #[allow(dead_code)] // `material_helpers!` brings helpers this suite does not use.
@@ -472,6 +483,54 @@ macro_rules! hessian_tests {
                             "vertex {i} axis {axis}");
                     }
                 }
+            }
+
+            /// The mesh product takes the elements in groups of the SIMD width's lanes: at every
+            /// width this machine has (and each narrower one forced), for every element count
+            /// from 1 to 40 (every tail of every group width), it is bit for bit the sum of the
+            /// element products, element by element and corner by corner in order.
+            #[test]
+            fn mesh_product_is_bitwise_the_element_sum_at_every_width() {
+                use softfem::simd::{self, Width};
+                let (nv, nt) = box_counts(4, 2, 1, BoxSplit::Kuhn6).unwrap();
+                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
+                fill_box(Vec3::ZERO, Vec3::new(0.4, 0.2, 0.1), 4, 2, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let model = NeoHookean::from_young_poisson(1.0e6, 0.3).unwrap();
+                let mut rng = Rng::new(23);
+                // Squashed and sheared with a wobble: indefinite exact Hessians, so the
+                // projection is at work in the cache.
+                let x: Vec<Vec3> = rest
+                    .iter()
+                    .map(|p| Vec3::new(p.x + 0.3 * p.z, p.y * 0.9, p.z * 0.7) + to_vec3(rng.vector()) * 2e-3)
+                    .collect();
+                let d: Vec<Vec3> = (0..nv).map(|_| to_vec3(rng.vector() * 0.1)).collect();
+                let _guard = crate::lock_width();
+                let widths: Vec<Width> =
+                    Width::ALL.into_iter().filter(|w| *w <= simd::detected_width()).collect();
+                for len in 1..=40.min(nt) {
+                    let mut rest_data = vec![TetRest::default(); len];
+                    let mesh = TetMesh::new(&rest, &tets[..len], &mut rest_data).unwrap();
+                    let mut cache = vec![TetHessian::default(); len];
+                    mesh.projected_hessians(&model, &x, &mut cache).unwrap();
+                    let mut sum = vec![Vec3::ZERO; nv];
+                    for ((corners, tet), hessian) in tets[..len].iter().zip(mesh.rest()).zip(&cache) {
+                        let v = corners.map(|c| d[c as usize]);
+                        for (k, f) in hessian.product(tet, v).into_iter().enumerate() {
+                            sum[corners[k] as usize] += f;
+                        }
+                    }
+                    for &width in &widths {
+                        simd::set_max_width(width);
+                        assert_eq!(simd::active_width(), width);
+                        let mut out = vec![Vec3::ZERO; nv];
+                        mesh.add_hessian_product(&cache, &d, &mut out).unwrap();
+                        let bits = |v: &[Vec3]| -> Vec<[u64; 3]> {
+                            v.iter().map(|p| [p.x, p.y, p.z].map(|c| f64::from(c).to_bits())).collect()
+                        };
+                        assert_eq!(bits(&out), bits(&sum), "{len} elements at {width:?}");
+                    }
+                }
+                simd::set_max_width(Width::Avx512);
             }
 
             #[test]

@@ -14,9 +14,10 @@
 //! With the projected `dP/dF` ([`Material::projected_stress_derivative`]) the 12x12 is
 //! symmetric positive semi-definite: `v^T H v = V dF : D : dF >= 0`.
 
+use super::super::lanes::Lane;
 use super::super::material::{Material, StressDerivative};
 use super::super::svd::svd3;
-use super::super::types::{Mat3, Vec3};
+use super::super::types::{Mat3, Real, Vec3};
 use super::TetRest;
 
 /// The cached second-derivative data of one tetrahedron: its projected (SPD) stiffness on the
@@ -97,13 +98,52 @@ impl TetHessian {
     #[must_use]
     pub fn product(&self, _rest: &TetRest, v: [Vec3; 4]) -> [Vec3; 4] {
         let [v0, v1, v2, v3] = v;
-        let (e1, e2, e3) = (v1 - v0, v2 - v0, v3 - v0);
-        let h = self
-            .stiffness
-            .apply_array(&[e1.x, e1.y, e1.z, e2.x, e2.y, e2.z, e3.x, e3.y, e3.z]);
-        let [a, b, c, d, e, f, g, i, j] = h;
-        let (h1, h2, h3) = (Vec3::new(a, b, c), Vec3::new(d, e, f), Vec3::new(g, i, j));
-        [-(h1 + h2 + h3), h1, h2, h3]
+        let [h0, h1, h2, h3] = Self::lanes_product(
+            |k| self.packed_entry(k),
+            [v0.to_array(), v1.to_array(), v2.to_array(), v3.to_array()],
+        );
+        [
+            Vec3::from_array(h0),
+            Vec3::from_array(h1),
+            Vec3::from_array(h2),
+            Vec3::from_array(h3),
+        ]
+    }
+
+    /// Packed entry `k` of `K` (the storage order of [`StressDerivative`]); 0 past the last.
+    #[inline(always)]
+    pub(crate) fn packed_entry(&self, k: usize) -> Real {
+        self.stiffness.packed_entry(k)
+    }
+
+    /// [`product`](TetHessian::product) of any [`Lane`] type, coordinate by coordinate
+    /// (`v[corner][axis]`): `K` has packed entry `k` `entry(k)`. Each lane gets the bits of
+    /// one element at a time: the edges `v_a - v_0`, `K` times them (in the order of
+    /// [`StressDerivative::symmetric_product`]), and corner 0's `-((h_1 + h_2) + h_3)`.
+    #[inline(always)]
+    pub(crate) fn lanes_product<L: Lane>(
+        entry: impl Fn(usize) -> L,
+        v: [[L; 3]; 4],
+    ) -> [[L; 3]; 4] {
+        let [[x0, y0, z0], [x1, y1, z1], [x2, y2, z2], [x3, y3, z3]] = v;
+        let edges = [
+            x1 - x0,
+            y1 - y0,
+            z1 - z0,
+            x2 - x0,
+            y2 - y0,
+            z2 - z0,
+            x3 - x0,
+            y3 - y0,
+            z3 - z0,
+        ];
+        let [a, b, c, d, e, f, g, i, j] = StressDerivative::symmetric_product(entry, &edges);
+        [
+            [-(a + d + g), -(b + e + i), -(c + f + j)],
+            [a, b, c],
+            [d, e, f],
+            [g, i, j],
+        ]
     }
 
     /// The 3x3 diagonal block of the element Hessian for corner `corner` (0..4; N/m),

@@ -27,6 +27,7 @@
 //! derivative is symmetric positive semi-definite by construction; where every eigenvalue is
 //! already `>= 0` it is the exact derivative, assembled from the same eigensystem.
 
+use super::super::lanes::Lane;
 use super::super::math;
 use super::super::svd::Svd3;
 use super::super::types::{Mat3, Real, Vec3};
@@ -77,6 +78,116 @@ impl Default for StressDerivative {
     }
 }
 
+impl StressDerivative {
+    /// `a x` for the symmetric 9x9 `a` whose packed entry `k` (upper triangle, row by row, as
+    /// [`StressDerivative`] stores it) is `entry(k)`, for any [`Lane`] type: `out_j = (0 + a_0j
+    /// x_0 + ... + a_(j-1)j x_(j-1)) + (a_jj x_j + ... + a_j8 x_8)`, each parenthesis summed left
+    /// to right: the order of the row sweep that [`apply_array`](Self::apply_array) was (row `i`
+    /// adds its entries times `x_i` to the later `out_j`, then its own dot product to `out_i`),
+    /// written out so that it compiles without loops or bounds checks, and so that every lane of
+    /// a group of elements gets the bits of one element at a time.
+    #[inline(always)]
+    pub(crate) fn symmetric_product<L: Lane>(entry: impl Fn(usize) -> L, x: &[L; 9]) -> [L; 9] {
+        let a00 = entry(0);
+        let a01 = entry(1);
+        let a02 = entry(2);
+        let a03 = entry(3);
+        let a04 = entry(4);
+        let a05 = entry(5);
+        let a06 = entry(6);
+        let a07 = entry(7);
+        let a08 = entry(8);
+        let a11 = entry(9);
+        let a12 = entry(10);
+        let a13 = entry(11);
+        let a14 = entry(12);
+        let a15 = entry(13);
+        let a16 = entry(14);
+        let a17 = entry(15);
+        let a18 = entry(16);
+        let a22 = entry(17);
+        let a23 = entry(18);
+        let a24 = entry(19);
+        let a25 = entry(20);
+        let a26 = entry(21);
+        let a27 = entry(22);
+        let a28 = entry(23);
+        let a33 = entry(24);
+        let a34 = entry(25);
+        let a35 = entry(26);
+        let a36 = entry(27);
+        let a37 = entry(28);
+        let a38 = entry(29);
+        let a44 = entry(30);
+        let a45 = entry(31);
+        let a46 = entry(32);
+        let a47 = entry(33);
+        let a48 = entry(34);
+        let a55 = entry(35);
+        let a56 = entry(36);
+        let a57 = entry(37);
+        let a58 = entry(38);
+        let a66 = entry(39);
+        let a67 = entry(40);
+        let a68 = entry(41);
+        let a77 = entry(42);
+        let a78 = entry(43);
+        let a88 = entry(44);
+        let [x0, x1, x2, x3, x4, x5, x6, x7, x8] = *x;
+        let zero = L::splat(0.0);
+        let y0 = (zero)
+            + (a00 * x0
+                + a01 * x1
+                + a02 * x2
+                + a03 * x3
+                + a04 * x4
+                + a05 * x5
+                + a06 * x6
+                + a07 * x7
+                + a08 * x8);
+        let y1 = (zero + a01 * x0)
+            + (a11 * x1
+                + a12 * x2
+                + a13 * x3
+                + a14 * x4
+                + a15 * x5
+                + a16 * x6
+                + a17 * x7
+                + a18 * x8);
+        let y2 = (zero + a02 * x0 + a12 * x1)
+            + (a22 * x2 + a23 * x3 + a24 * x4 + a25 * x5 + a26 * x6 + a27 * x7 + a28 * x8);
+        let y3 = (zero + a03 * x0 + a13 * x1 + a23 * x2)
+            + (a33 * x3 + a34 * x4 + a35 * x5 + a36 * x6 + a37 * x7 + a38 * x8);
+        let y4 = (zero + a04 * x0 + a14 * x1 + a24 * x2 + a34 * x3)
+            + (a44 * x4 + a45 * x5 + a46 * x6 + a47 * x7 + a48 * x8);
+        let y5 = (zero + a05 * x0 + a15 * x1 + a25 * x2 + a35 * x3 + a45 * x4)
+            + (a55 * x5 + a56 * x6 + a57 * x7 + a58 * x8);
+        let y6 = (zero + a06 * x0 + a16 * x1 + a26 * x2 + a36 * x3 + a46 * x4 + a56 * x5)
+            + (a66 * x6 + a67 * x7 + a68 * x8);
+        let y7 =
+            (zero + a07 * x0 + a17 * x1 + a27 * x2 + a37 * x3 + a47 * x4 + a57 * x5 + a67 * x6)
+                + (a77 * x7 + a78 * x8);
+        let y8 = (zero
+            + a08 * x0
+            + a18 * x1
+            + a28 * x2
+            + a38 * x3
+            + a48 * x4
+            + a58 * x5
+            + a68 * x6
+            + a78 * x7)
+            + (a88 * x8);
+        [y0, y1, y2, y3, y4, y5, y6, y7, y8]
+    }
+
+    /// Packed entry `k` (the storage order of [`symmetric_product`](Self::symmetric_product));
+    /// 0 past the last.
+    #[inline(always)]
+    pub(crate) fn packed_entry(&self, k: usize) -> Real {
+        self.packed.get(k).copied().unwrap_or(0.0)
+    }
+}
+
 /// The packed position of `(i, j)`, `i, j < 9`.
 #[inline(always)]
 const fn packed_index(i: usize, j: usize) -> usize {
@@ -110,28 +221,7 @@ impl StressDerivative {
     /// later `out_j` (symmetry), rows in order.
     #[inline]
     pub(crate) fn apply_array(&self, x: &[Real; 9]) -> [Real; 9] {
-        let mut out = [0.0; 9];
-        let mut rows: &[Real] = &self.packed;
-        for i in 0..9 {
-            let Some((row, rest)) = rows.split_at_checked(9 - i) else {
-                break;
-            };
-            rows = rest;
-            let (Some((&diagonal, right)), Some((&xi, x_right)), Some((oi, out_right))) = (
-                row.split_first(),
-                x.get(i..).and_then(<[Real]>::split_first),
-                out.get_mut(i..).and_then(<[Real]>::split_first_mut),
-            ) else {
-                break;
-            };
-            let mut sum = diagonal * xi;
-            for ((&a, &xj), oj) in right.iter().zip(x_right).zip(out_right.iter_mut()) {
-                sum += a * xj;
-                *oj += a * xi;
-            }
-            *oi += sum;
-        }
-        out
+        Self::symmetric_product(|k| self.packed_entry(k), x)
     }
 
     /// This derivative times `factor` (e.g. a rest volume, giving J per unit of `F^2`).

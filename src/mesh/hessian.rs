@@ -6,9 +6,16 @@
 //! The cache costs one SVD per element to build ([`TetMesh::projected_hessians`]) and 180
 //! bytes per element in f32 (360 in f64); products and blocks then read it without any SVD.
 //! Elements are visited in index order and their contributions added at their corners in corner
-//! order, so results are the same bits on every target.
+//! order, so results are the same bits on every target. The tetrahedral product takes the
+//! elements in groups of the SIMD width's lanes (as the force passes, [`crate::simd`]), each
+//! lane with one element's arithmetic in its order: the same bits at every width.
 
 use super::super::element::{MembraneHessian, TetHessian, TriHessian, TriangleStVK};
+use super::super::lanes::{LaneArray, Lanes};
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes_avx2::Avx2Lanes;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes_avx512::Avx512Lanes;
 use super::super::material::Material;
 use super::super::math::BATCH_SVD;
 use super::super::svd::svd3_lanes;
@@ -18,6 +25,7 @@ use super::{
     scatter_add,
 };
 use crate::error::{Buffer, MeshError};
+use crate::simd::{WidthKernel, dispatch};
 
 impl TetMesh<'_> {
     /// Writes the projected (SPD) Hessian data of every tetrahedron of `material` at deformed
@@ -101,11 +109,14 @@ impl TetMesh<'_> {
         check_length(Buffer::Direction, self.vertex_count(), direction.len())?;
         check_length(Buffer::Products, self.vertex_count(), out.len())?;
         check_finite(direction, |vertex| MeshError::NonFiniteDirection { vertex })?;
-        let elements = self.tets().iter().zip(self.rest());
-        for ((corners, rest), hessian) in elements.zip(cache) {
-            let product = hessian.product(rest, gather(direction, corners));
-            scatter_add(out, corners, product);
-        }
+        dispatch(Product {
+            tets: self.tets(),
+            cache,
+            direction,
+            out,
+            first: 0,
+            dense: true,
+        });
         Ok(())
     }
 
@@ -133,6 +144,176 @@ impl TetMesh<'_> {
             }
         }
         Ok(())
+    }
+}
+
+/// The element loop of [`TetMesh::add_hessian_product`] at the width [`dispatch`] picks: whole
+/// groups of the widest lanes first, then narrower ones, then one element at a time (as the
+/// force passes). A group gathers its direction and its cached entries lane by lane, and every
+/// lane runs [`TetHessian::product`]'s arithmetic in its order; the products are added at the
+/// corners element by element and corner by corner in order. So every width gives the bits of
+/// the one-at-a-time loop.
+///
+/// `out` holds the products of the vertices from `first` on (0 for the whole mesh; an owner
+/// piece's slice in a partition, `partition/hessian.rs`): corners outside it are skipped. Unless
+/// `dense` (every element touches `out`), elements that touch none of its vertices are skipped
+/// one at a time, and groups where none does.
+pub(super) struct Product<'k> {
+    pub tets: &'k [[u32; 4]],
+    pub cache: &'k [TetHessian],
+    pub direction: &'k [Vec3],
+    pub out: &'k mut [Vec3],
+    pub first: usize,
+    pub dense: bool,
+}
+
+impl Product<'_> {
+    /// Whether some corner is one of `out`'s vertices (below `first` the index wraps past any
+    /// slice length).
+    #[inline(always)]
+    fn touches(&self, corners: &[u32; 4]) -> bool {
+        corners
+            .iter()
+            .any(|&v| (v as usize).wrapping_sub(self.first) < self.out.len())
+    }
+
+    /// Adds `value` at vertex `vertex` if it is one of `out`'s.
+    #[inline(always)]
+    fn add(&mut self, vertex: u32, value: Vec3) {
+        if let Some(slot) = self.out.get_mut((vertex as usize).wrapping_sub(self.first)) {
+            *slot += value;
+        }
+    }
+
+    /// The whole groups of `L::WIDTH` elements from element `first` on; returns the first
+    /// element after them.
+    #[inline(always)]
+    fn groups<L: LaneArray>(&mut self, first: usize) -> usize {
+        let width = L::WIDTH;
+        let tets = self.tets.get(first..).unwrap_or(&[]);
+        let cache = self.cache.get(first..).unwrap_or(&[]);
+        let whole = tets.len() - tets.len() % width;
+        let groups = tets.get(..whole).unwrap_or(&[]).chunks_exact(width);
+        for (group, corners) in groups.enumerate() {
+            // Indexed rather than a second `chunks_exact` zipped in: no division check.
+            let Some(hessians) = cache.get(group * width..(group + 1) * width) else {
+                break;
+            };
+            if !self.dense && !corners.iter().any(|tet| self.touches(tet)) {
+                continue;
+            }
+            // The direction at the corners, `[corner][axis]`, one value per lane.
+            let mut v = [[L::ZEROS; 3]; 4];
+            // Lane by lane up to the constant width (not over the slice), so that the loops
+            // unroll and the lane arrays stay in registers.
+            for lane in 0..width {
+                let Some(tet) = corners.get(lane) else {
+                    continue;
+                };
+                for ([x, y, z], &i) in v.iter_mut().zip(tet) {
+                    if let Some(d) = self.direction.get(i as usize) {
+                        L::set_lane_value(x, lane, d.x);
+                        L::set_lane_value(y, lane, d.y);
+                        L::set_lane_value(z, lane, d.z);
+                    }
+                }
+            }
+            let lanes = |[x, y, z]: [L::Array; 3]| {
+                [
+                    L::from_lane_array(x),
+                    L::from_lane_array(y),
+                    L::from_lane_array(z),
+                ]
+            };
+            let [v0, v1, v2, v3] = v;
+            let entry = |k: usize| {
+                let mut values = L::ZEROS;
+                for lane in 0..width {
+                    if let Some(hessian) = hessians.get(lane) {
+                        L::set_lane_value(&mut values, lane, hessian.packed_entry(k));
+                    }
+                }
+                L::from_lane_array(values)
+            };
+            let h = TetHessian::lanes_product(entry, [lanes(v0), lanes(v1), lanes(v2), lanes(v3)]);
+            let arrays =
+                |[x, y, z]: [L; 3]| [x.to_lane_array(), y.to_lane_array(), z.to_lane_array()];
+            let [h0, h1, h2, h3] = h;
+            let h = [arrays(h0), arrays(h1), arrays(h2), arrays(h3)];
+            for lane in 0..width {
+                let Some(tet) = corners.get(lane) else {
+                    continue;
+                };
+                for ([x, y, z], &i) in h.iter().zip(tet) {
+                    let value = Vec3::new(
+                        L::lane_value(x, lane),
+                        L::lane_value(y, lane),
+                        L::lane_value(z, lane),
+                    );
+                    self.add(i, value);
+                }
+            }
+        }
+        first + whole
+    }
+
+    /// The elements from `first` on, one at a time.
+    #[inline(always)]
+    fn singles(&mut self, first: usize) {
+        let tets = self.tets.get(first..).unwrap_or(&[]);
+        let cache = self.cache.get(first..).unwrap_or(&[]);
+        for (corners, hessian) in tets.iter().zip(cache) {
+            if !self.dense && !self.touches(corners) {
+                continue;
+            }
+            let v = gather(self.direction, corners);
+            let [v0, v1, v2, v3] = v;
+            let [h0, h1, h2, h3] = TetHessian::lanes_product(
+                |k| hessian.packed_entry(k),
+                [v0.to_array(), v1.to_array(), v2.to_array(), v3.to_array()],
+            );
+            let h = [
+                Vec3::from_array(h0),
+                Vec3::from_array(h1),
+                Vec3::from_array(h2),
+                Vec3::from_array(h3),
+            ];
+            for (&i, value) in corners.iter().zip(h) {
+                self.add(i, value);
+            }
+        }
+    }
+}
+
+impl WidthKernel for Product<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn scalar(mut self) {
+        self.singles(0);
+    }
+
+    #[inline(always)]
+    fn sse(mut self) {
+        let first = self.groups::<Lanes>(0);
+        self.singles(first);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn avx2(mut self) {
+        let first = self.groups::<Avx2Lanes>(0);
+        let first = self.groups::<Lanes>(first);
+        self.singles(first);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn avx512(mut self) {
+        let first = self.groups::<Avx512Lanes>(0);
+        let first = self.groups::<Avx2Lanes>(first);
+        let first = self.groups::<Lanes>(first);
+        self.singles(first);
     }
 }
 

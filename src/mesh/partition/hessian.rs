@@ -16,11 +16,13 @@ use super::super::super::svd::svd3_lanes;
 use super::super::super::types::{Mat3, Vec3};
 #[cfg(doc)]
 use super::super::TetMesh;
-use super::super::grouped::{ForceSink, tet_groups};
+use super::super::grouped::tet_groups;
+use super::super::hessian::Product;
 use super::super::{check_finite, check_length, check_positions, gather};
-use super::owner::{OwnerSlice, one_piece};
+use super::owner::one_piece;
 use super::{ElementForces, TetPartition, grouped_len};
 use crate::error::{Buffer, MeshError};
+use crate::simd::dispatch;
 
 impl<'a> TetPartition<'a> {
     /// The check of a partitioned [`TetMesh::projected_hessians`], its tests in its order.
@@ -168,16 +170,17 @@ impl<'a> TetPartition<'a> {
         let Some(elements) = self.span_elements(pieces) else {
             return Ok(()); // No element touches these vertices.
         };
-        let mut owner = OwnerSlice::new(out, vertices.start);
         for (range, dense) in elements.parts() {
-            let tets = self.mesh.tets().get(range.clone()).unwrap_or(&[]);
-            let rests = self.mesh.rest().get(range.clone()).unwrap_or(&[]);
-            let hessians = cache.get(range).unwrap_or(&[]);
-            for ((corners, rest), hessian) in tets.iter().zip(rests).zip(hessians) {
-                if dense || owner.touches(corners) {
-                    owner.add(corners, hessian.product(rest, gather(direction, corners)));
-                }
-            }
+            // The sequential product's kernel on the part (its groups of the SIMD width's
+            // lanes, the same bits), restricted to this owner's vertices.
+            dispatch(Product {
+                tets: self.mesh.tets().get(range.clone()).unwrap_or(&[]),
+                cache: cache.get(range).unwrap_or(&[]),
+                direction,
+                out: &mut *out,
+                first: vertices.start,
+                dense,
+            });
         }
         Ok(())
     }
