@@ -110,25 +110,30 @@ pub(super) struct WideGradients<L> {
 /// lane.
 type CornerArrays<L> = [[<L as LaneArray>::Array; 3]; 4];
 
+/// Elements `4 q..4 q + 4` of a group's `items` (a quarter of the group), if it has them.
+#[inline(always)]
+fn quarter<T>(items: &[T], q: usize) -> Option<&[T; LANES]> {
+    items
+        .get(q * LANES..(q + 1) * LANES)
+        .and_then(|items| items.try_into().ok())
+}
+
 impl<L: LaneArray> WideGradients<L> {
     /// `F` of the `L::WIDTH` elements `tets` (with rest data `rests`, both exactly `L::WIDTH`
     /// long) at `positions`. The indices were validated by the mesh; the zero fallbacks only
     /// keep the loop free of panics.
     #[inline(always)]
     pub fn new(positions: &[Vec3], tets: &[[u32; 4]], rests: &[TetRest]) -> Self {
-        // Four elements at a time through the SSE transposes of `GroupGradients`, then the
-        // quarters side by side.
-        let mut corner_quarters = [[[[0.0; LANES]; 4]; 3]; 4];
-        let mut rest_quarters = [[[0.0; LANES]; 4]; 10];
-        let quarters = tets.chunks_exact(LANES).zip(rests.chunks_exact(LANES));
-        for (q, (tets, rests)) in quarters.enumerate().take(4) {
-            let (Ok(tets), Ok(rests)) = (
-                <&[[u32; 4]; LANES]>::try_from(tets),
-                <&[TetRest; LANES]>::try_from(rests),
-            ) else {
+        // Four elements at a time through the SSE transposes of `GroupGradients`, each quarter
+        // stored straight into its lanes of the wide values (no buffer of four quarters, which
+        // the narrower widths would zero in full for nothing).
+        let mut corners: CornerArrays<L> = [[L::ZEROS; 3]; 4];
+        let mut rest_values = [L::ZEROS; 10];
+        for q in 0..L::WIDTH / LANES {
+            let (Some(tets), Some(rests)) = (quarter(tets, q), quarter(rests, q)) else {
                 continue;
             };
-            for (k, corner) in corner_quarters.iter_mut().enumerate() {
+            for (k, corner) in corners.iter_mut().enumerate() {
                 let x = LaneVec3::from_vectors(each_lane(*tets, |tet| {
                     tet.get(k)
                         .and_then(|&i| positions.get(i as usize))
@@ -136,9 +141,7 @@ impl<L: LaneArray> WideGradients<L> {
                         .unwrap_or(Vec3::ZERO)
                 }));
                 for (axis, value) in corner.iter_mut().zip([x.x, x.y, x.z]) {
-                    if let Some(slot) = axis.get_mut(q) {
-                        *slot = value.to_array();
-                    }
+                    L::store_quarter(axis, q, value);
                 }
             }
             let m = LaneMat3::from_matrices(&each_lane(*rests, |rest| rest.dm_inv));
@@ -146,23 +149,9 @@ impl<L: LaneArray> WideGradients<L> {
             let values = [
                 m.c0.x, m.c0.y, m.c0.z, m.c1.x, m.c1.y, m.c1.z, m.c2.x, m.c2.y, m.c2.z, volume,
             ];
-            for (slot, value) in rest_quarters.iter_mut().zip(values) {
-                if let Some(slot) = slot.get_mut(q) {
-                    *slot = value.to_array();
-                }
+            for (slot, value) in rest_values.iter_mut().zip(values) {
+                L::store_quarter(slot, q, value);
             }
-        }
-        // Loops rather than `<[T; N]>::map`, which is not always inlined (a call would run
-        // outside the function compiled for the wide registers).
-        let mut corners: CornerArrays<L> = [[L::ZEROS; 3]; 4];
-        for (corner, quarters) in corners.iter_mut().zip(corner_quarters) {
-            for (axis, quarters) in corner.iter_mut().zip(quarters) {
-                *axis = L::from_quarters(quarters).to_lane_array();
-            }
-        }
-        let mut rest_values = [L::ZEROS; 10];
-        for (values, quarters) in rest_values.iter_mut().zip(rest_quarters) {
-            *values = L::from_quarters(quarters).to_lane_array();
         }
         let [c0, c1, c2, c3] = corners;
         let vector = |[x, y, z]: [L::Array; 3]| {
