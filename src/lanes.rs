@@ -420,18 +420,11 @@ pub(crate) trait LaneArray: Lane {
             Self::set_lane_value(values, q * LANES + j, value);
         }
     }
-    /// The group whose lanes `4 q..4 q + 4` hold `quarters[q]` (quarters past the width are
-    /// ignored): how the kernels build a wide group from 4-lane transposes, which the compiler
-    /// keeps in registers (lane-by-lane stores measured slower than the SSE lanes).
+    /// Sets lanes `4 q..4 q + 4` of `values` to `quarter` (nothing past the last lane) as
+    /// [`set_quarter`](Self::set_quarter) does, in one store of the quarter's register.
     #[inline(always)]
-    fn from_quarters(quarters: [[Real; LANES]; 4]) -> Self {
-        let mut values = Self::ZEROS;
-        for (q, quarter) in quarters.iter().enumerate().take(Self::WIDTH / LANES) {
-            for (j, &value) in quarter.iter().enumerate() {
-                Self::set_lane_value(&mut values, q * LANES + j, value);
-            }
-        }
-        Self::from_lane_array(values)
+    fn store_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+        Self::set_quarter(values, q, quarter);
     }
 }
 
@@ -460,6 +453,16 @@ pub(crate) fn set_array_quarter(values: &mut [Real], q: usize, quarter: Lanes) {
         for (slot, value) in slots.iter_mut().zip(quarter.to_array()) {
             *slot = value;
         }
+    }
+}
+
+/// [`LaneArray::store_quarter`] for a plain array: one store of the four values.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) fn store_array_quarter(values: &mut [Real], q: usize, quarter: Lanes) {
+    let slots = values.get_mut(q * LANES..(q + 1) * LANES);
+    if let Some(slots) = slots.and_then(|slots| <&mut [Real; LANES]>::try_from(slots).ok()) {
+        *slots = quarter.to_array();
     }
 }
 
@@ -493,6 +496,13 @@ impl LaneArray for Lanes {
     #[inline(always)]
     fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
         set_array_lane_value(values, lane, value);
+    }
+
+    #[inline(always)]
+    fn store_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+        if q == 0 {
+            *values = quarter.to_array();
+        }
     }
 }
 
@@ -668,6 +678,14 @@ impl<L: LaneArray> LaneArray for LanePair<L> {
         match q.checked_sub(L::WIDTH / LANES) {
             None => L::set_quarter(&mut values.0, q, quarter),
             Some(upper) => L::set_quarter(&mut values.1, upper, quarter),
+        }
+    }
+
+    #[inline(always)]
+    fn store_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+        match q.checked_sub(L::WIDTH / LANES) {
+            None => L::store_quarter(&mut values.0, q, quarter),
+            Some(upper) => L::store_quarter(&mut values.1, upper, quarter),
         }
     }
 

@@ -16,7 +16,7 @@
 
 use super::lanes::{
     Lane, LaneArray, Lanes, array_lane_value, array_quarter, set_array_lane_value,
-    set_array_quarter,
+    set_array_quarter, store_array_quarter,
 };
 use super::types::Real;
 use super::wide_ops::{
@@ -177,6 +177,11 @@ impl LaneArray for Avx2Lanes {
     #[inline(always)]
     fn set_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
         set_array_quarter(values, q, quarter);
+    }
+
+    #[inline(always)]
+    fn store_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+        store_array_quarter(values, q, quarter);
     }
 
     #[inline(always)]

@@ -17,7 +17,7 @@
 
 use super::lanes::{
     Lane, LaneArray, Lanes, array_lane_value, array_quarter, set_array_lane_value,
-    set_array_quarter,
+    set_array_quarter, store_array_quarter,
 };
 use super::types::Real;
 use super::wide_ops::{
@@ -190,6 +190,11 @@ impl LaneArray for Avx512Lanes {
     #[inline(always)]
     fn set_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
         set_array_quarter(values, q, quarter);
+    }
+
+    #[inline(always)]
+    fn store_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+        store_array_quarter(values, q, quarter);
     }
 
     #[inline(always)]

@@ -110,35 +110,65 @@ pub(super) struct WideGradients<L> {
 /// lane.
 type CornerArrays<L> = [[<L as LaneArray>::Array; 3]; 4];
 
+/// The deformed positions a grouped pass reads, at least one: read without a bounds test per
+/// corner.
+#[derive(Clone, Copy)]
+pub(super) struct Positions<'a> {
+    all: &'a [Vec3],
+    /// The index of the last position.
+    last: usize,
+}
+
+impl<'a> Positions<'a> {
+    /// `all`, unless it is empty. Built once per pass, ahead of the loop over groups, so that
+    /// the compiler knows `last < all.len()` in every [`get`](Self::get).
+    #[inline(always)]
+    pub fn new(all: &'a [Vec3]) -> Option<Self> {
+        let last = all.len().checked_sub(1)?;
+        Some(Positions { all, last })
+    }
+
+    /// The position of vertex `i`. An index past the end (never, for the indices the mesh
+    /// validated) reads the last position: `min(i, last)` is in bounds, so the test of `get`
+    /// folds away, and the loop stays free of panics and of a branch per corner.
+    #[inline(always)]
+    pub fn get(self, i: u32) -> Vec3 {
+        self.all
+            .get((i as usize).min(self.last))
+            .copied()
+            .unwrap_or(Vec3::ZERO)
+    }
+}
+
+/// Elements `4 q..4 q + 4` of a group's `items` (a quarter of the group), if it has them.
+#[inline(always)]
+fn quarter<T>(items: &[T], q: usize) -> Option<&[T; LANES]> {
+    items
+        .get(q * LANES..(q + 1) * LANES)
+        .and_then(|items| items.try_into().ok())
+}
+
 impl<L: LaneArray> WideGradients<L> {
     /// `F` of the `L::WIDTH` elements `tets` (with rest data `rests`, both exactly `L::WIDTH`
-    /// long) at `positions`. The indices were validated by the mesh; the zero fallbacks only
-    /// keep the loop free of panics.
+    /// long) at `positions`. The indices were validated by the mesh; the fallbacks only keep
+    /// the loop free of panics.
     #[inline(always)]
-    pub fn new(positions: &[Vec3], tets: &[[u32; 4]], rests: &[TetRest]) -> Self {
-        // Four elements at a time through the SSE transposes of `GroupGradients`, then the
-        // quarters side by side.
-        let mut corner_quarters = [[[[0.0; LANES]; 4]; 3]; 4];
-        let mut rest_quarters = [[[0.0; LANES]; 4]; 10];
-        let quarters = tets.chunks_exact(LANES).zip(rests.chunks_exact(LANES));
-        for (q, (tets, rests)) in quarters.enumerate().take(4) {
-            let (Ok(tets), Ok(rests)) = (
-                <&[[u32; 4]; LANES]>::try_from(tets),
-                <&[TetRest; LANES]>::try_from(rests),
-            ) else {
+    pub fn new(positions: Positions<'_>, tets: &[[u32; 4]], rests: &[TetRest]) -> Self {
+        // Four elements at a time through the SSE transposes of `GroupGradients`, each quarter
+        // stored straight into its lanes of the wide values (no buffer of four quarters, which
+        // the narrower widths would zero in full for nothing).
+        let mut corners: CornerArrays<L> = [[L::ZEROS; 3]; 4];
+        let mut rest_values = [L::ZEROS; 10];
+        for q in 0..L::WIDTH / LANES {
+            let (Some(tets), Some(rests)) = (quarter(tets, q), quarter(rests, q)) else {
                 continue;
             };
-            for (k, corner) in corner_quarters.iter_mut().enumerate() {
+            for (k, corner) in corners.iter_mut().enumerate() {
                 let x = LaneVec3::from_vectors(each_lane(*tets, |tet| {
-                    tet.get(k)
-                        .and_then(|&i| positions.get(i as usize))
-                        .copied()
-                        .unwrap_or(Vec3::ZERO)
+                    tet.get(k).map_or(Vec3::ZERO, |&i| positions.get(i))
                 }));
                 for (axis, value) in corner.iter_mut().zip([x.x, x.y, x.z]) {
-                    if let Some(slot) = axis.get_mut(q) {
-                        *slot = value.to_array();
-                    }
+                    L::store_quarter(axis, q, value);
                 }
             }
             let m = LaneMat3::from_matrices(&each_lane(*rests, |rest| rest.dm_inv));
@@ -146,23 +176,9 @@ impl<L: LaneArray> WideGradients<L> {
             let values = [
                 m.c0.x, m.c0.y, m.c0.z, m.c1.x, m.c1.y, m.c1.z, m.c2.x, m.c2.y, m.c2.z, volume,
             ];
-            for (slot, value) in rest_quarters.iter_mut().zip(values) {
-                if let Some(slot) = slot.get_mut(q) {
-                    *slot = value.to_array();
-                }
+            for (slot, value) in rest_values.iter_mut().zip(values) {
+                L::store_quarter(slot, q, value);
             }
-        }
-        // Loops rather than `<[T; N]>::map`, which is not always inlined (a call would run
-        // outside the function compiled for the wide registers).
-        let mut corners: CornerArrays<L> = [[L::ZEROS; 3]; 4];
-        for (corner, quarters) in corners.iter_mut().zip(corner_quarters) {
-            for (axis, quarters) in corner.iter_mut().zip(quarters) {
-                *axis = L::from_quarters(quarters).to_lane_array();
-            }
-        }
-        let mut rest_values = [L::ZEROS; 10];
-        for (values, quarters) in rest_values.iter_mut().zip(rest_quarters) {
-            *values = L::from_quarters(quarters).to_lane_array();
         }
         let [c0, c1, c2, c3] = corners;
         let vector = |[x, y, z]: [L::Array; 3]| {
@@ -491,6 +507,10 @@ impl<S: ForceSink> PassJob for DirectForces<S> {
         tets: &[[u32; 4]],
         rests: &[TetRest],
     ) {
+        // Nothing to read without positions (never: the mesh checked their number).
+        let Some(all) = Positions::new(positions) else {
+            return;
+        };
         for (tets, rests) in tets
             .chunks_exact(L::WIDTH)
             .zip(rests.chunks_exact(L::WIDTH))
@@ -498,7 +518,7 @@ impl<S: ForceSink> PassJob for DirectForces<S> {
             if self.0.skips(tets) {
                 continue;
             }
-            let gradients = WideGradients::<L>::new(positions, tets, rests);
+            let gradients = WideGradients::<L>::new(all, tets, rests);
             self.0
                 .add_group(&gradients, tets, material.first_piola_wide(gradients.f));
         }
@@ -539,6 +559,10 @@ impl<S: ForceSink, E: EnergySink> PassJob for EnergyAndForces<S, E> {
         tets: &[[u32; 4]],
         rests: &[TetRest],
     ) {
+        // Nothing to read without positions (never: the mesh checked their number).
+        let Some(all) = Positions::new(positions) else {
+            return;
+        };
         let groups = tets
             .chunks_exact(L::WIDTH)
             .zip(rests.chunks_exact(L::WIDTH));
@@ -546,7 +570,7 @@ impl<S: ForceSink, E: EnergySink> PassJob for EnergyAndForces<S, E> {
             if !self.energy.owes(start, L::WIDTH) && self.forces.skips(tets) {
                 continue;
             }
-            let gradients = WideGradients::<L>::new(positions, tets, rests);
+            let gradients = WideGradients::<L>::new(all, tets, rests);
             let (density, p) = material.energy_and_first_piola_wide(gradients.f);
             self.energy.add_group(start, gradients.volume * density);
             self.forces.add_group(&gradients, tets, p);
@@ -585,11 +609,15 @@ impl<E: FnMut(usize, Real)> PassJob for Energies<E> {
         tets: &[[u32; 4]],
         rests: &[TetRest],
     ) {
+        // Nothing to read without positions (never: the mesh checked their number).
+        let Some(all) = Positions::new(positions) else {
+            return;
+        };
         let groups = tets
             .chunks_exact(L::WIDTH)
             .zip(rests.chunks_exact(L::WIDTH));
         for (start, (tets, rests)) in (first..).step_by(L::WIDTH).zip(groups) {
-            let gradients = WideGradients::<L>::new(positions, tets, rests);
+            let gradients = WideGradients::<L>::new(all, tets, rests);
             let energies =
                 (gradients.volume * material.energy_density_wide(gradients.f)).to_lane_array();
             for lane in 0..L::WIDTH {
@@ -676,6 +704,10 @@ impl<F: ForceSink, S: SvdStress> PassJob for SvdForces<F, S> {
         tets: &[[u32; 4]],
         rests: &[TetRest],
     ) {
+        // Nothing to read without positions (never: the mesh checked their number).
+        let Some(all) = Positions::new(positions) else {
+            return;
+        };
         for (tets, rests) in tets
             .chunks_exact(L::WIDTH)
             .zip(rests.chunks_exact(L::WIDTH))
@@ -683,7 +715,7 @@ impl<F: ForceSink, S: SvdStress> PassJob for SvdForces<F, S> {
             if self.forces.skips(tets) {
                 continue;
             }
-            let gradients = WideGradients::<L>::new(positions, tets, rests);
+            let gradients = WideGradients::<L>::new(all, tets, rests);
             let svd = svd3_of_lanes(&gradients.f);
             self.forces
                 .add_group(&gradients, tets, self.stress.stress_wide(&svd));
