@@ -590,6 +590,53 @@ impl<'a, P: Point> Floor<'a, P> {
         }
     }
 
+    /// The projected descent direction at a vertex at `x` with gradient `g`, and its term of
+    /// the slope `g.d`: `g` constrained as a gradient, the plain step `factor g` (zero where
+    /// `positive` is given and not set), plus `momentum` times the last step `x - previous` when
+    /// `heavy_ball` is given, constrained as a direction. With colliders one contact query
+    /// serves both constraints ([`touch`](Self::touch)); without, the ground's test alone (the
+    /// two monomorphised apart, so the frictionless loop carries no collider state). The one
+    /// sequence of the relaxation's preconditioned direction and plain gradient descent.
+    #[inline(always)]
+    pub fn descent(
+        &self,
+        x: P,
+        g: P,
+        (factor, positive): (P::Scalar, Option<<P::Scalar as Lane>::Mask>),
+        heavy_ball: Option<(P, P::Scalar)>,
+    ) -> (P, P::Scalar) {
+        if self.colliders.is_empty() {
+            let contact = OnGround(self.contact(x));
+            return self.descent_along(&contact, x, g, (factor, positive), heavy_ball);
+        }
+        let touch = self.touch(x);
+        self.descent_along(&touch, x, g, (factor, positive), heavy_ball)
+    }
+
+    /// [`descent`](Self::descent) with the contacts at `x` in `at`.
+    #[inline(always)]
+    fn descent_along(
+        &self,
+        at: &impl Contacts<P>,
+        x: P,
+        g: P,
+        (factor, positive): (P::Scalar, Option<<P::Scalar as Lane>::Mask>),
+        heavy_ball: Option<(P, P::Scalar)>,
+    ) -> (P, P::Scalar) {
+        let g = at.constrain(self, g, 1.0);
+        let plain = g.scale(factor);
+        let plain = match positive {
+            Some(positive) => P::select(positive, plain, P::zero()),
+            None => plain,
+        };
+        let direction = match heavy_ball {
+            Some((previous, momentum)) => plain + (x - previous).scale(momentum),
+            None => plain,
+        };
+        let d = at.constrain(self, direction, -1.0);
+        (d, g.inner(d))
+    }
+
     /// The ground's part of [`constrain`](Self::constrain).
     #[inline(always)]
     fn constrain_ground(&self, contact: Option<<P::Scalar as Lane>::Mask>, v: P, sign: Real) -> P {
@@ -603,6 +650,30 @@ impl<'a, P: Point> Floor<'a, P> {
         let along = normal.inner(v);
         let into = (along * P::Scalar::splat(sign)).gt(P::Scalar::splat(0.0));
         P::select(contact, P::select(into, v - normal.scale(along), v), v)
+    }
+}
+
+/// The contacts of a point, queried once, for the constraints there ([`Floor::descent`]).
+trait Contacts<P: Point> {
+    /// [`Floor::constrain`] at the point.
+    fn constrain(&self, floor: &Floor<'_, P>, v: P, sign: Real) -> P;
+}
+
+/// The ground contact of a point on a floor without colliders ([`Floor::contact`]).
+struct OnGround<M>(Option<M>);
+
+impl<P: Point> Contacts<P> for OnGround<<P::Scalar as Lane>::Mask> {
+    /// Without colliders, [`Floor::constrain`] is its ground part.
+    #[inline(always)]
+    fn constrain(&self, floor: &Floor<'_, P>, v: P, sign: Real) -> P {
+        floor.constrain_ground(self.0, v, sign)
+    }
+}
+
+impl<P: Point> Contacts<P> for Touch<P> {
+    #[inline(always)]
+    fn constrain(&self, floor: &Floor<'_, P>, v: P, sign: Real) -> P {
+        floor.constrain_at(self, v, sign)
     }
 }
 
