@@ -675,8 +675,8 @@ macro_rules! mesh_tests {
                 assert_ne!(scalar.0.0, bits(&rest_x));
             }
 
-            /// Explicit steps onto a ground (restitution, friction, damping, pinned vertices)
-            /// at every width end in the bits of the scalar run, the reports too (kinetic
+            /// Explicit steps onto a ground (restitution, friction, damping, pinned vertices;
+            /// external forces) at every width end in the bits of the scalar run, the reports too (kinetic
             /// energy and contacts): the update runs each width's groups, then narrower ones,
             /// then one vertex at a time (125 vertices: groups of 16, 8 and 4 and a tail).
             #[test]
@@ -698,13 +698,16 @@ macro_rules! mesh_tests {
                 let ground = Ground::new(normal, lowest + 0.03)
                     .with_restitution(0.5)
                     .with_friction(0.4);
+                // Pushed sideways and up, every vertex differently.
+                let pushes: Vec<V> = (0..n).map(|i| V::new(0.5 * i as Real, 2.0, -1.0) * masses[i]).collect();
                 let run = || {
                     let mut results = Vec::new();
-                    for ground in [ground, ground.with_friction(0.0)] {
+                    for (ground, pushed) in [(ground, false), (ground.with_friction(0.0), false), (ground, true)] {
                         let settings = ExplicitSettings::new(dt)
                             .with_gravity(V::new(0.0, -9.81, 0.0))
                             .with_damping(0.5)
-                            .with_ground(ground);
+                            .with_ground(ground)
+                            .with_external_forces(if pushed { &pushes[..] } else { &[] });
                         let mut x = deformed.clone();
                         let mut v: Vec<V> = (0..n).map(|i| V::new(0.0, -0.5 - 0.01 * i as Real, 0.1)).collect();
                         let mut buffer = vec![V::ZERO; explicit_scratch_len(n)];

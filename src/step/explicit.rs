@@ -589,7 +589,7 @@ impl<V: Vector> Update<'_, '_, V> {
     /// (from the state before the update), the contacts, the kinetic energy (J) after it and the
     /// first vertex left non-finite.
     ///
-    /// Without colliders, external forces and fixed axes, the vertices go in groups of the
+    /// Without colliders and fixed axes, the vertices go in groups of the
     /// width [`dispatch`] picks (then narrower groups, then one at a time), each lane through
     /// the one-vertex arithmetic and the sums added vertex by vertex in order: the bits of the
     /// one-at-a-time loop, which runs the rest.
@@ -608,9 +608,7 @@ impl<V: Vector> Update<'_, '_, V> {
             state: (positions, velocities),
             inputs: (forces, previous_forces, masses, pinned),
         };
-        let plain = settings.colliders.is_empty()
-            && settings.external_forces.is_empty()
-            && settings.fixed_axes.is_empty();
+        let plain = settings.colliders.is_empty() && settings.fixed_axes.is_empty();
         let tally = if plain {
             dispatch(kernel)
         } else {
@@ -681,8 +679,8 @@ impl<V: Vector> Update<'_, '_, V> {
 
     /// [`one`](Self::one) for the `L::WIDTH` vertices from `i` on (at `x` moving at `v`,
     /// forces `f` and `previous`, masses `m`, pinned flags `pinned` or empty for none, each
-    /// chunk `L::WIDTH` long but `pinned`), without colliders, external forces and fixed axes:
-    /// every lane gets the one-vertex bits, and the sums take the lanes in order.
+    /// chunk `L::WIDTH` long but `pinned`), without colliders and fixed axes: every lane gets
+    /// the one-vertex bits, and the sums take the lanes in order.
     #[inline(always)]
     fn group<L: LaneArray>(
         &self,
@@ -707,7 +705,12 @@ impl<V: Vector> Update<'_, '_, V> {
             + splat(h * h) * f_squared / splat(8.0);
         let reversal = f.wide_inner(previous) * inverse_mass;
 
-        let acceleration = f.wide_scale(one / m) + V::Wide::<L>::wide_splat(gravity_of(settings));
+        let mut acceleration =
+            f.wide_scale(one / m) + V::Wide::<L>::wide_splat(gravity_of(settings));
+        let external = settings.external_forces.get(i..).filter(|f| !f.is_empty());
+        if let Some(external) = external {
+            acceleration = acceleration + V::Wide::<L>::load(external).wide_scale(one / m);
+        }
         let new_v = (v + acceleration.wide_scale(lanes_h)).wide_scale(drag);
         let mut new_x = x + new_v.wide_scale(lanes_h);
         let mut new_v = new_v;
