@@ -675,6 +675,59 @@ macro_rules! mesh_tests {
                 assert_ne!(scalar.0.0, bits(&rest_x));
             }
 
+            /// Explicit steps onto a ground (restitution, friction, damping, pinned vertices;
+            /// external forces) at every width end in the bits of the scalar run, the reports too (kinetic
+            /// energy and contacts): the update runs each width's groups, then narrower ones,
+            /// then one vertex at a time (125 vertices: groups of 16, 8 and 4 and a tail).
+            #[test]
+            fn explicit_ground_contacts_are_bitwise_the_scalar_run_at_every_width() {
+                use $($crate_path)::+::step::{Ground, stable_time_step};
+                let (rest_x, deformed, tets) = deformed_box(4, 0.1, 0);
+                let mut rest = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest_x, &tets, &mut rest).unwrap();
+                let model = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.45).unwrap());
+                let n = mesh.vertex_count();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let pinned: Vec<bool> = (0..n).map(|i| i % 11 == 4).collect();
+                let mut stiffness = vec![0.0; n];
+                let dt = 0.5 * stable_time_step(&model, &masses, &[], &mut stiffness).unwrap();
+                // The plane cuts the lowest layer: some vertices start inside, the rest fall.
+                let normal = V::new(0.1, 1.0, -0.05).normalize();
+                let lowest = deformed.iter().map(|&x| normal.dot(x)).fold(Real::INFINITY, Real::min);
+                let ground = Ground::new(normal, lowest + 0.03)
+                    .with_restitution(0.5)
+                    .with_friction(0.4);
+                // Pushed sideways and up, every vertex differently.
+                let pushes: Vec<V> = (0..n).map(|i| V::new(0.5 * i as Real, 2.0, -1.0) * masses[i]).collect();
+                let run = || {
+                    let mut results = Vec::new();
+                    for (ground, pushed) in [(ground, false), (ground.with_friction(0.0), false), (ground, true)] {
+                        let settings = ExplicitSettings::new(dt)
+                            .with_gravity(V::new(0.0, -9.81, 0.0))
+                            .with_damping(0.5)
+                            .with_ground(ground)
+                            .with_external_forces(if pushed { &pushes[..] } else { &[] });
+                        let mut x = deformed.clone();
+                        let mut v: Vec<V> = (0..n).map(|i| V::new(0.0, -0.5 - 0.01 * i as Real, 0.1)).collect();
+                        let mut buffer = vec![V::ZERO; explicit_scratch_len(n)];
+                        let mut reports = Vec::new();
+                        for _ in 0..8 {
+                            let mut scratch = ExplicitScratch::new(&mut buffer);
+                            let report =
+                                step_explicit(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                            reports.push((f64::from(report.kinetic_energy).to_bits(), report.ground_contacts));
+                        }
+                        results.push((bits(&x), bits(&v), reports));
+                    }
+                    results
+                };
+                let scalar = same_at_every_width("explicit onto the ground", run);
+                // Vertices hit the ground in both runs, and the runs moved.
+                assert!(scalar.iter().all(|r| r.2.iter().any(|&(_, contacts)| contacts > 0)));
+                assert_ne!(scalar[0].0, bits(&deformed));
+            }
+
             /// Vertex Block Descent steps at every width end in the bits of the scalar run: the
             /// sweep sums the elements around several vertices of one colour at once, one vertex
             /// per lane (`src/step/vertex_sums.rs`), with the vertex line search (energies too)
@@ -743,3 +796,84 @@ macro_rules! mesh_tests {
 
 mesh_tests!(mesh_f32, softfem, f32, Vec3);
 mesh_tests!(mesh_f64, softfem::f64, f64, DVec3);
+
+// The explicit step of a 2D body (triangles) at every width, against the scalar run: the same
+// update in groups of 2D lanes.
+macro_rules! planar_tests {
+    ($name:ident, $($crate_path:ident)::+, $real:ty, $vec:ident) => {
+        mod $name {
+            use super::*;
+            use softfem::glam::$vec as V;
+            use $($crate_path)::+::element::{TriRest, TriangleStVK};
+            use $($crate_path)::+::generate::{fill_rectangle, rectangle_counts};
+            use $($crate_path)::+::material::StVK;
+            use $($crate_path)::+::mesh::TriMesh;
+            use $($crate_path)::+::step::{
+                ExplicitScratch, ExplicitSettings, Ground, TriElastic, explicit_scratch_len,
+                stable_time_step, step_explicit,
+            };
+
+            type Real = $real;
+
+            /// A 2D rectangle (110 vertices: groups of 16, 8 and 4 and a tail) thrown onto a
+            /// tilted ground, with restitution, friction, damping and pinned vertices: every
+            /// width ends in the bits of the scalar run, reports included.
+            #[test]
+            fn explicit_2d_ground_contacts_are_bitwise_the_scalar_run_at_every_width() {
+                let (nv, nt) = rectangle_counts(10, 9).unwrap();
+                let mut rest = vec![V::ZERO; nv];
+                let mut tris = vec![[0; 3]; nt];
+                fill_rectangle(V::new(0.0, 0.05), V::new(0.1, 0.15), 10, 9, &mut rest, &mut tris)
+                    .unwrap();
+                let mut rest_data = vec![TriRest::default(); nt];
+                let mesh = TriMesh::new(&rest, &tris, &mut rest_data).unwrap();
+                let material = TriangleStVK::new(&StVK::from_young_poisson(1.0e5, 0.3).unwrap());
+                let body = TriElastic { mesh, material };
+                let mut masses = vec![0.0; nv];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let mut stiffness = vec![0.0; nv];
+                let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
+                let pinned: Vec<bool> = (0..nv).map(|i| i % 13 == 6).collect();
+                let ground = Ground::new(V::new(0.05, 1.0), 0.06)
+                    .with_restitution(0.3)
+                    .with_friction(0.5);
+                let settings = ExplicitSettings::new(dt)
+                    .with_gravity(V::new(0.0, -9.81))
+                    .with_damping(1.0)
+                    .with_ground(ground);
+                let run = || {
+                    let mut x = rest.clone();
+                    let mut v: Vec<V> = (0..nv).map(|i| V::new(0.2, -1.0 - 0.01 * i as Real)).collect();
+                    let mut buffer = vec![V::ZERO; explicit_scratch_len(nv)];
+                    let mut reports = Vec::new();
+                    for _ in 0..20 {
+                        let mut scratch = ExplicitScratch::new(&mut buffer);
+                        let report =
+                            step_explicit(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)
+                                .unwrap();
+                        reports.push((f64::from(report.kinetic_energy).to_bits(), report.ground_contacts));
+                    }
+                    let bits = |values: &[V]| -> Vec<u64> {
+                        values.iter().flat_map(|v| v.to_array()).map(|x| f64::from(x).to_bits()).collect()
+                    };
+                    (bits(&x), bits(&v), reports)
+                };
+                let _guard = lock_width();
+                simd::set_max_width(Width::Scalar);
+                let scalar = run();
+                for width in widths() {
+                    simd::set_max_width(width);
+                    let wide = run();
+                    simd::set_max_width(Width::Avx512);
+                    assert!(wide == scalar, "width {width:?}: the 2D run differs from the scalar run");
+                }
+                simd::set_max_width(Width::Avx512);
+                // The body reached the ground.
+                assert!(scalar.2.iter().any(|&(_, contacts)| contacts > 0));
+            }
+        }
+    };
+}
+
+planar_tests!(planar_f32, softfem, f32, Vec2);
+planar_tests!(planar_f64, softfem::f64, f64, DVec2);

@@ -1,14 +1,21 @@
 //! Explicit symplectic Euler with damping, pinned vertices, ground contact, substeps and
 //! blow-up detection.
 
+use super::super::lanes::{LANES, LaneArray, Lanes};
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes_avx2::Avx2Lanes;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes_avx512::Avx512Lanes;
 use super::super::types::Real;
 use super::collider::{Collider, check_colliders};
 use super::descent::line_search::copy;
 use super::loads::Loads;
+use super::points::Wide;
 use super::split::Blocks;
 use super::vertex_passes::split_check_state;
 use super::{ElasticModel, Ground, Vector, check_length, pinned_flags};
 use crate::error::{MeshError, StepBuffer, StepError};
+use crate::simd::{WidthKernel, dispatch};
 
 /// The default [`ExplicitSettings::max_energy_growth`]: 100.
 ///
@@ -564,10 +571,28 @@ struct Update<'s, 'a, V: Vector> {
     gravity_squared: Real,
 }
 
+/// The update pass's results so far, added vertex by vertex in order: the blow-up indicator's
+/// three sums (from the state before the update), the contacts, the kinetic energy (J) after it
+/// and the first vertex left non-finite.
+#[derive(Clone, Copy, Default)]
+struct Tally {
+    indicator: Real,
+    force_norm: Real,
+    reversal: Real,
+    contacts: usize,
+    kinetic_energy: Real,
+    non_finite: Option<usize>,
+}
+
 impl<V: Vector> Update<'_, '_, V> {
     /// The update of the vertices from `first` on: returns the blow-up indicator's three sums
     /// (from the state before the update), the contacts, the kinetic energy (J) after it and the
     /// first vertex left non-finite.
+    ///
+    /// Without colliders and fixed axes, the vertices go in groups of the
+    /// width [`dispatch`] picks (then narrower groups, then one at a time), each lane through
+    /// the one-vertex arithmetic and the sums added vertex by vertex in order: the bits of the
+    /// one-at-a-time loop, which runs the rest.
     #[inline(always)]
     #[allow(clippy::type_complexity)]
     fn block(
@@ -576,6 +601,40 @@ impl<V: Vector> Update<'_, '_, V> {
         (positions, velocities): (&mut [V], &mut [V]),
         (forces, previous_forces, masses, pinned): (&[V], &[V], &[Real], &[bool]),
     ) -> ((Real, Real, Real), usize, Real, Option<usize>) {
+        let settings = self.settings;
+        let kernel = UpdatePass {
+            update: self,
+            first,
+            state: (positions, velocities),
+            inputs: (forces, previous_forces, masses, pinned),
+        };
+        let plain = settings.colliders.is_empty() && settings.fixed_axes.is_empty();
+        let tally = if plain {
+            dispatch(kernel)
+        } else {
+            kernel.scalar()
+        };
+        (
+            (tally.indicator, tally.force_norm, tally.reversal),
+            tally.contacts,
+            tally.kinetic_energy,
+            tally.non_finite,
+        )
+    }
+
+    /// The update of vertex `i` (at `x` moving at `v`, force `f`, previous force `previous`,
+    /// mass `m`), added to `tally`.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn one(
+        &self,
+        i: usize,
+        (x, v): (&mut V, &mut V),
+        (f, previous): (&V, &V),
+        m: Real,
+        pinned: bool,
+        tally: &mut Tally,
+    ) {
         let (settings, h) = (self.settings, self.h);
         let gravity = settings.gravity;
         let drag = 1.0 / (1.0 + settings.damping * h);
@@ -584,50 +643,278 @@ impl<V: Vector> Update<'_, '_, V> {
             forces: settings.external_forces,
             fixed_axes: settings.fixed_axes,
         };
-        let (mut indicator, mut force_norm, mut reversal) = (0.0, 0.0, 0.0);
-        let (mut contacts, mut kinetic_energy, mut non_finite) = (0, 0.0, None);
+        if !pinned {
+            let inverse_mass = 1.0 / m;
+            let f_squared = f.dot(*f) * inverse_mass;
+            tally.indicator +=
+                0.5 * m * (v.dot(*v) + h * h * self.gravity_squared) + h * h * f_squared / 8.0;
+            tally.force_norm += f_squared;
+            tally.reversal += f.dot(*previous) * inverse_mass;
+
+            let mut acceleration = *f * (1.0 / m) + gravity;
+            if !loads.forces.is_empty() {
+                acceleration += loads.force(i) * (1.0 / m);
+            }
+            // Fixed axes: no velocity along them, so the coordinate keeps its bits.
+            *v = loads.free_part(i, (*v + acceleration * h) * drag);
+            let before = *x;
+            *x += *v * h;
+            if let Some(ground) = self.ground {
+                tally.contacts += usize::from(ground.resolve(x, v, resting_speed, h));
+                *x = loads.keep_fixed(i, *x, before);
+                *v = loads.free_part(i, *v);
+            }
+            if !settings.colliders.is_empty() {
+                tally.contacts +=
+                    V::resolve_colliders(settings.colliders, x, v, (resting_speed, h));
+                *x = loads.keep_fixed(i, *x, before);
+                *v = loads.free_part(i, *v);
+            }
+        }
+        tally.kinetic_energy += 0.5 * m * v.dot(*v);
+        if tally.non_finite.is_none() && !(x.is_finite() && v.is_finite()) {
+            tally.non_finite = Some(i);
+        }
+    }
+
+    /// [`one`](Self::one) for the `L::WIDTH` vertices from `i` on (at `x` moving at `v`,
+    /// forces `f` and `previous`, masses `m`, pinned flags `pinned` or empty for none, each
+    /// chunk `L::WIDTH` long but `pinned`), without colliders and fixed axes: every lane gets
+    /// the one-vertex bits, and the sums take the lanes in order.
+    #[inline(always)]
+    fn group<L: LaneArray>(
+        &self,
+        i: usize,
+        (x_slot, v_slot): (&mut [V], &mut [V]),
+        (f, previous, m, pinned): (&[V], &[V], &[Real], &[bool]),
+        tally: &mut Tally,
+    ) {
+        let (settings, h) = (self.settings, self.h);
+        let splat = L::splat;
+        let (zero, one) = (splat(0.0), splat(1.0));
+        let drag = splat(1.0 / (1.0 + settings.damping * h));
+        let resting_speed = 2.0 * h * super::super::math::sqrt(self.gravity_squared);
+        let (x, v) = (V::Wide::<L>::load(x_slot), V::Wide::<L>::load(v_slot));
+        let (f, previous) = (V::Wide::<L>::load(f), V::Wide::<L>::load(previous));
+        let m = load_scalars::<L>(m);
+        let lanes_h = splat(h);
+
+        let inverse_mass = one / m;
+        let f_squared = f.wide_inner(f) * inverse_mass;
+        let indicator = splat(0.5) * m * (v.wide_inner(v) + splat(h * h * self.gravity_squared))
+            + splat(h * h) * f_squared / splat(8.0);
+        let reversal = f.wide_inner(previous) * inverse_mass;
+
+        let mut acceleration =
+            f.wide_scale(one / m) + V::Wide::<L>::wide_splat(gravity_of(settings));
+        let external = settings.external_forces.get(i..).filter(|f| !f.is_empty());
+        if let Some(external) = external {
+            acceleration = acceleration + V::Wide::<L>::load(external).wide_scale(one / m);
+        }
+        let new_v = (v + acceleration.wide_scale(lanes_h)).wide_scale(drag);
+        let mut new_x = x + new_v.wide_scale(lanes_h);
+        let mut new_v = new_v;
+        let mut inside = zero;
+        if let Some(ground) = self.ground {
+            let normal = V::Wide::<L>::wide_splat(ground.normal);
+            let depth = -(normal.wide_inner(new_x) - splat(ground.offset));
+            let into = depth.gt(zero);
+            // The common case, no lane inside, changes nothing (same result).
+            if !L::none(into) {
+                inside = L::select(into, one, zero);
+                let projected = new_x + normal.wide_scale(depth);
+                let vn = normal.wide_inner(new_v);
+                let restitution = L::select(
+                    (-vn).gt(splat(resting_speed)),
+                    splat(ground.restitution),
+                    zero,
+                );
+                let normal_change = (one + restitution) * -vn;
+                let tangential = new_v - normal.wide_scale(vn);
+                let speed = tangential.wide_inner(tangential).sqrt();
+                let reduction = splat(ground.friction) * normal_change;
+                let keep = L::select(speed.gt(reduction), one - reduction / speed, zero);
+                let kept = tangential.wide_scale(keep);
+                let slid = if ground.friction > 0.0 {
+                    projected + (kept - tangential).wide_scale(lanes_h)
+                } else {
+                    projected
+                };
+                let bounced = kept + normal.wide_scale(-restitution * vn);
+                let approaching = zero.gt(vn);
+                new_x = V::Wide::<L>::wide_select(
+                    into,
+                    V::Wide::<L>::wide_select(approaching, slid, projected),
+                    new_x,
+                );
+                new_v = V::Wide::<L>::wide_select(
+                    into,
+                    V::Wide::<L>::wide_select(approaching, bounced, new_v),
+                    new_v,
+                );
+            }
+        }
+        let (x, v) = match free_mask::<L>(pinned) {
+            Some(free) => (
+                V::Wide::<L>::wide_select(free, new_x, x),
+                V::Wide::<L>::wide_select(free, new_v, v),
+            ),
+            None => (new_x, new_v),
+        };
+        let kinetic_energy = splat(0.5) * m * v.wide_inner(v);
+        x.store(x_slot);
+        v.store(v_slot);
+
+        let values = |l: L| l.to_lane_array();
+        let (indicator, f_squared, reversal) =
+            (values(indicator), values(f_squared), values(reversal));
+        let (inside, kinetic_energy) = (values(inside), values(kinetic_energy));
+        for k in 0..L::WIDTH {
+            let lane = |values: &L::Array| L::lane_value(values, k);
+            if !pinned.get(k).copied().unwrap_or(false) {
+                tally.indicator += lane(&indicator);
+                tally.force_norm += lane(&f_squared);
+                tally.reversal += lane(&reversal);
+                tally.contacts += usize::from(lane(&inside) > 0.0);
+            }
+            tally.kinetic_energy += lane(&kinetic_energy);
+        }
+        // Zero in every lane whose position and velocity are finite, NaN elsewhere.
+        let finite = x.finite_zero() + v.finite_zero();
+        if tally.non_finite.is_none() && !L::none(L::select(finite.ge(zero), zero, one).gt(zero)) {
+            let mut bad = x_slot.iter().zip(v_slot.iter());
+            tally.non_finite = bad
+                .position(|(x, v)| !(x.is_finite() && v.is_finite()))
+                .map(|k| i + k);
+        }
+    }
+}
+
+/// The gravity of `settings`.
+#[inline(always)]
+fn gravity_of<V: Vector>(settings: &ExplicitSettings<'_, V>) -> V {
+    settings.gravity
+}
+
+/// The first `L::WIDTH` values of `values` as a group (zeros past its end).
+#[inline(always)]
+fn load_scalars<L: LaneArray>(values: &[Real]) -> L {
+    let mut quarters = [[0.0; LANES]; 4];
+    for (q, quarter) in quarters.iter_mut().enumerate().take(L::WIDTH / LANES) {
+        if let Some(chunk) = values.get(q * LANES..).and_then(<[Real]>::first_chunk) {
+            *quarter = *chunk;
+        }
+    }
+    L::from_quarters(quarters)
+}
+
+/// The mask of the free (not pinned) lanes of a group with pinned flags `pinned`; `None` if
+/// the flags are empty (every vertex free).
+#[inline(always)]
+fn free_mask<L: LaneArray>(pinned: &[bool]) -> Option<L::Mask> {
+    if pinned.is_empty() {
+        return None;
+    }
+    let mut quarters = [[0.0; LANES]; 4];
+    for (q, quarter) in quarters.iter_mut().enumerate().take(L::WIDTH / LANES) {
+        for (j, value) in quarter.iter_mut().enumerate() {
+            *value = match pinned.get(q * LANES + j) {
+                Some(true) => 1.0,
+                _ => 0.0,
+            };
+        }
+    }
+    Some(L::splat(0.5).gt(L::from_quarters(quarters)))
+}
+
+/// One block of the update pass, at the width [`dispatch`] picks: whole groups of the widest
+/// lanes first, then narrower ones, then one vertex at a time, all in vertex order.
+struct UpdatePass<'u, 's, 'a, 'r, V: Vector> {
+    update: &'u Update<'s, 'a, V>,
+    /// The block's first vertex.
+    first: usize,
+    state: State<'r, V>,
+    inputs: (&'r [V], &'r [V], &'r [Real], &'r [bool]),
+}
+
+impl<V: Vector> UpdatePass<'_, '_, '_, '_, V> {
+    /// Groups of `L::WIDTH` vertices from block vertex `done` on, as far as whole groups go:
+    /// returns the vertices done.
+    #[inline(always)]
+    fn groups<L: LaneArray>(&mut self, mut done: usize, tally: &mut Tally) -> usize {
+        let (positions, velocities) = (&mut *self.state.0, &mut *self.state.1);
+        let (forces, previous, masses, pinned) = self.inputs;
+        let width = L::WIDTH;
+        let rows = positions.len().min(velocities.len()).min(forces.len());
+        let rows = rows.min(previous.len()).min(masses.len());
+        while done + width <= rows {
+            let range = done..done + width;
+            let (Some(x), Some(v), Some(f), Some(p), Some(m)) = (
+                positions.get_mut(range.clone()),
+                velocities.get_mut(range.clone()),
+                forces.get(range.clone()),
+                previous.get(range.clone()),
+                masses.get(range),
+            ) else {
+                break;
+            };
+            let flags = pinned.get(done..).unwrap_or(&[]);
+            let flags = flags.get(..width).unwrap_or(flags);
+            self.update
+                .group::<L>(self.first + done, (x, v), (f, p, m, flags), tally);
+            done += width;
+        }
+        done
+    }
+
+    /// The vertices from block vertex `done` on, one at a time.
+    #[inline(always)]
+    fn singles(self, done: usize, mut tally: Tally) -> Tally {
+        let (positions, velocities) = self.state;
+        let (forces, previous_forces, masses, pinned) = self.inputs;
         let state = positions.iter_mut().zip(velocities.iter_mut());
         let rows = state.zip(forces.iter().zip(previous_forces));
         let rows = rows.zip(masses).zip(pinned_flags(pinned)).enumerate();
-        for (j, ((((x, v), (f, previous)), &m), pinned)) in rows {
-            let i = first + j;
-            if !pinned {
-                let inverse_mass = 1.0 / m;
-                let f_squared = f.dot(*f) * inverse_mass;
-                indicator +=
-                    0.5 * m * (v.dot(*v) + h * h * self.gravity_squared) + h * h * f_squared / 8.0;
-                force_norm += f_squared;
-                reversal += f.dot(*previous) * inverse_mass;
-
-                let mut acceleration = *f * (1.0 / m) + gravity;
-                if !loads.forces.is_empty() {
-                    acceleration += loads.force(i) * (1.0 / m);
-                }
-                // Fixed axes: no velocity along them, so the coordinate keeps its bits.
-                *v = loads.free_part(i, (*v + acceleration * h) * drag);
-                let before = *x;
-                *x += *v * h;
-                if let Some(ground) = self.ground {
-                    contacts += usize::from(ground.resolve(x, v, resting_speed, h));
-                    *x = loads.keep_fixed(i, *x, before);
-                    *v = loads.free_part(i, *v);
-                }
-                if !settings.colliders.is_empty() {
-                    contacts += V::resolve_colliders(settings.colliders, x, v, (resting_speed, h));
-                    *x = loads.keep_fixed(i, *x, before);
-                    *v = loads.free_part(i, *v);
-                }
-            }
-            kinetic_energy += 0.5 * m * v.dot(*v);
-            if non_finite.is_none() && !(x.is_finite() && v.is_finite()) {
-                non_finite = Some(i);
-            }
+        for (j, ((((x, v), (f, previous)), &m), pinned)) in rows.skip(done) {
+            let i = self.first + j;
+            self.update
+                .one(i, (x, v), (f, previous), m, pinned, &mut tally);
         }
-        (
-            (indicator, force_norm, reversal),
-            contacts,
-            kinetic_energy,
-            non_finite,
-        )
+        tally
+    }
+}
+
+impl<V: Vector> WidthKernel for UpdatePass<'_, '_, '_, '_, V> {
+    type Output = Tally;
+
+    #[inline(always)]
+    fn scalar(self) -> Tally {
+        self.singles(0, Tally::default())
+    }
+
+    #[inline(always)]
+    fn sse(mut self) -> Tally {
+        let mut tally = Tally::default();
+        let done = self.groups::<Lanes>(0, &mut tally);
+        self.singles(done, tally)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn avx2(mut self) -> Tally {
+        let mut tally = Tally::default();
+        let done = self.groups::<Avx2Lanes>(0, &mut tally);
+        let done = self.groups::<Lanes>(done, &mut tally);
+        self.singles(done, tally)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn avx512(mut self) -> Tally {
+        let mut tally = Tally::default();
+        let done = self.groups::<Avx512Lanes>(0, &mut tally);
+        let done = self.groups::<Avx2Lanes>(done, &mut tally);
+        let done = self.groups::<Lanes>(done, &mut tally);
+        self.singles(done, tally)
     }
 }

@@ -10,7 +10,7 @@
 
 use core::ops::{Add, Neg, Sub};
 
-use super::super::lanes::{LANES, Lane, LaneVec3, Lanes, each_lane};
+use super::super::lanes::{LANES, Lane, LaneArray, LaneVec3, Lanes, each_lane};
 use super::super::types::{Real, Vec2, Vec3};
 use super::Ground;
 use super::collider::{self, Collider, Colliders};
@@ -77,6 +77,9 @@ pub trait Grouped: Point<Scalar = Real, Vector = Self> {
     fn group(v: [Self; LANES]) -> Self::Group;
     /// The vectors of a group, lane by lane.
     fn ungroup(group: Self::Group) -> [Self; LANES];
+    /// Groups of `L::WIDTH` vectors (a multiple of [`LANES`]), coordinate by coordinate: the
+    /// explicit step's update at the width `simd::dispatch` picks.
+    type Wide<L: Lane>: Wide<L, Vector = Self>;
     /// The mask of every axis: `0b11` in 2D, `0b111` in 3D.
     const ALL_AXES: u8;
     /// `self` with the coordinates whose bit is set in `fixed` (bit 0 x, 1 y, 2 z) taken from
@@ -108,20 +111,196 @@ pub trait Grouped: Point<Scalar = Real, Vector = Self> {
     fn shifted_colliders<'a>(colliders: &'a [Collider<'a>], origin: Self) -> Colliders<'a>;
 }
 
+/// A group of `L::WIDTH` vertex vectors ([`Grouped::Wide`]): element-wise IEEE arithmetic in
+/// the order of the one-vertex code, so that every lane gets its bits.
+#[allow(private_bounds)]
+pub trait Wide<L: Lane>:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Neg<Output = Self>
+{
+    /// The vector type of one vertex.
+    type Vector: Copy;
+    /// `v` in every lane.
+    fn wide_splat(v: Self::Vector) -> Self;
+    /// The dot product, summed in coordinate order.
+    fn wide_inner(self, other: Self) -> L;
+    /// Every coordinate times `k`.
+    fn wide_scale(self, k: L) -> Self;
+    /// `mask ? a : b`, per lane.
+    fn wide_select(mask: L::Mask, a: Self, b: Self) -> Self;
+    /// The sum of every coordinate times zero: zero in the lanes whose vector is finite, NaN
+    /// in the others.
+    fn finite_zero(self) -> L;
+    /// The group of the first `L::WIDTH` vectors of `chunk` (zeros past its end).
+    fn load(chunk: &[Self::Vector]) -> Self
+    where
+        L: LaneArray;
+    /// Writes the group into the first `L::WIDTH` vectors of `chunk` (as far as it goes).
+    fn store(self, chunk: &mut [Self::Vector])
+    where
+        L: LaneArray;
+}
+
+/// Lanes `4 q..4 q + 4` of `values` as [`LANES`] values (zeros past the end of the slice).
+#[inline(always)]
+fn quarter_of<T: Copy>(values: &[T], q: usize, zero: T) -> [T; LANES] {
+    values
+        .get(q * LANES..)
+        .and_then(<[T]>::first_chunk::<LANES>)
+        .copied()
+        .unwrap_or([zero; LANES])
+}
+
+// `LaneArray` is crate-private, and so is every use of these groups (the trait is public only
+// as the hidden half of the sealed `Vector`).
+#[allow(private_bounds)]
+impl<L: Lane> Wide<L> for LaneVec3<L> {
+    type Vector = Vec3;
+    #[inline(always)]
+    fn wide_splat(v: Vec3) -> Self {
+        LaneVec3::new(L::splat(v.x), L::splat(v.y), L::splat(v.z))
+    }
+    #[inline(always)]
+    fn wide_inner(self, o: Self) -> L {
+        LaneVec3::dot(self, o)
+    }
+    #[inline(always)]
+    fn wide_scale(self, k: L) -> Self {
+        LaneVec3::scale(self, k)
+    }
+    #[inline(always)]
+    fn wide_select(mask: L::Mask, a: Self, b: Self) -> Self {
+        LaneVec3::select(mask, a, b)
+    }
+    #[inline(always)]
+    fn finite_zero(self) -> L {
+        let zero = L::splat(0.0);
+        self.x * zero + self.y * zero + self.z * zero
+    }
+    #[inline(always)]
+    fn load(chunk: &[Vec3]) -> Self
+    where
+        L: LaneArray,
+    {
+        // Four vectors at a time through the SSE transposes, then the quarters side by side.
+        let mut quarters = [[[0.0; LANES]; 4]; 3];
+        for q in 0..L::WIDTH / LANES {
+            let group = LaneVec3::from_vectors(quarter_of(chunk, q, Vec3::ZERO));
+            for (axis, value) in quarters.iter_mut().zip([group.x, group.y, group.z]) {
+                if let Some(slot) = axis.get_mut(q) {
+                    *slot = value.to_array();
+                }
+            }
+        }
+        let [x, y, z] = quarters;
+        LaneVec3::new(
+            L::from_quarters(x),
+            L::from_quarters(y),
+            L::from_quarters(z),
+        )
+    }
+    #[inline(always)]
+    fn store(self, chunk: &mut [Vec3])
+    where
+        L: LaneArray,
+    {
+        let (x, y, z) = (
+            self.x.to_lane_array(),
+            self.y.to_lane_array(),
+            self.z.to_lane_array(),
+        );
+        let slots = chunk.chunks_exact_mut(LANES).take(L::WIDTH / LANES);
+        for (q, slot) in slots.enumerate() {
+            let quarter = LaneVec3::new(L::quarter(&x, q), L::quarter(&y, q), L::quarter(&z, q));
+            slot.copy_from_slice(&quarter.to_vectors());
+        }
+    }
+}
+
+// `LaneArray` is crate-private, and so is every use of these groups (the trait is public only
+// as the hidden half of the sealed `Vector`).
+#[allow(private_bounds)]
+impl<L: Lane> Wide<L> for LaneVec2<L> {
+    type Vector = Vec2;
+    #[inline(always)]
+    fn wide_splat(v: Vec2) -> Self {
+        LaneVec2 {
+            x: L::splat(v.x),
+            y: L::splat(v.y),
+        }
+    }
+    #[inline(always)]
+    fn wide_inner(self, o: Self) -> L {
+        self.x * o.x + self.y * o.y
+    }
+    #[inline(always)]
+    fn wide_scale(self, k: L) -> Self {
+        LaneVec2 {
+            x: self.x * k,
+            y: self.y * k,
+        }
+    }
+    #[inline(always)]
+    fn wide_select(mask: L::Mask, a: Self, b: Self) -> Self {
+        LaneVec2 {
+            x: L::select(mask, a.x, b.x),
+            y: L::select(mask, a.y, b.y),
+        }
+    }
+    #[inline(always)]
+    fn finite_zero(self) -> L {
+        let zero = L::splat(0.0);
+        self.x * zero + self.y * zero
+    }
+    #[inline(always)]
+    fn load(chunk: &[Vec2]) -> Self
+    where
+        L: LaneArray,
+    {
+        let mut quarters = [[[0.0; LANES]; 4]; 2];
+        for q in 0..L::WIDTH / LANES {
+            let vectors = quarter_of(chunk, q, Vec2::ZERO);
+            let [x, y] = &mut quarters;
+            if let (Some(x), Some(y)) = (x.get_mut(q), y.get_mut(q)) {
+                *x = each_lane(vectors, |v| v.x);
+                *y = each_lane(vectors, |v| v.y);
+            }
+        }
+        let [x, y] = quarters;
+        LaneVec2 {
+            x: L::from_quarters(x),
+            y: L::from_quarters(y),
+        }
+    }
+    #[inline(always)]
+    fn store(self, chunk: &mut [Vec2])
+    where
+        L: LaneArray,
+    {
+        let (x, y) = (self.x.to_lane_array(), self.y.to_lane_array());
+        let slots = chunk.chunks_exact_mut(LANES).take(L::WIDTH / LANES);
+        for (q, slot) in slots.enumerate() {
+            let (x, y) = (L::quarter(&x, q).to_array(), L::quarter(&y, q).to_array());
+            for ((slot, x), y) in slot.iter_mut().zip(x).zip(y) {
+                *slot = Vec2::new(x, y);
+            }
+        }
+    }
+}
+
 /// `source`'s coordinate where `bit` is set in `fixed`, else `own`.
 #[inline(always)]
 fn pick(own: Real, source: Real, fixed: u8, bit: u8) -> Real {
     if fixed & bit != 0 { source } else { own }
 }
 
-/// [`LANES`] 2D vectors, coordinate by coordinate.
+/// A group of 2D vectors, coordinate by coordinate ([`LANES`] of them by default).
 #[derive(Clone, Copy)]
-pub struct LaneVec2 {
-    x: Lanes,
-    y: Lanes,
+pub struct LaneVec2<L = Lanes> {
+    x: L,
+    y: L,
 }
 
-impl Add for LaneVec2 {
+impl<L: Lane> Add for LaneVec2<L> {
     type Output = Self;
     #[inline(always)]
     fn add(self, o: Self) -> Self {
@@ -132,7 +311,7 @@ impl Add for LaneVec2 {
     }
 }
 
-impl Sub for LaneVec2 {
+impl<L: Lane> Sub for LaneVec2<L> {
     type Output = Self;
     #[inline(always)]
     fn sub(self, o: Self) -> Self {
@@ -143,7 +322,7 @@ impl Sub for LaneVec2 {
     }
 }
 
-impl Neg for LaneVec2 {
+impl<L: Lane> Neg for LaneVec2<L> {
     type Output = Self;
     #[inline(always)]
     fn neg(self) -> Self {
@@ -253,6 +432,7 @@ impl Point for LaneVec2 {
 
 impl Grouped for Vec2 {
     type Group = LaneVec2;
+    type Wide<L: Lane> = LaneVec2<L>;
     #[inline(always)]
     fn group(v: [Vec2; LANES]) -> LaneVec2 {
         LaneVec2 {
@@ -400,6 +580,7 @@ impl Point for LaneVec3<Lanes> {
 
 impl Grouped for Vec3 {
     type Group = LaneVec3<Lanes>;
+    type Wide<L: Lane> = LaneVec3<L>;
     #[inline(always)]
     fn group(v: [Vec3; LANES]) -> LaneVec3<Lanes> {
         LaneVec3::from_vectors(v)
@@ -590,6 +771,53 @@ impl<'a, P: Point> Floor<'a, P> {
         }
     }
 
+    /// The projected descent direction at a vertex at `x` with gradient `g`, and its term of
+    /// the slope `g.d`: `g` constrained as a gradient, the plain step `factor g` (zero where
+    /// `positive` is given and not set), plus `momentum` times the last step `x - previous` when
+    /// `heavy_ball` is given, constrained as a direction. With colliders one contact query
+    /// serves both constraints ([`touch`](Self::touch)); without, the ground's test alone (the
+    /// two monomorphised apart, so the frictionless loop carries no collider state). The one
+    /// sequence of the relaxation's preconditioned direction and plain gradient descent.
+    #[inline(always)]
+    pub fn descent(
+        &self,
+        x: P,
+        g: P,
+        (factor, positive): (P::Scalar, Option<<P::Scalar as Lane>::Mask>),
+        heavy_ball: Option<(P, P::Scalar)>,
+    ) -> (P, P::Scalar) {
+        if self.colliders.is_empty() {
+            let contact = OnGround(self.contact(x));
+            return self.descent_along(&contact, x, g, (factor, positive), heavy_ball);
+        }
+        let touch = self.touch(x);
+        self.descent_along(&touch, x, g, (factor, positive), heavy_ball)
+    }
+
+    /// [`descent`](Self::descent) with the contacts at `x` in `at`.
+    #[inline(always)]
+    fn descent_along(
+        &self,
+        at: &impl Contacts<P>,
+        x: P,
+        g: P,
+        (factor, positive): (P::Scalar, Option<<P::Scalar as Lane>::Mask>),
+        heavy_ball: Option<(P, P::Scalar)>,
+    ) -> (P, P::Scalar) {
+        let g = at.constrain(self, g, 1.0);
+        let plain = g.scale(factor);
+        let plain = match positive {
+            Some(positive) => P::select(positive, plain, P::zero()),
+            None => plain,
+        };
+        let direction = match heavy_ball {
+            Some((previous, momentum)) => plain + (x - previous).scale(momentum),
+            None => plain,
+        };
+        let d = at.constrain(self, direction, -1.0);
+        (d, g.inner(d))
+    }
+
     /// The ground's part of [`constrain`](Self::constrain).
     #[inline(always)]
     fn constrain_ground(&self, contact: Option<<P::Scalar as Lane>::Mask>, v: P, sign: Real) -> P {
@@ -603,6 +831,30 @@ impl<'a, P: Point> Floor<'a, P> {
         let along = normal.inner(v);
         let into = (along * P::Scalar::splat(sign)).gt(P::Scalar::splat(0.0));
         P::select(contact, P::select(into, v - normal.scale(along), v), v)
+    }
+}
+
+/// The contacts of a point, queried once, for the constraints there ([`Floor::descent`]).
+trait Contacts<P: Point> {
+    /// [`Floor::constrain`] at the point.
+    fn constrain(&self, floor: &Floor<'_, P>, v: P, sign: Real) -> P;
+}
+
+/// The ground contact of a point on a floor without colliders ([`Floor::contact`]).
+struct OnGround<M>(Option<M>);
+
+impl<P: Point> Contacts<P> for OnGround<<P::Scalar as Lane>::Mask> {
+    /// Without colliders, [`Floor::constrain`] is its ground part.
+    #[inline(always)]
+    fn constrain(&self, floor: &Floor<'_, P>, v: P, sign: Real) -> P {
+        floor.constrain_ground(self.0, v, sign)
+    }
+}
+
+impl<P: Point> Contacts<P> for Touch<P> {
+    #[inline(always)]
+    fn constrain(&self, floor: &Floor<'_, P>, v: P, sign: Real) -> P {
+        floor.constrain_at(self, v, sign)
     }
 }
 

@@ -129,28 +129,7 @@ impl Gradient {
         g: V,
         heavy_ball: Option<(V, Real)>,
     ) -> (V, Real) {
-        // With colliders, one contact query for both constraints at `x`; written out twice
-        // rather than through closures, which the compiler did not always inline.
-        if floor.colliders().is_empty() {
-            let contact = floor.contact(x);
-            let g = floor.constrain(contact, x, g, 1.0);
-            let plain = g.scale(-self.inverse_scale);
-            let direction = match heavy_ball {
-                Some((previous, momentum)) => plain + (x - previous).scale(momentum),
-                None => plain,
-            };
-            let d = floor.constrain(contact, x, direction, -1.0);
-            return (d, g.inner(d));
-        }
-        let touch = floor.touch(x);
-        let g = floor.constrain_at(&touch, g, 1.0);
-        let plain = g.scale(-self.inverse_scale);
-        let direction = match heavy_ball {
-            Some((previous, momentum)) => plain + (x - previous).scale(momentum),
-            None => plain,
-        };
-        let d = floor.constrain_at(&touch, direction, -1.0);
-        (d, g.inner(d))
+        floor.descent(x, g, (-self.inverse_scale, None), heavy_ball)
     }
 }
 
