@@ -23,8 +23,11 @@
 //!
 //! The batched kernels: [`svd3_batch`](crate::svd::svd3_batch) and the mesh kernels of
 //! [`TetMesh`](crate::mesh::TetMesh) (direct, principal and clamped forces, element and total
-//! energies, and the fused energy and force pass of the relaxation), which take the elements in
-//! groups of the width's lanes, then narrower groups, then one at a time.
+//! energies, the fused energy and force pass of the relaxation, and the product of the projected
+//! Hessian with a direction from its cached element data), which take the elements in groups of
+//! the width's lanes, then narrower groups, then one at a time; and the explicit step's vertex
+//! update, which takes the vertices in groups of the same widths when the step has no colliders
+//! and no fixed axes.
 //!
 //! This module holds the crate's run-time CPU checks and the only calls into code compiled for
 //! CPU features beyond the baseline; the lane types themselves live in `src/lanes_avx2.rs` and
