@@ -181,6 +181,25 @@ fn test_matrices(extremes: &Extremes) -> Vec<DMat3> {
     shuffled
 }
 
+/// `run` at [`Width::Scalar`] and at every width, each result asserted equal to the scalar one,
+/// which is returned.
+fn same_at_every_width<T: PartialEq>(what: &str, run: impl Fn() -> T) -> T {
+    let _guard = lock_width();
+    simd::set_max_width(Width::Scalar);
+    let scalar = run();
+    for width in widths() {
+        simd::set_max_width(width);
+        let wide = run();
+        simd::set_max_width(Width::Avx512);
+        assert!(
+            wide == scalar,
+            "{what}, width {width:?}: the run differs from the scalar run"
+        );
+    }
+    simd::set_max_width(Width::Avx512);
+    scalar
+}
+
 macro_rules! precision_tests {
     ($name:ident, $($svd:ident)::+, $mat:ty, $round:expr, $extremes:expr, $lanes:ident) => {
         mod $name {
@@ -437,22 +456,6 @@ macro_rules! mesh_tests {
                     simd::set_max_width(Width::Avx512);
                     assert!(result == *reference, "{what}: width {width:?} differs from the element loop");
                 }
-            }
-
-            /// `run` at [`Width::Scalar`] and at every width, each result asserted equal to the
-            /// scalar one, which is returned.
-            fn same_at_every_width<T: PartialEq>(what: &str, run: impl Fn() -> T) -> T {
-                let _guard = lock_width();
-                simd::set_max_width(Width::Scalar);
-                let scalar = run();
-                for width in widths() {
-                    simd::set_max_width(width);
-                    let wide = run();
-                    simd::set_max_width(Width::Avx512);
-                    assert!(wide == scalar, "{what}, width {width:?}: the run differs from the scalar run");
-                }
-                simd::set_max_width(Width::Avx512);
-                scalar
             }
 
             /// Forces of every element `per_element(rest, corners' positions)`, added in element
@@ -858,16 +861,7 @@ macro_rules! planar_tests {
                     };
                     (bits(&x), bits(&v), reports)
                 };
-                let _guard = lock_width();
-                simd::set_max_width(Width::Scalar);
-                let scalar = run();
-                for width in widths() {
-                    simd::set_max_width(width);
-                    let wide = run();
-                    simd::set_max_width(Width::Avx512);
-                    assert!(wide == scalar, "width {width:?}: the 2D run differs from the scalar run");
-                }
-                simd::set_max_width(Width::Avx512);
+                let scalar = same_at_every_width("the 2D explicit run", run);
                 // The body reached the ground.
                 assert!(scalar.2.iter().any(|&(_, contacts)| contacts > 0));
             }
