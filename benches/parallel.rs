@@ -24,6 +24,15 @@
 //!   parallel body as for the explicit step, both ways (Hessians, products and CG vector
 //!   operations on the pool).
 //!
+//! * `triad`: a STREAM-like triad (`a = b + s c`, f32, 3 x 64 MiB as in `benches/forces.rs`) on
+//!   each pool, the arrays cut into one part per thread (each thread its own part, the same
+//!   total bytes on every pool), and from it the force pass's bandwidth ceiling on each pool:
+//!   triad GB/s over the bytes a pass must move per tet (16 of indices and 40 of `TetRest` per
+//!   element evaluated, cut elements once per task; 36 per vertex for its position read and its
+//!   force read and written back; the gathers and scatters at the corners hit cache beyond
+//!   that), beside the measured rate, and the bound it puts on the speed-up (the ceiling of
+//!   the pool over the one-thread rate).
+//!
 //! The steppers' own passes over the vertices run on the pool too (in blocks of
 //! `step::VERTEX_BLOCK` vertices through `ElasticModel::run_vertex_pass`); the tables give their
 //! share of a sequential step (1 - element passes / step, from the stable neo-Hookean force and
@@ -34,7 +43,11 @@
 //! gone to sleep), so ratios come from one machine state. The force and fused workloads also
 //! print the thread CPU time of the pieces run on the timing thread against the sequential pass:
 //! the scheme's one-thread cost, robust to other processes taking the core (not to their cache
-//! traffic). `SOFTFEM_BENCH_CSV=<path>` appends
+//! traffic). The force and fused workloads also give the speed-ups of the fastest single runs
+//! (every run of a block timed on its own): on a shared machine another process taking either
+//! core during a block slows a two-thread block, so a loaded run's block ratios fall well short
+//! of what the cores do when both are free. The caption and the force tables give the load
+//! average. `SOFTFEM_BENCH_CSV=<path>` appends
 //! every row (`bench,workload,size,lanes,threads,value,unit`) plus the derived ratios (the
 //! scheme's one-thread cost, the speed-ups, the vertex passes' share) to a CSV file.
 //! `SOFTFEM_BENCH_THREADS=1,2,4,8,16` picks other pool sizes (default: 1, 2 and all cores).
@@ -511,8 +524,11 @@ struct Plan {
 /// Times `variants` round-robin; returns seconds per run, the minimum over the rounds, in wall
 /// time and in the CPU time of the timing thread (which counts only the work done on that
 /// thread, and none of the time another process held its core: on a loaded machine, the robust
-/// measure of the rows that run on the calling thread).
-fn time(variants: &mut [Variant], plan: &Plan) -> (Vec<f64>, Vec<f64>) {
+/// measure of the rows that run on the calling thread), and the wall time of the fastest single
+/// run of all blocks (each run of a block timed on its own: on a shared machine a block of a
+/// pool of `n` threads is slowed whenever another process takes any of the `n` cores during it,
+/// a single run only if it does so during that run).
+fn time(variants: &mut [Variant], plan: &Plan) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     // Runs per block from one warm-up run each (the slowest variant sets it for all, so the
     // blocks are comparable).
     let slowest = variants
@@ -530,28 +546,36 @@ fn time(variants: &mut [Variant], plan: &Plan) -> (Vec<f64>, Vec<f64>) {
     let timer = pool(1);
     let mut best = vec![f64::INFINITY; variants.len()];
     let mut best_cpu = vec![f64::INFINITY; variants.len()];
+    let mut best_single = vec![f64::INFINITY; variants.len()];
     for _ in 0..plan.rounds {
-        let bests = best.iter_mut().zip(&mut best_cpu);
-        for (variant, (best, best_cpu)) in variants.iter_mut().zip(bests) {
+        let bests = best.iter_mut().zip(&mut best_cpu).zip(&mut best_single);
+        for (variant, ((best, best_cpu), best_single)) in variants.iter_mut().zip(bests) {
             // Rayon's idle workers spin a while before they sleep: without the pause they would
             // take the core from the variant timed next.
             std::thread::sleep(PAUSE);
             let run = &mut variant.run;
-            let (seconds, cpu_seconds) = timer.install(|| {
+            let (seconds, cpu_seconds, single) = timer.install(|| {
                 let (start, cpu_start) = (Instant::now(), thread_cpu_seconds());
+                let mut single = f64::INFINITY;
+                let mut run_start = start;
                 for _ in 0..repetitions {
                     run();
+                    let now = Instant::now();
+                    single = single.min((now - run_start).as_secs_f64());
+                    run_start = now;
                 }
                 (
                     start.elapsed().as_secs_f64(),
                     thread_cpu_seconds() - cpu_start,
+                    single,
                 )
             });
             *best = best.min(seconds / f64::from(repetitions));
             *best_cpu = best_cpu.min(cpu_seconds / f64::from(repetitions));
+            *best_single = best_single.min(single);
         }
     }
-    (best, best_cpu)
+    (best, best_cpu, best_single)
 }
 
 /// The CPU time (s) this thread has run, from `CLOCK_THREAD_CPUTIME_ID`; NaN where there is no
@@ -739,17 +763,38 @@ fn main() {
     let pieces = PIECES_PER_THREAD * threads.iter().copied().max().unwrap_or(1);
     println!(
         "softfem parallel bench on {}, {} cores available; pools of {threads:?} threads; \
-         partitions of {pieces} pieces; minimum of {} round-robin rounds.",
+         partitions of {pieces} pieces; minimum of {} round-robin rounds; load average \
+         (1, 5, 15 min) {}.",
         common::machine(),
         std::thread::available_parallelism().map_or(1, |n| n.get()),
         plan.rounds,
+        load_average(),
     );
     let sizes = if short { &CELLS[..1] } else { &CELLS[..] };
     let scenes: Vec<Scene> = sizes.iter().map(|&c| Scene::new(c, pieces)).collect();
     let mut rows = Vec::new();
+    let triad_len = if short { TRIAD_LEN / 16 } else { TRIAD_LEN };
+    let triads = triads(&pools, triad_len);
+    println!();
+    for &(threads, gb_per_s) in &triads {
+        println!(
+            "STREAM-like triad (f32, 3 x {} MiB, one part per thread), {}: {gb_per_s:.1} GB/s.",
+            (triad_len * size_of::<f32>()) >> 20,
+            on(threads)
+        );
+        rows.push(CsvRow {
+            bench: "parallel",
+            workload: "triad".to_owned(),
+            size: triad_len,
+            lanes: 1,
+            threads,
+            value: gb_per_s,
+            unit: "GB/s",
+        });
+    }
     for scene in &scenes {
         let mut variants = force_variants(scene, &pools);
-        let (seconds, cpu_seconds) = time(&mut variants, &plan);
+        let (seconds, cpu_seconds, single) = time(&mut variants, &plan);
         let tets = scene.mesh.element_count();
         rows.extend(report(
             "StVK direct forces",
@@ -759,11 +804,19 @@ fn main() {
             PerRun::ForcePass,
         ));
         rows.push(cpu_cost_row("StVK direct forces", tets, &cpu_seconds));
+        rows.extend(single_run_rows(
+            "StVK direct forces",
+            tets,
+            &variants,
+            &single,
+        ));
+        rows.extend(ceiling_rows(scene, &triads, &variants, &seconds));
+        println!("Load average (1, 5, 15 min): {}.", load_average());
     }
     let scene = &scenes[0];
     let tets = scene.mesh.element_count();
     let mut variants = fused_variants(scene, &pools);
-    let (seconds, cpu_seconds) = time(&mut variants, &plan);
+    let (seconds, cpu_seconds, single) = time(&mut variants, &plan);
     rows.extend(report(
         "fused energy-and-force pass",
         tets,
@@ -776,6 +829,12 @@ fn main() {
         tets,
         &cpu_seconds,
     ));
+    rows.extend(single_run_rows(
+        "fused energy-and-force pass",
+        tets,
+        &variants,
+        &single,
+    ));
 
     let (body, _) = scene.stable_bodies(None);
     let mut variants = vec![explicit_variant(on(0), 0, body, scene, None)];
@@ -787,7 +846,7 @@ fn main() {
         }
     }
     variants.push(component_variant(scene, false));
-    let (seconds, _) = time(&mut variants, &plan);
+    let (seconds, _, _) = time(&mut variants, &plan);
     rows.extend(report(
         "explicit step",
         tets,
@@ -809,7 +868,7 @@ fn main() {
         |label, threads, body, installed| relax_variant(label, threads, body, scene, installed),
     );
     variants.push(component_variant(scene, true));
-    let (seconds, _) = time(&mut variants, &plan);
+    let (seconds, _, _) = time(&mut variants, &plan);
     let (iterations, evaluations) = counts;
     rows.extend(report(
         "relaxation iteration",
@@ -833,7 +892,7 @@ fn main() {
         |body| newton_variant(on(0), 0, body, scene, None),
         |label, threads, body, installed| newton_variant(label, threads, body, scene, installed),
     );
-    let (seconds, _) = time(&mut variants, &plan);
+    let (seconds, _, _) = time(&mut variants, &plan);
     let (newton_iterations, cg_iterations) = counts;
     rows.extend(report(
         "Newton step",
@@ -844,6 +903,290 @@ fn main() {
     ));
     println!("{newton_iterations} Newton and {cg_iterations} CG iterations a step.");
     common::append_csv_rows(&rows);
+}
+
+/// The elements of the triad's arrays: 16 Mi f32 each, 3 x 64 MiB in all, as the forces bench's
+/// one-thread triad (twice the last-level cache of the machine this was written on, so every
+/// pass comes from DRAM).
+const TRIAD_LEN: usize = 16 << 20;
+
+/// The triad's passes per pool (interleaved over the pools; the best of them counts).
+const TRIAD_ROUNDS: usize = 10;
+
+/// A STREAM-like triad `a[i] = b[i] + s c[i]` over f32 arrays of `n` elements ([`TRIAD_LEN`],
+/// fewer in a smoke test: then two rounds) on each pool: the arrays cut into one contiguous
+/// part per thread, each thread of the pool running its own part (`ThreadPool::broadcast`:
+/// every worker exactly once, none stolen), so the total bytes are those of the forces bench's
+/// one-thread triad whatever the thread count. Each part of the largest pool is first written
+/// by the thread that runs it there, and one untimed pass per pool precedes the timed ones.
+/// Rounds interleave the pools (a [`PAUSE`] before each pass); the best pass per pool counts,
+/// at STREAM's 12 bytes per element (two loads and a store, write-allocate traffic not
+/// counted). Returns (threads, GB/s) per pool.
+fn triads(pools: &[(usize, &'static rayon::ThreadPool)], n: usize) -> Vec<(usize, f64)> {
+    use std::sync::Mutex;
+    // Zeroed allocations this large are fresh pages from the system (`calloc`): each part is
+    // first written below by the thread of the largest pool that owns it (one NUMA node here,
+    // so this only keeps page faults out of the timed passes).
+    let (mut a, mut b, mut c) = (vec![0.0f32; n], vec![0.0f32; n], vec![0.0f32; n]);
+    let &(threads_max, pool_max) = pools
+        .iter()
+        .max_by_key(|(threads, _)| *threads)
+        .expect("at least one pool");
+    let chunk = n.div_ceil(threads_max);
+    let parts: Vec<Mutex<_>> = a
+        .chunks_mut(chunk)
+        .zip(b.chunks_mut(chunk))
+        .zip(c.chunks_mut(chunk))
+        .map(Mutex::new)
+        .collect();
+    pool_max.broadcast(|context| {
+        if let Some(part) = parts.get(context.index()) {
+            let ((a, b), c) = &mut *part.lock().unwrap();
+            a.fill(0.0);
+            b.fill(1.0);
+            c.fill(2.0);
+        }
+    });
+    drop(parts);
+    let scale = black_box(3.0f32);
+    let mut pass = |pool: &rayon::ThreadPool, threads: usize| {
+        let chunk = n.div_ceil(threads);
+        let parts: Vec<Mutex<_>> = a
+            .chunks_mut(chunk)
+            .zip(b.chunks(chunk))
+            .zip(c.chunks(chunk))
+            .map(Mutex::new)
+            .collect();
+        std::thread::sleep(PAUSE);
+        let start = Instant::now();
+        pool.broadcast(|context| {
+            if let Some(part) = parts.get(context.index()) {
+                let ((a, b), c) = &mut *part.lock().unwrap();
+                for ((a, b), c) in a.iter_mut().zip(*b).zip(*c) {
+                    *a = b + scale * c;
+                }
+                black_box(a);
+            }
+        });
+        start.elapsed().as_secs_f64()
+    };
+    for &(threads, pool) in pools {
+        pass(pool, threads);
+    }
+    let mut best = vec![f64::INFINITY; pools.len()];
+    let rounds = if n < TRIAD_LEN { 2 } else { TRIAD_ROUNDS };
+    for _ in 0..rounds {
+        for (&(threads, pool), best) in pools.iter().zip(&mut best) {
+            *best = best.min(pass(pool, threads));
+        }
+    }
+    assert!(
+        a.iter().all(|&x| x == 7.0),
+        "the triad computed something else"
+    );
+    pools
+        .iter()
+        .zip(best)
+        .map(|(&(threads, _), seconds)| (threads, (12 * n) as f64 / seconds / 1e9))
+        .collect()
+}
+
+/// The elements the owner tasks of a pool of `threads` threads evaluate in one direct force
+/// pass on `scene`, cut elements once per task: each task's elements from the first to the last
+/// one incident to its vertices (the owner pass runs that range). The spans as
+/// `softfem::parallel` makes them: one span of every piece on one thread, else
+/// `min(pieces, 4 threads)` spans of consecutive pieces.
+fn evaluated_elements(scene: &Scene, threads: usize) -> usize {
+    let partition = &scene.partition;
+    let pieces = partition.vertex_piece_count().max(1);
+    let spans = if threads <= 1 {
+        1
+    } else {
+        pieces.min(4 * threads)
+    };
+    let per_span = pieces.div_ceil(spans) * partition.vertex_chunk();
+    let mut ranges = vec![(usize::MAX, 0); spans];
+    for (element, corners) in scene.mesh.tets().iter().enumerate() {
+        for &v in corners {
+            let (first, last) = &mut ranges[v as usize / per_span];
+            *first = (*first).min(element);
+            *last = (*last).max(element);
+        }
+    }
+    ranges
+        .iter()
+        .filter(|(first, _)| *first != usize::MAX)
+        .map(|(first, last)| last - first + 1)
+        .sum()
+}
+
+/// Bytes per element stream from memory in one f32 StVK direct force pass on `scene` on a
+/// pool of `threads` threads, at best: the corner indices (16) and the `TetRest` (40) of every
+/// element evaluated ([`evaluated_elements`], cut ones once per task), plus 36 bytes per
+/// vertex: its position read once (12) and its force read and written back once (24; the
+/// bench zeroes the forces before every pass, the pass then adds into them). The gathers of
+/// positions and the scatters of forces at the corners are counted once per vertex: in these
+/// boxes a task's active window of vertices (a few layers of cells, ~100 kB) stays in its L2.
+fn pass_bytes_per_tet(scene: &Scene, threads: usize) -> f64 {
+    let (tets, vertices) = (scene.mesh.element_count(), scene.mesh.vertex_count());
+    let element_bytes = (size_of::<[u32; 4]>() + size_of::<TetRest>()) as f64;
+    let evaluated = evaluated_elements(scene, threads) as f64;
+    (element_bytes * evaluated + 36.0 * vertices as f64) / tets as f64
+}
+
+/// Prints and returns as CSV rows the bandwidth ceiling of the force pass on `scene` on each
+/// pool (`triads`: the pool's triad GB/s, [`triads`]) at [`pass_bytes_per_tet`], beside the
+/// rates the pools measured (`variants` and `seconds` of [`force_variants`]).
+fn ceiling_rows(
+    scene: &Scene,
+    triads: &[(usize, f64)],
+    variants: &[Variant],
+    seconds: &[f64],
+) -> Vec<CsvRow> {
+    let tets = scene.mesh.element_count();
+    let mut rows = Vec::new();
+    let mut ceilings = Vec::new();
+    for &(threads, gb_per_s) in triads {
+        let bytes = pass_bytes_per_tet(scene, threads);
+        let ceiling = gb_per_s * 1e3 / bytes;
+        let measured = variants
+            .iter()
+            .zip(seconds)
+            .find(|(variant, _)| variant.label == on(threads))
+            .map(|(_, &s)| tets as f64 / s * 1e-6);
+        let measured = measured.map_or(String::new(), |m| {
+            format!(
+                "; measured {m:.1} Mtets/s = {:.1} GB/s, {:.0} % of the ceiling",
+                m * bytes * 1e-3,
+                m / ceiling * 100.0
+            )
+        });
+        println!(
+            "Bandwidth ceiling, {}: triad {gb_per_s:.1} GB/s / {bytes:.1} bytes a tet = \
+             {ceiling:.0} Mtets/s{measured}.",
+            on(threads)
+        );
+        ceilings.push((threads, ceiling));
+        rows.push(CsvRow {
+            bench: "parallel",
+            workload: "StVK direct forces, bytes streamed per tet".to_owned(),
+            size: tets,
+            lanes: softfem::lanes::LANES,
+            threads,
+            value: bytes,
+            unit: "B/tet",
+        });
+        rows.push(CsvRow {
+            bench: "parallel",
+            workload: "StVK direct forces, bandwidth ceiling".to_owned(),
+            size: tets,
+            lanes: softfem::lanes::LANES,
+            threads,
+            value: ceiling,
+            unit: "Mtets/s",
+        });
+    }
+    // A pool of n threads can be at most its ceiling over the measured one-thread rate faster
+    // than one thread: the bound bandwidth puts on the speed-up.
+    let one_thread = variants
+        .iter()
+        .zip(seconds)
+        .find(|(variant, _)| variant.label == on(1))
+        .map(|(_, &s)| tets as f64 / s * 1e-6);
+    if let Some(one) = one_thread {
+        for &(threads, ceiling) in ceilings.iter().filter(|(threads, _)| *threads > 1) {
+            println!(
+                "Bound on the speed-up {threads} threads / 1 thread from bandwidth: {ceiling:.0} / \
+                 {one:.1} Mtets/s = {:.2}x.",
+                ceiling / one
+            );
+            rows.push(CsvRow {
+                bench: "parallel",
+                workload: format!(
+                    "StVK direct forces, bandwidth bound on the speed-up {threads} threads / 1 thread"
+                ),
+                size: tets,
+                lanes: softfem::lanes::LANES,
+                threads,
+                value: ceiling / one,
+                unit: "ratio",
+            });
+        }
+    }
+    rows
+}
+
+/// Prints the speed-ups of the fastest single runs (`single`, from [`time`]) of a pass's
+/// variants ([`pass_variants`]) and returns them as CSV rows: each pool against the one-thread
+/// pool, and the one-thread pool against the sequential pass.
+fn single_run_rows(
+    workload: &str,
+    tets: usize,
+    variants: &[Variant],
+    single: &[f64],
+) -> Vec<CsvRow> {
+    let rate = |s: f64| tets as f64 / s * 1e-6;
+    let Some(one) = variants
+        .iter()
+        .zip(single)
+        .find(|(variant, _)| variant.label == on(1))
+        .map(|(_, &s)| s)
+    else {
+        return Vec::new();
+    };
+    let mut line = format!(
+        "Fastest single runs: sequential {:.1}, rayon 1 thread {:.1} Mtets/s ({:.2}x sequential)",
+        rate(single[0]),
+        rate(one),
+        single[0] / one
+    );
+    let mut rows = vec![CsvRow {
+        bench: "parallel",
+        workload: format!("{workload}, rayon 1 thread / sequential, fastest single runs"),
+        size: tets,
+        lanes: softfem::lanes::LANES,
+        threads: 1,
+        value: single[0] / one,
+        unit: "ratio",
+    }];
+    for (variant, &s) in variants.iter().zip(single) {
+        if variant.label.starts_with("rayon") && variant.threads > 1 {
+            line.push_str(&format!(
+                ", {} threads {:.1} Mtets/s ({:.2}x 1 thread)",
+                variant.threads,
+                rate(s),
+                one / s
+            ));
+            rows.push(CsvRow {
+                bench: "parallel",
+                workload: format!(
+                    "{workload}, speed-up {} threads / 1 thread, fastest single runs",
+                    variant.threads
+                ),
+                size: tets,
+                lanes: softfem::lanes::LANES,
+                threads: variant.threads,
+                value: one / s,
+                unit: "ratio",
+            });
+        }
+    }
+    println!("{line}.");
+    rows
+}
+
+/// The system's load averages over 1, 5 and 15 minutes (`/proc/loadavg`), for the captions: on a
+/// shared machine the multi-thread rows depend on them.
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .map(|text| {
+            text.split_whitespace()
+                .take(3)
+                .collect::<Vec<_>>()
+                .join(" ")
+        })
+        .unwrap_or_else(|| "unknown".to_owned())
 }
 
 /// The sequential variant of a solver (`sequential` on the sequential body) and the parallel

@@ -642,6 +642,100 @@ macro_rules! precision_tests {
                     }
                 }
 
+                /// A slab of 127 x 127 x 1 Kuhn cells: 32 768 vertices, enough that on two or more
+                /// threads the direct and fused passes check the positions in a chunk per
+                /// thread (`parallel::positions_pass`) instead of on the calling thread. Forces,
+                /// fused energy and forces against the sequential kernels, bit for bit; then a
+                /// NaN and an infinite position, and a vertex so far out that the deformation
+                /// bound fails, each in the last chunk of the vertices (another thread's): the
+                /// sequential kernels' results (the force pass's errors with the forces as they
+                /// were; the fused pass's energy, infinite out of range, and forces).
+                #[test]
+                fn passes_past_the_parallel_position_check_give_the_sequential_bits_and_errors() {
+                    let (cells, layers) = (127, 1);
+                    let (vertices, tets) =
+                        box_counts(cells, cells, layers, BoxSplit::Kuhn6).unwrap();
+                    assert!(vertices >= 32_768);
+                    let (mut rest, mut elements) =
+                        (vec![Vec3::ZERO; vertices], vec![[0; 4]; tets]);
+                    let high = Vec3::new(1.0, 1.0, 1.0 / cells as Real);
+                    fill_box(
+                        Vec3::ZERO,
+                        high,
+                        cells,
+                        cells,
+                        layers,
+                        BoxSplit::Kuhn6,
+                        &mut rest,
+                        &mut elements,
+                    )
+                    .unwrap();
+                    let mut rest_data = vec![TetRest::default(); tets];
+                    let mesh = TetMesh::new(&rest, &elements, &mut rest_data).unwrap();
+                    let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+                    let stvk = StVK::from_young_poisson(1.0e6, 0.45).unwrap();
+                    let body = TetElastic::new(mesh, stvk);
+                    let mut offsets = vec![0; partition_offsets_len(nv)];
+                    let mut incident = vec![0; partition_incident_len(ne)];
+                    let partition =
+                        TetPartition::new(mesh, 4, &mut offsets, &mut incident).unwrap();
+                    let mut element_forces = vec![[Vec3::ZERO; 4]; ne];
+                    let mut energies = vec![0.0; ne];
+                    let far = nv - 3 * cells; // in the last chunk of any pool here
+                    let mut nan = deformed(&rest);
+                    nan[far].y = Real::NAN;
+                    let mut infinite = deformed(&rest);
+                    infinite[far].z = Real::NEG_INFINITY;
+                    let mut out_of_range = deformed(&rest);
+                    out_of_range[far].x = Real::MAX.sqrt();
+                    let inputs = [deformed(&rest), nan, infinite, out_of_range];
+                    for (case, x) in inputs.iter().enumerate() {
+                        let mut expected = initial_forces(nv);
+                        let expected_result = mesh.add_elastic_forces(&stvk, x, &mut expected);
+                        let mut expected_fused = initial_forces(nv);
+                        let expected_energy = body.energy_and_add_forces(x, &mut expected_fused);
+                        // The fused pass checks no finiteness: on NaN it computes NaN, as
+                        // the sequential pass does.
+                        assert_eq!(expected_result.is_err(), case > 0, "case {case}");
+                        for threads in [2, 3] {
+                            let pool = pool(threads);
+                            let mut forces = initial_forces(nv);
+                            let result = pool.install(|| {
+                                parallel::add_elastic_forces(
+                                    &partition,
+                                    &stvk,
+                                    x,
+                                    &mut forces,
+                                    &mut element_forces,
+                                )
+                            });
+                            assert_eq!(result, expected_result, "case {case}, {threads} threads");
+                            assert_eq!(bits(&forces), bits(&expected), "case {case}, {threads}");
+                            let mut forces = initial_forces(nv);
+                            let energy = pool.install(|| {
+                                parallel::energy_and_add_forces(
+                                    &partition,
+                                    &stvk,
+                                    x,
+                                    &mut forces,
+                                    &mut element_forces,
+                                    &mut energies,
+                                )
+                            });
+                            assert_eq!(
+                                energy.map(Real::to_bits),
+                                expected_energy.map(Real::to_bits),
+                                "case {case}, {threads} threads: fused energy"
+                            );
+                            assert_eq!(
+                                bits(&forces),
+                                bits(&expected_fused),
+                                "case {case}, {threads} threads: fused forces"
+                            );
+                        }
+                    }
+                }
+
                 #[test]
                 fn svd_forces_and_hessians_on_1_2_3_8_threads_give_the_sequential_bits() {
                     let (rest, tets) = box_mesh(7); // 2058 tets (2058 % 4 = 2)
