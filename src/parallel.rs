@@ -77,7 +77,7 @@ use crate::error::MeshError;
 /// in the owner-computes form ([`TetPartition::add_forces_owned`]: one task per span of
 /// consecutive vertex pieces, no gather; partition with about one piece per thread, see
 /// [module documentation](self) for the spans). `element_forces`
-/// ([`element_forces_len`](super::mesh::element_forces_len) entries) is checked as by the other
+/// ([`element_forces_len`] entries) is checked as by the other
 /// force passes but not used. On a pool of two or more threads and from 32 768 vertices, the
 /// tests of the positions (finite, within the material's deformation bound) run in a chunk per
 /// thread too; where they do not pass at once, the sequential check decides.
@@ -192,7 +192,7 @@ pub fn energy_and_add_forces<M: Material + Sync>(
 /// with the sequential bits, in the owner-computes form
 /// ([`TetPartition::add_forces_principal_owned`]: one task per span of vertex pieces, no
 /// gather).
-/// `element_forces` ([`element_forces_len`](super::mesh::element_forces_len) entries) is
+/// `element_forces` ([`element_forces_len`] entries) is
 /// checked but not used.
 ///
 /// # Errors
@@ -215,7 +215,7 @@ pub fn add_elastic_forces_principal<M: Material + Sync>(
 /// `material` at `positions` (m), stretches clamped from below at `threshold`, into `forces`,
 /// with the sequential bits, in the owner-computes form
 /// ([`TetPartition::add_forces_clamped_owned`]). `element_forces`
-/// ([`element_forces_len`](super::mesh::element_forces_len) entries) is checked but not used.
+/// ([`element_forces_len`] entries) is checked but not used.
 ///
 /// # Errors
 /// As [`TetPartition::check_clamped`]; on error, `forces` is unchanged.
@@ -255,7 +255,7 @@ pub fn projected_hessians<M: Material + Sync>(
 /// [`TetMesh::add_hessian_product`] on the current rayon pool, through `partition`: adds `H d`
 /// (N) for the Hessian in `cache` and the per-vertex `direction` (m) into `out`, with the
 /// sequential bits, in the owner-computes form ([`TetPartition::add_hessian_product_owned`]).
-/// `element_products` ([`element_forces_len`](super::mesh::element_forces_len) entries) is
+/// `element_products` ([`element_forces_len`] entries) is
 /// checked but not used.
 ///
 /// # Errors
@@ -434,7 +434,7 @@ pub struct ParallelTetElastic<'a, M: Material> {
 
 impl<'a, M: Material + Sync> ParallelTetElastic<'a, M> {
     /// `body` evaluated through `partition` (of the same mesh), with scratch `element_forces`
-    /// ([`element_forces_len`](super::mesh::element_forces_len) entries) and `energies` (one
+    /// ([`element_forces_len`] entries) and `energies` (one
     /// per element), on the caller's current pool.
     ///
     /// # Errors
@@ -671,7 +671,7 @@ pub struct ParallelTetClamped<'a, M: Material> {
 
 impl<'a, M: Material + Sync> ParallelTetClamped<'a, M> {
     /// `body` evaluated through `partition` (of the same mesh), with scratch `element_forces`
-    /// ([`element_forces_len`](super::mesh::element_forces_len) entries), on the caller's
+    /// ([`element_forces_len`] entries), on the caller's
     /// current pool.
     ///
     /// # Errors
