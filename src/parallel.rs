@@ -329,9 +329,7 @@ fn positions_pass<M: Material>(mesh: &TetMesh<'_>, material: &M, positions: &[Ve
     if !zero.is_finite() {
         return false;
     }
-    let limit = material.deformation_limit();
-    limit == Real::INFINITY
-        || (limit >= 1.0 && (high - low).max_element() * mesh.gradient_gain() <= limit)
+    mesh.extent_within(material.deformation_limit(), low, high)
 }
 
 /// `span(pieces, slice)` for every span of [`span_len`] consecutive vertex pieces of

@@ -384,12 +384,22 @@ impl<'a> TetMesh<'a> {
         let (low, high) = positions
             .iter()
             .fold((first, first), |(low, high), &p| (low.min(p), high.max(p)));
-        // A limit below 1 refuses every element (the bound behind it is on `max(1, |F_ij|)`),
-        // which only the element-by-element path reports.
-        if limit >= 1.0 && (high - low).max_element() * self.gradient_gain <= limit {
+        if self.extent_within(limit, low, high) {
             return Ok(());
         }
         self.check_each_deformation(limit, positions)
+    }
+
+    /// Whether positions spanning the box `low..=high` keep every entry of every element's
+    /// deformation gradient within `limit` by the bound of
+    /// [`check_deformation`](Self::check_deformation) (largest extent times `gradient_gain`):
+    /// `true` settles the check, `false` decides nothing. A limit below 1 never passes: it
+    /// refuses every element (the bound behind it is on `max(1, |F_ij|)`), which only the
+    /// element-by-element path reports.
+    #[inline]
+    pub(crate) fn extent_within(&self, limit: Real, low: Vec3, high: Vec3) -> bool {
+        limit == Real::INFINITY
+            || (limit >= 1.0 && (high - low).max_element() * self.gradient_gain <= limit)
     }
 
     /// The slow path of [`check_deformation`](Self::check_deformation), element by element:
