@@ -294,7 +294,8 @@ mod tests {
     /// The README's text about the scene, paragraph by paragraph: its section (from "**Run the
     /// main example scene**" to the next "**Run") and every other paragraph naming `bouncy` or
     /// "the scene", with each fenced block and each code span that is a command of another
-    /// program left out (`cargo`, `sudo`, `apt-get`, `rustup`: those hold that program's flags).
+    /// program left out (`cargo`, `sudo`, `apt-get`, `rustup`, after any `NAME=value`
+    /// environment settings: those hold that program's flags).
     fn readme_scene_text() -> Vec<String> {
         let readme = include_str!("../../README.md");
         let marker = "**Run the main example scene**";
@@ -313,9 +314,12 @@ mod tests {
                 let unfenced: String = paragraph.split("```").step_by(2).collect();
                 let segments = unfenced.split('`').enumerate().filter(|(i, segment)| {
                     let code = segment.trim_start().trim_start_matches("sh").trim_start();
-                    let command = ["cargo", "sudo", "apt-get", "rustup"]
-                        .iter()
-                        .any(|program| code.starts_with(program));
+                    // A command may start with environment settings (`NAME=value cargo ...`).
+                    let program_word = code
+                        .split_whitespace()
+                        .find(|word| !word.contains('='))
+                        .unwrap_or("");
+                    let command = ["cargo", "sudo", "apt-get", "rustup"].contains(&program_word);
                     i % 2 == 0 || !command
                 });
                 let kept: Vec<&str> = segments.map(|(_, segment)| segment).collect();
