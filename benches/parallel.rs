@@ -913,6 +913,29 @@ const TRIAD_LEN: usize = 16 << 20;
 /// The triad's passes per pool (interleaved over the pools; the best of them counts).
 const TRIAD_ROUNDS: usize = 10;
 
+/// Runs `op` on `threads` equal parts of the three buffers, part `i` on thread `i` of `pool`.
+fn on_parts(
+    pool: &rayon::ThreadPool,
+    threads: usize,
+    (a, b, c): (&mut [f32], &mut [f32], &mut [f32]),
+    op: impl Fn(&mut [f32], &mut [f32], &mut [f32]) + Sync,
+) {
+    use std::sync::Mutex;
+    let chunk = a.len().div_ceil(threads).max(1);
+    let parts: Vec<Mutex<_>> = a
+        .chunks_mut(chunk)
+        .zip(b.chunks_mut(chunk))
+        .zip(c.chunks_mut(chunk))
+        .map(Mutex::new)
+        .collect();
+    pool.broadcast(|context| {
+        if let Some(part) = parts.get(context.index()) {
+            let ((a, b), c) = &mut *part.lock().unwrap();
+            op(a, b, c);
+        }
+    });
+}
+
 /// A STREAM-like triad `a[i] = b[i] + s c[i]` over f32 arrays of `n` elements ([`TRIAD_LEN`],
 /// fewer in a smoke test: then two rounds) on each pool: the arrays cut into one contiguous
 /// part per thread, each thread of the pool running its own part (`ThreadPool::broadcast`:
@@ -923,7 +946,6 @@ const TRIAD_ROUNDS: usize = 10;
 /// at STREAM's 12 bytes per element (two loads and a store, write-allocate traffic not
 /// counted). Returns (threads, GB/s) per pool.
 fn triads(pools: &[(usize, &'static rayon::ThreadPool)], n: usize) -> Vec<(usize, f64)> {
-    use std::sync::Mutex;
     // Zeroed allocations this large are fresh pages from the system (`calloc`): each part is
     // first written below by the thread of the largest pool that owns it (one NUMA node here,
     // so this only keeps page faults out of the timed passes).
@@ -932,41 +954,27 @@ fn triads(pools: &[(usize, &'static rayon::ThreadPool)], n: usize) -> Vec<(usize
         .iter()
         .max_by_key(|(threads, _)| *threads)
         .expect("at least one pool");
-    let chunk = n.div_ceil(threads_max);
-    let parts: Vec<Mutex<_>> = a
-        .chunks_mut(chunk)
-        .zip(b.chunks_mut(chunk))
-        .zip(c.chunks_mut(chunk))
-        .map(Mutex::new)
-        .collect();
-    pool_max.broadcast(|context| {
-        if let Some(part) = parts.get(context.index()) {
-            let ((a, b), c) = &mut *part.lock().unwrap();
+    on_parts(
+        pool_max,
+        threads_max,
+        (&mut a, &mut b, &mut c),
+        |a, b, c| {
             a.fill(0.0);
             b.fill(1.0);
             c.fill(2.0);
-        }
-    });
-    drop(parts);
+        },
+    );
     let scale = black_box(3.0f32);
     let mut pass = |pool: &rayon::ThreadPool, threads: usize| {
-        let chunk = n.div_ceil(threads);
-        let parts: Vec<Mutex<_>> = a
-            .chunks_mut(chunk)
-            .zip(b.chunks(chunk))
-            .zip(c.chunks(chunk))
-            .map(Mutex::new)
-            .collect();
         std::thread::sleep(PAUSE);
+        // Splitting the buffers (a few mutexes) is timed too: nanoseconds against a pass of
+        // milliseconds.
         let start = Instant::now();
-        pool.broadcast(|context| {
-            if let Some(part) = parts.get(context.index()) {
-                let ((a, b), c) = &mut *part.lock().unwrap();
-                for ((a, b), c) in a.iter_mut().zip(*b).zip(*c) {
-                    *a = b + scale * c;
-                }
-                black_box(a);
+        on_parts(pool, threads, (&mut a, &mut b, &mut c), |a, b, c| {
+            for ((a, b), c) in a.iter_mut().zip(&*b).zip(&*c) {
+                *a = b + scale * c;
             }
+            black_box(a);
         });
         start.elapsed().as_secs_f64()
     };
