@@ -147,6 +147,32 @@ impl TetMesh<'_> {
     }
 }
 
+/// How many groups ahead [`Product`] prefetches the cached entries. Measured at 105 456
+/// tetrahedra in f32 (19 MB of cache, AVX-512): without prefetch the product waits on the
+/// cache's loads (the hardware prefetcher does not keep up with the 16 streams of a group's
+/// lane-by-lane gather).
+const PREFETCH_GROUPS: usize = 4;
+
+/// Asks the processor to start loading the cached entries of `count` elements from element
+/// `first` on into its caches (x86_64; nothing elsewhere). A hint only: it reads nothing and
+/// cannot fault, past the end of `cache` included (the addresses are computed, not accessed).
+#[inline(always)]
+fn prefetch(cache: &[TetHessian], first: usize, count: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let start = cache.as_ptr().wrapping_add(first).cast::<i8>();
+        let bytes = count * core::mem::size_of::<TetHessian>();
+        for offset in (0..bytes).step_by(64) {
+            // SAFETY: `prefetch` has no preconditions: it never faults and changes no state
+            // that the program can observe (SSE, always present on x86_64).
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (cache, first, count);
+}
+
 /// The element loop of [`TetMesh::add_hessian_product`] at the width [`dispatch`] picks: whole
 /// groups of the widest lanes first, then narrower ones, then one element at a time (as the
 /// force passes). A group gathers its direction and its cached entries lane by lane, and every
@@ -199,6 +225,7 @@ impl Product<'_> {
             let Some(hessians) = cache.get(group * width..(group + 1) * width) else {
                 break;
             };
+            prefetch(cache, (group + PREFETCH_GROUPS) * width, width);
             if !self.dense && !corners.iter().any(|tet| self.touches(tet)) {
                 continue;
             }
