@@ -33,7 +33,7 @@ use super::super::svd::Svd3;
 use super::super::types::{Mat3, Real, Vec3};
 
 /// The number of distinct entries of a symmetric 9x9 matrix.
-const PACKED: usize = 45;
+pub(crate) const PACKED: usize = 45;
 
 /// A symmetric 9x9 stress derivative `dP/dF` (Pa per unit of `F`), acting on `vec(dF)` in
 /// column-major order: index `3 * column + row`, the order of `Mat3::to_cols_array`.
@@ -58,7 +58,10 @@ const PACKED: usize = 45;
 /// assert_eq!(d.entry(9, 0), 0.0); // out of range
 /// # Ok::<(), softfem::MaterialError>(())
 /// ```
+// Transparent: a slice of `TetHessian`s is a flat array of packed entries (the grouped
+// product's gather, `mesh/hessian.rs`).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(transparent)]
 pub struct StressDerivative {
     /// Upper triangle, row by row: `(i, j)` with `i <= j` at `i (17 - i) / 2 + j`.
     packed: [Real; PACKED],
