@@ -33,7 +33,7 @@ use super::super::svd::Svd3;
 use super::super::types::{Mat3, Real, Vec3};
 
 /// The number of distinct entries of a symmetric 9x9 matrix.
-pub(crate) const PACKED: usize = 45;
+const PACKED: usize = 45;
 
 /// A symmetric 9x9 stress derivative `dP/dF` (Pa per unit of `F`), acting on `vec(dF)` in
 /// column-major order: index `3 * column + row`, the order of `Mat3::to_cols_array`.
