@@ -155,8 +155,9 @@ impl TetMesh<'_> {
 const PREFETCH_GROUPS: usize = 4;
 
 /// Asks the processor to start loading the cached entries of `count` elements from element
-/// `first` on into its caches (x86_64; nothing elsewhere). A hint only: it reads nothing and
-/// cannot fault, past the end of `cache` included (the addresses are computed, not accessed).
+/// `first` on into its caches (x86_64; nothing elsewhere). A hint only: it changes nothing the
+/// program can observe and cannot fault, past the end of `cache` included (the addresses are
+/// computed with wrapping arithmetic, never dereferenced).
 #[inline(always)]
 fn prefetch(cache: &[TetHessian], first: usize, count: usize) {
     #[cfg(target_arch = "x86_64")]
@@ -207,9 +208,8 @@ fn gather_by_lane<L: LaneArray>(group: &[TetHessian]) -> [L; ENTRIES] {
 }
 
 /// [`gather_by_lane`] written out entry by entry, without a loop over the entries: fewer
-/// instructions where the values fit the registers (f64 AVX2, 4 lanes: 243 per element
-/// against 308 under callgrind), slower at 8 and 16 lanes (f64 AVX-512: 22-23 ns per element
-/// against 18-20).
+/// instructions at 4 lanes (f64 AVX2: 243 per element against 308 under callgrind, 10 368
+/// tetrahedra), but slower at 8 (f64 AVX-512: 22-23 ns per element against 18-20).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn gather_by_lane_unrolled<L: LaneArray>(group: &[TetHessian]) -> [L; ENTRIES] {
