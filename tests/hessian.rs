@@ -533,6 +533,54 @@ macro_rules! hessian_tests {
                 simd::set_max_width(Width::Avx512);
             }
 
+            /// The grouped product gathers each group's cached entries through register
+            /// transposes: on a mesh of many groups (432 tetrahedra, and lengths that end in
+            /// every kind of tail), with every element's entries different, each width gives
+            /// the bits of an element-by-element sum of `TetHessian::product`.
+            #[test]
+            fn mesh_product_of_many_groups_is_bitwise_the_element_sum_at_every_width() {
+                use softfem::simd::{self, Width};
+                let (nv, nt) = box_counts(6, 4, 3, BoxSplit::Kuhn6).unwrap();
+                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
+                fill_box(Vec3::ZERO, Vec3::new(0.6, 0.4, 0.3), 6, 4, 3, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let model = StableNeoHookean::from_young_poisson(1.0e6, 0.4).unwrap();
+                let mut rng = Rng::new(71);
+                let x: Vec<Vec3> = rest
+                    .iter()
+                    .map(|p| Vec3::new(p.x * 1.1 + 0.2 * p.y, p.y * 0.9, p.z * 0.8) + to_vec3(rng.vector()) * 1e-2)
+                    .collect();
+                let d: Vec<Vec3> = (0..nv).map(|_| to_vec3(rng.vector())).collect();
+                let _guard = crate::lock_width();
+                let widths: Vec<Width> =
+                    Width::ALL.into_iter().filter(|w| *w <= simd::detected_width()).collect();
+                for len in [nt, nt - 1, nt - 3, nt - 7, nt - 13] {
+                    let mut rest_data = vec![TetRest::default(); len];
+                    let mesh = TetMesh::new(&rest, &tets[..len], &mut rest_data).unwrap();
+                    let mut cache = vec![TetHessian::default(); len];
+                    mesh.projected_hessians(&model, &x, &mut cache).unwrap();
+                    // No two elements alike (the box's cubes would otherwise repeat entries).
+                    let distinct = cache.windows(2).filter(|pair| pair[0] != pair[1]).count();
+                    assert_eq!(distinct, len - 1);
+                    let mut sum = vec![Vec3::ZERO; nv];
+                    for ((corners, tet), hessian) in tets[..len].iter().zip(mesh.rest()).zip(&cache) {
+                        let v = corners.map(|c| d[c as usize]);
+                        for (k, f) in hessian.product(tet, v).into_iter().enumerate() {
+                            sum[corners[k] as usize] += f;
+                        }
+                    }
+                    let bits = |v: &[Vec3]| -> Vec<[u64; 3]> {
+                        v.iter().map(|p| [p.x, p.y, p.z].map(|c| f64::from(c).to_bits())).collect()
+                    };
+                    for &width in &widths {
+                        simd::set_max_width(width);
+                        let mut out = vec![Vec3::ZERO; nv];
+                        mesh.add_hessian_product(&cache, &d, &mut out).unwrap();
+                        assert_eq!(bits(&out), bits(&sum), "{len} elements at {width:?}");
+                    }
+                }
+                simd::set_max_width(Width::Avx512);
+            }
+
             #[test]
             fn mesh_kernels_refuse_bad_buffers_and_leave_outputs_untouched() {
                 let block = block();

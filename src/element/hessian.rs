@@ -20,6 +20,12 @@ use super::super::svd::svd3;
 use super::super::types::{Mat3, Real, Vec3};
 use super::TetRest;
 
+/// Packed entries of [`TetHessian`]'s stiffness (the upper triangle of a symmetric 9x9).
+pub(crate) const ENTRIES: usize = 45;
+
+// The flat layout the grouped product relies on.
+const _: () = assert!(core::mem::size_of::<TetHessian>() == ENTRIES * core::mem::size_of::<Real>());
+
 /// The cached second-derivative data of one tetrahedron: its projected (SPD) stiffness on the
 /// edge displacements, `K = V T^T (dP/dF) T` with `T` the map from `(v1 - v0, v2 - v0,
 /// v3 - v0)` to `dF = [v1 - v0, v2 - v0, v3 - v0] Dm^-1` (N/m, symmetric 9x9). The 12x12
@@ -50,7 +56,10 @@ use super::TetRest;
 /// assert!(shift.iter().all(|f| f.length() < 1e-2));
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
+// Transparent (as `StressDerivative`): `ENTRIES` numbers, no padding, so that a slice of
+// them is a flat array of packed entries (the grouped product's gather, `mesh/hessian.rs`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(transparent)]
 pub struct TetHessian {
     /// `K = V T^T (dP/dF) T` (N/m), in the packed storage of [`StressDerivative`], indexed
     /// `3 a + r` for component `r` of edge `a` (`v_{a+1} - v_0`).

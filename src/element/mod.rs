@@ -46,6 +46,7 @@ mod tet;
 mod triangle;
 mod triangle_hessian;
 
+pub(crate) use hessian::ENTRIES as HESSIAN_ENTRIES;
 pub use hessian::{TetHessian, tet_vertex_force_and_block};
 pub use tet::{TetRest, fix_orientation};
 pub use triangle::{TriRest, TriangleStVK};

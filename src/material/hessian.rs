@@ -58,7 +58,10 @@ const PACKED: usize = 45;
 /// assert_eq!(d.entry(9, 0), 0.0); // out of range
 /// # Ok::<(), softfem::MaterialError>(())
 /// ```
+// Transparent: a slice of `TetHessian`s is a flat array of packed entries (the grouped
+// product's gather, `mesh/hessian.rs`).
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(transparent)]
 pub struct StressDerivative {
     /// Upper triangle, row by row: `(i, j)` with `i <= j` at `i (17 - i) / 2 + j`.
     packed: [Real; PACKED],
