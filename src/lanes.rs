@@ -472,6 +472,19 @@ pub(crate) trait LaneArray: Lane {
     fn store_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
         Self::set_quarter(values, q, quarter);
     }
+    /// The first `WIDTH` vectors of `chunk` as lanes of coordinates (lane `i` holds
+    /// `chunk[i]`), where this lane type has a faster way than 4-lane transposes; `None` where
+    /// it has not, or `chunk` is shorter. Moves bits only.
+    #[inline(always)]
+    fn load_vec3s(_chunk: &[Vec3]) -> Option<LaneVec3<Self>> {
+        None
+    }
+    /// The inverse of [`load_vec3s`](Self::load_vec3s): writes lane `i` of `v` as `chunk[i]`
+    /// for the first `WIDTH` vectors and returns `true`, or writes nothing and returns `false`.
+    #[inline(always)]
+    fn store_vec3s(_v: LaneVec3<Self>, _chunk: &mut [Vec3]) -> bool {
+        false
+    }
 }
 
 /// [`LaneArray::lane_value`] for a plain array.

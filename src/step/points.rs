@@ -185,21 +185,21 @@ impl<L: Lane> Wide<L> for LaneVec3<L> {
     where
         L: LaneArray,
     {
-        // Four vectors at a time through the SSE transposes, then the quarters side by side.
-        let mut quarters = [[[0.0; LANES]; 4]; 3];
+        if let Some(group) = L::load_vec3s(chunk) {
+            return group;
+        }
+        // Four vectors at a time through the SSE transposes, each quarter stored whole.
+        let (mut x, mut y, mut z) = (L::ZEROS, L::ZEROS, L::ZEROS);
         for q in 0..L::WIDTH / LANES {
             let group = LaneVec3::from_vectors(quarter_of(chunk, q, Vec3::ZERO));
-            for (axis, value) in quarters.iter_mut().zip([group.x, group.y, group.z]) {
-                if let Some(slot) = axis.get_mut(q) {
-                    *slot = value.to_array();
-                }
-            }
+            L::store_quarter(&mut x, q, group.x);
+            L::store_quarter(&mut y, q, group.y);
+            L::store_quarter(&mut z, q, group.z);
         }
-        let [x, y, z] = quarters;
         LaneVec3::new(
-            L::from_quarters(x),
-            L::from_quarters(y),
-            L::from_quarters(z),
+            L::from_lane_array(x),
+            L::from_lane_array(y),
+            L::from_lane_array(z),
         )
     }
     #[inline(always)]
@@ -207,6 +207,9 @@ impl<L: Lane> Wide<L> for LaneVec3<L> {
     where
         L: LaneArray,
     {
+        if L::store_vec3s(self, chunk) {
+            return;
+        }
         let (x, y, z) = (
             self.x.to_lane_array(),
             self.y.to_lane_array(),

@@ -247,13 +247,13 @@ pub(super) struct Vertices<'a, V> {
 /// The first `L::WIDTH` values of `values` as a group (zeros past its end).
 #[inline(always)]
 fn load_scalars<L: LaneArray>(values: &[Real]) -> L {
-    let mut quarters = [[0.0; LANES]; 4];
-    for (q, quarter) in quarters.iter_mut().enumerate().take(L::WIDTH / LANES) {
+    let mut lanes = L::ZEROS;
+    for q in 0..L::WIDTH / LANES {
         if let Some(chunk) = values.get(q * LANES..).and_then(<[Real]>::first_chunk) {
-            *quarter = *chunk;
+            L::store_quarter(&mut lanes, q, Lanes::from_array(*chunk));
         }
     }
-    L::from_quarters(quarters)
+    L::from_lane_array(lanes)
 }
 
 /// Zeroes `chunk`.
