@@ -739,7 +739,9 @@ macro_rules! mesh_tests {
             /// vertices: groups of 16, 8 and 4 and a tail in f32; of 8 and 4 and a tail in f64).
             #[test]
             fn relaxation_contacts_are_bitwise_the_scalar_run_at_every_width() {
-                use $($crate_path)::+::step::{Collider, FIXED_X, Ground, relax_quasi_static};
+                use $($crate_path)::+::step::{
+                    Collider, FIXED_X, Ground, SUGGESTED_STICKING_SPEED, relax_quasi_static,
+                };
                 let (rest_x, deformed, tets) = deformed_box(4, 0.1, 0);
                 let mut rest = vec![TetRest::default(); tets.len()];
                 let mesh = TetMesh::new(&rest_x, &tets, &mut rest).unwrap();
@@ -752,7 +754,11 @@ macro_rules! mesh_tests {
                 // The plane cuts the lowest layer: some vertices start inside, the rest fall.
                 let normal = V::new(0.1, 1.0, -0.05).normalize();
                 let lowest = deformed.iter().map(|&x| normal.dot(x)).fold(Real::INFINITY, Real::min);
-                let ground = Ground::new(normal, lowest + 0.03).with_friction(0.4);
+                // Friction in the objective (a sticking speed): the direction passes damp the
+                // tangential direction at the vertices in contact.
+                let ground = Ground::new(normal, lowest + 0.03)
+                    .with_friction(0.4)
+                    .with_sticking_speed(SUGGESTED_STICKING_SPEED);
                 // Pushed sideways and up, every vertex differently; every seventh vertex moves
                 // in y and z only.
                 let pushes: Vec<V> = (0..n).map(|i| V::new(0.5 * i as Real, 2.0, -1.0) * masses[i]).collect();
