@@ -563,6 +563,21 @@ impl LaneArray for Lanes {
             *values = quarter.to_array();
         }
     }
+
+    /// The 4-lane transpose itself, in registers.
+    #[inline(always)]
+    fn load_vec3s(chunk: &[Vec3]) -> Option<LaneVec3<Self>> {
+        Some(LaneVec3::from_vectors(*chunk.first_chunk()?))
+    }
+
+    #[inline(always)]
+    fn store_vec3s(v: LaneVec3<Self>, chunk: &mut [Vec3]) -> bool {
+        let Some(slots) = chunk.first_chunk_mut::<LANES>() else {
+            return false;
+        };
+        *slots = v.to_vectors();
+        true
+    }
 }
 
 impl LaneArray for Real {
