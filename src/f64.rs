@@ -160,6 +160,33 @@ mod wide_ops {
     pub const AVX2_WIDTH: usize = 4;
     /// Values of this precision per AVX-512 register.
     pub const AVX512_WIDTH: usize = 8;
+
+    use super::types::Vec3;
+
+    /// The f32 module's three-register transpose of 8 vectors; in f64 an AVX register holds 4
+    /// and the 4-lane transposes serve: `None`.
+    #[inline(always)]
+    pub fn vec3s_256(_chunk: &[Vec3]) -> Option<[Reg256; 3]> {
+        None
+    }
+
+    /// The inverse of [`vec3s_256`]: `false`, nothing written.
+    #[inline(always)]
+    pub fn store_vec3s_256(_lanes: [Reg256; 3], _chunk: &mut [Vec3]) -> bool {
+        false
+    }
+
+    /// The f32 module's transpose of 16 vectors; here `None`, as [`vec3s_256`].
+    #[inline(always)]
+    pub fn vec3s_512(_chunk: &[Vec3]) -> Option<[Reg512; 3]> {
+        None
+    }
+
+    /// The inverse of [`vec3s_512`]: `false`, nothing written.
+    #[inline(always)]
+    pub fn store_vec3s_512(_lanes: [Reg512; 3], _chunk: &mut [Vec3]) -> bool {
+        false
+    }
 }
 
 /// One AVX register of values (x86_64, run with AVX2 by `simd::dispatch`).

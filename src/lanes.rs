@@ -157,6 +157,32 @@ pub(crate) fn map_lanes<L: Lane>(mut each: impl FnMut(usize) -> (Real, Mat3)) ->
     )
 }
 
+/// The vector in lane `lane` of `v` (zero past the last lane).
+#[inline(always)]
+pub(crate) fn lane_vec3<L: Lane>(v: &LaneVec3<L>, lane: usize) -> Vec3 {
+    Vec3::new(
+        v.x.value_of_lane(lane),
+        v.y.value_of_lane(lane),
+        v.z.value_of_lane(lane),
+    )
+}
+
+/// `each(lane)` for every lane of `L`, one lane at a time (each once), back in lanes: the
+/// colliders' queries of groups of vertices of any width.
+#[inline(always)]
+pub(crate) fn map_lane_vectors<L: Lane>(mut each: impl FnMut(usize) -> Vec3) -> LaneVec3<L> {
+    let mut results = [Vec3::ZERO; MAX_WIDTH];
+    for (lane, slot) in results.iter_mut().enumerate().take(L::WIDTH) {
+        *slot = each(lane);
+    }
+    let at = |lane: usize| results.get(lane).copied().unwrap_or(Vec3::ZERO);
+    LaneVec3::new(
+        L::from_lane_fn(|lane| at(lane).x),
+        L::from_lane_fn(|lane| at(lane).y),
+        L::from_lane_fn(|lane| at(lane).z),
+    )
+}
+
 /// The SVDs of a group of matrices, one per lane, as [`svd3`](super::svd::svd3) returns them
 /// ([`Svd3`](super::svd::Svd3)): lane `i` of each field is the field of lane `i`'s
 /// decomposition. What the principal-path force kernels hand to
@@ -234,7 +260,7 @@ pub(crate) fn map_lane_corners<L: Lane>(
 /// A sum over `n` items (vertices, elements) in a fixed order, grouped or not: item `i` of the
 /// first `n - n % LANES` adds to partial sum `i % LANES`, the partial sums are added as
 /// `(s0 + s1) + (s2 + s3)`, then the last `n % LANES` terms in order. Groups add one term per
-/// lane to the partial sums, so a grouped pass and a one-at-a-time pass give the same bits.
+/// lane to the partial sums (wider groups quarter by quarter), so a grouped pass and a one-at-a-time pass give the same bits.
 ///
 /// The partial sums are separate fields, not an array indexed by `i % LANES`, which would keep
 /// the whole sum, the grouped loop's running sum included, in memory rather than in registers.
@@ -262,10 +288,17 @@ impl LaneSum {
         }
     }
 
-    /// Adds one term per lane of a group.
+    /// Adds one term per lane of a group of `L::WIDTH` items (a multiple of [`LANES`]; the
+    /// first item at a multiple of [`LANES`]): its quarters one after another, lanes `0..4`
+    /// first, so that every partial sum still takes its items in order and the total has the
+    /// bits of [`add_single`](Self::add_single) on each item.
     #[inline(always)]
-    pub fn add_group(&mut self, terms: Lanes) {
-        self.lanes = self.lanes + terms;
+    pub fn add_wide<L: LaneArray>(&mut self, terms: L) {
+        const { assert!(L::WIDTH.is_multiple_of(LANES)) };
+        let values = terms.to_lane_array();
+        for q in 0..L::WIDTH / LANES {
+            self.lanes = self.lanes + L::quarter(&values, q);
+        }
     }
 
     /// Adds the term of item `i`, taken one at a time.
@@ -439,6 +472,19 @@ pub(crate) trait LaneArray: Lane {
     fn store_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
         Self::set_quarter(values, q, quarter);
     }
+    /// The first `WIDTH` vectors of `chunk` as lanes of coordinates (lane `i` holds
+    /// `chunk[i]`), where this lane type has a faster way than 4-lane transposes; `None` where
+    /// it has not, or `chunk` is shorter. Moves bits only.
+    #[inline(always)]
+    fn load_vec3s(_chunk: &[Vec3]) -> Option<LaneVec3<Self>> {
+        None
+    }
+    /// The inverse of [`load_vec3s`](Self::load_vec3s): writes lane `i` of `v` as `chunk[i]`
+    /// for the first `WIDTH` vectors and returns `true`, or writes nothing and returns `false`.
+    #[inline(always)]
+    fn store_vec3s(_v: LaneVec3<Self>, _chunk: &mut [Vec3]) -> bool {
+        false
+    }
 }
 
 /// [`LaneArray::lane_value`] for a plain array.
@@ -516,6 +562,21 @@ impl LaneArray for Lanes {
         if q == 0 {
             *values = quarter.to_array();
         }
+    }
+
+    /// The 4-lane transpose itself, in registers.
+    #[inline(always)]
+    fn load_vec3s(chunk: &[Vec3]) -> Option<LaneVec3<Self>> {
+        Some(LaneVec3::from_vectors(*chunk.first_chunk()?))
+    }
+
+    #[inline(always)]
+    fn store_vec3s(v: LaneVec3<Self>, chunk: &mut [Vec3]) -> bool {
+        let Some(slots) = chunk.first_chunk_mut::<LANES>() else {
+            return false;
+        };
+        *slots = v.to_vectors();
+        true
     }
 }
 
@@ -964,7 +1025,7 @@ impl From<LaneMat3<Real>> for Mat3 {
 
 #[cfg(test)]
 mod tests {
-    use super::{LANES, LaneSum, Lanes};
+    use super::{LANES, LaneArray, LanePair, LaneSum, Lanes};
 
     /// Terms of very different magnitudes and both signs, whose rounded sum depends on the order.
     fn term(i: usize) -> super::Real {
@@ -982,7 +1043,7 @@ mod tests {
             let whole = n - n % LANES;
             let mut grouped = LaneSum::new(n);
             for start in (0..whole).step_by(LANES) {
-                grouped.add_group(Lanes::from_array(core::array::from_fn(|j| term(start + j))));
+                grouped.add_wide(Lanes::from_array(core::array::from_fn(|j| term(start + j))));
             }
             for i in whole..n {
                 grouped.add_single(i, term(i));
@@ -1003,6 +1064,62 @@ mod tests {
             let expected = ((partial[0] + partial[1]) + (partial[2] + partial[3])) + last;
             assert_eq!(grouped.total().to_bits(), expected.to_bits(), "n = {n}");
             assert_eq!(single.total().to_bits(), expected.to_bits(), "n = {n}");
+        }
+    }
+
+    /// Groups of 8 and 16 lanes (pairs of [`Lanes`], which every target has, standing in for
+    /// the AVX lanes), then narrower groups, then single items, as the vertex passes take them
+    /// at each width: the bits of every item added one at a time, for every `n` up to 70.
+    #[test]
+    fn wide_lane_sums_give_the_bits_of_single_items() {
+        type Eight = LanePair<Lanes>;
+        type Sixteen = LanePair<Eight>;
+        /// The group of the `L::WIDTH` terms from item `start` on.
+        fn group<L: LaneArray>(start: usize) -> L {
+            let mut values = L::ZEROS;
+            for lane in 0..L::WIDTH {
+                L::set_lane_value(&mut values, lane, term(start + lane));
+            }
+            L::from_lane_array(values)
+        }
+        /// Whole groups of `L::WIDTH` items from `done` on: the items done.
+        fn groups<L: LaneArray>(sum: &mut LaneSum, n: usize, mut done: usize) -> usize {
+            while done + L::WIDTH <= n {
+                sum.add_wide(group::<L>(done));
+                done += L::WIDTH;
+            }
+            done
+        }
+        for n in 0..=70 {
+            // The documented order, written out.
+            let whole = n - n % LANES;
+            let mut partial = [0.0; LANES];
+            for i in 0..whole {
+                partial[i % LANES] += term(i);
+            }
+            let last = (whole..n).fold(0.0, |sum, i| sum + term(i));
+            let expected =
+                (((partial[0] + partial[1]) + (partial[2] + partial[3])) + last).to_bits();
+            let widths: [&dyn Fn(&mut LaneSum) -> usize; 3] = [
+                &|sum| groups::<Lanes>(sum, n, 0),
+                &|sum| {
+                    let done = groups::<Eight>(sum, n, 0);
+                    groups::<Lanes>(sum, n, done)
+                },
+                &|sum| {
+                    let done = groups::<Sixteen>(sum, n, 0);
+                    let done = groups::<Eight>(sum, n, done);
+                    groups::<Lanes>(sum, n, done)
+                },
+            ];
+            for (k, width) in widths.iter().enumerate() {
+                let mut sum = LaneSum::new(n);
+                let done = width(&mut sum);
+                for i in done..n {
+                    sum.add_single(i, term(i));
+                }
+                assert_eq!(sum.total().to_bits(), expected, "n = {n}, widths {k}");
+            }
         }
     }
 }

@@ -15,13 +15,13 @@
 // preconditions.
 
 use super::lanes::{
-    Lane, LaneArray, Lanes, array_lane_value, array_quarter, set_array_lane_value,
+    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
     set_array_quarter, store_array_quarter,
 };
-use super::types::Real;
+use super::types::{Real, Vec3};
 use super::wide_ops::{
     AVX2_WIDTH, Reg256, add256, and256, andnot256, blendv256, cmp256, div256, max256, movemask256,
-    mul256, or256, set1_256, sqrt256, sub256, xor256,
+    mul256, or256, set1_256, sqrt256, store_vec3s_256, sub256, vec3s_256, xor256,
 };
 use core::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q};
 use core::ops::{Add, Div, Mul, Neg, Sub};
@@ -187,5 +187,16 @@ impl LaneArray for Avx2Lanes {
     #[inline(always)]
     fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
         set_array_lane_value(values, lane, value);
+    }
+
+    #[inline(always)]
+    fn load_vec3s(chunk: &[Vec3]) -> Option<LaneVec3<Self>> {
+        let [x, y, z] = vec3s_256(chunk)?;
+        Some(LaneVec3::new(Avx2Lanes(x), Avx2Lanes(y), Avx2Lanes(z)))
+    }
+
+    #[inline(always)]
+    fn store_vec3s(v: LaneVec3<Self>, chunk: &mut [Vec3]) -> bool {
+        store_vec3s_256([v.x.0, v.y.0, v.z.0], chunk)
     }
 }

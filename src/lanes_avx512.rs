@@ -16,13 +16,13 @@
 // intrinsics have no memory operands or other preconditions.
 
 use super::lanes::{
-    Lane, LaneArray, Lanes, array_lane_value, array_quarter, set_array_lane_value,
+    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
     set_array_quarter, store_array_quarter,
 };
-use super::types::Real;
+use super::types::{Real, Vec3};
 use super::wide_ops::{
     AVX512_WIDTH, Mask512, Reg512, abs512, add512, blend512, cmp512, div512, from_bits512, max512,
-    mul512, set1_512, sqrt512, sub512, to_bits512,
+    mul512, set1_512, sqrt512, store_vec3s_512, sub512, to_bits512, vec3s_512,
 };
 use core::arch::x86_64::{
     _CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q, _mm512_and_si512, _mm512_or_si512, _mm512_xor_si512,
@@ -200,5 +200,20 @@ impl LaneArray for Avx512Lanes {
     #[inline(always)]
     fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
         set_array_lane_value(values, lane, value);
+    }
+
+    #[inline(always)]
+    fn load_vec3s(chunk: &[Vec3]) -> Option<LaneVec3<Self>> {
+        let [x, y, z] = vec3s_512(chunk)?;
+        Some(LaneVec3::new(
+            Avx512Lanes(x),
+            Avx512Lanes(y),
+            Avx512Lanes(z),
+        ))
+    }
+
+    #[inline(always)]
+    fn store_vec3s(v: LaneVec3<Self>, chunk: &mut [Vec3]) -> bool {
+        store_vec3s_512([v.x.0, v.y.0, v.z.0], chunk)
     }
 }

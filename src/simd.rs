@@ -25,9 +25,11 @@
 //! [`TetMesh`](crate::mesh::TetMesh) (direct, principal and clamped forces, element and total
 //! energies, the fused energy and force pass of the relaxation, and the product of the projected
 //! Hessian with a direction from its cached element data), which take the elements in groups of
-//! the width's lanes, then narrower groups, then one at a time; and the explicit step's vertex
+//! the width's lanes, then narrower groups, then one at a time; the explicit step's vertex
 //! update, which takes the vertices in groups of the same widths when the step has no colliders
-//! and no fixed axes.
+//! and no fixed axes; and the vertex passes of the relaxation and the descent solvers built on
+//! it (gradient, direction, Chebyshev and trial points), which do the same with every setting
+//! (ground, friction, pinned vertices; colliders queried lane by lane).
 //!
 //! This module holds the crate's run-time CPU checks and the only calls into code compiled for
 //! CPU features beyond the baseline; the lane types themselves live in `src/lanes_avx2.rs` and

@@ -731,6 +731,89 @@ macro_rules! mesh_tests {
                 assert_ne!(scalar[0].0, bits(&deformed));
             }
 
+            /// Relaxation steps and quasi-static solves onto a tilted ground, in each of the
+            /// relaxation's modes (Chebyshev with a given and an estimated `rho`, heavy ball), with
+            /// friction, pinned vertices, external forces, fixed axes and a sphere collider, at
+            /// every width end in the bits of the scalar run, reports included: the vertex passes
+            /// run each width's groups, then narrower ones, then one vertex at a time (125
+            /// vertices: groups of 16, 8 and 4 and a tail in f32; of 8 and 4 and a tail in f64).
+            #[test]
+            fn relaxation_contacts_are_bitwise_the_scalar_run_at_every_width() {
+                use $($crate_path)::+::step::{
+                    Collider, FIXED_X, Ground, SUGGESTED_STICKING_SPEED, relax_quasi_static,
+                };
+                let (rest_x, deformed, tets) = deformed_box(4, 0.1, 0);
+                let mut rest = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest_x, &tets, &mut rest).unwrap();
+                let model = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.45).unwrap());
+                let n = mesh.vertex_count();
+                assert_eq!(n, 125);
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let pinned: Vec<bool> = (0..n).map(|i| i % 11 == 4).collect();
+                // The plane cuts the lowest layer: some vertices start inside, the rest fall.
+                let normal = V::new(0.1, 1.0, -0.05).normalize();
+                let lowest = deformed.iter().map(|&x| normal.dot(x)).fold(Real::INFINITY, Real::min);
+                // Friction in the objective (a sticking speed): the direction passes damp the
+                // tangential direction at the vertices in contact.
+                let ground = Ground::new(normal, lowest + 0.03)
+                    .with_friction(0.4)
+                    .with_sticking_speed(SUGGESTED_STICKING_SPEED);
+                // Pushed sideways and up, every vertex differently; every seventh vertex moves
+                // in y and z only.
+                let pushes: Vec<V> = (0..n).map(|i| V::new(0.5 * i as Real, 2.0, -1.0) * masses[i]).collect();
+                let fixed: Vec<u8> = (0..n).map(|i| if i % 7 == 3 { FIXED_X } else { 0 }).collect();
+                // A sphere pressing into the top of the box.
+                let highest = deformed.iter().map(|x| x.y).fold(Real::NEG_INFINITY, Real::max);
+                let colliders = [Collider::sphere(V::new(0.5, highest + 0.3, 0.5), 0.4)];
+                let base = RelaxSettings::new(1.0 / 60.0)
+                    .with_gravity(V::new(0.0, -9.81, 0.0))
+                    .with_ground(ground)
+                    .with_tolerance(0.0, 12);
+                let run = || {
+                    let mut results = Vec::new();
+                    let modes = [
+                        base,
+                        base.with_chebyshev(0.9, 1.5, 2),
+                        base.with_estimated_chebyshev(2.0, 3),
+                        base.with_momentum(0.3),
+                        base.with_ground(ground.with_friction(0.0)),
+                    ];
+                    for (k, settings) in modes.into_iter().enumerate() {
+                        let settings = settings.with_colliders(&colliders);
+                        let loaded = settings.with_external_forces(&pushes).with_fixed_axes(&fixed);
+                        let settings = if k % 2 == 0 { settings } else { loaded };
+                        let (mut x, mut v) = (deformed.clone(), vec![V::new(0.0, -0.5, 0.1); n]);
+                        let (mut vectors, mut scalars) = (vec![V::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                        let mut reports = Vec::new();
+                        for _ in 0..2 {
+                            let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+                            let report =
+                                relax_step(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                            reports.push((report.iterations, report.backtracks, f64::from(report.phi).to_bits()));
+                        }
+                        let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
+                        let mut settled = x.clone();
+                        let report =
+                            relax_quasi_static(&model, &masses, &pinned, &settings, &mut settled, &mut scratch).unwrap();
+                        reports.push((report.iterations, report.backtracks, f64::from(report.phi).to_bits()));
+                        results.push((bits(&x), bits(&v), bits(&settled), reports));
+                    }
+                    results
+                };
+                let scalar = same_at_every_width("relaxation onto the ground", run);
+                // Every run moved, and friction, the loads and the modes changed the result.
+                for result in &scalar {
+                    assert_ne!(result.0, bits(&deformed));
+                    assert_ne!(result.2, result.0);
+                }
+                for (k, a) in scalar.iter().enumerate() {
+                    for b in &scalar[k + 1..] {
+                        assert_ne!(a.0, b.0);
+                    }
+                }
+            }
+
             /// Vertex Block Descent steps at every width end in the bits of the scalar run: the
             /// sweep sums the elements around several vertices of one colour at once, one vertex
             /// per lane (`src/step/vertex_sums.rs`), with the vertex line search (energies too)

@@ -1,16 +1,19 @@
-//! Per-vertex arithmetic written once for one vertex and for a group of [`LANES`] vertices.
+//! Per-vertex arithmetic written once for one vertex and for a group of vertices.
 //!
 //! The relaxation's vertex passes (gradient, direction, trial points; `vertex_passes.rs`) run on
-//! x86_64 [`LANES`] vertices at a time as [`Point`]s with [`Lanes`] coordinates and the rest one at
-//! a time with the plain vector, elsewhere every vertex one at a time, through the same generic
-//! code: element-wise IEEE operations and selects instead of branches, so every vertex gets the
-//! same bits either way. Sums over vertices follow one fixed order on every target (`LaneSum` in
+//! x86_64 in groups of the width `simd::dispatch` picks (16 f32 lanes on AVX-512, 8 on AVX2,
+//! then narrower groups down to [`LANES`]) as [`Point`]s with lane coordinates
+//! ([`Grouped::Wide`]) and the rest one at a time with the plain vector, elsewhere every vertex
+//! one at a time, through the same generic code: element-wise IEEE operations and selects
+//! instead of branches, so every vertex gets the same bits either way. Sums over vertices follow one fixed order on every target (`LaneSum` in
 //! `lanes.rs`). `LaneVec2` lives here rather than next to `LaneVec3`: only the steppers need 2D
 //! lanes.
 
 use core::ops::{Add, Neg, Sub};
 
-use super::super::lanes::{LANES, Lane, LaneArray, LaneVec3, Lanes, each_lane};
+use super::super::lanes::{
+    LANES, Lane, LaneArray, LaneVec3, Lanes, each_lane, lane_vec3, map_lane_vectors,
+};
 use super::super::types::{Real, Vec2, Vec3};
 use super::Ground;
 use super::collider::{self, Collider, Colliders};
@@ -78,8 +81,9 @@ pub trait Grouped: Point<Scalar = Real, Vector = Self> {
     /// The vectors of a group, lane by lane.
     fn ungroup(group: Self::Group) -> [Self; LANES];
     /// Groups of `L::WIDTH` vectors (a multiple of [`LANES`]), coordinate by coordinate: the
-    /// explicit step's update at the width `simd::dispatch` picks.
-    type Wide<L: Lane>: Wide<L, Vector = Self>;
+    /// explicit step's update and the relaxation's vertex passes at the width
+    /// `simd::dispatch` picks.
+    type Wide<L: Lane>: Wide<L, Vector = Self> + Point<Scalar = L, Vector = Self>;
     /// The mask of every axis: `0b11` in 2D, `0b111` in 3D.
     const ALL_AXES: u8;
     /// `self` with the coordinates whose bit is set in `fixed` (bit 0 x, 1 y, 2 z) taken from
@@ -181,21 +185,21 @@ impl<L: Lane> Wide<L> for LaneVec3<L> {
     where
         L: LaneArray,
     {
-        // Four vectors at a time through the SSE transposes, then the quarters side by side.
-        let mut quarters = [[[0.0; LANES]; 4]; 3];
+        if let Some(group) = L::load_vec3s(chunk) {
+            return group;
+        }
+        // Four vectors at a time through the SSE transposes, each quarter stored whole.
+        let (mut x, mut y, mut z) = (L::ZEROS, L::ZEROS, L::ZEROS);
         for q in 0..L::WIDTH / LANES {
             let group = LaneVec3::from_vectors(quarter_of(chunk, q, Vec3::ZERO));
-            for (axis, value) in quarters.iter_mut().zip([group.x, group.y, group.z]) {
-                if let Some(slot) = axis.get_mut(q) {
-                    *slot = value.to_array();
-                }
-            }
+            L::store_quarter(&mut x, q, group.x);
+            L::store_quarter(&mut y, q, group.y);
+            L::store_quarter(&mut z, q, group.z);
         }
-        let [x, y, z] = quarters;
         LaneVec3::new(
-            L::from_quarters(x),
-            L::from_quarters(y),
-            L::from_quarters(z),
+            L::from_lane_array(x),
+            L::from_lane_array(y),
+            L::from_lane_array(z),
         )
     }
     #[inline(always)]
@@ -203,6 +207,9 @@ impl<L: Lane> Wide<L> for LaneVec3<L> {
     where
         L: LaneArray,
     {
+        if L::store_vec3s(self, chunk) {
+            return;
+        }
         let (x, y, z) = (
             self.x.to_lane_array(),
             self.y.to_lane_array(),
@@ -377,14 +384,14 @@ impl Point for Vec2 {
     }
 }
 
-impl Point for LaneVec2 {
-    type Scalar = Lanes;
+impl<L: Lane> Point for LaneVec2<L> {
+    type Scalar = L;
     type Vector = Vec2;
     #[inline(always)]
     fn splat(v: Vec2) -> Self {
         LaneVec2 {
-            x: Lanes::splat(v.x),
-            y: Lanes::splat(v.y),
+            x: L::splat(v.x),
+            y: L::splat(v.y),
         }
     }
     #[inline(always)]
@@ -392,25 +399,25 @@ impl Point for LaneVec2 {
         Self::splat(Vec2::ZERO)
     }
     #[inline(always)]
-    fn inner(self, o: Self) -> Lanes {
+    fn inner(self, o: Self) -> L {
         self.x * o.x + self.y * o.y
     }
     #[inline(always)]
-    fn scale(self, k: Lanes) -> Self {
+    fn scale(self, k: L) -> Self {
         LaneVec2 {
             x: self.x * k,
             y: self.y * k,
         }
     }
     #[inline(always)]
-    fn abs_sum(self) -> Lanes {
+    fn abs_sum(self) -> L {
         self.x.abs() + self.y.abs()
     }
     #[inline(always)]
-    fn select(mask: <Lanes as Lane>::Mask, a: Self, b: Self) -> Self {
+    fn select(mask: L::Mask, a: Self, b: Self) -> Self {
         LaneVec2 {
-            x: Lanes::select(mask, a.x, b.x),
-            y: Lanes::select(mask, a.y, b.y),
+            x: L::select(mask, a.x, b.x),
+            y: L::select(mask, a.y, b.y),
         }
     }
     #[inline(always)]
@@ -522,59 +529,62 @@ impl Point for Vec3 {
     }
 }
 
-impl Point for LaneVec3<Lanes> {
-    type Scalar = Lanes;
+// Groups of any width: the colliders' queries go lane by lane, each lane through the one-vertex
+// query; the arithmetic that follows a query is element-wise, in the one-vertex code's order.
+impl<L: Lane> Point for LaneVec3<L> {
+    type Scalar = L;
     type Vector = Vec3;
     #[inline(always)]
     fn splat(v: Vec3) -> Self {
-        LaneVec3::new(Lanes::splat(v.x), Lanes::splat(v.y), Lanes::splat(v.z))
+        LaneVec3::new(L::splat(v.x), L::splat(v.y), L::splat(v.z))
     }
     #[inline(always)]
     fn zero() -> Self {
         Self::splat(Vec3::ZERO)
     }
     #[inline(always)]
-    fn inner(self, o: Self) -> Lanes {
+    fn inner(self, o: Self) -> L {
         LaneVec3::dot(self, o)
     }
     #[inline(always)]
-    fn scale(self, k: Lanes) -> Self {
+    fn scale(self, k: L) -> Self {
         LaneVec3::scale(self, k)
     }
     #[inline(always)]
-    fn abs_sum(self) -> Lanes {
+    fn abs_sum(self) -> L {
         self.x.abs() + self.y.abs() + self.z.abs()
     }
     #[inline(always)]
-    fn select(mask: <Lanes as Lane>::Mask, a: Self, b: Self) -> Self {
+    fn select(mask: L::Mask, a: Self, b: Self) -> Self {
         LaneVec3::select(mask, a, b)
     }
     #[inline(always)]
     fn pushed_out(self, colliders: Colliders<'_>) -> Self {
-        LaneVec3::from_vectors(self.to_vectors().map(|x| colliders.pushed_out(x)))
+        map_lane_vectors(|lane| colliders.pushed_out(lane_vec3(&self, lane)))
     }
     #[inline(always)]
     fn constrained_by(self, colliders: Colliders<'_>, v: Self, sign: Real) -> Self {
-        let (x, v) = (self.to_vectors(), v.to_vectors());
-        let lane = |k: usize| {
-            let at = |values: &[Vec3; LANES]| values.get(k).copied().unwrap_or(Vec3::ZERO);
-            colliders.constrained(at(&x), at(&v), sign)
-        };
-        LaneVec3::from_vectors(core::array::from_fn(lane))
+        map_lane_vectors(|lane| {
+            colliders.constrained(lane_vec3(&self, lane), lane_vec3(&v, lane), sign)
+        })
     }
-    type Touch = [Option<Vec3>; LANES];
+    /// The normal of the collider each lane touches, zero in the lanes that touch none.
+    type Touch = LaneVec3<L>;
     #[inline(always)]
     fn touch(self, colliders: Colliders<'_>) -> Self::Touch {
-        self.to_vectors().map(|x| x.touch(colliders))
+        map_lane_vectors(|lane| {
+            lane_vec3(&self, lane)
+                .touch(colliders)
+                .unwrap_or(Vec3::ZERO)
+        })
     }
+    /// `constrained_along` in every lane: a lane without a normal (zero) has a zero or NaN
+    /// component, never positive, and keeps `v`; the others take the one-vertex arithmetic.
     #[inline(always)]
-    fn constrained_at(touch: Self::Touch, v: Self, sign: Real) -> Self {
-        let v = v.to_vectors();
-        let lane = |k: usize| {
-            let normal = touch.get(k).copied().flatten();
-            constrained_along(normal, v.get(k).copied().unwrap_or(Vec3::ZERO), sign)
-        };
-        LaneVec3::from_vectors(core::array::from_fn(lane))
+    fn constrained_at(normal: Self::Touch, v: Self, sign: Real) -> Self {
+        let along = normal.dot(v);
+        let into = (along * L::splat(sign)).gt(L::splat(0.0));
+        LaneVec3::select(into, v - normal.scale(along), v)
     }
 }
 
@@ -677,17 +687,17 @@ impl<'a, P: Point> Floor<'a, P> {
         self.colliders
     }
 
-    /// The same ground and colliders for groups of [`LANES`] vectors.
+    /// The same ground and colliders for groups of vectors `W` (of any width).
     #[inline(always)]
-    pub fn grouped(&self) -> Floor<'a, P::Group>
+    pub fn widened<W: Point<Vector = P>>(&self) -> Floor<'a, W>
     where
         P: Grouped,
     {
         Floor {
             plane: self
                 .plane
-                .map(|(normal, offset)| (P::Group::splat(normal), Lanes::splat(offset))),
-            slack: Lanes::splat(self.slack),
+                .map(|(normal, offset)| (W::splat(normal), W::Scalar::splat(offset))),
+            slack: W::Scalar::splat(self.slack),
             colliders: self.colliders,
         }
     }
@@ -930,7 +940,7 @@ mod tests {
         ];
         let colliders = Colliders::new(&list);
         let one = Floor::<Vec3>::new(Some(&ground)).with_colliders(colliders);
-        let lanes = one.grouped();
+        let lanes = one.widened::<LaneVec3<Lanes>>();
         let mut state: u32 = 12345;
         let mut next = || {
             state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);

@@ -1,19 +1,26 @@
 //! The relaxation's passes over the vertices: the gradient of `Phi` from the elastic forces, the
 //! preconditioned descent direction and the trial points. On x86_64 (`math::BATCH_VERTICES`)
-//! each runs [`LANES`] vertices at a time (`Vector::Group`, see `points.rs`) and the rest one at
-//! a time, elsewhere every vertex one at a time, through the same generic per-vertex code, so
-//! that every vertex gets the same bits either way and every target the same sums.
+//! each runs in groups of the width `simd::dispatch` picks (16 f32 lanes on AVX-512, 8 on AVX2,
+//! 4 on SSE and at the scalar width; [`Grouped::Wide`], see `points.rs`), then narrower groups
+//! down to [`LANES`], then the rest one at a time (every vertex one at a time elsewhere), through
+//! the same generic per-vertex code, so that every vertex gets the same bits either way and
+//! every target and width the same sums ([`LaneSum`]).
 
-use super::super::lanes::{LANES, Lane, LaneSum, Lanes, each_lane};
+use super::super::lanes::{LANES, Lane, LaneArray, LaneSum, Lanes, MAX_WIDTH};
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes_avx2::Avx2Lanes;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes_avx512::Avx512Lanes;
 use super::super::math::BATCH_VERTICES;
 use super::super::types::Real;
 use super::collider::Colliders;
 use super::descent::line_search::{copy, slope_along};
 use super::friction::Friction;
-use super::points::{Floor, Grouped, Point};
+use super::points::{Floor, Grouped, Point, Wide};
 use super::split::{Blocks, Split};
 use super::{ElasticModel, Ground, Vector, check_state_lengths, first_bad_mass, first_non_finite};
 use crate::error::StepError;
+use crate::simd::{WidthKernel, dispatch};
 
 /// What every vertex pass needs besides the buffers, for points of type `P`.
 #[derive(Clone, Copy)]
@@ -102,8 +109,8 @@ impl<P: Point> Frame<'_, P> {
     }
 }
 
-/// The [`Frame`] of a solve, for single vertices; [`group`](Frames::group) gives the same for
-/// groups, built only where the passes group (`math::BATCH_VERTICES`).
+/// The [`Frame`] of a solve, for single vertices; [`wide`](Frames::wide) gives the same for
+/// groups of any width, built only where the passes group (`math::BATCH_VERTICES`).
 #[derive(Clone, Copy)]
 pub(super) struct Frames<'a, V: Grouped> {
     single: Frame<'a, V>,
@@ -139,27 +146,21 @@ impl<'a, V: Grouped> Frames<'a, V> {
         Frames { single, ..self }
     }
 
-    /// The frame for groups of [`LANES`] vertices: every value in every lane.
+    /// The frame for groups of `L::WIDTH` vertices: every value in every lane.
     #[inline(always)]
-    fn group(&self) -> Frame<'a, V::Group> {
+    fn wide<L: Lane>(&self) -> Frame<'a, V::Wide<L>> {
         let single = &self.single;
         Frame {
-            h: Lanes::splat(single.h),
-            inertia: Lanes::splat(single.inertia),
-            gravity: V::Group::splat(single.gravity),
-            floor: single.floor.grouped(),
+            h: L::splat(single.h),
+            inertia: L::splat(single.inertia),
+            gravity: <V::Wide<L> as Point>::splat(single.gravity),
+            floor: single.floor.widened(),
         }
     }
 
     /// The ground and the colliders, for one vertex.
     pub fn floor(&self) -> &Floor<'a, V> {
         &self.single.floor
-    }
-
-    /// Whether the passes group vertices: on `math::BATCH_VERTICES` targets.
-    #[inline(always)]
-    fn batched(&self) -> bool {
-        BATCH_VERTICES
     }
 
     /// The direction `d` (slope term `slope`) of a vertex at `x` moved from `start`, with
@@ -187,20 +188,20 @@ impl<'a, V: Grouped> Frames<'a, V> {
         (d - tangential * share, slope - share * g.dot(tangential))
     }
 
-    /// [`damped`](Self::damped) for the group of [`LANES`] vertices from vertex `first` on, at
+    /// [`damped`](Self::damped) for the group of `L::WIDTH` vertices from vertex `first` on, at
     /// `x` (a chunk) moved from `start` (every vertex's `x_n`; `x` where it runs out) with
     /// gradients `g` (a chunk) and bounds `p`: the grouped direction `d` and slope terms `slope`
     /// are unchanged unless a vertex of the group has a frictional contact, and then go through
     /// the one-vertex code lane by lane, so that every vertex gets the bits it gets alone. Most
     /// groups touch nothing and pay only the contact test.
     #[inline(always)]
-    fn damped_group(
+    fn damped_wide<L: LaneArray>(
         &self,
         (x, start, g): (&[V], &[V], &[V]),
         first: usize,
-        p: Lanes,
-        (d, slope): (V::Group, Lanes),
-    ) -> (V::Group, Lanes)
+        p: L,
+        (d, slope): (V::Wide<L>, L),
+    ) -> (V::Wide<L>, L)
     where
         V: Vector,
     {
@@ -211,16 +212,20 @@ impl<'a, V: Grouped> Frames<'a, V> {
             return (d, slope);
         }
         let start = start.get(first..).unwrap_or(&[]);
-        let (mut d, mut slope) = (V::ungroup(d), slope.to_array());
-        let lanes = d.iter_mut().zip(slope.iter_mut()).zip(p.to_array());
-        for (lane, ((d, slope), p)) in lanes.enumerate() {
+        let mut directions = [V::zero(); MAX_WIDTH];
+        d.store(&mut directions);
+        let (p, mut slopes) = (p.to_lane_array(), slope.to_lane_array());
+        for (lane, d) in directions.iter_mut().enumerate().take(L::WIDTH) {
             let (Some(&x), Some(&g)) = (x.get(lane), g.get(lane)) else {
                 continue;
             };
             let start = start.get(lane).copied().unwrap_or(x);
-            (*d, *slope) = self.damped((x, start, g), p, (*d, *slope));
+            let slope = L::lane_value(&slopes, lane);
+            let (damped, slope) = self.damped((x, start, g), L::lane_value(&p, lane), (*d, slope));
+            *d = damped;
+            L::set_lane_value(&mut slopes, lane, slope);
         }
-        (V::group(d), Lanes::from_array(slope))
+        (V::Wide::<L>::load(&directions), L::from_lane_array(slopes))
     }
 }
 
@@ -239,24 +244,16 @@ pub(super) struct Vertices<'a, V> {
     pub velocities: &'a [V],
 }
 
-/// The group held by `chunk` (a [`LANES`]-long chunk of `chunks_exact`).
+/// The first `L::WIDTH` values of `values` as a group (zeros past its end).
 #[inline(always)]
-fn load<V: Grouped>(chunk: &[V]) -> V::Group {
-    V::group(chunk.first_chunk().copied().unwrap_or([V::zero(); LANES]))
-}
-
-/// The scalars held by `chunk` (a [`LANES`]-long chunk of `chunks_exact`).
-#[inline(always)]
-fn load_scalars(chunk: &[Real]) -> Lanes {
-    Lanes::from_array(chunk.first_chunk().copied().unwrap_or([0.0; LANES]))
-}
-
-/// Writes `group` into `chunk` (a [`LANES`]-long chunk of `chunks_exact_mut`).
-#[inline(always)]
-fn store<V: Grouped>(chunk: &mut [V], group: V::Group) {
-    if let Some(slot) = chunk.first_chunk_mut() {
-        *slot = V::ungroup(group);
+fn load_scalars<L: LaneArray>(values: &[Real]) -> L {
+    let mut lanes = L::ZEROS;
+    for q in 0..L::WIDTH / LANES {
+        if let Some(chunk) = values.get(q * LANES..).and_then(<[Real]>::first_chunk) {
+            L::store_quarter(&mut lanes, q, Lanes::from_array(*chunk));
+        }
     }
+    L::from_lane_array(lanes)
 }
 
 /// Zeroes `chunk`.
@@ -265,23 +262,24 @@ fn clear<V: Grouped>(chunk: &mut [V]) {
     chunk.fill(V::zero());
 }
 
-/// The mask of the free (not pinned) vertices of group `k`; `None` if no vertex is pinned.
+/// The mask of the free (not pinned) vertices of the group of `L::WIDTH` vertices from vertex
+/// `first` on; `None` if no vertex is pinned (`pinned` empty).
 #[inline(always)]
-fn free_lanes(pinned: &[bool], k: usize) -> Option<<Lanes as Lane>::Mask> {
-    (!pinned.is_empty()).then(|| free_group(pinned, k))
-}
-
-/// The mask of the free (not pinned) vertices of group `k`.
-#[inline(always)]
-fn free_group(pinned: &[bool], k: usize) -> <Lanes as Lane>::Mask {
-    let flags = pinned
-        .get(k * LANES..)
-        .and_then(<[bool]>::first_chunk::<LANES>)
-        .copied()
-        .unwrap_or([false; LANES]);
-    Lanes::splat(0.5).gt(Lanes::from_array(each_lane(flags, |pinned| {
-        if pinned { 1.0 } else { 0.0 }
-    })))
+fn free_lanes<L: LaneArray>(pinned: &[bool], first: usize) -> Option<L::Mask> {
+    if pinned.is_empty() {
+        return None;
+    }
+    let flags = pinned.get(first..).unwrap_or(&[]);
+    let mut quarters = [[0.0; LANES]; 4];
+    for (q, quarter) in quarters.iter_mut().enumerate().take(L::WIDTH / LANES) {
+        for (j, value) in quarter.iter_mut().enumerate() {
+            *value = match flags.get(q * LANES + j) {
+                Some(true) => 1.0,
+                _ => 0.0,
+            };
+        }
+    }
+    Some(L::splat(0.5).gt(L::from_quarters(quarters)))
 }
 
 /// Whether vertex `i` is free, as the one-vertex code takes it.
@@ -302,13 +300,12 @@ impl<'a, V: Grouped> Vertices<'a, V> {
         }
     }
 
-    /// The preconditioners `P_i = k_i + m_i / h^2` of the whole groups, in order.
+    /// The preconditioners `P_i = k_i + m_i / h^2` of the `L::WIDTH` vertices from vertex
+    /// `first` on (zero past the end).
     #[inline(always)]
-    fn diagonal_groups(&self, inertia: Lanes) -> impl Iterator<Item = Lanes> + 'a {
-        let stiffness = self.stiffness.chunks_exact(LANES);
-        stiffness
-            .zip(self.masses.chunks_exact(LANES))
-            .map(move |(k, m)| load_scalars(k) + load_scalars(m) * inertia)
+    fn diagonal_group<L: LaneArray>(&self, inertia: L, first: usize) -> L {
+        let at = |values: &'a [Real]| load_scalars::<L>(values.get(first..).unwrap_or(&[]));
+        at(self.stiffness) + at(self.masses) * inertia
     }
 
     /// The preconditioner of vertex `i`.
@@ -316,6 +313,106 @@ impl<'a, V: Grouped> Vertices<'a, V> {
     fn diagonal_one(&self, inertia: Real, i: usize) -> Real {
         let at = |values: &[Real]| values.get(i).copied().unwrap_or(0.0);
         at(self.stiffness) + at(self.masses) * inertia
+    }
+}
+
+/// A vertex pass over whole groups of vertices of any width; [`run_groups`] runs it at the
+/// width [`dispatch`] picks.
+trait GroupPass {
+    /// The whole groups of `L::WIDTH` vertices from the block's vertex `done` (a multiple of
+    /// [`LANES`]) on, in order: returns the vertices done.
+    fn groups<L: LaneArray>(&mut self, done: usize) -> usize;
+}
+
+/// A [`GroupPass`] at the width [`dispatch`] picks: whole groups of the widest lanes first,
+/// then of narrower ones down to [`LANES`]. Returns the vertices done; the caller takes the
+/// rest one at a time. The scalar width keeps the groups of [`LANES`] the passes ran at every
+/// width before they ran wider (one vertex at a time they cost 0.09 force passes more per
+/// relaxation iteration; the same bits either way).
+struct Widths<G>(G);
+
+impl<G: GroupPass> WidthKernel for Widths<G> {
+    type Output = usize;
+
+    #[inline(always)]
+    fn scalar(mut self) -> usize {
+        self.0.groups::<Lanes>(0)
+    }
+
+    #[inline(always)]
+    fn sse(mut self) -> usize {
+        self.0.groups::<Lanes>(0)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn avx2(mut self) -> usize {
+        let done = self.0.groups::<Avx2Lanes>(0);
+        self.0.groups::<Lanes>(done)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn avx512(mut self) -> usize {
+        let done = self.0.groups::<Avx512Lanes>(0);
+        let done = self.0.groups::<Avx2Lanes>(done);
+        self.0.groups::<Lanes>(done)
+    }
+}
+
+/// `pass` over the whole groups at the width [`dispatch`] picks where the passes group
+/// (`math::BATCH_VERTICES`): returns the vertices done (none elsewhere).
+#[inline(always)]
+fn run_groups(pass: impl GroupPass) -> usize {
+    if BATCH_VERTICES {
+        dispatch(Widths(pass))
+    } else {
+        0
+    }
+}
+
+/// The gradient pass's whole groups (see `gradient_block`), its two sums added lane by lane.
+struct GradientGroups<'p, 'a, V: Grouped> {
+    frames: &'p Frames<'a, V>,
+    vertices: Vertices<'p, V>,
+    x: &'p [V],
+    gradient: &'p mut [V],
+    sums: &'p mut (LaneSum, LaneSum),
+}
+
+impl<V: Grouped> GroupPass for GradientGroups<'_, '_, V> {
+    #[inline(always)]
+    fn groups<L: LaneArray>(&mut self, mut done: usize) -> usize {
+        let frame = &self.frames.wide::<L>();
+        let vertices = &self.vertices;
+        let velocities = vertices.velocities();
+        let (phi, residual) = &mut *self.sums;
+        let width = L::WIDTH;
+        while done + width <= self.x.len() {
+            let range = done..done + width;
+            let (Some(g), Some(x), Some(start), Some(velocity), Some(m)) = (
+                self.gradient.get_mut(range.clone()),
+                self.x.get(range.clone()),
+                vertices.start.get(range.clone()),
+                velocities.get(range.clone()),
+                vertices.masses.get(range),
+            ) else {
+                break;
+            };
+            let (gradient, phi_term, residual_term) = frame.gradient(
+                V::Wide::<L>::load(x),
+                V::Wide::<L>::load(g),
+                V::Wide::<L>::load(start),
+                V::Wide::<L>::load(velocity),
+                load_scalars::<L>(m),
+                free_lanes::<L>(vertices.pinned, done),
+            );
+            gradient.store(g);
+            phi.add_wide(phi_term);
+            residual.add_wide(residual_term);
+            done += width;
+        }
+        done
     }
 }
 
@@ -328,32 +425,16 @@ fn gradient_block<V: Grouped>(
     x: &[V],
     gradient: &mut [V],
 ) -> (Real, Real) {
-    let (mut phi, mut residual) = (LaneSum::new(x.len()), LaneSum::new(x.len()));
+    let mut sums = (LaneSum::new(x.len()), LaneSum::new(x.len()));
+    let done = run_groups(GradientGroups {
+        frames,
+        vertices: *vertices,
+        x,
+        gradient: &mut *gradient,
+        sums: &mut sums,
+    });
+    let (phi, residual) = &mut sums;
     let velocities = vertices.velocities();
-    let mut done = 0;
-    if BATCH_VERTICES {
-        let frame = &frames.group();
-        let groups = gradient
-            .chunks_exact_mut(LANES)
-            .zip(x.chunks_exact(LANES))
-            .zip(vertices.start.chunks_exact(LANES))
-            .zip(velocities.chunks_exact(LANES))
-            .zip(vertices.masses.chunks_exact(LANES));
-        for (k, ((((g, x), start), velocity), m)) in groups.enumerate() {
-            let (gradient, phi_term, residual_term) = frame.gradient(
-                load(x),
-                load(g),
-                load(start),
-                load(velocity),
-                load_scalars(m),
-                free_lanes(vertices.pinned, k),
-            );
-            store(g, gradient);
-            phi.add_group(phi_term);
-            residual.add_group(residual_term);
-            done = (k + 1) * LANES;
-        }
-    }
     let frame = &frames.single;
     let zero = V::zero();
     let rows = gradient.iter_mut().zip(x).enumerate();
@@ -382,13 +463,6 @@ pub(super) struct TrialPoint<'t, V> {
 }
 
 impl<V> TrialPoint<'_, V> {
-    /// The point and gradient chunks of the whole groups.
-    #[inline(always)]
-    fn groups(&mut self) -> impl Iterator<Item = (&mut [V], &mut [V])> {
-        let points = self.positions.chunks_exact_mut(LANES);
-        points.zip(self.gradient.chunks_exact_mut(LANES))
-    }
-
     /// The point and gradient entries of every vertex.
     #[inline(always)]
     fn rows(&mut self) -> impl Iterator<Item = (&mut V, &mut V)> {
@@ -411,29 +485,17 @@ fn direction_block<V: Grouped + Vector>(
     alpha: Real,
 ) -> Real {
     let mut slope = LaneSum::new(x.len());
-    let mut done = 0;
-    if frames.batched() {
-        let buffers = ((x, gradient), &mut *direction, &mut trial);
-        // Monomorphised twice, so that the frictionless loop carries no friction test.
-        done = match frames.friction {
-            None => direction_groups(
-                frames,
-                vertices,
-                buffers,
-                (momentum, alpha),
-                &mut slope,
-                |_, _, _, direction| direction,
-            ),
-            Some(_) => direction_groups(
-                frames,
-                vertices,
-                buffers,
-                (momentum, alpha),
-                &mut slope,
-                |chunks, first, p, direction| frames.damped_group(chunks, first, p, direction),
-            ),
-        };
-    }
+    let done = run_groups(DirectionGroups {
+        frames,
+        vertices: *vertices,
+        x,
+        gradient,
+        direction: &mut *direction,
+        trial: &mut trial,
+        momentum,
+        alpha,
+        slope: &mut slope,
+    });
     let frame = &frames.single;
     let rows = direction
         .iter_mut()
@@ -454,45 +516,109 @@ fn direction_block<V: Grouped + Vector>(
     slope.total()
 }
 
-/// `direction_block`'s buffers: the iterate and its gradient, the direction, the trial point.
-type DirectionBuffers<'a, 't, V> = ((&'a [V], &'a [V]), &'a mut [V], &'a mut TrialPoint<'t, V>);
+/// The direction pass's whole groups (see `direction_block`), its slope added lane by lane.
+struct DirectionGroups<'p, 'a, 't, V: Grouped> {
+    frames: &'p Frames<'a, V>,
+    vertices: Vertices<'p, V>,
+    x: &'p [V],
+    gradient: &'p [V],
+    direction: &'p mut [V],
+    trial: &'p mut TrialPoint<'t, V>,
+    momentum: Option<Real>,
+    alpha: Real,
+    slope: &'p mut LaneSum,
+}
 
-/// The direction pass of `direction_block` over the whole groups, the direction of each
-/// through `damp` (`(x, x_n, g)` chunks, first vertex, bound, direction and slope terms):
-/// returns the vertices done.
-#[inline(always)]
-fn direction_groups<V: Grouped + Vector>(
-    frames: &Frames<V>,
-    vertices: &Vertices<'_, V>,
-    ((x, gradient), direction, trial): DirectionBuffers<'_, '_, V>,
-    (momentum, alpha): (Option<Real>, Real),
-    slope: &mut LaneSum,
-    damp: impl Fn((&[V], &[V], &[V]), usize, Lanes, (V::Group, Lanes)) -> (V::Group, Lanes),
-) -> usize {
-    let mut done = 0;
-    let frame = &frames.group();
-    let (lanes_alpha, lanes_momentum) = (Lanes::splat(alpha), momentum.map(Lanes::splat));
-    let groups = direction
-        .chunks_exact_mut(LANES)
-        .zip(trial.groups())
-        .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
-        .zip(vertices.diagonal_groups(frame.inertia));
-    for (k, (((d_slot, (t_slot, g_slot)), (x, g)), p)) in groups.enumerate() {
-        let position = load(x);
-        let heavy_ball = lanes_momentum.map(|m| (load(t_slot), m));
-        let direction = frame.direction(position, load(g), p, heavy_ball);
-        let (d, slope_term) = damp((x, vertices.start, g), k * LANES, p, direction);
-        store(d_slot, d);
-        let free = free_lanes(vertices.pinned, k);
-        store(
-            t_slot,
-            frame.moved(position, position + d.scale(lanes_alpha), free),
-        );
-        clear(g_slot);
-        slope.add_group(slope_term);
-        done = (k + 1) * LANES;
+impl<V: Grouped + Vector> GroupPass for DirectionGroups<'_, '_, '_, V> {
+    #[inline(always)]
+    fn groups<L: LaneArray>(&mut self, done: usize) -> usize {
+        // Monomorphised twice, so that the frictionless loop carries no friction test.
+        match self.frames.friction {
+            None => self.damped_groups::<L, false>(done),
+            Some(_) => self.damped_groups::<L, true>(done),
+        }
     }
-    done
+}
+
+impl<V: Grouped + Vector> DirectionGroups<'_, '_, '_, V> {
+    /// [`GroupPass::groups`], each direction through [`Frames::damped_wide`] if `FRICTION`.
+    #[inline(always)]
+    fn damped_groups<L: LaneArray, const FRICTION: bool>(&mut self, mut done: usize) -> usize {
+        let frames = self.frames;
+        let frame = &frames.wide::<L>();
+        let vertices = &self.vertices;
+        let (alpha, momentum) = (L::splat(self.alpha), self.momentum.map(L::splat));
+        let trial = &mut *self.trial;
+        let width = L::WIDTH;
+        while done + width <= self.x.len() {
+            let range = done..done + width;
+            let (Some(d_slot), Some(t_slot), Some(g_slot), Some(x), Some(g)) = (
+                self.direction.get_mut(range.clone()),
+                trial.positions.get_mut(range.clone()),
+                trial.gradient.get_mut(range.clone()),
+                self.x.get(range.clone()),
+                self.gradient.get(range),
+            ) else {
+                break;
+            };
+            let p = vertices.diagonal_group(frame.inertia, done);
+            let position = V::Wide::<L>::load(x);
+            let heavy_ball = momentum.map(|m| (V::Wide::<L>::load(t_slot), m));
+            let direction = frame.direction(position, V::Wide::<L>::load(g), p, heavy_ball);
+            let (d, slope_term) = if FRICTION {
+                frames.damped_wide((x, vertices.start, g), done, p, direction)
+            } else {
+                direction
+            };
+            d.store(d_slot);
+            let free = free_lanes::<L>(vertices.pinned, done);
+            frame
+                .moved(position, position + d.scale(alpha), free)
+                .store(t_slot);
+            clear(g_slot);
+            self.slope.add_wide(slope_term);
+            done += width;
+        }
+        done
+    }
+}
+
+/// The trial pass's whole groups (see [`trial_pass`]).
+struct TrialGroups<'p, 'a, 't, V: Grouped> {
+    frames: &'p Frames<'a, V>,
+    pinned: &'p [bool],
+    x: &'p [V],
+    direction: &'p [V],
+    trial: &'p mut TrialPoint<'t, V>,
+    alpha: Real,
+}
+
+impl<V: Grouped> GroupPass for TrialGroups<'_, '_, '_, V> {
+    #[inline(always)]
+    fn groups<L: LaneArray>(&mut self, mut done: usize) -> usize {
+        let frame = &self.frames.wide::<L>();
+        let alpha = L::splat(self.alpha);
+        let trial = &mut *self.trial;
+        let width = L::WIDTH;
+        while done + width <= self.x.len() {
+            let range = done..done + width;
+            let (Some(t_slot), Some(g_slot), Some(x), Some(d)) = (
+                trial.positions.get_mut(range.clone()),
+                trial.gradient.get_mut(range.clone()),
+                self.x.get(range.clone()),
+                self.direction.get(range),
+            ) else {
+                break;
+            };
+            let position = V::Wide::<L>::load(x);
+            let target = position + V::Wide::<L>::load(d).scale(alpha);
+            let free = free_lanes::<L>(self.pinned, done);
+            frame.moved(position, target, free).store(t_slot);
+            clear(g_slot);
+            done += width;
+        }
+        done
+    }
 }
 
 /// Writes the trial point `x + alpha d` (projected on the ground; `x` at pinned vertices) into
@@ -504,21 +630,14 @@ pub(super) fn trial_pass<V: Grouped>(
     alpha: Real,
     mut trial: TrialPoint<'_, V>,
 ) {
-    let mut done = 0;
-    if BATCH_VERTICES {
-        let frame = &frames.group();
-        let lanes_alpha = Lanes::splat(alpha);
-        let groups = trial
-            .groups()
-            .zip(x.chunks_exact(LANES).zip(direction.chunks_exact(LANES)));
-        for (k, ((t_slot, g_slot), (x, d))) in groups.enumerate() {
-            let position = load(x);
-            let target = position + load(d).scale(lanes_alpha);
-            store(t_slot, frame.moved(position, target, free_lanes(pinned, k)));
-            clear(g_slot);
-            done = (k + 1) * LANES;
-        }
-    }
+    let done = run_groups(TrialGroups {
+        frames,
+        pinned,
+        x,
+        direction,
+        trial: &mut trial,
+        alpha,
+    });
     let frame = &frames.single;
     let rows = trial.rows().zip(x.iter().zip(direction)).enumerate();
     for (i, ((t_slot, g_slot), (&x, &d))) in rows.skip(done) {
@@ -541,18 +660,16 @@ fn chebyshev_block<V: Grouped + Vector>(
     step: Real,
     omega: Real,
 ) {
-    let mut done = 0;
-    if frames.batched() {
-        let buffers = ((x, gradient), &mut trial);
-        let weights = (stepped, step, omega);
-        // Monomorphised twice, so that the frictionless loop carries no friction test.
-        done = match frames.friction {
-            None => chebyshev_groups(frames, vertices, buffers, weights, |_, _, _, d| d),
-            Some(_) => chebyshev_groups(frames, vertices, buffers, weights, |c, first, p, d| {
-                frames.damped_group(c, first, p, d)
-            }),
-        };
-    }
+    let done = run_groups(ChebyshevGroups {
+        frames,
+        vertices: *vertices,
+        x,
+        gradient,
+        trial: &mut trial,
+        stepped,
+        step,
+        omega,
+    });
     let frame = &frames.single;
     let rows = trial.rows().zip(x.iter().zip(gradient)).enumerate();
     for (i, ((t_slot, g_slot), (&x, &g))) in rows.skip(done) {
@@ -567,41 +684,70 @@ fn chebyshev_block<V: Grouped + Vector>(
     }
 }
 
-/// The Chebyshev pass of `chebyshev_block` over the whole groups, the direction of each
-/// through `damp` (as [`direction_groups`]): returns the vertices done.
-#[inline(always)]
-fn chebyshev_groups<V: Grouped + Vector>(
-    frames: &Frames<V>,
-    vertices: &Vertices<'_, V>,
-    ((x, gradient), trial): ((&[V], &[V]), &mut TrialPoint<'_, V>),
-    (stepped, step, omega): (bool, Real, Real),
-    damp: impl Fn((&[V], &[V], &[V]), usize, Lanes, (V::Group, Lanes)) -> (V::Group, Lanes),
-) -> usize {
-    let mut done = 0;
-    let frame = &frames.group();
-    let (lanes_step, lanes_weight) = (Lanes::splat(step), Lanes::splat(omega - 1.0));
-    let groups = trial
-        .groups()
-        .zip(x.chunks_exact(LANES).zip(gradient.chunks_exact(LANES)))
-        .zip(vertices.diagonal_groups(frame.inertia));
-    for (k, (((t_slot, g_slot), (x, g)), p)) in groups.enumerate() {
-        let position = load(x);
-        let last_step = if stepped {
-            position - load(t_slot)
-        } else {
-            V::Group::zero()
-        };
-        let direction = frame.direction(position, load(g), p, None);
-        let (d, _) = damp((x, vertices.start, g), k * LANES, p, direction);
-        let target = position + d.scale(lanes_step) + last_step.scale(lanes_weight);
-        store(
-            t_slot,
-            frame.moved(position, target, free_lanes(vertices.pinned, k)),
-        );
-        clear(g_slot);
-        done = (k + 1) * LANES;
+/// The Chebyshev pass's whole groups (see `chebyshev_block`).
+struct ChebyshevGroups<'p, 'a, 't, V: Grouped> {
+    frames: &'p Frames<'a, V>,
+    vertices: Vertices<'p, V>,
+    x: &'p [V],
+    gradient: &'p [V],
+    trial: &'p mut TrialPoint<'t, V>,
+    stepped: bool,
+    step: Real,
+    omega: Real,
+}
+
+impl<V: Grouped + Vector> GroupPass for ChebyshevGroups<'_, '_, '_, V> {
+    #[inline(always)]
+    fn groups<L: LaneArray>(&mut self, done: usize) -> usize {
+        // Monomorphised twice, so that the frictionless loop carries no friction test.
+        match self.frames.friction {
+            None => self.damped_groups::<L, false>(done),
+            Some(_) => self.damped_groups::<L, true>(done),
+        }
     }
-    done
+}
+
+impl<V: Grouped + Vector> ChebyshevGroups<'_, '_, '_, V> {
+    /// [`GroupPass::groups`], each direction through [`Frames::damped_wide`] if `FRICTION`.
+    #[inline(always)]
+    fn damped_groups<L: LaneArray, const FRICTION: bool>(&mut self, mut done: usize) -> usize {
+        let frames = self.frames;
+        let frame = &frames.wide::<L>();
+        let vertices = &self.vertices;
+        let (step, weight) = (L::splat(self.step), L::splat(self.omega - 1.0));
+        let trial = &mut *self.trial;
+        let width = L::WIDTH;
+        while done + width <= self.x.len() {
+            let range = done..done + width;
+            let (Some(t_slot), Some(g_slot), Some(x), Some(g)) = (
+                trial.positions.get_mut(range.clone()),
+                trial.gradient.get_mut(range.clone()),
+                self.x.get(range.clone()),
+                self.gradient.get(range),
+            ) else {
+                break;
+            };
+            let position = V::Wide::<L>::load(x);
+            let last_step = if self.stepped {
+                position - V::Wide::<L>::load(t_slot)
+            } else {
+                <V::Wide<L> as Point>::zero()
+            };
+            let p = vertices.diagonal_group(frame.inertia, done);
+            let direction = frame.direction(position, V::Wide::<L>::load(g), p, None);
+            let (d, _) = if FRICTION {
+                frames.damped_wide((x, vertices.start, g), done, p, direction)
+            } else {
+                direction
+            };
+            let target = position + d.scale(step) + last_step.scale(weight);
+            let free = free_lanes::<L>(vertices.pinned, done);
+            frame.moved(position, target, free).store(t_slot);
+            clear(g_slot);
+            done += width;
+        }
+        done
+    }
 }
 
 /// A vector type the blocked passes can share between threads.
@@ -832,14 +978,15 @@ mod tests {
         (h >> 8) as Real / (1u32 << 23) as Real - 1.0
     }
 
-    /// Every pass, run on `n` vertices (two groups and a tail when `n = 11`), against the
-    /// one-vertex arithmetic applied to each vertex alone: the same bits, and sums in the
-    /// documented order.
+    /// Every pass, run on `n` vertices (at the width this machine runs: `n = 11` two groups of
+    /// 4 and a tail; `n = 61` on AVX-512 in f32 three groups of 16, one of 8, one of 4 and a
+    /// tail), against the one-vertex arithmetic applied to each vertex alone: the same bits,
+    /// and sums in the documented order.
     fn passes_match_one_vertex_at_a_time<V: Grouped + super::super::Vector>(
+        n: usize,
         make: impl Fn(usize, usize) -> V,
         up: V,
     ) {
-        let n = 11;
         let zero = <V as Point>::zero();
         let masses: Vec<Real> = (0..n).map(|i| 1.0 + noise(i, 1).abs()).collect();
         let stiffness: Vec<Real> = (0..n)
@@ -891,12 +1038,13 @@ mod tests {
             };
             let free = |i: usize| !pinned.get(i).copied().unwrap_or(false);
             let order = |terms: &[Real]| {
+                let whole = n - n % 4;
                 let mut partial = [0.0; 4];
-                for (i, t) in terms.iter().take(8).enumerate() {
+                for (i, t) in terms.iter().take(whole).enumerate() {
                     partial[i % 4] += t;
                 }
-                ((partial[0] + partial[1]) + (partial[2] + partial[3]))
-                    + (terms[8] + terms[9] + terms[10])
+                let tail = terms[whole..].iter().fold(0.0, |sum, t| sum + t);
+                ((partial[0] + partial[1]) + (partial[2] + partial[3])) + tail
             };
             let bits = |v: &[V]| format!("{v:?}");
 
@@ -1035,10 +1183,17 @@ mod tests {
 
     #[test]
     fn vertex_passes_give_each_vertex_the_bits_of_the_one_vertex_code() {
-        passes_match_one_vertex_at_a_time(
-            |i, s| Vec3::new(noise(i, s), noise(i, s + 10), noise(i, s + 20)),
-            Vec3::Z,
-        );
-        passes_match_one_vertex_at_a_time(|i, s| Vec2::new(noise(i, s), noise(i, s + 10)), Vec2::Y);
+        for n in [11, 61] {
+            passes_match_one_vertex_at_a_time(
+                n,
+                |i, s| Vec3::new(noise(i, s), noise(i, s + 10), noise(i, s + 20)),
+                Vec3::Z,
+            );
+            passes_match_one_vertex_at_a_time(
+                n,
+                |i, s| Vec2::new(noise(i, s), noise(i, s + 10)),
+                Vec2::Y,
+            );
+        }
     }
 }
