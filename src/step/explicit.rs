@@ -12,7 +12,7 @@ use super::descent::line_search::copy;
 use super::loads::Loads;
 use super::points::Wide;
 use super::split::Blocks;
-use super::vertex_passes::split_check_state;
+use super::vertex_passes::{free_lanes, split_check_state};
 use super::{ElasticModel, Ground, Vector, check_length, pinned_flags};
 use crate::error::{MeshError, StepBuffer, StepError};
 use crate::simd::{WidthKernel, dispatch};
@@ -754,7 +754,7 @@ impl<V: Vector> Update<'_, '_, V> {
                 );
             }
         }
-        let (x, v) = match free_mask::<L>(pinned) {
+        let (x, v) = match free_lanes::<L>(pinned, 0) {
             Some(free) => (
                 V::Wide::<L>::wide_select(free, new_x, x),
                 V::Wide::<L>::wide_select(free, new_v, v),
@@ -806,25 +806,6 @@ fn load_scalars<L: LaneArray>(values: &[Real]) -> L {
         }
     }
     L::from_quarters(quarters)
-}
-
-/// The mask of the free (not pinned) lanes of a group with pinned flags `pinned`; `None` if
-/// the flags are empty (every vertex free).
-#[inline(always)]
-fn free_mask<L: LaneArray>(pinned: &[bool]) -> Option<L::Mask> {
-    if pinned.is_empty() {
-        return None;
-    }
-    let mut quarters = [[0.0; LANES]; 4];
-    for (q, quarter) in quarters.iter_mut().enumerate().take(L::WIDTH / LANES) {
-        for (j, value) in quarter.iter_mut().enumerate() {
-            *value = match pinned.get(q * LANES + j) {
-                Some(true) => 1.0,
-                _ => 0.0,
-            };
-        }
-    }
-    Some(L::splat(0.5).gt(L::from_quarters(quarters)))
 }
 
 /// One block of the update pass, at the width [`dispatch`] picks: whole groups of the widest

@@ -263,9 +263,10 @@ fn clear<V: Grouped>(chunk: &mut [V]) {
 }
 
 /// The mask of the free (not pinned) vertices of the group of `L::WIDTH` vertices from vertex
-/// `first` on; `None` if no vertex is pinned (`pinned` empty).
+/// `first` on; `None` if no vertex is pinned (`pinned` empty). The explicit step's update
+/// takes its groups' masks here too.
 #[inline(always)]
-fn free_lanes<L: LaneArray>(pinned: &[bool], first: usize) -> Option<L::Mask> {
+pub(super) fn free_lanes<L: LaneArray>(pinned: &[bool], first: usize) -> Option<L::Mask> {
     if pinned.is_empty() {
         return None;
     }
