@@ -1,7 +1,7 @@
 //! Explicit symplectic Euler with damping, pinned vertices, ground contact, substeps and
 //! blow-up detection.
 
-use super::super::lanes::{LANES, LaneArray, Lanes};
+use super::super::lanes::{LaneArray, Lanes};
 #[cfg(target_arch = "x86_64")]
 use super::super::lanes_avx2::Avx2Lanes;
 #[cfg(target_arch = "x86_64")]
@@ -12,7 +12,7 @@ use super::descent::line_search::copy;
 use super::loads::Loads;
 use super::points::Wide;
 use super::split::Blocks;
-use super::vertex_passes::{free_lanes, split_check_state};
+use super::vertex_passes::{free_lanes, load_scalars, split_check_state};
 use super::{ElasticModel, Ground, Vector, check_length, pinned_flags};
 use crate::error::{MeshError, StepBuffer, StepError};
 use crate::simd::{WidthKernel, dispatch};
@@ -794,18 +794,6 @@ impl<V: Vector> Update<'_, '_, V> {
 #[inline(always)]
 fn gravity_of<V: Vector>(settings: &ExplicitSettings<'_, V>) -> V {
     settings.gravity
-}
-
-/// The first `L::WIDTH` values of `values` as a group (zeros past its end).
-#[inline(always)]
-fn load_scalars<L: LaneArray>(values: &[Real]) -> L {
-    let mut quarters = [[0.0; LANES]; 4];
-    for (q, quarter) in quarters.iter_mut().enumerate().take(L::WIDTH / LANES) {
-        if let Some(chunk) = values.get(q * LANES..).and_then(<[Real]>::first_chunk) {
-            *quarter = *chunk;
-        }
-    }
-    L::from_quarters(quarters)
 }
 
 /// One block of the update pass, at the width [`dispatch`] picks: whole groups of the widest

@@ -244,16 +244,17 @@ pub(super) struct Vertices<'a, V> {
     pub velocities: &'a [V],
 }
 
-/// The first `L::WIDTH` values of `values` as a group (zeros past its end).
+/// The first `L::WIDTH` values of `values` as a group (zeros past its end). The explicit
+/// step's update loads its masses here too.
 #[inline(always)]
-fn load_scalars<L: LaneArray>(values: &[Real]) -> L {
-    let mut lanes = L::ZEROS;
-    for q in 0..L::WIDTH / LANES {
+pub(super) fn load_scalars<L: LaneArray>(values: &[Real]) -> L {
+    let mut quarters = [[0.0; LANES]; 4];
+    for (q, quarter) in quarters.iter_mut().enumerate().take(L::WIDTH / LANES) {
         if let Some(chunk) = values.get(q * LANES..).and_then(<[Real]>::first_chunk) {
-            L::store_quarter(&mut lanes, q, Lanes::from_array(*chunk));
+            *quarter = *chunk;
         }
     }
-    L::from_lane_array(lanes)
+    L::from_quarters(quarters)
 }
 
 /// Zeroes `chunk`.
