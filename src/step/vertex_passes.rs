@@ -487,16 +487,18 @@ fn direction_block<V: Grouped + Vector>(
     alpha: Real,
 ) -> Real {
     let mut slope = LaneSum::new(x.len());
-    let done = run_groups(DirectionGroups {
+    let done = run_groups(DampedGroups {
         frames,
         vertices: *vertices,
         x,
         gradient,
-        direction: &mut *direction,
         trial: &mut trial,
-        momentum,
-        alpha,
-        slope: &mut slope,
+        target: DescentTarget {
+            direction: &mut *direction,
+            momentum,
+            alpha,
+            slope: &mut slope,
+        },
     });
     let frame = &frames.single;
     let rows = direction
@@ -518,20 +520,41 @@ fn direction_block<V: Grouped + Vector>(
     slope.total()
 }
 
-/// The direction pass's whole groups (see `direction_block`), its slope added lane by lane.
-struct DirectionGroups<'p, 'a, 't, V: Grouped> {
+/// What the direction and Chebyshev passes do with a group's damped direction, the only part
+/// in which their whole groups ([`DampedGroups`]) differ.
+trait GroupTarget<V: Grouped> {
+    /// Whether the pass's own buffers hold the group of vertices ending before `end`.
+    fn holds(&self, end: usize) -> bool;
+    /// The heavy-ball term of the group's direction, `(x_{k-1}, momentum)` with `x_{k-1}` read
+    /// from the group's trial slots `previous`, if the pass has one.
+    fn heavy_ball<L: LaneArray>(&self, previous: &[V]) -> Option<(V::Wide<L>, L)>;
+    /// The unprojected trial point of the group of vertices from `first` at `position`, along
+    /// its damped direction `d` with slope terms `slope`; `previous` is the group's trial slots
+    /// before the pass overwrites them.
+    fn target<L: LaneArray>(
+        &mut self,
+        first: usize,
+        position: V::Wide<L>,
+        previous: &[V],
+        d: (V::Wide<L>, L),
+    ) -> V::Wide<L>;
+}
+
+/// The whole groups of the direction pass (`direction_block`, with [`DescentTarget`]) and of the
+/// Chebyshev pass (`chebyshev_block`, with [`ChebyshevTarget`]): per group, the preconditioned
+/// direction at `x` (damped by friction where a vertex has a frictional contact), the trial
+/// point `target` makes of it, projected on the ground (`x` at pinned vertices), and the trial
+/// gradient zeroed.
+struct DampedGroups<'p, 'a, 't, V: Grouped, T> {
     frames: &'p Frames<'a, V>,
     vertices: Vertices<'p, V>,
     x: &'p [V],
     gradient: &'p [V],
-    direction: &'p mut [V],
     trial: &'p mut TrialPoint<'t, V>,
-    momentum: Option<Real>,
-    alpha: Real,
-    slope: &'p mut LaneSum,
+    target: T,
 }
 
-impl<V: Grouped + Vector> GroupPass for DirectionGroups<'_, '_, '_, V> {
+impl<V: Grouped + Vector, T: GroupTarget<V>> GroupPass for DampedGroups<'_, '_, '_, V, T> {
     #[inline(always)]
     fn groups<L: LaneArray>(&mut self, done: usize) -> usize {
         // Monomorphised twice, so that the frictionless loop carries no friction test.
@@ -542,20 +565,18 @@ impl<V: Grouped + Vector> GroupPass for DirectionGroups<'_, '_, '_, V> {
     }
 }
 
-impl<V: Grouped + Vector> DirectionGroups<'_, '_, '_, V> {
+impl<V: Grouped + Vector, T: GroupTarget<V>> DampedGroups<'_, '_, '_, V, T> {
     /// [`GroupPass::groups`], each direction through [`Frames::damped_wide`] if `FRICTION`.
     #[inline(always)]
     fn damped_groups<L: LaneArray, const FRICTION: bool>(&mut self, mut done: usize) -> usize {
         let frames = self.frames;
         let frame = &frames.wide::<L>();
         let vertices = &self.vertices;
-        let (alpha, momentum) = (L::splat(self.alpha), self.momentum.map(L::splat));
         let trial = &mut *self.trial;
         let width = L::WIDTH;
-        while done + width <= self.x.len() {
+        while done + width <= self.x.len() && self.target.holds(done + width) {
             let range = done..done + width;
-            let (Some(d_slot), Some(t_slot), Some(g_slot), Some(x), Some(g)) = (
-                self.direction.get_mut(range.clone()),
+            let (Some(t_slot), Some(g_slot), Some(x), Some(g)) = (
                 trial.positions.get_mut(range.clone()),
                 trial.gradient.get_mut(range.clone()),
                 self.x.get(range.clone()),
@@ -565,23 +586,57 @@ impl<V: Grouped + Vector> DirectionGroups<'_, '_, '_, V> {
             };
             let p = vertices.diagonal_group(frame.inertia, done);
             let position = V::Wide::<L>::load(x);
-            let heavy_ball = momentum.map(|m| (V::Wide::<L>::load(t_slot), m));
+            let heavy_ball = self.target.heavy_ball::<L>(t_slot);
             let direction = frame.direction(position, V::Wide::<L>::load(g), p, heavy_ball);
-            let (d, slope_term) = if FRICTION {
+            let damped = if FRICTION {
                 frames.damped_wide((x, vertices.start, g), done, p, direction)
             } else {
                 direction
             };
-            d.store(d_slot);
+            let target = self.target.target(done, position, t_slot, damped);
             let free = free_lanes::<L>(vertices.pinned, done);
-            frame
-                .moved(position, position + d.scale(alpha), free)
-                .store(t_slot);
+            frame.moved(position, target, free).store(t_slot);
             clear(g_slot);
-            self.slope.add_wide(slope_term);
             done += width;
         }
         done
+    }
+}
+
+/// The direction pass's use of a group's direction (see `direction_block`): stored in
+/// `direction`, its slope added lane by lane, the trial point at step `alpha`.
+struct DescentTarget<'p, V> {
+    direction: &'p mut [V],
+    momentum: Option<Real>,
+    alpha: Real,
+    slope: &'p mut LaneSum,
+}
+
+impl<V: Grouped> GroupTarget<V> for DescentTarget<'_, V> {
+    #[inline(always)]
+    fn holds(&self, end: usize) -> bool {
+        end <= self.direction.len()
+    }
+
+    #[inline(always)]
+    fn heavy_ball<L: LaneArray>(&self, previous: &[V]) -> Option<(V::Wide<L>, L)> {
+        self.momentum
+            .map(|m| (V::Wide::<L>::load(previous), L::splat(m)))
+    }
+
+    #[inline(always)]
+    fn target<L: LaneArray>(
+        &mut self,
+        first: usize,
+        position: V::Wide<L>,
+        _previous: &[V],
+        (d, slope): (V::Wide<L>, L),
+    ) -> V::Wide<L> {
+        if let Some(slots) = self.direction.get_mut(first..first + L::WIDTH) {
+            d.store(slots);
+        }
+        self.slope.add_wide(slope);
+        position + d.scale(L::splat(self.alpha))
     }
 }
 
@@ -662,15 +717,17 @@ fn chebyshev_block<V: Grouped + Vector>(
     step: Real,
     omega: Real,
 ) {
-    let done = run_groups(ChebyshevGroups {
+    let done = run_groups(DampedGroups {
         frames,
         vertices: *vertices,
         x,
         gradient,
         trial: &mut trial,
-        stepped,
-        step,
-        omega,
+        target: ChebyshevTarget {
+            stepped,
+            step,
+            omega,
+        },
     });
     let frame = &frames.single;
     let rows = trial.rows().zip(x.iter().zip(gradient)).enumerate();
@@ -686,69 +743,39 @@ fn chebyshev_block<V: Grouped + Vector>(
     }
 }
 
-/// The Chebyshev pass's whole groups (see `chebyshev_block`).
-struct ChebyshevGroups<'p, 'a, 't, V: Grouped> {
-    frames: &'p Frames<'a, V>,
-    vertices: Vertices<'p, V>,
-    x: &'p [V],
-    gradient: &'p [V],
-    trial: &'p mut TrialPoint<'t, V>,
+/// The Chebyshev pass's use of a group's direction (see `chebyshev_block`): the trial
+/// `x + step d + (omega - 1) (x - x_{k-1})`, the last step zero unless `stepped`.
+struct ChebyshevTarget {
     stepped: bool,
     step: Real,
     omega: Real,
 }
 
-impl<V: Grouped + Vector> GroupPass for ChebyshevGroups<'_, '_, '_, V> {
+impl<V: Grouped> GroupTarget<V> for ChebyshevTarget {
     #[inline(always)]
-    fn groups<L: LaneArray>(&mut self, done: usize) -> usize {
-        // Monomorphised twice, so that the frictionless loop carries no friction test.
-        match self.frames.friction {
-            None => self.damped_groups::<L, false>(done),
-            Some(_) => self.damped_groups::<L, true>(done),
-        }
+    fn holds(&self, _end: usize) -> bool {
+        true
     }
-}
 
-impl<V: Grouped + Vector> ChebyshevGroups<'_, '_, '_, V> {
-    /// [`GroupPass::groups`], each direction through [`Frames::damped_wide`] if `FRICTION`.
     #[inline(always)]
-    fn damped_groups<L: LaneArray, const FRICTION: bool>(&mut self, mut done: usize) -> usize {
-        let frames = self.frames;
-        let frame = &frames.wide::<L>();
-        let vertices = &self.vertices;
-        let (step, weight) = (L::splat(self.step), L::splat(self.omega - 1.0));
-        let trial = &mut *self.trial;
-        let width = L::WIDTH;
-        while done + width <= self.x.len() {
-            let range = done..done + width;
-            let (Some(t_slot), Some(g_slot), Some(x), Some(g)) = (
-                trial.positions.get_mut(range.clone()),
-                trial.gradient.get_mut(range.clone()),
-                self.x.get(range.clone()),
-                self.gradient.get(range),
-            ) else {
-                break;
-            };
-            let position = V::Wide::<L>::load(x);
-            let last_step = if self.stepped {
-                position - V::Wide::<L>::load(t_slot)
-            } else {
-                <V::Wide<L> as Point>::zero()
-            };
-            let p = vertices.diagonal_group(frame.inertia, done);
-            let direction = frame.direction(position, V::Wide::<L>::load(g), p, None);
-            let (d, _) = if FRICTION {
-                frames.damped_wide((x, vertices.start, g), done, p, direction)
-            } else {
-                direction
-            };
-            let target = position + d.scale(step) + last_step.scale(weight);
-            let free = free_lanes::<L>(vertices.pinned, done);
-            frame.moved(position, target, free).store(t_slot);
-            clear(g_slot);
-            done += width;
-        }
-        done
+    fn heavy_ball<L: LaneArray>(&self, _previous: &[V]) -> Option<(V::Wide<L>, L)> {
+        None
+    }
+
+    #[inline(always)]
+    fn target<L: LaneArray>(
+        &mut self,
+        _first: usize,
+        position: V::Wide<L>,
+        previous: &[V],
+        (d, _): (V::Wide<L>, L),
+    ) -> V::Wide<L> {
+        let last_step = if self.stepped {
+            position - V::Wide::<L>::load(previous)
+        } else {
+            <V::Wide<L> as Point>::zero()
+        };
+        position + d.scale(L::splat(self.step)) + last_step.scale(L::splat(self.omega - 1.0))
     }
 }
 
