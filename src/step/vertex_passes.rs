@@ -188,6 +188,28 @@ impl<'a, V: Grouped> Frames<'a, V> {
         (d - tangential * share, slope - share * g.dot(tangential))
     }
 
+    /// The direction and slope term of vertex `i` alone, at `x` with gradient `g` (plus the
+    /// heavy-ball term when given), through [`damped`](Self::damped): the one-vertex code of
+    /// the direction and Chebyshev passes, whose groups take
+    /// [`damped_wide`](Self::damped_wide).
+    #[inline(always)]
+    fn damped_one(
+        &self,
+        vertices: &Vertices<'_, V>,
+        i: usize,
+        (x, g): (V, V),
+        heavy_ball: Option<(V, Real)>,
+    ) -> (V, Real)
+    where
+        V: Vector,
+    {
+        let frame = &self.single;
+        let p = vertices.diagonal_one(frame.inertia, i);
+        let direction = frame.direction(x, g, p, heavy_ball);
+        let start = vertices.start.get(i).copied().unwrap_or(x);
+        self.damped((x, start, g), p, direction)
+    }
+
     /// [`damped`](Self::damped) for the group of `L::WIDTH` vertices from vertex `first` on, at
     /// `x` (a chunk) moved from `start` (every vertex's `x_n`; `x` where it runs out) with
     /// gradients `g` (a chunk) and bounds `p`: the grouped direction `d` and slope terms `slope`
@@ -507,11 +529,8 @@ fn direction_block<V: Grouped + Vector>(
         .zip(x.iter().zip(gradient))
         .enumerate();
     for (i, ((d_slot, (t_slot, g_slot)), (&x, &g))) in rows.skip(done) {
-        let p = vertices.diagonal_one(frame.inertia, i);
         let heavy_ball = momentum.map(|m| (*t_slot, m));
-        let (d, slope_term) = frame.direction(x, g, p, heavy_ball);
-        let start = vertices.start.get(i).copied().unwrap_or(x);
-        let (d, slope_term) = frames.damped((x, start, g), p, (d, slope_term));
+        let (d, slope_term) = frames.damped_one(vertices, i, (x, g), heavy_ball);
         *d_slot = d;
         *t_slot = frame.moved(x, x + d.scale(alpha), free_one(vertices.pinned, i));
         *g_slot = V::zero();
@@ -733,10 +752,7 @@ fn chebyshev_block<V: Grouped + Vector>(
     let rows = trial.rows().zip(x.iter().zip(gradient)).enumerate();
     for (i, ((t_slot, g_slot), (&x, &g))) in rows.skip(done) {
         let last_step = if stepped { x - *t_slot } else { V::zero() };
-        let p = vertices.diagonal_one(frame.inertia, i);
-        let direction = frame.direction(x, g, p, None);
-        let start = vertices.start.get(i).copied().unwrap_or(x);
-        let (d, _) = frames.damped((x, start, g), p, direction);
+        let (d, _) = frames.damped_one(vertices, i, (x, g), None);
         let target = x + d.scale(step) + last_step.scale(omega - 1.0);
         *t_slot = frame.moved(x, target, free_one(vertices.pinned, i));
         *g_slot = V::zero();
