@@ -2,7 +2,9 @@
 //! of about 10k, 100k and 1M tetrahedra (Kuhn 6-tet split, `softfem::generate::fill_box`).
 //!
 //! Variants (f32 unless stated): `TetMesh::add_elastic_forces` (direct stress) for StVK,
-//! neo-Hookean and stable neo-Hookean; `add_elastic_forces_principal` (SVD path) for StVK and
+//! neo-Hookean and stable neo-Hookean, and for StVK and stable neo-Hookean again on the mesh
+//! with its rest data in blocks (`TetMesh::with_rest_blocks`, ids `*_blocks_f32`, as a
+//! growable `Body` holds it); `add_elastic_forces_principal` (SVD path) for StVK and
 //! stable neo-Hookean; `add_elastic_forces_clamped` (threshold 0.3) for stable neo-Hookean; StVK
 //! direct in f64 (`softfem::f64`) for reference; and `elastic_energy` for StVK.
 //!
@@ -30,7 +32,8 @@
 //! Threads: `stvk_direct_partitioned_f32` is the deterministic partitioned scheme
 //! (`mesh::TetPartition`: element pieces into a buffer, then a gather by vertex) run on this
 //! thread, its cost against `stvk_direct_f32`; `explicit_step_f32` is one `step_explicit` of stable
-//! neo-Hookean at half the proven stable step (the body falling from rest); `relax_step_f32` and
+//! neo-Hookean at half the proven stable step (the body falling from rest), and
+//! `explicit_step_blocks_f32` the same with rest blocks; `relax_step_f32` and
 //! `relax_step_20_f32` are one `relax_step` of 10 and of 20 descent iterations from the same
 //! start (their evaluation counts printed first); after each table a second one gives the
 //! relaxation iteration against the stable neo-Hookean direct force pass of the same run, per
@@ -69,7 +72,8 @@ use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::{DVec3, Mat3, Vec3};
 use softfem::material::{NeoHookean, StVK, StableNeoHookean};
 use softfem::mesh::{
-    TetMesh, TetPartition, element_forces_len, partition_incident_len, partition_offsets_len,
+    TetMesh, TetPartition, TetRestBlock, element_forces_len, partition_incident_len,
+    partition_offsets_len, rest_block_count,
 };
 #[cfg(feature = "rayon")]
 use softfem::parallel::ParallelTetElastic;
@@ -131,6 +135,8 @@ struct DeformedBox {
     positions_f64: Vec<DVec3>,
     rest: Vec<softfem::element::TetRest>,
     rest_f64: Vec<softfem::f64::element::TetRest>,
+    /// The rest data in blocks of 16 (`TetMesh::with_rest_blocks`) of the `*_blocks` variants.
+    blocks: Vec<TetRestBlock>,
     /// The vertex-to-element adjacency of the partitioned variants.
     offsets: Vec<u32>,
     incident: Vec<u32>,
@@ -208,6 +214,7 @@ impl DeformedBox {
             positions_f64: positions.iter().map(|x| x.as_dvec3()).collect(),
             rest: vec![softfem::element::TetRest::default(); tet_count],
             rest_f64: vec![softfem::f64::element::TetRest::default(); tet_count],
+            blocks: vec![TetRestBlock::ZERO; rest_block_count(tet_count)],
             offsets: vec![0; partition_offsets_len(vertex_count)],
             incident: vec![0; partition_incident_len(tet_count)],
             tets,
@@ -236,11 +243,13 @@ impl DeformedBox {
             positions_f64,
             rest,
             rest_f64,
+            blocks,
             offsets,
             incident,
             ..
         } = self;
         let mesh = TetMesh::new(rest_positions, tets, rest).unwrap();
+        let blocked = mesh.with_rest_blocks(blocks).unwrap();
         let mesh_f64 =
             softfem::f64::mesh::TetMesh::new(rest_positions_f64, tets, rest_f64).unwrap();
         let positions: &[Vec3] = positions;
@@ -264,6 +273,12 @@ impl DeformedBox {
                 move |f: &mut [Vec3]| mesh.add_elastic_forces(&stvk, positions, f),
             ),
             Variant::forces(
+                "StVK, direct, rest blocks, f32",
+                "stvk_direct_blocks_f32",
+                n,
+                move |f: &mut [Vec3]| blocked.add_elastic_forces(&stvk, positions, f),
+            ),
+            Variant::forces(
                 "neo-Hookean, direct, f32",
                 "neo_hookean_direct_f32",
                 n,
@@ -274,6 +289,12 @@ impl DeformedBox {
                 "stable_nh_direct_f32",
                 n,
                 move |f: &mut [Vec3]| mesh.add_elastic_forces(&stable, positions, f),
+            ),
+            Variant::forces(
+                "stable neo-Hookean, direct, rest blocks, f32",
+                "stable_nh_direct_blocks_f32",
+                n,
+                move |f: &mut [Vec3]| blocked.add_elastic_forces(&stable, positions, f),
             ),
             Variant::forces(
                 "StVK, principal (SVD), f32",
@@ -336,6 +357,14 @@ impl DeformedBox {
             "stable neo-Hookean explicit step, sequential, f32",
             "explicit_step_f32",
             mesh,
+            None,
+            rest_positions,
+            1,
+        ));
+        variants.push(Variant::explicit_step(
+            "stable neo-Hookean explicit step, sequential, rest blocks, f32",
+            "explicit_step_blocks_f32",
+            blocked,
             None,
             rest_positions,
             1,

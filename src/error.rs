@@ -423,6 +423,8 @@ pub enum Buffer {
     /// The per-element nodal forces of a partitioned pass, one entry (four vectors) per element
     /// (or per element of the piece).
     ElementForces,
+    /// The rest data in blocks of 16 elements (`TetRestBlock`), one per 16 elements or part.
+    RestBlocks,
 }
 
 impl fmt::Display for Buffer {
@@ -441,6 +443,7 @@ impl fmt::Display for Buffer {
             Buffer::AdjacencyOffsets => "adjacency offsets",
             Buffer::AdjacencyIncident => "adjacency entries",
             Buffer::ElementForces => "element forces",
+            Buffer::RestBlocks => "rest blocks",
         })
     }
 }

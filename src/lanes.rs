@@ -429,6 +429,9 @@ pub(crate) trait LaneArray: Lane {
     fn from_lane_array(values: Self::Array) -> Self;
     /// The values of the lanes.
     fn to_lane_array(self) -> Self::Array;
+    /// The group holding the first `WIDTH` values of `values` (one load); `None` if there are
+    /// fewer.
+    fn from_slice(values: &[Real]) -> Option<Self>;
     /// The value of lane `lane` (zero past the last lane).
     fn lane_value(values: &Self::Array, lane: usize) -> Real;
     /// Sets the value of lane `lane` (nothing past the last lane).
@@ -548,6 +551,11 @@ impl LaneArray for Lanes {
     }
 
     #[inline(always)]
+    fn from_slice(values: &[Real]) -> Option<Self> {
+        Some(Lanes::from_array(*values.first_chunk()?))
+    }
+
+    #[inline(always)]
     fn lane_value(values: &Self::Array, lane: usize) -> Real {
         array_lane_value(values, lane)
     }
@@ -588,6 +596,11 @@ impl LaneArray for Real {
     fn from_lane_array(values: Self::Array) -> Self {
         let [value] = values;
         value
+    }
+
+    #[inline(always)]
+    fn from_slice(values: &[Real]) -> Option<Self> {
+        values.first().copied()
     }
 
     #[inline(always)]
@@ -724,6 +737,14 @@ impl<L: LaneArray> LaneArray for LanePair<L> {
     #[inline(always)]
     fn to_lane_array(self) -> Self::Array {
         (self.0.to_lane_array(), self.1.to_lane_array())
+    }
+
+    #[inline(always)]
+    fn from_slice(values: &[Real]) -> Option<Self> {
+        Some(LanePair(
+            L::from_slice(values)?,
+            L::from_slice(values.get(L::WIDTH..)?)?,
+        ))
     }
 
     #[inline(always)]

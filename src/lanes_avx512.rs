@@ -169,6 +169,11 @@ impl LaneArray for Avx512Lanes {
     }
 
     #[inline(always)]
+    fn from_slice(values: &[Real]) -> Option<Self> {
+        Some(Self::from_lane_array(*values.first_chunk()?))
+    }
+
+    #[inline(always)]
     fn lane_value(values: &Self::Array, lane: usize) -> Real {
         array_lane_value(values, lane)
     }

@@ -583,6 +583,10 @@ mod alloc_storage {
             Body::<VecStorage, _>::from_box(LOW, HIGH, CELLS, DENSITY, jelly()).unwrap();
         growing.set_gravity(GRAVITY);
         growing.set_ground(Some(ground()));
+        // The growable body keeps its rest data in blocks too (60 tets: 4 blocks), the fixed
+        // one has no room for them: the same bits either way.
+        assert_eq!(growing.mesh().rest_blocks().len(), 4);
+        assert!(fixed.mesh().rest_blocks().is_empty());
         for solver in [
             Solver::explicit(),
             Solver::relax(),

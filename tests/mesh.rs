@@ -10,7 +10,7 @@ macro_rules! mesh_tests {
             use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
             use $($api)::+::material::{Material, NeoHookean, StVK, StableNeoHookean};
             use $($api)::+::step::{ElasticEnergy, TetElastic};
-            use $($api)::+::mesh::{MembraneMesh, TetMesh, TriMesh};
+            use $($api)::+::mesh::{MembraneMesh, TetMesh, TetRestBlock, TriMesh, rest_block_count};
             use $($api)::+::types::{Mat3, Real, Vec2, Vec3};
             use $($api)::+::{Buffer, ElementError, MeshError};
 
@@ -126,6 +126,31 @@ macro_rules! mesh_tests {
                     assert_eq!(*tet, fix_orientation(*tet, tet.map(|i| cube()[i as usize])));
                     assert!(r.volume > 0.0);
                 }
+            }
+
+            /// Rest blocks: one per 16 elements or part, filled from the mesh's rest data; a
+            /// buffer of another length is refused and left as it was.
+            #[test]
+            fn rest_blocks_take_one_block_per_sixteen_elements() {
+                assert_eq!([0, 1, 16, 17, 32, 33].map(rest_block_count), [0, 1, 1, 2, 2, 3]);
+                let x = cube();
+                let mut rest = [TetRest::default(); 5];
+                let mesh = TetMesh::new(&x, &TETS, &mut rest).unwrap();
+                assert!(mesh.rest_blocks().is_empty());
+                for len in [0, 2] {
+                    let mut blocks = vec![TetRestBlock::ZERO; len];
+                    assert_eq!(
+                        mesh.with_rest_blocks(&mut blocks).unwrap_err(),
+                        MeshError::LengthMismatch { buffer: Buffer::RestBlocks, expected: 1, actual: len }
+                    );
+                    assert!(blocks.iter().all(|b| *b == TetRestBlock::ZERO));
+                }
+                let mut blocks = [TetRestBlock::ZERO; 1];
+                let blocked = mesh.with_rest_blocks(&mut blocks).unwrap();
+                assert_eq!(blocked.rest_blocks().len(), 1);
+                assert_ne!(blocked.rest_blocks()[0], TetRestBlock::ZERO);
+                let message = Buffer::RestBlocks.to_string();
+                assert_eq!(message, "rest blocks");
             }
 
             #[test]

@@ -12,8 +12,8 @@ macro_rules! precision_tests {
             use sf::generate::{BoxSplit, box_counts, fill_box};
             use sf::material::{Material, StVK, StableNeoHookean};
             use sf::mesh::{
-                ElementForces, TetMesh, TetPartition, element_forces_len, partition_incident_len,
-                partition_offsets_len,
+                ElementForces, TetMesh, TetPartition, TetRestBlock, element_forces_len,
+                partition_incident_len, partition_offsets_len, rest_block_count,
             };
             use sf::step::{ElasticEnergy, ElasticHessian, ElasticModel, TetClamped, TetElastic};
             use sf::types::{Mat3, Vec3};
@@ -106,7 +106,15 @@ macro_rules! precision_tests {
                     body.energy_and_add_forces(&x, &mut expected_fused).unwrap();
                 assert!(expected_energy > 0.0 && expected_fused_energy > 0.0);
 
-                for (pieces, seed) in [(1, 1), (2, 2), (3, 3), (7, 4), (64, 5), (ne + 5, 6)] {
+                // The mesh as built, and with its rest data also in blocks (which pieces
+                // starting inside a block use only from the next block on): the same bits.
+                let mut blocks = vec![TetRestBlock::ZERO; rest_block_count(ne)];
+                let blocked = mesh.with_rest_blocks(&mut blocks).unwrap();
+                let runs = [(1, 1), (2, 2), (3, 3), (7, 4), (64, 5), (ne + 5, 6)];
+                for ((pieces, seed), mesh) in runs
+                    .into_iter()
+                    .flat_map(|run| [(run, mesh), (run, blocked)])
+                {
                     let mut offsets = vec![0; partition_offsets_len(nv)];
                     let mut incident = vec![0; partition_incident_len(ne)];
                     let partition =

@@ -383,7 +383,7 @@ macro_rules! mesh_tests {
             use softfem::glam::$vec as V;
             use $($crate_path)::+::element::TetRest;
             use $($crate_path)::+::material::{Material, NeoHookean, StVK, StableNeoHookean};
-            use $($crate_path)::+::mesh::TetMesh;
+            use $($crate_path)::+::mesh::{TetMesh, TetRestBlock, rest_block_count};
             use $($crate_path)::+::types::Mat3 as M3;
             use $($crate_path)::+::step::{
                 ElasticEnergy, ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings,
@@ -562,17 +562,23 @@ macro_rules! mesh_tests {
                     let tets = &tets[..len.min(tets.len())];
                     let mut rest = vec![TetRest::default(); tets.len()];
                     let mesh = TetMesh::new(&rest_x, tets, &mut rest).unwrap();
+                    // The same mesh with its rest data also in blocks: the same bits.
+                    let mut blocks = vec![TetRestBlock::ZERO; rest_block_count(tets.len())];
+                    let blocked = mesh.with_rest_blocks(&mut blocks).unwrap();
+                    assert_eq!(blocked.rest_blocks().len(), tets.len().div_ceil(16));
                     let stvk = StVK::from_young_poisson(1.0e6, 0.45).unwrap();
                     let nh = NeoHookean::from_young_poisson(1.0e6, 0.45).unwrap();
                     let snh = StableNeoHookean::from_young_poisson(1.0e6, 0.45).unwrap();
-                    check_forces(&stvk, &mesh, &x, "StVK");
-                    check_forces(&snh, &mesh, &x, "stable neo-Hookean");
-                    check_energies(&stvk, &mesh, &x, "StVK");
-                    check_energies(&snh, &mesh, &x, "stable neo-Hookean");
-                    if wild == 0 {
-                        // Not defined at J <= 0.
-                        check_forces(&nh, &mesh, &x, "neo-Hookean");
-                        check_energies(&nh, &mesh, &x, "neo-Hookean");
+                    for (mesh, layout) in [(mesh, "records"), (blocked, "blocks")] {
+                        check_forces(&stvk, &mesh, &x, &format!("StVK ({layout})"));
+                        check_forces(&snh, &mesh, &x, &format!("stable neo-Hookean ({layout})"));
+                        check_energies(&stvk, &mesh, &x, &format!("StVK ({layout})"));
+                        check_energies(&snh, &mesh, &x, &format!("stable neo-Hookean ({layout})"));
+                        if wild == 0 {
+                            // Not defined at J <= 0.
+                            check_forces(&nh, &mesh, &x, &format!("neo-Hookean ({layout})"));
+                            check_energies(&nh, &mesh, &x, &format!("neo-Hookean ({layout})"));
+                        }
                     }
                 }
             }

@@ -67,7 +67,7 @@ use core::fmt;
 use super::element::{TetHessian, TetRest};
 use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
-use super::mesh::TetMesh;
+use super::mesh::{TetMesh, TetRestBlock, rest_block_count};
 use super::step::{
     Collider, ExplicitMemory, ExplicitScratch, Ground, NewtonScratch, RelaxScratch, TetElastic,
     VbdScratch, VbdTopology, newton_step, relax_step, stable_time_step, step_explicit,
@@ -115,6 +115,8 @@ pub struct Body<S: Storage, M: Material> {
     rest_positions: S::Vectors,
     tets: S::Tets,
     rest_data: S::Rests,
+    /// The rest data in blocks of 16 (empty where the storage cannot hold them).
+    rest_blocks: S::RestBlocks,
     /// From the validating [`TetMesh::new`], for the views rebuilt every step.
     gradient_gain: Real,
     masses: S::Reals,
@@ -333,6 +335,7 @@ impl<S: Storage, M: Material> Body<S, M> {
             rest_positions: S::Vectors::empty(),
             tets: S::Tets::empty(),
             rest_data: S::Rests::empty(),
+            rest_blocks: S::RestBlocks::empty(),
             gradient_gain: 0.0,
             masses: S::Reals::empty(),
             pinned: S::Flags::empty(),
@@ -382,6 +385,15 @@ impl<S: Storage, M: Material> Body<S, M> {
         let fits =
             self.tets.resize(tets, [0; 4]) && self.rest_data.resize(tets, TetRest::default());
         capacity(fits, BodyBuffer::Tetrahedra, tets)?;
+        // The blocks where the storage holds them; without them the passes transpose (the same
+        // bits).
+        if !self
+            .rest_blocks
+            .resize(rest_block_count(tets), TetRestBlock::ZERO)
+        {
+            // An empty buffer always fits.
+            let _ = self.rest_blocks.resize(0, TetRestBlock::ZERO);
+        }
         let solver = self.solver;
         self.size_scratch(&solver)
     }
@@ -395,6 +407,9 @@ impl<S: Storage, M: Material> Body<S, M> {
         )?;
         mesh.lumped_masses(density, self.masses.slice_mut())?;
         self.gradient_gain = mesh.gradient_gain();
+        if !self.rest_blocks.slice().is_empty() {
+            mesh.with_rest_blocks(self.rest_blocks.slice_mut())?;
+        }
         copy_into(self.positions.slice_mut(), self.rest_positions.slice());
         Ok(())
     }
@@ -463,6 +478,7 @@ impl<S: Storage, M: Material> Body<S, M> {
             self.vertex_count(),
             self.gradient_gain,
         )
+        .with_filled_blocks(self.rest_blocks.slice())
     }
 
     /// The rest positions (m).
@@ -683,7 +699,8 @@ impl<S: Storage, M: Material> Body<S, M> {
             self.rest_data.slice(),
             self.positions.slice().len(),
             self.gradient_gain,
-        );
+        )
+        .with_filled_blocks(self.rest_blocks.slice());
         let model = TetElastic::new(mesh, self.material);
         let dt = stable_time_step(
             &model,
@@ -815,7 +832,8 @@ impl<S: Storage, M: Material> Body<S, M> {
             self.rest_data.slice(),
             n,
             self.gradient_gain,
-        );
+        )
+        .with_filled_blocks(self.rest_blocks.slice());
         let model = TetElastic::new(mesh, self.material);
         let (masses, pinned) = (self.masses.slice(), self.pinned.slice());
         let (x, v) = (self.positions.slice_mut(), self.velocities.slice_mut());
@@ -928,6 +946,7 @@ impl<const V: usize, const T: usize, M: Material> Body<FixedStorage<V, T>, M> {
             rest_positions: Fixed::filled(Vec3::ZERO),
             tets: Fixed::filled([0; 4]),
             rest_data: Fixed::filled(TetRest::ZERO),
+            rest_blocks: Fixed::filled(TetRestBlock::ZERO),
             gradient_gain: 0.0,
             masses: Fixed::filled(0.0),
             pinned: Fixed::filled(false),

@@ -2,6 +2,7 @@
 //! ([`FixedStorage`], no heap) or, with the `alloc` feature, growable vectors (`VecStorage`).
 
 use super::super::element::{TetHessian, TetRest};
+use super::super::mesh::TetRestBlock;
 use super::super::types::{Mat3, Real, Vec3};
 
 /// A buffer of `X` with a length set by [`resize`](Slots::resize), up to a capacity that is
@@ -39,6 +40,11 @@ pub trait Storage {
     type Tets: Slots<[u32; 4]>;
     /// One rest datum per tetrahedron.
     type Rests: Slots<TetRest>;
+    /// The rest data again in blocks of 16 tetrahedra
+    /// ([`TetMesh::with_rest_blocks`](crate::mesh::TetMesh::with_rest_blocks)): optional, a
+    /// storage that cannot hold them runs the force passes without (the same bits, slower
+    /// with wide SIMD).
+    type RestBlocks: Slots<TetRestBlock>;
     /// The solvers' vector scratch: up to nine vectors per vertex (Newton's method).
     type Scratch: Slots<Vec3>;
     /// One 3x3 block per vertex (Newton's preconditioner).
@@ -124,7 +130,9 @@ impl<X: Copy + Default, const ROWS: usize, const N: usize> Slots<X> for Fixed<X,
 /// `core::mem::size_of::<Body<FixedStorage<V, T>, M>>()` is the total (the bar of
 /// `tests/body.rs`, 54 vertices and 120 tetrahedra, takes 48 KB). It has no room for Vertex
 /// Block Descent's packed sweep layout (312 bytes per tetrahedron in f32), so its sweeps
-/// gather the rest data element by element (the same bits; `VecStorage` keeps the layout).
+/// gather the rest data element by element (the same bits; `VecStorage` keeps the layout),
+/// nor for the rest data in blocks (40 bytes per tetrahedron), which serve only the wide SIMD
+/// lanes of a host.
 #[derive(Clone, Copy, Debug)]
 pub struct FixedStorage<const V: usize, const T: usize>;
 
@@ -134,6 +142,7 @@ impl<const V: usize, const T: usize> Storage for FixedStorage<V, T> {
     type Flags = Fixed<bool, 1, V>;
     type Tets = Fixed<[u32; 4], 1, T>;
     type Rests = Fixed<TetRest, 1, T>;
+    type RestBlocks = Fixed<TetRestBlock, 0, 1>;
     type Scratch = Fixed<Vec3, 9, V>;
     type Blocks = Fixed<Mat3, 1, V>;
     type Hessians = Fixed<TetHessian, 1, T>;
@@ -175,7 +184,9 @@ impl<X: Copy> Slots<X> for alloc::vec::Vec<X> {
 
 /// Growable storage on the heap (feature `alloc`): any number of vertices and tetrahedra, each
 /// solver's scratch allocated when it is chosen (for Vertex Block Descent with its packed sweep
-/// layout, 312 bytes per tetrahedron in f32, when that allocation succeeds).
+/// layout, 312 bytes per tetrahedron in f32, when that allocation succeeds), and the rest data
+/// also in blocks for the wide SIMD lanes (40 bytes per tetrahedron in f32, when that
+/// allocation succeeds).
 #[cfg(feature = "alloc")]
 #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 #[derive(Clone, Copy, Debug)]
@@ -188,6 +199,7 @@ impl Storage for VecStorage {
     type Flags = alloc::vec::Vec<bool>;
     type Tets = alloc::vec::Vec<[u32; 4]>;
     type Rests = alloc::vec::Vec<TetRest>;
+    type RestBlocks = alloc::vec::Vec<TetRestBlock>;
     type Scratch = alloc::vec::Vec<Vec3>;
     type Blocks = alloc::vec::Vec<Mat3>;
     type Hessians = alloc::vec::Vec<TetHessian>;

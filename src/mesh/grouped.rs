@@ -11,6 +11,7 @@ use super::super::lanes_avx512::Avx512Lanes;
 use super::super::material::Material;
 use super::super::svd::{Svd3, svd3, svd3_of_lanes};
 use super::super::types::{Mat3, Real, Vec3};
+use super::rest_blocks::{RestGroup, Rests};
 use super::{gather, scatter_add};
 use crate::simd::WidthKernel;
 
@@ -153,7 +154,11 @@ impl<L: LaneArray> WideGradients<L> {
     /// long) at `positions`. The indices were validated by the mesh; the fallbacks only keep
     /// the loop free of panics.
     #[inline(always)]
-    pub fn new(positions: Positions<'_>, tets: &[[u32; 4]], rests: &[TetRest]) -> Self {
+    pub fn new(positions: Positions<'_>, tets: &[[u32; 4]], rest: RestGroup<'_>) -> Self {
+        let rests = rest.elements;
+        // The rest data straight from the mesh's block where it has one (a load per field);
+        // else transposed from the records with the corners below.
+        let from_block = rest.block.and_then(|(block, lane)| block.lanes::<L>(lane));
         // Four elements at a time through the SSE transposes of `GroupGradients`, each quarter
         // stored straight into its lanes of the wide values (no buffer of four quarters, which
         // the narrower widths would zero in full for nothing).
@@ -170,6 +175,9 @@ impl<L: LaneArray> WideGradients<L> {
                 for (axis, value) in corner.iter_mut().zip([x.x, x.y, x.z]) {
                     L::store_quarter(axis, q, value);
                 }
+            }
+            if from_block.is_some() {
+                continue;
             }
             let m = LaneMat3::from_matrices(&each_lane(*rests, |rest| rest.dm_inv));
             let volume = Lanes::from_array(each_lane(*rests, |rest| rest.volume));
@@ -194,16 +202,34 @@ impl<L: LaneArray> WideGradients<L> {
             c1: vector(c2) - x0,
             c2: vector(c3) - x0,
         };
-        let [m00, m10, m20, m01, m11, m21, m02, m12, m22, volume] = rest_values;
+        let [m00, m10, m20, m01, m11, m21, m02, m12, m22, volume] = match from_block {
+            Some(values) => values,
+            None => {
+                let [m00, m10, m20, m01, m11, m21, m02, m12, m22, volume] = rest_values;
+                let lanes = L::from_lane_array;
+                [
+                    lanes(m00),
+                    lanes(m10),
+                    lanes(m20),
+                    lanes(m01),
+                    lanes(m11),
+                    lanes(m21),
+                    lanes(m02),
+                    lanes(m12),
+                    lanes(m22),
+                    lanes(volume),
+                ]
+            }
+        };
         let dm_inv = LaneMat3 {
-            c0: vector([m00, m10, m20]),
-            c1: vector([m01, m11, m21]),
-            c2: vector([m02, m12, m22]),
+            c0: LaneVec3::new(m00, m10, m20),
+            c1: LaneVec3::new(m01, m11, m21),
+            c2: LaneVec3::new(m02, m12, m22),
         };
         WideGradients {
             f: edges * dm_inv,
             dm_inv,
-            volume: L::from_lane_array(volume),
+            volume,
         }
     }
 
@@ -261,18 +287,15 @@ impl<L: LaneArray> WideGradients<L> {
 #[allow(clippy::type_complexity)]
 fn split_groups<'a>(
     tets: &'a [[u32; 4]],
-    rests: &'a [TetRest],
+    rests: Rests<'a>,
     width: usize,
-) -> (
-    (&'a [[u32; 4]], &'a [TetRest]),
-    (&'a [[u32; 4]], &'a [TetRest]),
-) {
+) -> ((&'a [[u32; 4]], Rests<'a>), (&'a [[u32; 4]], Rests<'a>)) {
     let whole = tets.len() - tets.len() % width.max(1);
-    match (tets.split_at_checked(whole), rests.split_at_checked(whole)) {
+    match (tets.split_at_checked(whole), rests.split_at(whole)) {
         (Some((group_tets, tail_tets)), Some((group_rests, tail_rests))) => {
             ((group_tets, group_rests), (tail_tets, tail_rests))
         }
-        _ => ((&[], &[]), (tets, rests)),
+        _ => ((&[], rests.empty()), (tets, rests)),
     }
 }
 
@@ -393,7 +416,7 @@ pub(super) struct Pass<'k, M, J> {
     pub material: &'k M,
     pub positions: &'k [Vec3],
     pub tets: &'k [[u32; 4]],
-    pub rests: &'k [TetRest],
+    pub rests: Rests<'k>,
     pub job: J,
 }
 
@@ -406,7 +429,7 @@ pub(super) trait PassJob {
         positions: &[Vec3],
         first: usize,
         tets: &[[u32; 4]],
-        rests: &[TetRest],
+        rests: Rests<'_>,
     );
     /// One element `i` at a time.
     fn single<M: Material>(
@@ -427,8 +450,8 @@ impl<M: Material, J: PassJob> Pass<'_, M, J> {
         &mut self,
         first: usize,
         tets: &'t [[u32; 4]],
-        rests: &'t [TetRest],
-    ) -> (usize, &'t [[u32; 4]], &'t [TetRest]) {
+        rests: Rests<'t>,
+    ) -> (usize, &'t [[u32; 4]], Rests<'t>) {
         let ((group_tets, group_rests), (tail_tets, tail_rests)) =
             split_groups(tets, rests, L::WIDTH);
         self.job.groups::<L, M>(
@@ -443,8 +466,8 @@ impl<M: Material, J: PassJob> Pass<'_, M, J> {
 
     /// The elements from `first` on one at a time.
     #[inline(always)]
-    fn singles(&mut self, first: usize, tets: &[[u32; 4]], rests: &[TetRest]) {
-        for (i, (corners, rest)) in (first..).zip(tets.iter().zip(rests)) {
+    fn singles(&mut self, first: usize, tets: &[[u32; 4]], rests: Rests<'_>) {
+        for (i, (corners, rest)) in (first..).zip(tets.iter().zip(rests.elements)) {
             self.job
                 .single(self.material, self.positions, i, corners, rest);
         }
@@ -505,20 +528,20 @@ impl<S: ForceSink> PassJob for DirectForces<S> {
         positions: &[Vec3],
         _first: usize,
         tets: &[[u32; 4]],
-        rests: &[TetRest],
+        rests: Rests<'_>,
     ) {
         // Nothing to read without positions (never: the mesh checked their number).
         let Some(all) = Positions::new(positions) else {
             return;
         };
-        for (tets, rests) in tets
-            .chunks_exact(L::WIDTH)
-            .zip(rests.chunks_exact(L::WIDTH))
-        {
+        for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
+            let Some(rest) = rests.group(group * L::WIDTH, L::WIDTH) else {
+                continue;
+            };
             if self.0.skips(tets) {
                 continue;
             }
-            let gradients = WideGradients::<L>::new(all, tets, rests);
+            let gradients = WideGradients::<L>::new(all, tets, rest);
             self.0
                 .add_group(&gradients, tets, material.first_piola_wide(gradients.f));
         }
@@ -557,20 +580,21 @@ impl<S: ForceSink, E: EnergySink> PassJob for EnergyAndForces<S, E> {
         positions: &[Vec3],
         first: usize,
         tets: &[[u32; 4]],
-        rests: &[TetRest],
+        rests: Rests<'_>,
     ) {
         // Nothing to read without positions (never: the mesh checked their number).
         let Some(all) = Positions::new(positions) else {
             return;
         };
-        let groups = tets
-            .chunks_exact(L::WIDTH)
-            .zip(rests.chunks_exact(L::WIDTH));
-        for (start, (tets, rests)) in (first..).step_by(L::WIDTH).zip(groups) {
+        for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
+            let start = first + group * L::WIDTH;
+            let Some(rest) = rests.group(group * L::WIDTH, L::WIDTH) else {
+                continue;
+            };
             if !self.energy.owes(start, L::WIDTH) && self.forces.skips(tets) {
                 continue;
             }
-            let gradients = WideGradients::<L>::new(all, tets, rests);
+            let gradients = WideGradients::<L>::new(all, tets, rest);
             let (density, p) = material.energy_and_first_piola_wide(gradients.f);
             self.energy.add_group(start, gradients.volume * density);
             self.forces.add_group(&gradients, tets, p);
@@ -607,17 +631,18 @@ impl<E: FnMut(usize, Real)> PassJob for Energies<E> {
         positions: &[Vec3],
         first: usize,
         tets: &[[u32; 4]],
-        rests: &[TetRest],
+        rests: Rests<'_>,
     ) {
         // Nothing to read without positions (never: the mesh checked their number).
         let Some(all) = Positions::new(positions) else {
             return;
         };
-        let groups = tets
-            .chunks_exact(L::WIDTH)
-            .zip(rests.chunks_exact(L::WIDTH));
-        for (start, (tets, rests)) in (first..).step_by(L::WIDTH).zip(groups) {
-            let gradients = WideGradients::<L>::new(all, tets, rests);
+        for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
+            let start = first + group * L::WIDTH;
+            let Some(rest) = rests.group(group * L::WIDTH, L::WIDTH) else {
+                continue;
+            };
+            let gradients = WideGradients::<L>::new(all, tets, rest);
             let energies =
                 (gradients.volume * material.energy_density_wide(gradients.f)).to_lane_array();
             for lane in 0..L::WIDTH {
@@ -702,20 +727,20 @@ impl<F: ForceSink, S: SvdStress> PassJob for SvdForces<F, S> {
         positions: &[Vec3],
         _first: usize,
         tets: &[[u32; 4]],
-        rests: &[TetRest],
+        rests: Rests<'_>,
     ) {
         // Nothing to read without positions (never: the mesh checked their number).
         let Some(all) = Positions::new(positions) else {
             return;
         };
-        for (tets, rests) in tets
-            .chunks_exact(L::WIDTH)
-            .zip(rests.chunks_exact(L::WIDTH))
-        {
+        for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
+            let Some(rest) = rests.group(group * L::WIDTH, L::WIDTH) else {
+                continue;
+            };
             if self.forces.skips(tets) {
                 continue;
             }
-            let gradients = WideGradients::<L>::new(all, tets, rests);
+            let gradients = WideGradients::<L>::new(all, tets, rest);
             let svd = svd3_of_lanes(&gradients.f);
             self.forces
                 .add_group(&gradients, tets, self.stress.stress_wide(&svd));

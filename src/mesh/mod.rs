@@ -13,7 +13,9 @@
 //! **On error, output buffers are unchanged.** Kernels named `add_*` add into their output, so
 //! that gravity or contact forces can be accumulated in the same buffer; the others overwrite.
 //!
-//! * [`TetMesh`]: tetrahedra with any [`Material`](super::material::Material).
+//! * [`TetMesh`]: tetrahedra with any [`Material`](super::material::Material); optionally with
+//!   its rest data also in [`TetRestBlock`]s ([`TetMesh::with_rest_blocks`]), which the wide
+//!   SIMD lanes load without transposing (the same bits, faster force passes).
 //! * [`TriMesh`]: 2D triangles (positions `Vec2`), [`MembraneMesh`]: triangles in space
 //!   (positions `Vec3`), both with [`TriangleStVK`](super::element::TriangleStVK).
 
@@ -23,12 +25,14 @@ use crate::error::{Buffer, ElementError, MeshError};
 mod grouped;
 mod hessian;
 pub mod partition;
+mod rest_blocks;
 mod tet;
 mod triangle;
 
 pub use partition::{
     ElementForces, TetPartition, element_forces_len, partition_incident_len, partition_offsets_len,
 };
+pub use rest_blocks::{TetRestBlock, rest_block_count};
 pub use tet::TetMesh;
 pub(crate) use tet::check_clamp_threshold;
 pub use triangle::{MembraneMesh, TriMesh};

@@ -46,6 +46,7 @@ use super::super::grouped::{
     DirectForces, EnergyAndForces, EnergySink, ForceSink, Pass, PassJob, SvdForces, SvdStress,
     WideGradients,
 };
+use super::super::rest_blocks::{Rests, TetRestBlock};
 use super::{CACHED_PIECES, ElementForces, TetPartition};
 use crate::error::{Buffer, MeshError};
 use crate::simd::{WidthKernel, dispatch};
@@ -317,19 +318,36 @@ impl TetPartition<'_> {
         mut job: J,
         batch: bool,
     ) {
-        for (range, dense) in elements.parts() {
-            if range.is_empty() {
-                continue;
-            }
-            job.part(range.start, dense);
-            let pass = Pass {
-                material,
-                positions,
-                tets: self.mesh.tets().get(range.clone()).unwrap_or(&[]),
-                rests: self.mesh.rest().get(range).unwrap_or(&[]),
-                job,
+        let blocks = self.mesh.rest_blocks();
+        for (part, dense) in elements.parts() {
+            // With rest blocks, a part that starts inside a block runs its head by itself, so
+            // that the wide groups of the rest start at a block's first lane: the same elements
+            // in the same order, so the same bits.
+            let aligned = if blocks.is_empty() {
+                part.start
+            } else {
+                part.start
+                    .next_multiple_of(TetRestBlock::LANES)
+                    .min(part.end)
             };
-            job = if batch { dispatch(pass) } else { pass.scalar() };
+            for range in [part.start..aligned, aligned..part.end] {
+                if range.is_empty() {
+                    continue;
+                }
+                job.part(range.start, dense);
+                let pass = Pass {
+                    material,
+                    positions,
+                    tets: self.mesh.tets().get(range.clone()).unwrap_or(&[]),
+                    rests: Rests::new(
+                        self.mesh.rest().get(range.clone()).unwrap_or(&[]),
+                        blocks,
+                        range.start,
+                    ),
+                    job,
+                };
+                job = if batch { dispatch(pass) } else { pass.scalar() };
+            }
         }
     }
 

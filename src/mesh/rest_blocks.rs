@@ -1,0 +1,168 @@
+//! The rest data of a tetrahedral mesh in blocks of [`TetRestBlock::LANES`] elements, field by
+//! field (structure of arrays): what the wide SIMD lanes load with one instruction per field,
+//! where the per-element [`TetRest`] records need a transpose per group.
+//!
+//! A mesh takes blocks with [`TetMesh::with_rest_blocks`](super::TetMesh::with_rest_blocks),
+//! which fills the caller's buffer from its own rest data, so the two copies cannot disagree.
+//! Every kernel gives the same bits with or without them; they only change the speed of the
+//! passes that form deformation gradients a group at a time (forces, energies, the fused
+//! energy and force pass, the principal and clamped forces).
+
+use super::super::element::TetRest;
+use super::super::lanes::LaneArray;
+use super::super::types::Real;
+use crate::error::{Buffer, MeshError};
+
+/// The rest data of [`LANES`](Self::LANES) consecutive tetrahedra, field by field: entry
+/// `(row, column)` of `Dm^-1` (m^-1) and the rest volume (m^3) of element `lane` of the block.
+///
+/// 640 bytes in f32 (1280 in f64): the 40 (80) bytes per element of [`TetRest`] again, as
+/// [`rest_block_count`] blocks per mesh. Aligned to 64 bytes, so that a group's load of a field
+/// never straddles two cache lines. `Default` (zero) exists only to size buffers.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C, align(64))]
+pub struct TetRestBlock {
+    /// `Dm^-1` entry by entry, column-major (`dm_inv[3 c + r][lane]` is row `r` of column `c`).
+    dm_inv: [[Real; TetRestBlock::LANES]; 9],
+    /// The rest volumes.
+    volume: [Real; TetRestBlock::LANES],
+}
+
+impl TetRestBlock {
+    /// Elements per block: the widest lanes of either precision divide it (16 f32 with
+    /// AVX-512, 8 f64).
+    pub const LANES: usize = 16;
+
+    /// Zero, as `Default`: only a buffer's initial value.
+    pub const ZERO: TetRestBlock = TetRestBlock {
+        dm_inv: [[0.0; TetRestBlock::LANES]; 9],
+        volume: [0.0; TetRestBlock::LANES],
+    };
+
+    /// Sets element `lane` of the block to `rest` (nothing past the last lane).
+    fn set(&mut self, lane: usize, rest: &TetRest) {
+        let m = rest.dm_inv.to_cols_array();
+        for (row, value) in self.dm_inv.iter_mut().zip(m) {
+            if let Some(slot) = row.get_mut(lane) {
+                *slot = value;
+            }
+        }
+        if let Some(slot) = self.volume.get_mut(lane) {
+            *slot = rest.volume;
+        }
+    }
+
+    /// Elements `lane..lane + L::WIDTH` as lanes: the nine entries of `Dm^-1` (column-major)
+    /// and the volume, one load each; `None` if they run past the block.
+    #[inline(always)]
+    pub(crate) fn lanes<L: LaneArray>(&self, lane: usize) -> Option<[L; 10]> {
+        let row = |values: &[Real; TetRestBlock::LANES]| L::from_slice(values.get(lane..)?);
+        let [m00, m10, m20, m01, m11, m21, m02, m12, m22] = &self.dm_inv;
+        Some([
+            row(m00)?,
+            row(m10)?,
+            row(m20)?,
+            row(m01)?,
+            row(m11)?,
+            row(m21)?,
+            row(m02)?,
+            row(m12)?,
+            row(m22)?,
+            row(&self.volume)?,
+        ])
+    }
+}
+
+/// The number of [`TetRestBlock`]s a mesh of `elements` tetrahedra takes: `ceil(elements /
+/// 16)`.
+#[must_use]
+pub const fn rest_block_count(elements: usize) -> usize {
+    elements.div_ceil(TetRestBlock::LANES)
+}
+
+/// Fills `blocks` with `rest`, element `i` as lane `i % 16` of block `i / 16` (lanes past the
+/// last element zero).
+///
+/// # Errors
+/// [`MeshError::LengthMismatch`] naming [`Buffer::RestBlocks`] unless `blocks` has
+/// [`rest_block_count`] entries; `blocks` is then unchanged.
+pub(super) fn fill_rest_blocks(
+    rest: &[TetRest],
+    blocks: &mut [TetRestBlock],
+) -> Result<(), MeshError> {
+    super::check_length(
+        Buffer::RestBlocks,
+        rest_block_count(rest.len()),
+        blocks.len(),
+    )?;
+    for (block, rests) in blocks.iter_mut().zip(rest.chunks(TetRestBlock::LANES)) {
+        *block = TetRestBlock::ZERO;
+        for (lane, rest) in rests.iter().enumerate() {
+            block.set(lane, rest);
+        }
+    }
+    Ok(())
+}
+
+/// The rest data of the consecutive elements `start..start + elements.len()` of a mesh: their
+/// records and the mesh's blocks (empty where it has none).
+#[derive(Clone, Copy)]
+pub(super) struct Rests<'a> {
+    pub elements: &'a [TetRest],
+    blocks: &'a [TetRestBlock],
+    start: usize,
+}
+
+/// The rest data of one group of elements: their records and, where the mesh has blocks and
+/// the group lies within one, that block and the group's first lane in it.
+#[derive(Clone, Copy)]
+pub(super) struct RestGroup<'a> {
+    pub elements: &'a [TetRest],
+    pub block: Option<(&'a TetRestBlock, usize)>,
+}
+
+impl<'a> Rests<'a> {
+    /// Elements `start..` of a mesh with records `elements` (from `start`) and `blocks` (all
+    /// of the mesh's, or none).
+    #[inline(always)]
+    pub fn new(elements: &'a [TetRest], blocks: &'a [TetRestBlock], start: usize) -> Self {
+        Rests {
+            elements,
+            blocks,
+            start,
+        }
+    }
+
+    /// No elements.
+    #[inline(always)]
+    pub fn empty(self) -> Self {
+        Rests::new(&[], self.blocks, self.start)
+    }
+
+    /// The first `mid` elements and the rest; `None` if there are fewer.
+    #[inline(always)]
+    pub fn split_at(self, mid: usize) -> Option<(Self, Self)> {
+        let (head, tail) = self.elements.split_at_checked(mid)?;
+        Some((
+            Rests::new(head, self.blocks, self.start),
+            Rests::new(tail, self.blocks, self.start + mid),
+        ))
+    }
+
+    /// The `width` elements from `offset`; `None` if there are fewer.
+    #[inline(always)]
+    pub fn group(self, offset: usize, width: usize) -> Option<RestGroup<'a>> {
+        let elements = self.elements.get(offset..offset + width)?;
+        let index = self.start + offset;
+        let lane = index % TetRestBlock::LANES;
+        let block = if lane + width <= TetRestBlock::LANES {
+            self.blocks.get(index / TetRestBlock::LANES)
+        } else {
+            None
+        };
+        Some(RestGroup {
+            elements,
+            block: block.map(|block| (block, lane)),
+        })
+    }
+}
