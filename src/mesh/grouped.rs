@@ -11,7 +11,7 @@ use super::super::lanes_avx512::Avx512Lanes;
 use super::super::material::Material;
 use super::super::svd::{Svd3, svd3, svd3_of_lanes};
 use super::super::types::{Mat3, Real, Vec3};
-use super::rest_blocks::{RestGroup, Rests};
+use super::rest_blocks::{BlockRun, Rests};
 use super::{gather, scatter_add};
 use crate::simd::WidthKernel;
 
@@ -149,16 +149,52 @@ fn quarter<T>(items: &[T], q: usize) -> Option<&[T; LANES]> {
         .and_then(|items| items.try_into().ok())
 }
 
+/// Stores the corner positions of the quarter `q` of a group, elements `tets`, into its lanes
+/// of `corners` (through the SSE transposes of `GroupGradients`).
+#[inline(always)]
+fn store_corner_quarter<L: LaneArray>(
+    positions: Positions<'_>,
+    tets: &[[u32; 4]; LANES],
+    q: usize,
+    corners: &mut CornerArrays<L>,
+) {
+    for (k, corner) in corners.iter_mut().enumerate() {
+        let x = LaneVec3::from_vectors(each_lane(*tets, |tet| {
+            tet.get(k).map_or(Vec3::ZERO, |&i| positions.get(i))
+        }));
+        for (axis, value) in corner.iter_mut().zip([x.x, x.y, x.z]) {
+            L::store_quarter(axis, q, value);
+        }
+    }
+}
+
+/// The vectors whose coordinates are the lanes `[x, y, z]`.
+#[inline(always)]
+fn lane_vector<L: LaneArray>([x, y, z]: [L::Array; 3]) -> LaneVec3<L> {
+    LaneVec3::new(
+        L::from_lane_array(x),
+        L::from_lane_array(y),
+        L::from_lane_array(z),
+    )
+}
+
+/// The edge matrices `[x1 - x0, x2 - x0, x3 - x0]` of a group's corners.
+#[inline(always)]
+fn edges_of<L: LaneArray>([c0, c1, c2, c3]: CornerArrays<L>) -> LaneMat3<L> {
+    let x0 = lane_vector(c0);
+    LaneMat3 {
+        c0: lane_vector(c1) - x0,
+        c1: lane_vector(c2) - x0,
+        c2: lane_vector(c3) - x0,
+    }
+}
+
 impl<L: LaneArray> WideGradients<L> {
     /// `F` of the `L::WIDTH` elements `tets` (with rest data `rests`, both exactly `L::WIDTH`
     /// long) at `positions`. The indices were validated by the mesh; the fallbacks only keep
     /// the loop free of panics.
     #[inline(always)]
-    pub fn new(positions: Positions<'_>, tets: &[[u32; 4]], rest: RestGroup<'_>) -> Self {
-        let rests = rest.elements;
-        // The rest data straight from the mesh's block where it has one (a load per field);
-        // else transposed from the records with the corners below.
-        let from_block = rest.block.and_then(|(block, lane)| block.lanes::<L>(lane));
+    pub fn new(positions: Positions<'_>, tets: &[[u32; 4]], rests: &[TetRest]) -> Self {
         // Four elements at a time through the SSE transposes of `GroupGradients`, each quarter
         // stored straight into its lanes of the wide values (no buffer of four quarters, which
         // the narrower widths would zero in full for nothing).
@@ -168,17 +204,7 @@ impl<L: LaneArray> WideGradients<L> {
             let (Some(tets), Some(rests)) = (quarter(tets, q), quarter(rests, q)) else {
                 continue;
             };
-            for (k, corner) in corners.iter_mut().enumerate() {
-                let x = LaneVec3::from_vectors(each_lane(*tets, |tet| {
-                    tet.get(k).map_or(Vec3::ZERO, |&i| positions.get(i))
-                }));
-                for (axis, value) in corner.iter_mut().zip([x.x, x.y, x.z]) {
-                    L::store_quarter(axis, q, value);
-                }
-            }
-            if from_block.is_some() {
-                continue;
-            }
+            store_corner_quarter::<L>(positions, tets, q, &mut corners);
             let m = LaneMat3::from_matrices(&each_lane(*rests, |rest| rest.dm_inv));
             let volume = Lanes::from_array(each_lane(*rests, |rest| rest.volume));
             let values = [
@@ -188,39 +214,34 @@ impl<L: LaneArray> WideGradients<L> {
                 L::store_quarter(slot, q, value);
             }
         }
-        let [c0, c1, c2, c3] = corners;
-        let vector = |[x, y, z]: [L::Array; 3]| {
-            LaneVec3::new(
-                L::from_lane_array(x),
-                L::from_lane_array(y),
-                L::from_lane_array(z),
-            )
+        let edges = edges_of::<L>(corners);
+        let [m00, m10, m20, m01, m11, m21, m02, m12, m22, volume] = rest_values;
+        let dm_inv = LaneMat3 {
+            c0: lane_vector([m00, m10, m20]),
+            c1: lane_vector([m01, m11, m21]),
+            c2: lane_vector([m02, m12, m22]),
         };
-        let x0 = vector(c0);
-        let edges = LaneMat3 {
-            c0: vector(c1) - x0,
-            c1: vector(c2) - x0,
-            c2: vector(c3) - x0,
-        };
-        let [m00, m10, m20, m01, m11, m21, m02, m12, m22, volume] = match from_block {
-            Some(values) => values,
-            None => {
-                let [m00, m10, m20, m01, m11, m21, m02, m12, m22, volume] = rest_values;
-                let lanes = L::from_lane_array;
-                [
-                    lanes(m00),
-                    lanes(m10),
-                    lanes(m20),
-                    lanes(m01),
-                    lanes(m11),
-                    lanes(m21),
-                    lanes(m02),
-                    lanes(m12),
-                    lanes(m22),
-                    lanes(volume),
-                ]
-            }
-        };
+        WideGradients {
+            f: edges * dm_inv,
+            dm_inv,
+            volume: L::from_lane_array(volume),
+        }
+    }
+
+    /// As [`new`](Self::new), with the rest data given as lanes (the nine entries of `Dm^-1`,
+    /// column-major, and the volume: [`TetRestBlock`](super::TetRestBlock)'s fields), so only
+    /// the corners are transposed.
+    #[inline(always)]
+    pub fn with_rest(positions: Positions<'_>, tets: &[[u32; 4]], rest: [L; 10]) -> Self {
+        let mut corners: CornerArrays<L> = [[L::ZEROS; 3]; 4];
+        for q in 0..L::WIDTH / LANES {
+            let Some(tets) = quarter(tets, q) else {
+                continue;
+            };
+            store_corner_quarter::<L>(positions, tets, q, &mut corners);
+        }
+        let edges = edges_of::<L>(corners);
+        let [m00, m10, m20, m01, m11, m21, m02, m12, m22, volume] = rest;
         let dm_inv = LaneMat3 {
             c0: LaneVec3::new(m00, m10, m20),
             c1: LaneVec3::new(m01, m11, m21),
@@ -279,6 +300,46 @@ impl<L: LaneArray> WideGradients<L> {
                 }
             }
         }
+    }
+}
+
+/// Where the groups of a run take their rest data from: the per-element records
+/// (`&[TetRest]`, transposed with the corners) or the mesh's blocks ([`BlockRun`], loaded as
+/// they are). Either gives the same bits.
+pub(super) trait GroupRests: Copy {
+    /// `F` and the rest data of the `group`-th group of `L::WIDTH` elements of the run, whose
+    /// indices are `tets`; `None` past the run's end.
+    fn gradients<L: LaneArray>(
+        self,
+        positions: Positions<'_>,
+        tets: &[[u32; 4]],
+        group: usize,
+    ) -> Option<WideGradients<L>>;
+}
+
+impl GroupRests for &[TetRest] {
+    #[inline(always)]
+    fn gradients<L: LaneArray>(
+        self,
+        positions: Positions<'_>,
+        tets: &[[u32; 4]],
+        group: usize,
+    ) -> Option<WideGradients<L>> {
+        let rests = self.get(group * L::WIDTH..(group + 1) * L::WIDTH)?;
+        Some(WideGradients::new(positions, tets, rests))
+    }
+}
+
+impl GroupRests for BlockRun<'_> {
+    #[inline(always)]
+    fn gradients<L: LaneArray>(
+        self,
+        positions: Positions<'_>,
+        tets: &[[u32; 4]],
+        group: usize,
+    ) -> Option<WideGradients<L>> {
+        let rest = self.lanes::<L>(group)?;
+        Some(WideGradients::with_rest(positions, tets, rest))
     }
 }
 
@@ -423,13 +484,13 @@ pub(super) struct Pass<'k, M, J> {
 /// What a [`Pass`] does with each group and each single element.
 pub(super) trait PassJob {
     /// Elements before the current slice (for per-element outputs and the energy order).
-    fn groups<L: LaneArray, M: Material>(
+    fn groups<L: LaneArray, M: Material, R: GroupRests>(
         &mut self,
         material: &M,
         positions: &[Vec3],
         first: usize,
         tets: &[[u32; 4]],
-        rests: Rests<'_>,
+        rests: R,
     );
     /// One element `i` at a time.
     fn single<M: Material>(
@@ -454,13 +515,21 @@ impl<M: Material, J: PassJob> Pass<'_, M, J> {
     ) -> (usize, &'t [[u32; 4]], Rests<'t>) {
         let ((group_tets, group_rests), (tail_tets, tail_rests)) =
             split_groups(tets, rests, L::WIDTH);
-        self.job.groups::<L, M>(
-            self.material,
-            self.positions,
-            first,
-            group_tets,
-            group_rests,
-        );
+        // The blocks where the run has them, aligned to its groups; else the records. Chosen
+        // once per run, so each loop is the one of its layout alone.
+        match group_rests.block_run(L::WIDTH) {
+            Some(blocks) => {
+                self.job
+                    .groups::<L, M, _>(self.material, self.positions, first, group_tets, blocks)
+            }
+            None => self.job.groups::<L, M, _>(
+                self.material,
+                self.positions,
+                first,
+                group_tets,
+                group_rests.elements,
+            ),
+        }
         (first + group_tets.len(), tail_tets, tail_rests)
     }
 
@@ -522,26 +591,25 @@ pub(super) struct DirectForces<S>(pub S);
 
 impl<S: ForceSink> PassJob for DirectForces<S> {
     #[inline(always)]
-    fn groups<L: LaneArray, M: Material>(
+    fn groups<L: LaneArray, M: Material, R: GroupRests>(
         &mut self,
         material: &M,
         positions: &[Vec3],
         _first: usize,
         tets: &[[u32; 4]],
-        rests: Rests<'_>,
+        rests: R,
     ) {
         // Nothing to read without positions (never: the mesh checked their number).
         let Some(all) = Positions::new(positions) else {
             return;
         };
         for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
-            let Some(rest) = rests.group(group * L::WIDTH, L::WIDTH) else {
-                continue;
-            };
             if self.0.skips(tets) {
                 continue;
             }
-            let gradients = WideGradients::<L>::new(all, tets, rest);
+            let Some(gradients) = rests.gradients::<L>(all, tets, group) else {
+                continue;
+            };
             self.0
                 .add_group(&gradients, tets, material.first_piola_wide(gradients.f));
         }
@@ -574,13 +642,13 @@ pub(super) struct EnergyAndForces<S, E> {
 
 impl<S: ForceSink, E: EnergySink> PassJob for EnergyAndForces<S, E> {
     #[inline(always)]
-    fn groups<L: LaneArray, M: Material>(
+    fn groups<L: LaneArray, M: Material, R: GroupRests>(
         &mut self,
         material: &M,
         positions: &[Vec3],
         first: usize,
         tets: &[[u32; 4]],
-        rests: Rests<'_>,
+        rests: R,
     ) {
         // Nothing to read without positions (never: the mesh checked their number).
         let Some(all) = Positions::new(positions) else {
@@ -588,13 +656,12 @@ impl<S: ForceSink, E: EnergySink> PassJob for EnergyAndForces<S, E> {
         };
         for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
             let start = first + group * L::WIDTH;
-            let Some(rest) = rests.group(group * L::WIDTH, L::WIDTH) else {
-                continue;
-            };
             if !self.energy.owes(start, L::WIDTH) && self.forces.skips(tets) {
                 continue;
             }
-            let gradients = WideGradients::<L>::new(all, tets, rest);
+            let Some(gradients) = rests.gradients::<L>(all, tets, group) else {
+                continue;
+            };
             let (density, p) = material.energy_and_first_piola_wide(gradients.f);
             self.energy.add_group(start, gradients.volume * density);
             self.forces.add_group(&gradients, tets, p);
@@ -625,13 +692,13 @@ pub(super) struct Energies<E>(pub E);
 
 impl<E: FnMut(usize, Real)> PassJob for Energies<E> {
     #[inline(always)]
-    fn groups<L: LaneArray, M: Material>(
+    fn groups<L: LaneArray, M: Material, R: GroupRests>(
         &mut self,
         material: &M,
         positions: &[Vec3],
         first: usize,
         tets: &[[u32; 4]],
-        rests: Rests<'_>,
+        rests: R,
     ) {
         // Nothing to read without positions (never: the mesh checked their number).
         let Some(all) = Positions::new(positions) else {
@@ -639,10 +706,9 @@ impl<E: FnMut(usize, Real)> PassJob for Energies<E> {
         };
         for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
             let start = first + group * L::WIDTH;
-            let Some(rest) = rests.group(group * L::WIDTH, L::WIDTH) else {
+            let Some(gradients) = rests.gradients::<L>(all, tets, group) else {
                 continue;
             };
-            let gradients = WideGradients::<L>::new(all, tets, rest);
             let energies =
                 (gradients.volume * material.energy_density_wide(gradients.f)).to_lane_array();
             for lane in 0..L::WIDTH {
@@ -721,26 +787,25 @@ pub(super) struct SvdForces<F, S> {
 
 impl<F: ForceSink, S: SvdStress> PassJob for SvdForces<F, S> {
     #[inline(always)]
-    fn groups<L: LaneArray, M: Material>(
+    fn groups<L: LaneArray, M: Material, R: GroupRests>(
         &mut self,
         _material: &M,
         positions: &[Vec3],
         _first: usize,
         tets: &[[u32; 4]],
-        rests: Rests<'_>,
+        rests: R,
     ) {
         // Nothing to read without positions (never: the mesh checked their number).
         let Some(all) = Positions::new(positions) else {
             return;
         };
         for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
-            let Some(rest) = rests.group(group * L::WIDTH, L::WIDTH) else {
-                continue;
-            };
             if self.forces.skips(tets) {
                 continue;
             }
-            let gradients = WideGradients::<L>::new(all, tets, rest);
+            let Some(gradients) = rests.gradients::<L>(all, tets, group) else {
+                continue;
+            };
             let svd = svd3_of_lanes(&gradients.f);
             self.forces
                 .add_group(&gradients, tets, self.stress.stress_wide(&svd));

@@ -113,12 +113,24 @@ pub(super) struct Rests<'a> {
     start: usize,
 }
 
-/// The rest data of one group of elements: their records and, where the mesh has blocks and
-/// the group lies within one, that block and the group's first lane in it.
+/// The blocks of a run of elements whose first element starts a group of the run's width
+/// within a block (so that every group of that width lies within one block).
 #[derive(Clone, Copy)]
-pub(super) struct RestGroup<'a> {
-    pub elements: &'a [TetRest],
-    pub block: Option<(&'a TetRestBlock, usize)>,
+pub(super) struct BlockRun<'a> {
+    blocks: &'a [TetRestBlock],
+    /// The mesh index of the run's first element.
+    start: usize,
+}
+
+impl BlockRun<'_> {
+    /// The rest data of the `group`-th group of `L::WIDTH` elements of the run, as lanes
+    /// ([`TetRestBlock::lanes`]); `None` past the blocks.
+    #[inline(always)]
+    pub fn lanes<L: LaneArray>(self, group: usize) -> Option<[L; 10]> {
+        let index = self.start + group * L::WIDTH;
+        let block = self.blocks.get(index / TetRestBlock::LANES)?;
+        block.lanes::<L>(index % TetRestBlock::LANES)
+    }
 }
 
 impl<'a> Rests<'a> {
@@ -149,20 +161,17 @@ impl<'a> Rests<'a> {
         ))
     }
 
-    /// The `width` elements from `offset`; `None` if there are fewer.
+    /// The blocks for groups of `width` elements from the first, if the mesh has blocks and
+    /// every such group lies within one (`width` divides 16 and the run starts at a multiple of
+    /// it).
     #[inline(always)]
-    pub fn group(self, offset: usize, width: usize) -> Option<RestGroup<'a>> {
-        let elements = self.elements.get(offset..offset + width)?;
-        let index = self.start + offset;
-        let lane = index % TetRestBlock::LANES;
-        let block = if lane + width <= TetRestBlock::LANES {
-            self.blocks.get(index / TetRestBlock::LANES)
-        } else {
-            None
-        };
-        Some(RestGroup {
-            elements,
-            block: block.map(|block| (block, lane)),
+    pub fn block_run(self, width: usize) -> Option<BlockRun<'a>> {
+        let aligned = width > 0
+            && TetRestBlock::LANES.is_multiple_of(width)
+            && self.start.is_multiple_of(width);
+        (aligned && !self.blocks.is_empty()).then_some(BlockRun {
+            blocks: self.blocks,
+            start: self.start,
         })
     }
 }
