@@ -516,20 +516,22 @@ impl<M: Material, J: PassJob> Pass<'_, M, J> {
         let ((group_tets, group_rests), (tail_tets, tail_rests)) =
             split_groups(tets, rests, L::WIDTH);
         // The blocks where the run has them, aligned to its groups; else the records. Chosen
-        // once per run, so each loop is the one of its layout alone.
-        match group_rests.block_run(L::WIDTH) {
-            Some(blocks) => {
-                self.job
-                    .groups::<L, M, _>(self.material, self.positions, first, group_tets, blocks)
-            }
-            None => self.job.groups::<L, M, _>(
-                self.material,
-                self.positions,
-                first,
-                group_tets,
-                group_rests.elements,
-            ),
+        // once per run, so each loop is the one of its layout alone. Unoptimised builds take
+        // the records only: both loops inlined in one function overflowed a test thread's stack
+        // there (the release tests check the blocks: tests/simd.rs, tests/parallel.rs).
+        #[cfg(not(debug_assertions))]
+        if let Some(blocks) = group_rests.block_run(L::WIDTH) {
+            self.job
+                .groups::<L, M, _>(self.material, self.positions, first, group_tets, blocks);
+            return (first + group_tets.len(), tail_tets, tail_rests);
         }
+        self.job.groups::<L, M, _>(
+            self.material,
+            self.positions,
+            first,
+            group_tets,
+            group_rests.elements,
+        );
         (first + group_tets.len(), tail_tets, tail_rests)
     }
 

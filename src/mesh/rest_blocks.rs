@@ -165,6 +165,7 @@ impl<'a> Rests<'a> {
     /// every such group lies within one (`width` divides 16 and the run starts at a multiple of
     /// it).
     #[inline(always)]
+    #[cfg_attr(debug_assertions, allow(dead_code))]
     pub fn block_run(self, width: usize) -> Option<BlockRun<'a>> {
         let aligned = width > 0
             && TetRestBlock::LANES.is_multiple_of(width)
