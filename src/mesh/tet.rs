@@ -119,6 +119,10 @@ impl<'a> TetMesh<'a> {
     /// deformation gradients a group at a time use them. Costs 40 bytes per element in f32
     /// (80 in f64), in [`rest_block_count`](super::rest_block_count) blocks.
     ///
+    /// Unoptimised (debug) builds fill the blocks but run every pass on the per-element
+    /// records: a second inlined loop made the passes' stack frames too large for small test
+    /// threads. The bits are the same either way; only release builds gain the speed.
+    ///
     /// ```
     /// use softfem::element::TetRest;
     /// use softfem::glam::Vec3;
