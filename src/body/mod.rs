@@ -472,13 +472,13 @@ impl<S: Storage, M: Material> Body<S, M> {
     #[inline]
     #[must_use]
     pub fn mesh(&self) -> TetMesh<'_> {
-        TetMesh::from_validated(
+        mesh_over(
             self.tets.slice(),
             self.rest_data.slice(),
-            self.vertex_count(),
+            self.rest_blocks.slice(),
             self.gradient_gain,
+            self.vertex_count(),
         )
-        .with_filled_blocks(self.rest_blocks.slice())
     }
 
     /// The rest positions (m).
@@ -694,13 +694,13 @@ impl<S: Storage, M: Material> Body<S, M> {
         if self.vertex_count() == 0 {
             return Err(StepError::EmptyBody);
         }
-        let mesh = TetMesh::from_validated(
+        let mesh = mesh_over(
             self.tets.slice(),
             self.rest_data.slice(),
-            self.positions.slice().len(),
+            self.rest_blocks.slice(),
             self.gradient_gain,
-        )
-        .with_filled_blocks(self.rest_blocks.slice());
+            self.vertex_count(),
+        );
         let model = TetElastic::new(mesh, self.material);
         let dt = stable_time_step(
             &model,
@@ -827,13 +827,13 @@ impl<S: Storage, M: Material> Body<S, M> {
         colliders: &[Collider<'_>],
     ) -> Result<StepReport, StepError> {
         let n = self.vertex_count();
-        let mesh = TetMesh::from_validated(
+        let mesh = mesh_over(
             self.tets.slice(),
             self.rest_data.slice(),
-            n,
+            self.rest_blocks.slice(),
             self.gradient_gain,
-        )
-        .with_filled_blocks(self.rest_blocks.slice());
+            n,
+        );
         let model = TetElastic::new(mesh, self.material);
         let (masses, pinned) = (self.masses.slice(), self.pinned.slice());
         let (x, v) = (self.positions.slice_mut(), self.velocities.slice_mut());
@@ -1012,6 +1012,19 @@ fn substeps(dt: Real, limit: Real, minimum: u32) -> u32 {
         count += 1;
     }
     count.max(minimum).max(1)
+}
+
+/// The validated mesh over a body's buffers (the rest blocks may be empty), built without
+/// validating again. A free function, so that a caller can still borrow the body's other
+/// buffers mutably while the mesh lives.
+fn mesh_over<'a>(
+    tets: &'a [[u32; 4]],
+    rest: &'a [TetRest],
+    blocks: &'a [TetRestBlock],
+    gradient_gain: Real,
+    vertex_count: usize,
+) -> TetMesh<'a> {
+    TetMesh::from_validated(tets, rest, vertex_count, gradient_gain).with_filled_blocks(blocks)
 }
 
 #[cfg(all(test, feature = "alloc"))]
