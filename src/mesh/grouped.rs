@@ -111,7 +111,7 @@ pub(super) struct WideGradients<L> {
 
 /// The positions of a group's corners, coordinate by coordinate: `[corner][axis]`, one value per
 /// lane.
-type CornerArrays<L> = [[<L as LaneArray>::Array; 3]; 4];
+pub(super) type CornerArrays<L> = [[<L as LaneArray>::Array; 3]; 4];
 
 /// The deformed positions a grouped pass reads, at least one: read without a bounds test per
 /// corner.
@@ -145,7 +145,7 @@ impl<'a> Positions<'a> {
 
 /// Elements `4 q..4 q + 4` of a group's `items` (a quarter of the group), if it has them.
 #[inline(always)]
-fn quarter<T>(items: &[T], q: usize) -> Option<&[T; LANES]> {
+pub(super) fn quarter<T>(items: &[T], q: usize) -> Option<&[T; LANES]> {
     items
         .get(q * LANES..(q + 1) * LANES)
         .and_then(|items| items.try_into().ok())
@@ -154,7 +154,7 @@ fn quarter<T>(items: &[T], q: usize) -> Option<&[T; LANES]> {
 /// Stores the corner positions of the quarter `q` of a group, elements `tets`, into its lanes
 /// of `corners` (through the SSE transposes of `GroupGradients`).
 #[inline(always)]
-fn store_corner_quarter<L: LaneArray>(
+pub(super) fn store_corner_quarter<L: LaneArray>(
     positions: Positions<'_>,
     tets: &[[u32; 4]; LANES],
     q: usize,
@@ -180,6 +180,44 @@ fn corner_by_element<L: LaneArray>([x, y, z]: &[L::Array; 3], q: usize) -> [Lane
         L::quarter(z, q),
         Lanes::splat(0.0),
     ])
+}
+
+/// Hands `add` the vector of every corner of every element of a group, `(vertex, value)`,
+/// element by element and corner by corner in order (the order of the scalar loop, which
+/// matters where elements share vertices); `corners[c]` holds corner `c`'s values `[x, y, z]`,
+/// one lane per element of `tets`.
+///
+/// Four elements at a time, each corner's values are transposed into one register per element,
+/// `[x, y, z, 0]`, from which an add takes x and y together and z alone: 10 instructions a
+/// corner with AVX-512 where picking the three lanes out of memory one by one took 13 (the StVK
+/// force pass at 105k tetrahedra ran 1.14-1.16x faster with AVX-512 and 1.06x with AVX2,
+/// interleaved runs).
+#[inline(always)]
+pub(super) fn scatter_corners<L: LaneArray>(
+    corners: &CornerArrays<L>,
+    tets: &[[u32; 4]],
+    mut add: impl FnMut(u32, Vec3),
+) {
+    let [c0, c1, c2, c3] = corners;
+    for q in 0..L::WIDTH / LANES {
+        let Some(quarter_tets) = quarter(tets, q) else {
+            continue;
+        };
+        let by_element = [
+            corner_by_element::<L>(c0, q),
+            corner_by_element::<L>(c1, q),
+            corner_by_element::<L>(c2, q),
+            corner_by_element::<L>(c3, q),
+        ];
+        for (j, tet) in quarter_tets.iter().enumerate() {
+            for (corner, &i) in by_element.iter().zip(tet) {
+                if let Some(value) = corner.get(j) {
+                    let [x, y, z, _] = value.to_array();
+                    add(i, Vec3::new(x, y, z));
+                }
+            }
+        }
+    }
 }
 
 /// The vectors whose coordinates are the lanes `[x, y, z]`.
@@ -301,35 +339,12 @@ impl<L: LaneArray> WideGradients<L> {
             arrays(h.c1),
             arrays(h.c2),
         ];
-        // Four elements at a time: each corner's forces transposed into one register per
-        // element, `[x, y, z, 0]`, from which the add takes x and y together and z alone: 10
-        // instructions a corner with AVX-512 where picking the three lanes out of memory one
-        // by one took 13 (the StVK pass at 105k tetrahedra ran 1.14-1.16x faster with AVX-512
-        // and 1.06x with AVX2, interleaved runs). The adds keep the scalar loop's order.
-        let [c0, c1, c2, c3] = &corners;
-        for q in 0..L::WIDTH / LANES {
-            let Some(quarter_tets) = quarter(tets, q) else {
-                continue;
-            };
-            let by_element = [
-                corner_by_element::<L>(c0, q),
-                corner_by_element::<L>(c1, q),
-                corner_by_element::<L>(c2, q),
-                corner_by_element::<L>(c3, q),
-            ];
-            for (j, tet) in quarter_tets.iter().enumerate() {
-                for (corner, &i) in by_element.iter().zip(tet) {
-                    // Below `first` the index wraps past any slice length.
-                    if let (Some(slot), Some(force)) = (
-                        forces.get_mut((i as usize).wrapping_sub(first)),
-                        corner.get(j),
-                    ) {
-                        let [x, y, z, _] = force.to_array();
-                        *slot += Vec3::new(x, y, z);
-                    }
-                }
+        scatter_corners::<L>(&corners, tets, |i, force| {
+            // Below `first` the index wraps past any slice length.
+            if let Some(slot) = forces.get_mut((i as usize).wrapping_sub(first)) {
+                *slot += force;
             }
-        }
+        });
     }
 }
 

@@ -21,6 +21,7 @@ use super::super::material::Material;
 use super::super::math::BATCH_SVD;
 use super::super::svd::svd3_lanes;
 use super::super::types::{Mat2, Mat3, Real, Vec2, Vec3};
+use super::grouped::{CornerArrays, Positions, quarter, scatter_corners, store_corner_quarter};
 use super::{
     MembraneMesh, TetMesh, TriMesh, check_finite, check_length, check_positions, gather,
     scatter_add,
@@ -508,6 +509,10 @@ impl Product<'_> {
         let tets = self.tets.get(first..).unwrap_or(&[]);
         let cache = self.cache.get(first..).unwrap_or(&[]);
         let whole = tets.len() - tets.len() % width;
+        // Nothing to read without a direction (never: the mesh checked its length).
+        let Some(direction) = Positions::new(self.direction) else {
+            return first;
+        };
         let groups = tets.get(..whole).unwrap_or(&[]).chunks_exact(width);
         for (group, corners) in groups.enumerate() {
             // Indexed rather than a second `chunks_exact` zipped in: no division check.
@@ -518,20 +523,12 @@ impl Product<'_> {
             if !self.dense && !corners.iter().any(|tet| self.touches(tet)) {
                 continue;
             }
-            // The direction at the corners, `[corner][axis]`, one value per lane.
-            let mut v = [[L::ZEROS; 3]; 4];
-            // Lane by lane up to the constant width (not over the slice), so that the loops
-            // unroll and the lane arrays stay in registers.
-            for lane in 0..width {
-                let Some(tet) = corners.get(lane) else {
-                    continue;
-                };
-                for ([x, y, z], &i) in v.iter_mut().zip(tet) {
-                    if let Some(d) = self.direction.get(i as usize) {
-                        L::set_lane_value(x, lane, d.x);
-                        L::set_lane_value(y, lane, d.y);
-                        L::set_lane_value(z, lane, d.z);
-                    }
+            // The direction at the corners, `[corner][axis]`, one value per lane, through the
+            // force passes' SSE transposes of four elements at a time.
+            let mut v: CornerArrays<L> = [[L::ZEROS; 3]; 4];
+            for q in 0..width / LANES {
+                if let Some(quarter_tets) = quarter(corners, q) {
+                    store_corner_quarter::<L>(direction, quarter_tets, q, &mut v);
                 }
             }
             let lanes = |[x, y, z]: [L::Array; 3]| {
@@ -549,19 +546,7 @@ impl Product<'_> {
                 |[x, y, z]: [L; 3]| [x.to_lane_array(), y.to_lane_array(), z.to_lane_array()];
             let [h0, h1, h2, h3] = h;
             let h = [arrays(h0), arrays(h1), arrays(h2), arrays(h3)];
-            for lane in 0..width {
-                let Some(tet) = corners.get(lane) else {
-                    continue;
-                };
-                for ([x, y, z], &i) in h.iter().zip(tet) {
-                    let value = Vec3::new(
-                        L::lane_value(x, lane),
-                        L::lane_value(y, lane),
-                        L::lane_value(z, lane),
-                    );
-                    self.add(i, value);
-                }
-            }
+            scatter_corners::<L>(&h, corners, |i, value| self.add(i, value));
         }
         first + whole
     }
