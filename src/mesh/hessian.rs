@@ -22,6 +22,7 @@ use super::super::math::BATCH_SVD;
 use super::super::svd::svd3_lanes;
 use super::super::types::{Mat2, Mat3, Real, Vec2, Vec3};
 use super::grouped::{CornerArrays, Positions, quarter, scatter_corners, store_corner_quarter};
+use super::prefetch;
 use super::{
     MembraneMesh, TetMesh, TriMesh, check_finite, check_length, check_positions, gather,
     scatter_add,
@@ -154,27 +155,6 @@ impl TetMesh<'_> {
 /// prefetch the product waits on the cache's loads, 35-36 ns per element in f64 (38 MB of
 /// cache) against 20-22 with it, 13.8-14.9 against 13.1-13.5 in f32 (19 MB).
 const PREFETCH_GROUPS: usize = 4;
-
-/// Asks the processor to start loading the cached entries of `count` elements from element
-/// `first` on into its caches (x86_64; nothing elsewhere). A hint only: it changes nothing the
-/// program can observe and cannot fault, past the end of `cache` included (the addresses are
-/// computed with wrapping arithmetic, never dereferenced).
-#[inline(always)]
-fn prefetch(cache: &[TetHessian], first: usize, count: usize) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let start = cache.as_ptr().wrapping_add(first).cast::<i8>();
-        let bytes = count * core::mem::size_of::<TetHessian>();
-        for offset in (0..bytes).step_by(64) {
-            // SAFETY: `prefetch` has no preconditions: it never faults and changes no state
-            // that the program can observe (SSE, always present on x86_64).
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (cache, first, count);
-}
 
 /// How a lane type gathers the cached entries of a group of its width.
 trait GatherEntries: LaneArray {

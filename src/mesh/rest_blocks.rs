@@ -11,6 +11,7 @@
 use super::super::element::TetRest;
 use super::super::lanes::LaneArray;
 use super::super::types::Real;
+use super::prefetch;
 use crate::error::{Buffer, MeshError};
 
 /// The rest data of [`LANES`](Self::LANES) consecutive tetrahedra, field by field: entry
@@ -113,6 +114,11 @@ pub(super) struct Rests<'a> {
     start: usize,
 }
 
+/// How many blocks ahead of the current one a pass asks the processor to load: on a mesh that
+/// does not fit the caches (1M tetrahedra), the loads of a block's fields otherwise wait on
+/// memory at the start of every group (the blocks ran 0.8x the records there without it).
+const PREFETCH_BLOCKS: usize = 4;
+
 /// The blocks of a run of elements whose first element starts a group of the run's width
 /// within a block (so that every group of that width lies within one block).
 #[derive(Clone, Copy)]
@@ -128,8 +134,11 @@ impl BlockRun<'_> {
     #[inline(always)]
     pub fn lanes<L: LaneArray>(self, group: usize) -> Option<[L; 10]> {
         let index = self.start + group * L::WIDTH;
-        let block = self.blocks.get(index / TetRestBlock::LANES)?;
-        block.lanes::<L>(index % TetRestBlock::LANES)
+        let (block_index, lane) = (index / TetRestBlock::LANES, index % TetRestBlock::LANES);
+        if lane == 0 {
+            prefetch(self.blocks, block_index + PREFETCH_BLOCKS, 1);
+        }
+        self.blocks.get(block_index)?.lanes::<L>(lane)
     }
 }
 
