@@ -444,11 +444,12 @@ avx_gather_entries!(
 
 /// The element loop of [`TetMesh::add_hessian_product`] at the width [`dispatch`] picks: whole
 /// groups of the widest lanes first, then narrower ones, then one element at a time (as the
-/// force passes). A group gathers its direction lane by lane and its cached entries through
-/// register transposes ([`GatherEntries`]; the entries of the groups ahead are prefetched), and
-/// every lane runs [`TetHessian::product`]'s arithmetic in its order; the products are added at
-/// the corners element by element and corner by corner in order. So every width gives the bits
-/// of the one-at-a-time loop.
+/// force passes). A group gathers its direction as the force passes gather positions (SSE
+/// transposes of four elements at a time) and its cached entries through register transposes
+/// ([`GatherEntries`]; the entries of the groups ahead are prefetched), and every lane runs
+/// [`TetHessian::product`]'s arithmetic in its order; the products are added at the corners
+/// element by element and corner by corner in order, as the force passes scatter. So every
+/// width gives the bits of the one-at-a-time loop.
 ///
 /// `out` holds the products of the vertices from `first` on (0 for the whole mesh; an owner
 /// piece's slice in a partition, `partition/hessian.rs`): corners outside it are skipped. Unless
