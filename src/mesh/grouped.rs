@@ -145,7 +145,7 @@ impl<'a> Positions<'a> {
 
 /// Elements `4 q..4 q + 4` of a group's `items` (a quarter of the group), if it has them.
 #[inline(always)]
-pub(super) fn quarter<T>(items: &[T], q: usize) -> Option<&[T; LANES]> {
+fn quarter<T>(items: &[T], q: usize) -> Option<&[T; LANES]> {
     items
         .get(q * LANES..(q + 1) * LANES)
         .and_then(|items| items.try_into().ok())
@@ -154,7 +154,7 @@ pub(super) fn quarter<T>(items: &[T], q: usize) -> Option<&[T; LANES]> {
 /// Stores the corner positions of the quarter `q` of a group, elements `tets`, into its lanes
 /// of `corners` (through the SSE transposes of `GroupGradients`).
 #[inline(always)]
-pub(super) fn store_corner_quarter<L: LaneArray>(
+fn store_corner_quarter<L: LaneArray>(
     positions: Positions<'_>,
     tets: &[[u32; 4]; LANES],
     q: usize,
@@ -168,6 +168,22 @@ pub(super) fn store_corner_quarter<L: LaneArray>(
             L::store_quarter(axis, q, value);
         }
     }
+}
+
+/// The corner positions of a group of `L::WIDTH` elements `tets`, `[corner][axis]`, one value
+/// per lane, through [`store_corner_quarter`] four elements at a time.
+#[inline(always)]
+pub(super) fn gather_corners<L: LaneArray>(
+    positions: Positions<'_>,
+    tets: &[[u32; 4]],
+) -> CornerArrays<L> {
+    let mut corners: CornerArrays<L> = [[L::ZEROS; 3]; 4];
+    for q in 0..L::WIDTH / LANES {
+        if let Some(quarter_tets) = quarter(tets, q) {
+            store_corner_quarter::<L>(positions, quarter_tets, q, &mut corners);
+        }
+    }
+    corners
 }
 
 /// The lanes `4 q..4 q + 4` of one corner's coordinates `[x, y, z]` as one register per
@@ -285,14 +301,7 @@ impl<L: LaneArray> WideGradients<L> {
     /// the corners are transposed.
     #[inline(always)]
     pub fn with_rest(positions: Positions<'_>, tets: &[[u32; 4]], rest: [L; 10]) -> Self {
-        let mut corners: CornerArrays<L> = [[L::ZEROS; 3]; 4];
-        for q in 0..L::WIDTH / LANES {
-            let Some(tets) = quarter(tets, q) else {
-                continue;
-            };
-            store_corner_quarter::<L>(positions, tets, q, &mut corners);
-        }
-        let edges = edges_of::<L>(corners);
+        let edges = edges_of::<L>(gather_corners::<L>(positions, tets));
         let [m00, m10, m20, m01, m11, m21, m02, m12, m22, volume] = rest;
         let dm_inv = LaneMat3 {
             c0: LaneVec3::new(m00, m10, m20),

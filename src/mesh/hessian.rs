@@ -21,7 +21,7 @@ use super::super::material::Material;
 use super::super::math::BATCH_SVD;
 use super::super::svd::svd3_lanes;
 use super::super::types::{Mat2, Mat3, Real, Vec2, Vec3};
-use super::grouped::{CornerArrays, Positions, quarter, scatter_corners, store_corner_quarter};
+use super::grouped::{Positions, gather_corners, scatter_corners};
 use super::prefetch;
 use super::{
     MembraneMesh, TetMesh, TriMesh, check_finite, check_length, check_positions, gather,
@@ -506,12 +506,7 @@ impl Product<'_> {
             }
             // The direction at the corners, `[corner][axis]`, one value per lane, through the
             // force passes' SSE transposes of four elements at a time.
-            let mut v: CornerArrays<L> = [[L::ZEROS; 3]; 4];
-            for q in 0..width / LANES {
-                if let Some(quarter_tets) = quarter(corners, q) {
-                    store_corner_quarter::<L>(direction, quarter_tets, q, &mut v);
-                }
-            }
+            let v = gather_corners::<L>(direction, corners);
             let lanes = |[x, y, z]: [L::Array; 3]| {
                 [
                     L::from_lane_array(x),
