@@ -612,9 +612,13 @@ pub struct VbdReport {
 /// the vertex block factored as `L D L^T` without square roots, one run of `cargo bench
 /// --features rayon --bench vbd -- zzz` on a quiet machine (Intel Xeon with AVX-512, load
 /// below 1) gave 2.86 force passes per sweep at 10 368 tetrahedra and 2.91 at 105 456 with the
-/// packed layout (gathered: 4.65 and 5.75). What a visit still spends most on is the
-/// lane-by-lane gather of its corners' positions; a sweep computes `F`, `P g` and the 3x3 block
-/// once per element and corner, where a force pass computes `F` and `P` once per element. In
+/// packed layout (gathered: 4.65 and 5.75). The packed sweep gathers its corners' positions
+/// four lanes at a time through the force passes' SSE transposes (it set them lane by lane
+/// before): in three interleaved runs of that bench on an AMD EPYC with AVX2 (2026-12-03,
+/// 22:00 UTC) its sweep took 0.81-0.91 of the time it took before, 3.44-3.68 force passes
+/// at 10 368 tetrahedra (4.05-4.27 before) and 4.33-4.49 at 105 456 (4.90-5.26), the same
+/// bits. A sweep computes `F`, `P g` and the 3x3 block once per element and corner, where a
+/// force pass computes `F` and `P` once per element. In
 /// iterations VBD gains only with acceleration: over the bouncy cube's 180 steps of 1/60 s
 /// (tolerance 2e-3) 2239 sweeps with Chebyshev 0.95 (all 180 steps converge) against the
 /// relaxation's 5351 iterations, 2.0 times the relaxation's wall time (1.96 times its CPU

@@ -21,7 +21,9 @@
 //! and a visit of one lane costs less than one of the whole group.
 
 use super::super::element::TetRest;
-use super::super::lanes::{Lane, LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH};
+use super::super::lanes::{
+    LANES, Lane, LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH, each_lane,
+};
 #[cfg(target_arch = "x86_64")]
 use super::super::lanes_avx2::Avx2Lanes;
 #[cfg(target_arch = "x86_64")]
@@ -557,18 +559,12 @@ fn sum_packed_group<L: LaneArray, M: Material>(
     for first in (0..longest).step_by(STEPS) {
         for (offset, values) in buffer.iter_mut().enumerate().take(longest - first) {
             let row = first_row + first + offset;
-            for lane in 0..group.vertices.len().min(L::WIDTH) {
-                for c in 0..4 {
-                    let at = (row * 4 + c) * BLOCK + group.lane + lane;
-                    let index = layout.corners.get(at).copied().unwrap_or(0);
-                    let x = positions.get(index as usize).copied().unwrap_or(Vec3::ZERO);
-                    for (k, value) in [x.x, x.y, x.z].into_iter().enumerate() {
-                        if let Some(array) = values.get_mut(3 * c + k) {
-                            L::set_lane_value(array, lane, value);
-                        }
-                    }
-                }
-            }
+            gather_row_corners::<L>(
+                layout,
+                positions,
+                (row, group.lane, group.vertices.len()),
+                values,
+            );
         }
         for (offset, values) in buffer.iter().enumerate().take(longest - first) {
             let t = first + offset;
@@ -598,6 +594,65 @@ fn sum_packed_group<L: LaneArray, M: Material>(
             tail,
             (extras, *slot),
         );
+    }
+}
+
+/// The corner positions of the visits of layout row `row` in lanes `lane..lane + count` of its
+/// block (`count` at most `L::WIDTH`) into `values`, `[3 corner + axis]`, one value per lane
+/// (lanes past `count` of a quarter are filled too, from the layout's zero indices: masked).
+///
+/// At a width of four lanes or more, four lanes at a time: each corner's four positions are
+/// transposed into `[x], [y], [z]` registers (the SSE transposes of the force passes) and
+/// stored a quarter at a time, where setting the twelve values of every lane one by one took
+/// three stores a position (moves only either way: the same bits).
+#[inline(always)]
+fn gather_row_corners<L: LaneArray>(
+    layout: &Layout<'_>,
+    positions: &[Vec3],
+    (row, lane, count): (usize, usize, usize),
+    values: &mut [L::Array; 12],
+) {
+    let Some(last) = positions.len().checked_sub(1) else {
+        return;
+    };
+    // `min(i, last)` is in bounds, so `get` needs no test (the indices were validated).
+    let position = |i: u32| {
+        positions
+            .get((i as usize).min(last))
+            .copied()
+            .unwrap_or(Vec3::ZERO)
+    };
+    if L::WIDTH >= LANES {
+        for q in 0..count.div_ceil(LANES).min(L::WIDTH / LANES) {
+            for c in 0..4 {
+                let at = (row * 4 + c) * BLOCK + lane + q * LANES;
+                let Some(&indices) = layout
+                    .corners
+                    .get(at..)
+                    .and_then(<[u32]>::first_chunk::<LANES>)
+                else {
+                    continue;
+                };
+                let x = LaneVec3::<Lanes>::from_vectors(each_lane(indices, position));
+                for (axis, value) in [x.x, x.y, x.z].into_iter().enumerate() {
+                    if let Some(array) = values.get_mut(3 * c + axis) {
+                        L::store_quarter(array, q, value);
+                    }
+                }
+            }
+        }
+        return;
+    }
+    for j in 0..count.min(L::WIDTH) {
+        for c in 0..4 {
+            let at = (row * 4 + c) * BLOCK + lane + j;
+            let x = position(layout.corners.get(at).copied().unwrap_or(0));
+            for (axis, value) in [x.x, x.y, x.z].into_iter().enumerate() {
+                if let Some(array) = values.get_mut(3 * c + axis) {
+                    L::set_lane_value(array, j, value);
+                }
+            }
+        }
     }
 }
 
