@@ -116,7 +116,7 @@ pub(super) type CornerArrays<L> = [[<L as LaneArray>::Array; 3]; 4];
 /// The deformed positions a grouped pass reads, at least one: read without a bounds test per
 /// corner.
 #[derive(Clone, Copy)]
-pub(super) struct Positions<'a> {
+pub(crate) struct Positions<'a> {
     all: &'a [Vec3],
     /// The index of the last position.
     last: usize,
@@ -126,7 +126,7 @@ impl<'a> Positions<'a> {
     /// `all`, unless it is empty. Built once per pass, ahead of the loop over groups, so that
     /// the compiler knows `last < all.len()` in every [`get`](Self::get).
     #[inline(always)]
-    pub fn new(all: &'a [Vec3]) -> Option<Self> {
+    pub(crate) fn new(all: &'a [Vec3]) -> Option<Self> {
         let last = all.len().checked_sub(1)?;
         Some(Positions { all, last })
     }
@@ -135,7 +135,7 @@ impl<'a> Positions<'a> {
     /// validated) reads the last position: `min(i, last)` is in bounds, so the test of `get`
     /// folds away, and the loop stays free of panics and of a branch per corner.
     #[inline(always)]
-    pub fn get(self, i: u32) -> Vec3 {
+    pub(crate) fn get(self, i: u32) -> Vec3 {
         self.all
             .get((i as usize).min(self.last))
             .copied()

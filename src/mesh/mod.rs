@@ -29,6 +29,7 @@ mod rest_blocks;
 mod tet;
 mod triangle;
 
+pub(crate) use grouped::Positions;
 pub use partition::{
     ElementForces, TetPartition, element_forces_len, partition_incident_len, partition_offsets_len,
 };

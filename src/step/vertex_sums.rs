@@ -29,6 +29,7 @@ use super::super::lanes_avx2::Avx2Lanes;
 #[cfg(target_arch = "x86_64")]
 use super::super::lanes_avx512::Avx512Lanes;
 use super::super::material::Material;
+use super::super::mesh::Positions;
 use super::super::types::{Mat3, Real, Vec3};
 use super::vbd_layout::{self, BLOCK, LAYOUT_VALUES, Layout, Run};
 use super::vertex_block::shape_gradient;
@@ -612,16 +613,11 @@ fn gather_row_corners<L: LaneArray>(
     (row, lane, count): (usize, usize, usize),
     values: &mut [L::Array; 12],
 ) {
-    let Some(last) = positions.len().checked_sub(1) else {
+    // Read without a bounds test per corner (the indices were validated).
+    let Some(positions) = Positions::new(positions) else {
         return;
     };
-    // `min(i, last)` is in bounds, so `get` needs no test (the indices were validated).
-    let position = |i: u32| {
-        positions
-            .get((i as usize).min(last))
-            .copied()
-            .unwrap_or(Vec3::ZERO)
-    };
+    let position = |i: u32| positions.get(i);
     if L::WIDTH >= LANES {
         for q in 0..count.div_ceil(LANES).min(L::WIDTH / LANES) {
             for c in 0..4 {
