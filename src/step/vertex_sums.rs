@@ -555,14 +555,19 @@ fn sum_packed_group<L: LaneArray, M: Material>(
             .map_or(L::splat(0.0), L::from_lane_array)
     };
     let mut sums = Accumulator::<L>::new();
+    // Built once per group (the visitor moves vertices between groups), not once per row.
+    let read = Positions::new(positions);
     // Corner positions gathered `STEPS` visits ahead, as in `sum_group` (lanes of masked
-    // visits keep earlier values: never used).
+    // visits hold earlier values or vertex 0's: never used).
     for first in (0..longest).step_by(STEPS) {
         for (offset, values) in buffer.iter_mut().enumerate().take(longest - first) {
             let row = first_row + first + offset;
+            let Some(read) = read else {
+                break;
+            };
             gather_row_corners::<L>(
                 layout,
-                positions,
+                read,
                 (row, group.lane, group.vertices.len()),
                 values,
             );
@@ -609,14 +614,11 @@ fn sum_packed_group<L: LaneArray, M: Material>(
 #[inline(always)]
 fn gather_row_corners<L: LaneArray>(
     layout: &Layout<'_>,
-    positions: &[Vec3],
+    positions: Positions<'_>,
     (row, lane, count): (usize, usize, usize),
     values: &mut [L::Array; 12],
 ) {
     // Read without a bounds test per corner (the indices were validated).
-    let Some(positions) = Positions::new(positions) else {
-        return;
-    };
     let position = |i: u32| positions.get(i);
     if L::WIDTH >= LANES {
         for q in 0..count.div_ceil(LANES).min(L::WIDTH / LANES) {
