@@ -15,7 +15,7 @@ macro_rules! precision_tests {
                 ElementForces, TetMesh, TetPartition, TetRestBlock, element_forces_len,
                 partition_incident_len, partition_offsets_len, rest_block_count,
             };
-            use sf::step::{ElasticEnergy, ElasticHessian, ElasticModel, TetClamped, TetElastic};
+            use sf::step::{ElasticEnergy, TetElastic};
             use sf::types::{Mat3, Vec3};
             use $root as sf;
 
@@ -571,9 +571,9 @@ macro_rules! precision_tests {
                 use super::*;
                 use sf::parallel::{self, ParallelTetClamped, ParallelTetElastic};
                 use sf::step::{
-                    ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonSettings,
+                    ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonSettings,
                     RelaxScratch, RelaxSettings, explicit_scratch_len, newton_scratch_len,
-                    newton_step, relax_scratch_len, relax_step, stable_time_step, step_explicit,
+                    newton_step, relax_scratch_len, relax_step, stable_time_step, step_explicit, TetClamped,
                 };
 
                 const THREADS: [usize; 4] = [1, 2, 3, 8];
