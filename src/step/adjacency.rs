@@ -15,7 +15,8 @@
 //! same on every target. Two vertices of one colour never share an element, so the updates of
 //! one colour read only positions of other colours and can run in any order, or in parallel,
 //! with the same result. [`vertex_order`] lists the vertices colour by colour, by index within a
-//! colour: the Gauss–Seidel order of the solver.
+//! colour; the solver's Gauss–Seidel sweep orders each colour by decreasing number of incident
+//! elements instead (`vertex_order_by_degree`), with the same iterates.
 
 use crate::error::{StepBuffer, StepError};
 
@@ -235,11 +236,15 @@ pub fn vertex_order(colours: &[u32], count: u32, order: &mut [u32]) -> Result<()
 }
 
 /// Writes the vertices into `order` (one per vertex) colour by colour, as [`vertex_order`],
-/// but within each colour by increasing number of incident elements (`offsets` of
+/// but within each colour by decreasing number of incident elements (`offsets` of
 /// [`build_vertex_adjacency`]), then by index: the sweep's order. Within a colour the order
-/// changes no result (no two of its vertices share an element); grouping vertices with rows of
+/// changes no iterate (no two of its vertices share an element); grouping vertices with rows of
 /// equal length lets a lane group of the sweep (`vertex_sums.rs`) finish together, with few
-/// masked lanes. One scan of the vertices per colour and distinct row length.
+/// masked lanes, and the most elements first leaves a colour's last, partly filled lane group
+/// to the vertices with the fewest (the group runs as long as its longest row): on the bouncy
+/// cube's 1080 tetrahedra the f64 sweep went from 632 visit rows of 8 lanes to 608, on the
+/// 96 of the stiff block of the descent chart from 152 to 124. One scan of the vertices per
+/// colour and distinct row length.
 ///
 /// # Errors
 /// As [`vertex_order`]; [`StepError::LengthMismatch`] naming [`StepBuffer::AdjacencyOffsets`]
@@ -269,22 +274,36 @@ pub(crate) fn vertex_order_by_degree(
     };
     let mut slots = order.iter_mut();
     for colour in 0..count {
-        let mut least = 0;
-        while let Some(degree) = members(colour)
-            .map(|(_, d)| d)
-            .filter(|&d| d >= least)
-            .min()
-        {
+        let mut most = u32::MAX;
+        while let Some(degree) = members(colour).map(|(_, d)| d).filter(|&d| d <= most).max() {
             for (vertex, _) in members(colour).filter(|&(_, d)| d == degree) {
                 if let Some(slot) = slots.next() {
                     *slot = vertex;
                 }
             }
-            match degree.checked_add(1) {
-                Some(next) => least = next,
+            match degree.checked_sub(1) {
+                Some(next) => most = next,
                 None => break,
             }
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::vertex_order_by_degree;
+
+    /// Colour by colour; within a colour by decreasing element count, then by index.
+    #[test]
+    fn order_by_degree_is_colour_then_decreasing_degree_then_index() {
+        // Seven vertices in two colours; element counts (offsets' differences) 2, 5, 1, 5, 0,
+        // 2, 3.
+        let colours = [0, 1, 0, 0, 1, 0, 1];
+        let offsets = [0, 2, 7, 8, 13, 13, 15, 18];
+        let mut order = [u32::MAX; 7];
+        vertex_order_by_degree(&colours, 2, &offsets, &mut order).unwrap();
+        // Colour 0: vertices 0 (2), 2 (1), 3 (5), 5 (2); colour 1: 1 (5), 4 (0), 6 (3).
+        assert_eq!(order, [3, 0, 5, 2, 1, 6, 4]);
+    }
 }

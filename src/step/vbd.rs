@@ -502,9 +502,10 @@ pub struct VbdReport {
 ///
 /// # One sweep
 /// For every free vertex `i`, colour by colour (the colouring of
-/// [`colour_vertices`](super::colour_vertices); within a colour by number of incident
-/// elements, then by index, an order that changes no result, since no two vertices of a colour
-/// share an element), with every other vertex held where it is: the gradient and Hessian of
+/// [`colour_vertices`](super::colour_vertices); within a colour by decreasing number of
+/// incident elements, then by index, an order that changes no iterate, since no two vertices of
+/// a colour share an element; only the rounding of the sweep's residual estimate, summed in
+/// sweep order, depends on it), with every other vertex held where it is: the gradient and Hessian of
 /// the terms of `Phi`
 /// that depend on `x_i`,
 /// `g_i = m_i / h^2 (x_i - y_i) - m_i g - sum_e f_e,i(x)` and
