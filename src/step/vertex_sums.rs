@@ -16,9 +16,10 @@
 //! With the packed layout, the visits of a group's longest row past the end of all its other
 //! rows are summed for that one lane alone, by the scalar code (the same operations in the same
 //! order, so the same bits): on a small mesh a colour often holds one vertex of many elements
-//! among a few of fewer (on the descent chart's stiff block, 96 tetrahedra, 76 of the 152
-//! group visits of a sweep by 8 f64 lanes had one lane active, counted from its colouring),
-//! and a visit of one lane costs less than one of the whole group.
+//! among a few of fewer (on the descent chart's stiff block, 96 tetrahedra, 48 of the 124
+//! group visits of a sweep by 8 f64 lanes have one lane active, counted from its colouring and
+//! the sweep's order; 76 of 152 before the order put the most elements first), and a visit of
+//! one lane costs less than one of the whole group.
 
 use super::super::element::TetRest;
 use super::super::lanes::{
