@@ -505,9 +505,8 @@ pub struct VbdReport {
 /// [`colour_vertices`](super::colour_vertices); within a colour by decreasing number of
 /// incident elements, then by index, an order that changes no iterate, since no two vertices of
 /// a colour share an element; only the rounding of the sweep's residual estimate, summed in
-/// sweep order, depends on it), with every other vertex held where it is: the gradient and Hessian of
-/// the terms of `Phi`
-/// that depend on `x_i`,
+/// sweep order, depends on it), with every other vertex held where it is: the gradient and
+/// Hessian of the terms of `Phi` that depend on `x_i`,
 /// `g_i = m_i / h^2 (x_i - y_i) - m_i g - sum_e f_e,i(x)` and
 /// `H_i = m_i / h^2 I + sum_e H_e,ii(x)` over the elements `e` around `i`, `f_e,i` the elastic
 /// force of `e` on `i` and `H_e,ii` the exact 3x3 diagonal block of its Hessian, both from
