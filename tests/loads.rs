@@ -394,6 +394,95 @@ macro_rules! load_tests {
                 }
             }
 
+            /// A fixed coordinate keeps its bits when the ground pushes the vertex: a block
+            /// thrown onto a slanted ground (its normal has x, y and z components), with one
+            /// vertex fixed in x and another in y and z, under every implicit solver and the
+            /// explicit step. The ground's projection moves a vertex along the normal, which
+            /// would change the fixed coordinates; the promise is that those never move (the
+            /// constraint wins over the contact for them).
+            #[test]
+            fn fixed_axes_keep_their_bits_against_a_slanted_ground() {
+                use $($api)::+::step::{Ground, newton_step, relax_step, vbd_step};
+                let (rest, tets) = block((2, 1, 1), Vec3::new(0.2, 0.1, 0.1));
+                let mut rest_data = vec![TetRest::default(); tets.len()];
+                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let body = TetElastic::new(mesh, StVK::from_young_poisson(YOUNG, POISSON).unwrap());
+                let m = masses(&rest, &tets);
+                let (n, t, dt) = (rest.len(), tets.len(), 1.0 / 30.0);
+                let mut fixed = vec![0u8; n];
+                fixed[0] = FIXED_X;
+                fixed[n - 1] = FIXED_Y | FIXED_Z;
+                let ground = Ground::new(Vec3::new(-0.7, 1.0, -0.7), 0.0);
+                let gravity = Vec3::new(0.0, -9.81, 0.0);
+                // Resting on the plane through the origin, thrown into it at 3 m/s.
+                let start: Vec<Vec3> = rest.iter().map(|&p| p + Vec3::new(0.0, 0.7 * (p.x + p.z) + 1e-3, 0.0)).collect();
+                let throw = vec![Vec3::new(0.5, -3.0, 0.2); n];
+                let failures = core::cell::RefCell::new(Vec::new());
+                let keeps = |name: &str, x: &[Vec3]| {
+                    let mut failures = failures.borrow_mut();
+                    if x[0].x.to_bits() != start[0].x.to_bits() {
+                        failures.push(format!("{name}: fixed x of vertex 0 moved from {} to {}", start[0].x, x[0].x));
+                    }
+                    if x[n - 1].y.to_bits() != start[n - 1].y.to_bits() || x[n - 1].z.to_bits() != start[n - 1].z.to_bits() {
+                        failures.push(format!("{name}: fixed y, z of vertex {} moved from {} to {}", n - 1, start[n - 1], x[n - 1]));
+                    }
+                    // Every other vertex is on or above the ground (to its contact tolerance).
+                    let unit = Vec3::new(-0.7, 1.0, -0.7).normalize();
+                    for (i, p) in x.iter().enumerate().filter(|&(i, _)| fixed[i] == 0) {
+                        if unit.dot(*p) < -1e-3 {
+                            failures.push(format!("{name}: vertex {i} at {p} is below the ground"));
+                        }
+                    }
+                };
+                {
+                    let (mut x, mut v) = (start.clone(), throw.clone());
+                    let len = newton_scratch_len(n, t);
+                    let (mut a, mut b, mut h) = (vec![Vec3::ZERO; len.vectors], vec![Mat3::ZERO; len.blocks], vec![TetHessian::default(); len.hessians]);
+                    let settings = NewtonSettings::new(dt).with_gravity(gravity).with_ground(ground).with_fixed_axes(&fixed);
+                    for _ in 0..3 {
+                        newton_step(&body, &m, &[], &settings, &mut x, &mut v, &mut NewtonScratch::new(&mut a, &mut b, &mut h)).unwrap();
+                    }
+                    keeps("newton_step", &x);
+                }
+                {
+                    let (mut x, mut v) = (start.clone(), throw.clone());
+                    let (mut a, mut s) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                    let mut settings = RelaxSettings::new(dt).with_gravity(gravity).with_fixed_axes(&fixed).with_tolerance(1e-3, 2000);
+                    settings.ground = Some(ground);
+                    for _ in 0..3 {
+                        relax_step(&body, &m, &[], &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
+                    }
+                    keeps("relax_step", &x);
+                    let (mut x, mut v) = (start.clone(), throw.clone());
+                    let settings = settings.with_chebyshev(0.9, 1.0, 2);
+                    for _ in 0..3 {
+                        relax_step(&body, &m, &[], &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
+                    }
+                    keeps("relax_step (Chebyshev)", &x);
+                }
+                {
+                    let (mut x, mut v) = (start.clone(), throw.clone());
+                    let (mut a, mut i) = (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)]);
+                    let settings = VbdSettings::new(dt).with_gravity(gravity).with_ground(ground).with_fixed_axes(&fixed);
+                    for _ in 0..3 {
+                        vbd_step(&body, &m, &[], &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
+                    }
+                    keeps("vbd_step", &x);
+                }
+                {
+                    let (mut x, mut v) = (start.clone(), throw.clone());
+                    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                    let mut settings = ExplicitSettings::new(1e-5).with_gravity(gravity).with_fixed_axes(&fixed);
+                    settings.ground = Some(ground);
+                    for _ in 0..30 {
+                        step_explicit(&body, &m, &[], &settings, &mut x, &mut v, &mut ExplicitScratch::new(&mut buffer)).unwrap();
+                    }
+                    keeps("step_explicit", &x);
+                }
+                let failures = failures.into_inner();
+                assert!(failures.is_empty(), "{}", failures.join("\n"));
+            }
+
             #[test]
             fn loads_are_validated_and_name_the_buffer_and_vertex() {
                 let (rest, tets) = tetrahedron();

@@ -75,6 +75,19 @@ impl<V: Vector> Loads<'_, V> {
         v.axes_from(reference, self.fixed(i))
     }
 
+    /// Restores in `trial` the fixed coordinates of `from`, bit for bit, at every vertex with a
+    /// fixed axis. The passes that write trial points step along a direction whose fixed
+    /// components are zero, but then project the point on the ground and the colliders, which
+    /// moves a vertex along the contact normal, fixed axes included (a normal that is not a
+    /// coordinate axis); as everywhere else, the projection comes first and the fixed
+    /// coordinates are restored after it. Nothing to do without fixed axes.
+    pub fn restore_fixed(&self, from: &[V], trial: &mut [V]) {
+        let rows = self.fixed_axes.iter().zip(trial.iter_mut().zip(from));
+        for (&mask, (t, &x)) in rows.filter(|(mask, _)| **mask != 0) {
+            *t = t.axes_from(x, mask);
+        }
+    }
+
     /// The sum `|M g + f_ext|` over the free components of the free vertices (N): the load
     /// scale of the stopping tests.
     pub fn load(&self, masses: &[Real], pinned: &[bool], gravity: V) -> Real {

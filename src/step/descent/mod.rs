@@ -798,6 +798,7 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
                 gradient: trial_gradient,
             };
             rule.extrapolate(objective, &at, stepped, point, (omega * alpha, omega));
+            objective.loads.restore_fixed(current, other);
             let estimate = rule.residual_estimate().unwrap_or(Real::NAN);
             if deferred == 0 {
                 calibration = residual / estimate;
@@ -908,6 +909,7 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
                 alpha,
             )?;
         }
+        objective.loads.restore_fixed(current, other);
         if !downhill(slope) {
             if rule.fall_back() {
                 acceleration.restart();
@@ -932,6 +934,7 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
                         gradient: trial_gradient,
                     },
                 );
+                objective.loads.restore_fixed(current, other);
             }
             let lag = Lag::new(current, gradient);
             let evaluation = objective.evaluate(other, trial_gradient, Some(lag))?;
