@@ -64,6 +64,18 @@ for target in "${targets[@]}"; do
         failed+=("$target (exit status $status; the crashing input is under fuzz/artifacts/$target/)")
         last_line=$(grep -E '^#[0-9]+[[:space:]]' "$log" | tail -n 1 || true)
         summary+=("$target: FAILED, stopped at a crash after ${last_line:-the first input}")
+        # What broke and the input that broke it, kept for the summary at the end: CI shows
+        # only the tail of the output, and its artifacts are lost with the machine.
+        panic_lines=$(grep -E -A4 'panicked at' "$log" | head -n 8 || true)
+        if [[ -z $panic_lines ]]; then
+            panic_lines=$(grep -E 'ERROR: libFuzzer|SUMMARY: libFuzzer' "$log" | head -n 2 || true)
+        fi
+        summary+=("  ${panic_lines:-(no panic message in $log)}")
+        artifact=$(grep -oE 'Test unit written to [^ ]+' "$log" | tail -n 1 | cut -d' ' -f5 || true)
+        if [[ -n $artifact && -f $artifact ]]; then
+            summary+=("  input $artifact, base64 (replay: base64 -d > crash, then the README's replay command):")
+            summary+=("  $(base64 -w 0 "$artifact")")
+        fi
     else
         summary+=("$target: ${done_line:-(no DONE line)}")
     fi

@@ -26,6 +26,21 @@ pub mod single;
 #[path = "double.rs"]
 pub mod double;
 
+/// Caps the SIMD width the batched kernels run at from bits 1-2 of a target's first byte
+/// (bit 0 picks the precision): `0` no cap (the widest this CPU has), `1` scalar, `2` the 4-lane
+/// SSE groups, `3` AVX2. The kernels promise the same bits at every width, so every promise a
+/// check asserts must hold at each; drawing the cap from the input fuzzes the narrower code
+/// paths (and the tails of each width) on any machine, not only the width it detects.
+pub fn cap_width(first: u8) {
+    use softfem::simd::{Width, set_max_width};
+    set_max_width(match (first >> 1) & 3 {
+        0 => Width::Avx512,
+        1 => Width::Scalar,
+        2 => Width::Sse,
+        _ => Width::Avx2,
+    });
+}
+
 /// With `SOFTFEM_FUZZ_TRACE` set, prints `trace: <what>` to stderr: the checks note what each
 /// input reached (which outcome, whether finiteness was asserted), so that replaying a corpus
 /// shows what it covers, e.g.

@@ -650,20 +650,42 @@ fn tet_gradient(rest: &[[f64; 3]; 4], deformed: &[[f64; 3]; 4]) -> [[f64; 3]; 3]
     f
 }
 
-/// `(|F|_F, det F)` from the metrics: `|F|_F^2 = tr(G^-1 g)` with `G`, `g` the rest and deformed
-/// Gram matrices of the edges (frame-free, so it serves 2D triangles and membranes alike).
+/// `|F|_F` from the metrics: `|F|_F^2 = tr(G^-1 g)` with `G`, `g` the rest and deformed Gram
+/// matrices of the edges (frame-free, so it serves 2D triangles and membranes alike).
+///
+/// Each set of edges is scaled by its largest coordinate first, and the norm scaled back: the
+/// metrics of wild positions (edges of `1e153` in f64) overflow, and `c p - 2 b q + a r` of
+/// overflowed terms is `-inf` or NaN, never the huge `|F|` it stands for (a fuzz input once made
+/// it `-inf`, clamped to a gradient of 0, and so asserted finite output for a body stretched
+/// `1e152` times).
 fn triangle_gradient_norm(rest: &[[f64; 3]; 3], deformed: &[[f64; 3]; 3]) -> f64 {
+    let largest = |u: [f64; 3], v: [f64; 3]| {
+        u.iter().chain(&v).fold(
+            0.0f64,
+            |m, e| if e.is_nan() { f64::NAN } else { m.max(e.abs()) },
+        )
+    };
+    let scaled = |u: [f64; 3], by: f64| [u[0] / by, u[1] / by, u[2] / by];
     let (r1, r2) = (sub(rest[1], rest[0]), sub(rest[2], rest[0]));
     let (d1, d2) = (sub(deformed[1], deformed[0]), sub(deformed[2], deformed[0]));
+    let (rest_scale, deformed_scale) = (largest(r1, r2), largest(d1, d2));
+    if !(deformed_scale.is_finite() && rest_scale.is_finite() && rest_scale > 0.0) {
+        return f64::INFINITY;
+    }
+    if deformed_scale == 0.0 {
+        return 0.0;
+    }
+    let (r1, r2) = (scaled(r1, rest_scale), scaled(r2, rest_scale));
+    let (d1, d2) = (scaled(d1, deformed_scale), scaled(d2, deformed_scale));
     let (a, b, c) = (dot(r1, r1), dot(r1, r2), dot(r2, r2));
     let (p, q, r) = (dot(d1, d1), dot(d1, d2), dot(d2, d2));
-    // G^-1 = [c -b; -b a] / (ac - b^2).
+    // G^-1 = [c -b; -b a] / (ac - b^2), of the scaled edges: every term below is at most 18.
     let squared = (c * p - 2.0 * b * q + a * r) / (a * c - b * b);
-    // NaN (an overflowed metric) must not be taken for a small gradient: `max` would drop it.
+    // NaN (a degenerate rest metric) must not be taken for a small gradient: `max` would drop it.
     if squared.is_nan() {
         f64::INFINITY
     } else {
-        squared.max(0.0).sqrt()
+        squared.max(0.0).sqrt() * (deformed_scale / rest_scale)
     }
 }
 
@@ -829,10 +851,19 @@ impl ElementScan {
                 continue;
             };
             let f = tet_gradient(&x0, &x);
-            let largest = f.iter().flatten().fold(0.0f64, |m, e| m.max(e.abs()));
+            // A NaN entry (overflowed terms of opposite signs, from wild positions) stands for
+            // an entry beyond any limit: `max` would drop it.
+            let largest = f.iter().flatten().fold(0.0f64, |m, e| {
+                if e.is_nan() {
+                    f64::INFINITY
+                } else {
+                    m.max(e.abs())
+                }
+            });
             let (ds, dm_inv) = edge_and_inverse_norms(&x0, &x);
             // F as this precision forms it is off by about 8 eps |Ds| |Dm^-1| per entry.
             let slack = 8.0 * eps * ds * dm_inv + 4.0 * eps * largest;
+            let slack = if slack.is_nan() { f64::INFINITY } else { slack };
             // The kernels compare max(1, largest entry) with the limit.
             let largest = largest.max(1.0);
             if largest - slack > limit || !largest.is_finite() {

@@ -1,11 +1,14 @@
 //! One to three steps of each stepper on arbitrary state (included once per precision by
-//! `lib.rs`): `step_explicit` with `TetElastic` and `TetClamped`, `relax_step` and
-//! `relax_quasi_static` with `TetElastic`, each with all three materials.
+//! `lib.rs`): `step_explicit` with `TetElastic` and `TetClamped`; `relax_step`,
+//! `relax_quasi_static`, `newton_step`, `newton_quasi_static`, `vbd_step` and
+//! `vbd_quasi_static` with `TetElastic`, the implicit solvers with external forces and
+//! fixed-axis masks some of the time; each with all three materials.
 //!
 //! Promises checked (`src/step/mod.rs`, `src/error.rs`): nothing panics; every call returns
-//! either `Ok`, with every position and velocity finite and every pinned vertex bit-for-bit
-//! where it was, or `Err`, with positions and velocities bit-for-bit as they were before the
-//! call (refused before anything is touched, or restored after a failed step).
+//! either `Ok`, with every position and velocity finite, every pinned vertex bit-for-bit where
+//! it was and every fixed coordinate of a position bit-for-bit as it was, or `Err`, with
+//! positions and velocities bit-for-bit as they were before the call (refused before anything
+//! is touched, or restored after a failed step).
 //!
 //! The body is a single tetrahedron or a cube of five (one group of four, as the batched
 //! kernels take them, and one more), scaled and perturbed; masses, pinned flags, positions,
@@ -15,15 +18,18 @@
 
 use super::NAME;
 use super::precision as draw_real;
+use super::sf::element::TetHessian;
 use super::sf::element::TetRest;
 use super::sf::material::{Material, NeoHookean, StVK, StableNeoHookean};
 use super::sf::mesh::TetMesh;
 use super::sf::step::{
-    ElasticModel, ExplicitScratch, ExplicitSettings, Ground, RelaxScratch, RelaxSettings,
-    TetClamped, TetElastic, explicit_scratch_len, relax_quasi_static, relax_scratch_len,
-    relax_step, stable_time_step, step_explicit,
+    ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, Ground, NewtonScratch,
+    NewtonSettings, RelaxScratch, RelaxSettings, TetClamped, TetElastic, VbdScratch, VbdSettings,
+    explicit_scratch_len, newton_quasi_static, newton_scratch_len, newton_step, relax_quasi_static,
+    relax_scratch_len, relax_step, stable_time_step, step_explicit, vbd_index_scratch_len,
+    vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static, vbd_scratch_len, vbd_step,
 };
-use super::sf::types::{Real, Vec3};
+use super::sf::types::{Mat3, Real, Vec3};
 use crate::Draw;
 
 /// The unit cube in five tetrahedra (positively oriented).
@@ -278,7 +284,7 @@ fn with_material<M: Material>(
     let mut state = draw_state(draw, &mesh, rest);
     let size = rest.iter().map(|p| p.length()).fold(0.0, Real::max);
     let elastic = TetElastic::new(mesh, material);
-    match draw.up_to(3) {
+    match draw.up_to(7) {
         0 => explicit(draw, &elastic, &mut state, size, "TetElastic", model_name),
         1 => {
             let threshold = if draw.chance(32) {
@@ -290,7 +296,73 @@ fn with_material<M: Material>(
             explicit(draw, &clamped, &mut state, size, "TetClamped", model_name);
         }
         2 => relax(draw, &elastic, &mut state, size, true, model_name),
-        _ => relax(draw, &elastic, &mut state, size, false, model_name),
+        3 => relax(draw, &elastic, &mut state, size, false, model_name),
+        4 => newton(draw, &elastic, &mut state, size, true, model_name),
+        5 => newton(draw, &elastic, &mut state, size, false, model_name),
+        6 => vbd(draw, &elastic, &mut state, size, true, model_name),
+        _ => vbd(draw, &elastic, &mut state, size, false, model_name),
+    }
+}
+
+/// Loads and constraints of the implicit solvers, drawn at the end of their settings (so that
+/// an input that ends earlier has none): external forces (N) and fixed-axis masks, each empty
+/// most of the time, of about the vertex count otherwise, sometimes wild.
+struct Extras {
+    external_forces: Vec<Vec3>,
+    fixed_axes: Vec<u8>,
+}
+
+fn draw_extras(draw: &mut Draw<'_>, n: usize, scale: Real) -> Extras {
+    let external_forces = if draw.byte() >= 160 {
+        let wild = draw.chance(32);
+        (0..length_near(draw, n))
+            .map(|_| draw_vector(draw, scale, wild))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let fixed_axes = if draw.byte() >= 160 {
+        (0..length_near(draw, n))
+            .map(|_| {
+                if draw.chance(16) {
+                    draw.byte()
+                } else {
+                    draw.up_to(7) as u8
+                }
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    Extras {
+        external_forces,
+        fixed_axes,
+    }
+}
+
+/// On `Ok`, every fixed coordinate of a position (a set bit `k` of `fixed_axes[i]`, where the
+/// masks were accepted) is bit-for-bit what it was.
+fn check_fixed_axes<R: core::fmt::Debug, E: core::fmt::Debug>(
+    call: impl Fn() -> String,
+    result: &Result<R, E>,
+    state: &State,
+    before: &(Vec<[u64; 3]>, Vec<[u64; 3]>),
+    fixed_axes: &[u8],
+) {
+    if result.is_err() || fixed_axes.len() != state.positions.len() {
+        return;
+    }
+    let after = bits(&state.positions);
+    for (i, &mask) in fixed_axes.iter().enumerate() {
+        for axis in 0..3 {
+            if mask & (1 << axis) != 0 {
+                assert!(
+                    after[i][axis] == before.0[i][axis],
+                    "{NAME}: {} returned {result:?} and moved fixed axis {axis} of vertex {i}",
+                    call()
+                );
+            }
+        }
     }
 }
 
@@ -449,7 +521,12 @@ fn relax<M: Material>(
     let mut vectors = vec![Vec3::ZERO; length_near(draw, relax_scratch_len(n))];
     let mut scalars = vec![0.0; length_near(draw, n)];
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-    for call in 0..=draw.up_to(2) {
+    let calls = draw.up_to(2);
+    let extras = draw_extras(draw, n, size * 1e3);
+    let settings = settings
+        .with_external_forces(&extras.external_forces)
+        .with_fixed_axes(&extras.fixed_axes);
+    for call in 0..=calls {
         let before = (bits(&state.positions), bits(&state.velocities));
         if dynamic {
             let result = relax_step(
@@ -467,6 +544,13 @@ fn relax<M: Material>(
                 state,
                 &before,
                 true,
+            );
+            check_fixed_axes(
+                || format!("relax_step(TetElastic<{model_name}>, {settings:?}), call {call}"),
+                &result,
+                state,
+                &before,
+                &extras.fixed_axes,
             );
         } else {
             let result = relax_quasi_static(
@@ -488,6 +572,188 @@ fn relax<M: Material>(
                 &before,
                 false,
             );
+            check_fixed_axes(
+                || {
+                    format!(
+                        "relax_quasi_static(TetElastic<{model_name}>, {settings:?}), call {call}"
+                    )
+                },
+                &result,
+                state,
+                &before,
+                &extras.fixed_axes,
+            );
         }
+    }
+}
+
+/// A tolerance: the solvers' usual `1e-3`, zero (run the budget out), or anything.
+fn draw_tolerance(draw: &mut Draw<'_>) -> Real {
+    match draw.up_to(7) {
+        0 => draw_real::wild(draw),
+        1 => 0.0,
+        2 => 1e-6,
+        _ => 1e-3,
+    }
+}
+
+fn newton<M: Material>(
+    draw: &mut Draw<'_>,
+    model: &TetElastic<'_, M>,
+    state: &mut State,
+    size: Real,
+    dynamic: bool,
+    model_name: &str,
+) {
+    let dt = draw_dt(draw, model, &state.masses) * [1.0, 10.0, 1e3][draw.index(2)];
+    let mut settings = NewtonSettings::new(dt).with_gravity(draw_gravity(draw));
+    settings.ground = draw_ground(draw, size);
+    settings = settings
+        .with_tolerance(draw_tolerance(draw), draw.up_to(12))
+        .with_cg_iterations(draw.up_to(60));
+    if draw.chance(24) {
+        settings.armijo = draw_real::wild(draw);
+    }
+    if draw.chance(24) {
+        settings.backtrack = draw_real::wild(draw);
+    }
+    settings.max_backtracks = draw.up_to(30);
+    let n = model.vertex_count();
+    let lengths = newton_scratch_len(n, model.element_count());
+    let mut vectors = vec![Vec3::ZERO; length_near(draw, lengths.vectors)];
+    let mut blocks = vec![Mat3::ZERO; length_near(draw, lengths.blocks)];
+    let mut hessians = vec![TetHessian::ZERO; length_near(draw, lengths.hessians)];
+    let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
+    let calls = draw.up_to(2);
+    let extras = draw_extras(draw, n, size * 1e3);
+    let settings = settings
+        .with_external_forces(&extras.external_forces)
+        .with_fixed_axes(&extras.fixed_axes);
+    for call in 0..=calls {
+        let before = (bits(&state.positions), bits(&state.velocities));
+        let name = if dynamic {
+            "newton_step"
+        } else {
+            "newton_quasi_static"
+        };
+        let result = if dynamic {
+            newton_step(
+                model,
+                &state.masses,
+                &state.pinned,
+                &settings,
+                &mut state.positions,
+                &mut state.velocities,
+                &mut scratch,
+            )
+        } else {
+            newton_quasi_static(
+                model,
+                &state.masses,
+                &state.pinned,
+                &settings,
+                &mut state.positions,
+                &mut scratch,
+            )
+        };
+        let call_name = || format!("{name}(TetElastic<{model_name}>, {settings:?}), call {call}");
+        check_outcome(call_name, &result, state, &before, dynamic);
+        check_fixed_axes(call_name, &result, state, &before, &extras.fixed_axes);
+    }
+}
+
+fn vbd<M: Material>(
+    draw: &mut Draw<'_>,
+    model: &TetElastic<'_, M>,
+    state: &mut State,
+    size: Real,
+    dynamic: bool,
+    model_name: &str,
+) {
+    let dt = draw_dt(draw, model, &state.masses) * [1.0, 10.0, 1e3][draw.index(2)];
+    let mut settings = VbdSettings::new(dt).with_gravity(draw_gravity(draw));
+    settings.ground = draw_ground(draw, size);
+    settings = settings.with_tolerance(draw_tolerance(draw), draw.up_to(40));
+    if draw.chance(24) {
+        settings.armijo = draw_real::wild(draw);
+    }
+    if draw.chance(24) {
+        settings.backtrack = draw_real::wild(draw);
+    }
+    match draw.up_to(3) {
+        0 => {}
+        1 => settings = settings.with_line_search(draw.up_to(12)),
+        2 => settings = settings.with_line_search_on_increase(),
+        _ => settings.max_backtracks = 0,
+    }
+    match draw.up_to(3) {
+        0 | 1 => {}
+        2 => {
+            let rho = if draw.chance(32) {
+                draw_real::wild(draw)
+            } else {
+                0.9
+            };
+            settings = settings.with_chebyshev(rho, draw.up_to(8));
+        }
+        _ => settings = settings.with_estimated_chebyshev(draw.up_to(8)),
+    }
+    let n = model.vertex_count();
+    let elements = model.element_count();
+    let mut vectors = vec![Vec3::ZERO; length_near(draw, vbd_scratch_len(n))];
+    let mut indices = vec![0u32; length_near(draw, vbd_index_scratch_len(n, elements))];
+    let mut values = vec![0.0 as Real; length_near(draw, vbd_layout_len(elements))];
+    let mut corners = vec![0u32; length_near(draw, vbd_layout_corners_len(n, elements))];
+    let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+    if draw.chance(128) {
+        scratch = scratch.with_layout(&mut values, &mut corners);
+    }
+    let calls = draw.up_to(2);
+    let extras = draw_extras(draw, n, size * 1e3);
+    let previous_velocities: Vec<Vec3> = if draw.byte() >= 192 {
+        let wild = draw.chance(32);
+        (0..length_near(draw, n))
+            .map(|_| draw_vector(draw, 10.0, wild))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let settings = settings
+        .with_external_forces(&extras.external_forces)
+        .with_fixed_axes(&extras.fixed_axes)
+        .with_previous_velocities(&previous_velocities);
+    for call in 0..=calls {
+        if call > 0 && draw.chance(32) {
+            scratch.reset_topology();
+        }
+        let before = (bits(&state.positions), bits(&state.velocities));
+        let name = if dynamic {
+            "vbd_step"
+        } else {
+            "vbd_quasi_static"
+        };
+        let result = if dynamic {
+            vbd_step(
+                model,
+                &state.masses,
+                &state.pinned,
+                &settings,
+                &mut state.positions,
+                &mut state.velocities,
+                &mut scratch,
+            )
+        } else {
+            vbd_quasi_static(
+                model,
+                &state.masses,
+                &state.pinned,
+                &settings,
+                &mut state.positions,
+                &mut scratch,
+            )
+        };
+        let call_name = || format!("{name}(TetElastic<{model_name}>, {settings:?}), call {call}");
+        check_outcome(call_name, &result, state, &before, dynamic);
+        check_fixed_axes(call_name, &result, state, &before, &extras.fixed_axes);
     }
 }
