@@ -295,12 +295,19 @@ fn with_material<M: Material>(
             let clamped = TetClamped::new(mesh, material, threshold);
             explicit(draw, &clamped, &mut state, size, "TetClamped", model_name);
         }
-        2 => relax(draw, &elastic, &mut state, size, true, model_name),
-        3 => relax(draw, &elastic, &mut state, size, false, model_name),
-        4 => newton(draw, &elastic, &mut state, size, true, model_name),
-        5 => newton(draw, &elastic, &mut state, size, false, model_name),
-        6 => vbd(draw, &elastic, &mut state, size, true, model_name),
-        _ => vbd(draw, &elastic, &mut state, size, false, model_name),
+        solver => {
+            let solve = Solve {
+                model: &elastic,
+                size,
+                dynamic: solver % 2 == 0,
+                model_name,
+            };
+            match solver {
+                2 | 3 => relax(draw, &solve, &mut state),
+                4 | 5 => newton(draw, &solve, &mut state),
+                _ => vbd(draw, &solve, &mut state),
+            }
+        }
     }
 }
 
@@ -353,11 +360,15 @@ fn check_fixed_axes<R: core::fmt::Debug, E: core::fmt::Debug>(
         return;
     }
     let after = bits(&state.positions);
-    for (i, &mask) in fixed_axes.iter().enumerate() {
-        for axis in 0..3 {
+    let rows = fixed_axes
+        .iter()
+        .zip(after.iter().zip(&before.0))
+        .enumerate();
+    for (i, (&mask, (now, then))) in rows {
+        for (axis, (now, then)) in now.iter().zip(then).enumerate() {
             if mask & (1 << axis) != 0 {
                 assert!(
-                    after[i][axis] == before.0[i][axis],
+                    now == then,
                     "{NAME}: {} returned {result:?} and moved fixed axis {axis} of vertex {i}",
                     call()
                 );
@@ -471,29 +482,108 @@ fn explicit<F: ElasticModel<Vector = Vec3>>(
     }
 }
 
-fn relax<M: Material>(
-    draw: &mut Draw<'_>,
-    model: &TetElastic<'_, M>,
-    state: &mut State,
+/// One implicit solver's body and mode: the model, its size (m), whether the solve is a
+/// dynamic step (with velocities) or quasi-static, and the material's name for messages.
+struct Solve<'s, 'm, M: Material> {
+    model: &'s TetElastic<'m, M>,
     size: Real,
     dynamic: bool,
-    model_name: &str,
-) {
-    let dt = draw_dt(draw, model, &state.masses) * [1.0, 10.0, 1e3][draw.index(2)];
+    model_name: &'s str,
+}
+
+/// Calls the dynamic solver `$step` (with velocities) or the quasi-static `$quasi_static` of
+/// `$solve` on the `State` `$state`, with `$settings` and `$scratch`.
+macro_rules! implicit_call {
+    ($solve:expr, $state:expr, $settings:expr, $scratch:expr, $step:ident, $quasi_static:ident) => {{
+        let (solve, state): (&Solve<'_, '_, _>, &mut State) = ($solve, $state);
+        let (masses, pinned) = (&state.masses, &state.pinned);
+        if solve.dynamic {
+            $step(
+                solve.model,
+                masses,
+                pinned,
+                $settings,
+                &mut state.positions,
+                &mut state.velocities,
+                $scratch,
+            )
+        } else {
+            $quasi_static(
+                solve.model,
+                masses,
+                pinned,
+                $settings,
+                &mut state.positions,
+                $scratch,
+            )
+        }
+    }};
+}
+
+/// `calls + 1` calls of [`implicit_call!`], each checked by [`Solve::check_calls`] against
+/// the fixed axes of `$extras`.
+macro_rules! check_implicit_calls {
+    ($solve:expr, $state:expr, $calls:expr, $extras:expr, $settings:expr, $scratch:expr, $step:ident, $quasi_static:ident) => {{
+        let (solve, settings) = ($solve, $settings);
+        let name = solve.name(stringify!($step), stringify!($quasi_static));
+        let describe = |_| format!("{name}(TetElastic<{}>, {settings:?})", solve.model_name);
+        solve.check_calls($state, $calls, &$extras.fixed_axes, describe, |state, _| {
+            implicit_call!(solve, state, settings, $scratch, $step, $quasi_static)
+        });
+    }};
+}
+
+impl<M: Material> Solve<'_, '_, M> {
+    /// `step` for a dynamic solve, `quasi_static` otherwise.
+    fn name<'n>(&self, step: &'n str, quasi_static: &'n str) -> &'n str {
+        if self.dynamic { step } else { quasi_static }
+    }
+
+    /// A time step of an implicit solver: `draw_dt`'s, or 10 or 1000 times it.
+    fn draw_dt(&self, draw: &mut Draw<'_>, masses: &[Real]) -> Real {
+        draw_dt(draw, self.model, masses) * [1.0, 10.0, 1e3][draw.index(2)]
+    }
+
+    /// Runs `calls + 1` solves (`solve`, given the state and the call's number) and checks each
+    /// outcome: `check_outcome`, and the fixed coordinates of `fixed_axes`.
+    fn check_calls<R: core::fmt::Debug, E: core::fmt::Debug>(
+        &self,
+        state: &mut State,
+        calls: u32,
+        fixed_axes: &[u8],
+        describe: impl Fn(u32) -> String,
+        mut solve: impl FnMut(&mut State, u32) -> Result<R, E>,
+    ) {
+        for call in 0..=calls {
+            let before = (bits(&state.positions), bits(&state.velocities));
+            let result = solve(state, call);
+            let name = || format!("{}, call {call}", describe(call));
+            check_outcome(name, &result, state, &before, self.dynamic);
+            check_fixed_axes(name, &result, state, &before, fixed_axes);
+        }
+    }
+}
+
+/// The line search's constants, sometimes wild: `(armijo, backtrack)` overrides.
+fn draw_search_constants(draw: &mut Draw<'_>) -> (Option<Real>, Option<Real>) {
+    let armijo = draw.chance(24).then(|| draw_real::wild(draw));
+    let backtrack = draw.chance(24).then(|| draw_real::wild(draw));
+    (armijo, backtrack)
+}
+
+fn relax<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut State) {
+    let dt = solve.draw_dt(draw, &state.masses);
     let mut settings = RelaxSettings::new(dt).with_gravity(draw_gravity(draw));
-    settings.ground = draw_ground(draw, size);
+    settings.ground = draw_ground(draw, solve.size);
     let tolerance = match draw.up_to(7) {
         0 => draw_real::wild(draw),
         1 => 0.0,
         _ => 1e-3,
     };
     settings = settings.with_tolerance(tolerance, draw.up_to(40));
-    if draw.chance(24) {
-        settings.armijo = draw_real::wild(draw);
-    }
-    if draw.chance(24) {
-        settings.backtrack = draw_real::wild(draw);
-    }
+    let (armijo, backtrack) = draw_search_constants(draw);
+    settings.armijo = armijo.unwrap_or(settings.armijo);
+    settings.backtrack = backtrack.unwrap_or(settings.backtrack);
     settings.max_backtracks = draw.up_to(30);
     match draw.up_to(3) {
         0 => {}
@@ -517,77 +607,28 @@ fn relax<M: Material>(
     if draw.chance(16) {
         settings.step_length = draw_real::wild(draw);
     }
-    let n = model.vertex_count();
+    let n = solve.model.vertex_count();
     let mut vectors = vec![Vec3::ZERO; length_near(draw, relax_scratch_len(n))];
     let mut scalars = vec![0.0; length_near(draw, n)];
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
     let calls = draw.up_to(2);
-    let extras = draw_extras(draw, n, size * 1e3);
+    let extras = draw_extras(draw, n, solve.size * 1e3);
     let settings = settings
         .with_external_forces(&extras.external_forces)
         .with_fixed_axes(&extras.fixed_axes);
-    for call in 0..=calls {
-        let before = (bits(&state.positions), bits(&state.velocities));
-        if dynamic {
-            let result = relax_step(
-                model,
-                &state.masses,
-                &state.pinned,
-                &settings,
-                &mut state.positions,
-                &mut state.velocities,
-                &mut scratch,
-            );
-            check_outcome(
-                || format!("relax_step(TetElastic<{model_name}>, {settings:?}), call {call}"),
-                &result,
-                state,
-                &before,
-                true,
-            );
-            check_fixed_axes(
-                || format!("relax_step(TetElastic<{model_name}>, {settings:?}), call {call}"),
-                &result,
-                state,
-                &before,
-                &extras.fixed_axes,
-            );
-        } else {
-            let result = relax_quasi_static(
-                model,
-                &state.masses,
-                &state.pinned,
-                &settings,
-                &mut state.positions,
-                &mut scratch,
-            );
-            check_outcome(
-                || {
-                    format!(
-                        "relax_quasi_static(TetElastic<{model_name}>, {settings:?}), call {call}"
-                    )
-                },
-                &result,
-                state,
-                &before,
-                false,
-            );
-            check_fixed_axes(
-                || {
-                    format!(
-                        "relax_quasi_static(TetElastic<{model_name}>, {settings:?}), call {call}"
-                    )
-                },
-                &result,
-                state,
-                &before,
-                &extras.fixed_axes,
-            );
-        }
-    }
+    check_implicit_calls!(
+        solve,
+        state,
+        calls,
+        &extras,
+        &settings,
+        &mut scratch,
+        relax_step,
+        relax_quasi_static
+    );
 }
 
-/// A tolerance: the solvers' usual `1e-3`, zero (run the budget out), or anything.
+/// A tolerance: the solvers' usual `1e-3`, `1e-6`, zero (run the budget out), or anything.
 fn draw_tolerance(draw: &mut Draw<'_>) -> Real {
     match draw.up_to(7) {
         0 => draw_real::wild(draw),
@@ -597,89 +638,48 @@ fn draw_tolerance(draw: &mut Draw<'_>) -> Real {
     }
 }
 
-fn newton<M: Material>(
-    draw: &mut Draw<'_>,
-    model: &TetElastic<'_, M>,
-    state: &mut State,
-    size: Real,
-    dynamic: bool,
-    model_name: &str,
-) {
-    let dt = draw_dt(draw, model, &state.masses) * [1.0, 10.0, 1e3][draw.index(2)];
+fn newton<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut State) {
+    let dt = solve.draw_dt(draw, &state.masses);
     let mut settings = NewtonSettings::new(dt).with_gravity(draw_gravity(draw));
-    settings.ground = draw_ground(draw, size);
+    settings.ground = draw_ground(draw, solve.size);
     settings = settings
         .with_tolerance(draw_tolerance(draw), draw.up_to(12))
         .with_cg_iterations(draw.up_to(60));
-    if draw.chance(24) {
-        settings.armijo = draw_real::wild(draw);
-    }
-    if draw.chance(24) {
-        settings.backtrack = draw_real::wild(draw);
-    }
+    let (armijo, backtrack) = draw_search_constants(draw);
+    settings.armijo = armijo.unwrap_or(settings.armijo);
+    settings.backtrack = backtrack.unwrap_or(settings.backtrack);
     settings.max_backtracks = draw.up_to(30);
-    let n = model.vertex_count();
-    let lengths = newton_scratch_len(n, model.element_count());
+    let n = solve.model.vertex_count();
+    let lengths = newton_scratch_len(n, solve.model.element_count());
     let mut vectors = vec![Vec3::ZERO; length_near(draw, lengths.vectors)];
     let mut blocks = vec![Mat3::ZERO; length_near(draw, lengths.blocks)];
     let mut hessians = vec![TetHessian::ZERO; length_near(draw, lengths.hessians)];
     let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
     let calls = draw.up_to(2);
-    let extras = draw_extras(draw, n, size * 1e3);
+    let extras = draw_extras(draw, n, solve.size * 1e3);
     let settings = settings
         .with_external_forces(&extras.external_forces)
         .with_fixed_axes(&extras.fixed_axes);
-    for call in 0..=calls {
-        let before = (bits(&state.positions), bits(&state.velocities));
-        let name = if dynamic {
-            "newton_step"
-        } else {
-            "newton_quasi_static"
-        };
-        let result = if dynamic {
-            newton_step(
-                model,
-                &state.masses,
-                &state.pinned,
-                &settings,
-                &mut state.positions,
-                &mut state.velocities,
-                &mut scratch,
-            )
-        } else {
-            newton_quasi_static(
-                model,
-                &state.masses,
-                &state.pinned,
-                &settings,
-                &mut state.positions,
-                &mut scratch,
-            )
-        };
-        let call_name = || format!("{name}(TetElastic<{model_name}>, {settings:?}), call {call}");
-        check_outcome(call_name, &result, state, &before, dynamic);
-        check_fixed_axes(call_name, &result, state, &before, &extras.fixed_axes);
-    }
+    check_implicit_calls!(
+        solve,
+        state,
+        calls,
+        &extras,
+        &settings,
+        &mut scratch,
+        newton_step,
+        newton_quasi_static
+    );
 }
 
-fn vbd<M: Material>(
-    draw: &mut Draw<'_>,
-    model: &TetElastic<'_, M>,
-    state: &mut State,
-    size: Real,
-    dynamic: bool,
-    model_name: &str,
-) {
-    let dt = draw_dt(draw, model, &state.masses) * [1.0, 10.0, 1e3][draw.index(2)];
+fn vbd<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut State) {
+    let dt = solve.draw_dt(draw, &state.masses);
     let mut settings = VbdSettings::new(dt).with_gravity(draw_gravity(draw));
-    settings.ground = draw_ground(draw, size);
+    settings.ground = draw_ground(draw, solve.size);
     settings = settings.with_tolerance(draw_tolerance(draw), draw.up_to(40));
-    if draw.chance(24) {
-        settings.armijo = draw_real::wild(draw);
-    }
-    if draw.chance(24) {
-        settings.backtrack = draw_real::wild(draw);
-    }
+    let (armijo, backtrack) = draw_search_constants(draw);
+    settings.armijo = armijo.unwrap_or(settings.armijo);
+    settings.backtrack = backtrack.unwrap_or(settings.backtrack);
     match draw.up_to(3) {
         0 => {}
         1 => settings = settings.with_line_search(draw.up_to(12)),
@@ -698,8 +698,8 @@ fn vbd<M: Material>(
         }
         _ => settings = settings.with_estimated_chebyshev(draw.up_to(8)),
     }
-    let n = model.vertex_count();
-    let elements = model.element_count();
+    let n = solve.model.vertex_count();
+    let elements = solve.model.element_count();
     let mut vectors = vec![Vec3::ZERO; length_near(draw, vbd_scratch_len(n))];
     let mut indices = vec![0u32; length_near(draw, vbd_index_scratch_len(n, elements))];
     let mut values = vec![0.0 as Real; length_near(draw, vbd_layout_len(elements))];
@@ -709,7 +709,7 @@ fn vbd<M: Material>(
         scratch = scratch.with_layout(&mut values, &mut corners);
     }
     let calls = draw.up_to(2);
-    let extras = draw_extras(draw, n, size * 1e3);
+    let extras = draw_extras(draw, n, solve.size * 1e3);
     let previous_velocities: Vec<Vec3> = if draw.byte() >= 192 {
         let wild = draw.chance(32);
         (0..length_near(draw, n))
@@ -722,38 +722,19 @@ fn vbd<M: Material>(
         .with_external_forces(&extras.external_forces)
         .with_fixed_axes(&extras.fixed_axes)
         .with_previous_velocities(&previous_velocities);
-    for call in 0..=calls {
+    let name = solve.name("vbd_step", "vbd_quasi_static");
+    let describe = |_| format!("{name}(TetElastic<{}>, {settings:?})", solve.model_name);
+    solve.check_calls(state, calls, &extras.fixed_axes, describe, |state, call| {
         if call > 0 && draw.chance(32) {
             scratch.reset_topology();
         }
-        let before = (bits(&state.positions), bits(&state.velocities));
-        let name = if dynamic {
-            "vbd_step"
-        } else {
-            "vbd_quasi_static"
-        };
-        let result = if dynamic {
-            vbd_step(
-                model,
-                &state.masses,
-                &state.pinned,
-                &settings,
-                &mut state.positions,
-                &mut state.velocities,
-                &mut scratch,
-            )
-        } else {
-            vbd_quasi_static(
-                model,
-                &state.masses,
-                &state.pinned,
-                &settings,
-                &mut state.positions,
-                &mut scratch,
-            )
-        };
-        let call_name = || format!("{name}(TetElastic<{model_name}>, {settings:?}), call {call}");
-        check_outcome(call_name, &result, state, &before, dynamic);
-        check_fixed_axes(call_name, &result, state, &before, &extras.fixed_axes);
-    }
+        implicit_call!(
+            solve,
+            state,
+            &settings,
+            &mut scratch,
+            vbd_step,
+            vbd_quasi_static
+        )
+    });
 }
