@@ -402,7 +402,7 @@ macro_rules! load_tests {
             /// constraint wins over the contact for them).
             #[test]
             fn fixed_axes_keep_their_bits_against_a_slanted_ground() {
-                use $($api)::+::step::{Ground, newton_step, relax_step, vbd_step};
+                use $($api)::+::step::{Ground, gradient_descent_step, newton_step, relax_step, vbd_step};
                 let (rest, tets) = block((2, 1, 1), Vec3::new(0.2, 0.1, 0.1));
                 let mut rest_data = vec![TetRest::default(); tets.len()];
                 let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
@@ -459,6 +459,11 @@ macro_rules! load_tests {
                         relax_step(&body, &m, &[], &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
                     }
                     keeps("relax_step (Chebyshev)", &x);
+                    let (mut x, mut v) = (start.clone(), throw.clone());
+                    for _ in 0..3 {
+                        gradient_descent_step(&body, &m, &[], &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
+                    }
+                    keeps("gradient_descent_step", &x);
                 }
                 {
                     let (mut x, mut v) = (start.clone(), throw.clone());

@@ -66,19 +66,16 @@ impl<F: ElasticEnergy> Direction<F> for Gradient {
     ) -> Result<Real, StepError> {
         let floor = objective.frames.floor();
         let pinned = objective.vertices.pinned;
-        let loads = &objective.loads;
         let mut slope = 0.0;
         let rows = direction
             .iter_mut()
             .zip(trial.positions.iter_mut().zip(trial.gradient.iter_mut()))
             .zip(at.x.iter().zip(at.gradient))
             .zip(pinned_flags(pinned));
-        for (i, (((d_slot, (t_slot, g_slot)), (&x, &g)), pinned)) in rows.enumerate() {
+        for (((d_slot, (t_slot, g_slot)), (&x, &g)), pinned) in rows {
             let (d, slope_term) = self.descent(floor, x, g, momentum.map(|m| (*t_slot, m)));
             *d_slot = d;
-            *t_slot = moved(floor, pinned, x, x + d * step, |t| {
-                loads.keep_fixed(i, t, x)
-            });
+            *t_slot = moved(floor, pinned, x, x + d * step);
             *g_slot = <F::Vector as Point>::zero();
             slope += slope_term;
         }
@@ -94,19 +91,18 @@ impl<F: ElasticEnergy> Direction<F> for Gradient {
         (step, omega): (Real, Real),
     ) {
         let floor = objective.frames.floor();
-        let loads = &objective.loads;
         let rows = trial
             .positions
             .iter_mut()
             .zip(trial.gradient.iter_mut())
             .zip(at.x.iter().zip(at.gradient))
             .zip(pinned_flags(objective.vertices.pinned));
-        for (i, (((t_slot, g_slot), (&x, &g)), pinned)) in rows.enumerate() {
+        for (((t_slot, g_slot), (&x, &g)), pinned) in rows {
             let zero = <F::Vector as Point>::zero();
             let last_step = if stepped { x - *t_slot } else { zero };
             let (d, _) = self.descent(floor, x, g, None);
             let target = x + d * step + last_step * (omega - 1.0);
-            *t_slot = moved(floor, pinned, x, target, |t| loads.keep_fixed(i, t, x));
+            *t_slot = moved(floor, pinned, x, target);
             *g_slot = zero;
         }
     }
@@ -133,15 +129,11 @@ impl Gradient {
     }
 }
 
-/// The trial point `target` projected on the ground with the fixed coordinates restored
-/// (`keep`), or `x` at a pinned vertex.
+/// The trial point `target` projected on the ground, or `x` at a pinned vertex (the descent
+/// loop restores the fixed coordinates after this pass, as after every direction's).
 #[inline]
-fn moved<V: Grouped>(floor: &Floor<V>, pinned: bool, x: V, target: V, keep: impl Fn(V) -> V) -> V {
-    if pinned {
-        x
-    } else {
-        keep(floor.project(target))
-    }
+fn moved<V: Grouped>(floor: &Floor<V>, pinned: bool, x: V, target: V) -> V {
+    if pinned { x } else { floor.project(target) }
 }
 
 /// One implicit Euler step by plain gradient descent: the loop of [`relax_step`](super::super::relax_step)
