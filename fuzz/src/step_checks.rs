@@ -520,15 +520,21 @@ macro_rules! implicit_call {
     }};
 }
 
-/// `calls + 1` calls of [`implicit_call!`], each checked by [`Solve::check_calls`] against
-/// the fixed axes of `$extras`.
+/// Draws the number of calls (1 to 3) and the `Extras` (external forces, fixed axes) of the
+/// solver whose `$settings` lack them, then runs the calls of [`implicit_call!`], each checked
+/// by [`Solve::check_calls`] against those fixed axes.
 macro_rules! check_implicit_calls {
-    ($solve:expr, $state:expr, $calls:expr, $extras:expr, $settings:expr, $scratch:expr, $step:ident, $quasi_static:ident) => {{
-        let (solve, settings) = ($solve, $settings);
+    ($draw:expr, $solve:expr, $state:expr, $settings:expr, $scratch:expr, $step:ident, $quasi_static:ident) => {{
+        let (draw, solve): (&mut Draw<'_>, &Solve<'_, '_, _>) = ($draw, $solve);
+        let calls = draw.up_to(2);
+        let extras = draw_extras(draw, solve.model.vertex_count(), solve.size * 1e3);
+        let settings = $settings
+            .with_external_forces(&extras.external_forces)
+            .with_fixed_axes(&extras.fixed_axes);
         let name = solve.name(stringify!($step), stringify!($quasi_static));
         let describe = |_| format!("{name}(TetElastic<{}>, {settings:?})", solve.model_name);
-        solve.check_calls($state, $calls, &$extras.fixed_axes, describe, |state, _| {
-            implicit_call!(solve, state, settings, $scratch, $step, $quasi_static)
+        solve.check_calls($state, calls, &extras.fixed_axes, describe, |state, _| {
+            implicit_call!(solve, state, &settings, $scratch, $step, $quasi_static)
         });
     }};
 }
@@ -611,17 +617,11 @@ fn relax<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut
     let mut vectors = vec![Vec3::ZERO; length_near(draw, relax_scratch_len(n))];
     let mut scalars = vec![0.0; length_near(draw, n)];
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-    let calls = draw.up_to(2);
-    let extras = draw_extras(draw, n, solve.size * 1e3);
-    let settings = settings
-        .with_external_forces(&extras.external_forces)
-        .with_fixed_axes(&extras.fixed_axes);
     check_implicit_calls!(
+        draw,
         solve,
         state,
-        calls,
-        &extras,
-        &settings,
+        settings,
         &mut scratch,
         relax_step,
         relax_quasi_static
@@ -655,17 +655,11 @@ fn newton<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mu
     let mut blocks = vec![Mat3::ZERO; length_near(draw, lengths.blocks)];
     let mut hessians = vec![TetHessian::ZERO; length_near(draw, lengths.hessians)];
     let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
-    let calls = draw.up_to(2);
-    let extras = draw_extras(draw, n, solve.size * 1e3);
-    let settings = settings
-        .with_external_forces(&extras.external_forces)
-        .with_fixed_axes(&extras.fixed_axes);
     check_implicit_calls!(
+        draw,
         solve,
         state,
-        calls,
-        &extras,
-        &settings,
+        settings,
         &mut scratch,
         newton_step,
         newton_quasi_static
