@@ -117,29 +117,29 @@ pub(super) type CornerArrays<L> = [[<L as LaneArray>::Array; 3]; 4];
 /// corner.
 #[derive(Clone, Copy)]
 pub(crate) struct Positions<'a> {
-    all: &'a [Vec3],
-    /// The index of the last position.
-    last: usize,
+    /// Every position but the last.
+    init: &'a [Vec3],
+    /// The last position.
+    last: &'a Vec3,
 }
 
 impl<'a> Positions<'a> {
-    /// `all`, unless it is empty. Built once per pass, ahead of the loop over groups, so that
-    /// the compiler knows `last < all.len()` in every [`get`](Self::get).
+    /// `all`, unless it is empty.
     #[inline(always)]
     pub(crate) fn new(all: &'a [Vec3]) -> Option<Self> {
-        let last = all.len().checked_sub(1)?;
-        Some(Positions { all, last })
+        let (last, init) = all.split_last()?;
+        Some(Positions { init, last })
     }
 
     /// The position of vertex `i`. An index past the end (never, for the indices the mesh
-    /// validated) reads the last position: `min(i, last)` is in bounds, so the test of `get`
-    /// folds away, and the loop stays free of panics and of a branch per corner.
+    /// validated) reads the last position. Which of the two to read is a select of addresses,
+    /// not a bounds test: the loop stays free of panics and of a branch per corner wherever
+    /// the compiler places the `Positions` (a clamp `all[min(i, len - 1)]` kept its bounds test
+    /// in the Vertex Block Descent sweep, whose loops lost the compiler's knowledge that
+    /// `len - 1 < len`).
     #[inline(always)]
     pub(crate) fn get(self, i: u32) -> Vec3 {
-        self.all
-            .get((i as usize).min(self.last))
-            .copied()
-            .unwrap_or(Vec3::ZERO)
+        *self.init.get(i as usize).unwrap_or(self.last)
     }
 }
 

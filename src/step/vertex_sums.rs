@@ -428,7 +428,11 @@ impl<L: LaneArray> Accumulator<L> {
             self.elastic.to_lane_array(),
             self.resolution.to_lane_array(),
         ];
+        // The lane index is hidden from the optimiser, which would otherwise turn the loop's
+        // reads of one lane from every sum into scatter instructions across the slots (one
+        // per value, slow on current AMD processors), as in `svd3_batch`.
         for (lane, slot) in out.iter_mut().enumerate().take(count) {
+            let lane = core::hint::black_box(lane);
             let at = |k: usize| {
                 sums.get(k)
                     .map_or(0.0, |values| L::lane_value(values, lane))
