@@ -58,10 +58,24 @@ fn check_finite<V: Vector>(
     positions: &[V],
     error: fn(usize) -> MeshError,
 ) -> Result<(), MeshError> {
-    // `p * 0` is zero for a finite coordinate and NaN for NaN or infinity, so the sum is finite
-    // exactly when every position is: one branch-free (vectorisable) pass in the common case,
-    // and a search for the culprit only on failure.
-    let sum = positions.iter().fold(V::default(), |acc, &p| acc + p * 0.0);
+    // `p * 0` is zero for a finite coordinate and NaN for NaN or infinity, so a sum of them is
+    // finite exactly when every position is, in any order: one branch-free pass in the common
+    // case, and a search for the culprit only on failure. `LANES` sums side by side, not one:
+    // a single running sum is a chain of dependent additions, one per position, which took
+    // about 2 % of a stable neo-Hookean force pass at 105k tetrahedra (perf).
+    const LANES: usize = 8;
+    let mut sums = [V::default(); LANES];
+    let mut chunks = positions.chunks_exact(LANES);
+    for chunk in &mut chunks {
+        for (sum, &p) in sums.iter_mut().zip(chunk) {
+            *sum += p * 0.0;
+        }
+    }
+    let tail = chunks
+        .remainder()
+        .iter()
+        .fold(V::default(), |acc, &p| acc + p * 0.0);
+    let sum = sums.iter().fold(tail, |acc, &s| acc + s);
     if sum.is_finite() {
         return Ok(());
     }
@@ -193,4 +207,40 @@ fn lumped_masses<const N: usize>(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::types::{Real, Vec3};
+    use super::{MeshError, check_finite};
+
+    /// Every length around the sums' chunk of 8, with a NaN or an infinity planted at each
+    /// vertex in turn (and both at two vertices): the error names the first planted vertex,
+    /// and finite positions pass.
+    #[test]
+    fn check_finite_names_the_first_non_finite_position_at_every_length_and_place() {
+        let error = |vertex| MeshError::NonFinitePosition { vertex };
+        let all: [Vec3; 26] = core::array::from_fn(|i| Vec3::new(i as Real, -(i as Real), 1e30));
+        for length in 0..=all.len() {
+            let positions = &all[..length];
+            assert_eq!(check_finite(positions, error), Ok(()));
+            for bad in [Real::NAN, Real::INFINITY, Real::NEG_INFINITY] {
+                for first in 0..length {
+                    for axis in 0..3 {
+                        let mut copy = all;
+                        let planted = &mut copy[..length];
+                        planted[first][axis] = bad;
+                        if let Some(later) = planted.get_mut(first + 5) {
+                            later.x = Real::NAN;
+                        }
+                        assert_eq!(
+                            check_finite(planted, error),
+                            Err(MeshError::NonFinitePosition { vertex: first }),
+                            "length {length}, vertex {first}, axis {axis}, value {bad}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 }
