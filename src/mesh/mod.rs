@@ -62,7 +62,7 @@ fn check_finite<V: Vector>(
     // finite exactly when every position is, in any order: one branch-free pass in the common
     // case, and a search for the culprit only on failure. `LANES` sums side by side, not one:
     // a single running sum is a chain of dependent additions, one per position, which took
-    // about 2 % of a stable neo-Hookean force pass at 105k tetrahedra (perf).
+    // about 2 % of the StVK force pass at 105k tetrahedra (perf).
     const LANES: usize = 8;
     let mut sums = [V::default(); LANES];
     let mut chunks = positions.chunks_exact(LANES);
