@@ -473,6 +473,13 @@ macro_rules! load_tests {
                         vbd_step(&body, &m, &[], &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
                     }
                     keeps("vbd_step", &x);
+                    // With Chebyshev: the extrapolated trial points too.
+                    let (mut x, mut v) = (start.clone(), throw.clone());
+                    let settings = settings.with_chebyshev(0.95, 2);
+                    for _ in 0..3 {
+                        vbd_step(&body, &m, &[], &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
+                    }
+                    keeps("vbd_step (Chebyshev)", &x);
                 }
                 {
                     let (mut x, mut v) = (start.clone(), throw.clone());

@@ -760,7 +760,8 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
             }
             let last_step = if stepped { x - *older } else { Vec3::ZERO };
             let target = x + (s - x) * step + last_step * (omega - 1.0);
-            *older = sweep.loads.keep_fixed(i, floor.project(target), x);
+            // The descent loop restores the fixed coordinates after this pass.
+            *older = floor.project(target);
         }
         swept.fill(Vec3::ZERO);
         self.counts = counts;
