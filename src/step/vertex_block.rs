@@ -27,6 +27,7 @@
 //! outweigh it.
 
 use super::super::element::TetRest;
+use super::super::lanes::{Lane, LaneVec3};
 use super::super::svd::svd3;
 use super::super::types::{Mat3, Real, Vec3};
 
@@ -59,7 +60,7 @@ fn positive_part(s: Mat3) -> Mat3 {
 }
 
 /// A pivot of the `L D L^T` factorisation must exceed this times the block's trace.
-const PIVOT_FLOOR: Real = 64.0 * Real::EPSILON;
+pub(super) const PIVOT_FLOOR: Real = 64.0 * Real::EPSILON;
 
 /// `sqrt(eps)`: the relative Levenberg–Marquardt shift of [`Ldlt::regularised`].
 const SHIFT: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
@@ -129,6 +130,59 @@ impl Ldlt {
         let x1 = y.y - self.l21 * x2;
         let x0 = y.x - self.l10 * x1 - self.l20 * x2;
         Vec3::new(x0, x1, x2)
+    }
+}
+
+/// [`Ldlt`] of one symmetric matrix per lane: the operations of [`Ldlt::new`] in its order, so
+/// every lane that factors holds the bits of the one-matrix factor (the vertex updates of a
+/// sweep's lane group, `descent/vbd_lanes.rs`). A lane whose pivot is at or below the floor is
+/// flagged, its values meaningless (all three divisions run in every lane).
+pub(super) struct LaneLdlt<L> {
+    l10: L,
+    l20: L,
+    l21: L,
+    /// `1 / d_0`, `1 / d_1`, `1 / d_2`.
+    inverse_pivots: LaneVec3<L>,
+}
+
+impl<L: Lane> LaneLdlt<L> {
+    /// The factor of the matrices whose lower triangles are
+    /// `[a00, a10, a20, a11, a21, a22]`, and 1 in the lanes where every pivot exceeds `floor`
+    /// (where [`Ldlt::new`] gives `Some`), 0 in the others.
+    #[inline(always)]
+    pub(super) fn new([a00, a10, a20, a11, a21, a22]: [L; 6], floor: L) -> (Self, L) {
+        let (one, zero) = (L::splat(1.0), L::splat(0.0));
+        let i0 = one / a00;
+        let (l10, l20) = (a10 * i0, a20 * i0);
+        let d1 = a11 - l10 * a10;
+        let i1 = one / d1;
+        let e21 = a21 - l20 * a10;
+        let l21 = e21 * i1;
+        let d2 = a22 - l20 * a20 - l21 * e21;
+        let i2 = one / d2;
+        let factored = L::select(a00.gt(floor), one, zero);
+        let factored = L::select(d1.gt(floor), factored, zero);
+        let factored = L::select(d2.gt(floor), factored, zero);
+        let factor = LaneLdlt {
+            l10,
+            l20,
+            l21,
+            inverse_pivots: LaneVec3::new(i0, i1, i2),
+        };
+        (factor, factored)
+    }
+
+    /// `H^-1 r` per lane, as [`Ldlt::solve`].
+    #[inline(always)]
+    pub(super) fn solve(&self, r: LaneVec3<L>) -> LaneVec3<L> {
+        let z1 = r.y - self.l10 * r.x;
+        let z2 = r.z - self.l20 * r.x - self.l21 * z1;
+        let p = self.inverse_pivots;
+        let (y0, y1, y2) = (r.x * p.x, z1 * p.y, z2 * p.z);
+        let x2 = y2;
+        let x1 = y1 - self.l21 * x2;
+        let x0 = y0 - self.l10 * x1 - self.l20 * x2;
+        LaneVec3::new(x0, x1, x2)
     }
 }
 
@@ -415,6 +469,62 @@ mod tests {
         let r = Vec3::new(1.0, -1.0, 2.0);
         let x = shifted.solve(r);
         assert!((h * x - r).length() <= 64.0 * Real::EPSILON * largest(h) * x.length());
+    }
+
+    /// The lane factor is the one-matrix factor, lane by lane: the same refusals and the same
+    /// bits for every solve, over definite, indefinite and singular matrices.
+    #[test]
+    fn lane_factor_is_the_scalar_factor_in_every_lane() {
+        use super::super::super::lanes::{LANES, Lane, LaneVec3, Lanes};
+        use super::{LaneLdlt, Ldlt};
+        let mut stream = Stream(23);
+        let (mut factored, mut refused) = (0, 0);
+        for k in 0..300 {
+            let matrices: [Mat3; LANES] = core::array::from_fn(|j| {
+                let b = Mat3::from_cols(stream.vector(), stream.vector(), stream.vector());
+                // Definite, then indefinite (a negative diagonal shift), then singular.
+                match (k + j) % 3 {
+                    0 => b * b.transpose() + Mat3::from_diagonal(Vec3::splat(1e-2)),
+                    1 => b * b.transpose() - Mat3::from_diagonal(Vec3::splat(0.3)),
+                    _ => Mat3::from_cols(b.x_axis, b.x_axis, b.z_axis).transpose() * b,
+                }
+            });
+            let r: [Vec3; LANES] = core::array::from_fn(|_| stream.vector());
+            let entry = |f: fn(&Mat3) -> Real| Lanes::from_array(matrices.map(|h| f(&h)));
+            let lower = [
+                entry(|h| h.x_axis.x),
+                entry(|h| h.x_axis.y),
+                entry(|h| h.x_axis.z),
+                entry(|h| h.y_axis.y),
+                entry(|h| h.y_axis.z),
+                entry(|h| h.z_axis.z),
+            ];
+            let floor = 1e-3;
+            let (lanes, flags) = LaneLdlt::new(lower, Lanes::splat(floor));
+            let solved = lanes.solve(LaneVec3::from_vectors(r)).to_vectors();
+            for (j, h) in matrices.iter().enumerate() {
+                match Ldlt::new(h, floor) {
+                    Some(factor) => {
+                        factored += 1;
+                        assert_eq!(flags.to_array()[j], 1.0, "{h}");
+                        let x = factor.solve(r[j]);
+                        assert_eq!(
+                            x.to_array().map(Real::to_bits),
+                            solved[j].to_array().map(Real::to_bits),
+                            "{h}"
+                        );
+                    }
+                    None => {
+                        refused += 1;
+                        assert_eq!(flags.to_array()[j], 0.0, "{h}");
+                    }
+                }
+            }
+        }
+        assert!(
+            factored > 300 && refused > 300,
+            "{factored} factored, {refused} refused"
+        );
     }
 
     /// The vertex factor solves with the exact block where that is definite, and with a

@@ -101,12 +101,43 @@ impl<M> Elements<'_, M> {
     }
 }
 
+/// A lane group of a [`SumsPass`] once summed: lane `j` holds vertex `members[j].1`, entry
+/// `members[j].0` of its run, with sums `sums[j]`, and is visited where bit `j` of `visited` is
+/// set (skipped vertices are not).
+pub(super) struct SummedGroup<'g> {
+    pub members: &'g [(usize, u32)],
+    pub visited: u32,
+    pub sums: &'g [VertexSums; MAX_WIDTH],
+}
+
+impl SummedGroup<'_> {
+    /// The visited lanes in order: `(lane, index, vertex, sums)`.
+    #[inline(always)]
+    pub fn visits(&self) -> impl Iterator<Item = (usize, usize, u32, &VertexSums)> + '_ {
+        self.members
+            .iter()
+            .zip(self.sums)
+            .enumerate()
+            .filter(|&(j, _)| self.visited >> j & 1 != 0)
+            .map(|(j, (&(index, vertex), sums))| (j, index, vertex, sums))
+    }
+}
+
 /// What receives the sums of a [`SumsPass`], vertex by vertex.
 pub(super) trait VertexVisitor {
     /// The positions the next group is summed at.
     fn positions(&self) -> &[Vec3];
     /// The sums of `vertex`, entry `index` of its run.
     fn visit(&mut self, index: usize, vertex: u32, sums: &VertexSums);
+    /// The sums of a lane group of `L::WIDTH` vertices, each visited lane in order: by
+    /// default [`visit`](Self::visit) one lane at a time; a visitor may work on the lanes
+    /// together where that gives the same result.
+    #[inline(always)]
+    fn visit_group<L: LaneArray>(&mut self, group: &SummedGroup<'_>) {
+        for (_, index, vertex, sums) in group.visits() {
+            self.visit(index, vertex, sums);
+        }
+    }
 }
 
 /// One pass over runs of vertices, each run of one colour: the vertices not `skip`ped are
@@ -181,9 +212,11 @@ impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_
                 if filled > 0 && (filled >= L::WIDTH || next.is_none()) {
                     let group = batch.get(..filled).unwrap_or(&[]);
                     sum_group::<L, M>(elements, visitor.positions(), group, extras, &mut sums);
-                    for (&(index, vertex), sums) in group.iter().zip(&sums) {
-                        visitor.visit(index, vertex, sums);
-                    }
+                    visitor.visit_group::<L>(&SummedGroup {
+                        members: group,
+                        visited: u32::MAX,
+                        sums: &sums,
+                    });
                     filled = 0;
                 }
                 if next.is_none() {
@@ -229,11 +262,19 @@ where
                     extras,
                     (&mut sums, &mut buffer),
                 );
-                for (j, (&vertex, sums)) in vertices.iter().zip(&sums).enumerate() {
+                let mut members = [(0, 0); MAX_WIDTH];
+                let mut visited = 0;
+                for (j, (member, &vertex)) in members.iter_mut().zip(vertices).enumerate() {
+                    *member = (b * BLOCK + lane + j, vertex);
                     if !skip.get(vertex as usize).copied().unwrap_or(false) {
-                        visitor.visit(b * BLOCK + lane + j, vertex, sums);
+                        visited |= 1 << j;
                     }
                 }
+                visitor.visit_group::<L>(&SummedGroup {
+                    members: members.get(..vertices.len()).unwrap_or_default(),
+                    visited,
+                    sums: &sums,
+                });
             }
         }
     }

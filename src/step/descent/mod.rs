@@ -42,6 +42,7 @@ pub(super) mod newton;
 pub(super) mod objective;
 pub(super) mod stopping;
 pub(super) mod vbd;
+mod vbd_lanes;
 
 use core::mem::swap;
 

@@ -9,6 +9,7 @@
 use core::marker::PhantomData;
 
 use super::super::super::element::TetRest;
+use super::super::super::lanes::LaneArray;
 use super::super::super::material::Material;
 use super::super::super::math;
 use super::super::super::types::{Mat3, Real, Vec3};
@@ -23,12 +24,13 @@ use super::super::vbd_layout::{Layout, Run, colour_runs};
 use super::super::vertex_block::{VertexFactor, shape_gradient};
 use super::super::vertex_passes::{TrialPoint, trial_pass};
 use super::super::vertex_sums::{
-    Elements, Extras, SumsPass, VertexSums, VertexVisitor, sum_vertices,
+    Elements, Extras, SummedGroup, SumsPass, VertexSums, VertexVisitor, sum_vertices,
 };
 use super::super::{Ground, TetElastic};
 use super::line_search::{copy, slope_along};
 use super::objective::Objective;
 use super::stopping::rounding_floor;
+use super::vbd_lanes::LaneUpdate;
 use super::{Direction, Iterate};
 use crate::error::StepError;
 
@@ -490,6 +492,29 @@ impl<M: Material> VertexVisitor for InPlace<'_, '_, M> {
             *slot = x;
         }
     }
+
+    #[inline(always)]
+    fn visit_group<L: LaneArray>(&mut self, group: &SummedGroup<'_>) {
+        let updates = self
+            .sweep
+            .lane_updates::<L>(self.positions, group, self.line_search);
+        // In lane order, as the one-vertex visits: the residual's sum keeps its order.
+        for (j, index, vertex, sums) in group.visits() {
+            match updates.get(j) {
+                Some(&LaneUpdate::Stays { residual, skipped }) => {
+                    self.residual_squared += residual;
+                    self.counts.skipped += u32::from(skipped);
+                }
+                Some(&LaneUpdate::Moves { residual, to }) => {
+                    self.residual_squared += residual;
+                    if let Some(slot) = self.positions.get_mut(vertex as usize) {
+                        *slot = to;
+                    }
+                }
+                _ => self.visit(index, vertex, sums),
+            }
+        }
+    }
 }
 
 /// The parallel sweep's visitor: each update written to the staging entry of its vertex.
@@ -524,6 +549,26 @@ impl<M: Material> VertexVisitor for Staged<'_, '_, M> {
             && let Some(slot) = self.out.get_mut(index)
         {
             *slot = x;
+        }
+    }
+
+    #[inline(always)]
+    fn visit_group<L: LaneArray>(&mut self, group: &SummedGroup<'_>) {
+        let updates = self
+            .sweep
+            .lane_updates::<L>(self.read, group, self.line_search);
+        for (j, index, vertex, sums) in group.visits() {
+            match updates.get(j) {
+                Some(&LaneUpdate::Stays { skipped, .. }) => {
+                    self.counts.skipped += u32::from(skipped);
+                }
+                Some(&LaneUpdate::Moves { to, .. }) => {
+                    if let Some(slot) = self.out.get_mut(index) {
+                        *slot = to;
+                    }
+                }
+                _ => self.visit(index, vertex, sums),
+            }
         }
     }
 }
