@@ -827,7 +827,7 @@ macro_rules! mesh_tests {
             #[test]
             fn vbd_runs_are_bitwise_the_scalar_run_at_every_width() {
                 use $($crate_path)::+::step::{
-                    Ground, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_layout_corners_len,
+                    Ground, SUGGESTED_STICKING_SPEED, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_layout_corners_len,
                     vbd_layout_len, vbd_scratch_len, vbd_step,
                 };
                 fn check<M: Material>(material: M, label: &str) {
@@ -860,6 +860,9 @@ macro_rules! mesh_tests {
                         .with_ground(ground)
                         .with_external_forces(&forces)
                         .with_fixed_axes(&axes);
+                    // The same with friction: the lanes of vertices in contact are left to the
+                    // one-vertex update, the others are updated together.
+                    let rough = loaded.with_ground(ground.with_friction(0.5).with_sticking_speed(SUGGESTED_STICKING_SPEED));
                     let run = || {
                         let mut results = Vec::new();
                         // With and without the packed sweep layout (the same bits either way).
@@ -868,10 +871,12 @@ macro_rules! mesh_tests {
                             (base.with_line_search(0).with_chebyshev(0.9, 2), false, false),
                             (loaded.with_line_search(0).with_chebyshev(0.9, 2), false, true),
                             (loaded.with_line_search(0).with_estimated_chebyshev(3).with_tolerance(1e-5, 60), false, true),
+                            (rough.with_line_search(0).with_chebyshev(0.9, 2), false, true),
                             (base.with_estimated_chebyshev(3), true, false),
                             (base.with_line_search(0).with_chebyshev(0.9, 2), true, false),
                             (loaded.with_line_search(0).with_chebyshev(0.9, 2), true, true),
                             (loaded.with_line_search(0).with_estimated_chebyshev(3).with_tolerance(1e-5, 60), true, true),
+                            (rough.with_line_search(0).with_chebyshev(0.9, 2), true, true),
                         ] {
                             // Falling onto the ground at 3 m/s: steps into it.
                             let fall = if falling { V::new(0.0, -3.0, 0.0) } else { V::ZERO };
@@ -909,7 +914,8 @@ macro_rules! mesh_tests {
                     };
                     let scalar = same_at_every_width(&format!("{label} VBD"), run);
                     assert_ne!(scalar[0].0, bits(&start), "{label}: the run moved");
-                    assert!(scalar[..4] == scalar[4..], "{label}: the packed layout changed the bits");
+                    assert!(scalar[..5] == scalar[5..], "{label}: the packed layout changed the bits");
+                    assert_ne!(scalar[2].0, scalar[4].0, "{label}: friction changed the run");
                 }
                 check(StVK::from_young_poisson(1.0e6, 0.45).unwrap(), "StVK");
                 check(NeoHookean::from_young_poisson(1.0e6, 0.45).unwrap(), "neo-Hookean");

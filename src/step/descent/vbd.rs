@@ -431,7 +431,7 @@ impl<M: Material> Sweep<'_, M> {
     /// Friction's slip and force factor at vertex `i` moved from `x0` to `x`, lagged to the
     /// loop's iterate; `None` without friction there.
     #[inline(always)]
-    fn rough(&self, i: usize, x: Vec3, x0: Vec3) -> Option<(Slip<Vec3>, Real)> {
+    pub(super) fn rough(&self, i: usize, x: Vec3, x0: Vec3) -> Option<(Slip<Vec3>, Real)> {
         let (friction, lag) = self.friction.as_ref()?;
         if !friction.is_active() {
             return None;

@@ -1,6 +1,6 @@
 //! The vertex updates of a Vertex Block Descent sweep's lane group in lanes: the common case
-//! of the one-vertex update `Sweep::updated` (`vbd.rs`: no line search, no colliders, no active friction, no
-//! fixed axes, a definite block, a step that stays above the ground) for `L::WIDTH` vertices at
+//! of the one-vertex update `Sweep::updated` (`vbd.rs`: no line search, no colliders, no
+//! friction at the vertex, no fixed axes, a definite block, a step that stays above the ground) for `L::WIDTH` vertices at
 //! once, each lane by the operations of the one-vertex update in its order, so every lane's
 //! result has the one-vertex bits (`tests/simd.rs` compares whole runs at every width with
 //! the scalar run). A lane outside that case is left to the one-vertex update.
@@ -62,8 +62,7 @@ fn set_vector<L: LaneArray>(v: &mut [L::Array; 3], j: usize, value: Vec3) {
 
 impl<M: Material> Sweep<'_, M> {
     /// The updates of `group`'s lanes at `positions`: every lane [`LaneUpdate::Single`] where
-    /// the sweep itself is outside the common case (one lane, the line search, colliders,
-    /// active friction).
+    /// the sweep itself is outside the common case (one lane, the line search, colliders).
     #[inline(always)]
     pub(super) fn lane_updates<L: LaneArray>(
         &self,
@@ -71,12 +70,8 @@ impl<M: Material> Sweep<'_, M> {
         group: &SummedGroup<'_>,
         line_search: bool,
     ) -> [LaneUpdate; MAX_WIDTH] {
-        let friction = self
-            .friction
-            .as_ref()
-            .is_some_and(|(friction, _)| friction.is_active());
         let mut updates = [LaneUpdate::Single; MAX_WIDTH];
-        if L::WIDTH == 1 || line_search || !self.colliders.is_empty() || friction {
+        if L::WIDTH == 1 || line_search || !self.colliders.is_empty() {
             return updates;
         }
         let Some(gathered) = self.gather::<L>(positions, group) else {
@@ -158,7 +153,8 @@ impl<M: Material> Sweep<'_, M> {
     }
 
     /// The inputs of the group's lanes that the common case may update (a visited vertex in
-    /// range with no fixed axis), as `updated` reads them; `None` if there is none.
+    /// range with no fixed axis and no friction: out of contact, or in a frictionless one), as
+    /// `updated` reads them; `None` if there is none.
     #[inline(always)]
     fn gather<L: LaneArray>(
         &self,
@@ -185,6 +181,9 @@ impl<M: Material> Sweep<'_, M> {
             }
             let m = self.masses.get(i).copied().unwrap_or(0.0);
             let x0 = self.start.get(i).copied().unwrap_or(x);
+            if self.rough(i, x, x0).is_some() {
+                continue;
+            }
             let y = match self.velocities.get(i) {
                 Some(&v) => x0 + v * self.h,
                 None => x0,
