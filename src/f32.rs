@@ -45,6 +45,10 @@ pub(crate) mod math {
     /// correctly rounded result) instead of `libm` lane by lane.
     pub const SERIES_LN_1P: bool = true;
 
+    /// The middle and half-width of the `y` range of the `ln(1 + y)` series: `[-1/2, 1/2]`,
+    /// where `|s| = |y / (2 + y)| <= 1/3`.
+    pub const LN_1P_SERIES_RANGE: (Real, Real) = (0.0, 0.5);
+
     /// Whether `svd3_batch` at the SSE width runs pairs of [`Lanes`](super::lanes::Lanes)
     /// (two registers, 8 matrices in flight): 1.25x faster than single groups on an AMD EPYC.
     #[cfg_attr(debug_assertions, allow(dead_code))] // Unoptimised builds use no pairs.

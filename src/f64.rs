@@ -39,9 +39,15 @@ pub(crate) mod math {
     /// shim).
     pub const BATCH_VERTICES: bool = cfg!(target_arch = "x86_64");
 
-    /// Whether stable neo-Hookean's `ln(1 + y)` uses its own series (see the f32 shim): not in
-    /// f64, where the series would need twice the terms; `libm` it is.
-    pub const SERIES_LN_1P: bool = false;
+    /// Whether stable neo-Hookean's `ln(1 + y)` uses its own series (see the f32 shim): in f64
+    /// for `-0.3 <= y <= 1/2` (`|s| <= 1/5`, ten terms of `q` instead of f32's seven), where
+    /// `libm::log1p` lane by lane made the energy pass cost as much as the force pass (15.1
+    /// against 15.7 ns a tetrahedron, 10 368 tetrahedra, AVX-512).
+    pub const SERIES_LN_1P: bool = true;
+
+    /// The middle and half-width of the `y` range of the `ln(1 + y)` series: `[-0.3, 0.5]`,
+    /// where `|s| = |y / (2 + y)| <= 1/5`.
+    pub const LN_1P_SERIES_RANGE: (Real, Real) = (0.1, 0.4);
 
     /// Whether `svd3_batch` at the SSE width runs pairs of [`Lanes`](super::lanes::Lanes): not in
     /// f64, whose group is already two SSE2 registers; a pair (four) measured 1.1x slower than

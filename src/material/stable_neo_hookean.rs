@@ -118,36 +118,53 @@ impl StableNeoHookean {
 
 lame_constructors!(StableNeoHookean);
 
-/// `ln(1 + y)` of every lane. Where [`math::SERIES_LN_1P`], lanes with `|y| <= 1/2` (strains up to
-/// about 40 %, the common case) take `2 atanh(s)`, `s = y / (2 + y)` (`|s| <= 1/3`), summed to
-/// the `s^15` term (truncation below `2e-9` relative), which vectorises; the others take
-/// `libm::log1p`. Each lane's result depends on its own value only, so one value and a group of
-/// lanes give the same bits.
+/// `ln(1 + y)` of every lane. Where [`math::SERIES_LN_1P`], lanes in the series range
+/// [`math::LN_1P_SERIES_RANGE`] (`|y| <= 1/2` in f32, `-0.3 <= y <= 1/2` in f64: strains up to
+/// about 40 and 25 %, the common case) take `2 atanh(s)`, `s = y / (2 + y)`, summed to the
+/// `s^15` term in f32 (`|s| <= 1/3`, truncation below `2e-9` relative) and to the `s^21` term in
+/// f64 (`|s| <= 1/5`, below `2e-17`), which vectorises; the others take `libm`'s `log1p`. Each
+/// lane's result depends on its own value only, so one value and a group of lanes give the same
+/// bits.
 #[inline(always)]
 fn ln_1p<L: Lane>(y: L) -> L {
     if !math::SERIES_LN_1P {
         return y.map(math::ln_1p);
     }
-    const HALF: Real = 0.5;
+    let (middle, half_width) = math::LN_1P_SERIES_RANGE;
     let s = y / (L::splat(2.0) + y);
-    // 2 atanh(s) = 2 s + 2 s^3 q(s^2), q = 1/3 + s^2/5 + ... + s^12/15, with q by Estrin's
-    // scheme (a dependency chain half as long as Horner's) and the leading term added last.
+    // 2 atanh(s) = 2 s + 2 s^3 q(s^2), q = 1/3 + s^2/5 + s^4/7 + ..., with q by Estrin's scheme
+    // (a dependency chain half as long as Horner's) and the leading term added last.
     // `s^2` is raised to at least eps/8: below that, 2 s^3 q is under half an ulp of 2 s, so
-    // the result is 2 s either way, and `s^8` never becomes subnormal (slow on x86).
+    // the result is 2 s either way, and `s^8` (f32) or `s^16` (f64) never becomes subnormal
+    // (slow on x86).
     let s2 = (s * s).max(L::splat(Real::EPSILON / 8.0));
     let s4 = s2 * s2;
     let c = |k: Real| L::splat(1.0 / k);
-    let q = (c(3.0) + c(5.0) * s2)
-        + (c(7.0) + c(9.0) * s2) * s4
-        + ((c(11.0) + c(13.0) * s2) + c(15.0) * s4) * (s4 * s4);
+    let q = if Real::MANTISSA_DIGITS <= 24 {
+        (c(3.0) + c(5.0) * s2)
+            + (c(7.0) + c(9.0) * s2) * s4
+            + ((c(11.0) + c(13.0) * s2) + c(15.0) * s4) * (s4 * s4)
+    } else {
+        let s8 = s4 * s4;
+        ((c(3.0) + c(5.0) * s2) + (c(7.0) + c(9.0) * s2) * s4)
+            + ((c(11.0) + c(13.0) * s2) + (c(15.0) + c(17.0) * s2) * s4) * s8
+            + (c(19.0) + c(21.0) * s2) * (s8 * s8)
+    };
     let twice_s = L::splat(2.0) * s;
     let series = twice_s + (twice_s * s2) * q;
-    // NaN is not `> 1/2`: it stays on the series, which returns NaN.
-    let outside = y.abs().gt(L::splat(HALF));
+    // NaN is not outside: it stays on the series, which returns NaN. (In f32 the middle is 0,
+    // and `y - 0` is `y`.)
+    let outside = (y - L::splat(middle)).abs().gt(L::splat(half_width));
     if L::none(outside) {
         return series;
     }
-    let exact = y.map(|y| if y.abs() > HALF { math::ln_1p(y) } else { 0.0 });
+    let exact = y.map(|y| {
+        if (y - middle).abs() > half_width {
+            math::ln_1p(y)
+        } else {
+            0.0
+        }
+    });
     L::select(outside, exact, series)
 }
 
@@ -204,7 +221,9 @@ mod tests {
             worst = worst.max(ulps(ln_1p(y), exact));
         }
         assert!(worst <= 2.0, "worst error {worst} ulp");
-        for y in [0.0, -0.0, 1e-30, -1e-30, 1e-7, 0.5, -0.5, 0.500_001, 100.0] {
+        for y in [
+            0.0, -0.0, 1e-30, -1e-30, 1e-7, 0.5, -0.5, 0.500_001, -0.3, -0.300_001, 100.0,
+        ] {
             let exact = libm::log1p(f64::from(y));
             assert!(ulps(ln_1p(y), exact) <= 2.0, "ln_1p({y}) = {}", ln_1p(y));
         }
