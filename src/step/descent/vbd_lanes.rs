@@ -1,9 +1,10 @@
 //! The vertex updates of a Vertex Block Descent sweep's lane group in lanes: the common case
 //! of the one-vertex update `Sweep::updated` (`vbd.rs`: no line search, no colliders, no
-//! friction at the vertex, no fixed axes, a definite block, a step that stays above the ground) for `L::WIDTH` vertices at
-//! once, each lane by the operations of the one-vertex update in its order, so every lane's
-//! result has the one-vertex bits (`tests/simd.rs` compares whole runs at every width with
-//! the scalar run). A lane outside that case is left to the one-vertex update.
+//! friction at the vertex, no fixed axes, a definite block, a step that stays above the
+//! ground) for `L::WIDTH` vertices at once, each lane by the operations of the one-vertex
+//! update in its order, so every lane's result has the one-vertex bits (`tests/simd.rs`
+//! compares whole runs at every width with the scalar run). A lane outside that case is left
+//! to the one-vertex update.
 //!
 //! Why: the one-vertex update, one call per vertex with every branch of the general case, was
 //! about a fifth of a sweep's time on the vbd bench's box (10 368 tetrahedra, AVX-512), as
