@@ -203,10 +203,12 @@ impl Material for StableNeoHookean {
 mod tests {
     use super::{Real, ln_1p, math};
 
-    /// Units in the last place between `x` and the f64 value `exact`.
+    /// Units in the last place between `x` and the f64 value `exact`: the distance over the
+    /// spacing of this precision's values just above `|exact|` rounded (the ulp of a power of
+    /// two is the larger of its two neighbours' spacings, so the measure never exaggerates).
     fn ulps(x: Real, exact: f64) -> f64 {
-        let rounded = exact as Real;
-        let ulp = (rounded.abs() * Real::EPSILON).max(Real::MIN_POSITIVE) as f64;
+        let rounded = (exact as Real).abs();
+        let ulp = f64::from(rounded.next_up() - rounded);
         (f64::from(x) - exact).abs() / ulp
     }
 
@@ -220,6 +222,7 @@ mod tests {
             let exact = libm::log1p(f64::from(y));
             worst = worst.max(ulps(ln_1p(y), exact));
         }
+        std::println!("ln_1p: worst {worst} ulp from libm's log1p");
         assert!(worst <= 2.0, "worst error {worst} ulp");
         for y in [
             0.0, -0.0, 1e-30, -1e-30, 1e-7, 0.5, -0.5, 0.500_001, -0.3, -0.300_001, 100.0,
@@ -230,6 +233,28 @@ mod tests {
         assert!(ln_1p(Real::NAN).is_nan());
         assert_eq!(ln_1p(Real::INFINITY), Real::INFINITY);
         assert_eq!(ln_1p(-1.0), Real::NEG_INFINITY);
-        assert!(math::SERIES_LN_1P || ln_1p(0.25) == math::ln_1p(0.25));
+    }
+
+    /// The series range of the constants is the one `ln_1p`'s documentation states:
+    /// `|y| <= 1/2` in f32, `-0.3 <= y <= 1/2` in f64, with the range test `ln_1p` applies.
+    #[test]
+    fn ln_1p_series_range_is_the_documented_one() {
+        const { assert!(math::SERIES_LN_1P) };
+        let (middle, half_width) = math::LN_1P_SERIES_RANGE;
+        let inside = |y: Real| (y - middle).abs() <= half_width;
+        let low: Real = if Real::MANTISSA_DIGITS <= 24 {
+            -0.5
+        } else {
+            -0.3
+        };
+        assert!(
+            inside(low) && inside(0.0) && inside(0.5),
+            "{middle} +- {half_width}"
+        );
+        assert!(
+            !inside(low - 1e-3) && !inside(0.5 + 1e-3),
+            "{middle} +- {half_width}"
+        );
+        assert!(!inside((0.5 as Real).next_up()));
     }
 }
