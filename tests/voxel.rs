@@ -242,7 +242,7 @@ fn degenerate_triangles_are_tolerated() {
 fn coverage_fraction_keeps_fewer_cells_as_it_grows() {
     let (positions, triangles) = icosphere(Vec3::ZERO, 1.0, 2);
     let grid = VoxelGrid::with_resolution(&positions, 10).unwrap();
-    let counts: Vec<usize> = [0.1, 0.5, 1.0]
+    let meshes: Vec<_> = [0.1, 0.5, 1.0]
         .iter()
         .map(|&min_coverage| {
             let options = VoxelOptions {
@@ -250,13 +250,31 @@ fn coverage_fraction_keeps_fewer_cells_as_it_grows() {
                 min_coverage,
                 remove_hanging: false,
             };
-            voxel_mesh(&positions, &triangles, &grid, &options)
-                .unwrap()
-                .tets
-                .len()
+            voxel_mesh(&positions, &triangles, &grid, &options).unwrap()
         })
         .collect();
+    let counts: Vec<usize> = meshes.iter().map(|mesh| mesh.tets.len()).collect();
     assert!(counts[0] > counts[1] && counts[1] > counts[2], "{counts:?}");
+    // With full coverage, the samples of every kept cell (4 per axis, at sub-cell centres)
+    // are inside the polyhedron, which lies inside the unit sphere: a cell corner is at most
+    // half a sub-cell diagonal, sqrt(3) h / 8, from the nearest sample.
+    let reach = 1.0 + 3.0_f32.sqrt() * grid.cell_size / 8.0;
+    let farthest = meshes[2]
+        .positions
+        .iter()
+        .map(|p| p.length())
+        .fold(0.0, f32::max);
+    assert!(
+        counts[2] > 0 && farthest <= reach * (1.0 + 1e-6),
+        "{farthest} > {reach}"
+    );
+    // Lower coverage keeps cells that reach further out.
+    let farthest_any = meshes[0]
+        .positions
+        .iter()
+        .map(|p| p.length())
+        .fold(0.0, f32::max);
+    assert!(farthest_any > reach, "{farthest_any} <= {reach}");
 }
 
 /// Two cubes of cells meeting only along an edge: the hanging one is removed with the option,
