@@ -417,7 +417,8 @@ macro_rules! load_tests {
                 let mut fixed = vec![0u8; n];
                 fixed[0] = FIXED_X;
                 fixed[last] = FIXED_Y | FIXED_Z;
-                let ground = Ground::new(Vec3::new(-0.7, 1.0, -0.7), 0.0);
+                let normal = Vec3::new(-0.7, 1.0, -0.7);
+                let (ground, unit) = (Ground::new(normal, 0.0), normal.normalize());
                 let gravity = Vec3::new(0.0, -9.81, 0.0);
                 // Resting on the plane through the origin, thrown into it at 3 m/s.
                 let start: Vec<Vec3> = rest.iter().map(|&p| p + Vec3::new(0.0, 0.7 * (p.x + p.z) + 1e-3, 0.0)).collect();
@@ -432,7 +433,6 @@ macro_rules! load_tests {
                         failures.push(format!("{name}: fixed y, z of vertex {last} moved from {} to {}", start[last], x[last]));
                     }
                     // Every other vertex is on or above the ground (to its contact tolerance).
-                    let unit = Vec3::new(-0.7, 1.0, -0.7).normalize();
                     for (i, p) in x.iter().enumerate().filter(|&(i, _)| fixed[i] == 0) {
                         if unit.dot(*p) < -1e-3 {
                             failures.push(format!("{name}: vertex {i} at {p} is below the ground"));
@@ -491,7 +491,6 @@ macro_rules! load_tests {
                     // block starts 3 mm lower, its landing face 1.4 mm into the ground, so that
                     // the first step already projects both fixed vertices.
                     let low: Vec<Vec3> = start.iter().map(|&p| p - Vec3::new(0.0, 3e-3, 0.0)).collect();
-                    let unit = Vec3::new(-0.7, 1.0, -0.7).normalize();
                     assert!(unit.dot(low[0]) < -1e-3 && unit.dot(low[last]) < -1e-3);
                     let (mut x, mut v) = (low.clone(), throw.clone());
                     let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];

@@ -73,6 +73,16 @@ macro_rules! newton_tests {
                     .sqrt()
             }
 
+            /// Asserts that a reported residual (N) is the recomputed imbalance (no contact): to
+            /// 1e-3 of itself, plus the rounding of element forces of about the load (64 eps of
+            /// it).
+            fn assert_reports_imbalance(reported: Real, recomputed: f64, load: f64) {
+                let floor = 64.0 * f64::from(Real::EPSILON) * load;
+                let reported = reported as f64;
+                println!("reported {reported:.6e}, recomputed {recomputed:.6e}, floor {floor:.1e} (N)");
+                assert!((reported - recomputed).abs() <= 1e-3 * recomputed + floor, "{reported} reported, {recomputed} recomputed");
+            }
+
             fn weight(masses: &[Real], pinned: &[bool]) -> f64 {
                 masses.iter().zip(pinned).filter(|(_, p)| !**p)
                     .map(|(m, _)| (*m as f64 * 9.81).powi(2)).sum::<f64>().sqrt()
@@ -98,12 +108,7 @@ macro_rules! newton_tests {
                 let load = weight(&masses, &pinned);
                 println!("{}: Newton {report:?}; recomputed imbalance {:.2e} of the load", stringify!($precision), recomputed / load);
                 assert!(report.converged && report.newton_iterations <= 25, "{report:?}");
-                // The reported residual is the imbalance (no contact here): to 1e-3 of itself, plus
-                // the rounding of element forces of about the load (64 eps of it).
-                let floor = 64.0 * f64::from(Real::EPSILON) * load;
-                let reported = report.residual as f64;
-                println!("reported {reported:.6e}, recomputed {recomputed:.6e}, floor {floor:.1e} (N)");
-                assert!((reported - recomputed).abs() <= 1e-3 * recomputed + floor, "{reported} reported, {recomputed} recomputed");
+                assert_reports_imbalance(report.residual, recomputed, load);
                 // The tolerance is honoured, or (f32) the floor it stopped at is reported.
                 assert!(recomputed <= (TOLERANCE as f64 * load).max(2.0 * report.residual as f64));
                 for (i, &p) in pinned.iter().enumerate() {
@@ -154,12 +159,7 @@ macro_rules! newton_tests {
                 println!("{} {material:?}: sag {sag:.3} m, {report:?}", stringify!($precision));
                 assert!(report.converged && report.newton_iterations <= 60, "{report:?}");
                 assert!(sag > 0.2 && sag < 1.0, "{sag}");
-                // As in the cantilever above: the reported residual is the imbalance, to 1e-3 of
-                // itself plus the rounding of element forces of about the load.
-                let floor = 64.0 * f64::from(Real::EPSILON) * load;
-                let reported = report.residual as f64;
-                println!("reported {reported:.6e}, recomputed {recomputed:.6e}, floor {floor:.1e} (N)");
-                assert!((reported - recomputed).abs() <= 1e-3 * recomputed + floor, "{reported} reported, {recomputed} recomputed");
+                assert_reports_imbalance(report.residual, recomputed, load);
             }
 
             #[test]

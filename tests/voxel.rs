@@ -259,22 +259,20 @@ fn coverage_fraction_keeps_fewer_cells_as_it_grows() {
     // are inside the polyhedron, which lies inside the unit sphere: a cell corner is at most
     // half a sub-cell diagonal, sqrt(3) h / 8, from the nearest sample.
     let reach = 1.0 + 3.0_f32.sqrt() * grid.cell_size / 8.0;
-    let farthest = meshes[2]
-        .positions
-        .iter()
-        .map(|p| p.length())
-        .fold(0.0, f32::max);
+    let farthest = |k: usize| {
+        meshes[k]
+            .positions
+            .iter()
+            .map(|p| p.length())
+            .fold(0.0, f32::max)
+    };
     assert!(
-        counts[2] > 0 && farthest <= reach * (1.0 + 1e-6),
-        "{farthest} > {reach}"
+        counts[2] > 0 && farthest(2) <= reach * (1.0 + 1e-6),
+        "{} > {reach}",
+        farthest(2)
     );
     // Lower coverage keeps cells that reach further out.
-    let farthest_any = meshes[0]
-        .positions
-        .iter()
-        .map(|p| p.length())
-        .fold(0.0, f32::max);
-    assert!(farthest_any > reach, "{farthest_any} <= {reach}");
+    assert!(farthest(0) > reach, "{} <= {reach}", farthest(0));
 }
 
 /// Two cubes of cells meeting only along an edge: the hanging one is removed with the option,
