@@ -822,7 +822,7 @@ macro_rules! mesh_tests {
 
             /// Vertex Block Descent steps at every width end in the bits of the scalar run: the
             /// sweep sums the elements around several vertices of one colour at once, one vertex
-            /// per lane (`src/step/vertex_sums.rs`), with the vertex line search (energies too)
+            /// per lane (`src/step/descent/vbd/sums.rs`), with the vertex line search (energies too)
             /// and without, for every model, from deformed positions with the bottom pinned.
             #[test]
             fn vbd_runs_are_bitwise_the_scalar_run_at_every_width() {
@@ -850,7 +850,7 @@ macro_rules! mesh_tests {
                     // A frictionless tilted ground through the lower layers, loads on some
                     // vertices and one axis fixed on others: the lanes of the sweep's vertex
                     // updates left to the one-vertex update (fixed axes, steps into the ground)
-                    // among lanes updated together (`src/step/descent/vbd_lanes.rs`).
+                    // among lanes updated together (`src/step/descent/vbd/lanes.rs`).
                     let forces: Vec<V> = (0..n)
                         .map(|i| if i % 5 == 0 { V::new(30.0, 0.0, -20.0) } else { V::ZERO })
                         .collect();

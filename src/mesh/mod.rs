@@ -22,6 +22,7 @@
 use super::element::Vector;
 use crate::error::{Buffer, ElementError, MeshError};
 
+pub(crate) mod adjacency;
 mod grouped;
 mod hessian;
 pub mod partition;

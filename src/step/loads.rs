@@ -5,9 +5,10 @@
 //! positions as gravity's is), and the fixed coordinates are removed degrees of freedom: the gradient, every
 //! step and every velocity lose those components, so a fixed coordinate keeps its bits.
 
+use super::super::element::Vector;
 use super::super::types::Real;
-use super::points::Floor;
-use super::{Vector, check_length, pinned_flags};
+use super::contact::floor::Floor;
+use super::state::{check_length, pinned_flags};
 use crate::error::{StepBuffer, StepError};
 
 /// Bit of a fixed-axis mask: the x coordinate is fixed.
@@ -19,7 +20,7 @@ pub const FIXED_Z: u8 = 4;
 
 /// The loads and partial constraints of a solve, borrowed from its settings.
 #[derive(Clone, Copy)]
-pub(super) struct Loads<'a, V> {
+pub(crate) struct Loads<'a, V> {
     /// Empty or one force (N) per vertex.
     pub forces: &'a [V],
     /// Empty or one mask per vertex (bit 0 x, 1 y, 2 z).

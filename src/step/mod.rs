@@ -4,19 +4,19 @@
 //!
 //! # Conventions
 //! * SI units: positions m, velocities m/s, masses kg (lumped, one per vertex, e.g. from
-//!   [`TetMesh::lumped_masses`](super::mesh::TetMesh::lumped_masses)), forces N, energies J,
+//!   [`TetMesh::lumped_masses`](super::mesh::TetMesh::lumped_masses)(super::mesh::TetMesh::lumped_masses)), forces N, energies J,
 //!   time s, gravity m/s^2, damping 1/s. 2D meshes work per unit thickness (N/m, J/m, kg/m) and
 //!   membranes with moduli in N/m and densities in kg/m^2, exactly as in
 //!   [`mesh`](super::mesh).
 //! * The body is described by an [`ElasticModel`]: a validated mesh plus a material, and which
-//!   force path to use. [`TetElastic`] (direct stress, any [`Material`]) also implements
+//!   force path to use. [`TetElastic`] (direct stress, any [`Material`](super::material::Material)) also implements
 //!   [`ElasticEnergy`] and so works with the relaxation; [`TetClamped`] (inversion-robust clamped
 //!   principal stress, not an energy gradient) is for the explicit stepper only, and so are the
 //!   triangle models [`TriElastic`] (2D) and [`MembraneElastic`].
 //! * `pinned` is a slice of flags, empty (nothing pinned) or one per vertex: a pinned vertex's
 //!   position and velocity are never changed by any stepper.
 //! * External loads and partial constraints live in every solver's settings
-//!   (`with_external_forces`, `with_fixed_axes`, see `loads.rs`): a force (N) per vertex added
+//!   (`with_external_forces`, `with_fixed_axes`, see `step/loads.rs`): a force (N) per vertex added
 //!   to gravity, and a mask per vertex fixing some coordinate axes ([`FIXED_X`], [`FIXED_Y`],
 //!   [`FIXED_Z`]; rollers, symmetry planes). A fixed coordinate keeps its bits exactly (with a
 //!   ground whose normal is not a coordinate axis, the contact projection is applied first and
@@ -39,26 +39,26 @@
 //! * Nothing is allocated: scratch space is a caller buffer sized by [`explicit_scratch_len`],
 //!   [`relax_scratch_len`] or [`vbd_scratch_len`] and [`vbd_index_scratch_len`].
 //! * Every stepper validates all parameters and buffers **before** touching anything, and
-//!   restores positions and velocities bit for bit when a step fails ([`StepError`]).
+//!   restores positions and velocities bit for bit when a step fails ([`StepError`](crate::StepError)).
 //!
 //! # Accepted ranges
 //! Everything outside these is refused with the error named, before anything is written:
 //!
 //! | input | accepted | error |
 //! |---|---|---|
-//! | `dt` (both steppers) | finite, `> 0` | [`StepError::TimeStep`] |
-//! | relaxation `dt` | `1 / dt^2` finite: `dt >~ 1e-19` s (f32), `1e-154` s (f64) | [`StepError::TimeStepTooSmall`] |
-//! | substeps | `1..=`[`MAX_SUBSTEPS`] (65536) | [`StepError::Substeps`] |
-//! | masses | finite normal numbers `>= Real::MIN_POSITIVE` | [`StepError::Mass`] |
-//! | positions, velocities | finite | [`StepError::NonFiniteInput`] |
-//! | gravity / damping | finite / finite `>= 0` | [`StepError::Gravity`] / [`StepError::Damping`] |
-//! | ground normal, offset | any finite non-zero vector (any length), finite offset | [`StepError::Ground`] |
-//! | restitution / friction | `[0, 1]` / finite `>= 0` | [`StepError::Restitution`] / [`StepError::Friction`] |
-//! | colliders ([`Collider`]) | sizes finite `> 0`, finite position and velocities, unit rotation (to `1e-3`), restitution `[0, 1]`, friction finite `>= 0`; 3D bodies only | [`StepError::Collider`] (index and [`ColliderProblem`](crate::ColliderProblem)) |
-//! | clamp threshold ([`TetClamped`]) | `(0, 1]` | [`MeshError::ClampThreshold`] |
-//! | deformation (tet kernels) | `max(1, largest entry)` of each `F` at most [`Material::deformation_limit`] (a limit below 1 refuses every `F`) | [`MeshError::DeformationRange`] |
-//! | density ([`TetMesh::lumped_masses`]) | finite `> 0`, each element's share `density V / 4` normal and `<= Real::MAX / elements` | [`MeshError::Density`], [`MeshError::MassRange`] |
-//! | stiffness bounds ([`stable_time_step`]) | finite `k_i`, finite `k_i / m_i` | [`StepError::Stiffness`] |
+//! | `dt` (both steppers) | finite, `> 0` | [`StepError::TimeStep`](crate::StepError::TimeStep) |
+//! | relaxation `dt` | `1 / dt^2` finite: `dt >~ 1e-19` s (f32), `1e-154` s (f64) | [`StepError::TimeStepTooSmall`](crate::StepError::TimeStepTooSmall) |
+//! | substeps | `1..=`[`MAX_SUBSTEPS`] (65536) | [`StepError::Substeps`](crate::StepError::Substeps) |
+//! | masses | finite normal numbers `>= Real::MIN_POSITIVE` | [`StepError::Mass`](crate::StepError::Mass) |
+//! | positions, velocities | finite | [`StepError::NonFiniteInput`](crate::StepError::NonFiniteInput) |
+//! | gravity / damping | finite / finite `>= 0` | [`StepError::Gravity`](crate::StepError::Gravity) / [`StepError::Damping`](crate::StepError::Damping) |
+//! | ground normal, offset | any finite non-zero vector (any length), finite offset | [`StepError::Ground`](crate::StepError::Ground) |
+//! | restitution / friction | `[0, 1]` / finite `>= 0` | [`StepError::Restitution`](crate::StepError::Restitution) / [`StepError::Friction`](crate::StepError::Friction) |
+//! | colliders ([`Collider`]) | sizes finite `> 0`, finite position and velocities, unit rotation (to `1e-3`), restitution `[0, 1]`, friction finite `>= 0`; 3D bodies only | [`StepError::Collider`](crate::StepError::Collider) (index and [`ColliderProblem`](crate::ColliderProblem)) |
+//! | clamp threshold ([`TetClamped`]) | `(0, 1]` | [`MeshError::ClampThreshold`](crate::MeshError::ClampThreshold) |
+//! | deformation (tet kernels) | `max(1, largest entry)` of each `F` at most [`Material::deformation_limit`](super::material::Material::deformation_limit) (a limit below 1 refuses every `F`) | [`MeshError::DeformationRange`](crate::MeshError::DeformationRange) |
+//! | density ([`TetMesh::lumped_masses`](super::mesh::TetMesh::lumped_masses)) | finite `> 0`, each element's share `density V / 4` normal and `<= Real::MAX / elements` | [`MeshError::Density`](crate::MeshError::Density), [`MeshError::MassRange`](crate::MeshError::MassRange) |
+//! | stiffness bounds ([`stable_time_step`]) | finite `k_i`, finite `k_i / m_i` | [`StepError::Stiffness`](crate::StepError::Stiffness) |
 //!
 //! Scratch lengths ([`explicit_scratch_len`], [`relax_scratch_len`]) saturate at `usize::MAX`,
 //! which no buffer can match.
@@ -139,7 +139,7 @@
 //!   plain Armijo step ([`RelaxReport::restarts`] counts these).
 //!   Or let the solver estimate `rho` ([`RelaxSettings::with_estimated_chebyshev`]): the
 //!   largest residual ratio of its first `delay` plain iterations (the estimator Vertex Block
-//!   Descent uses, `chebyshev.rs`), a lower bound that rises with the window. Measured on two
+//!   Descent uses, `descent/chebyshev.rs`), a lower bound that rises with the window. Measured on two
 //!   quasi-static cantilevers (`tests/chebyshev_estimate.rs`, f64, `1e-6`): delay 200 needs
 //!   911 and 22 376 iterations where the best hand-tuned `rho` of the grid needed 435 and
 //!   15 647, and a fixed `0.999` 727 and 50 844.
@@ -151,23 +151,33 @@
 //! converges on every step; plain descent with `alpha = 1` used its whole 300-iteration budget
 //! on every step after landing.
 //!
-//! Jobs, one file each: [`explicit`](step_explicit) stepping, [`stability`](stable_time_step)
-//! bounds, the [`ground`](Ground) contact, and the implicit solvers on one descent loop
-//! (`descent/`, `docs/math.md` section 7.0): `mod.rs` the loop (initial guess, Chebyshev and
-//! momentum trials, line search, velocity update, restore on failure) in coordinates shifted
-//! next to the body, `objective.rs` the objective `Phi`, `line_search.rs` the Armijo test,
-//! `stopping.rs` the stopping test with the rounding floor and stagnation, and one file per
-//! search direction: `jacobi.rs` for the [`relax`](relax_step)ation (whose passes over the
-//! vertices are `vertex_passes.rs`, four vertices at a time on x86_64, with the per-vertex
-//! arithmetic of `points.rs`), `gradient.rs` for plain [gradient descent](gradient_descent_step)
-//! (`P = c I`, for comparison) and `newton.rs` for [`newton`](newton_step)'s method (projected
-//! Hessian, block-Jacobi PCG, `docs/math.md` section 7): pick Newton for stiff bodies, large
-//! time steps and static solves, where the relaxation needs thousands of iterations. The
-//! settings and reports of each solver are in `relax.rs` and `newton.rs`.
-//! [Vertex Block Descent](vbd_step) (`vbd.rs`, with the vertex
-//! [adjacency and colouring](build_vertex_adjacency) of `adjacency.rs` and the per-element
-//! block of `vertex_block.rs`) minimises it by per-vertex Newton steps in Gauss–Seidel order,
-//! one sweep being the direction `descent/vbd.rs` of the same loop.
+//! # Where each piece lives
+//! One job per file or folder (the whole crate's tree is drawn in `docs/layout.md`):
+//! * `model.rs`: the traits a body implements ([`ElasticModel`], [`ElasticEnergy`],
+//!   [`ElasticHessian`]) and the shipped models; `state.rs`: the checks of the state every
+//!   stepper makes first; `loads.rs`: external forces and fixed axes.
+//! * `contact/`: the [`Ground`] and [`Collider`]s, the one contact record (`contact::Contact`),
+//!   the projection onto the admissible set every stepper shares (`floor.rs`) and friction in
+//!   the implicit objective (`friction.rs`).
+//! * `vertex_pass/`: the passes over the vertices (integration, projection, trial points,
+//!   residuals) in blocks of [`VERTEX_BLOCK`] (`mod.rs`), their bodies four to sixteen vertices
+//!   at a time on x86_64 (`passes.rs`), on the per-vertex arithmetic written once for one vertex
+//!   and a lane group (`point.rs`).
+//! * `explicit/`: [`step_explicit`], its [stability bound](stable_time_step) (`stability.rs`)
+//!   and the [frequency estimate](estimate_max_frequency) (`frequency.rs`).
+//! * `descent/`: the implicit solvers on one loop (`docs/math.md` section 7.0): `mod.rs` the loop
+//!   (initial guess, Chebyshev and momentum trials, line search, velocity update, restore on
+//!   failure) in coordinates shifted next to the body, `objective.rs` the objective `Phi`,
+//!   `line_search.rs` the Armijo test, `stopping.rs` the stopping test with the rounding floor
+//!   and stagnation, `chebyshev.rs` the semi-iteration's weights and estimate; and one folder per
+//!   solver, each with its settings, report and entry points in `mod.rs`: `relax/` (the
+//!   [relax](relax_step)ation's Jacobi direction `jacobi.rs`, and plain
+//!   [gradient descent](gradient_descent_step) `gradient.rs`, `P = c I`, for comparison),
+//!   `newton/` ([`newton`](newton_step)'s method: projected Hessian and block-Jacobi PCG in
+//!   `cg.rs`, `docs/math.md` section 7) and `vbd/` ([Vertex Block Descent](vbd_step): the
+//!   Gauss–Seidel sweep `sweep.rs` and its SIMD lanes `lanes.rs`, the per-vertex sums
+//!   `sums.rs`, the per-element block `block.rs` and the packed element layout `layout.rs`,
+//!   over the vertex [adjacency and colouring](build_vertex_adjacency) of `mesh/adjacency.rs`).
 //!
 //! # Which solver to pick
 //! Measured by the `tradeoffs` example's `descent` chart (f64, one thread; relative residual
@@ -196,424 +206,48 @@
 //!   `1e-6` in 20 000 sweeps on the cantilever). Pick it for a fixed per-frame budget, or where
 //!   a parallel, colour-by-colour sweep pays.
 
-use core::fmt::Debug;
-
-use super::element::{TetHessian, TriangleStVK};
-use super::material::Material;
-use super::mesh::{MembraneMesh, TetMesh, TriMesh};
-use super::types::{Mat3, Real, Vec2, Vec3};
-use crate::error::{MeshError, StepBuffer, StepError};
-
-mod adjacency;
-mod chebyshev;
-mod collider;
+mod contact;
 mod descent;
 mod explicit;
-mod frequency;
-mod friction;
-mod ground;
 mod loads;
-mod newton;
-pub(crate) mod points;
-mod relax;
-mod split;
-mod stability;
-mod vbd;
-mod vbd_layout;
-mod vertex_block;
-mod vertex_passes;
-mod vertex_sums;
+mod model;
+pub(crate) mod state;
+pub(crate) mod vertex_pass;
 
-pub use adjacency::{
+pub use super::element::Vector;
+pub use super::mesh::adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
     vertex_order,
 };
-pub use collider::{Collider, Shape, SignedDistance};
-pub use descent::gradient::{gradient_descent_quasi_static, gradient_descent_step};
-pub use explicit::{
-    DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, FLIP_GROWTH,
-    FLIP_STREAK, MAX_SUBSTEPS, explicit_scratch_len, step_explicit,
-};
-pub use frequency::{
-    FREQUENCY_MARGIN, FrequencyEstimate, estimate_max_frequency, frequency_scratch_len,
-};
-pub use friction::SUGGESTED_STICKING_SPEED;
-pub use ground::Ground;
-pub use loads::{FIXED_X, FIXED_Y, FIXED_Z};
-pub use newton::{
+pub use contact::{Collider, Ground, SUGGESTED_STICKING_SPEED, Shape, SignedDistance};
+pub use descent::newton::{
     FLOOR_FACTOR, NewtonReport, NewtonScratch, NewtonScratchLen, NewtonSettings,
     newton_quasi_static, newton_scratch_len, newton_step,
 };
-pub use relax::{
-    MAX_ESTIMATED_RELAX_RHO, RelaxReport, RelaxScratch, RelaxSettings, relax_quasi_static,
-    relax_scratch_len, relax_step,
+pub use descent::relax::{
+    MAX_ESTIMATED_RELAX_RHO, RelaxReport, RelaxScratch, RelaxSettings,
+    gradient_descent_quasi_static, gradient_descent_step, relax_quasi_static, relax_scratch_len,
+    relax_step,
 };
-pub use split::{InOrder, Join, VERTEX_BLOCK, VertexPass};
-pub use stability::{element_stable_time_step, linearised_moduli, stable_time_step};
-pub use vbd::{
-    MAX_ESTIMATED_RHO, VbdReport, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_quasi_static,
-    vbd_scratch_len, vbd_step,
+pub use descent::vbd::{
+    MAX_ESTIMATED_RHO, VbdReport, VbdScratch, VbdSettings, vbd_index_scratch_len,
+    vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static, vbd_scratch_len, vbd_step,
 };
-pub use vbd_layout::{vbd_layout_corners_len, vbd_layout_len};
-
-pub use super::element::Vector;
+#[cfg(feature = "rayon")]
+pub use descent::vbd::{vbd_quasi_static_parallel, vbd_step_parallel};
+pub use explicit::{
+    DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, FLIP_GROWTH,
+    FLIP_STREAK, FREQUENCY_MARGIN, FrequencyEstimate, MAX_SUBSTEPS, element_stable_time_step,
+    estimate_max_frequency, explicit_scratch_len, frequency_scratch_len, linearised_moduli,
+    stable_time_step, step_explicit,
+};
+pub use loads::{FIXED_X, FIXED_Y, FIXED_Z};
+pub use model::{
+    ElasticEnergy, ElasticHessian, ElasticModel, MembraneElastic, TetClamped, TetElastic,
+    TriElastic,
+};
+pub use vertex_pass::{InOrder, Join, VERTEX_BLOCK, VertexPass};
 
 // The owning body keeps what the scratch views remember between steps.
+pub(crate) use descent::vbd::VbdTopology;
 pub(crate) use explicit::ExplicitMemory;
-pub(crate) use vbd::VbdTopology;
-#[cfg(feature = "rayon")]
-pub use vbd::{vbd_quasi_static_parallel, vbd_step_parallel};
-
-/// An elastic body the explicit stepper can advance: a validated mesh, a material and a force
-/// path. Implement it to plug in other force models (extra springs, a different element).
-pub trait ElasticModel {
-    /// The position, velocity and force type (`Vec3`, or `Vec2` for 2D solids).
-    type Vector: Vector;
-
-    /// The number of vertices: the length of every per-vertex buffer.
-    fn vertex_count(&self) -> usize;
-
-    /// Adds the elastic forces (N) at `positions` (m) into `forces`.
-    ///
-    /// # Errors
-    /// As the mesh kernels: length mismatch or non-finite positions; `forces` unchanged then.
-    fn add_forces(
-        &self,
-        positions: &[Self::Vector],
-        forces: &mut [Self::Vector],
-    ) -> Result<(), MeshError>;
-
-    /// Calls `visit(corners, stiffness, measure)` for every element: its vertex indices, an upper
-    /// bound (N/m) on the largest eigenvalue of its small-strain stiffness matrix at rest, and its
-    /// rest volume or area (m^3 or m^2). Used by [`stable_time_step`] and by the relaxation's
-    /// preconditioner; see `stability.rs` for the derivation.
-    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real));
-
-    /// Runs one of the steppers' passes over the vertices (integration, contact projection,
-    /// trial points, residuals), split into blocks of [`VERTEX_BLOCK`] vertices. The default
-    /// runs it on the calling thread ([`InOrder`]); a model whose forces run on a thread pool
-    /// (as `parallel::ParallelTetElastic`, feature `rayon`) returns
-    /// `pass.run_with(&join)` with its pool's [`Join`], which gives the same bits.
-    #[inline]
-    fn run_vertex_pass<P: VertexPass>(&self, pass: P) -> P::Output {
-        pass.run_with(&InOrder)
-    }
-}
-
-/// An [`ElasticModel`] whose forces are minus the gradient of an energy, as the relaxation
-/// ([`relax_step`], [`relax_quasi_static`]) needs for its line search.
-pub trait ElasticEnergy: ElasticModel {
-    /// Returns the elastic energy (J) at `positions` (m) and adds the elastic forces (N) into
-    /// `forces`, in one pass. NaN or infinite positions give a non-finite energy (not an error).
-    ///
-    /// # Errors
-    /// [`MeshError::LengthMismatch`] if a buffer does not have one entry per vertex.
-    fn energy_and_add_forces(
-        &self,
-        positions: &[Self::Vector],
-        forces: &mut [Self::Vector],
-    ) -> Result<Real, MeshError>;
-}
-
-/// An [`ElasticEnergy`] with second derivatives, as Newton's method ([`newton_step`],
-/// [`newton_quasi_static`]) needs: the projected (SPD) Hessian cached per element in a caller
-/// buffer, its product with a direction and its 3x3 diagonal blocks (`docs/math.md` section 6).
-pub trait ElasticHessian: ElasticEnergy<Vector = Vec3> {
-    /// The number of elements: the length of the Hessian cache.
-    fn element_count(&self) -> usize;
-
-    /// Writes the projected Hessian data of every element at `positions` (m) into `cache`.
-    ///
-    /// # Errors
-    /// As [`TetMesh::projected_hessians`]; `cache` unchanged then.
-    fn projected_hessians(
-        &self,
-        positions: &[Vec3],
-        cache: &mut [TetHessian],
-    ) -> Result<(), MeshError>;
-
-    /// Adds `H d` (N) into `out` for the Hessian in `cache` and the direction `direction` (m).
-    ///
-    /// # Errors
-    /// As [`TetMesh::add_hessian_product`]; `out` unchanged then.
-    fn add_hessian_product(
-        &self,
-        cache: &[TetHessian],
-        direction: &[Vec3],
-        out: &mut [Vec3],
-    ) -> Result<(), MeshError>;
-
-    /// Adds the 3x3 diagonal blocks (N/m) of the Hessian in `cache` into `blocks`.
-    ///
-    /// # Errors
-    /// As [`TetMesh::add_vertex_hessian_blocks`]; `blocks` unchanged then.
-    fn add_vertex_hessian_blocks(
-        &self,
-        cache: &[TetHessian],
-        blocks: &mut [Mat3],
-    ) -> Result<(), MeshError>;
-}
-
-/// A tetrahedral body with the direct stress [`Material::first_piola`]: the forces are the
-/// exact gradient of [`TetMesh::elastic_energy`], so both steppers accept it.
-#[derive(Clone, Copy, Debug)]
-pub struct TetElastic<'a, M: Material> {
-    /// The validated mesh.
-    pub mesh: TetMesh<'a>,
-    /// The material.
-    pub material: M,
-}
-
-impl<'a, M: Material> TetElastic<'a, M> {
-    /// `material` on `mesh`.
-    #[inline]
-    #[must_use]
-    pub fn new(mesh: TetMesh<'a>, material: M) -> Self {
-        TetElastic { mesh, material }
-    }
-}
-
-/// A tetrahedral body with the clamped principal stress
-/// ([`TetMesh::add_elastic_forces_clamped`]): inverted elements are pushed back. **Not an
-/// energy gradient: explicit stepping only** (it does not implement [`ElasticEnergy`]).
-#[derive(Clone, Copy, Debug)]
-pub struct TetClamped<'a, M: Material> {
-    /// The validated mesh.
-    pub mesh: TetMesh<'a>,
-    /// The material.
-    pub material: M,
-    /// The smallest stretch the stress sees (dimensionless, typically `0.2..0.5`).
-    pub threshold: Real,
-}
-
-impl<'a, M: Material> TetClamped<'a, M> {
-    /// `material` on `mesh`, stretches clamped from below at `threshold`. Not checked here: a
-    /// `threshold` outside `(0, 1]` makes every force evaluation (and so every step) fail with
-    /// [`MeshError::ClampThreshold`]; [`checked`](Self::checked) refuses it up front.
-    #[inline]
-    #[must_use]
-    pub fn new(mesh: TetMesh<'a>, material: M, threshold: Real) -> Self {
-        TetClamped {
-            mesh,
-            material,
-            threshold,
-        }
-    }
-
-    /// As [`new`](Self::new), checking `threshold`.
-    ///
-    /// # Errors
-    /// [`MeshError::ClampThreshold`] if `threshold` is not in `(0, 1]`.
-    #[inline]
-    pub fn checked(mesh: TetMesh<'a>, material: M, threshold: Real) -> Result<Self, MeshError> {
-        super::mesh::check_clamp_threshold(threshold)?;
-        Ok(Self::new(mesh, material, threshold))
-    }
-}
-
-/// A 2D triangle body (plane strain, per unit thickness) for the explicit stepper.
-#[derive(Clone, Copy, Debug)]
-pub struct TriElastic<'a> {
-    /// The validated mesh.
-    pub mesh: TriMesh<'a>,
-    /// The material.
-    pub material: TriangleStVK,
-}
-
-/// A membrane (triangles in space) for the explicit stepper.
-#[derive(Clone, Copy, Debug)]
-pub struct MembraneElastic<'a> {
-    /// The validated mesh.
-    pub mesh: MembraneMesh<'a>,
-    /// The material (moduli in N/m for forces in N).
-    pub material: TriangleStVK,
-}
-
-impl<M: Material> ElasticModel for TetElastic<'_, M> {
-    type Vector = Vec3;
-    #[inline]
-    fn vertex_count(&self) -> usize {
-        self.mesh.vertex_count()
-    }
-    #[inline]
-    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
-        self.mesh
-            .add_elastic_forces(&self.material, positions, forces)
-    }
-    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
-        stability::tet_stiffness(&self.mesh, &self.material, visit);
-    }
-}
-
-impl<M: Material> ElasticEnergy for TetElastic<'_, M> {
-    fn energy_and_add_forces(
-        &self,
-        positions: &[Vec3],
-        forces: &mut [Vec3],
-    ) -> Result<Real, MeshError> {
-        self.mesh
-            .energy_and_add_forces(&self.material, positions, forces)
-    }
-}
-
-impl<M: Material> ElasticHessian for TetElastic<'_, M> {
-    #[inline]
-    fn element_count(&self) -> usize {
-        self.mesh.element_count()
-    }
-    fn projected_hessians(
-        &self,
-        positions: &[Vec3],
-        cache: &mut [TetHessian],
-    ) -> Result<(), MeshError> {
-        self.mesh
-            .projected_hessians(&self.material, positions, cache)
-    }
-    fn add_hessian_product(
-        &self,
-        cache: &[TetHessian],
-        direction: &[Vec3],
-        out: &mut [Vec3],
-    ) -> Result<(), MeshError> {
-        self.mesh.add_hessian_product(cache, direction, out)
-    }
-    fn add_vertex_hessian_blocks(
-        &self,
-        cache: &[TetHessian],
-        blocks: &mut [Mat3],
-    ) -> Result<(), MeshError> {
-        self.mesh.add_vertex_hessian_blocks(cache, blocks)
-    }
-}
-
-impl<M: Material> ElasticModel for TetClamped<'_, M> {
-    type Vector = Vec3;
-    #[inline]
-    fn vertex_count(&self) -> usize {
-        self.mesh.vertex_count()
-    }
-    #[inline]
-    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
-        self.mesh
-            .add_elastic_forces_clamped(&self.material, self.threshold, positions, forces)
-    }
-    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
-        stability::tet_stiffness(&self.mesh, &self.material, visit);
-    }
-}
-
-impl ElasticModel for TriElastic<'_> {
-    type Vector = Vec2;
-    #[inline]
-    fn vertex_count(&self) -> usize {
-        self.mesh.vertex_count()
-    }
-    #[inline]
-    fn add_forces(&self, positions: &[Vec2], forces: &mut [Vec2]) -> Result<(), MeshError> {
-        self.mesh
-            .add_elastic_forces(&self.material, positions, forces)
-    }
-    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
-        stability::triangle_stiffness(self.mesh.tris(), self.mesh.rest(), &self.material, visit);
-    }
-}
-
-impl ElasticModel for MembraneElastic<'_> {
-    type Vector = Vec3;
-    #[inline]
-    fn vertex_count(&self) -> usize {
-        self.mesh.vertex_count()
-    }
-    #[inline]
-    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
-        self.mesh
-            .add_elastic_forces(&self.material, positions, forces)
-    }
-    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
-        stability::triangle_stiffness(self.mesh.tris(), self.mesh.rest(), &self.material, visit);
-    }
-}
-
-/// `Ok` if `actual == expected`, else [`StepError::LengthMismatch`].
-#[inline]
-fn check_length(buffer: StepBuffer, expected: usize, actual: usize) -> Result<(), StepError> {
-    if actual == expected {
-        Ok(())
-    } else {
-        Err(StepError::LengthMismatch {
-            buffer,
-            expected,
-            actual,
-        })
-    }
-}
-
-/// Checks the buffers every stepper shares: masses (finite, positive), pinned flags (empty or
-/// one per vertex), positions and optionally velocities (lengths, finite).
-fn check_state<V: Vector>(
-    vertex_count: usize,
-    masses: &[Real],
-    pinned: &[bool],
-    positions: &[V],
-    velocities: Option<&[V]>,
-) -> Result<(), StepError> {
-    check_state_lengths(vertex_count, masses, pinned, positions, velocities)?;
-    if let Some(vertex) = first_bad_mass(masses) {
-        return Err(StepError::Mass { vertex });
-    }
-    first_non_finite(positions, velocities.unwrap_or(&[]))
-        .map_or(Ok(()), |vertex| Err(StepError::NonFiniteInput { vertex }))
-}
-
-/// The length checks of [`check_state`].
-fn check_state_lengths<V>(
-    vertex_count: usize,
-    masses: &[Real],
-    pinned: &[bool],
-    positions: &[V],
-    velocities: Option<&[V]>,
-) -> Result<(), StepError> {
-    check_length(StepBuffer::Positions, vertex_count, positions.len())?;
-    if let Some(velocities) = velocities {
-        check_length(StepBuffer::Velocities, vertex_count, velocities.len())?;
-    }
-    check_length(StepBuffer::Masses, vertex_count, masses.len())?;
-    if !pinned.is_empty() {
-        check_length(StepBuffer::Pinned, vertex_count, pinned.len())?;
-    }
-    Ok(())
-}
-
-/// The first of `masses` out of the steppers' range ([`mass_in_range`]).
-fn first_bad_mass(masses: &[Real]) -> Option<usize> {
-    masses.iter().position(|&m| !mass_in_range(m))
-}
-
-/// Whether `m` (kg) is a mass the steppers accept: a finite normal positive number, so that
-/// `1 / m` is finite too (a subnormal mass such as `1e-39` in f32 has an infinite reciprocal).
-#[inline]
-fn mass_in_range(m: Real) -> bool {
-    m >= Real::MIN_POSITIVE && m.is_finite()
-}
-
-/// The first vertex whose position or velocity (if given) is not finite.
-fn first_non_finite<V: Vector>(positions: &[V], velocities: &[V]) -> Option<usize> {
-    let velocity_ok = |i: usize| velocities.get(i).is_none_or(|v| v.is_finite());
-    positions
-        .iter()
-        .enumerate()
-        .position(|(i, x)| !(x.is_finite() && velocity_ok(i)))
-}
-
-/// The pinned flag of every vertex, `false` past the end of `pinned` (so an empty slice pins
-/// nothing).
-#[inline]
-fn pinned_flags(pinned: &[bool]) -> impl Iterator<Item = bool> + '_ {
-    pinned.iter().copied().chain(core::iter::repeat(false))
-}
-
-/// `|v|`.
-#[inline(always)]
-fn length<V: Vector>(v: V) -> Real {
-    super::math::sqrt(v.dot(v))
-}

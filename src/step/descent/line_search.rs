@@ -2,15 +2,15 @@
 //! (the relaxation, gradient descent, Newton's method): the sufficient-decrease test with its rounding-aware
 //! fallback, the slope, and a panic-free copy.
 
+use super::super::super::element::Vector;
 use super::super::super::types::Real;
-use super::super::Vector;
 
 /// The relative size of `Phi`'s rounding error the line search tolerates: `sqrt(eps)`
 /// (`2.4e-4` in f32, `1.5e-8` in f64).
-pub(in super::super) const ROUNDING: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
+pub(crate) const ROUNDING: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
 
 /// `g . d` over all vertices.
-pub(in super::super) fn slope_along<V: Vector>(gradient: &[V], direction: &[V]) -> Real {
+pub(crate) fn slope_along<V: Vector>(gradient: &[V], direction: &[V]) -> Real {
     gradient
         .iter()
         .zip(direction)
@@ -20,7 +20,7 @@ pub(in super::super) fn slope_along<V: Vector>(gradient: &[V], direction: &[V]) 
 
 /// Whether a slope `grad.d` is negative (false for NaN).
 #[inline(always)]
-pub(in super::super) fn downhill(slope: Real) -> bool {
+pub(crate) fn downhill(slope: Real) -> bool {
     slope < 0.0
 }
 
@@ -32,7 +32,7 @@ pub(in super::super) fn downhill(slope: Real) -> bool {
 /// the decrease from the two slopes, which has no cancellation. `trial_slope` gives
 /// `grad Phi(trial) . d`, evaluated only when needed.
 #[inline(always)]
-pub(in super::super) fn sufficient_decrease(
+pub(crate) fn sufficient_decrease(
     (phi, trial_phi, trial_elastic): (Real, Real, Real),
     armijo: Real,
     alpha: Real,
@@ -48,7 +48,7 @@ pub(in super::super) fn sufficient_decrease(
 /// per vertex (checked on entry), but the optimiser loses track of the lengths of those that
 /// trade places in the descent loop, and `copy_from_slice` would keep a panic path for unequal
 /// ones (which the firmware check rejects).
-pub(in super::super) fn copy<V: Copy>(target: &mut [V], source: &[V]) {
+pub(crate) fn copy<V: Copy>(target: &mut [V], source: &[V]) {
     for (t, &s) in target.iter_mut().zip(source) {
         *t = s;
     }

@@ -5,15 +5,16 @@
 //! backtracking line search (`line_search.rs`), until the stopping test (`stopping.rs`: the
 //! relative residual, the rounding floor, stagnation) ends it; then the velocity update, or, if
 //! anything failed, the caller's state restored bit for bit. Friction at the contacts is part
-//! of `Phi` (`objective.rs`, `friction.rs`), lagged to the iterate each line search starts from
+//! of `Phi` (`objective.rs`, `step/contact/friction.rs`), lagged to the iterate each line search starts from
 //! and re-lagged to every accepted point.
 //!
-//! The search direction is the only thing a solver adds, one file each, behind [`Direction`]:
-//! * `jacobi.rs`: `P` the diagonal bound `m/h^2 + k_i` (the relaxation, [`relax_step`](super::relax_step)),
-//! * `gradient.rs`: `P = c I`, `c` the largest entry of that bound (plain gradient descent,
+//! The search direction is the only thing a solver adds, one folder each (with its settings,
+//! report and entry points in the folder's `mod.rs`), behind [`Direction`]:
+//! * `relax/jacobi.rs`: `P` the diagonal bound `m/h^2 + k_i` (the relaxation, [`relax_step`](super::relax_step)),
+//! * `relax/gradient.rs`: `P = c I`, `c` the largest entry of that bound (plain gradient descent,
 //!   [`gradient_descent_step`](super::gradient_descent_step)),
-//! * `newton.rs`: `P` the projected Hessian, solved by block-Jacobi PCG ([`newton_step`](super::newton_step)),
-//! * `vbd.rs`: one block Gauss–Seidel sweep of 3x3 vertex Newton steps, `d = sweep(x) - x`
+//! * `newton/cg.rs`: `P` the projected Hessian, solved by block-Jacobi PCG ([`newton_step`](super::newton_step)),
+//! * `vbd/sweep.rs`: one block Gauss–Seidel sweep of 3x3 vertex Newton steps, `d = sweep(x) - x`
 //!   (Vertex Block Descent, [`vbd_step`](super::vbd_step)).
 //!
 //! The loop also carries what the first-order directions share: heavy-ball momentum and the
@@ -35,33 +36,36 @@
 //! incline keeps its Newton steps of a micrometre (`tests/colliders`). A body straddling the
 //! origin has `c = 0` and nothing changes.
 
-pub(super) mod gradient;
-pub(super) mod jacobi;
-pub(super) mod line_search;
-pub(super) mod newton;
-pub(super) mod objective;
-pub(super) mod stopping;
-pub(super) mod vbd;
-mod vbd_lanes;
+pub(crate) mod chebyshev;
+pub(crate) mod line_search;
+pub(crate) mod newton;
+pub(crate) mod objective;
+pub(crate) mod relax;
+pub(crate) mod stopping;
+pub(crate) mod vbd;
 
 use core::mem::swap;
 
+use super::super::element::Vector;
 use super::super::types::Real;
-use super::chebyshev::{Acceleration, AccelerationSettings};
-use super::collider::{Collider, Colliders};
-use super::friction::{Friction, Lag};
+use super::contact::Ground;
+use super::contact::collider::{Collider, Colliders};
+use super::contact::floor::Floor;
+use super::contact::friction::{Friction, Lag};
 use super::loads::Loads;
-use super::points::{Floor, Grouped};
-use super::split::{Blocks, Total};
-use super::vertex_passes::{Frames, TrialPoint, Vertices, split_trial_pass};
-use super::{ElasticEnergy, ElasticModel, Ground, Vector, first_non_finite, pinned_flags};
+use super::model::{ElasticEnergy, ElasticModel};
+use super::state::{first_non_finite, pinned_flags};
+use super::vertex_pass::passes::{Frames, TrialPoint, Vertices, split_trial_pass};
+use super::vertex_pass::point::Grouped;
+use super::vertex_pass::{Blocks, Total};
 use crate::error::StepError;
+use chebyshev::{Acceleration, AccelerationSettings};
 use line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
 use objective::{Evaluation, Objective, implicit_velocity};
 use stopping::{StallRule, Stopping};
 
 /// The iterate a direction is computed at.
-pub(super) struct Iterate<'a, V> {
+pub(crate) struct Iterate<'a, V> {
     /// The positions `x_k` (shifted, see the module documentation).
     pub x: &'a [V],
     /// `grad Phi(x_k)` (N, zero at pinned vertices and fixed coordinates).
@@ -82,7 +86,7 @@ pub(super) struct Iterate<'a, V> {
 const LAG_SETTLED: Real = 1e-3;
 
 /// A search direction `d = -P^-1 grad Phi`: the one thing that distinguishes the solvers.
-pub(super) trait Direction<F: ElasticEnergy> {
+pub(crate) trait Direction<F: ElasticEnergy> {
     /// Called once at the initial guess `x`, before [`rounding_floor`](Self::rounding_floor) is
     /// first asked for.
     fn begin(&mut self, objective: &Objective<'_, F>, x: &[F::Vector]);
@@ -180,16 +184,16 @@ pub(super) trait Direction<F: ElasticEnergy> {
 /// returns to the last evaluated iterate if `Phi` rose), so the residual and `Phi` reported
 /// are always those of the returned state, and it converged only if that residual meets the
 /// tolerance.
-pub(super) const MAX_DEFERRED: u32 = 8;
+pub(crate) const MAX_DEFERRED: u32 = 8;
 
 /// Accelerated trials the Chebyshev check must accept in a row after a (re)start before the
 /// loop defers any (see [`MAX_DEFERRED`]); after that the trials deferred between two
 /// evaluated ones double with every accepted check, 1, 2, 4, up to `MAX_DEFERRED`.
-pub(super) const DEFER_AFTER: u32 = 3;
+pub(crate) const DEFER_AFTER: u32 = 3;
 
 /// The settings of the loop (validated by each solver).
 #[derive(Clone, Copy)]
-pub(super) struct LoopSettings {
+pub(crate) struct LoopSettings {
     /// The relative tolerance.
     pub tolerance: Real,
     /// The budget of accepted iterations.
@@ -215,7 +219,7 @@ pub(super) struct LoopSettings {
 
 /// What the loop reports; each solver builds its public report from it.
 #[derive(Clone, Copy)]
-pub(super) struct Summary {
+pub(crate) struct Summary {
     pub iterations: u32,
     pub energy_evaluations: u32,
     pub backtracks: u32,
@@ -232,7 +236,7 @@ pub(super) struct Summary {
 }
 
 /// The problem a solver hands the loop: the model, the per-vertex data and what acts on it.
-pub(super) struct Problem<'p, F: ElasticEnergy> {
+pub(crate) struct Problem<'p, F: ElasticEnergy> {
     pub model: &'p F,
     pub masses: &'p [Real],
     pub pinned: &'p [bool],
@@ -249,7 +253,7 @@ pub(super) struct Problem<'p, F: ElasticEnergy> {
 }
 
 /// The loop's vector scratch, one entry per vertex each (lengths checked by the solver).
-pub(super) struct Work<'b, V> {
+pub(crate) struct Work<'b, V> {
     pub start: &'b mut [V],
     pub gradient: &'b mut [V],
     pub trial_gradient: &'b mut [V],
@@ -268,7 +272,7 @@ pub(super) struct Work<'b, V> {
 /// `c / 2 <= y <= 2c`, and `y - c` is exact by Sterbenz's lemma (Goldberg 1991, theorem 11; no
 /// underflow: `m > 0`). A body straddling the origin along an axis (`m <= e`) has coordinates no
 /// larger than its extent there already, and is not shifted along it.
-pub(super) fn reference_point<V: Vector>(positions: &[V]) -> V {
+pub(crate) fn reference_point<V: Vector>(positions: &[V]) -> V {
     positions.first().map_or(V::ZERO, |&first| {
         Extents::of(positions, first).reference_point(first)
     })
@@ -363,7 +367,7 @@ fn split_translate<V: Vector + Send + Sync>(
 /// # Errors
 /// The model's and the direction's errors, [`StepError::NonFiniteState`] (non-finite `Phi` at
 /// every initial guess, or a non-finite result).
-pub(super) fn solve<F: ElasticEnergy, D: Direction<F>>(
+pub(crate) fn solve<F: ElasticEnergy, D: Direction<F>>(
     problem: &Problem<'_, F>,
     settings: &LoopSettings,
     direction_rule: &mut D,
@@ -1068,7 +1072,7 @@ mod tests {
     use std::vec::Vec;
 
     use super::super::super::types::{Real, Vec2, Vec3};
-    use super::super::split::{Total, VERTEX_BLOCK};
+    use super::super::vertex_pass::{Total, VERTEX_BLOCK};
     use super::{Extents, reference_point};
 
     /// A 0.4 x 0.1 x 0.1 m grid of points, moved by `offset`.

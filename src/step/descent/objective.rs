@@ -3,25 +3,29 @@
 //! step (`y = x_n + h v_n`), or without inertia the static energy `E(x) - sum m g.(x - x_0)`;
 //! its evaluation with the residual every solver stops on, and the velocity update after a step.
 //! With friction at the contacts of a step, `Phi` gains the lagged dissipation potential
-//! `sum mu lambda_i f0(|u_i|)` of `friction.rs`, `lambda_i` the normal force of a lagging
+//! `sum mu lambda_i f0(|u_i|)` of `step/contact/friction.rs`, `lambda_i` the normal force of a lagging
 //! gradient (see [`Objective::evaluate`] and [`Objective::relag`]). Shared by every direction of
 //! the descent loop (`mod.rs`): the relaxation, gradient descent, Newton's method and VBD.
 
+use super::super::super::element::Vector;
 use super::super::super::math;
 use super::super::super::types::Real;
-use super::super::friction::{Friction, Lag};
+use super::super::contact::Ground;
+use super::super::contact::floor::Floor;
+use super::super::contact::friction::{Friction, Lag};
 use super::super::loads::Loads;
-use super::super::points::{Floor, Grouped, Point};
-use super::super::split::Blocks;
-use super::super::vertex_passes::{Frames, TrialPoint, Vertices, gradient_pass};
-use super::super::{ElasticEnergy, Ground, Vector, pinned_flags};
+use super::super::model::ElasticEnergy;
+use super::super::state::pinned_flags;
+use super::super::vertex_pass::Blocks;
+use super::super::vertex_pass::passes::{Frames, TrialPoint, Vertices, gradient_pass};
+use super::super::vertex_pass::point::{Grouped, Point};
 use crate::error::StepError;
 
 /// A block's share of the initial guess's buffers: the point, `x_n`, `v_n` and pinned flags.
 type GuessParts<'p, V> = (TrialPoint<'p, V>, &'p [V], &'p [V], &'p [bool]);
 
 /// `Phi` and its gradient, without the buffers that change.
-pub(in super::super) struct Objective<'p, F: ElasticEnergy> {
+pub(crate) struct Objective<'p, F: ElasticEnergy> {
     pub model: &'p F,
     /// Masses, pinned flags, the preconditioner's stiffness (the relaxation's; empty for
     /// solvers that do not use it), `x_n` and `v_n` (empty in the quasi-static mode).
@@ -161,7 +165,7 @@ impl<F: ElasticEnergy> Objective<'_, F> {
             pinned,
             ..
         } = self.vertices;
-        // In blocks run by the model (`split.rs`): every vertex on its own.
+        // In blocks run by the model (`step/vertex_pass/mod.rs`): every vertex on its own.
         let (h, floor, loads) = (self.h, self.frames.floor(), &self.loads);
         let block =
             |first: usize, (point, start, velocities, pinned): GuessParts<'_, F::Vector>| {
@@ -260,7 +264,7 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     }
 
     /// Adds friction to `gradient` at `x`: at every free vertex, the potential and gradient of
-    /// `friction.rs` lagged to `lagged` (or to `x` and `gradient` itself if `None`), minus those
+    /// `step/contact/friction.rs` lagged to `lagged` (or to `x` and `gradient` itself if `None`), minus those
     /// lagged to `included` (whose friction `gradient` holds already; nothing if `None`).
     /// Returns friction's change of `Phi` (J), the squared residual of the result projected on
     /// the contact constraints (N^2; 0, not summed, with `lagged` given), which replaces the
@@ -400,7 +404,7 @@ struct Relagged {
 
 /// What one evaluation of `Phi` gives.
 #[derive(Clone, Copy)]
-pub(in super::super) struct Evaluation {
+pub(crate) struct Evaluation {
     /// `Phi(x)` (J).
     pub phi: Real,
     /// The elastic energy `E(x)` (J), part of `phi`.
@@ -416,7 +420,7 @@ pub(in super::super) struct Evaluation {
 /// component of `g`, the gradient of `Phi` at the result). Pinned vertices keep their velocity
 /// (the caller's).
 #[inline(always)]
-pub(in super::super) fn implicit_velocity<V: Vector>(
+pub(crate) fn implicit_velocity<V: Vector>(
     ground: Option<&Ground<V>>,
     floor: &Floor<V>,
     (h, m): (Real, Real),

@@ -13,7 +13,7 @@ pub const FLOOR_FACTOR: Real = 4.0;
 /// Whether `residual` meets `target`. Never for an overflowed (infinite) or NaN residual or
 /// target: a measure that overflowed says nothing about convergence.
 #[inline(always)]
-pub(in super::super) fn reached(residual: Real, target: Real) -> bool {
+pub(crate) fn reached(residual: Real, target: Real) -> bool {
     residual <= target && residual.is_finite() && target.is_finite()
 }
 
@@ -26,20 +26,20 @@ pub(in super::super) fn reached(residual: Real, target: Real) -> bool {
 /// the body (`docs/math.md` section 7), so `reach` is the body's size, not its distance from
 /// the origin.
 #[inline]
-pub(in super::super) fn rounding_floor(reach: Real, stiffness_squared: Real) -> Real {
+pub(crate) fn rounding_floor(reach: Real, stiffness_squared: Real) -> Real {
     0.5 * Real::EPSILON * reach * math::sqrt(stiffness_squared)
 }
 
 /// Iterations without a 1 % fall of the best residual, with the residual within the floor
 /// bound, after which [`Stagnation`] calls a solve stalled; ten times as many without any new
 /// best residual stall it wherever it is.
-pub(in super::super) const STAGNATION_WINDOW: u32 = 100;
+pub(crate) const STAGNATION_WINDOW: u32 = 100;
 
 /// The window stagnation test (the residual of an accelerated first-order method is not
 /// monotone, so it watches the best residual): stalled when the best residual has not fallen by
 /// 1 % for [`STAGNATION_WINDOW`] iterations while within the rounding-floor bound, or has not
 /// fallen at all for ten windows.
-pub(in super::super) struct Stagnation {
+pub(crate) struct Stagnation {
     best: Real,
     reference: Real,
     since_progress: u32,
@@ -79,7 +79,7 @@ impl Stagnation {
 
 /// Which stagnation rule a direction's solve stops on.
 #[derive(Clone, Copy, PartialEq, Eq)]
-pub(in super::super) enum StallRule {
+pub(crate) enum StallRule {
     /// First-order directions (the relaxation, gradient descent, VBD): the [`Stagnation`]
     /// window before every iteration. A stall is reported but is not convergence, and a failed
     /// line search just ends the solve.
@@ -91,7 +91,7 @@ pub(in super::super) enum StallRule {
 }
 
 /// The stopping test of one solve.
-pub(in super::super) struct Stopping {
+pub(crate) struct Stopping {
     rule: StallRule,
     /// The residual the tolerance asks for (N).
     pub target: Real,

@@ -1,6 +1,6 @@
 //! The Chebyshev semi-iteration's spectral radius estimated by the solver itself, shared by the
-//! relaxation ([`RelaxSettings::with_estimated_chebyshev`](super::RelaxSettings::with_estimated_chebyshev))
-//! and Vertex Block Descent ([`VbdSettings::with_estimated_chebyshev`](super::VbdSettings::with_estimated_chebyshev)):
+//! relaxation ([`RelaxSettings::with_estimated_chebyshev`](super::super::RelaxSettings::with_estimated_chebyshev))
+//! and Vertex Block Descent ([`VbdSettings::with_estimated_chebyshev`](super::super::VbdSettings::with_estimated_chebyshev)):
 //! the largest residual ratio `r_k / r_(k-1)` of the plain iterations `2..=delay` of a solve,
 //! capped. A plain iteration contracts the slow modes by about `rho` per iteration once the
 //! fast ones are gone (power iteration on the iteration matrix), so the ratios rise towards
@@ -9,11 +9,11 @@
 //! Also the weights of the semi-iteration itself ([`Acceleration`]), which the descent loop
 //! (`descent/mod.rs`) applies to any first-order direction.
 
-use super::super::types::Real;
+use super::super::super::types::Real;
 
 /// The largest residual ratio of a window of plain iterations.
 #[derive(Clone, Copy, Default)]
-pub(super) struct RhoEstimate {
+pub(crate) struct RhoEstimate {
     largest_ratio: Real,
 }
 
@@ -39,7 +39,7 @@ impl RhoEstimate {
 /// The acceleration settings of a first-order solve: Chebyshev's `rho` (0 for none), the delay
 /// `S` and whether to estimate `rho` (then `rho` is 0 and the estimate is capped at `cap`).
 #[derive(Clone, Copy)]
-pub(super) struct AccelerationSettings {
+pub(crate) struct AccelerationSettings {
     pub rho: Real,
     pub delay: u32,
     pub estimate: bool,
@@ -58,7 +58,7 @@ impl AccelerationSettings {
 
 /// The Chebyshev semi-iteration's weights over a solve (Wang and Yang 2016, eq. 9-10), with
 /// the optional estimate of `rho` from the first plain iterations.
-pub(super) struct Acceleration {
+pub(crate) struct Acceleration {
     settings: AccelerationSettings,
     rho: Real,
     rho_squared: Real,

@@ -1,24 +1,28 @@
 //! The relaxation's passes over the vertices: the gradient of `Phi` from the elastic forces, the
 //! preconditioned descent direction and the trial points. On x86_64 (`math::BATCH_VERTICES`)
 //! each runs in groups of the width `simd::dispatch` picks (16 f32 lanes on AVX-512, 8 on AVX2,
-//! 4 on SSE and at the scalar width; [`Grouped::Wide`], see `points.rs`), then narrower groups
+//! 4 on SSE and at the scalar width; [`Grouped::Wide`], see `step/vertex_pass/point.rs`), then narrower groups
 //! down to [`LANES`], then the rest one at a time (every vertex one at a time elsewhere), through
 //! the same generic per-vertex code, so that every vertex gets the same bits either way and
 //! every target and width the same sums ([`LaneSum`]).
 
-use super::super::lanes::{LANES, Lane, LaneArray, LaneSum, Lanes, MAX_WIDTH};
+use super::super::super::element::Vector;
+use super::super::super::lanes::{LANES, Lane, LaneArray, LaneSum, Lanes, MAX_WIDTH};
 #[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx2::Avx2Lanes;
+use super::super::super::lanes_avx2::Avx2Lanes;
 #[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx512::Avx512Lanes;
-use super::super::math::BATCH_VERTICES;
-use super::super::types::Real;
-use super::collider::Colliders;
-use super::descent::line_search::{copy, slope_along};
-use super::friction::Friction;
-use super::points::{Floor, Grouped, Point, Wide};
-use super::split::{Blocks, Split};
-use super::{ElasticModel, Ground, Vector, check_state_lengths, first_bad_mass, first_non_finite};
+use super::super::super::lanes_avx512::Avx512Lanes;
+use super::super::super::math::BATCH_VERTICES;
+use super::super::super::types::Real;
+use super::super::contact::Ground;
+use super::super::contact::collider::Colliders;
+use super::super::contact::floor::Floor;
+use super::super::contact::friction::Friction;
+use super::super::descent::line_search::{copy, slope_along};
+use super::super::model::ElasticModel;
+use super::super::state::{check_state_lengths, first_bad_mass, first_non_finite};
+use super::point::{Grouped, Point, Wide};
+use super::{Blocks, Split};
 use crate::error::StepError;
 use crate::simd::{WidthKernel, dispatch};
 
@@ -112,7 +116,7 @@ impl<P: Point> Frame<'_, P> {
 /// The [`Frame`] of a solve, for single vertices; [`wide`](Frames::wide) gives the same for
 /// groups of any width, built only where the passes group (`math::BATCH_VERTICES`).
 #[derive(Clone, Copy)]
-pub(super) struct Frames<'a, V: Grouped> {
+pub(crate) struct Frames<'a, V: Grouped> {
     single: Frame<'a, V>,
     /// Friction, whose tangent curvature the relaxation's direction adds to its bound at the
     /// vertices in contact (`None` for none).
@@ -165,7 +169,7 @@ impl<'a, V: Grouped> Frames<'a, V> {
 
     /// The direction `d` (slope term `slope`) of a vertex at `x` moved from `start`, with
     /// gradient `g` and isotropic bound `p`, with friction's tangent curvature `b` added to the
-    /// bound across the contact: `d - b / (p + b) d_t`, `d_t` the tangential part (`friction.rs`:
+    /// bound across the contact: `d - b / (p + b) d_t`, `d_t` the tangential part (`step/contact/friction.rs`:
     /// `b = mu lambda f1(y) / y` bounds the tangent block). Unchanged without a frictional
     /// contact.
     #[inline(always)]
@@ -253,7 +257,7 @@ impl<'a, V: Grouped> Frames<'a, V> {
 
 /// The per-vertex inputs every pass shares.
 #[derive(Clone, Copy)]
-pub(super) struct Vertices<'a, V> {
+pub(crate) struct Vertices<'a, V> {
     /// Lumped masses (kg).
     pub masses: &'a [Real],
     /// Pinned flags, or empty for none.
@@ -269,7 +273,7 @@ pub(super) struct Vertices<'a, V> {
 /// The first `L::WIDTH` values of `values` as a group (zeros past its end). The explicit
 /// step's update loads its masses here too.
 #[inline(always)]
-pub(super) fn load_scalars<L: LaneArray>(values: &[Real]) -> L {
+pub(crate) fn load_scalars<L: LaneArray>(values: &[Real]) -> L {
     let mut quarters = [[0.0; LANES]; 4];
     for (q, quarter) in quarters.iter_mut().enumerate().take(L::WIDTH / LANES) {
         if let Some(chunk) = values.get(q * LANES..).and_then(<[Real]>::first_chunk) {
@@ -289,7 +293,7 @@ fn clear<V: Grouped>(chunk: &mut [V]) {
 /// `first` on; `None` if no vertex is pinned (`pinned` empty). The explicit step's update
 /// takes its groups' masks here too.
 #[inline(always)]
-pub(super) fn free_lanes<L: LaneArray>(pinned: &[bool], first: usize) -> Option<L::Mask> {
+pub(crate) fn free_lanes<L: LaneArray>(pinned: &[bool], first: usize) -> Option<L::Mask> {
     if pinned.is_empty() {
         return None;
     }
@@ -481,7 +485,7 @@ fn gradient_block<V: Grouped>(
 
 /// A trial point buffer and the gradient buffer of its evaluation, which the pass writing the
 /// point zeroes for the force kernel to add into.
-pub(super) struct TrialPoint<'t, V> {
+pub(crate) struct TrialPoint<'t, V> {
     pub positions: &'t mut [V],
     pub gradient: &'t mut [V],
 }
@@ -699,7 +703,7 @@ impl<V: Grouped> GroupPass for TrialGroups<'_, '_, '_, V> {
 
 /// Writes the trial point `x + alpha d` (projected on the ground; `x` at pinned vertices) into
 /// `trial`, zeroing its gradient buffer: a backtracking step of the line search.
-pub(super) fn trial_pass<V: Grouped>(
+pub(crate) fn trial_pass<V: Grouped>(
     frames: &Frames<V>,
     pinned: &[bool],
     (x, direction): (&[V], &[V]),
@@ -796,7 +800,7 @@ impl<V: Grouped> GroupTarget<V> for ChebyshevTarget {
 }
 
 /// A vector type the blocked passes can share between threads.
-pub(super) trait Shared: Grouped + Send + Sync {}
+pub(crate) trait Shared: Grouped + Send + Sync {}
 impl<V: Grouped + Send + Sync> Shared for V {}
 
 impl<V: Shared> Split for Vertices<'_, V> {
@@ -845,9 +849,9 @@ impl<'t, V: Send> Split for TrialPoint<'t, V> {
 }
 
 /// The gradient pass (see `gradient_block`) in blocks of
-/// [`VERTEX_BLOCK`](super::VERTEX_BLOCK) vertices run by `model`
+/// [`VERTEX_BLOCK`](super::super::VERTEX_BLOCK) vertices run by `model`
 /// ([`ElasticModel::run_vertex_pass`]): the sums are block sums added over the fixed tree.
-pub(super) fn gradient_pass<V: Shared>(
+pub(crate) fn gradient_pass<V: Shared>(
     model: &impl ElasticModel,
     frames: &Frames<V>,
     vertices: &Vertices<'_, V>,
@@ -863,7 +867,7 @@ pub(super) fn gradient_pass<V: Shared>(
 /// The direction pass (see `direction_block`) in blocks run by `model`: the slope is a block
 /// sum added over the fixed tree.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn direction_pass<V: Shared + Vector>(
+pub(crate) fn direction_pass<V: Shared + Vector>(
     model: &impl ElasticModel,
     frames: &Frames<V>,
     vertices: &Vertices<'_, V>,
@@ -899,7 +903,7 @@ type DirectionParts<'p, V> = (
 type ChebyshevParts<'p, V> = ((Vertices<'p, V>, &'p [V], &'p [V]), TrialPoint<'p, V>);
 
 /// The trial pass (see `trial_block`) in blocks run by `model`.
-pub(super) fn split_trial_pass<V: Shared>(
+pub(crate) fn split_trial_pass<V: Shared>(
     model: &impl ElasticModel,
     frames: &Frames<V>,
     pinned: &[bool],
@@ -914,7 +918,7 @@ pub(super) fn split_trial_pass<V: Shared>(
 }
 
 /// Copies `source` into `target` (as far as the shorter goes) in blocks run by `model`.
-pub(super) fn split_copy<V: Copy + Send + Sync>(
+pub(crate) fn split_copy<V: Copy + Send + Sync>(
     model: &impl ElasticModel,
     target: &mut [V],
     source: &[V],
@@ -925,7 +929,7 @@ pub(super) fn split_copy<V: Copy + Send + Sync>(
 
 /// The Chebyshev pass (see `chebyshev_block`) in blocks run by `model`.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn chebyshev_pass<V: Shared + Vector>(
+pub(crate) fn chebyshev_pass<V: Shared + Vector>(
     model: &impl ElasticModel,
     frames: &Frames<V>,
     vertices: &Vertices<'_, V>,
@@ -950,9 +954,9 @@ pub(super) fn chebyshev_pass<V: Shared + Vector>(
     model.run_vertex_pass(Blocks::new(x.len(), parts, &block));
 }
 
-/// [`check_state`](super::check_state) with its scans (masses in range, finite positions and
+/// [`check_state`](super::super::check_state) with its scans (masses in range, finite positions and
 /// velocities) in blocks run by `model`: the same error, naming the same first vertex.
-pub(super) fn split_check_state<V: Vector + Send + Sync>(
+pub(crate) fn split_check_state<V: Vector + Send + Sync>(
     model: &impl ElasticModel,
     masses: &[Real],
     pinned: &[bool],
@@ -979,7 +983,7 @@ pub(super) fn split_check_state<V: Vector + Send + Sync>(
 /// The slope `g.d` (each block's sum in vertex order, the block sums added over the fixed tree)
 /// and the trial points `x + alpha d` (as
 /// [`split_trial_pass`]) in one pass of blocks run by `model`.
-pub(super) fn slope_and_trial_pass<V: Shared + Vector>(
+pub(crate) fn slope_and_trial_pass<V: Shared + Vector>(
     model: &impl ElasticModel,
     frames: &Frames<V>,
     pinned: &[bool],
@@ -1007,11 +1011,11 @@ mod tests {
     use std::vec;
     use std::vec::Vec;
 
-    use super::super::super::types::{Real, Vec2, Vec3};
-    use super::super::Ground;
-    use super::super::collider::Colliders;
-    use super::super::friction::Friction;
-    use super::super::points::{Grouped, Point};
+    use super::super::super::super::types::{Real, Vec2, Vec3};
+    use super::super::super::contact::Ground;
+    use super::super::super::contact::collider::Colliders;
+    use super::super::super::contact::friction::Friction;
+    use super::super::point::{Grouped, Point};
     use super::{
         Frame, Frames, TrialPoint, Vertices, chebyshev_block, direction_block, gradient_block,
         trial_pass,
@@ -1027,7 +1031,7 @@ mod tests {
     /// 4 and a tail; `n = 61` on AVX-512 in f32 three groups of 16, one of 8, one of 4 and a
     /// tail), against the one-vertex arithmetic applied to each vertex alone: the same bits,
     /// and sums in the documented order.
-    fn passes_match_one_vertex_at_a_time<V: Grouped + super::super::Vector>(
+    fn passes_match_one_vertex_at_a_time<V: Grouped + super::super::super::Vector>(
         n: usize,
         make: impl Fn(usize, usize) -> V,
         up: V,

@@ -11,7 +11,7 @@
 //! and `lambda` are lagged to the iterate a line search starts from and re-lagged to every
 //! accepted point (`descent/objective.rs`), and `f0` is the C1 smoothing of `|u|` with
 //! the threshold `eps = eps_v h` (m), `eps_v` the contact's
-//! [`sticking_speed`](super::Ground::sticking_speed) (m/s):
+//! [`sticking_speed`](super::super::Ground::sticking_speed) (m/s):
 //!
 //! * `f0(y) = y^2 / eps - y^3 / (3 eps^2)` for `y < eps`, `y - eps / 3` beyond (so `f0(0) = 0`),
 //! * `f1(y) = f0'(y) = 2 y / eps - y^2 / eps^2` for `y < eps`, `1` beyond.
@@ -29,13 +29,15 @@
 //! isotropic `mu lambda (f1/y) T` instead where its descent shortens the slip
 //! ([`Slip::newton_hessian`]).
 
-use super::super::math;
-use super::super::types::{Mat3, Real, Vec3};
-use super::collider::Colliders;
-use super::points::{Floor, Grouped};
-use super::{Collider, Ground, Vector};
+use super::super::super::element::Vector;
+use super::super::super::math;
+use super::super::super::types::{Mat3, Real, Vec3};
+use super::super::vertex_pass::point::Grouped;
+use super::collider::{Collider, Colliders};
+use super::floor::Floor;
+use super::{Contact, Ground};
 
-/// A [`sticking_speed`](super::Ground::sticking_speed) `eps_v` to start from (m/s): a stuck
+/// A [`sticking_speed`](super::super::Ground::sticking_speed) `eps_v` to start from (m/s): a stuck
 /// contact creeps at most this fast (IPC's default, 1 mm/s). Friction in the implicit
 /// objective is opt-in: the default sticking speed is 0 (Coulomb's law on the velocity after
 /// the solve, which lets a loaded contact creep, see the field's documentation).
@@ -45,28 +47,15 @@ pub const SUGGESTED_STICKING_SPEED: Real = 1e-3;
 /// (m/s) has its friction in the implicit objective (both positive) rather than on the velocity
 /// after the solve: the one test behind `Ground`'s, `Collider`'s and [`Contact`]'s.
 #[inline(always)]
-pub(super) fn in_objective(friction: Real, sticking_speed: Real) -> bool {
+pub(crate) fn in_objective(friction: Real, sticking_speed: Real) -> bool {
     friction > 0.0 && sticking_speed > 0.0
-}
-
-/// What friction needs of one contact at a vertex.
-#[derive(Clone, Copy, Debug)]
-pub struct Contact<V> {
-    /// The outward unit normal.
-    pub normal: V,
-    /// The surface's velocity at the vertex (m/s).
-    pub surface_velocity: V,
-    /// The Coulomb coefficient.
-    pub friction: Real,
-    /// `eps_v` (m/s).
-    pub sticking_speed: Real,
 }
 
 /// The slip of one contact over a step: the tangential displacement `u`, its length `y` and the
 /// threshold `eps = eps_v h`, with the smoothing functions of the module documentation per unit
 /// of `mu lambda`.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Slip<V> {
+pub(crate) struct Slip<V> {
     /// The contact's unit normal.
     normal: V,
     /// `u = T (x - x_n - h v_s)` (m).
@@ -188,7 +177,7 @@ fn outer(a: Vec3, b: Vec3) -> Mat3 {
 /// The normal force `max(0, n . g)` (N) a gradient `g` of `Phi` presses into a contact with
 /// unit normal `n` (0 for NaN).
 #[inline(always)]
-pub(super) fn normal_force<V: Vector>(normal: V, gradient: V) -> Real {
+pub(crate) fn normal_force<V: Vector>(normal: V, gradient: V) -> Real {
     let pressing = normal.dot(gradient);
     if pressing > 0.0 { pressing } else { 0.0 }
 }
@@ -196,7 +185,7 @@ pub(super) fn normal_force<V: Vector>(normal: V, gradient: V) -> Real {
 /// The frictional contacts of a solve: the ground (shifted into the loop's coordinates, with a
 /// unit normal) and the colliders, for a step of `h`.
 #[derive(Clone, Copy)]
-pub(super) struct Friction<'a, V: Grouped> {
+pub(crate) struct Friction<'a, V: Grouped> {
     floor: Floor<'a, V>,
     ground: Option<Ground<V>>,
     h: Real,
@@ -277,7 +266,7 @@ impl<'a, V: Grouped + Vector> Friction<'a, V> {
 
 /// The iterate friction is lagged to: its positions and the gradient of `Phi` there.
 #[derive(Clone, Copy)]
-pub(super) struct Lag<'a, V> {
+pub(crate) struct Lag<'a, V> {
     pub x: &'a [V],
     pub gradient: &'a [V],
 }
@@ -303,8 +292,9 @@ impl Friction<'_, Vec3> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::super::types::{Real, Vec3};
-    use super::{Contact, Slip};
+    use super::super::super::super::types::{Real, Vec3};
+    use super::super::Contact;
+    use super::Slip;
 
     /// A contact on the plane y = 0 with `eps_v = 1e-3` m/s, at rest or moving at 0.5 m/s
     /// along x.

@@ -1,5 +1,5 @@
 //! Vertex-to-element adjacency in compressed rows, and a greedy vertex colouring: what a
-//! vertex-by-vertex solver ([`vbd_step`](super::vbd_step)) needs to visit the elements around a
+//! vertex-by-vertex solver ([`vbd_step`](super::super::step::vbd_step)) needs to visit the elements around a
 //! vertex and to order its updates so that a parallel version gives the same bits.
 //!
 //! # Layout
@@ -36,7 +36,7 @@ pub const fn adjacency_incident_len(element_count: usize) -> usize {
 
 /// `Ok` if `actual == expected`, else [`StepError::LengthMismatch`] for `buffer`.
 fn check(buffer: StepBuffer, expected: usize, actual: usize) -> Result<(), StepError> {
-    super::check_length(buffer, expected, actual)
+    super::super::step::state::check_length(buffer, expected, actual)
 }
 
 /// Builds the vertex-to-element adjacency of the tetrahedra `tets` over `vertex_count`
@@ -142,7 +142,7 @@ pub(crate) fn incident_elements<'a>(
 ///
 /// Two vertices of one colour never share an element, so the updates of one colour read only
 /// positions of other colours and can run in any order, or in parallel, with the same result:
-/// [`vbd_step`](super::vbd_step) visits the vertices in the order of [`vertex_order`].
+/// [`vbd_step`](super::super::step::vbd_step) visits the vertices in the order of [`vertex_order`].
 ///
 /// ```
 /// use softfem::step::{build_vertex_adjacency, colour_vertices};
@@ -239,7 +239,7 @@ pub fn vertex_order(colours: &[u32], count: u32, order: &mut [u32]) -> Result<()
 /// but within each colour by decreasing number of incident elements (`offsets` of
 /// [`build_vertex_adjacency`]), then by index: the sweep's order. Within a colour the order
 /// changes no iterate (no two of its vertices share an element); grouping vertices with rows of
-/// equal length lets a lane group of the sweep (`vertex_sums.rs`) finish together, with few
+/// equal length lets a lane group of the sweep (`step/descent/vbd/sums.rs`) finish together, with few
 /// masked lanes, and the most elements first leaves a colour's last, partly filled lane group
 /// to the vertices with the fewest (the group runs as long as its longest row): on the bouncy
 /// cube's 1080 tetrahedra the f64 sweep went from 632 visit rows of 8 lanes to 608, on the

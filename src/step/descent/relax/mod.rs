@@ -2,20 +2,27 @@
 //! Armijo line search (`docs/math.md` section 4; Wang and Yang, "Descent Methods for Elastic Body
 //! Simulation on the GPU", SIGGRAPH Asia 2016), and the same loop without inertia as a
 //! quasi-static relaxation: the settings, scratch and report of the relaxation. The loop is the
-//! shared descent loop (`descent/mod.rs`), the direction `descent/jacobi.rs`; the
+//! shared descent loop (`descent/mod.rs`), the direction `step/descent/relax/jacobi.rs`; the
 //! preconditioner is derived in the `step` module documentation.
 
-use super::super::types::Real;
+mod gradient;
+mod jacobi;
+
+use super::super::super::element::Vector;
+use super::super::super::types::Real;
+use super::super::contact::Ground;
+use super::super::contact::collider::{Collider, check_colliders};
+use super::super::descent::{self, Direction, LoopSettings, Problem, Work};
+use super::super::explicit::stability::vertex_stiffness;
+use super::super::loads::Loads;
+use super::super::model::ElasticEnergy;
+use super::super::state::check_length;
+use super::super::vertex_pass::passes::split_check_state;
 use super::chebyshev::AccelerationSettings;
-use super::collider::{Collider, check_colliders};
-use super::descent::jacobi::Jacobi;
-use super::descent::stopping::StallRule;
-use super::descent::{self, Direction, LoopSettings, Problem, Work};
-use super::loads::Loads;
-use super::stability::vertex_stiffness;
-use super::vertex_passes::split_check_state;
-use super::{ElasticEnergy, Ground, Vector, check_length};
+use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
+pub use gradient::{gradient_descent_quasi_static, gradient_descent_step};
+use jacobi::Jacobi;
 
 /// The length of the vector scratch buffer the relaxation needs for `vertex_count` vertices:
 /// `5 * vertex_count` (the start positions, two gradients, a second point buffer that trades
@@ -133,7 +140,7 @@ pub struct RelaxSettings<'a, V> {
     /// `P` majorises the Hessian near rest, so any `alpha_0 < 2` converges on the linearised
     /// problem; `1` is the majorisation step that the Armijo test always accepts there, and
     /// larger steps converge faster because the bound is loose (see the
-    /// [module documentation](super#the-relaxation)). Every line search starts from it; the
+    /// [module documentation](super::super#the-relaxation)). Every line search starts from it; the
     /// Chebyshev trials use the step the last line search accepted.
     pub step_length: Real,
     /// Heavy-ball momentum in `[0, 1)`: `d = -P^-1 grad Phi + momentum * (last step)`, dropped
@@ -142,7 +149,7 @@ pub struct RelaxSettings<'a, V> {
     pub momentum: Real,
     /// Chebyshev semi-iterative acceleration (Wang and Yang 2016, section 4): `rho` in `[0, 1)`,
     /// the estimated spectral radius of the plain iteration `x <- x + alpha d`; 0 turns it off.
-    /// See the [module documentation](super#the-relaxation) for how to choose it. Exclusive
+    /// See the [module documentation](super::super#the-relaxation) for how to choose it. Exclusive
     /// with [`momentum`](Self::momentum).
     pub chebyshev: Real,
     /// Plain iterations after each (re)start before the Chebyshev weights start (`S`).
@@ -151,7 +158,7 @@ pub struct RelaxSettings<'a, V> {
     /// with no momentum): the largest residual ratio `r_k / r_(k-1)` of the plain iterations
     /// `2..=chebyshev_delay` of the solve (`chebyshev_delay >= 2`), at most
     /// [`MAX_ESTIMATED_RELAX_RHO`], the estimator Vertex Block Descent uses
-    /// ([`VbdSettings::estimate_chebyshev`](super::VbdSettings::estimate_chebyshev)).
+    /// ([`VbdSettings::estimate_chebyshev`](super::super::VbdSettings::estimate_chebyshev)).
     pub estimate_chebyshev: bool,
     /// External forces (N), one per vertex, or empty (the default) for none: constant loads
     /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
@@ -159,7 +166,7 @@ pub struct RelaxSettings<'a, V> {
     /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
     pub external_forces: &'a [V],
     /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
-    /// ([`FIXED_X`](super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
+    /// ([`FIXED_X`](super::super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
     /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
     /// bits.
     pub fixed_axes: &'a [u8],
@@ -193,7 +200,7 @@ impl<'a, V: Vector> RelaxSettings<'a, V> {
     /// 300 unconverged at 5000 tets, 26.7 iterations); f64 solves can ask for far less. `rho`:
     /// `0.99` and `0.999` were each better on one row and worse on others (`0.999` left 259 of
     /// 300 unconverged at 5000 tets); quasi-static solves ([`relax_quasi_static`]) want `0.999`
-    /// (see the [module documentation](super#acceleration)). Unconverged steps are those that
+    /// (see the [module documentation](super::super#acceleration)). Unconverged steps are those that
     /// used the whole budget, mostly on landing, not errors.
     #[inline]
     #[must_use]
@@ -355,7 +362,7 @@ pub struct RelaxReport {
     /// acceleration with a plain step.
     pub restarts: u32,
     /// Whether the solve stopped because the residual stopped falling: its best value fell by
-    /// less than 1 % over the last 100 iterations while within [`FLOOR_FACTOR`](super::FLOOR_FACTOR)
+    /// less than 1 % over the last 100 iterations while within [`FLOOR_FACTOR`](super::super::FLOOR_FACTOR)
     /// times [`rounding_floor`](Self::rounding_floor) (the answer is as good as the precision
     /// allows), or did not fall at all over 1000 iterations (a plateau above the estimated
     /// floor). Either way the budget is not burnt; [`converged`](Self::converged) still says
@@ -364,7 +371,7 @@ pub struct RelaxReport {
     pub stagnated: bool,
     /// The estimated rounding floor of the residual (N): `eps/2 max_i |x_i| (3 sum_i P_i^2)^(1/2)`
     /// over the free vertices, `P_i` the preconditioner (a bound on the diagonal block of the
-    /// Hessian), the rule Newton's method uses ([`NewtonReport::rounding_floor`](super::NewtonReport::rounding_floor)).
+    /// Hessian), the rule Newton's method uses ([`NewtonReport::rounding_floor`](super::super::NewtonReport::rounding_floor)).
     pub rounding_floor: Real,
     /// The Chebyshev `rho` used: the setting, the estimate, or 0 (none, or not yet estimated
     /// when the solve stopped).
@@ -380,7 +387,7 @@ pub const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 /// `y + h^2 g`, both projected onto the ground (where neither touches the ground, no collider,
 /// pinned vertex, external load or fixed axis acts, `y + h^2 g` is `y` translated rigidly and
 /// lower by `h^2 |g|^2 sum m / 2`: it is taken without evaluating `y`): `d = -P^-1 grad Phi` (see the
-/// [module documentation](super)), optional momentum or Chebyshev acceleration, Armijo
+/// [module documentation](super::super)), optional momentum or Chebyshev acceleration, Armijo
 /// backtracking, projection of every free trial point onto the ground. Then `v = (x_{n+1} - x_n) / h`, and at vertices resting on the
 /// ground Coulomb friction removes up to `friction * h R / m` of the tangential velocity, `R`
 /// the normal reaction (N, the gradient's normal component there).
@@ -471,7 +478,7 @@ pub fn relax_quasi_static<F: ElasticEnergy>(
 
 /// The shared solve of [`relax_step`] (`velocities` given), [`relax_quasi_static`] and the
 /// gradient-descent solvers: checks, then the descent loop (`descent/mod.rs`) along `direction`.
-pub(super) fn minimise<F: ElasticEnergy, D: Direction<F>>(
+pub(crate) fn minimise<F: ElasticEnergy, D: Direction<F>>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
@@ -562,7 +569,7 @@ pub(super) fn minimise<F: ElasticEnergy, D: Direction<F>>(
 }
 
 /// Checks the time step of an implicit Euler step: finite and positive, with a finite `1 / dt^2`.
-pub(super) fn check_time_step(dt: Real) -> Result<(), StepError> {
+pub(crate) fn check_time_step(dt: Real) -> Result<(), StepError> {
     if !(dt > 0.0 && dt.is_finite()) {
         return Err(StepError::TimeStep);
     }

@@ -21,24 +21,24 @@
 //! the sweep's order; 76 of 152 before the order put the most elements first), and a visit of
 //! one lane costs less than one of the whole group.
 
-use super::super::element::TetRest;
-use super::super::lanes::{
+use super::super::super::super::element::TetRest;
+use super::super::super::super::lanes::{
     LANES, Lane, LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH, each_lane,
 };
 #[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx2::Avx2Lanes;
+use super::super::super::super::lanes_avx2::Avx2Lanes;
 #[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx512::Avx512Lanes;
-use super::super::material::Material;
-use super::super::mesh::Positions;
-use super::super::types::{Mat3, Real, Vec3};
-use super::vbd_layout::{self, BLOCK, LAYOUT_VALUES, Layout, Run};
-use super::vertex_block::shape_gradient;
+use super::super::super::super::lanes_avx512::Avx512Lanes;
+use super::super::super::super::material::Material;
+use super::super::super::super::mesh::Positions;
+use super::super::super::super::types::{Mat3, Real, Vec3};
+use super::block::shape_gradient;
+use super::layout::{self, BLOCK, LAYOUT_VALUES, Layout, Run};
 use crate::simd::{WidthKernel, dispatch};
 
 /// What the elements around one vertex add to its Newton system at the current positions.
 #[derive(Clone, Copy)]
-pub(super) struct VertexSums {
+pub(crate) struct VertexSums {
     /// `sum_e V_e P_e g_e` (N): the elastic part of the gradient.
     pub gradient: Vec3,
     /// `sum_e V_e K_e(g_e)` (N/m): the exact elastic block.
@@ -52,7 +52,7 @@ pub(super) struct VertexSums {
 
 /// What a [`SumsPass`] sums besides the gradient and the block.
 #[derive(Clone, Copy, PartialEq, Eq)]
-pub(super) enum Extras {
+pub(crate) enum Extras {
     /// Nothing more (a sweep without the line search).
     Nothing,
     /// The energy scale only: no energy density (whose logarithms, one per lane, cost more
@@ -71,9 +71,9 @@ const EMPTY: VertexSums = VertexSums {
 };
 
 /// The mesh a sweep visits: elements, rest data, material and vertex adjacency
-/// (`adjacency.rs`), and the packed visits of `vbd_layout.rs` where the caller gave room for
+/// (`mesh/adjacency.rs`), and the packed visits of `step/descent/vbd/layout.rs` where the caller gave room for
 /// them (the same sums, bit for bit, without the gather of the rest data).
-pub(super) struct Elements<'s, M> {
+pub(crate) struct Elements<'s, M> {
     pub tets: &'s [[u32; 4]],
     pub rest: &'s [TetRest],
     pub material: &'s M,
@@ -104,7 +104,7 @@ impl<M> Elements<'_, M> {
 /// A lane group of a [`SumsPass`] once summed: lane `j` holds vertex `members[j].1`, entry
 /// `members[j].0` of its run, with sums `sums[j]`, and is visited where bit `j` of `visited` is
 /// set (skipped vertices are not).
-pub(super) struct SummedGroup<'g> {
+pub(crate) struct SummedGroup<'g> {
     pub members: &'g [(usize, u32)],
     pub visited: u32,
     pub sums: &'g [VertexSums; MAX_WIDTH],
@@ -124,7 +124,7 @@ impl SummedGroup<'_> {
 }
 
 /// What receives the sums of a [`SumsPass`], vertex by vertex.
-pub(super) trait VertexVisitor {
+pub(crate) trait VertexVisitor {
     /// The positions the next group is summed at.
     fn positions(&self) -> &[Vec3];
     /// The sums of `vertex`, entry `index` of its run.
@@ -145,7 +145,7 @@ pub(super) trait VertexVisitor {
 /// is summed whole (so the visitor may move a group's vertices, never their neighbours').
 /// With the layout, a run starts at a layout block (a colour's first vertex, or a multiple of
 /// [`BLOCK`] after it) and its groups are the lanes of the blocks, skipped vertices masked.
-pub(super) struct SumsPass<'a, 's, M, R, V> {
+pub(crate) struct SumsPass<'a, 's, M, R, V> {
     pub elements: &'a Elements<'s, M>,
     /// Vertices left out (pinned), indexed by vertex; empty for none.
     pub skip: &'a [bool],
@@ -157,7 +157,7 @@ pub(super) struct SumsPass<'a, 's, M, R, V> {
 
 /// Runs `pass` at the active SIMD width and returns its visitor.
 #[inline]
-pub(super) fn sum_vertices<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor>(
+pub(crate) fn sum_vertices<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor>(
     pass: SumsPass<'_, '_, M, R, V>,
 ) -> V {
     dispatch(pass)
@@ -186,7 +186,7 @@ impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_
             extras,
             mut visitor,
         } = self;
-        // Every width divides the layout's blocks (see `vbd_layout.rs`); one that did not
+        // Every width divides the layout's blocks (see `step/descent/vbd/layout.rs`); one that did not
         // would take the gather path, with the same results.
         if let Some(layout) = elements.layout
             && BLOCK.is_multiple_of(L::WIDTH)
@@ -627,8 +627,8 @@ fn sum_packed_group<L: LaneArray, M: Material>(
             let visit = Visit::new(
                 corner,
                 vector,
-                (0, vbd_layout::GRADIENT),
-                value(vbd_layout::VOLUME),
+                (0, layout::GRADIENT),
+                value(layout::VOLUME),
                 lengths.gt(L::splat(t as Real)),
             );
             sums.add(elements.material, &visit, extras);
@@ -735,8 +735,8 @@ fn sum_packed_tail<M: Material>(
         let visit = Visit::new(
             corner,
             vector,
-            (0, vbd_layout::GRADIENT),
-            value(vbd_layout::VOLUME),
+            (0, layout::GRADIENT),
+            value(layout::VOLUME),
             true,
         );
         sums.add(elements.material, &visit, extras);

@@ -1,5 +1,5 @@
 //! An estimate of the highest natural frequency of a body, for a tighter explicit time step than
-//! the proven bound of [`stable_time_step`](super::stable_time_step).
+//! the proven bound of [`stable_time_step`](super::super::stable_time_step).
 //!
 //! Symplectic Euler is stable for `dt < 2 / omega_max`, `omega_max^2` the largest eigenvalue of
 //! `M^-1 H` (`docs/math.md` section 4). The proven bound majorises `omega_max` element by element,
@@ -15,10 +15,11 @@
 //! the stepper's blow-up detection on. At rest the projected Hessian is the exact one (it is
 //! positive semi-definite there), so the estimate is the linearised system's.
 
-use super::super::element::TetHessian;
-use super::super::math;
-use super::super::types::{Real, Vec3};
-use super::{ElasticHessian, check_length, pinned_flags};
+use super::super::super::element::TetHessian;
+use super::super::super::math;
+use super::super::super::types::{Real, Vec3};
+use super::super::model::ElasticHessian;
+use super::super::state::{check_length, pinned_flags};
 use crate::error::{StepBuffer, StepError};
 
 /// The fraction of the estimated limit `2 / omega_max` that [`FrequencyEstimate::time_step`]

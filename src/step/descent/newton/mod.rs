@@ -1,23 +1,28 @@
 //! Newton's method for implicit Euler and quasi-static equilibrium (`docs/math.md` section 7):
 //! the settings, scratch and report. The loop is the shared descent loop (`descent/mod.rs`:
 //! the relaxation's objective `Phi`, Armijo line search and stopping test), the direction from
-//! the projected Hessian `descent/newton.rs`.
+//! the projected Hessian `step/descent/newton/cg.rs`.
 //!
 //! The algorithm and the stopping test are documented on [`newton_step`].
 
-use super::super::element::TetHessian;
-use super::super::types::{Mat3, Real, Vec3};
+use super::super::super::element::TetHessian;
+use super::super::super::types::{Mat3, Real, Vec3};
+use super::super::contact::collider::{Collider, check_colliders};
 use super::chebyshev::AccelerationSettings;
-use super::collider::{Collider, check_colliders};
-use super::descent::newton::{CgVectors, Newton};
-use super::descent::stopping::StallRule;
-use super::descent::{self, LoopSettings, Problem, Work};
-use super::loads::Loads;
-use super::vertex_passes::split_check_state;
-use super::{ElasticHessian, Ground, Vector, check_length};
-use crate::error::{StepBuffer, StepError};
+mod cg;
 
-pub use super::descent::stopping::FLOOR_FACTOR;
+use super::super::super::element::Vector;
+use super::super::contact::Ground;
+use super::super::descent::{self, LoopSettings, Problem, Work};
+use super::super::loads::Loads;
+use super::super::model::ElasticHessian;
+use super::super::state::check_length;
+use super::super::vertex_pass::passes::split_check_state;
+use super::stopping::StallRule;
+use crate::error::{StepBuffer, StepError};
+use cg::{CgVectors, Newton};
+
+pub use super::stopping::FLOOR_FACTOR;
 
 /// The buffer lengths Newton's method needs ([`newton_scratch_len`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -80,7 +85,7 @@ pub struct NewtonSettings<'a, V> {
     /// An optional ground half-space: an active set in the linear solves, projection of the
     /// trial points, friction on the velocity after the step or, opted in with a positive
     /// [`Ground::sticking_speed`], in the objective with its tangent blocks in the linear solves (as
-    /// the relaxation, [`RelaxSettings::ground`](super::RelaxSettings::ground)).
+    /// the relaxation, [`RelaxSettings::ground`](super::super::RelaxSettings::ground)).
     pub ground: Option<Ground<V>>,
     /// Rigid colliders (empty, the default, for none): projection and friction as the
     /// ground's, relative to each collider's surface velocity; see [`Collider`].
@@ -110,7 +115,7 @@ pub struct NewtonSettings<'a, V> {
     /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
     pub external_forces: &'a [V],
     /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
-    /// ([`FIXED_X`](super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
+    /// ([`FIXED_X`](super::super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
     /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
     /// bits.
     pub fixed_axes: &'a [u8],
@@ -249,7 +254,7 @@ pub struct NewtonReport {
 
 /// One implicit Euler step of `settings.dt` by Newton's method: minimises the incremental
 /// potential `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`,
-/// the relaxation's objective ([`relax_step`](super::relax_step)), from the better of `y` and
+/// the relaxation's objective ([`relax_step`](super::super::relax_step)), from the better of `y` and
 /// `y + h^2 g`; then `v = (x_{n+1} - x_n) / h` with Coulomb friction at the ground contacts.
 /// Pinned vertices keep position and velocity. Not converging within the budget is not an
 /// error ([`NewtonReport::converged`]).

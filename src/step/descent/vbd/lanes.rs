@@ -1,5 +1,5 @@
 //! The vertex updates of a Vertex Block Descent sweep's lane group in lanes: the common case
-//! of the one-vertex update `Sweep::updated` (`vbd.rs`: no line search, no colliders, no
+//! of the one-vertex update `Sweep::updated` (`sweep.rs`: no line search, no colliders, no
 //! friction at the vertex, no fixed axes, a definite block, a step that stays above the
 //! ground) for `L::WIDTH` vertices at once, each lane by the operations of the one-vertex
 //! update in its order, so every lane's result has the one-vertex bits (`tests/simd.rs`
@@ -10,17 +10,18 @@
 //! about a fifth of a sweep's time on the vbd bench's box (10 368 tetrahedra, AVX-512), as
 //! much as the summing of several element visits.
 
-use super::super::super::lanes::{LaneArray, LaneVec3, MAX_WIDTH};
-use super::super::super::material::Material;
-use super::super::super::types::{Real, Vec3};
-use super::super::points::{Floor, Point, Wide};
-use super::super::vertex_block::{LaneLdlt, PIVOT_FLOOR};
-use super::super::vertex_sums::SummedGroup;
-use super::vbd::Sweep;
+use super::super::super::super::lanes::{LaneArray, LaneVec3, MAX_WIDTH};
+use super::super::super::super::material::Material;
+use super::super::super::super::types::{Real, Vec3};
+use super::super::super::contact::floor::Floor;
+use super::super::super::vertex_pass::point::{Point, Wide};
+use super::block::{LaneLdlt, PIVOT_FLOOR};
+use super::sums::SummedGroup;
+use super::sweep::Sweep;
 
 /// What became of one lane of a group.
 #[derive(Clone, Copy)]
-pub(super) enum LaneUpdate {
+pub(crate) enum LaneUpdate {
     /// Left to the one-vertex update (outside the common case, or not visited).
     Single,
     /// The vertex stays: no descent step (`skipped` counts it, as the one-vertex update
@@ -65,7 +66,7 @@ impl<M: Material> Sweep<'_, M> {
     /// The updates of `group`'s lanes at `positions`: every lane [`LaneUpdate::Single`] where
     /// the sweep itself is outside the common case (one lane, the line search, colliders).
     #[inline(always)]
-    pub(super) fn lane_updates<L: LaneArray>(
+    pub(crate) fn lane_updates<L: LaneArray>(
         &self,
         positions: &[Vec3],
         group: &SummedGroup<'_>,

@@ -18,6 +18,9 @@ use core::marker::PhantomData;
 
 use super::super::types::Real;
 
+pub(crate) mod passes;
+pub(crate) mod point;
+
 /// The vertices per block of the steppers' passes over the vertices (integration, contact
 /// projection, trial points, residuals). Every sum over the vertices is taken block by block, in
 /// vertex order within a block (four lanes at a time where the pass is vectorised), and the block

@@ -1,15 +1,16 @@
 //! The explicit stability bound: per-element stiffness bounds against lumped masses. The
 //! derivation and what it guarantees are in the `step` module documentation.
 
-use super::super::element::TriangleStVK;
-use super::super::element::{TetRest, TriRest};
-use super::super::lanes::each_lane;
-use super::super::material::Material;
-use super::super::math::{self, BATCH_SVD};
-use super::super::mesh::TetMesh;
-use super::super::svd::{svd3, svd3_lanes};
-use super::super::types::{Mat2, Mat3, Real, Vec2, Vec3};
-use super::{ElasticModel, check_length};
+use super::super::super::element::TriangleStVK;
+use super::super::super::element::{TetRest, TriRest};
+use super::super::super::lanes::each_lane;
+use super::super::super::material::Material;
+use super::super::super::math::{self, BATCH_SVD};
+use super::super::super::mesh::TetMesh;
+use super::super::super::svd::{svd3, svd3_lanes};
+use super::super::super::types::{Mat2, Mat3, Real, Vec2, Vec3};
+use super::super::model::ElasticModel;
+use super::super::state::check_length;
 use crate::error::{MeshError, StepBuffer, StepError};
 
 /// Step of the central differences in [`linearised_moduli`] (dimensionless strain).
@@ -62,7 +63,7 @@ fn largest_modulus(p_wave: Real, mu: Real, dimension: Real) -> Real {
 }
 
 /// Visits every tetrahedron with its stiffness bound `V c_max lambda_max(G G^T)` (N/m).
-pub(super) fn tet_stiffness<M: Material>(
+pub(crate) fn tet_stiffness<M: Material>(
     mesh: &TetMesh<'_>,
     material: &M,
     mut visit: impl FnMut(&[u32], Real, Real),
@@ -95,7 +96,7 @@ fn gradient_products(rest: TetRest) -> Mat3 {
 
 /// Visits every triangle (2D or membrane, both measured in their rest plane) with its
 /// stiffness bound `A c_max lambda_max(G G^T)`.
-pub(super) fn triangle_stiffness(
+pub(crate) fn triangle_stiffness(
     tris: &[[u32; 3]],
     rest: &[TriRest],
     material: &TriangleStVK,
@@ -131,7 +132,7 @@ pub(super) fn triangle_stiffness(
 /// A time step (s) below the critical step of explicit symplectic Euler for `model` with the
 /// caller's lumped `masses` (kg) and `pinned` flags (empty or one per vertex): the vertex bound
 /// `min_i 2 sqrt(m_i / k_i)` over free vertices, `k_i` the sum of the stiffness bounds of the
-/// elements around vertex `i` (see the [module documentation](super) for the derivation and
+/// elements around vertex `i` (see the [module documentation](super::super) for the derivation and
 /// what it guarantees: the linearised system at rest). `stiffness` is scratch space, one entry
 /// per vertex, left holding `k_i` (N/m). Infinite if no free vertex has stiffness.
 ///
@@ -176,7 +177,10 @@ pub fn stable_time_step<F: ElasticModel>(
         check_length(StepBuffer::Pinned, n, pinned.len())?;
     }
     check_length(StepBuffer::ScalarScratch, n, stiffness.len())?;
-    if let Some(vertex) = masses.iter().position(|&m| !super::mass_in_range(m)) {
+    if let Some(vertex) = masses
+        .iter()
+        .position(|&m| !super::super::state::mass_in_range(m))
+    {
         return Err(StepError::Mass { vertex });
     }
     vertex_stiffness(model, stiffness);
@@ -184,7 +188,7 @@ pub fn stable_time_step<F: ElasticModel>(
     for (vertex, ((&k, &m), pinned)) in stiffness
         .iter()
         .zip(masses)
-        .zip(super::pinned_flags(pinned))
+        .zip(super::super::state::pinned_flags(pinned))
         .enumerate()
     {
         // A NaN or infinite bound (a custom model's NaN, a modulus near `Real::MAX` whose
@@ -208,7 +212,7 @@ pub fn stable_time_step<F: ElasticModel>(
 
 /// Writes `k_i` (N/m), the sum of the stiffness bounds of the elements around each vertex, into
 /// `stiffness` (one entry per vertex, length checked by the caller).
-pub(super) fn vertex_stiffness<F: ElasticModel>(model: &F, stiffness: &mut [Real]) {
+pub(crate) fn vertex_stiffness<F: ElasticModel>(model: &F, stiffness: &mut [Real]) {
     stiffness.fill(0.0);
     model.for_each_element_stiffness(|corners, k, _| {
         for &i in corners {

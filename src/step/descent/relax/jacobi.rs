@@ -1,17 +1,18 @@
 //! The relaxation's direction: `d = -P^-1 grad Phi` with `P` the diagonal bound
 //! `P_i = m_i / h^2 + k_i` (see the `step` module documentation), in the vertex passes of
-//! `vertex_passes.rs` (four vertices at a time on x86_64), and its Chebyshev trial in one pass.
+//! `step/vertex_pass/passes.rs` (four vertices at a time on x86_64), and its Chebyshev trial in one pass.
 
-use super::super::super::types::Real;
-use super::super::vertex_passes::{TrialPoint, chebyshev_pass, direction_pass};
-use super::super::{ElasticEnergy, pinned_flags};
-use super::objective::Objective;
-use super::stopping::rounding_floor;
-use super::{Direction, Iterate};
+use super::super::super::super::types::Real;
+use super::super::super::model::ElasticEnergy;
+use super::super::super::state::pinned_flags;
+use super::super::super::vertex_pass::passes::{TrialPoint, chebyshev_pass, direction_pass};
+use super::super::objective::Objective;
+use super::super::stopping::rounding_floor;
+use super::super::{Direction, Iterate};
 
 /// The Jacobi direction, with its rounding floor estimated once at the initial guess.
 #[derive(Default)]
-pub(in super::super) struct Jacobi {
+pub(crate) struct Jacobi {
     floor: Real,
 }
 
@@ -71,9 +72,9 @@ impl<F: ElasticEnergy> Direction<F> for Jacobi {
 }
 
 /// The rounding floor of the residual at `x` estimated from the diagonal bound (see
-/// [`RelaxReport::rounding_floor`](super::super::RelaxReport::rounding_floor)):
+/// [`RelaxReport::rounding_floor`](super::super::super::RelaxReport::rounding_floor)):
 /// `eps/2 max_i |x_i| (3 sum_i P_i^2)^(1/2)` over the free vertices.
-pub(in super::super) fn diagonal_rounding_floor<F: ElasticEnergy>(
+pub(crate) fn diagonal_rounding_floor<F: ElasticEnergy>(
     objective: &Objective<'_, F>,
     x: &[F::Vector],
 ) -> Real {
@@ -83,9 +84,9 @@ pub(in super::super) fn diagonal_rounding_floor<F: ElasticEnergy>(
     } else {
         0.0
     };
-    let reach = x
-        .iter()
-        .fold(0.0, |a: Real, p| a.max(super::super::length(*p)));
+    let reach = x.iter().fold(0.0, |a: Real, p| {
+        a.max(super::super::super::state::length(*p))
+    });
     let stiffness_squared: Real = vertices
         .stiffness
         .iter()

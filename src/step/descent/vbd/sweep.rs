@@ -4,34 +4,36 @@
 //! iterate `x`; the direction is `d = sweep(x) - x`, and the loop's Armijo search runs on the
 //! whole sweep. The Chebyshev trial sweeps again and extrapolates (Wang 2015). The sweep itself,
 //! its vertex updates and its colour-parallel schedule are documented on
-//! [`vbd_step`](super::super::vbd_step).
+//! [`vbd_step`](super::super::super::vbd_step).
 
 use core::marker::PhantomData;
 
-use super::super::super::element::TetRest;
-use super::super::super::lanes::LaneArray;
-use super::super::super::material::Material;
-use super::super::super::math;
-use super::super::super::types::{Mat3, Real, Vec3};
-use super::super::adjacency::incident_elements;
-use super::super::collider::Colliders;
-use super::super::friction::{Friction, Lag, Slip};
-use super::super::loads::Loads;
-use super::super::points::{Floor, Grouped, Point};
+use super::super::super::super::element::TetRest;
+use super::super::super::super::lanes::LaneArray;
+use super::super::super::super::material::Material;
+use super::super::super::super::math;
+use super::super::super::super::mesh::adjacency::incident_elements;
+use super::super::super::super::types::{Mat3, Real, Vec3};
+use super::super::super::contact::Ground;
+use super::super::super::contact::collider::Colliders;
+use super::super::super::contact::floor::Floor;
+use super::super::super::contact::friction::{Friction, Lag, Slip};
+use super::super::super::loads::Loads;
+use super::super::super::model::TetElastic;
+use super::super::super::vertex_pass::passes::{TrialPoint, trial_pass};
+use super::super::super::vertex_pass::point::{Grouped, Point};
+use super::super::line_search::{copy, slope_along};
+use super::super::objective::Objective;
+use super::super::stopping::rounding_floor;
+use super::super::{Direction, Iterate};
+use super::block::{VertexFactor, shape_gradient};
+use super::lanes::LaneUpdate;
 #[cfg(feature = "rayon")]
-use super::super::vbd_layout::BLOCK;
-use super::super::vbd_layout::{Layout, Run, colour_runs};
-use super::super::vertex_block::{VertexFactor, shape_gradient};
-use super::super::vertex_passes::{TrialPoint, trial_pass};
-use super::super::vertex_sums::{
+use super::layout::BLOCK;
+use super::layout::{Layout, Run, colour_runs};
+use super::sums::{
     Elements, Extras, SummedGroup, SumsPass, VertexSums, VertexVisitor, sum_vertices,
 };
-use super::super::{Ground, TetElastic};
-use super::line_search::{copy, slope_along};
-use super::objective::Objective;
-use super::stopping::rounding_floor;
-use super::vbd_lanes::LaneUpdate;
-use super::{Direction, Iterate};
 use crate::error::StepError;
 
 /// The relative size of `Phi`'s rounding error the tests on `Phi` tolerate: `sqrt(eps)`, as
@@ -53,7 +55,7 @@ fn line_search_extras(line_search: bool) -> Extras {
 }
 
 /// Everything a sweep reads besides the positions.
-pub(in super::super) struct Sweep<'s, M: Material> {
+pub(crate) struct Sweep<'s, M: Material> {
     pub tets: &'s [[u32; 4]],
     pub rest: &'s [TetRest],
     pub material: &'s M,
@@ -62,7 +64,7 @@ pub(in super::super) struct Sweep<'s, M: Material> {
     /// The colour of every vertex.
     pub colours: &'s [u32],
     pub order: &'s [u32],
-    /// The packed visits of `vbd_layout.rs`, if built (the same sums either way).
+    /// The packed visits of `step/descent/vbd/layout.rs`, if built (the same sums either way).
     pub layout: Option<Layout<'s>>,
     pub masses: &'s [Real],
     pub pinned: &'s [bool],
@@ -86,7 +88,7 @@ pub(in super::super) struct Sweep<'s, M: Material> {
 
 /// What a sweep counts.
 #[derive(Clone, Copy, Default)]
-pub(in super::super) struct SweepCounts {
+pub(crate) struct SweepCounts {
     pub backtracks: u32,
     pub skipped: u32,
     pub projected: u32,
@@ -106,7 +108,7 @@ impl SweepCounts {
 
 /// How the vertex updates of a sweep are run: one after the other ([`InOrder`]) or colour by
 /// colour on a thread pool; the result is the same bits either way.
-pub(in super::super) trait Schedule<M: Material> {
+pub(crate) trait Schedule<M: Material> {
     /// One sweep of `sweep` over `positions` in place; `staging` (one vector per vertex) is
     /// free to use.
     fn sweep(
@@ -119,11 +121,11 @@ pub(in super::super) trait Schedule<M: Material> {
 }
 
 /// The vertex updates one after the other in the vertex order.
-pub(in super::super) struct InOrder;
+pub(crate) struct InOrder;
 
 /// The vertex updates of each colour in parallel on the current rayon pool.
 #[cfg(feature = "rayon")]
-pub(in super::super) struct OnPool;
+pub(crate) struct OnPool;
 
 /// The vertices a task of a parallel sweep updates: small enough to split the colours of
 /// small meshes over the threads, large enough to pay for a task.
@@ -169,7 +171,7 @@ fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
 
 impl<M: Material> Sweep<'_, M> {
     /// One Gauss–Seidel sweep over the free vertices in colour order, in place: each colour's
-    /// vertices summed a lane group at a time (`vertex_sums.rs`), each group's updates applied
+    /// vertices summed a lane group at a time (`step/descent/vbd/sums.rs`), each group's updates applied
     /// after its sums. Returns the sweep's Gauss–Seidel residual (N): the norm of the vertex
     /// gradients `g_i` each update started from (projected as the loop's residual is, see
     /// [`updated`](Self::updated)), summed in the sweep's order.
@@ -308,7 +310,7 @@ impl<M: Material> Sweep<'_, M> {
         // What the local energy can resolve: 64 eps sum_e V_e W_e-scale, the scale from the
         // element block, tr(K_e) / |g_a|^2 ~ V_e times the elastic modulus (J).
         let resolution = sums.resolution;
-        // Friction lagged to the loop's iterate (`friction.rs`): its gradient and tangent block.
+        // Friction lagged to the loop's iterate (`step/contact/friction.rs`): its gradient and tangent block.
         let rough = self.rough(i, x, x0);
         if let Some((slip, force)) = &rough {
             gradient += slip.gradient() * *force;
@@ -431,7 +433,7 @@ impl<M: Material> Sweep<'_, M> {
     /// Friction's slip and force factor at vertex `i` moved from `x0` to `x`, lagged to the
     /// loop's iterate; `None` without friction there.
     #[inline(always)]
-    pub(super) fn rough(&self, i: usize, x: Vec3, x0: Vec3) -> Option<(Slip<Vec3>, Real)> {
+    pub(crate) fn rough(&self, i: usize, x: Vec3, x0: Vec3) -> Option<(Slip<Vec3>, Real)> {
         let (friction, lag) = self.friction.as_ref()?;
         if !friction.is_active() {
             return None;
@@ -610,7 +612,7 @@ impl<M: Material> Copy for Sweep<'_, M> {}
 
 /// The sweep as a direction of the descent loop, run by schedule `S`, with the counts of its
 /// vertex updates and its rounding floor.
-pub(in super::super) struct VbdSweep<'s, M: Material, S> {
+pub(crate) struct VbdSweep<'s, M: Material, S> {
     /// The mesh, topology and settings of the sweeps; the start positions, velocities and time
     /// step come from the objective of each call (the loop's shifted coordinates), the ground
     /// is given already shifted.

@@ -1,21 +1,31 @@
 //! Explicit symplectic Euler with damping, pinned vertices, ground contact, substeps and
 //! blow-up detection.
 
+pub(crate) mod frequency;
+pub(crate) mod stability;
+
+use super::super::element::Vector;
 use super::super::lanes::{LaneArray, Lanes};
 #[cfg(target_arch = "x86_64")]
 use super::super::lanes_avx2::Avx2Lanes;
 #[cfg(target_arch = "x86_64")]
 use super::super::lanes_avx512::Avx512Lanes;
 use super::super::types::Real;
-use super::collider::{Collider, check_colliders};
+use super::contact::Ground;
+use super::contact::collider::{Collider, check_colliders};
 use super::descent::line_search::copy;
 use super::loads::Loads;
-use super::points::Wide;
-use super::split::Blocks;
-use super::vertex_passes::{free_lanes, load_scalars, split_check_state};
-use super::{ElasticModel, Ground, Vector, check_length, pinned_flags};
+use super::model::ElasticModel;
+use super::state::{check_length, pinned_flags};
+use super::vertex_pass::Blocks;
+use super::vertex_pass::passes::{free_lanes, load_scalars, split_check_state};
+use super::vertex_pass::point::Wide;
 use crate::error::{MeshError, StepBuffer, StepError};
 use crate::simd::{WidthKernel, dispatch};
+pub use frequency::{
+    FREQUENCY_MARGIN, FrequencyEstimate, estimate_max_frequency, frequency_scratch_len,
+};
+pub use stability::{element_stable_time_step, linearised_moduli, stable_time_step};
 
 /// The default [`ExplicitSettings::max_energy_growth`]: 100.
 ///

@@ -1,12 +1,12 @@
 //! The packed element visits of a Vertex Block Descent sweep, in sweep order.
 //!
-//! A sweep visits every element once per corner (`vertex_sums.rs`), several vertices of one
+//! A sweep visits every element once per corner (`step/descent/vbd/sums.rs`), several vertices of one
 //! colour at a time, one per SIMD lane. Without this layout a visit gathers, lane by lane, the
 //! element's corner indices from the adjacency, its rest data and its corner's shape gradient,
 //! and stores them into the lane groups one value at a time: most of a visit's time. The layout
 //! stores those values once, when the topology is built, already transposed: for each block of
 //! [`BLOCK`] consecutive vertices of a colour (the sweep order of
-//! [`vertex_order_by_degree`](super::adjacency::vertex_order_by_degree)) and each of the
+//! [`vertex_order_by_degree`](super::super::super::super::mesh::adjacency::vertex_order_by_degree)) and each of the
 //! block's element visits `t` (the longest row of the block), the [`LAYOUT_VALUES`] values of
 //! the visit of every lane side by side, so that a lane group loads each with one load; only
 //! the corner positions, which the sweep changes, are still gathered. Lanes past the end of
@@ -14,33 +14,33 @@
 //!
 //! The values are those the gather computes, bit for bit (`Dm^-1` by columns, the rest volume
 //! and the corner's shape gradient of
-//! [`shape_gradient`](super::vertex_block::shape_gradient)), so a sweep with the layout gives the
+//! [`shape_gradient`](super::block::shape_gradient)), so a sweep with the layout gives the
 //! bits of one without it, at every SIMD width: the widths (1, 4, 8, 16 values in f32; 1, 4, 8
 //! in f64) all divide [`BLOCK`], and a narrower width walks a block's lanes in groups of its
 //! own width.
 //!
 //! The layout fills the caller's buffers of [`vbd_layout_len`] values and
-//! [`vbd_layout_corners_len`] indices (see [`VbdScratch::with_layout`](super::VbdScratch::with_layout)).
+//! [`vbd_layout_corners_len`] indices (see [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)).
 //! The corner buffer starts with the blocks' first visit rows (one per block and one more;
 //! blocks are at most one per vertex), then the corner indices of the visits.
 
-use super::super::element::TetRest;
-use super::super::types::Real;
-use super::vertex_block::shape_gradient;
+use super::super::super::super::element::TetRest;
+use super::super::super::super::types::Real;
+use super::block::shape_gradient;
 
 /// The vertices of a layout block: the widest lane group of either precision's SIMD widths
 /// (16 f32 or 8 f64 in an AVX-512 register), which every narrower width divides.
-pub(super) const BLOCK: usize = 64 / core::mem::size_of::<Real>();
+pub(crate) const BLOCK: usize = 64 / core::mem::size_of::<Real>();
 
 /// The values stored per element visit and lane: `Dm^-1` by columns (0..9), the rest volume
 /// ([`VOLUME`]) and the corner's shape gradient ([`GRADIENT`]..).
-pub(super) const LAYOUT_VALUES: usize = 13;
+pub(crate) const LAYOUT_VALUES: usize = 13;
 
 /// Where the rest volume is among a visit's [`LAYOUT_VALUES`].
-pub(super) const VOLUME: usize = 9;
+pub(crate) const VOLUME: usize = 9;
 
 /// Where the shape gradient starts among a visit's [`LAYOUT_VALUES`].
-pub(super) const GRADIENT: usize = 10;
+pub(crate) const GRADIENT: usize = 10;
 
 /// The visit rows (of [`BLOCK`] lanes each) the layout of a mesh of `element_count`
 /// tetrahedra has room for: `ceil(6 * element_count / BLOCK) + 8 * 64`, room for half the element
@@ -59,7 +59,7 @@ const fn layout_rows(element_count: usize) -> usize {
 }
 
 /// The length of the value buffer of the packed sweep layout (see
-/// [`VbdScratch::with_layout`](super::VbdScratch::with_layout)) for a mesh of `element_count`
+/// [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)) for a mesh of `element_count`
 /// tetrahedra: 13 values (`Dm^-1`, the rest volume and the corner's shape gradient) per element
 /// visit and lane, for about one and a half times the `4 * element_count` visits of a sweep
 /// plus a margin (78 values, 312 bytes, per tetrahedron in f32 beyond the margin, 624 in f64). A mesh whose
@@ -73,7 +73,7 @@ pub const fn vbd_layout_len(element_count: usize) -> usize {
 }
 
 /// The length of the index buffer of the packed sweep layout (see
-/// [`VbdScratch::with_layout`](super::VbdScratch::with_layout)) for `vertex_count` vertices
+/// [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)) for `vertex_count` vertices
 /// and `element_count` tetrahedra: the blocks' first rows (`vertex_count + 1`) and the four
 /// corner indices of every visit of [`vbd_layout_len`]'s room (24 indices, 96 bytes, per tetrahedron).
 #[inline]
@@ -86,14 +86,14 @@ pub const fn vbd_layout_corners_len(vertex_count: usize, element_count: usize) -
 
 /// A run of the sweep: vertices of one colour, and the layout block of its first vertex.
 #[derive(Clone, Copy)]
-pub(super) struct Run<'r> {
+pub(crate) struct Run<'r> {
     pub vertices: &'r [u32],
     /// The block index of `vertices[0]` (blocks of [`BLOCK`] vertices from each colour's first).
     pub block: usize,
 }
 
 /// The colour runs of `order`: each colour's vertices in order, with their first block.
-pub(super) fn colour_runs<'r>(
+pub(crate) fn colour_runs<'r>(
     colours: &'r [u32],
     order: &'r [u32],
 ) -> impl Iterator<Item = Run<'r>> + 'r {
@@ -116,7 +116,7 @@ pub(super) fn colour_runs<'r>(
 
 /// A built layout, read by the sweep.
 #[derive(Clone, Copy)]
-pub(super) struct Layout<'s> {
+pub(crate) struct Layout<'s> {
     /// The first visit row of every block, and the end.
     pub starts: &'s [u32],
     /// `(row * 4 + corner) * BLOCK + lane`: the vertex at `corner` of the lane's element.
@@ -136,7 +136,7 @@ impl Layout<'_> {
 }
 
 /// What the layout is built from: the mesh and its adjacency.
-pub(super) struct LayoutSource<'s> {
+pub(crate) struct LayoutSource<'s> {
     pub tets: &'s [[u32; 4]],
     pub rest: &'s [TetRest],
     pub offsets: &'s [u32],
@@ -147,7 +147,7 @@ pub(super) struct LayoutSource<'s> {
 
 /// Builds the layout of `source` into `corners` and `values`; `None` if it does not fit (the
 /// buffers' contents are then meaningless).
-pub(super) fn build_layout(
+pub(crate) fn build_layout(
     source: &LayoutSource<'_>,
     corners: &mut [u32],
     values: &mut [Real],

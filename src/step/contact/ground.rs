@@ -1,8 +1,9 @@
 //! The ground half-space: position projection, restitution and Coulomb friction.
 
-use super::super::math;
-use super::super::types::Real;
-use super::{Vector, length};
+use super::super::super::element::Vector;
+use super::super::super::math;
+use super::super::super::types::Real;
+use super::super::state::length;
 use crate::error::StepError;
 
 /// A ground half-space: the solid side is `{x : n . x < offset}` with `n = normal / |normal|`,
@@ -48,7 +49,7 @@ pub struct Ground<V> {
     /// the positions of the step were found without friction, so a body held by friction on a
     /// slope creeps (a block on a 30 degree incline at 100 Hz, Newton: 0.33 m/s for mu 0.7).
     ///
-    /// **Positive (opt-in,** [`SUGGESTED_STICKING_SPEED`](super::SUGGESTED_STICKING_SPEED)
+    /// **Positive (opt-in,** [`SUGGESTED_STICKING_SPEED`](super::super::SUGGESTED_STICKING_SPEED)
     /// **to start):** friction is part of the step's objective, the lagged, smoothed Coulomb
     /// potential of Li et al. 2020 (`docs/math.md` section 4.6), and `eps_v` is the tangential
     /// speed relative to the surface below which friction acts as a stiff spring rather than
@@ -108,7 +109,7 @@ impl<V: Vector> Ground<V> {
     }
 
     /// Checks the parameters and normalises the normal.
-    pub(super) fn validated(&self) -> Result<Ground<V>, StepError> {
+    pub(crate) fn validated(&self) -> Result<Ground<V>, StepError> {
         // Every finite non-zero normal is valid, also one whose squared length under- or
         // overflows (`1e-30` or `1e30` in f32): it is first brought near unit length by an exact
         // power of two, `2^(3/4 MAX_EXP)` up or down, which maps both ends of the range into
@@ -143,13 +144,13 @@ impl<V: Vector> Ground<V> {
 
     /// How far `x` is above the plane (m; negative inside the ground). Needs a validated ground.
     #[inline(always)]
-    pub(super) fn height(&self, x: V) -> Real {
+    pub(crate) fn height(&self, x: V) -> Real {
         self.normal.dot(x) - self.offset
     }
 
     /// Projects `x` onto the plane if it is inside the ground, returning whether it was.
     #[inline(always)]
-    pub(super) fn project(&self, x: &mut V) -> bool {
+    pub(crate) fn project(&self, x: &mut V) -> bool {
         let depth = -self.height(*x);
         if depth > 0.0 {
             *x += self.normal * depth;
@@ -168,7 +169,7 @@ impl<V: Vector> Ground<V> {
     /// tangential velocity the substep's forces gave it, every substep: the creep at `a_t h`
     /// this stepper showed on an incline before (1 to 1.7 cm/s).
     #[inline(always)]
-    pub(super) fn resolve(&self, x: &mut V, v: &mut V, resting_speed: Real, h: Real) -> bool {
+    pub(crate) fn resolve(&self, x: &mut V, v: &mut V, resting_speed: Real, h: Real) -> bool {
         if !self.project(x) {
             return false;
         }
@@ -189,14 +190,14 @@ impl<V: Vector> Ground<V> {
     /// Whether the implicit solvers minimise this ground's friction with the step (a positive
     /// friction coefficient and sticking speed) rather than apply it to the velocity after it.
     #[inline(always)]
-    pub(super) fn friction_in_objective(&self) -> bool {
+    pub(crate) fn friction_in_objective(&self) -> bool {
         super::friction::in_objective(self.friction, self.sticking_speed)
     }
 
     /// The tangential velocity `tangential` reduced by Coulomb friction for a normal velocity
     /// change `normal_change >= 0` (m/s).
     #[inline(always)]
-    pub(super) fn friction_applied(&self, tangential: V, normal_change: Real) -> V {
+    pub(crate) fn friction_applied(&self, tangential: V, normal_change: Real) -> V {
         let speed = length(tangential);
         let reduction = self.friction * normal_change;
         // Stops the vertex when friction can absorb all its tangential speed (also when the
@@ -208,7 +209,7 @@ impl<V: Vector> Ground<V> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::super::types::Vec3;
+    use super::super::super::super::types::Vec3;
     use super::Ground;
 
     /// Restitution applies to real impacts; an approach at or below the resting speed leaves the

@@ -3,19 +3,19 @@
 //! angular velocity), with restitution and Coulomb friction relative to the collider's surface
 //! velocity.
 //!
-//! Every stepper treats a collider as it treats the [`Ground`](super::Ground): a vertex found
+//! Every stepper treats a collider as it treats the [`Ground`](super::super::Ground): a vertex found
 //! inside is projected onto the surface along the outward normal (the gradient of the signed
 //! distance), the implicit solvers project every iterate onto the admissible set and drop the
 //! gradient and direction components into the surface at the vertices in contact. Friction acts
 //! on the motion *relative to the surface*, `v - (v_c + w_c x (x - p_c))`: in the explicit
 //! stepper on the velocity (and the substep's move) after each substep, in the implicit solvers
 //! on the velocity after the solve or, opted in with a positive
-//! [`sticking_speed`](Collider::sticking_speed), inside the step's objective (`friction.rs`:
+//! [`sticking_speed`](Collider::sticking_speed), inside the step's objective (`step/contact/friction.rs`:
 //! the smoothed, lagged dissipation potential of Li et al. 2020).
 
-use super::super::math;
-use super::super::types::{Quat, Real, Vec3};
-use super::friction::Contact;
+use super::super::super::math;
+use super::super::super::types::{Quat, Real, Vec3};
+use super::Contact;
 use crate::error::{ColliderProblem, StepError};
 
 /// A shape given by its signed distance, for anything the built-in [`Shape`]s do not cover
@@ -138,7 +138,7 @@ impl PartialEq for Shape<'_> {
 ///   between steps move it with [`advanced`](Self::advanced). A static collider has zero
 ///   velocities.
 /// * Contact: restitution `e` in `[0, 1]` and Coulomb friction `>= 0`, exactly as the
-///   [`Ground`](super::Ground)'s, applied to the velocity relative to the collider's surface.
+///   [`Ground`](super::super::Ground)'s, applied to the velocity relative to the collider's surface.
 ///   Restitution is applied by the explicit stepper only (implicit Euler dissipates the normal
 ///   velocity at an impact).
 /// * Several colliders are resolved one after the other in slice order (a vertex pushed out of
@@ -178,7 +178,7 @@ pub struct Collider<'a> {
     pub friction: Real,
     /// The implicit solvers' sticking speed `eps_v` (m/s, finite `>= 0`; default 0: friction on
     /// the velocity after the solve; positive: friction in the step's objective), as the
-    /// [`Ground`](super::Ground)'s [`sticking_speed`](super::Ground::sticking_speed), relative
+    /// [`Ground`](super::super::Ground)'s [`sticking_speed`](super::super::Ground::sticking_speed), relative
     /// to the collider's surface velocity.
     pub sticking_speed: Real,
 }
@@ -343,7 +343,7 @@ impl<'a> Collider<'a> {
     }
 
     /// This collider with the implicit solvers' sticking speed `sticking_speed` (m/s, finite
-    /// `>= 0`; see [`Ground::sticking_speed`](super::Ground::sticking_speed)).
+    /// `>= 0`; see [`Ground::sticking_speed`](super::super::Ground::sticking_speed)).
     #[inline]
     #[must_use]
     pub fn with_sticking_speed(self, sticking_speed: Real) -> Self {
@@ -356,7 +356,7 @@ impl<'a> Collider<'a> {
     /// Whether the implicit solvers minimise this collider's friction with the step (a positive
     /// friction coefficient and sticking speed) rather than apply it to the velocity after it.
     #[inline(always)]
-    pub(super) fn friction_in_objective(&self) -> bool {
+    pub(crate) fn friction_in_objective(&self) -> bool {
         super::friction::in_objective(self.friction, self.sticking_speed)
     }
 
@@ -663,7 +663,7 @@ fn cuboid_distance(p: Vec3, half: Vec3) -> (Real, Option<Vec3>) {
 }
 
 /// Checks every collider; `three_d` is false for 2D bodies, which take none.
-pub(super) fn check_colliders(colliders: &[Collider<'_>], three_d: bool) -> Result<(), StepError> {
+pub(crate) fn check_colliders(colliders: &[Collider<'_>], three_d: bool) -> Result<(), StepError> {
     for (collider, c) in colliders.iter().enumerate() {
         let problem = if three_d {
             c.check().err()
@@ -846,7 +846,7 @@ fn coulomb(tangential: Vec3, reduction: Real) -> Vec3 {
 /// tangential change also corrects the substep's move `h v` (`h` in s, see `Ground::resolve`).
 /// Returns the number of colliders the vertex was inside.
 #[inline]
-pub(super) fn resolve(
+pub(crate) fn resolve(
     colliders: &[Collider<'_>],
     x: &mut Vec3,
     v: &mut Vec3,
@@ -890,7 +890,7 @@ impl Colliders<'_> {
     /// The implicit solvers' velocity at a vertex at `x` touching a collider, after
     /// `v = (x_{n+1} - x_n) / h`: relative to the surface, the normal approach removed and,
     /// unless the collider's friction was part of the step's objective (a positive
-    /// [`sticking_speed`](Collider::sticking_speed), `friction.rs`), Coulomb friction with the
+    /// [`sticking_speed`](Collider::sticking_speed), `step/contact/friction.rs`), Coulomb friction with the
     /// normal impulse `h R` (`R` the reaction: the normal component of the gradient `g` of
     /// `Phi`, N; `m` the mass, kg). `v` unchanged away from every collider.
     #[inline]
@@ -950,8 +950,8 @@ impl Colliders<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::super::math::sqrt;
-    use super::super::super::types::{Quat, Real, Vec3};
+    use super::super::super::super::math::sqrt;
+    use super::super::super::super::types::{Quat, Real, Vec3};
     use super::{Collider, Colliders, SignedDistance};
     use crate::error::ColliderProblem;
 
@@ -1135,7 +1135,7 @@ mod tests {
         assert!(!ball.certainly_outside(Vec3::NAN, ball.position, 0.0));
     }
 
-    /// The poses cached for the first [`POSED`](super::POSED) colliders and those formed at
+    /// The poses cached for the first [`POSED`](super::super::POSED) colliders and those formed at
     /// every query for the rest give the answers of the collider-by-collider probe: a list of
     /// ten (the four far shapes twice, then two more), shifted, at points inside and next to
     /// each, against loops that pose every collider at the query.

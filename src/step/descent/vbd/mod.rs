@@ -1,28 +1,37 @@
 //! Vertex Block Descent (Chen, Liu, Yang and Yuksel, "Vertex Block Descent", ACM Transactions on
 //! Graphics 43(4), SIGGRAPH 2024): implicit Euler, and the quasi-static equilibrium, as the
-//! minimisation of the same `Phi` as [`relax_step`](super::relax_step), by block Gauss–Seidel
+//! minimisation of the same `Phi` as [`relax_step`](super::super::relax_step), by block Gauss–Seidel
 //! over the vertices with one 3x3 Newton step per vertex (`docs/math.md` section 7).
 //!
 //! The method, its safeguards, contact handling and measured cost are documented on
 //! [`vbd_step`].
 
-use super::super::material::Material;
-use super::super::types::{Real, Vec3};
-use super::adjacency::{
+mod block;
+mod lanes;
+mod layout;
+mod sums;
+mod sweep;
+
+use super::super::super::material::Material;
+use super::super::super::mesh::adjacency::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
     vertex_order_by_degree,
 };
+use super::super::super::types::{Real, Vec3};
+use super::super::contact::Ground;
+use super::super::contact::collider::{Collider, Colliders, check_colliders};
+use super::super::descent::{self, LoopSettings, Problem, Work};
+use super::super::loads::Loads;
+use super::super::model::TetElastic;
+use super::super::state::{check_length, check_state};
 use super::chebyshev::AccelerationSettings;
-use super::collider::{Collider, Colliders, check_colliders};
-use super::descent::stopping::StallRule;
-#[cfg(feature = "rayon")]
-use super::descent::vbd::OnPool;
-use super::descent::vbd::{InOrder, Schedule, Sweep, VbdSweep};
-use super::descent::{self, LoopSettings, Problem, Work};
-use super::loads::Loads;
-use super::vbd_layout::{Layout, LayoutSource, build_layout};
-use super::{Ground, TetElastic, check_length, check_state};
+use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
+use layout::{Layout, LayoutSource, build_layout};
+pub use layout::{vbd_layout_corners_len, vbd_layout_len};
+#[cfg(feature = "rayon")]
+use sweep::OnPool;
+use sweep::{InOrder, Schedule, Sweep, VbdSweep};
 
 /// The length of the vector scratch buffer of [`vbd_step`] and [`vbd_quasi_static`] for
 /// `vertex_count` vertices: `5 * vertex_count` (the descent loop's start positions, gradient,
@@ -35,7 +44,7 @@ pub const fn vbd_scratch_len(vertex_count: usize) -> usize {
 
 /// The length of the index scratch buffer for `vertex_count` vertices and `element_count`
 /// tetrahedra: `3 * vertex_count + 1 + 4 * element_count` (the vertex adjacency of
-/// [`build_vertex_adjacency`](super::build_vertex_adjacency), the colours and the vertex order).
+/// [`build_vertex_adjacency`](super::super::build_vertex_adjacency), the colours and the vertex order).
 #[inline]
 #[must_use]
 pub const fn vbd_index_scratch_len(vertex_count: usize, element_count: usize) -> usize {
@@ -89,8 +98,8 @@ impl<'a> VbdScratch<'a> {
     }
 
     /// This scratch with room for the packed sweep layout: `values` of
-    /// [`vbd_layout_len`](super::vbd_layout_len)`(element_count)` entries and `corners` of
-    /// [`vbd_layout_corners_len`](super::vbd_layout_corners_len)`(vertex_count,
+    /// [`vbd_layout_len`](super::super::vbd_layout_len)`(element_count)` entries and `corners` of
+    /// [`vbd_layout_corners_len`](super::super::vbd_layout_corners_len)`(vertex_count,
     /// element_count)` (longer buffers are fine, shorter ones leave the layout unused).
     ///
     /// The first solve (after a change of topology) stores there, for every element visit of a
@@ -205,13 +214,13 @@ pub struct VbdSettings<'a> {
     pub gravity: Vec3,
     /// An optional ground half-space (see [`vbd_step`](vbd_step#contact)); friction
     /// after the solve or (opted in) in the objective, restitution ignored, as in
-    /// [`RelaxSettings::ground`](super::RelaxSettings::ground).
+    /// [`RelaxSettings::ground`](super::super::RelaxSettings::ground).
     pub ground: Option<Ground<Vec3>>,
     /// Rigid colliders (empty, the default, for none): projection and friction as the
     /// ground's, relative to each collider's surface velocity; see [`Collider`].
     pub colliders: &'a [Collider<'a>],
     /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)`, exactly as
-    /// [`RelaxSettings::tolerance`](super::RelaxSettings::tolerance) (in `[0, 1)`).
+    /// [`RelaxSettings::tolerance`](super::super::RelaxSettings::tolerance) (in `[0, 1)`).
     pub tolerance: Real,
     /// The budget of sweeps.
     pub max_iterations: u32,
@@ -250,7 +259,7 @@ pub struct VbdSettings<'a> {
     /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
     pub external_forces: &'a [Vec3],
     /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
-    /// ([`FIXED_X`](super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
+    /// ([`FIXED_X`](super::super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
     /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
     /// bits.
     pub fixed_axes: &'a [u8],
@@ -481,7 +490,7 @@ pub struct VbdReport {
 /// Yuksel, "Vertex Block Descent", ACM Transactions on Graphics 43(4), SIGGRAPH 2024):
 /// minimises
 /// `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`, the
-/// objective of [`relax_step`](super::relax_step), from the same initial guess (the lower-`Phi` of
+/// objective of [`relax_step`](super::super::relax_step), from the same initial guess (the lower-`Phi` of
 /// `y` and `y + h^2 g`, both projected on the ground), then sets `v = (x_{n+1} - x_n) / h` and
 /// applies the relaxation's Coulomb friction at the contacts.
 ///
@@ -502,7 +511,7 @@ pub struct VbdReport {
 ///
 /// # One sweep
 /// For every free vertex `i`, colour by colour (the colouring of
-/// [`colour_vertices`](super::colour_vertices); within a colour by decreasing number of
+/// [`colour_vertices`](super::super::colour_vertices); within a colour by decreasing number of
 /// incident elements, then by index, an order that changes no iterate, since no two vertices of
 /// a colour share an element; only the rounding of the sweep's residual estimate, summed in
 /// sweep order, depends on it), with every other vertex held where it is: the gradient and
@@ -518,7 +527,7 @@ pub struct VbdReport {
 /// in their adjacency order: every width gives the same bits. `H_i` is factored as `L D L^T`
 /// (Cholesky without square roots: three divisions, and a solve of multiplications only) where
 /// it is positive definite (always for
-/// [`StableNeoHookean`](super::super::material::StableNeoHookean), whose element blocks all
+/// [`StableNeoHookean`](super::super::super::material::StableNeoHookean), whose element blocks all
 /// are); elsewhere the elastic sum is replaced by its positive semi-definite part (one 3x3
 /// eigen-decomposition for that vertex, counted in [`VbdReport::projected`]) and regularised
 /// where singular, so the matrix solved with is always symmetric positive definite and the step
@@ -718,7 +727,7 @@ pub fn vbd_step<M: Material>(
 
 /// Quasi-static equilibrium by Vertex Block Descent: the loop of [`vbd_step`] without the
 /// inertia term, minimising `E(x) - sum m g.(x - x_0)` from the given `positions`, as
-/// [`relax_quasi_static`](super::relax_quasi_static). `settings.dt` is ignored.
+/// [`relax_quasi_static`](super::super::relax_quasi_static). `settings.dt` is ignored.
 ///
 /// Without inertia a vertex block is only as definite as its elements' exact blocks (which
 /// may be indefinite or singular, and a vertex in no element has none): a block whose `L D L^T`
@@ -744,7 +753,7 @@ pub fn vbd_quasi_static<M: Material>(
 /// [`vbd_step`] with the updates of each colour spread over the current rayon pool (feature
 /// `rayon`; the global pool, or a pool of your own through `rayon::ThreadPool::install`): the
 /// same result, bit for bit, for any number of threads and any schedule, because two vertices
-/// of one colour share no element (see [`colour_vertices`](super::colour_vertices)), so the
+/// of one colour share no element (see [`colour_vertices`](super::super::colour_vertices)), so the
 /// updates of a colour read only positions that no update of that colour writes, and the
 /// sequential sweep gives them the same inputs. The evaluations of `Phi` stay sequential, and
 /// so do the accelerated sweeps (see [`vbd_step`](vbd_step#parallel-sweeps)).
@@ -847,7 +856,7 @@ const SWEEP_BACKTRACKS: u32 = 8;
 
 /// The shared solve of [`vbd_step`] (`velocities` given) and [`vbd_quasi_static`], their
 /// sweeps run by `S`: checks, then the descent loop (`descent/mod.rs`) along the sweep
-/// direction (`descent/vbd.rs`).
+/// direction (`step/descent/vbd/sweep.rs`).
 fn minimise<M: Material, S: Schedule<M>>(
     model: &TetElastic<'_, M>,
     masses: &[Real],

@@ -8,7 +8,7 @@
 //! Chen et al., "Vertex Block Descent", TOG 2024, which use the local Hessian as is and guard
 //! its definiteness): [`VertexFactor::new`] factors it by `L D L^T` (Cholesky without square
 //! roots) where it is positive definite, which it is for
-//! [`StableNeoHookean`](super::super::material::StableNeoHookean) always (every element term
+//! [`StableNeoHookean`](super::super::super::super::material::StableNeoHookean) always (every element term
 //! is, see below) and for the other models unless elements are strongly compressed with little
 //! inertia; otherwise it factors
 //! `m / h^2 I + (sum_e V_e K_e)+`, the positive semi-definite part of the elastic sum from its
@@ -26,15 +26,15 @@
 //! compression can make a term indefinite; the inertia and the other elements usually
 //! outweigh it.
 
-use super::super::element::TetRest;
-use super::super::lanes::{Lane, LaneVec3};
-use super::super::svd::svd3;
-use super::super::types::{Mat3, Real, Vec3};
+use super::super::super::super::element::TetRest;
+use super::super::super::super::lanes::{Lane, LaneVec3};
+use super::super::super::super::svd::svd3;
+use super::super::super::super::types::{Mat3, Real, Vec3};
 
 /// The gradient `g_a` (m^-1) of corner `a`'s shape function: row `a - 1` of `Dm^-1` for
 /// `a = 1, 2, 3`, minus their sum for `a = 0` (zero out of range).
 #[inline(always)]
-pub(super) fn shape_gradient(rest: &TetRest, corner: usize) -> Vec3 {
+pub(crate) fn shape_gradient(rest: &TetRest, corner: usize) -> Vec3 {
     // A match on the corner, not an index into an array of rows: the array would go through
     // the stack, and loading a row written there a moment ago stalls the sweep's gather.
     let m = &rest.dm_inv;
@@ -60,7 +60,7 @@ fn positive_part(s: Mat3) -> Mat3 {
 }
 
 /// A pivot of the `L D L^T` factorisation must exceed this times the block's trace.
-pub(super) const PIVOT_FLOOR: Real = 64.0 * Real::EPSILON;
+pub(crate) const PIVOT_FLOOR: Real = 64.0 * Real::EPSILON;
 
 /// `sqrt(eps)`: the relative Levenberg–Marquardt shift of [`Ldlt::regularised`].
 const SHIFT: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
@@ -75,7 +75,7 @@ const SHIFT: Real = 1.0 / (1u64 << (Real::MANTISSA_DIGITS / 2)) as Real;
 /// divisions (one per pivot, one after the other) and no square root, and a solve is
 /// multiplications only, where the Cholesky factor took three square roots and two divisions,
 /// and six divisions per solve.
-pub(super) struct Ldlt {
+pub(crate) struct Ldlt {
     l10: Real,
     l20: Real,
     l21: Real,
@@ -108,7 +108,7 @@ impl Ldlt {
     /// The factor of `h`, or of `h + sqrt(eps) tr(h) / 3 I` if `h` has a pivot at or below
     /// `64 eps tr(h)`; `None` if that fails too, or `tr(h)` is not finite and positive.
     #[inline]
-    pub(super) fn regularised(h: &Mat3) -> Option<Ldlt> {
+    pub(crate) fn regularised(h: &Mat3) -> Option<Ldlt> {
         let trace = h.x_axis.x + h.y_axis.y + h.z_axis.z;
         if !(trace > 0.0 && trace.is_finite()) {
             return None;
@@ -122,7 +122,7 @@ impl Ldlt {
 
     /// `H^-1 r`: forward substitution with `L`, the pivots, back substitution with `L^T`.
     #[inline]
-    pub(super) fn solve(&self, r: Vec3) -> Vec3 {
+    pub(crate) fn solve(&self, r: Vec3) -> Vec3 {
         let z1 = r.y - self.l10 * r.x;
         let z2 = r.z - self.l20 * r.x - self.l21 * z1;
         let y = Vec3::new(r.x, z1, z2) * self.inverse_pivots;
@@ -135,9 +135,9 @@ impl Ldlt {
 
 /// [`Ldlt`] of one symmetric matrix per lane: the operations of [`Ldlt::new`] in its order, so
 /// every lane that factors holds the bits of the one-matrix factor (the vertex updates of a
-/// sweep's lane group, `descent/vbd_lanes.rs`). A lane whose pivot is at or below the floor is
+/// sweep's lane group, `step/descent/vbd/lanes.rs`). A lane whose pivot is at or below the floor is
 /// flagged, its values meaningless (all three divisions run in every lane).
-pub(super) struct LaneLdlt<L> {
+pub(crate) struct LaneLdlt<L> {
     l10: L,
     l20: L,
     l21: L,
@@ -150,7 +150,7 @@ impl<L: Lane> LaneLdlt<L> {
     /// `[a00, a10, a20, a11, a21, a22]`, and 1 in the lanes where every pivot exceeds `floor`
     /// (where [`Ldlt::new`] gives `Some`), 0 in the others.
     #[inline(always)]
-    pub(super) fn new([a00, a10, a20, a11, a21, a22]: [L; 6], floor: L) -> (Self, L) {
+    pub(crate) fn new([a00, a10, a20, a11, a21, a22]: [L; 6], floor: L) -> (Self, L) {
         let (one, zero) = (L::splat(1.0), L::splat(0.0));
         let i0 = one / a00;
         let (l10, l20) = (a10 * i0, a20 * i0);
@@ -174,7 +174,7 @@ impl<L: Lane> LaneLdlt<L> {
 
     /// `H^-1 r` per lane, as [`Ldlt::solve`].
     #[inline(always)]
-    pub(super) fn solve(&self, r: LaneVec3<L>) -> LaneVec3<L> {
+    pub(crate) fn solve(&self, r: LaneVec3<L>) -> LaneVec3<L> {
         let z1 = r.y - self.l10 * r.x;
         let z2 = r.z - self.l20 * r.x - self.l21 * z1;
         let p = self.inverse_pivots;
@@ -187,11 +187,11 @@ impl<L: Lane> LaneLdlt<L> {
 }
 
 /// The SPD system of one vertex update, see the [module documentation](self).
-pub(super) struct VertexFactor {
+pub(crate) struct VertexFactor {
     /// The factor of the matrix solved with.
-    pub(super) factor: Ldlt,
+    pub(crate) factor: Ldlt,
     /// Whether the elastic sum had to be replaced by its positive part.
-    pub(super) projected: bool,
+    pub(crate) projected: bool,
 }
 
 impl VertexFactor {
@@ -199,7 +199,7 @@ impl VertexFactor {
     /// `64 eps` of the trace), else of `inertia I + elastic+` (regularised where singular);
     /// `None` where even that fails (a vertex in no element without inertia, or NaN).
     #[inline]
-    pub(super) fn new(inertia: Real, elastic: &Mat3) -> Option<VertexFactor> {
+    pub(crate) fn new(inertia: Real, elastic: &Mat3) -> Option<VertexFactor> {
         let diagonal = Mat3::from_diagonal(Vec3::splat(inertia));
         let exact = *elastic + diagonal;
         let trace = exact.x_axis.x + exact.y_axis.y + exact.z_axis.z;
@@ -221,10 +221,12 @@ impl VertexFactor {
 
 #[cfg(test)]
 mod tests {
-    use super::super::super::element::{TetRest, tet_vertex_force_and_block};
-    use super::super::super::material::{Material, NeoHookean, StVK, StableNeoHookean};
-    use super::super::super::math;
-    use super::super::super::types::{Mat3, Real, Vec3};
+    use super::super::super::super::super::element::{TetRest, tet_vertex_force_and_block};
+    use super::super::super::super::super::material::{
+        Material, NeoHookean, StVK, StableNeoHookean,
+    };
+    use super::super::super::super::super::math;
+    use super::super::super::super::super::types::{Mat3, Real, Vec3};
     use super::{PIVOT_FLOOR, SHIFT, VertexFactor, shape_gradient};
 
     /// The largest entry's modulus.
@@ -475,7 +477,7 @@ mod tests {
     /// bits for every solve, over definite, indefinite and singular matrices.
     #[test]
     fn lane_factor_is_the_scalar_factor_in_every_lane() {
-        use super::super::super::lanes::{LANES, Lane, LaneVec3, Lanes};
+        use super::super::super::super::super::lanes::{LANES, Lane, LaneVec3, Lanes};
         use super::{LaneLdlt, Ldlt};
         let mut stream = Stream(23);
         let (mut factored, mut refused) = (0, 0);

@@ -4,21 +4,22 @@
 //! matrix-free preconditioned conjugate gradients (block-Jacobi) with an Eisenstat-Walker
 //! forcing term.
 
-use super::super::super::element::TetHessian;
-use super::super::super::math;
-use super::super::super::types::{Mat3, Real, Vec3};
-use super::super::ElasticHessian;
-use super::super::points::{Floor, Grouped};
-use super::super::split::Blocks;
-use super::super::vertex_passes::{TrialPoint, slope_and_trial_pass, split_copy};
-use super::objective::Objective;
-use super::stopping::rounding_floor;
-use super::{Direction, Iterate};
+use super::super::super::super::element::TetHessian;
+use super::super::super::super::math;
+use super::super::super::super::types::{Mat3, Real, Vec3};
+use super::super::super::contact::floor::Floor;
+use super::super::super::model::ElasticHessian;
+use super::super::super::vertex_pass::Blocks;
+use super::super::super::vertex_pass::passes::{TrialPoint, slope_and_trial_pass, split_copy};
+use super::super::super::vertex_pass::point::Grouped;
+use super::super::objective::Objective;
+use super::super::stopping::rounding_floor;
+use super::super::{Direction, Iterate};
 use crate::error::StepError;
 
 /// Newton's direction over its scratch: the Hessian cache, the inverted preconditioner blocks
 /// and the vectors of conjugate gradients.
-pub(in super::super) struct Newton<'b> {
+pub(crate) struct Newton<'b> {
     pub hessians: &'b mut [TetHessian],
     pub blocks: &'b mut [Mat3],
     pub cg: CgVectors<'b>,
@@ -122,7 +123,7 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
         let model = objective.model;
         let (masses, pinned) = (objective.vertices.masses, objective.vertices.pinned);
         model.projected_hessians(at.x, self.hessians)?;
-        // Friction's tangent blocks at the iterate, with its own normal forces (`friction.rs`).
+        // Friction's tangent blocks at the iterate, with its own normal forces (`step/contact/friction.rs`).
         let friction = &objective.friction;
         let start = objective.vertices.start;
         let rough = |i: usize| -> Option<Mat3> {
@@ -186,7 +187,7 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
 }
 
 /// The work vectors of conjugate gradients.
-pub(in super::super) struct CgVectors<'b> {
+pub(crate) struct CgVectors<'b> {
     pub residual: &'b mut [Vec3],
     pub preconditioned: &'b mut [Vec3],
     pub conjugate: &'b mut [Vec3],
@@ -239,7 +240,7 @@ impl Constraints<'_> {
 /// `eps max(diag)^3` (singular or nearly: a vertex with no stiffness and no inertia) is
 /// replaced by the inverse of its diagonal, zero where a diagonal entry is not positive.
 /// Returns `sum |B_i + m_i / h^2 I|_F^2` over the free vertices (N^2/m^2), for the rounding
-/// floor: a sum over vertex blocks (`split.rs`), as every sum of this file.
+/// floor: a sum over vertex blocks (`step/vertex_pass/mod.rs`), as every sum of this file.
 fn invert_blocks<F: ElasticHessian>(
     model: &F,
     hessians: &[TetHessian],
@@ -310,7 +311,7 @@ type CgParts<'p> = (
 /// `|r| <= eta |r_0|` or `max` iterations; friction's blocks (`rough`) are part of `A`. Writes `d` into `direction`; returns the iterations.
 ///
 /// Besides the Hessian product, an iteration is three passes over the vertices in blocks run by
-/// `model` (`split.rs`): the product's vertex terms with its projection and curvature `p.q`; the
+/// `model` (`step/vertex_pass/mod.rs`): the product's vertex terms with its projection and curvature `p.q`; the
 /// updates of `d` and `r` with `|r|^2`, the preconditioned residual `z` and `r.z`; the next
 /// conjugate direction with the product cleared. Every sum is a sum of block sums over the
 /// fixed tree, so `d` has the same bits on any number of threads.

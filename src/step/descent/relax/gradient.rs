@@ -6,19 +6,21 @@
 //! a graded mesh or with very different masses is worth a factor of the spread of the bounds in
 //! the condition number. One pass per vertex, one vertex at a time.
 
-use super::super::super::types::Real;
-use super::super::points::{Floor, Grouped, Point};
-use super::super::relax::{RelaxReport, RelaxScratch, RelaxSettings, check_time_step, minimise};
-use super::super::vertex_passes::TrialPoint;
-use super::super::{ElasticEnergy, pinned_flags};
-use super::objective::Objective;
-use super::stopping::rounding_floor;
-use super::{Direction, Iterate};
+use super::super::super::super::types::Real;
+use super::super::super::contact::floor::Floor;
+use super::super::super::model::ElasticEnergy;
+use super::super::super::state::pinned_flags;
+use super::super::super::vertex_pass::passes::TrialPoint;
+use super::super::super::vertex_pass::point::{Grouped, Point};
+use super::super::objective::Objective;
+use super::super::stopping::rounding_floor;
+use super::super::{Direction, Iterate};
+use super::{RelaxReport, RelaxScratch, RelaxSettings, check_time_step, minimise};
 use crate::error::StepError;
 
 /// The direction `-grad Phi / c`, with `c` and the rounding floor set at the initial guess.
 #[derive(Default)]
-pub(in super::super) struct Gradient {
+pub(crate) struct Gradient {
     /// `1 / c` (m/N), 0 if no free vertex has stiffness or inertia.
     inverse_scale: Real,
     floor: Real,
@@ -45,9 +47,9 @@ impl<F: ElasticEnergy> Direction<F> for Gradient {
             0.0
         };
         // The same estimate as the relaxation's with `P = c I`: `eps/2 max|x| (3 n c^2)^(1/2)`.
-        let reach = x
-            .iter()
-            .fold(0.0, |a: Real, p| a.max(super::super::length(*p)));
+        let reach = x.iter().fold(0.0, |a: Real, p| {
+            a.max(super::super::super::state::length(*p))
+        });
         let free = pinned_flags(vertices.pinned)
             .take(x.len())
             .filter(|pinned| !pinned)
@@ -136,9 +138,9 @@ fn moved<V: Grouped>(floor: &Floor<V>, pinned: bool, x: V, target: V) -> V {
     if pinned { x } else { floor.project(target) }
 }
 
-/// One implicit Euler step by plain gradient descent: the loop of [`relax_step`](super::super::relax_step)
+/// One implicit Euler step by plain gradient descent: the loop of [`relax_step`](super::super::super::relax_step)
 /// (same objective, initial guess, line search, stopping test, momentum and Chebyshev options,
-/// friction) with `P = c I` instead of the per-vertex bound (see `gradient.rs`): `settings` and
+/// friction) with `P = c I` instead of the per-vertex bound (see this file): `settings` and
 /// `scratch` are the relaxation's, and so is the report. `step_length` is in units of `1 / c`
 /// (`1` the majorisation step, `< 2` converges on the linearised problem).
 ///
@@ -146,7 +148,7 @@ fn moved<V: Grouped>(floor: &Floor<V>, pinned: bool, x: V, target: V) -> V {
 /// iteration and conditions the problem better wherever masses or element sizes vary.
 ///
 /// # Errors
-/// As [`relax_step`](super::super::relax_step).
+/// As [`relax_step`](super::super::super::relax_step).
 pub fn gradient_descent_step<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],
@@ -169,10 +171,10 @@ pub fn gradient_descent_step<F: ElasticEnergy>(
 }
 
 /// Quasi-static equilibrium by plain gradient descent: [`gradient_descent_step`] without
-/// inertia, as [`relax_quasi_static`](super::super::relax_quasi_static) is to the relaxation.
+/// inertia, as [`relax_quasi_static`](super::super::super::relax_quasi_static) is to the relaxation.
 ///
 /// # Errors
-/// As [`relax_quasi_static`](super::super::relax_quasi_static).
+/// As [`relax_quasi_static`](super::super::super::relax_quasi_static).
 pub fn gradient_descent_quasi_static<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],

@@ -1,0 +1,29 @@
+//! What a body touches and how contact acts on it: the [`Ground`] half-space
+//! (`step/contact/ground.rs`), rigid [`Collider`]s (`step/contact/collider.rs`), the projection of vertices and directions
+//! onto the admissible set that every stepper shares (`floor.rs`), Coulomb friction inside the
+//! implicit objective (`step/contact/friction.rs`), and the one record of a contact at a vertex that they
+//! exchange ([`Contact`]).
+
+pub(crate) mod collider;
+pub(crate) mod floor;
+pub(crate) mod friction;
+pub(crate) mod ground;
+
+use super::super::types::Real;
+
+pub use collider::{Collider, Shape, SignedDistance};
+pub use friction::SUGGESTED_STICKING_SPEED;
+pub use ground::Ground;
+
+/// What friction needs of one contact at a vertex.
+#[derive(Clone, Copy, Debug)]
+pub struct Contact<V> {
+    /// The outward unit normal.
+    pub normal: V,
+    /// The surface's velocity at the vertex (m/s).
+    pub surface_velocity: V,
+    /// The Coulomb coefficient.
+    pub friction: Real,
+    /// `eps_v` (m/s).
+    pub sticking_speed: Real,
+}

@@ -1,0 +1,282 @@
+//! The elastic models the steppers advance: the traits a body implements ([`ElasticModel`] for
+//! the explicit stepper, [`ElasticEnergy`] for the descent solvers' line search,
+//! [`ElasticHessian`] for Newton and VBD) and the models the crate ships (tetrahedra with the
+//! direct or the clamped stress, 2D triangles, membranes).
+
+use super::super::element::{TetHessian, TriangleStVK, Vector};
+use super::super::material::Material;
+use super::super::mesh::{MembraneMesh, TetMesh, TriMesh};
+use super::super::types::{Mat3, Real, Vec2, Vec3};
+use super::explicit::stability;
+use super::vertex_pass::{InOrder, VertexPass};
+use crate::error::MeshError;
+
+/// An elastic body the explicit stepper can advance: a validated mesh, a material and a force
+/// path. Implement it to plug in other force models (extra springs, a different element).
+pub trait ElasticModel {
+    /// The position, velocity and force type (`Vec3`, or `Vec2` for 2D solids).
+    type Vector: Vector;
+
+    /// The number of vertices: the length of every per-vertex buffer.
+    fn vertex_count(&self) -> usize;
+
+    /// Adds the elastic forces (N) at `positions` (m) into `forces`.
+    ///
+    /// # Errors
+    /// As the mesh kernels: length mismatch or non-finite positions; `forces` unchanged then.
+    fn add_forces(
+        &self,
+        positions: &[Self::Vector],
+        forces: &mut [Self::Vector],
+    ) -> Result<(), MeshError>;
+
+    /// Calls `visit(corners, stiffness, measure)` for every element: its vertex indices, an upper
+    /// bound (N/m) on the largest eigenvalue of its small-strain stiffness matrix at rest, and its
+    /// rest volume or area (m^3 or m^2). Used by [`stable_time_step`](super::stable_time_step) and by the relaxation's
+    /// preconditioner; see `step/explicit/stability.rs` for the derivation.
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real));
+
+    /// Runs one of the steppers' passes over the vertices (integration, contact projection,
+    /// trial points, residuals), split into blocks of [`VERTEX_BLOCK`](super::VERTEX_BLOCK) vertices. The default
+    /// runs it on the calling thread ([`InOrder`](super::InOrder)); a model whose forces run on a thread pool
+    /// (as `parallel::ParallelTetElastic`, feature `rayon`) returns
+    /// `pass.run_with(&join)` with its pool's [`Join`](super::Join), which gives the same bits.
+    #[inline]
+    fn run_vertex_pass<P: VertexPass>(&self, pass: P) -> P::Output {
+        pass.run_with(&InOrder)
+    }
+}
+
+/// An [`ElasticModel`] whose forces are minus the gradient of an energy, as the relaxation
+/// ([`relax_step`](super::relax_step), [`relax_quasi_static`](super::relax_quasi_static)) needs for its line search.
+pub trait ElasticEnergy: ElasticModel {
+    /// Returns the elastic energy (J) at `positions` (m) and adds the elastic forces (N) into
+    /// `forces`, in one pass. NaN or infinite positions give a non-finite energy (not an error).
+    ///
+    /// # Errors
+    /// [`MeshError::LengthMismatch`] if a buffer does not have one entry per vertex.
+    fn energy_and_add_forces(
+        &self,
+        positions: &[Self::Vector],
+        forces: &mut [Self::Vector],
+    ) -> Result<Real, MeshError>;
+}
+
+/// An [`ElasticEnergy`] with second derivatives, as Newton's method ([`newton_step`](super::newton_step),
+/// [`newton_quasi_static`](super::newton_quasi_static)) needs: the projected (SPD) Hessian cached per element in a caller
+/// buffer, its product with a direction and its 3x3 diagonal blocks (`docs/math.md` section 6).
+pub trait ElasticHessian: ElasticEnergy<Vector = Vec3> {
+    /// The number of elements: the length of the Hessian cache.
+    fn element_count(&self) -> usize;
+
+    /// Writes the projected Hessian data of every element at `positions` (m) into `cache`.
+    ///
+    /// # Errors
+    /// As [`TetMesh::projected_hessians`]; `cache` unchanged then.
+    fn projected_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError>;
+
+    /// Adds `H d` (N) into `out` for the Hessian in `cache` and the direction `direction` (m).
+    ///
+    /// # Errors
+    /// As [`TetMesh::add_hessian_product`]; `out` unchanged then.
+    fn add_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError>;
+
+    /// Adds the 3x3 diagonal blocks (N/m) of the Hessian in `cache` into `blocks`.
+    ///
+    /// # Errors
+    /// As [`TetMesh::add_vertex_hessian_blocks`]; `blocks` unchanged then.
+    fn add_vertex_hessian_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &mut [Mat3],
+    ) -> Result<(), MeshError>;
+}
+
+/// A tetrahedral body with the direct stress [`Material::first_piola`]: the forces are the
+/// exact gradient of [`TetMesh::elastic_energy`], so both steppers accept it.
+#[derive(Clone, Copy, Debug)]
+pub struct TetElastic<'a, M: Material> {
+    /// The validated mesh.
+    pub mesh: TetMesh<'a>,
+    /// The material.
+    pub material: M,
+}
+
+impl<'a, M: Material> TetElastic<'a, M> {
+    /// `material` on `mesh`.
+    #[inline]
+    #[must_use]
+    pub fn new(mesh: TetMesh<'a>, material: M) -> Self {
+        TetElastic { mesh, material }
+    }
+}
+
+/// A tetrahedral body with the clamped principal stress
+/// ([`TetMesh::add_elastic_forces_clamped`]): inverted elements are pushed back. **Not an
+/// energy gradient: explicit stepping only** (it does not implement [`ElasticEnergy`]).
+#[derive(Clone, Copy, Debug)]
+pub struct TetClamped<'a, M: Material> {
+    /// The validated mesh.
+    pub mesh: TetMesh<'a>,
+    /// The material.
+    pub material: M,
+    /// The smallest stretch the stress sees (dimensionless, typically `0.2..0.5`).
+    pub threshold: Real,
+}
+
+impl<'a, M: Material> TetClamped<'a, M> {
+    /// `material` on `mesh`, stretches clamped from below at `threshold`. Not checked here: a
+    /// `threshold` outside `(0, 1]` makes every force evaluation (and so every step) fail with
+    /// [`MeshError::ClampThreshold`]; [`checked`](Self::checked) refuses it up front.
+    #[inline]
+    #[must_use]
+    pub fn new(mesh: TetMesh<'a>, material: M, threshold: Real) -> Self {
+        TetClamped {
+            mesh,
+            material,
+            threshold,
+        }
+    }
+
+    /// As [`new`](Self::new), checking `threshold`.
+    ///
+    /// # Errors
+    /// [`MeshError::ClampThreshold`] if `threshold` is not in `(0, 1]`.
+    #[inline]
+    pub fn checked(mesh: TetMesh<'a>, material: M, threshold: Real) -> Result<Self, MeshError> {
+        super::super::mesh::check_clamp_threshold(threshold)?;
+        Ok(Self::new(mesh, material, threshold))
+    }
+}
+
+/// A 2D triangle body (plane strain, per unit thickness) for the explicit stepper.
+#[derive(Clone, Copy, Debug)]
+pub struct TriElastic<'a> {
+    /// The validated mesh.
+    pub mesh: TriMesh<'a>,
+    /// The material.
+    pub material: TriangleStVK,
+}
+
+/// A membrane (triangles in space) for the explicit stepper.
+#[derive(Clone, Copy, Debug)]
+pub struct MembraneElastic<'a> {
+    /// The validated mesh.
+    pub mesh: MembraneMesh<'a>,
+    /// The material (moduli in N/m for forces in N).
+    pub material: TriangleStVK,
+}
+
+impl<M: Material> ElasticModel for TetElastic<'_, M> {
+    type Vector = Vec3;
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.mesh.vertex_count()
+    }
+    #[inline]
+    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
+        self.mesh
+            .add_elastic_forces(&self.material, positions, forces)
+    }
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
+        stability::tet_stiffness(&self.mesh, &self.material, visit);
+    }
+}
+
+impl<M: Material> ElasticEnergy for TetElastic<'_, M> {
+    fn energy_and_add_forces(
+        &self,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<Real, MeshError> {
+        self.mesh
+            .energy_and_add_forces(&self.material, positions, forces)
+    }
+}
+
+impl<M: Material> ElasticHessian for TetElastic<'_, M> {
+    #[inline]
+    fn element_count(&self) -> usize {
+        self.mesh.element_count()
+    }
+    fn projected_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError> {
+        self.mesh
+            .projected_hessians(&self.material, positions, cache)
+    }
+    fn add_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        self.mesh.add_hessian_product(cache, direction, out)
+    }
+    fn add_vertex_hessian_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &mut [Mat3],
+    ) -> Result<(), MeshError> {
+        self.mesh.add_vertex_hessian_blocks(cache, blocks)
+    }
+}
+
+impl<M: Material> ElasticModel for TetClamped<'_, M> {
+    type Vector = Vec3;
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.mesh.vertex_count()
+    }
+    #[inline]
+    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
+        self.mesh
+            .add_elastic_forces_clamped(&self.material, self.threshold, positions, forces)
+    }
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
+        stability::tet_stiffness(&self.mesh, &self.material, visit);
+    }
+}
+
+impl ElasticModel for TriElastic<'_> {
+    type Vector = Vec2;
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.mesh.vertex_count()
+    }
+    #[inline]
+    fn add_forces(&self, positions: &[Vec2], forces: &mut [Vec2]) -> Result<(), MeshError> {
+        self.mesh
+            .add_elastic_forces(&self.material, positions, forces)
+    }
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
+        stability::triangle_stiffness(self.mesh.tris(), self.mesh.rest(), &self.material, visit);
+    }
+}
+
+impl ElasticModel for MembraneElastic<'_> {
+    type Vector = Vec3;
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.mesh.vertex_count()
+    }
+    #[inline]
+    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
+        self.mesh
+            .add_elastic_forces(&self.material, positions, forces)
+    }
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
+        stability::triangle_stiffness(self.mesh.tris(), self.mesh.rest(), &self.material, visit);
+    }
+}
