@@ -69,8 +69,8 @@ use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
 use super::mesh::{TetMesh, TetRestBlock, rest_block_count};
 use super::step::{
-    Collider, ExplicitMemory, ExplicitScratch, Ground, NewtonScratch, RelaxScratch, TetElastic,
-    VbdScratch, VbdTopology, newton_step, relax_step, stable_time_step, step_explicit,
+    Collider, ExplicitMemory, ExplicitScratch, Ground, NewtonScratch, RelaxScratch, Scene,
+    TetElastic, VbdScratch, VbdTopology, explicit_step, newton_step, relax_step, stable_time_step,
     vbd_layout_corners_len, vbd_layout_len, vbd_step,
 };
 use super::types::{Mat3, Real, Vec3};
@@ -714,17 +714,26 @@ impl<S: Storage, M: Material> Body<S, M> {
         Ok(dt)
     }
 
-    /// Advances the body by `dt` (s) with its [`Solver`]: kinematic vertices are moved to their
-    /// targets, then one call of the solver's stepper with the body's gravity and ground.
+    /// The scene of a step of `dt` (s) under the body's gravity and ground: what
+    /// [`step`](Self::step) runs, and where [`step_with`](Self::step_with) starts from to add
+    /// colliders, external forces or fixed axes for one step.
+    #[inline]
+    #[must_use]
+    pub fn scene(&self, dt: Real) -> Scene<'static, Vec3> {
+        let scene = Scene::new(dt).with_gravity(self.gravity);
+        match self.ground {
+            Some(ground) => scene.with_ground(ground),
+            None => scene,
+        }
+    }
+
+    /// Advances the body by `dt` (s) with its [`Solver`] under its gravity and ground:
+    /// [`step_with`](Self::step_with) of [`scene`](Self::scene)`(dt)`.
     ///
     /// # Errors
-    /// [`StepError::TimeStep`] if `dt` is not finite and positive, [`StepError::EmptyBody`] if
-    /// the body has no vertices (never built, or its last rebuild failed), [`StepError::Substeps`] if
-    /// the explicit solver's `stable_fraction` is not positive or asks for more than
-    /// [`MAX_SUBSTEPS`](super::step::MAX_SUBSTEPS) substeps (nothing touched in both cases), or the
-    /// stepper's error, with positions, velocities and targets restored bit for bit.
+    /// As [`step_with`](Self::step_with).
     pub fn step(&mut self, dt: Real) -> Result<StepReport, StepError> {
-        self.step_with_colliders(dt, &[])
+        self.step_with(&self.scene(dt))
     }
 
     /// [`step`](Self::step) with rigid `colliders` besides the ground (see [`Collider`]): the
@@ -748,13 +757,52 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// ```
     ///
     /// # Errors
-    /// As [`step`](Self::step), and [`StepError::Collider`] for a collider out of range
-    /// (nothing touched).
+    /// As [`step_with`](Self::step_with).
     pub fn step_with_colliders(
         &mut self,
         dt: Real,
         colliders: &[Collider<'_>],
     ) -> Result<StepReport, StepError> {
+        self.step_with(&self.scene(dt).with_colliders(colliders))
+    }
+
+    /// Advances the body by the scene's `dt` with its [`Solver`] in `scene`: kinematic vertices
+    /// are moved to their targets, then one call of the solver's stepper. The scene replaces
+    /// the body's gravity and ground for this step, and brings whatever else the step should
+    /// see, borrowed for this call only: colliders, external forces (N, one per vertex), fixed
+    /// axes, previous velocities.
+    ///
+    /// ```
+    /// use softfem::body::{Body, FixedStorage, Solver};
+    /// use softfem::{glam::Vec3, material::StableNeoHookean};
+    ///
+    /// let rubber = StableNeoHookean::from_young_poisson(1.0e6, 0.45)?; // Pa
+    /// let (low, high) = (Vec3::ZERO, Vec3::new(0.4, 0.1, 0.1)); // m
+    /// let mut body = Body::<FixedStorage<81, 160>, _>::from_box(low, high, [8, 2, 2], 1000.0, rubber)?;
+    /// body.set_solver(Solver::newton())?;
+    /// for (i, x) in body.rest_positions().to_vec().iter().enumerate() {
+    ///     body.set_pinned(i, x.x == 0.0)?; // clamp the end x = 0
+    /// }
+    /// // A tip load of 5 N in -y, spread over the vertices of the free end.
+    /// let tip: Vec<bool> = body.rest_positions().iter().map(|x| x.x > 0.39).collect();
+    /// let share = 5.0 / tip.iter().filter(|&&t| t).count() as f32;
+    /// let forces: Vec<Vec3> = tip.iter().map(|&t| if t { -Vec3::Y * share } else { Vec3::ZERO }).collect();
+    /// for _ in 0..30 {
+    ///     body.step_with(&body.scene(1.0 / 60.0).with_external_forces(&forces))?;
+    /// }
+    /// assert!(body.positions().iter().zip(&tip).all(|(x, &t)| !t || x.y < 0.0)); // bent down
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`StepError::TimeStep`] if the scene's `dt` is not finite and positive,
+    /// [`StepError::EmptyBody`] if the body has no vertices (never built, or its last rebuild
+    /// failed), [`StepError::Substeps`] if the explicit solver's `stable_fraction` is not
+    /// positive or asks for more than [`MAX_SUBSTEPS`](super::step::MAX_SUBSTEPS) substeps
+    /// (nothing touched in these cases), or the stepper's error (a scene out of range included),
+    /// with positions, velocities and targets restored bit for bit.
+    pub fn step_with(&mut self, scene: &Scene<'_, Vec3>) -> Result<StepReport, StepError> {
+        let dt = scene.dt;
         if !(dt > 0.0 && dt.is_finite()) {
             return Err(StepError::TimeStep);
         }
@@ -770,7 +818,7 @@ impl<S: Storage, M: Material> Body<S, M> {
             _ => 1,
         };
         self.move_kinematic(dt);
-        let outcome = self.run_solver(dt, substeps, colliders);
+        let outcome = self.run_solver(scene, substeps);
         self.settle_kinematic(outcome.is_ok());
         outcome
     }
@@ -819,12 +867,11 @@ impl<S: Storage, M: Material> Body<S, M> {
         }
     }
 
-    /// One call of the solver's stepper.
+    /// One call of the solver's stepper in `scene` (the explicit one in `substeps` substeps).
     fn run_solver(
         &mut self,
-        dt: Real,
+        scene: &Scene<'_, Vec3>,
         substeps: u32,
-        colliders: &[Collider<'_>],
     ) -> Result<StepReport, StepError> {
         let n = self.vertex_count();
         let mesh = mesh_over(
@@ -837,52 +884,37 @@ impl<S: Storage, M: Material> Body<S, M> {
         let model = TetElastic::new(mesh, self.material);
         let (masses, pinned) = (self.masses.slice(), self.pinned.slice());
         let (x, v) = (self.positions.slice_mut(), self.velocities.slice_mut());
-        let (gravity, ground) = (self.gravity, self.ground);
         let vectors = self.vectors.slice_mut();
         match self.solver {
             Solver::Explicit { settings, .. } => {
-                let mut settings = settings.with_colliders(colliders);
-                settings.dt = dt;
-                settings.substeps = substeps;
-                settings.gravity = gravity;
-                settings.ground = ground;
+                let settings = settings.with_substeps(substeps);
                 let buffer = vectors.get_mut(..n.saturating_mul(4)).unwrap_or(&mut []);
                 let mut scratch = ExplicitScratch::resume(buffer, self.explicit_memory);
-                let outcome = step_explicit(&model, masses, pinned, &settings, x, v, &mut scratch);
+                let outcome =
+                    explicit_step(&model, masses, pinned, scene, &settings, x, v, &mut scratch);
                 self.explicit_memory = scratch.memory();
                 outcome.map(StepReport::Explicit)
             }
             Solver::Relax(settings) => {
-                let mut settings = settings.with_colliders(colliders);
-                settings.dt = dt;
-                settings.gravity = gravity;
-                settings.ground = ground;
                 let buffer = vectors.get_mut(..n.saturating_mul(5)).unwrap_or(&mut []);
                 let mut scratch = RelaxScratch::resume(
                     buffer,
                     self.scalars.slice_mut(),
                     self.preconditioner_ready,
                 );
-                let outcome = relax_step(&model, masses, pinned, &settings, x, v, &mut scratch);
+                let outcome =
+                    relax_step(&model, masses, pinned, scene, &settings, x, v, &mut scratch);
                 self.preconditioner_ready = scratch.stiffness_ready();
                 outcome.map(StepReport::Relax)
             }
             Solver::Newton(settings) => {
-                let mut settings = settings.with_colliders(colliders);
-                settings.dt = dt;
-                settings.gravity = gravity;
-                settings.ground = ground;
                 let buffer = vectors.get_mut(..n.saturating_mul(9)).unwrap_or(&mut []);
                 let mut scratch =
                     NewtonScratch::new(buffer, self.blocks.slice_mut(), self.hessians.slice_mut());
-                newton_step(&model, masses, pinned, &settings, x, v, &mut scratch)
+                newton_step(&model, masses, pinned, scene, &settings, x, v, &mut scratch)
                     .map(StepReport::Newton)
             }
             Solver::Vbd(settings) => {
-                let mut settings = settings.with_colliders(colliders);
-                settings.dt = dt;
-                settings.gravity = gravity;
-                settings.ground = ground;
                 let buffer = vectors.get_mut(..n.saturating_mul(5)).unwrap_or(&mut []);
                 let mut scratch =
                     VbdScratch::resume(buffer, self.indices.slice_mut(), self.topology);
@@ -891,7 +923,8 @@ impl<S: Storage, M: Material> Body<S, M> {
                     let corners = self.layout_corners.slice_mut();
                     scratch = scratch.resume_layout(values, corners, self.layout_built);
                 }
-                let outcome = vbd_step(&model, masses, pinned, &settings, x, v, &mut scratch);
+                let outcome =
+                    vbd_step(&model, masses, pinned, scene, &settings, x, v, &mut scratch);
                 self.topology = scratch.topology();
                 self.layout_built = scratch.layout_built();
                 outcome.map(StepReport::Vbd)

@@ -1,28 +1,27 @@
 //! Which stepper a [`Body`](super::Body) runs, with its settings, and what a step reports.
 
+#[allow(unused_imports)] // `Scene` is named by the documentation only.
 use super::super::step::{
     ExplicitReport, ExplicitSettings, NewtonReport, NewtonSettings, RelaxReport, RelaxSettings,
-    VbdReport, VbdSettings,
+    Scene, VbdReport, VbdSettings,
 };
-use super::super::types::{Real, Vec3};
+use super::super::types::Real;
 
 /// The stepper of a [`Body`](super::Body) and its settings.
 ///
-/// The settings' own `dt`, `gravity`, `ground` and `colliders` fields are ignored: every step
-/// uses the `dt` given to [`Body::step`](super::Body::step) and the body's
-/// [`gravity`](super::Body::set_gravity) and [`ground`](super::Body::set_ground), and the
-/// colliders given to [`Body::step_with_colliders`](super::Body::step_with_colliders). Every other
-/// field (damping, tolerances, budgets, accelerations, and whatever the settings types gain)
-/// is passed on as it is. The settings borrow for `'static`: per-vertex external forces and
-/// per-axis constraints (`with_external_forces`, `with_fixed_axes`) reach a body only from
-/// `'static` buffers for now.
+/// The settings say how a step is solved (damping, substeps, tolerances, budgets,
+/// accelerations) and borrow nothing; what a step acts on is the [`Scene`] of each step: the
+/// `dt` given to [`Body::step`](super::Body::step) with the body's
+/// [`gravity`](super::Body::set_gravity) and [`ground`](super::Body::set_ground), or any scene
+/// given to [`Body::step_with`](super::Body::step_with) (colliders, external forces, fixed
+/// axes, borrowed for that step only).
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
 pub enum Solver {
-    /// Explicit symplectic Euler ([`step_explicit`](super::super::step::step_explicit)).
+    /// Explicit symplectic Euler ([`explicit_step`](super::super::step::explicit_step)).
     Explicit {
         /// Damping, growth limit and the substeps when `stable_fraction` is `None`.
-        settings: ExplicitSettings<'static, Vec3>,
+        settings: ExplicitSettings,
         /// `Some(f)`: each step of `dt` takes the fewest substeps (at least
         /// `settings.substeps`) of at most `f` times the body's
         /// [`stable_time_step`](super::Body::stable_time_step), computed once and cached until
@@ -32,12 +31,12 @@ pub enum Solver {
     },
     /// Implicit Euler by preconditioned descent ([`relax_step`](super::super::step::relax_step));
     /// the preconditioner is kept across steps.
-    Relax(RelaxSettings<'static, Vec3>),
+    Relax(RelaxSettings),
     /// Implicit Euler by Newton's method ([`newton_step`](super::super::step::newton_step)).
-    Newton(NewtonSettings<'static, Vec3>),
+    Newton(NewtonSettings),
     /// Implicit Euler by Vertex Block Descent ([`vbd_step`](super::super::step::vbd_step)); the
     /// adjacency and colouring are kept across steps.
-    Vbd(VbdSettings<'static>),
+    Vbd(VbdSettings),
 }
 
 impl Solver {
@@ -46,7 +45,7 @@ impl Solver {
     #[must_use]
     pub const fn explicit() -> Solver {
         Solver::Explicit {
-            settings: ExplicitSettings::new(1.0),
+            settings: ExplicitSettings::new(),
             stable_fraction: Some(0.5),
         }
     }
@@ -55,14 +54,14 @@ impl Solver {
     #[inline]
     #[must_use]
     pub fn relax() -> Solver {
-        Solver::Relax(RelaxSettings::new(1.0))
+        Solver::Relax(RelaxSettings::new())
     }
 
     /// Newton's method with the defaults of [`NewtonSettings::new`].
     #[inline]
     #[must_use]
     pub fn newton() -> Solver {
-        Solver::Newton(NewtonSettings::new(1.0))
+        Solver::Newton(NewtonSettings::new())
     }
 
     /// Vertex Block Descent with the defaults of [`VbdSettings::new`] but the setting the
@@ -73,13 +72,13 @@ impl Solver {
     /// landing on the ground (60 steps of 1/60 s, one thread): 60 of 60 steps converged in
     /// 0.67 s (1346 sweeps, 0.50 ms a sweep with the evaluations between sweeps), where
     /// [`VbdSettings::new`]'s own defaults converged 37 in 15.5 s (4841 sweeps, 3.2 ms a sweep
-    /// with the line search in every one). `Solver::Vbd(VbdSettings::new(1.0))` gives those
+    /// with the line search in every one). `Solver::Vbd(VbdSettings::new())` gives those
     /// defaults.
     #[inline]
     #[must_use]
     pub fn vbd() -> Solver {
         Solver::Vbd(
-            VbdSettings::new(1.0)
+            VbdSettings::new()
                 .with_chebyshev(0.95, 2)
                 .with_line_search_on_increase(),
         )

@@ -211,6 +211,7 @@ mod descent;
 mod explicit;
 mod loads;
 mod model;
+mod scene;
 pub(crate) mod state;
 pub(crate) mod vertex_pass;
 
@@ -221,31 +222,34 @@ pub use super::mesh::adjacency::{
 };
 pub use contact::{Collider, Ground, SUGGESTED_STICKING_SPEED, Shape, SignedDistance};
 pub use descent::newton::{
-    FLOOR_FACTOR, NewtonReport, NewtonScratch, NewtonScratchLen, NewtonSettings,
-    newton_quasi_static, newton_scratch_len, newton_step,
+    FLOOR_FACTOR, NewtonDetails, NewtonOptions, NewtonReport, NewtonScratch, NewtonScratchLen,
+    NewtonSettings, newton_quasi_static, newton_scratch_len, newton_step,
 };
 pub use descent::relax::{
-    MAX_ESTIMATED_RELAX_RHO, RelaxReport, RelaxScratch, RelaxSettings,
+    MAX_ESTIMATED_RELAX_RHO, RelaxOptions, RelaxReport, RelaxScratch, RelaxSettings,
     gradient_descent_quasi_static, gradient_descent_step, relax_quasi_static, relax_scratch_len,
     relax_step,
 };
+pub use descent::settings::{DescentReport, DescentSettings};
 pub use descent::vbd::{
-    MAX_ESTIMATED_RHO, VbdReport, VbdScratch, VbdSettings, vbd_index_scratch_len,
-    vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static, vbd_scratch_len, vbd_step,
+    MAX_ESTIMATED_RHO, VbdDetails, VbdOptions, VbdReport, VbdScratch, VbdSettings,
+    vbd_index_scratch_len, vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static,
+    vbd_scratch_len, vbd_step,
 };
 #[cfg(feature = "rayon")]
 pub use descent::vbd::{vbd_quasi_static_parallel, vbd_step_parallel};
 pub use explicit::{
     DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, FLIP_GROWTH,
     FLIP_STREAK, FREQUENCY_MARGIN, FrequencyEstimate, MAX_SUBSTEPS, element_stable_time_step,
-    estimate_max_frequency, explicit_scratch_len, frequency_scratch_len, linearised_moduli,
-    stable_time_step, step_explicit,
+    estimate_max_frequency, explicit_scratch_len, explicit_step, frequency_scratch_len,
+    linearised_moduli, stable_time_step,
 };
 pub use loads::{FIXED_X, FIXED_Y, FIXED_Z};
 pub use model::{
     ElasticEnergy, ElasticHessian, ElasticModel, MembraneElastic, TetClamped, TetElastic,
     TriElastic,
 };
+pub use scene::Scene;
 pub use vertex_pass::{InOrder, Join, VERTEX_BLOCK, VertexPass};
 
 // The owning body keeps what the scratch views remember between steps.

@@ -41,6 +41,7 @@ pub(crate) mod line_search;
 pub(crate) mod newton;
 pub(crate) mod objective;
 pub(crate) mod relax;
+pub(crate) mod settings;
 pub(crate) mod stopping;
 pub(crate) mod vbd;
 
@@ -54,11 +55,13 @@ use super::contact::floor::Floor;
 use super::contact::friction::{Friction, Lag};
 use super::loads::Loads;
 use super::model::{ElasticEnergy, ElasticModel};
+use super::scene::Scene;
+use super::state::check_length;
 use super::state::{first_non_finite, pinned_flags};
 use super::vertex_pass::passes::{Frames, TrialPoint, Vertices, split_trial_pass};
 use super::vertex_pass::point::Grouped;
 use super::vertex_pass::{Blocks, Total};
-use crate::error::StepError;
+use crate::error::{StepBuffer, StepError};
 use chebyshev::{Acceleration, AccelerationSettings};
 use line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
 use objective::{Evaluation, Objective, implicit_velocity};
@@ -154,13 +157,6 @@ pub(crate) trait Direction<F: ElasticEnergy> {
         false
     }
 
-    /// The previous step's velocities `v_(n-1)` (one per vertex) if the solver was given them:
-    /// the loop's second initial guess is then [`Objective::adaptive_guess`] instead of `y`.
-    /// `None` (the default) for none.
-    fn previous_velocities(&self) -> Option<&[F::Vector]> {
-        None
-    }
-
     /// After [`extrapolate`](Self::extrapolate): an estimate (N) of the residual at the iterate
     /// the trial was extrapolated from, formed by the trial's own work (VBD's Gauss–Seidel
     /// residual), or `None` (the default). With an estimate the loop may accept accelerated
@@ -250,6 +246,74 @@ pub(crate) struct Problem<'p, F: ElasticEnergy> {
     pub loads: Loads<'p, F::Vector>,
     /// `h` (s), or `None` in the quasi-static mode.
     pub dt: Option<Real>,
+    /// The previous step's velocities, checked, when the step has inertia and the scene gives
+    /// them: the loop's second initial guess is then [`Objective::adaptive_guess`] instead of
+    /// `y`.
+    pub previous_velocities: Option<&'p [F::Vector]>,
+}
+
+impl<'p, F: ElasticEnergy> Problem<'p, F> {
+    /// The problem of `model` in `scene` (validated: `ground` is its ground with a unit normal,
+    /// `previous_velocities` its checked previous velocities, see [`checked_scene`]),
+    /// with inertia (a step of the scene's `dt`) or without (`dynamic` false: quasi-static).
+    pub fn new(
+        (model, masses, pinned): (&'p F, &'p [Real], &'p [bool]),
+        stiffness: &'p [Real],
+        scene: &'p Scene<'p, F::Vector>,
+        ground: Option<Ground<F::Vector>>,
+        previous_velocities: Option<&'p [F::Vector]>,
+        dynamic: bool,
+    ) -> Self {
+        Problem {
+            model,
+            masses,
+            pinned,
+            stiffness,
+            gravity: scene.gravity,
+            ground,
+            colliders: scene.colliders,
+            loads: scene.loads(),
+            dt: dynamic.then_some(scene.dt),
+            previous_velocities,
+        }
+    }
+}
+
+/// The scene's checks for a solve of `vertex_count` vertices, the time step only with inertia
+/// (`dynamic`): [`Scene::validated`] (or [`Scene::validated_static`]); returns the ground with
+/// a unit normal.
+pub(crate) fn validated_scene<V: Vector>(
+    scene: &Scene<'_, V>,
+    dynamic: bool,
+) -> Result<Option<Ground<V>>, StepError> {
+    if dynamic {
+        scene.validated()
+    } else {
+        scene.validated_static()
+    }
+}
+
+/// The scene's per-vertex buffers against `vertex_count`: the loads, and with inertia
+/// (`dynamic`; they matter nowhere else) the previous velocities, which it returns when given.
+///
+/// # Errors
+/// [`StepError::LengthMismatch`], [`StepError::ExternalForce`], [`StepError::FixedAxes`],
+/// and [`StepError::NonFiniteInput`] for the first non-finite previous velocity.
+pub(crate) fn checked_scene<'s, V: Vector>(
+    scene: &Scene<'s, V>,
+    vertex_count: usize,
+    dynamic: bool,
+) -> Result<Option<&'s [V]>, StepError> {
+    scene.loads().check(vertex_count)?;
+    let previous = scene.previous_velocities;
+    if !dynamic || previous.is_empty() {
+        return Ok(None);
+    }
+    check_length(StepBuffer::PreviousVelocities, vertex_count, previous.len())?;
+    match previous.iter().position(|v| !v.is_finite()) {
+        Some(vertex) => Err(StepError::NonFiniteInput { vertex }),
+        None => Ok(Some(previous)),
+    }
 }
 
 /// The loop's vector scratch, one entry per vertex each (lengths checked by the solver).
@@ -417,6 +481,7 @@ pub(crate) fn solve<F: ElasticEnergy, D: Direction<F>>(
         loads: problem.loads,
         friction,
         velocity_friction: velocity_friction(ground.as_ref(), colliders),
+        previous_velocities: problem.previous_velocities,
     };
     let buffers = Buffers {
         gradient,
@@ -662,7 +727,7 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     let mut energy_evaluations = 1;
     let translated = drop != F::Vector::ZERO
         && evaluation.phi.is_finite()
-        && rule.previous_velocities().is_none()
+        && objective.previous_velocities.is_none()
         && objective.translation_invariant()
         && !objective.touches_ground(drop);
     if drop != F::Vector::ZERO && !translated {
@@ -672,7 +737,7 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
         };
         // With the previous velocities, the adaptive guess (between y and y + h^2 g, vertex
         // by vertex) takes the place of y.
-        match rule.previous_velocities() {
+        match objective.previous_velocities {
             Some(previous) => objective.adaptive_guess(second, previous),
             None => objective.initial_guess(second, F::Vector::ZERO),
         }

@@ -45,6 +45,9 @@ pub(crate) struct Objective<'p, F: ElasticEnergy> {
     /// [`rigid_guess`](Self::rigid_guess) where the solver asks for it, as a start (VBD) or
     /// as the scale of the relative residual target (the relaxation).
     pub velocity_friction: bool,
+    /// The previous step's velocities, when given: the loop's second initial guess is then
+    /// [`adaptive_guess`](Self::adaptive_guess) instead of `y`.
+    pub previous_velocities: Option<&'p [F::Vector]>,
 }
 
 impl<F: ElasticEnergy> Objective<'_, F> {

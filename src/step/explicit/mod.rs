@@ -12,10 +12,9 @@ use super::super::lanes_avx2::Avx2Lanes;
 use super::super::lanes_avx512::Avx512Lanes;
 use super::super::types::Real;
 use super::contact::Ground;
-use super::contact::collider::{Collider, check_colliders};
 use super::descent::line_search::copy;
-use super::loads::Loads;
 use super::model::ElasticModel;
+use super::scene::Scene;
 use super::state::{check_length, pinned_flags};
 use super::vertex_pass::Blocks;
 use super::vertex_pass::passes::{free_lanes, load_scalars, split_check_state};
@@ -36,12 +35,12 @@ pub use stability::{element_stable_time_step, linearised_moduli, stable_time_ste
 /// the critical step, multiplies it by about `(4 k^2 - 2)^2` per step: 1156 at 3x.
 pub const DEFAULT_ENERGY_GROWTH: Real = 100.0;
 
-/// The most substeps one [`step_explicit`] call takes: `65536`. More is refused with
+/// The most substeps one [`explicit_step`] call takes: `65536`. More is refused with
 /// [`StepError::Substeps`] before anything runs (a call of `u32::MAX` substeps would otherwise
 /// run for hours without a chance to stop it); take several calls instead.
 pub const MAX_SUBSTEPS: u32 = 1 << 16;
 
-/// The length of the scratch buffer [`step_explicit`] needs for `vertex_count` vertices:
+/// The length of the scratch buffer [`explicit_step`] needs for `vertex_count` vertices:
 /// `4 * vertex_count` (the forces of this substep and of the one before, for the blow-up
 /// detector, and a backup of the positions and velocities). Saturates at `usize::MAX` for
 /// counts whose product does not fit (no such buffer can exist, so the stepper's length check
@@ -55,72 +54,50 @@ pub const fn explicit_scratch_len(vertex_count: usize) -> usize {
 /// The growth factor of the early blow-up test: a substep whose elastic forces `f_n` satisfy
 /// `<f_n, f_(n-1)> < -FLIP_GROWTH |f_(n-1)|^2` (mass-weighted: reversed and at least this much
 /// larger than the last substep's) counts as one step of the unstable mode; see
-/// [`step_explicit`].
+/// [`explicit_step`].
 pub const FLIP_GROWTH: Real = 1.5;
 
 /// The number of consecutive substeps that must pass the [`FLIP_GROWTH`] test for
-/// [`step_explicit`] to report [`StepError::EnergyBlowUp`].
+/// [`explicit_step`] to report [`StepError::EnergyBlowUp`].
 pub const FLIP_STREAK: u32 = 3;
 
-/// The parameters of one [`step_explicit`] call.
+/// How [`explicit_step`] integrates a step: its substeps, damping and the blow-up detector's
+/// limit. What the step acts on (the time step, gravity, the ground, colliders, loads) is the
+/// [`Scene`]. Borrows nothing, so a body keeps it.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ExplicitSettings<'a, V> {
-    /// The time step (s) of the whole call, split into `substeps` equal substeps. Must be finite
-    /// and positive; for stability each substep must stay below
+pub struct ExplicitSettings {
+    /// The number of equal substeps the scene's `dt` is split into (at least 1, at most
+    /// [`MAX_SUBSTEPS`]); for stability each substep must stay below
     /// [`stable_time_step`](super::stable_time_step).
-    pub dt: Real,
-    /// The number of substeps (at least 1, at most [`MAX_SUBSTEPS`]).
     pub substeps: u32,
-    /// The gravitational acceleration (m/s^2), e.g. `(0, -9.81, 0)`.
-    pub gravity: V,
     /// Mass-proportional damping `c >= 0` (1/s): each substep, after the force update,
     /// `v <- v / (1 + c h)`, a backward-Euler drag `dv/dt = -c v` that is stable for every `c`
     /// and `h`. Velocities relax with time constant about `1/c`.
     pub damping: Real,
-    /// An optional ground half-space.
-    pub ground: Option<Ground<V>>,
-    /// Rigid colliders (empty, the default, for none): projection and friction as the
-    /// ground's, relative to each collider's surface velocity; see [`Collider`].
-    pub colliders: &'a [Collider<'a>],
     /// The blow-up detector's limit (> 1): a substep whose energy indicator exceeds this factor
     /// times the previous substep's is refused with [`StepError::EnergyBlowUp`]. See
     /// [`DEFAULT_ENERGY_GROWTH`].
     pub max_energy_growth: Real,
-    /// External forces (N), one per vertex, or empty (the default) for none: constant loads
-    /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
-    /// `- sum f_ext . (x - x_n)`. Ignored at pinned vertices and along fixed axes. Checked
-    /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
-    pub external_forces: &'a [V],
-    /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
-    /// ([`FIXED_X`](super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
-    /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
-    /// bits (its velocity component is zeroed).
-    pub fixed_axes: &'a [u8],
 }
 
-impl<'a, V: Vector> ExplicitSettings<'a, V> {
-    /// One substep of `dt` (s), no gravity, damping or ground, the default growth limit.
+impl Default for ExplicitSettings {
+    /// As [`ExplicitSettings::new`].
+    #[inline]
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ExplicitSettings {
+    /// One substep, no damping, the default growth limit.
     #[inline]
     #[must_use]
-    pub const fn new(dt: Real) -> Self {
+    pub const fn new() -> Self {
         ExplicitSettings {
-            external_forces: &[],
-            fixed_axes: &[],
-            dt,
             substeps: 1,
-            gravity: V::ZERO,
             damping: 0.0,
-            ground: None,
-            colliders: &[],
             max_energy_growth: DEFAULT_ENERGY_GROWTH,
         }
-    }
-
-    /// These settings with gravity `gravity` (m/s^2).
-    #[inline]
-    #[must_use]
-    pub fn with_gravity(self, gravity: V) -> Self {
-        ExplicitSettings { gravity, ..self }
     }
 
     /// These settings with damping `damping` (1/s).
@@ -130,23 +107,6 @@ impl<'a, V: Vector> ExplicitSettings<'a, V> {
         ExplicitSettings { damping, ..self }
     }
 
-    /// These settings with `ground`.
-    #[inline]
-    #[must_use]
-    pub fn with_ground(self, ground: Ground<V>) -> Self {
-        ExplicitSettings {
-            ground: Some(ground),
-            ..self
-        }
-    }
-
-    /// These settings with `colliders` (see [`Collider`]; checked by the step).
-    #[inline]
-    #[must_use]
-    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
-        ExplicitSettings { colliders, ..self }
-    }
-
     /// These settings with `substeps` substeps per call.
     #[inline]
     #[must_use]
@@ -154,38 +114,25 @@ impl<'a, V: Vector> ExplicitSettings<'a, V> {
         ExplicitSettings { substeps, ..self }
     }
 
-    /// These settings with external forces `forces` (N, one per vertex; see
-    /// [`external_forces`](Self::external_forces)).
-    #[inline]
-    #[must_use]
-    pub fn with_external_forces<'b>(self, forces: &'b [V]) -> ExplicitSettings<'b, V>
-    where
-        'a: 'b,
-    {
-        let shorter: ExplicitSettings<'b, V> = self;
-        ExplicitSettings {
-            external_forces: forces,
-            ..shorter
+    /// Checks the settings.
+    ///
+    /// # Errors
+    /// [`StepError::Substeps`], [`StepError::Damping`], [`StepError::GrowthLimit`].
+    fn check(&self) -> Result<(), StepError> {
+        if self.substeps == 0 || self.substeps > MAX_SUBSTEPS {
+            return Err(StepError::Substeps);
         }
-    }
-
-    /// These settings with per-vertex fixed-axis masks `fixed_axes` (see
-    /// [`fixed_axes`](Self::fixed_axes)).
-    #[inline]
-    #[must_use]
-    pub fn with_fixed_axes<'b>(self, fixed_axes: &'b [u8]) -> ExplicitSettings<'b, V>
-    where
-        'a: 'b,
-    {
-        let shorter: ExplicitSettings<'b, V> = self;
-        ExplicitSettings {
-            fixed_axes,
-            ..shorter
+        if !(self.damping >= 0.0 && self.damping.is_finite()) {
+            return Err(StepError::Damping);
         }
+        if self.max_energy_growth.is_nan() || self.max_energy_growth <= 1.0 {
+            return Err(StepError::GrowthLimit);
+        }
+        Ok(())
     }
 }
 
-/// Scratch space of [`step_explicit`] over a caller buffer of
+/// Scratch space of [`explicit_step`] over a caller buffer of
 /// [`explicit_scratch_len`]`(vertex_count)` vectors, and the blow-up detector's memory of the
 /// last substeps.
 ///
@@ -219,7 +166,7 @@ struct History {
 }
 
 impl<'a, V: Vector> ExplicitScratch<'a, V> {
-    /// Scratch over `buffer` (its length is checked by [`step_explicit`]).
+    /// Scratch over `buffer` (its length is checked by [`explicit_step`]).
     #[inline]
     #[must_use]
     pub fn new(buffer: &'a mut [V]) -> Self {
@@ -287,7 +234,7 @@ impl<'a, V: Vector> ExplicitScratch<'a, V> {
     }
 }
 
-/// What one [`step_explicit`] call did.
+/// What one [`explicit_step`] call did.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ExplicitReport {
@@ -299,13 +246,14 @@ pub struct ExplicitReport {
     pub ground_contacts: usize,
 }
 
-/// Advances `positions` (m) and `velocities` (m/s) by `settings.dt` with symplectic Euler
+/// Advances `positions` (m) and `velocities` (m/s) by the scene's `dt` with symplectic Euler
 /// (`docs/math.md` section 4), in `settings.substeps` substeps of `h = dt / substeps`, each:
 ///
 /// 1. `f = ` the elastic forces of `model` at `x` (N);
 /// 2. `v <- (v + h (f / m + g)) / (1 + c h)` (gravity `g`, damping `c`);
 /// 3. `x <- x + h v`;
-/// 4. ground contact ([`Ground`]): projection, restitution, friction.
+/// 4. contact with the scene's ground ([`Ground`]) and colliders: projection, restitution,
+///    friction.
 ///
 /// Pinned vertices (`pinned[i]`; an empty slice pins nothing) keep their position and velocity
 /// exactly. `masses` (kg) are lumped masses, one per vertex.
@@ -349,8 +297,8 @@ pub struct ExplicitReport {
 /// use softfem::material::StableNeoHookean;
 /// use softfem::mesh::TetMesh;
 /// use softfem::step::{
-///     ExplicitScratch, ExplicitSettings, Ground, TetElastic, explicit_scratch_len,
-///     stable_time_step, step_explicit,
+///     ExplicitScratch, ExplicitSettings, Ground, Scene, TetElastic, explicit_scratch_len,
+///     explicit_step, stable_time_step,
 /// };
 ///
 /// // One tetrahedron dropped from 1 cm onto the ground y = 0.
@@ -364,24 +312,24 @@ pub struct ExplicitReport {
 ///
 /// let mut stiffness = [0.0; 4];
 /// let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness)?;
-/// let settings = ExplicitSettings::new(dt)
+/// let scene = Scene::new(dt)
 ///     .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-///     .with_damping(5.0)
 ///     .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+/// let settings = ExplicitSettings::new().with_damping(5.0);
 /// let (mut x, mut v) = (rest, [Vec3::ZERO; 4]);
 /// let mut buffer = [Vec3::ZERO; explicit_scratch_len(4)];
 /// let mut scratch = ExplicitScratch::new(&mut buffer);
 /// for _ in 0..(0.5 / dt) as usize {
-///     step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch)?;
+///     explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch)?;
 /// }
 /// assert!(x.iter().all(|p| p.y > -1e-6)); // on the ground, not in it
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 ///
 /// # Errors
-/// Before anything is touched: [`StepError::TimeStep`], [`StepError::Substeps`],
-/// [`StepError::Gravity`], [`StepError::Damping`], [`StepError::GrowthLimit`], the ground's
-/// [`StepError::Ground`], [`StepError::Restitution`], [`StepError::Friction`], then
+/// Before anything is touched: the scene's errors ([`Scene::validated`]: the time step, gravity,
+/// colliders, the ground), then [`StepError::Substeps`], [`StepError::Damping`],
+/// [`StepError::GrowthLimit`], then
 /// [`StepError::LengthMismatch`] (positions, velocities, masses, pinned, scratch),
 /// [`StepError::Mass`] and [`StepError::NonFiniteInput`] (first vertex). After a substep:
 /// [`StepError::EnergyBlowUp`] (also for positions of its own making that the kernel finds
@@ -389,23 +337,22 @@ pub struct ExplicitReport {
 /// [`StepError::NonFiniteState`] (first vertex), or a [`StepError::Mesh`] from the kernel (the
 /// clamp threshold, the caller's positions beyond the material's range) or a custom model, with
 /// the state restored.
-pub fn step_explicit<F: ElasticModel>(
+#[allow(clippy::too_many_arguments)]
+pub fn explicit_step<F: ElasticModel>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &ExplicitSettings<'_, F::Vector>,
+    scene: &Scene<'_, F::Vector>,
+    settings: &ExplicitSettings,
     positions: &mut [F::Vector],
     velocities: &mut [F::Vector],
     scratch: &mut ExplicitScratch<'_, F::Vector>,
 ) -> Result<ExplicitReport, StepError> {
     let n = model.vertex_count();
-    let ground = validate(settings)?;
+    let ground = scene.validated()?;
+    settings.check()?;
     split_check_state(model, masses, pinned, positions, Some(velocities))?;
-    let loads = Loads {
-        forces: settings.external_forces,
-        fixed_axes: settings.fixed_axes,
-    };
-    loads.check(n)?;
+    scene.loads().check(n)?;
     check_length(
         StepBuffer::Scratch,
         explicit_scratch_len(n),
@@ -426,7 +373,7 @@ pub fn step_explicit<F: ElasticModel>(
     );
     model.run_vertex_pass(Blocks::new(n, buffers, &save));
 
-    let h = settings.dt / settings.substeps as Real;
+    let h = scene.dt / settings.substeps as Real;
     if scratch.history.is_some_and(|history| history.h != h) {
         scratch.history = None;
     }
@@ -442,7 +389,7 @@ pub fn step_explicit<F: ElasticModel>(
             model,
             masses,
             pinned,
-            settings,
+            (scene, settings),
             ground.as_ref(),
             h,
             positions,
@@ -468,27 +415,6 @@ pub fn step_explicit<F: ElasticModel>(
     })
 }
 
-/// Checks the scalar settings; returns the ground with a unit normal.
-fn validate<V: Vector>(settings: &ExplicitSettings<'_, V>) -> Result<Option<Ground<V>>, StepError> {
-    if !(settings.dt > 0.0 && settings.dt.is_finite()) {
-        return Err(StepError::TimeStep);
-    }
-    if settings.substeps == 0 || settings.substeps > MAX_SUBSTEPS {
-        return Err(StepError::Substeps);
-    }
-    if !settings.gravity.is_finite() {
-        return Err(StepError::Gravity);
-    }
-    if !(settings.damping >= 0.0 && settings.damping.is_finite()) {
-        return Err(StepError::Damping);
-    }
-    if settings.max_energy_growth.is_nan() || settings.max_energy_growth <= 1.0 {
-        return Err(StepError::GrowthLimit);
-    }
-    check_colliders(settings.colliders, V::ALL_AXES == 0b111)?;
-    settings.ground.as_ref().map(Ground::validated).transpose()
-}
-
 /// One substep; returns the number of ground contacts and the kinetic energy (J) after it.
 /// `forces` receives the new forces; `previous_forces` holds those of the last accepted substep
 /// when `history` is `Some`. On an error the state may be half updated: the caller restores it.
@@ -497,7 +423,7 @@ fn substep<F: ElasticModel>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &ExplicitSettings<'_, F::Vector>,
+    (scene, settings): (&Scene<'_, F::Vector>, &ExplicitSettings),
     ground: Option<&Ground<F::Vector>>,
     h: Real,
     positions: &mut [F::Vector],
@@ -523,10 +449,11 @@ fn substep<F: ElasticModel>(
     // checked after the pass; a blow-up found then returns an error and the caller restores the
     // state, so updating first changes nothing the caller sees.
     let frame = Update {
-        settings,
+        scene,
+        damping: settings.damping,
         ground,
         h,
-        gravity_squared: settings.gravity.dot(settings.gravity),
+        gravity_squared: scene.gravity.dot(scene.gravity),
     };
     let update = |first, ((x, v), (f, previous, m, pinned)): Rows<'_, F::Vector>| {
         frame.block(first, (x, v), (f, previous, m, pinned))
@@ -575,7 +502,9 @@ type Rows<'r, V> = (State<'r, V>, (&'r [V], &'r [V], &'r [Real], &'r [bool]));
 
 /// What the update pass of a substep needs besides the buffers.
 struct Update<'s, 'a, V: Vector> {
-    settings: &'s ExplicitSettings<'a, V>,
+    scene: &'s Scene<'a, V>,
+    /// The settings' damping (1/s).
+    damping: Real,
     ground: Option<&'s Ground<V>>,
     h: Real,
     gravity_squared: Real,
@@ -611,14 +540,14 @@ impl<V: Vector> Update<'_, '_, V> {
         (positions, velocities): (&mut [V], &mut [V]),
         (forces, previous_forces, masses, pinned): (&[V], &[V], &[Real], &[bool]),
     ) -> ((Real, Real, Real), usize, Real, Option<usize>) {
-        let settings = self.settings;
+        let scene = self.scene;
         let kernel = UpdatePass {
             update: self,
             first,
             state: (positions, velocities),
             inputs: (forces, previous_forces, masses, pinned),
         };
-        let plain = settings.colliders.is_empty() && settings.fixed_axes.is_empty();
+        let plain = scene.colliders.is_empty() && scene.fixed_axes.is_empty();
         let tally = if plain {
             dispatch(kernel)
         } else {
@@ -645,14 +574,11 @@ impl<V: Vector> Update<'_, '_, V> {
         pinned: bool,
         tally: &mut Tally,
     ) {
-        let (settings, h) = (self.settings, self.h);
-        let gravity = settings.gravity;
-        let drag = 1.0 / (1.0 + settings.damping * h);
+        let (scene, h) = (self.scene, self.h);
+        let gravity = scene.gravity;
+        let drag = 1.0 / (1.0 + self.damping * h);
         let resting_speed = 2.0 * h * super::super::math::sqrt(self.gravity_squared);
-        let loads = Loads {
-            forces: settings.external_forces,
-            fixed_axes: settings.fixed_axes,
-        };
+        let loads = scene.loads();
         if !pinned {
             let inverse_mass = 1.0 / m;
             let f_squared = f.dot(*f) * inverse_mass;
@@ -674,9 +600,8 @@ impl<V: Vector> Update<'_, '_, V> {
                 *x = loads.keep_fixed(i, *x, before);
                 *v = loads.free_part(i, *v);
             }
-            if !settings.colliders.is_empty() {
-                tally.contacts +=
-                    V::resolve_colliders(settings.colliders, x, v, (resting_speed, h));
+            if !scene.colliders.is_empty() {
+                tally.contacts += V::resolve_colliders(scene.colliders, x, v, (resting_speed, h));
                 *x = loads.keep_fixed(i, *x, before);
                 *v = loads.free_part(i, *v);
             }
@@ -699,10 +624,10 @@ impl<V: Vector> Update<'_, '_, V> {
         (f, previous, m, pinned): (&[V], &[V], &[Real], &[bool]),
         tally: &mut Tally,
     ) {
-        let (settings, h) = (self.settings, self.h);
+        let (scene, h) = (self.scene, self.h);
         let splat = L::splat;
         let (zero, one) = (splat(0.0), splat(1.0));
-        let drag = splat(1.0 / (1.0 + settings.damping * h));
+        let drag = splat(1.0 / (1.0 + self.damping * h));
         let resting_speed = 2.0 * h * super::super::math::sqrt(self.gravity_squared);
         let (x, v) = (V::Wide::<L>::load(x_slot), V::Wide::<L>::load(v_slot));
         let (f, previous) = (V::Wide::<L>::load(f), V::Wide::<L>::load(previous));
@@ -715,9 +640,8 @@ impl<V: Vector> Update<'_, '_, V> {
             + splat(h * h) * f_squared / splat(8.0);
         let reversal = f.wide_inner(previous) * inverse_mass;
 
-        let mut acceleration =
-            f.wide_scale(one / m) + V::Wide::<L>::wide_splat(gravity_of(settings));
-        let external = settings.external_forces.get(i..).filter(|f| !f.is_empty());
+        let mut acceleration = f.wide_scale(one / m) + V::Wide::<L>::wide_splat(gravity_of(scene));
+        let external = scene.external_forces.get(i..).filter(|f| !f.is_empty());
         if let Some(external) = external {
             acceleration = acceleration + V::Wide::<L>::load(external).wide_scale(one / m);
         }
@@ -800,10 +724,10 @@ impl<V: Vector> Update<'_, '_, V> {
     }
 }
 
-/// The gravity of `settings`.
+/// The gravity of `scene`.
 #[inline(always)]
-fn gravity_of<V: Vector>(settings: &ExplicitSettings<'_, V>) -> V {
-    settings.gravity
+fn gravity_of<V: Vector>(scene: &Scene<'_, V>) -> V {
+    scene.gravity
 }
 
 /// One block of the update pass, at the width [`dispatch`] picks: whole groups of the widest

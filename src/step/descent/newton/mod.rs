@@ -5,19 +5,17 @@
 //!
 //! The algorithm and the stopping test are documented on [`newton_step`].
 
-use super::super::super::element::TetHessian;
-use super::super::super::types::{Mat3, Real, Vec3};
-use super::super::contact::collider::{Collider, check_colliders};
-use super::chebyshev::AccelerationSettings;
 mod cg;
 
-use super::super::super::element::Vector;
-use super::super::contact::Ground;
+use super::super::super::element::TetHessian;
+use super::super::super::types::{Mat3, Real, Vec3};
 use super::super::descent::{self, LoopSettings, Problem, Work};
-use super::super::loads::Loads;
 use super::super::model::ElasticHessian;
+use super::super::scene::Scene;
 use super::super::state::check_length;
 use super::super::vertex_pass::passes::split_check_state;
+use super::chebyshev::AccelerationSettings;
+use super::settings::{DescentReport, DescentSettings};
 use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
 use cg::{CgVectors, Newton};
@@ -74,108 +72,48 @@ impl<'a> NewtonScratch<'a> {
     }
 }
 
-/// The parameters of Newton's method.
+/// What only Newton's method has: the conjugate-gradient budget of its linear solves. The
+/// rest of [`NewtonSettings`] is shared with every implicit solver ([`DescentSettings`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct NewtonSettings<'a, V> {
-    /// The time step `h` (s) of [`newton_step`]; ignored by [`newton_quasi_static`]. Finite and
-    /// positive.
-    pub dt: Real,
-    /// The gravitational acceleration (m/s^2).
-    pub gravity: V,
-    /// An optional ground half-space: an active set in the linear solves, projection of the
-    /// trial points, friction on the velocity after the step or, opted in with a positive
-    /// [`Ground::sticking_speed`], in the objective with its tangent blocks in the linear solves (as
-    /// the relaxation, [`RelaxSettings::ground`](super::super::RelaxSettings::ground)).
-    pub ground: Option<Ground<V>>,
-    /// Rigid colliders (empty, the default, for none): projection and friction as the
-    /// ground's, relative to each collider's surface velocity; see [`Collider`].
-    pub colliders: &'a [Collider<'a>],
-    /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)`, the relaxation's
-    /// relative residual (in `[0, 1)`), or at the rounding floor (see the
-    /// [`newton_step`] documentation). Reachable: `1e-8` and below in f64; in f32 `1e-4` where a
-    /// step starts far from its solution, about `1e-3` of the load at best otherwise.
-    pub tolerance: Real,
-    /// The budget of Newton iterations (Hessian evaluations).
-    pub max_iterations: u32,
+pub struct NewtonOptions {
     /// The budget of conjugate-gradient iterations per Newton iteration (at least 1). The
     /// forcing term ends CG long before it on most steps; the budget only bounds the rest. Too
     /// small a budget is costly: on a slender 10 800-tet static cantilever, 200 CG iterations a
     /// Newton iteration left Newton unconverged after 50 iterations (truncated directions),
     /// where the default 2000 converged in 9 (1216 CG in all).
     pub max_cg_iterations: u32,
-    /// The Armijo constant `c` in `(0, 1)`.
-    pub armijo: Real,
-    /// The backtracking factor `beta` in `(0, 1)`.
-    pub backtrack: Real,
-    /// Rejections allowed per line search before the solve stops as stagnated.
-    pub max_backtracks: u32,
-    /// External forces (N), one per vertex, or empty (the default) for none: constant loads
-    /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
-    /// `- sum f_ext . (x - x_n)`. Ignored at pinned vertices and along fixed axes. Checked
-    /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
-    pub external_forces: &'a [V],
-    /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
-    /// ([`FIXED_X`](super::super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
-    /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
-    /// bits.
-    pub fixed_axes: &'a [u8],
 }
 
-impl<'a, V: Vector> NewtonSettings<'a, V> {
-    /// Time step `dt` (s), no gravity or ground, relative tolerance `1e-4`, 50 Newton and 2000
-    /// CG iterations, Armijo `c = 1e-4`, `beta = 0.5`, 30 backtracks.
+/// The settings of Newton's method ([`newton_step`], [`newton_quasi_static`]): the shared
+/// [`DescentSettings`] with [`NewtonOptions`]. The tolerance is reachable to `1e-8` and below
+/// in f64; in f32 to `1e-4` where a step starts far from its solution, about `1e-3` of the load
+/// at best otherwise (the rounding floor, see [`newton_step`]). The budget counts Newton
+/// iterations (Hessian evaluations).
+pub type NewtonSettings = DescentSettings<NewtonOptions>;
+
+impl Default for NewtonSettings {
+    /// As [`NewtonSettings::new`](DescentSettings::<NewtonOptions>::new).
+    #[inline]
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl DescentSettings<NewtonOptions> {
+    /// Relative tolerance `1e-4`, 50 Newton and 2000 CG iterations, Armijo `c = 1e-4`,
+    /// `beta = 0.5`, 30 backtracks.
     #[inline]
     #[must_use]
-    pub fn new(dt: Real) -> Self {
-        NewtonSettings {
-            external_forces: &[],
-            fixed_axes: &[],
-            dt,
-            gravity: V::ZERO,
-            ground: None,
-            colliders: &[],
+    pub const fn new() -> Self {
+        DescentSettings {
             tolerance: 1e-4,
             max_iterations: 50,
-            max_cg_iterations: 2000,
             armijo: 1e-4,
             backtrack: 0.5,
             max_backtracks: 30,
-        }
-    }
-
-    /// These settings with gravity `gravity` (m/s^2).
-    #[inline]
-    #[must_use]
-    pub fn with_gravity(self, gravity: V) -> Self {
-        NewtonSettings { gravity, ..self }
-    }
-
-    /// These settings with `ground`.
-    #[inline]
-    #[must_use]
-    pub fn with_ground(self, ground: Ground<V>) -> Self {
-        NewtonSettings {
-            ground: Some(ground),
-            ..self
-        }
-    }
-
-    /// These settings with `colliders` (see [`Collider`]; checked by the step).
-    #[inline]
-    #[must_use]
-    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
-        NewtonSettings { colliders, ..self }
-    }
-
-    /// These settings with relative tolerance `tolerance` and `max_iterations` Newton
-    /// iterations.
-    #[inline]
-    #[must_use]
-    pub fn with_tolerance(self, tolerance: Real, max_iterations: u32) -> Self {
-        NewtonSettings {
-            tolerance,
-            max_iterations,
-            ..self
+            options: NewtonOptions {
+                max_cg_iterations: 2000,
+            },
         }
     }
 
@@ -183,81 +121,44 @@ impl<'a, V: Vector> NewtonSettings<'a, V> {
     #[inline]
     #[must_use]
     pub fn with_cg_iterations(self, max_cg_iterations: u32) -> Self {
-        NewtonSettings {
-            max_cg_iterations,
+        DescentSettings {
+            options: NewtonOptions { max_cg_iterations },
             ..self
         }
     }
 
-    /// These settings with external forces `forces` (N, one per vertex; see
-    /// [`external_forces`](Self::external_forces)).
-    #[inline]
-    #[must_use]
-    pub fn with_external_forces<'b>(self, forces: &'b [V]) -> NewtonSettings<'b, V>
-    where
-        'a: 'b,
-    {
-        let shorter: NewtonSettings<'b, V> = self;
-        NewtonSettings {
-            external_forces: forces,
-            ..shorter
+    /// Checks the settings.
+    ///
+    /// # Errors
+    /// [`StepError::NewtonSettings`] unless the shared part is in range and the CG budget is
+    /// positive.
+    fn check(&self) -> Result<(), StepError> {
+        if !(self.shared_part_valid() && self.options.max_cg_iterations > 0) {
+            return Err(StepError::NewtonSettings);
         }
-    }
-
-    /// These settings with per-vertex fixed-axis masks `fixed_axes` (see
-    /// [`fixed_axes`](Self::fixed_axes)).
-    #[inline]
-    #[must_use]
-    pub fn with_fixed_axes<'b>(self, fixed_axes: &'b [u8]) -> NewtonSettings<'b, V>
-    where
-        'a: 'b,
-    {
-        let shorter: NewtonSettings<'b, V> = self;
-        NewtonSettings {
-            fixed_axes,
-            ..shorter
-        }
+        Ok(())
     }
 }
 
-/// What a Newton solve did.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// What only Newton's method counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct NewtonReport {
-    /// Accepted Newton iterations (each one Hessian evaluation, one SVD per element).
-    pub newton_iterations: u32,
+pub struct NewtonDetails {
     /// Conjugate-gradient iterations over all Newton iterations (each one Hessian product).
     pub cg_iterations: u32,
-    /// Evaluations of `Phi` and its gradient (fused energy-and-force passes), the initial
-    /// guess's included.
-    pub energy_evaluations: u32,
-    /// Line-search trials rejected by the Armijo test.
-    pub backtracks: u32,
-    /// `|grad Phi|` (N) at the initial guess, projected on the constraints.
-    pub initial_residual: Real,
-    /// `|grad Phi|` (N) at the result.
-    pub residual: Real,
-    /// The residual the tolerance asks for (N).
-    pub target: Real,
-    /// The estimated rounding floor of the residual (N) at the last Hessian evaluation (see
-    /// the [`newton_step`] documentation); 0 if no Newton iteration ran.
-    pub rounding_floor: Real,
-    /// `Phi` (J) at the result, with the gravity potential measured from the start positions.
-    pub phi: Real,
-    /// Whether the residual reached its target, or stagnated within [`FLOOR_FACTOR`] times
-    /// the estimated rounding floor.
-    pub converged: bool,
-    /// Whether the solve stopped because the residual stopped decreasing (rounding floor,
-    /// failed line search) rather than on the target or the budget.
-    pub stagnated: bool,
 }
 
-/// One implicit Euler step of `settings.dt` by Newton's method: minimises the incremental
+/// What a Newton solve did: the shared [`DescentReport`] with [`NewtonDetails`]. Its
+/// [`converged`](DescentReport::converged) also counts a stop at the rounding floor (see
+/// [`newton_step`]).
+pub type NewtonReport = DescentReport<NewtonDetails>;
+
+/// One implicit Euler step of the scene's `dt` by Newton's method: minimises the incremental
 /// potential `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`,
 /// the relaxation's objective ([`relax_step`](super::super::relax_step)), from the better of `y` and
 /// `y + h^2 g`; then `v = (x_{n+1} - x_n) / h` with Coulomb friction at the ground contacts.
 /// Pinned vertices keep position and velocity. Not converging within the budget is not an
-/// error ([`NewtonReport::converged`]).
+/// error ([`DescentReport::converged`]).
 ///
 /// # Algorithm
 /// At the iterate `x` with gradient `g = grad Phi(x)`:
@@ -286,15 +187,15 @@ pub struct NewtonReport {
 ///
 /// # Stopping and the rounding floor
 /// The solve stops when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` (the
-/// relaxation's test, [`NewtonSettings::tolerance`]). Below some level the residual is
+/// relaxation's test, [`DescentSettings::tolerance`]). Below some level the residual is
 /// rounding: every coordinate is only known to `eps |x| / 2`, and through the stiffness that
 /// uncertainty is a force, so no representable `x` has a smaller residual than about
 /// `|K| eps |x| / 2` (plus the rounding of the stresses, `eps mu A` per vertex, `A` a face).
 /// Newton's method measures the estimate `eps/2 max|x| (sum_i |B_i|_F^2)^(1/2)`
-/// ([`NewtonReport::rounding_floor`], `B_i` the diagonal blocks of `A` at the free vertices;
+/// ([`DescentReport::rounding_floor`], `B_i` the diagonal blocks of `A` at the free vertices;
 /// from above, measured 1.5-5x the residual where solves stall) and, when two steps in a row
 /// fail to halve the residual while it is within [`FLOOR_FACTOR`] times that floor, stops
-/// there ([`NewtonReport::stagnated`]) and counts the solve as converged: the answer is as good
+/// there ([`DescentReport::stagnated`]) and counts the solve as converged: the answer is as good
 /// as the precision allows. A failed line search or a direction that is not downhill also
 /// stops the solve as stagnated, converged only within the same bound. A tolerance below the
 /// floor thus costs a few iterations and says so, instead of burning the budget.
@@ -312,7 +213,7 @@ pub struct NewtonReport {
 /// use softfem::glam::{Mat3, Vec3};
 /// use softfem::material::StableNeoHookean;
 /// use softfem::mesh::TetMesh;
-/// use softfem::step::{NewtonScratch, NewtonSettings, TetElastic, newton_scratch_len, newton_step};
+/// use softfem::step::{NewtonScratch, NewtonSettings, Scene, TetElastic, newton_scratch_len, newton_step};
 ///
 /// // A tetrahedron hanging from three pinned corners sags under gravity.
 /// let rest = [Vec3::ZERO, Vec3::X, Vec3::Z, -Vec3::Y].map(|x| x * 0.1);
@@ -323,7 +224,8 @@ pub struct NewtonReport {
 /// let mut masses = [0.0; 4];
 /// mesh.lumped_masses(1000.0, &mut masses)?;
 /// let pinned = [true, true, true, false];
-/// let settings = NewtonSettings::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+/// let scene = Scene::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+/// let settings = NewtonSettings::new();
 /// let (mut x, mut v) = (rest, [Vec3::ZERO; 4]);
 /// let len = newton_scratch_len(4, 1);
 /// let mut vectors = [Vec3::ZERO; 36];
@@ -331,34 +233,33 @@ pub struct NewtonReport {
 /// let mut hessians = [TetHessian::default(); 1];
 /// assert_eq!((len.vectors, len.blocks, len.hessians), (36, 4, 1));
 /// let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
-/// let report = newton_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)?;
+/// let report = newton_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch)?;
 /// assert!(report.converged && x[3].y < rest[3].y && v[3].y < 0.0);
-/// assert!(report.newton_iterations <= 5);
+/// assert!(report.iterations <= 5);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 ///
 /// # Errors
-/// Before anything is touched: [`StepError::TimeStep`], [`StepError::Gravity`],
-/// [`StepError::NewtonSettings`], the ground's errors, [`StepError::LengthMismatch`] (state
-/// and scratch buffers), [`StepError::Mass`], [`StepError::NonFiniteInput`].
+/// Before anything is touched: the scene's errors ([`Scene::validated`]: the time step, gravity,
+/// colliders, the ground), [`StepError::NewtonSettings`], [`StepError::LengthMismatch`] (state,
+/// scene and scratch buffers), [`StepError::Mass`], [`StepError::NonFiniteInput`], the loads'
+/// errors.
 /// [`StepError::NonFiniteState`] if `Phi` is not finite at the start or the result is not
 /// finite; the state is then restored bit for bit.
+#[allow(clippy::too_many_arguments)]
 pub fn newton_step<F: ElasticHessian>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &NewtonSettings<'_, Vec3>,
+    scene: &Scene<'_, Vec3>,
+    settings: &NewtonSettings,
     positions: &mut [Vec3],
     velocities: &mut [Vec3],
     scratch: &mut NewtonScratch<'_>,
 ) -> Result<NewtonReport, StepError> {
-    if !(settings.dt > 0.0 && settings.dt.is_finite()) {
-        return Err(StepError::TimeStep);
-    }
     solve(
-        model,
-        masses,
-        pinned,
+        (model, masses, pinned),
+        scene,
         settings,
         positions,
         Some(velocities),
@@ -367,59 +268,47 @@ pub fn newton_step<F: ElasticHessian>(
 }
 
 /// Quasi-static equilibrium by Newton's method: minimises `E(x) - sum m g.(x - x_0)` from the
-/// given `positions` (the loop of [`newton_step`] without inertia; `settings.dt` is ignored),
-/// reaching the state where elastic forces balance gravity and the ground's reaction. The
-/// body must be held (pins or ground) against rigid motion, or the Hessian is singular along
-/// it; vertices in no element do not move.
+/// given `positions` (the loop of [`newton_step`] without inertia; the scene's `dt` and
+/// previous velocities are ignored), reaching the state where elastic forces balance gravity
+/// and the ground's reaction. The body must be held (pins or ground) against rigid motion, or
+/// the Hessian is singular along it; vertices in no element do not move.
 ///
 /// # Errors
-/// As [`newton_step`] (without [`StepError::TimeStep`]).
+/// As [`newton_step`] (without the time-step errors).
 pub fn newton_quasi_static<F: ElasticHessian>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &NewtonSettings<'_, Vec3>,
+    scene: &Scene<'_, Vec3>,
+    settings: &NewtonSettings,
     positions: &mut [Vec3],
     scratch: &mut NewtonScratch<'_>,
 ) -> Result<NewtonReport, StepError> {
-    solve(model, masses, pinned, settings, positions, None, scratch)
-}
-
-/// Checks the scalar settings; returns the ground with a unit normal.
-fn validate(settings: &NewtonSettings<'_, Vec3>) -> Result<Option<Ground<Vec3>>, StepError> {
-    if !settings.gravity.is_finite() {
-        return Err(StepError::Gravity);
-    }
-    let in_open_unit = |x: Real| x > 0.0 && x < 1.0;
-    if !((0.0..1.0).contains(&settings.tolerance)
-        && in_open_unit(settings.armijo)
-        && in_open_unit(settings.backtrack)
-        && settings.max_cg_iterations > 0)
-    {
-        return Err(StepError::NewtonSettings);
-    }
-    check_colliders(settings.colliders, true)?;
-    settings.ground.as_ref().map(Ground::validated).transpose()
+    solve(
+        (model, masses, pinned),
+        scene,
+        settings,
+        positions,
+        None,
+        scratch,
+    )
 }
 
 /// The shared solve of [`newton_step`] (`velocities` given) and [`newton_quasi_static`].
 fn solve<F: ElasticHessian>(
-    model: &F,
-    masses: &[Real],
-    pinned: &[bool],
-    settings: &NewtonSettings<'_, Vec3>,
+    (model, masses, pinned): (&F, &[Real], &[bool]),
+    scene: &Scene<'_, Vec3>,
+    settings: &NewtonSettings,
     positions: &mut [Vec3],
     velocities: Option<&mut [Vec3]>,
     scratch: &mut NewtonScratch<'_>,
 ) -> Result<NewtonReport, StepError> {
     let n = model.vertex_count();
-    let ground = validate(settings)?;
+    let dynamic = velocities.is_some();
+    let ground = descent::validated_scene(scene, dynamic)?;
+    settings.check()?;
     split_check_state(model, masses, pinned, positions, velocities.as_deref())?;
-    let loads = Loads {
-        forces: settings.external_forces,
-        fixed_axes: settings.fixed_axes,
-    };
-    loads.check(n)?;
+    let previous = descent::checked_scene(scene, n, dynamic)?;
     let lengths = newton_scratch_len(n, model.element_count());
     check_length(StepBuffer::Scratch, lengths.vectors, scratch.vectors.len())?;
     check_length(
@@ -441,8 +330,11 @@ fn solve<F: ElasticHessian>(
     let (residual, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
     let (preconditioned, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
     let (conjugate, product) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let dt = velocities.is_some().then_some(settings.dt);
-    let inertia = dt.map_or(0.0, |dt| 1.0 / (dt * dt));
+    let inertia = if dynamic {
+        1.0 / (scene.dt * scene.dt)
+    } else {
+        0.0
+    };
     let cg = CgVectors {
         residual,
         preconditioned,
@@ -451,21 +343,18 @@ fn solve<F: ElasticHessian>(
     };
     let mut newton = Newton::new(
         (&mut *scratch.hessians, &mut *scratch.blocks, cg),
-        settings.max_cg_iterations,
+        settings.options.max_cg_iterations,
         inertia,
         ground.as_ref().map(|g| g.normal),
     );
-    let problem = Problem {
-        model,
-        masses,
-        pinned,
-        stiffness: &[],
-        gravity: settings.gravity,
+    let problem = Problem::new(
+        (model, masses, pinned),
+        &[],
+        scene,
         ground,
-        colliders: settings.colliders,
-        loads,
-        dt,
-    };
+        previous,
+        dynamic,
+    );
     let loop_settings = LoopSettings {
         tolerance: settings.tolerance,
         max_iterations: settings.max_iterations,
@@ -493,17 +382,10 @@ fn solve<F: ElasticHessian>(
         velocities,
         work,
     )?;
-    Ok(NewtonReport {
-        newton_iterations: summary.iterations,
-        cg_iterations: newton.cg_iterations,
-        energy_evaluations: summary.energy_evaluations,
-        backtracks: summary.backtracks,
-        initial_residual: summary.initial_residual,
-        residual: summary.residual,
-        target: summary.target,
-        rounding_floor: summary.rounding_floor,
-        phi: summary.phi,
-        converged: summary.converged,
-        stagnated: summary.stagnated,
-    })
+    Ok(NewtonReport::from_summary(
+        summary,
+        NewtonDetails {
+            cg_iterations: newton.cg_iterations,
+        },
+    ))
 }

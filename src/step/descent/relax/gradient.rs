@@ -9,13 +9,14 @@
 use super::super::super::super::types::Real;
 use super::super::super::contact::floor::Floor;
 use super::super::super::model::ElasticEnergy;
+use super::super::super::scene::Scene;
 use super::super::super::state::pinned_flags;
 use super::super::super::vertex_pass::passes::TrialPoint;
 use super::super::super::vertex_pass::point::{Grouped, Point};
 use super::super::objective::Objective;
 use super::super::stopping::rounding_floor;
 use super::super::{Direction, Iterate};
-use super::{RelaxReport, RelaxScratch, RelaxSettings, check_time_step, minimise};
+use super::{RelaxReport, RelaxScratch, RelaxSettings, minimise};
 use crate::error::StepError;
 
 /// The direction `-grad Phi / c`, with `c` and the rounding floor set at the initial guess.
@@ -149,20 +150,20 @@ fn moved<V: Grouped>(floor: &Floor<V>, pinned: bool, x: V, target: V) -> V {
 ///
 /// # Errors
 /// As [`relax_step`](super::super::super::relax_step).
+#[allow(clippy::too_many_arguments)]
 pub fn gradient_descent_step<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &RelaxSettings<'_, F::Vector>,
+    scene: &Scene<'_, F::Vector>,
+    settings: &RelaxSettings,
     positions: &mut [F::Vector],
     velocities: &mut [F::Vector],
     scratch: &mut RelaxScratch<'_, F::Vector>,
 ) -> Result<RelaxReport, StepError> {
-    check_time_step(settings.dt)?;
     minimise(
-        model,
-        masses,
-        pinned,
+        (model, masses, pinned),
+        scene,
         settings,
         (positions, Some(velocities)),
         scratch,
@@ -179,14 +180,14 @@ pub fn gradient_descent_quasi_static<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &RelaxSettings<'_, F::Vector>,
+    scene: &Scene<'_, F::Vector>,
+    settings: &RelaxSettings,
     positions: &mut [F::Vector],
     scratch: &mut RelaxScratch<'_, F::Vector>,
 ) -> Result<RelaxReport, StepError> {
     minimise(
-        model,
-        masses,
-        pinned,
+        (model, masses, pinned),
+        scene,
         settings,
         (positions, None),
         scratch,

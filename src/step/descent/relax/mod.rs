@@ -10,15 +10,14 @@ mod jacobi;
 
 use super::super::super::element::Vector;
 use super::super::super::types::Real;
-use super::super::contact::Ground;
-use super::super::contact::collider::{Collider, check_colliders};
 use super::super::descent::{self, Direction, LoopSettings, Problem, Work};
 use super::super::explicit::stability::vertex_stiffness;
-use super::super::loads::Loads;
 use super::super::model::ElasticEnergy;
+use super::super::scene::Scene;
 use super::super::state::check_length;
 use super::super::vertex_pass::passes::split_check_state;
 use super::chebyshev::AccelerationSettings;
+use super::settings::{DescentReport, DescentSettings};
 use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
 pub use gradient::{gradient_descent_quasi_static, gradient_descent_step};
@@ -98,44 +97,11 @@ impl<'a, V: Vector> RelaxScratch<'a, V> {
     }
 }
 
-/// The parameters of the relaxation.
+/// What only the relaxation has: the first trial step and the acceleration (heavy-ball
+/// momentum or the Chebyshev semi-iteration). The rest of [`RelaxSettings`] is shared with
+/// every implicit solver ([`DescentSettings`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RelaxSettings<'a, V> {
-    /// The time step `h` (s) of [`relax_step`]; ignored by [`relax_quasi_static`]. Finite and
-    /// positive; any size is stable (implicit Euler), larger steps damp more.
-    pub dt: Real,
-    /// The gravitational acceleration (m/s^2).
-    pub gravity: V,
-    /// An optional ground half-space, enforced by projection (a projected descent). Friction
-    /// acts on the velocity after the solve, or, opted in with a positive
-    /// [`Ground::sticking_speed`], is part of the step's objective (the lagged, smoothed Coulomb
-    /// potential of `docs/math.md` section 4.6); restitution is ignored (implicit Euler does not
-    /// bounce).
-    pub ground: Option<Ground<V>>,
-    /// Rigid colliders (empty, the default, for none): projection and friction as the
-    /// ground's, relative to each collider's surface velocity; see [`Collider`].
-    pub colliders: &'a [Collider<'a>],
-    /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` (relative residual, in
-    /// `[0, 1)`; 0 runs the whole budget), `|M g|` the norm of the gravity load on the free
-    /// vertices (N): a step that starts near equilibrium is measured against the load, not
-    /// against its own rounding-level initial residual. After a step whose Coulomb friction
-    /// acted on the velocity (a zero sticking speed), `|grad Phi(x_0)|` is the smaller of the
-    /// residuals at `x_0` and at the rigid guess `x_n + h v_mean` (`v_mean` the mass-weighted
-    /// mean velocity; one more energy evaluation, only where `|grad Phi(x_0)| > |M g|`, the one
-    /// case where it can change the target): the friction impulses slowed only the
-    /// contact vertices, and the elastic force of the shear they put into `x_0` (240 N against
-    /// 11 to 21 N on the sliding block of `docs/math.md` section 4.4) would otherwise loosen the
-    /// target twentyfold.
-    pub tolerance: Real,
-    /// The iteration budget.
-    pub max_iterations: u32,
-    /// The Armijo constant `c` in `(0, 1)`: accept `alpha` when
-    /// `Phi(x + alpha d) <= Phi(x) + c alpha grad.d`.
-    pub armijo: Real,
-    /// The backtracking factor `beta` in `(0, 1)`: `alpha <- beta alpha` on rejection.
-    pub backtrack: Real,
-    /// Rejections allowed per iteration before the solve stops (not converged).
-    pub max_backtracks: u32,
+pub struct RelaxOptions {
     /// The first trial step `alpha_0 > 0` along `d = -P^-1 grad Phi` (dimensionless; finite).
     /// `P` majorises the Hessian near rest, so any `alpha_0 < 2` converges on the linearised
     /// problem; `1` is the majorisation step that the Armijo test always accepts there, and
@@ -158,22 +124,24 @@ pub struct RelaxSettings<'a, V> {
     /// with no momentum): the largest residual ratio `r_k / r_(k-1)` of the plain iterations
     /// `2..=chebyshev_delay` of the solve (`chebyshev_delay >= 2`), at most
     /// [`MAX_ESTIMATED_RELAX_RHO`], the estimator Vertex Block Descent uses
-    /// ([`VbdSettings::estimate_chebyshev`](super::super::VbdSettings::estimate_chebyshev)).
+    /// ([`VbdOptions::estimate_chebyshev`](super::vbd::VbdOptions::estimate_chebyshev)).
     pub estimate_chebyshev: bool,
-    /// External forces (N), one per vertex, or empty (the default) for none: constant loads
-    /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
-    /// `- sum f_ext . (x - x_n)`. Ignored at pinned vertices and along fixed axes. Checked
-    /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
-    pub external_forces: &'a [V],
-    /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
-    /// ([`FIXED_X`](super::super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
-    /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
-    /// bits.
-    pub fixed_axes: &'a [u8],
 }
 
-impl<'a, V: Vector> RelaxSettings<'a, V> {
-    /// Time step `dt` (s), no gravity or ground, relative tolerance `2e-3`, 300 iterations,
+/// The settings of the relaxation ([`relax_step`], [`relax_quasi_static`], and the gradient
+/// descent solvers): the shared [`DescentSettings`] with [`RelaxOptions`].
+pub type RelaxSettings = DescentSettings<RelaxOptions>;
+
+impl Default for RelaxSettings {
+    /// As [`RelaxSettings::new`](DescentSettings::<RelaxOptions>::new).
+    #[inline]
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl DescentSettings<RelaxOptions> {
+    /// Relative tolerance `2e-3`, 300 iterations,
     /// Chebyshev acceleration with `rho = 0.995` from the first iteration (delay 0) and first
     /// trial step `2`, Armijo `c = 1e-4`, `beta = 0.5`, 30 backtracks, no momentum.
     ///
@@ -204,59 +172,20 @@ impl<'a, V: Vector> RelaxSettings<'a, V> {
     /// used the whole budget, mostly on landing, not errors.
     #[inline]
     #[must_use]
-    pub fn new(dt: Real) -> Self {
-        RelaxSettings {
-            external_forces: &[],
-            fixed_axes: &[],
-            dt,
-            gravity: V::ZERO,
-            ground: None,
-            colliders: &[],
+    pub const fn new() -> Self {
+        DescentSettings {
             tolerance: 2e-3,
             max_iterations: 300,
             armijo: 1e-4,
             backtrack: 0.5,
             max_backtracks: 30,
-            step_length: 2.0,
-            momentum: 0.0,
-            chebyshev: 0.995,
-            chebyshev_delay: 0,
-            estimate_chebyshev: false,
-        }
-    }
-
-    /// These settings with gravity `gravity` (m/s^2).
-    #[inline]
-    #[must_use]
-    pub fn with_gravity(self, gravity: V) -> Self {
-        RelaxSettings { gravity, ..self }
-    }
-
-    /// These settings with `ground`.
-    #[inline]
-    #[must_use]
-    pub fn with_ground(self, ground: Ground<V>) -> Self {
-        RelaxSettings {
-            ground: Some(ground),
-            ..self
-        }
-    }
-
-    /// These settings with `colliders` (see [`Collider`]; checked by the step).
-    #[inline]
-    #[must_use]
-    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
-        RelaxSettings { colliders, ..self }
-    }
-
-    /// These settings with relative tolerance `tolerance` and budget `max_iterations`.
-    #[inline]
-    #[must_use]
-    pub fn with_tolerance(self, tolerance: Real, max_iterations: u32) -> Self {
-        RelaxSettings {
-            tolerance,
-            max_iterations,
-            ..self
+            options: RelaxOptions {
+                step_length: 2.0,
+                momentum: 0.0,
+                chebyshev: 0.995,
+                chebyshev_delay: 0,
+                estimate_chebyshev: false,
+            },
         }
     }
 
@@ -264,28 +193,29 @@ impl<'a, V: Vector> RelaxSettings<'a, V> {
     #[inline]
     #[must_use]
     pub fn with_momentum(self, momentum: Real) -> Self {
-        RelaxSettings {
+        let options = RelaxOptions {
             momentum,
             chebyshev: 0.0,
-            ..self
-        }
+            ..self.options
+        };
+        DescentSettings { options, ..self }
     }
 
     /// These settings with Chebyshev acceleration for a `rho` the solver estimates from the
     /// first `delay` plain iterations (`delay >= 2`; see
-    /// [`estimate_chebyshev`](Self::estimate_chebyshev)), no momentum, and the first trial
+    /// [`estimate_chebyshev`](RelaxOptions::estimate_chebyshev)), no momentum, and the first trial
     /// step `step_length`.
     #[inline]
     #[must_use]
     pub fn with_estimated_chebyshev(self, step_length: Real, delay: u32) -> Self {
-        RelaxSettings {
+        let options = RelaxOptions {
             chebyshev: 0.0,
             step_length,
             chebyshev_delay: delay,
             estimate_chebyshev: true,
             momentum: 0.0,
-            ..self
-        }
+        };
+        DescentSettings { options, ..self }
     }
 
     /// These settings with Chebyshev acceleration for the spectral radius estimate `rho`
@@ -294,94 +224,50 @@ impl<'a, V: Vector> RelaxSettings<'a, V> {
     #[inline]
     #[must_use]
     pub fn with_chebyshev(self, rho: Real, step_length: Real, delay: u32) -> Self {
-        RelaxSettings {
+        let options = RelaxOptions {
             chebyshev: rho,
             step_length,
             chebyshev_delay: delay,
             estimate_chebyshev: false,
             momentum: 0.0,
-            ..self
-        }
+        };
+        DescentSettings { options, ..self }
     }
 
-    /// These settings with external forces `forces` (N, one per vertex; see
-    /// [`external_forces`](Self::external_forces)).
-    #[inline]
-    #[must_use]
-    pub fn with_external_forces<'b>(self, forces: &'b [V]) -> RelaxSettings<'b, V>
-    where
-        'a: 'b,
-    {
-        let shorter: RelaxSettings<'b, V> = self;
-        RelaxSettings {
-            external_forces: forces,
-            ..shorter
+    /// Checks the settings.
+    ///
+    /// # Errors
+    /// [`StepError::RelaxSettings`] unless the shared part is in range and so are the options:
+    /// momentum and `rho` in `[0, 1)`, not both positive, an estimate only without either and
+    /// with a delay of at least 2, a finite positive step length.
+    fn check(&self) -> Result<(), StepError> {
+        let o = &self.options;
+        if !(self.shared_part_valid()
+            && (0.0..1.0).contains(&o.momentum)
+            && (0.0..1.0).contains(&o.chebyshev)
+            && !(o.momentum > 0.0 && o.chebyshev > 0.0)
+            && !(o.estimate_chebyshev
+                && (o.chebyshev > 0.0 || o.momentum > 0.0 || o.chebyshev_delay < 2))
+            && o.step_length > 0.0
+            && o.step_length.is_finite())
+        {
+            return Err(StepError::RelaxSettings);
         }
-    }
-
-    /// These settings with per-vertex fixed-axis masks `fixed_axes` (see
-    /// [`fixed_axes`](Self::fixed_axes)).
-    #[inline]
-    #[must_use]
-    pub fn with_fixed_axes<'b>(self, fixed_axes: &'b [u8]) -> RelaxSettings<'b, V>
-    where
-        'a: 'b,
-    {
-        let shorter: RelaxSettings<'b, V> = self;
-        RelaxSettings {
-            fixed_axes,
-            ..shorter
-        }
+        Ok(())
     }
 }
 
-/// What a relaxation did. Total cost = `energy_evaluations` fused energy-and-force passes.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct RelaxReport {
-    /// Accepted descent iterations.
-    pub iterations: u32,
-    /// Evaluations of `Phi` and its gradient (one per trial point, plus one to three for the
-    /// initial guess: `y + h^2 g`, `y` (not where `y + h^2 g` wins by construction: a rigid
-    /// translation of `y` touching no ground, see [`relax_step`]), and `x_n` if neither is
-    /// finite; plus one for the
-    /// rigid guess of the stopping test's scale after friction on the velocity where the
-    /// initial residual exceeds the load, see [`RelaxSettings::tolerance`]).
-    pub energy_evaluations: u32,
-    /// `|grad Phi|` (N) at the initial guess (projected on the ground's constraint).
-    pub initial_residual: Real,
-    /// `|grad Phi|` (N) at the result.
-    pub final_residual: Real,
-    /// `Phi` (J) at the result, with the gravity potential measured from the start positions.
-    pub phi: Real,
-    /// Whether the residual reached the tolerance (see [`RelaxSettings::tolerance`]).
-    pub converged: bool,
-    /// Line-search trials rejected by the Armijo test (each shrinking the step by `beta`).
-    pub backtracks: u32,
-    /// Accelerated trials rejected because `Phi` increased, each followed by a restart of the
-    /// acceleration with a plain step.
-    pub restarts: u32,
-    /// Whether the solve stopped because the residual stopped falling: its best value fell by
-    /// less than 1 % over the last 100 iterations while within [`FLOOR_FACTOR`](super::super::FLOOR_FACTOR)
-    /// times [`rounding_floor`](Self::rounding_floor) (the answer is as good as the precision
-    /// allows), or did not fall at all over 1000 iterations (a plateau above the estimated
-    /// floor). Either way the budget is not burnt; [`converged`](Self::converged) still says
-    /// only whether the tolerance was reached (unlike Newton's method, which counts a stall at
-    /// the floor as converged), and `final_residual` is the floor reached.
-    pub stagnated: bool,
-    /// The estimated rounding floor of the residual (N): `eps/2 max_i |x_i| (3 sum_i P_i^2)^(1/2)`
-    /// over the free vertices, `P_i` the preconditioner (a bound on the diagonal block of the
-    /// Hessian), the rule Newton's method uses ([`NewtonReport::rounding_floor`](super::super::NewtonReport::rounding_floor)).
-    pub rounding_floor: Real,
-    /// The Chebyshev `rho` used: the setting, the estimate, or 0 (none, or not yet estimated
-    /// when the solve stopped).
-    pub rho: Real,
-}
+/// What a relaxation did: the shared [`DescentReport`], nothing of its own. Total cost =
+/// `energy_evaluations` fused energy-and-force passes. [`converged`](DescentReport::converged)
+/// says only whether the tolerance was reached (a stall at the rounding floor is reported by
+/// [`stagnated`](DescentReport::stagnated), unlike Newton's method, which counts it as
+/// converged).
+pub type RelaxReport = DescentReport<()>;
 
-/// The largest spectral radius [`RelaxSettings::estimate_chebyshev`] uses: `0.9999`.
+/// The largest spectral radius [`RelaxOptions::estimate_chebyshev`] uses: `0.9999`.
 pub const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 
-/// One implicit Euler step of `settings.dt` as the minimisation of
+/// One implicit Euler step of the scene's `dt` as the minimisation of
 /// `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`
 /// (`docs/math.md` section 4), by preconditioned descent from the better (lower `Phi`) of `y` and
 /// `y + h^2 g`, both projected onto the ground (where neither touches the ground, no collider,
@@ -400,7 +286,7 @@ pub const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 /// use softfem::glam::Vec3;
 /// use softfem::material::StableNeoHookean;
 /// use softfem::mesh::TetMesh;
-/// use softfem::step::{RelaxScratch, RelaxSettings, TetElastic, relax_scratch_len, relax_step};
+/// use softfem::step::{RelaxScratch, RelaxSettings, Scene, TetElastic, relax_scratch_len, relax_step};
 ///
 /// // A tetrahedron hanging from three pinned corners sags under gravity.
 /// let rest = [Vec3::ZERO, Vec3::X, Vec3::Z, -Vec3::Y].map(|x| x * 0.1);
@@ -411,37 +297,36 @@ pub const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 /// let mut masses = [0.0; 4];
 /// mesh.lumped_masses(1000.0, &mut masses)?;
 /// let pinned = [true, true, true, false];
-/// let settings = RelaxSettings::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+/// let scene = Scene::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+/// let settings = RelaxSettings::new();
 /// let (mut x, mut v) = (rest, [Vec3::ZERO; 4]);
 /// let (mut vectors, mut scalars) = ([Vec3::ZERO; relax_scratch_len(4)], [0.0; 4]);
 /// let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-/// let report = relax_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)?;
+/// let report = relax_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch)?;
 /// assert!(report.converged && x[3].y < rest[3].y && v[3].y < 0.0);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 ///
 /// # Errors
-/// Before anything is touched: [`StepError::TimeStep`], [`StepError::TimeStepTooSmall`] (a
-/// step whose `1 / dt^2` overflows: below about `1e-19` s in f32, `1e-154` s in f64),
-/// [`StepError::Gravity`],
-/// [`StepError::RelaxSettings`], the ground's errors, [`StepError::LengthMismatch`],
-/// [`StepError::Mass`], [`StepError::NonFiniteInput`]. [`StepError::NonFiniteState`] if `Phi`
+/// Before anything is touched: the scene's errors ([`Scene::validated`]: the time step, gravity,
+/// colliders, the ground), [`StepError::RelaxSettings`], [`StepError::LengthMismatch`],
+/// [`StepError::Mass`], [`StepError::NonFiniteInput`], the loads' errors. [`StepError::NonFiniteState`] if `Phi`
 /// is not finite at both `y` and `x_n` or the result is not finite; the state is then
 /// restored.
+#[allow(clippy::too_many_arguments)]
 pub fn relax_step<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &RelaxSettings<'_, F::Vector>,
+    scene: &Scene<'_, F::Vector>,
+    settings: &RelaxSettings,
     positions: &mut [F::Vector],
     velocities: &mut [F::Vector],
     scratch: &mut RelaxScratch<'_, F::Vector>,
 ) -> Result<RelaxReport, StepError> {
-    check_time_step(settings.dt)?;
     minimise(
-        model,
-        masses,
-        pinned,
+        (model, masses, pinned),
+        scene,
         settings,
         (positions, Some(velocities)),
         scratch,
@@ -452,23 +337,23 @@ pub fn relax_step<F: ElasticEnergy>(
 /// Quasi-static relaxation: the loop of [`relax_step`] without the inertia term (`h` to
 /// infinity), minimising `E(x) - sum m g.(x - x_0)` from the given `positions`: it moves the
 /// body towards the equilibrium where elastic forces balance gravity (and the ground's
-/// reaction). `settings.dt` is ignored. Vertices in no element have no preconditioner and do
-/// not move.
+/// reaction). The scene's `dt` and previous velocities are ignored. Vertices in no element have
+/// no preconditioner and do not move.
 ///
 /// # Errors
-/// As [`relax_step`] (without [`StepError::TimeStep`]).
+/// As [`relax_step`] (without the time-step errors).
 pub fn relax_quasi_static<F: ElasticEnergy>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &RelaxSettings<'_, F::Vector>,
+    scene: &Scene<'_, F::Vector>,
+    settings: &RelaxSettings,
     positions: &mut [F::Vector],
     scratch: &mut RelaxScratch<'_, F::Vector>,
 ) -> Result<RelaxReport, StepError> {
     minimise(
-        model,
-        masses,
-        pinned,
+        (model, masses, pinned),
+        scene,
         settings,
         (positions, None),
         scratch,
@@ -479,22 +364,19 @@ pub fn relax_quasi_static<F: ElasticEnergy>(
 /// The shared solve of [`relax_step`] (`velocities` given), [`relax_quasi_static`] and the
 /// gradient-descent solvers: checks, then the descent loop (`descent/mod.rs`) along `direction`.
 pub(crate) fn minimise<F: ElasticEnergy, D: Direction<F>>(
-    model: &F,
-    masses: &[Real],
-    pinned: &[bool],
-    settings: &RelaxSettings<'_, F::Vector>,
+    (model, masses, pinned): (&F, &[Real], &[bool]),
+    scene: &Scene<'_, F::Vector>,
+    settings: &RelaxSettings,
     (positions, velocities): (&mut [F::Vector], Option<&mut [F::Vector]>),
     scratch: &mut RelaxScratch<'_, F::Vector>,
     mut direction: D,
 ) -> Result<RelaxReport, StepError> {
     let n = model.vertex_count();
-    let ground = validate(settings)?;
+    let dynamic = velocities.is_some();
+    let ground = descent::validated_scene(scene, dynamic)?;
+    settings.check()?;
     split_check_state(model, masses, pinned, positions, velocities.as_deref())?;
-    let loads = Loads {
-        forces: settings.external_forces,
-        fixed_axes: settings.fixed_axes,
-    };
-    loads.check(n)?;
+    let previous = descent::checked_scene(scene, n, dynamic)?;
     check_length(
         StepBuffer::Scratch,
         relax_scratch_len(n),
@@ -510,29 +392,27 @@ pub(crate) fn minimise<F: ElasticEnergy, D: Direction<F>>(
         vertex_stiffness(model, scratch.scalars);
         scratch.stiffness_ready = true;
     }
-    let problem = Problem {
-        model,
-        masses,
-        pinned,
-        stiffness: scratch.scalars,
-        gravity: settings.gravity,
+    let problem = Problem::new(
+        (model, masses, pinned),
+        scratch.scalars,
+        scene,
         ground,
-        colliders: settings.colliders,
-        loads,
-        dt: velocities.is_some().then_some(settings.dt),
-    };
+        previous,
+        dynamic,
+    );
+    let o = &settings.options;
     let loop_settings = LoopSettings {
         tolerance: settings.tolerance,
         max_iterations: settings.max_iterations,
         armijo: settings.armijo,
         backtrack: settings.backtrack,
         max_backtracks: settings.max_backtracks,
-        step_length: settings.step_length,
-        momentum: settings.momentum,
+        step_length: o.step_length,
+        momentum: o.momentum,
         acceleration: AccelerationSettings {
-            rho: settings.chebyshev,
-            delay: settings.chebyshev_delay,
-            estimate: settings.estimate_chebyshev,
+            rho: o.chebyshev,
+            delay: o.chebyshev_delay,
+            estimate: o.estimate_chebyshev,
             cap: MAX_ESTIMATED_RELAX_RHO,
         },
         stall: StallRule::Window,
@@ -553,55 +433,5 @@ pub(crate) fn minimise<F: ElasticEnergy, D: Direction<F>>(
         velocities,
         work,
     )?;
-    Ok(RelaxReport {
-        iterations: summary.iterations,
-        energy_evaluations: summary.energy_evaluations,
-        initial_residual: summary.initial_residual,
-        final_residual: summary.residual,
-        phi: summary.phi,
-        converged: summary.converged,
-        backtracks: summary.backtracks,
-        restarts: summary.restarts,
-        stagnated: summary.stagnated,
-        rounding_floor: summary.rounding_floor,
-        rho: summary.rho,
-    })
-}
-
-/// Checks the time step of an implicit Euler step: finite and positive, with a finite `1 / dt^2`.
-pub(crate) fn check_time_step(dt: Real) -> Result<(), StepError> {
-    if !(dt > 0.0 && dt.is_finite()) {
-        return Err(StepError::TimeStep);
-    }
-    // The inertia term `m / (2 h^2) |x - y|^2` needs `1 / h^2`: below about 1e-19 s (f32) or
-    // 1e-154 s (f64) it overflows and every evaluation of Phi would be infinite.
-    if !(1.0 / (dt * dt)).is_finite() {
-        return Err(StepError::TimeStepTooSmall);
-    }
-    Ok(())
-}
-
-/// Checks the scalar settings; returns the ground with a unit normal.
-fn validate<V: Vector>(settings: &RelaxSettings<'_, V>) -> Result<Option<Ground<V>>, StepError> {
-    if !settings.gravity.is_finite() {
-        return Err(StepError::Gravity);
-    }
-    let in_open_unit = |x: Real| x > 0.0 && x < 1.0;
-    if !((0.0..1.0).contains(&settings.tolerance)
-        && in_open_unit(settings.armijo)
-        && in_open_unit(settings.backtrack)
-        && (0.0..1.0).contains(&settings.momentum)
-        && (0.0..1.0).contains(&settings.chebyshev)
-        && !(settings.momentum > 0.0 && settings.chebyshev > 0.0)
-        && !(settings.estimate_chebyshev
-            && (settings.chebyshev > 0.0
-                || settings.momentum > 0.0
-                || settings.chebyshev_delay < 2))
-        && settings.step_length > 0.0
-        && settings.step_length.is_finite())
-    {
-        return Err(StepError::RelaxSettings);
-    }
-    check_colliders(settings.colliders, V::ALL_AXES == 0b111)?;
-    settings.ground.as_ref().map(Ground::validated).transpose()
+    Ok(RelaxReport::from_summary(summary, ()))
 }

@@ -19,12 +19,13 @@ use super::super::super::mesh::adjacency::{
 };
 use super::super::super::types::{Real, Vec3};
 use super::super::contact::Ground;
-use super::super::contact::collider::{Collider, Colliders, check_colliders};
+use super::super::contact::collider::Colliders;
 use super::super::descent::{self, LoopSettings, Problem, Work};
-use super::super::loads::Loads;
 use super::super::model::TetElastic;
+use super::super::scene::Scene;
 use super::super::state::{check_length, check_state};
 use super::chebyshev::AccelerationSettings;
+use super::settings::{DescentReport, DescentSettings};
 use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
 use layout::{Layout, LayoutSource, build_layout};
@@ -204,40 +205,17 @@ impl<'a> VbdScratch<'a> {
     }
 }
 
-/// The parameters of Vertex Block Descent.
+/// What only Vertex Block Descent has: when its per-vertex line search runs and its Chebyshev
+/// acceleration over sweeps. The rest of [`VbdSettings`] is shared with every implicit solver
+/// ([`DescentSettings`]; its Armijo constant, backtracking factor and backtrack budget are those
+/// of the per-vertex line search, and a budget of 0 turns it off).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VbdSettings<'a> {
-    /// The time step `h` (s) of [`vbd_step`]; ignored by [`vbd_quasi_static`]. Finite and
-    /// positive.
-    pub dt: Real,
-    /// The gravitational acceleration (m/s^2).
-    pub gravity: Vec3,
-    /// An optional ground half-space (see [`vbd_step`](vbd_step#contact)); friction
-    /// after the solve or (opted in) in the objective, restitution ignored, as in
-    /// [`RelaxSettings::ground`](super::super::RelaxSettings::ground).
-    pub ground: Option<Ground<Vec3>>,
-    /// Rigid colliders (empty, the default, for none): projection and friction as the
-    /// ground's, relative to each collider's surface velocity; see [`Collider`].
-    pub colliders: &'a [Collider<'a>],
-    /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)`, exactly as
-    /// [`RelaxSettings::tolerance`](super::super::RelaxSettings::tolerance) (in `[0, 1)`).
-    pub tolerance: Real,
-    /// The budget of sweeps.
-    pub max_iterations: u32,
-    /// The Armijo constant `c` in `(0, 1)` of the per-vertex line search: accept `alpha` when the
-    /// local energy falls by at least `-c alpha g_i.d` (or changes by less than its rounding).
-    pub armijo: Real,
-    /// The backtracking factor `beta` in `(0, 1)` of the per-vertex line search.
-    pub backtrack: Real,
-    /// Backtracks per vertex update before the update is skipped; 0 turns the line search off
-    /// (every Newton step is taken whole, as the paper does, saving two energy densities per
-    /// element and corner).
-    pub max_backtracks: u32,
+pub struct VbdOptions {
     /// Take every Newton step whole and run the line search only in a sweep whose full steps
     /// did not lower `Phi` enough: the evaluation after each sweep (which the stopping test
     /// needs anyway) detects it (the first trial of the descent loop's Armijo search fails),
     /// and the sweep is then redone from its start with the line search
-    /// ([`max_backtracks`](Self::max_backtracks) > 0), and the Chebyshev weights restart.
+    /// ([`max_backtracks`](DescentSettings::max_backtracks) > 0), and the Chebyshev weights restart.
     /// Iterates stay monotone at the cost of the plain sweep where the full steps are safe.
     /// Ignored when `max_backtracks` is 0.
     pub line_search_on_increase: bool,
@@ -253,25 +231,21 @@ pub struct VbdSettings<'a> {
     /// which the largest early ratio measures; it errs high, which Chebyshev tolerates better
     /// than low, up to the cap (see [`MAX_ESTIMATED_RHO`]).
     pub estimate_chebyshev: bool,
-    /// External forces (N), one per vertex, or empty (the default) for none: constant loads
-    /// added to gravity (tip loads, pressure lumped to vertices); the objective gains
-    /// `- sum f_ext . (x - x_n)`. Ignored at pinned vertices and along fixed axes. Checked
-    /// finite ([`StepError::ExternalForce`](crate::error::StepError::ExternalForce)).
-    pub external_forces: &'a [Vec3],
-    /// Per-vertex fixed-axis masks, one per vertex, or empty (the default) for none: bit 0
-    /// ([`FIXED_X`](super::super::FIXED_X)) fixes x, bit 1 y, bit 2 z (3D only), for rollers and
-    /// symmetry planes; `pinned` stays the way to fix all axes. A fixed coordinate keeps its
-    /// bits.
-    pub fixed_axes: &'a [u8],
-    /// The velocities `v_(n-1)` before the previous step (m/s), one per vertex, or empty (the
-    /// default) for none: [`vbd_step`] then starts from the paper's adaptive initial guess
-    /// (see [`vbd_step`](vbd_step#initial-guess)) in place of `y`. Ignored by
-    /// [`vbd_quasi_static`]. Checked finite
-    /// ([`StepError::NonFiniteInput`](crate::error::StepError::NonFiniteInput)).
-    pub previous_velocities: &'a [Vec3],
 }
 
-/// The largest spectral radius [`VbdSettings::estimate_chebyshev`] uses: 0.98.
+/// The settings of Vertex Block Descent ([`vbd_step`], [`vbd_quasi_static`]): the shared
+/// [`DescentSettings`] with [`VbdOptions`]. The budget counts sweeps.
+pub type VbdSettings = DescentSettings<VbdOptions>;
+
+impl Default for VbdSettings {
+    /// As [`VbdSettings::new`](DescentSettings::<VbdOptions>::new).
+    #[inline]
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// The largest spectral radius [`VbdOptions::estimate_chebyshev`] uses: 0.98.
 ///
 /// The Chebyshev weights are those of a real spectrum in `[-rho, rho]`, and the iteration
 /// matrix of a Gauss–Seidel sweep has complex eigenvalues, so `rho` at the plain sweeps' own
@@ -284,65 +258,24 @@ pub struct VbdSettings<'a> {
 /// all 30 do in 663 sweeps.
 pub const MAX_ESTIMATED_RHO: Real = 0.98;
 
-impl<'a> VbdSettings<'a> {
-    /// Time step `dt` (s), no gravity or ground, relative tolerance `1e-3`, 100 sweeps, line
-    /// search with `c = 1e-4`, `beta = 0.5` and 8 backtracks, no acceleration.
+impl DescentSettings<VbdOptions> {
+    /// Relative tolerance `1e-3`, 100 sweeps, line search with `c = 1e-4`, `beta = 0.5` and 8
+    /// backtracks, no acceleration.
     #[inline]
     #[must_use]
-    pub fn new(dt: Real) -> Self {
-        VbdSettings {
-            external_forces: &[],
-            fixed_axes: &[],
-            previous_velocities: &[],
-            dt,
-            gravity: Vec3::ZERO,
-            ground: None,
-            colliders: &[],
+    pub const fn new() -> Self {
+        DescentSettings {
             tolerance: 1e-3,
             max_iterations: 100,
             armijo: 1e-4,
             backtrack: 0.5,
             max_backtracks: 8,
-            line_search_on_increase: false,
-            chebyshev: 0.0,
-            chebyshev_delay: 0,
-            estimate_chebyshev: false,
-        }
-    }
-
-    /// These settings with gravity `gravity` (m/s^2).
-    #[inline]
-    #[must_use]
-    pub fn with_gravity(self, gravity: Vec3) -> Self {
-        VbdSettings { gravity, ..self }
-    }
-
-    /// These settings with `ground`.
-    #[inline]
-    #[must_use]
-    pub fn with_ground(self, ground: Ground<Vec3>) -> Self {
-        VbdSettings {
-            ground: Some(ground),
-            ..self
-        }
-    }
-
-    /// These settings with `colliders` (see [`Collider`]; checked by the step).
-    #[inline]
-    #[must_use]
-    pub fn with_colliders(self, colliders: &'a [Collider<'a>]) -> Self {
-        VbdSettings { colliders, ..self }
-    }
-
-    /// These settings with relative tolerance `tolerance` and a budget of `max_iterations`
-    /// sweeps.
-    #[inline]
-    #[must_use]
-    pub fn with_tolerance(self, tolerance: Real, max_iterations: u32) -> Self {
-        VbdSettings {
-            tolerance,
-            max_iterations,
-            ..self
+            options: VbdOptions {
+                line_search_on_increase: false,
+                chebyshev: 0.0,
+                chebyshev_delay: 0,
+                estimate_chebyshev: false,
+            },
         }
     }
 
@@ -351,36 +284,40 @@ impl<'a> VbdSettings<'a> {
     #[inline]
     #[must_use]
     pub fn with_chebyshev(self, rho: Real, delay: u32) -> Self {
-        VbdSettings {
+        let options = VbdOptions {
             chebyshev: rho,
             chebyshev_delay: delay,
-            ..self
-        }
+            estimate_chebyshev: false,
+            ..self.options
+        };
+        DescentSettings { options, ..self }
     }
 
     /// These settings with Chebyshev acceleration for a `rho` the solver estimates from the
     /// first `delay` plain sweeps (`delay >= 2`; see
-    /// [`estimate_chebyshev`](VbdSettings::estimate_chebyshev)).
+    /// [`estimate_chebyshev`](VbdOptions::estimate_chebyshev)).
     #[inline]
     #[must_use]
     pub fn with_estimated_chebyshev(self, delay: u32) -> Self {
-        VbdSettings {
+        let options = VbdOptions {
             chebyshev: 0.0,
             chebyshev_delay: delay,
             estimate_chebyshev: true,
-            ..self
-        }
+            ..self.options
+        };
+        DescentSettings { options, ..self }
     }
 
     /// These settings with the line search only in sweeps that raised `Phi` (see
-    /// [`line_search_on_increase`](VbdSettings::line_search_on_increase)).
+    /// [`line_search_on_increase`](VbdOptions::line_search_on_increase)).
     #[inline]
     #[must_use]
     pub fn with_line_search_on_increase(self) -> Self {
-        VbdSettings {
+        let options = VbdOptions {
             line_search_on_increase: true,
-            ..self
-        }
+            ..self.options
+        };
+        DescentSettings { options, ..self }
     }
 
     /// These settings with at most `max_backtracks` backtracks per vertex update (0: no line
@@ -388,91 +325,40 @@ impl<'a> VbdSettings<'a> {
     #[inline]
     #[must_use]
     pub fn with_line_search(self, max_backtracks: u32) -> Self {
-        VbdSettings {
+        DescentSettings {
             max_backtracks,
             ..self
         }
     }
 
-    /// These settings with external forces `forces` (N, one per vertex; see
-    /// [`external_forces`](Self::external_forces)).
-    #[inline]
-    #[must_use]
-    pub fn with_external_forces<'b>(self, forces: &'b [Vec3]) -> VbdSettings<'b>
-    where
-        'a: 'b,
-    {
-        let shorter: VbdSettings<'b> = self;
-        VbdSettings {
-            external_forces: forces,
-            ..shorter
+    /// Checks the settings.
+    ///
+    /// # Errors
+    /// [`StepError::VbdSettings`] unless the shared part is in range and so are the options:
+    /// `rho` in `[0, 1)`, an estimate only without a fixed `rho` and with a delay of at least 2.
+    fn check(&self) -> Result<(), StepError> {
+        let o = &self.options;
+        if !(self.shared_part_valid()
+            && (0.0..1.0).contains(&o.chebyshev)
+            && !(o.estimate_chebyshev && (o.chebyshev != 0.0 || o.chebyshev_delay < 2)))
+        {
+            return Err(StepError::VbdSettings);
         }
-    }
-
-    /// These settings with the adaptive initial guess from `previous_velocities`, the
-    /// velocities before the previous step (m/s, one per vertex; see
-    /// [`previous_velocities`](Self::previous_velocities)).
-    #[inline]
-    #[must_use]
-    pub fn with_previous_velocities<'b>(self, previous_velocities: &'b [Vec3]) -> VbdSettings<'b>
-    where
-        'a: 'b,
-    {
-        let shorter: VbdSettings<'b> = self;
-        VbdSettings {
-            previous_velocities,
-            ..shorter
-        }
-    }
-
-    /// These settings with per-vertex fixed-axis masks `fixed_axes` (see
-    /// [`fixed_axes`](Self::fixed_axes)).
-    #[inline]
-    #[must_use]
-    pub fn with_fixed_axes<'b>(self, fixed_axes: &'b [u8]) -> VbdSettings<'b>
-    where
-        'a: 'b,
-    {
-        let shorter: VbdSettings<'b> = self;
-        VbdSettings {
-            fixed_axes,
-            ..shorter
-        }
+        Ok(())
     }
 }
 
-/// What a Vertex Block Descent solve did. Total cost = `iterations` sweeps plus
-/// `energy_evaluations` fused energy-and-force passes.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// What only Vertex Block Descent counts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct VbdReport {
-    /// Accepted iterations of the descent loop, one sweep each (a rejected Chebyshev trial,
-    /// counted in [`restarts`](Self::restarts), costs one sweep more; accelerated sweeps
-    /// accepted without evaluation and later returned from count here too, see
-    /// [`vbd_step`](vbd_step#stopping-test-and-cost)).
-    pub iterations: u32,
-    /// Evaluations of `Phi` and its gradient: one or two for the initial guess (as the
-    /// relaxation's), one per plain sweep, one per accelerated sweep that is not deferred (see
-    /// [`vbd_step`](vbd_step#stopping-test-and-cost)), one after a solve that ends on a
-    /// deferred one, and one per shortened sweep step (the loop's Armijo backtracking along
-    /// `d = sweep(x) - x`).
-    pub energy_evaluations: u32,
-    /// `|grad Phi|` (N) at the initial guess (projected on the ground's constraint).
-    pub initial_residual: Real,
-    /// `|grad Phi|` (N) at the result.
-    pub final_residual: Real,
-    /// `Phi` (J) at the result, gravity potential measured from the start positions.
-    pub phi: Real,
-    /// Whether the residual reached the tolerance (see [`VbdSettings::tolerance`]).
-    pub converged: bool,
+pub struct VbdDetails {
     /// The number of colours of the vertex colouring (the sweep's parallel stages).
     pub colours: u32,
-    /// Accelerated iterates rejected because `Phi` increased.
-    pub restarts: u32,
-    /// Per-vertex line-search trials rejected.
-    pub backtracks: u32,
+    /// Per-vertex line-search trials rejected (the loop's own, along whole sweeps, are the
+    /// report's [`backtracks`](DescentReport::backtracks)).
+    pub vertex_backtracks: u32,
     /// Sweeps redone with the line search because the full steps did not lower `Phi` enough
-    /// (with [`VbdSettings::line_search_on_increase`]).
+    /// (with [`VbdOptions::line_search_on_increase`]).
     pub redone_sweeps: u32,
     /// Vertex updates skipped: block not positive definite (after regularisation), not finite,
     /// no descent, or no acceptable step within the backtracks.
@@ -481,12 +367,19 @@ pub struct VbdReport {
     /// positive definite and was replaced by the inertia plus the positive part of its elastic
     /// sum (see [`vbd_step`](vbd_step#one-sweep)).
     pub projected: u32,
-    /// The Chebyshev `rho` used: the setting, the estimate, or 0 (none, or not yet estimated
-    /// when the solve ended).
-    pub rho: Real,
 }
 
-/// One implicit Euler step of `settings.dt` by Vertex Block Descent (Chen, Liu, Yang and
+/// What a Vertex Block Descent solve did: the shared [`DescentReport`] with [`VbdDetails`].
+/// Total cost = `iterations` sweeps (accepted iterations of the descent loop; a rejected
+/// Chebyshev trial, counted in `restarts`, costs one sweep more; accelerated sweeps accepted
+/// without evaluation and later returned from count too, see
+/// [`vbd_step`](vbd_step#stopping-test-and-cost)) plus `energy_evaluations` fused
+/// energy-and-force passes (one or two for the initial guess, one per plain sweep, one per
+/// accelerated sweep that is not deferred, one after a solve that ends on a deferred one, and
+/// one per shortened sweep step).
+pub type VbdReport = DescentReport<VbdDetails>;
+
+/// One implicit Euler step of the scene's `dt` by Vertex Block Descent (Chen, Liu, Yang and
 /// Yuksel, "Vertex Block Descent", ACM Transactions on Graphics 43(4), SIGGRAPH 2024):
 /// minimises
 /// `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`, the
@@ -495,12 +388,12 @@ pub struct VbdReport {
 /// applies the relaxation's Coulomb friction at the contacts.
 ///
 /// Pinned vertices keep position and velocity. Not converging within the budget is not an
-/// error: the last iterate is used and [`VbdReport::converged`] is false. The result does not
+/// error: the last iterate is used and [`DescentReport::converged`] is false. The result does not
 /// depend on the previous contents of the scratch buffers, and is the same on every target.
 ///
 /// # Initial guess
 /// The relaxation's lower-`Phi` of `y` and `y + h^2 g` by default. Given the velocities
-/// `v_(n-1)` before the previous step ([`VbdSettings::with_previous_velocities`]), the paper's
+/// `v_(n-1)` before the previous step ([`Scene::with_previous_velocities`]), the paper's
 /// adaptive guess replaces `y`: `y_i + h^2 a~_i`, `a~_i` the previous step's acceleration
 /// `(v_n - v_(n-1)) / h` projected on the direction of gravity and clamped to `[0, |g|]` along
 /// it (`docs/math.md` section 7.2), still compared with `y + h^2 g`. A time loop keeps
@@ -529,7 +422,7 @@ pub struct VbdReport {
 /// it is positive definite (always for
 /// [`StableNeoHookean`](super::super::super::material::StableNeoHookean), whose element blocks all
 /// are); elsewhere the elastic sum is replaced by its positive semi-definite part (one 3x3
-/// eigen-decomposition for that vertex, counted in [`VbdReport::projected`]) and regularised
+/// eigen-decomposition for that vertex, counted in [`VbdDetails::projected`]) and regularised
 /// where singular, so the matrix solved with is always symmetric positive definite and the step
 /// `d = -H_i^-1 g_i` a descent direction of the local energy (see [`VbdSettings`] for the
 /// guards). Then a backtracking line search on the vertex's local energy
@@ -551,7 +444,7 @@ pub struct VbdReport {
 /// The sweeps run in the descent loop every implicit solver here shares (`docs/math.md`
 /// section 7.0): a sweep from the iterate `x` is the direction `d = sweep(x) - x`, whose first
 /// trial is the sweep's result itself, and the loop's Armijo line search (constant
-/// [`VbdSettings::armijo`], factor [`VbdSettings::backtrack`], at most 8 halvings) accepts it
+/// [`DescentSettings::armijo`], factor [`DescentSettings::backtrack`], at most 8 halvings) accepts it
 /// or shortens it, with the rounding of the elastic energy (`64 eps sum V_e tr(K_e) / |g_a|^2`
 /// over the element corners, as in the vertex line search) tolerated where `Phi`'s change is
 /// below it; a sweep that is not downhill, or not acceptable after 8 halvings, ends the solve
@@ -580,10 +473,10 @@ pub struct VbdReport {
 /// calibrated against the true residual at the last evaluated iterate, predicts that it meets
 /// the target, or rises. An evaluated sweep is checked against `Phi` at the last evaluated
 /// iterate, and a rise returns there (the sweeps since count in
-/// [`VbdReport::iterations`]) and restarts the weights; a solve that ends on an unevaluated
+/// [`DescentReport::iterations`]) and restarts the weights; a solve that ends on an unevaluated
 /// sweep evaluates it (returning to the last evaluated iterate if `Phi` rose). So the
 /// residual and `Phi` reported are always those of the returned state, and
-/// [`VbdReport::converged`] only if that residual meets the tolerance (`docs/math.md`
+/// [`DescentReport::converged`] only if that residual meets the tolerance (`docs/math.md`
 /// section 7.2). A plain iteration costs a sweep (per element and corner one deformation
 /// gradient, `P g` and the exact block, and with the line search one or two energy densities
 /// per trial) plus one fused energy-and-force pass; a deferred one, the sweep. On the single
@@ -644,11 +537,11 @@ pub struct VbdReport {
 /// its per-vertex Newton steps (with the exact local Hessian) resolve stiff local modes the
 /// diagonal preconditioner of the relaxation does not; and for threads: the colour-parallel
 /// sweep keeps the bits. For speed take the full steps with the line search only in sweeps
-/// that raised `Phi` ([`VbdSettings::with_line_search_on_increase`]: the cost of no line
+/// that raised `Phi` ([`VbdSettings::with_line_search_on_increase`](DescentSettings::<VbdOptions>::with_line_search_on_increase): the cost of no line
 /// search, and still monotone) or no line search at all
-/// ([`VbdSettings::with_line_search`]`(0)`), with Chebyshev acceleration
-/// ([`VbdSettings::with_chebyshev`]`(0.95, 2)` was best on the bouncy cube, the estimate
-/// [`VbdSettings::with_estimated_chebyshev`] on the 30 steps of the clamped stiff block). On
+/// ([`VbdSettings::with_line_search`](DescentSettings::<VbdOptions>::with_line_search)`(0)`), with Chebyshev acceleration
+/// ([`VbdSettings::with_chebyshev`](DescentSettings::<VbdOptions>::with_chebyshev)`(0.95, 2)` was best on the bouncy cube, the estimate
+/// [`VbdSettings::with_estimated_chebyshev`](DescentSettings::<VbdOptions>::with_estimated_chebyshev) on the 30 steps of the clamped stiff block). On
 /// the single solves of the descent chart (`cargo run --release --example tradeoffs -- --only
 /// descent`, f64, no line search) `(0.95, 2)` took 41 sweeps on the bouncy cube's landing and
 /// 31 on the stiff block's first step, where the estimate from 4 plain sweeps took 111 and 81
@@ -672,7 +565,8 @@ pub struct VbdReport {
 /// use softfem::material::StableNeoHookean;
 /// use softfem::mesh::TetMesh;
 /// use softfem::step::{
-///     TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_scratch_len, vbd_step,
+///     Scene, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_scratch_len,
+///     vbd_step,
 /// };
 ///
 /// // A tetrahedron hanging from three pinned corners sags under gravity.
@@ -684,12 +578,13 @@ pub struct VbdReport {
 /// let mut masses = [0.0; 4];
 /// mesh.lumped_masses(1000.0, &mut masses)?;
 /// let pinned = [true, true, true, false];
-/// let settings = VbdSettings::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+/// let scene = Scene::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+/// let settings = VbdSettings::new();
 /// let (mut x, mut v) = (rest, [Vec3::ZERO; 4]);
 /// let mut vectors = [Vec3::ZERO; vbd_scratch_len(4)];
 /// let mut indices = [0; vbd_index_scratch_len(4, 1)];
 /// let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-/// let report = vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)?;
+/// let report = vbd_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch)?;
 /// // One free vertex: each sweep is a Newton step on Phi.
 /// assert!(report.converged && report.iterations <= 5, "{report:?}");
 /// assert!(x[3].y < rest[3].y && v[3].y < 0.0);
@@ -697,27 +592,25 @@ pub struct VbdReport {
 /// ```
 ///
 /// # Errors
-/// Before anything is touched: [`StepError::TimeStep`], [`StepError::Gravity`],
-/// [`StepError::VbdSettings`], the ground's errors, [`StepError::LengthMismatch`] (also for the
-/// scratch buffers), [`StepError::Mass`], [`StepError::NonFiniteInput`],
-/// [`StepError::TooManyElements`]. [`StepError::NonFiniteState`] if `Phi` is not finite at both
+/// Before anything is touched: the scene's errors ([`Scene::validated`]: the time step, gravity,
+/// colliders, the ground), [`StepError::VbdSettings`], [`StepError::LengthMismatch`] (also for
+/// the scene's and the scratch buffers), [`StepError::Mass`], [`StepError::NonFiniteInput`]
+/// (also for the previous velocities), the loads' errors, [`StepError::TooManyElements`]. [`StepError::NonFiniteState`] if `Phi` is not finite at both
 /// `y` and `x_n` or the result is not finite; the state is then restored bit for bit.
+#[allow(clippy::too_many_arguments)]
 pub fn vbd_step<M: Material>(
     model: &TetElastic<'_, M>,
     masses: &[Real],
     pinned: &[bool],
-    settings: &VbdSettings<'_>,
+    scene: &Scene<'_, Vec3>,
+    settings: &VbdSettings,
     positions: &mut [Vec3],
     velocities: &mut [Vec3],
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
-    if !(settings.dt > 0.0 && settings.dt.is_finite()) {
-        return Err(StepError::TimeStep);
-    }
     minimise::<M, InOrder>(
-        model,
-        masses,
-        pinned,
+        (model, masses, pinned),
+        scene,
         settings,
         positions,
         Some(velocities),
@@ -727,7 +620,8 @@ pub fn vbd_step<M: Material>(
 
 /// Quasi-static equilibrium by Vertex Block Descent: the loop of [`vbd_step`] without the
 /// inertia term, minimising `E(x) - sum m g.(x - x_0)` from the given `positions`, as
-/// [`relax_quasi_static`](super::super::relax_quasi_static). `settings.dt` is ignored.
+/// [`relax_quasi_static`](super::super::relax_quasi_static). The scene's `dt` and previous
+/// velocities are ignored.
 ///
 /// Without inertia a vertex block is only as definite as its elements' exact blocks (which
 /// may be indefinite or singular, and a vertex in no element has none): a block whose `L D L^T`
@@ -738,16 +632,24 @@ pub fn vbd_step<M: Material>(
 /// no element therefore never move.
 ///
 /// # Errors
-/// As [`vbd_step`] (without [`StepError::TimeStep`]).
+/// As [`vbd_step`] (without the time-step errors).
 pub fn vbd_quasi_static<M: Material>(
     model: &TetElastic<'_, M>,
     masses: &[Real],
     pinned: &[bool],
-    settings: &VbdSettings<'_>,
+    scene: &Scene<'_, Vec3>,
+    settings: &VbdSettings,
     positions: &mut [Vec3],
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
-    minimise::<M, InOrder>(model, masses, pinned, settings, positions, None, scratch)
+    minimise::<M, InOrder>(
+        (model, masses, pinned),
+        scene,
+        settings,
+        positions,
+        None,
+        scratch,
+    )
 }
 
 /// [`vbd_step`] with the updates of each colour spread over the current rayon pool (feature
@@ -761,22 +663,20 @@ pub fn vbd_quasi_static<M: Material>(
 /// # Errors
 /// As [`vbd_step`].
 #[cfg(feature = "rayon")]
+#[allow(clippy::too_many_arguments)]
 pub fn vbd_step_parallel<M: Material + Sync>(
     model: &TetElastic<'_, M>,
     masses: &[Real],
     pinned: &[bool],
-    settings: &VbdSettings<'_>,
+    scene: &Scene<'_, Vec3>,
+    settings: &VbdSettings,
     positions: &mut [Vec3],
     velocities: &mut [Vec3],
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
-    if !(settings.dt > 0.0 && settings.dt.is_finite()) {
-        return Err(StepError::TimeStep);
-    }
     minimise::<M, OnPool>(
-        model,
-        masses,
-        pinned,
+        (model, masses, pinned),
+        scene,
         settings,
         positions,
         Some(velocities),
@@ -794,30 +694,19 @@ pub fn vbd_quasi_static_parallel<M: Material + Sync>(
     model: &TetElastic<'_, M>,
     masses: &[Real],
     pinned: &[bool],
-    settings: &VbdSettings<'_>,
+    scene: &Scene<'_, Vec3>,
+    settings: &VbdSettings,
     positions: &mut [Vec3],
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
-    minimise::<M, OnPool>(model, masses, pinned, settings, positions, None, scratch)
-}
-
-/// Checks the scalar settings; returns the ground with a unit normal.
-fn validate(settings: &VbdSettings<'_>) -> Result<Option<Ground<Vec3>>, StepError> {
-    if !settings.gravity.is_finite() {
-        return Err(StepError::Gravity);
-    }
-    let in_open_unit = |x: Real| x > 0.0 && x < 1.0;
-    if !((0.0..1.0).contains(&settings.tolerance)
-        && in_open_unit(settings.armijo)
-        && in_open_unit(settings.backtrack)
-        && (0.0..1.0).contains(&settings.chebyshev)
-        && !(settings.estimate_chebyshev
-            && (settings.chebyshev != 0.0 || settings.chebyshev_delay < 2)))
-    {
-        return Err(StepError::VbdSettings);
-    }
-    check_colliders(settings.colliders, true)?;
-    settings.ground.as_ref().map(Ground::validated).transpose()
+    minimise::<M, OnPool>(
+        (model, masses, pinned),
+        scene,
+        settings,
+        positions,
+        None,
+        scratch,
+    )
 }
 
 /// Builds the adjacency, colouring and order into `indices` unless they are there for this
@@ -858,34 +747,21 @@ const SWEEP_BACKTRACKS: u32 = 8;
 /// sweeps run by `S`: checks, then the descent loop (`descent/mod.rs`) along the sweep
 /// direction (`step/descent/vbd/sweep.rs`).
 fn minimise<M: Material, S: Schedule<M>>(
-    model: &TetElastic<'_, M>,
-    masses: &[Real],
-    pinned: &[bool],
-    settings: &VbdSettings<'_>,
+    (model, masses, pinned): (&TetElastic<'_, M>, &[Real], &[bool]),
+    scene: &Scene<'_, Vec3>,
+    settings: &VbdSettings,
     positions: &mut [Vec3],
     velocities: Option<&mut [Vec3]>,
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
     let n = model.mesh.vertex_count();
     let tets = model.mesh.tets();
-    let ground = validate(settings)?;
+    let dynamic = velocities.is_some();
+    let ground = descent::validated_scene(scene, dynamic)?;
+    settings.check()?;
     check_state(n, masses, pinned, positions, velocities.as_deref())?;
-    let loads = Loads {
-        forces: settings.external_forces,
-        fixed_axes: settings.fixed_axes,
-    };
-    loads.check(n)?;
-    // The previous velocities matter only with inertia.
-    let previous = match (&velocities, settings.previous_velocities) {
-        (Some(_), previous) if !previous.is_empty() => {
-            check_length(StepBuffer::PreviousVelocities, n, previous.len())?;
-            if let Some(vertex) = previous.iter().position(|v| !v.is_finite()) {
-                return Err(StepError::NonFiniteInput { vertex });
-            }
-            Some(previous)
-        }
-        _ => None,
-    };
+    let previous = descent::checked_scene(scene, n, dynamic)?;
+    let loads = scene.loads();
     check_length(
         StepBuffer::Scratch,
         vbd_scratch_len(n),
@@ -954,34 +830,28 @@ fn minimise<M: Material, S: Schedule<M>>(
         velocities: &[],
         h: 0.0,
         inertia: 0.0,
-        gravity: settings.gravity,
+        gravity: scene.gravity,
         loads,
         ground: ground.map(|g| Ground {
             offset: g.offset - g.normal.dot(origin),
             ..g
         }),
-        colliders: Colliders::new(settings.colliders).shifted(origin),
+        colliders: Colliders::new(scene.colliders).shifted(origin),
         friction: None,
         armijo: settings.armijo,
         backtrack: settings.backtrack,
         max_backtracks: settings.max_backtracks,
     };
-    let lazy = settings.line_search_on_increase && settings.max_backtracks > 0;
+    let lazy = settings.options.line_search_on_increase && settings.max_backtracks > 0;
     let mut direction = VbdSweep::<M, S>::new(sweep, !lazy);
-    if let Some(previous) = previous {
-        direction = direction.with_previous_velocities(previous);
-    }
-    let problem = Problem {
-        model,
-        masses,
-        pinned,
-        stiffness: &[],
-        gravity: settings.gravity,
+    let problem = Problem::new(
+        (model, masses, pinned),
+        &[],
+        scene,
         ground,
-        colliders: settings.colliders,
-        loads,
-        dt: velocities.is_some().then_some(settings.dt),
-    };
+        previous,
+        dynamic,
+    );
     let loop_settings = LoopSettings {
         tolerance: settings.tolerance,
         max_iterations: settings.max_iterations,
@@ -991,9 +861,9 @@ fn minimise<M: Material, S: Schedule<M>>(
         step_length: 1.0,
         momentum: 0.0,
         acceleration: AccelerationSettings {
-            rho: settings.chebyshev,
-            delay: settings.chebyshev_delay,
-            estimate: settings.estimate_chebyshev,
+            rho: settings.options.chebyshev,
+            delay: settings.options.chebyshev_delay,
+            estimate: settings.options.estimate_chebyshev,
             cap: MAX_ESTIMATED_RHO,
         },
         stall: StallRule::Window,
@@ -1015,19 +885,14 @@ fn minimise<M: Material, S: Schedule<M>>(
         work,
     )?;
     let counts = direction.counts;
-    Ok(VbdReport {
-        iterations: summary.iterations,
-        energy_evaluations: summary.energy_evaluations,
-        initial_residual: summary.initial_residual,
-        final_residual: summary.residual,
-        phi: summary.phi,
-        converged: summary.converged,
-        colours,
-        restarts: summary.restarts,
-        backtracks: counts.backtracks,
-        redone_sweeps: direction.redone,
-        skipped: counts.skipped,
-        projected: counts.projected,
-        rho: summary.rho,
-    })
+    Ok(VbdReport::from_summary(
+        summary,
+        VbdDetails {
+            colours,
+            vertex_backtracks: counts.backtracks,
+            redone_sweeps: direction.redone,
+            skipped: counts.skipped,
+            projected: counts.projected,
+        },
+    ))
 }

@@ -632,8 +632,6 @@ pub(crate) struct VbdSweep<'s, M: Material, S> {
     /// What the sweeps counted so far.
     pub counts: SweepCounts,
     floor: Real,
-    /// `v_(n-1)` for the adaptive initial guess, if given.
-    previous: Option<&'s [Vec3]>,
     /// The Gauss–Seidel residual (N) of the last accelerated trial's sweep: an estimate of
     /// `|grad Phi|` at the iterate it started from (see [`Direction::residual_estimate`]).
     estimate: Real,
@@ -653,18 +651,8 @@ impl<'s, M: Material, S: Schedule<M>> VbdSweep<'s, M, S> {
             resolution: 0.0,
             counts: SweepCounts::default(),
             floor: 0.0,
-            previous: None,
             estimate: Real::NAN,
             schedule: PhantomData,
-        }
-    }
-
-    /// This direction with the adaptive initial guess from the previous velocities
-    /// `previous` (see [`Direction::previous_velocities`]).
-    pub fn with_previous_velocities(self, previous: &'s [Vec3]) -> Self {
-        VbdSweep {
-            previous: Some(previous),
-            ..self
         }
     }
 
@@ -817,10 +805,6 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
 
     fn rounding_floor(&self) -> Real {
         self.floor
-    }
-
-    fn previous_velocities(&self) -> Option<&[Vec3]> {
-        self.previous
     }
 
     fn residual_estimate(&self) -> Option<Real> {
