@@ -51,7 +51,7 @@
 //! use softfem::{element::TetRest, generate::{BoxSplit, fill_box}, glam::Vec3, mesh::TetMesh};
 //! use softfem::material::StableNeoHookean;
 //! use softfem::step::{ExplicitScratch, ExplicitSettings, Ground, TetElastic};
-//! use softfem::step::{explicit_scratch_len, stable_time_step, step_explicit};
+//! use softfem::step::{Scene, explicit_scratch_len, explicit_step, stable_time_step};
 //!
 //! // A 0.2 m cube of 4 x 4 x 4 cells, 5 tets each (`generate::box_counts` gives these counts).
 //! const VERTICES: usize = 5 * 5 * 5;
@@ -67,16 +67,16 @@
 //!
 //! let mut stiffness = [0.0; VERTICES];
 //! let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness)?; // s, half the bound
-//! let settings = ExplicitSettings::new(dt)
+//! let scene = Scene::new(dt) // what the step acts on
 //!     .with_gravity(Vec3::new(0.0, -9.81, 0.0)) // m/s^2
-//!     .with_damping(2.0) // 1/s
 //!     .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5)); // the plane y = 0
+//! let settings = ExplicitSettings::new().with_damping(2.0); // how it is solved; 1/s
 //! let (mut x, mut v) = (rest, [Vec3::ZERO; VERTICES]);
 //! let mut buffer = [Vec3::ZERO; explicit_scratch_len(VERTICES)];
 //! let mut scratch = ExplicitScratch::new(&mut buffer);
 //! let steps = (1.0 / dt) as usize; // one second
 //! for _ in 0..steps {
-//!     step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch)?;
+//!     explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch)?;
 //! }
 //! let lowest = x.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
 //! let highest = x.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);

@@ -375,7 +375,7 @@ fn span_pieces(k: usize, len: usize, pieces: usize) -> Range<usize> {
 
 /// A [`TetElastic`] body whose force (and fused energy-and-force) passes run in parallel through
 /// a [`TetPartition`], with the bits of the sequential body: hand it to
-/// [`step_explicit`](super::step::step_explicit), [`relax_step`](super::step::relax_step),
+/// [`explicit_step`](super::step::explicit_step), [`relax_step`](super::step::relax_step),
 /// [`newton_step`](super::step::newton_step) (any stepper taking an [`ElasticModel`],
 /// [`ElasticEnergy`] or [`ElasticHessian`]) for a parallel step whose result does not depend on
 /// the thread count. The steppers' passes over the vertices run on the pool too
@@ -393,8 +393,8 @@ fn span_pieces(k: usize, len: usize, pieces: usize) -> Range<usize> {
 /// use softfem::mesh::{TetMesh, TetPartition, element_forces_len};
 /// use softfem::mesh::{partition_incident_len, partition_offsets_len};
 /// use softfem::parallel::ParallelTetElastic;
-/// use softfem::step::{ExplicitScratch, ExplicitSettings, TetElastic, explicit_scratch_len};
-/// use softfem::step::step_explicit;
+/// use softfem::step::{ExplicitScratch, ExplicitSettings, Scene, TetElastic, explicit_scratch_len};
+/// use softfem::step::explicit_step;
 ///
 /// let (vertices, tets) = box_counts(3, 3, 3, BoxSplit::Kuhn6)?;
 /// let (mut rest, mut elements) = (vec![Vec3::ZERO; vertices], vec![[0; 4]; tets]);
@@ -414,11 +414,12 @@ fn span_pieces(k: usize, len: usize, pieces: usize) -> Range<usize> {
 ///
 /// let mut masses = vec![0.0; vertices];
 /// mesh.lumped_masses(1000.0, &mut masses)?;
-/// let settings = ExplicitSettings::new(1.0e-4).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+/// let scene = Scene::new(1.0e-4).with_gravity(Vec3::new(0.0, -9.81, 0.0));
 /// let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; vertices]);
 /// let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(vertices)];
 /// let mut scratch = ExplicitScratch::new(&mut buffer);
-/// step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch)?;
+/// let settings = ExplicitSettings::new();
+/// explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch)?;
 /// assert!(v.iter().all(|v| v.y < 0.0)); // falling
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
@@ -625,7 +626,7 @@ impl<M: Material + Sync> ElasticHessian for ParallelTetElastic<'_, M> {
 
 /// A [`TetClamped`] body (clamped principal stress, **explicit stepping only**) whose force
 /// passes run in parallel through a [`TetPartition`], with the bits of the sequential body:
-/// hand it to [`step_explicit`](super::step::step_explicit). As [`ParallelTetElastic`], the
+/// hand it to [`explicit_step`](super::step::explicit_step). As [`ParallelTetElastic`], the
 /// scratch sits behind a mutex and the optional pool is installed around every evaluation.
 ///
 /// ```

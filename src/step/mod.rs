@@ -15,8 +15,12 @@
 //!   triangle models [`TriElastic`] (2D) and [`MembraneElastic`].
 //! * `pinned` is a slice of flags, empty (nothing pinned) or one per vertex: a pinned vertex's
 //!   position and velocity are never changed by any stepper.
-//! * External loads and partial constraints live in every solver's settings
-//!   (`with_external_forces`, `with_fixed_axes`, see `step/loads.rs`): a force (N) per vertex added
+//! * What a step acts on is its [`Scene`], the same for every stepper: the time step, gravity,
+//!   the ground, colliders, external loads and partial constraints, borrowed for the step; how
+//!   it is solved is the solver's settings ([`ExplicitSettings`], or the implicit solvers'
+//!   [`DescentSettings`] with their own options), which borrow nothing.
+//! * External loads and partial constraints ([`Scene::with_external_forces`],
+//!   [`Scene::with_fixed_axes`], see `step/loads.rs`): a force (N) per vertex added
 //!   to gravity, and a mask per vertex fixing some coordinate axes ([`FIXED_X`], [`FIXED_Y`],
 //!   [`FIXED_Z`]; rollers, symmetry planes). A fixed coordinate keeps its bits exactly (with a
 //!   ground whose normal is not a coordinate axis, the contact projection is applied first and
@@ -32,7 +36,7 @@
 //! * Rigid colliders (half-spaces, spheres, capsules, oriented boxes, any [`SignedDistance`];
 //!   static or kinematic) act on 3D bodies in every stepper as the ground does, see [`Collider`]
 //!   and each settings type's `with_colliders`.
-//! * No axis is special: gravity is a vector in the settings and the ground a plane given by its
+//! * No axis is special: gravity is a vector in the scene and the ground a plane given by its
 //!   normal, so y up, z up or any other convention works. The examples in these docs use y up
 //!   (gravity `(0, -9.81, 0)`, `Ground::new(Vec3::Y, 0.0)`); the `bouncy` scene and the
 //!   `tradeoffs` charts use z up (gravity `(0, 0, -9.81)`, `Ground::new(Vec3::Z, 0.0)`).
@@ -110,7 +114,7 @@
 //! at the first try) and any `alpha < 2` converges on the linearised problem. The bound is loose:
 //! measured on the bouncy jelly cube (1296 tets, `nu = 0.45`, `h = 1/60 s`) the eigenvalues of
 //! `P^-1 A` span `[5.8e-4, 0.27]`, on the 24-tet cantilever of `tests/relax.rs` `[1.4e-3, 0.39]`
-//! (`[3.3e-4, 0.39]` without inertia). Hence [`RelaxSettings::step_length`]: `2` is still safe
+//! (`[3.3e-4, 0.39]` without inertia). Hence [`RelaxOptions::step_length`]: `2` is still safe
 //! for any mesh and twice as fast; larger steps are faster still on these meshes and the line
 //! search catches them where they are not. The exact Hessian diagonal (Wang and Yang's choice)
 //! was measured too: the same condition number (385..400 against 458 for the cube), only a
@@ -126,7 +130,7 @@
 //! ## Acceleration
 //! The condition number of `P^-1 A` (`~1/lambda_min`: hundreds to thousands) sets the cost of
 //! plain descent: about `kappa / (2 alpha) ln(1/tol)` iterations. Two accelerations, exclusive:
-//! * Chebyshev semi-iteration ([`RelaxSettings::with_chebyshev`]; Wang and Yang 2016, section 4):
+//! * Chebyshev semi-iteration ([`RelaxSettings::with_chebyshev`](DescentSettings::<RelaxOptions>::with_chebyshev); Wang and Yang 2016, section 4):
 //!   `x_{k+1} = omega_{k+1} (x_k + alpha d_k - x_{k-1}) + x_{k-1}` with `omega = 1` for the first
 //!   `S` iterations after a (re)start, then `omega = 2 / (2 - rho^2)`, then
 //!   `omega_{k+1} = 4 / (4 - rho^2 omega_k)`, which tends to `2 / (1 + sqrt(1 - rho^2))`. Cost
@@ -136,14 +140,15 @@
 //!   converges at the rate the estimate allows. Measured (see `tests/relax.rs`): `0.995` for
 //!   steps of 1/60 s, `0.999` for quasi-static solves, with `alpha = 2`. A trial that raises
 //!   `Phi` beyond rounding (contacts, nonlinearity) is discarded: the acceleration restarts with a
-//!   plain Armijo step ([`RelaxReport::restarts`] counts these).
-//!   Or let the solver estimate `rho` ([`RelaxSettings::with_estimated_chebyshev`]): the
+//!   plain Armijo step ([`DescentReport::restarts`] counts these).
+//!   Or let the solver estimate `rho`
+//!   ([`RelaxSettings::with_estimated_chebyshev`](DescentSettings::<RelaxOptions>::with_estimated_chebyshev)): the
 //!   largest residual ratio of its first `delay` plain iterations (the estimator Vertex Block
 //!   Descent uses, `descent/chebyshev.rs`), a lower bound that rises with the window. Measured on two
 //!   quasi-static cantilevers (`tests/chebyshev_estimate.rs`, f64, `1e-6`): delay 200 needs
 //!   911 and 22 376 iterations where the best hand-tuned `rho` of the grid needed 435 and
 //!   15 647, and a fixed `0.999` 727 and 50 844.
-//! * Heavy-ball momentum ([`RelaxSettings::with_momentum`]): `d + momentum * (last step)`,
+//! * Heavy-ball momentum ([`RelaxSettings::with_momentum`](DescentSettings::<RelaxOptions>::with_momentum)): `d + momentum * (last step)`,
 //!   line searched as a whole. Kept for comparison; Chebyshev is faster at the same cost.
 //!
 //! On the bouncy jelly cube (3 s, 180 steps of 1/60 s, tolerance `2e-3`) Chebyshev with
@@ -155,7 +160,8 @@
 //! One job per file or folder (the whole crate's tree is drawn in `docs/layout.md`):
 //! * `model.rs`: the traits a body implements ([`ElasticModel`], [`ElasticEnergy`],
 //!   [`ElasticHessian`]) and the shipped models; `state.rs`: the checks of the state every
-//!   stepper makes first; `loads.rs`: external forces and fixed axes.
+//!   stepper makes first; `scene.rs`: what a step acts on ([`Scene`]) and its one validation;
+//!   `loads.rs`: how external forces and fixed axes enter a step.
 //! * `contact/`: the [`Ground`] and [`Collider`]s, the one contact record (`contact::Contact`),
 //!   the projection onto the admissible set every stepper shares (`floor.rs`) and friction in
 //!   the implicit objective (`friction.rs`).
@@ -163,7 +169,7 @@
 //!   residuals) in blocks of [`VERTEX_BLOCK`] (`mod.rs`), their bodies four to sixteen vertices
 //!   at a time on x86_64 (`passes.rs`), on the per-vertex arithmetic written once for one vertex
 //!   and a lane group (`point.rs`).
-//! * `explicit/`: [`step_explicit`], its [stability bound](stable_time_step) (`stability.rs`)
+//! * `explicit/`: [`explicit_step`], its [stability bound](stable_time_step) (`stability.rs`)
 //!   and the [frequency estimate](estimate_max_frequency) (`frequency.rs`).
 //! * `descent/`: the implicit solvers on one loop (`docs/math.md` section 7.0): `mod.rs` the loop
 //!   (initial guess, Chebyshev and momentum trials, line search, velocity update, restore on
@@ -182,7 +188,7 @@
 //! # Which solver to pick
 //! Measured by the `tradeoffs` example's `descent` chart (f64, one thread; relative residual
 //! `1e-4`, `1e-6` for the static solve) and the `bouncy` example:
-//! * [`step_explicit`]: soft bodies and small steps (one force pass a step, the least work per
+//! * [`explicit_step`]: soft bodies and small steps (one force pass a step, the least work per
 //!   simulated second while the step stays under [`stable_time_step`]); no solve to converge.
 //! * [`gradient_descent_step`] / [`gradient_descent_quasi_static`]: only to compare. The same
 //!   loop and cost per iteration as the relaxation with `P = c I`; on the cantilever of

@@ -158,8 +158,9 @@ impl<'a, V: Vector> Scene<'a, V> {
     }
 
     /// Checks everything but the buffers' lengths (those are checked against the body by each
-    /// stepper): the time step ([`check_time_step`]), gravity, the colliders (only 3D bodies
-    /// take any) and the ground; returns the ground with a unit normal.
+    /// stepper): the time step (finite, positive, with a finite `1 / dt^2`), gravity, the
+    /// colliders (only 3D bodies take any) and the ground; returns the ground with a unit
+    /// normal.
     ///
     /// # Errors
     /// [`StepError::TimeStep`], [`StepError::TimeStepTooSmall`], [`StepError::Gravity`],

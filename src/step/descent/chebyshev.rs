@@ -1,5 +1,5 @@
 //! The Chebyshev semi-iteration's spectral radius estimated by the solver itself, shared by the
-//! relaxation ([`RelaxSettings::with_estimated_chebyshev`](super::super::RelaxSettings::with_estimated_chebyshev))
+//! relaxation ([`RelaxSettings::with_estimated_chebyshev`](super::super::DescentSettings::<super::super::RelaxOptions>::with_estimated_chebyshev))
 //! and Vertex Block Descent ([`VbdSettings::with_estimated_chebyshev`](super::super::VbdSettings::with_estimated_chebyshev)):
 //! the largest residual ratio `r_k / r_(k-1)` of the plain iterations `2..=delay` of a solve,
 //! capped. A plain iteration contracts the slow modes by about `rho` per iteration once the

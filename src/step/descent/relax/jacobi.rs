@@ -72,7 +72,7 @@ impl<F: ElasticEnergy> Direction<F> for Jacobi {
 }
 
 /// The rounding floor of the residual at `x` estimated from the diagonal bound (see
-/// [`RelaxReport::rounding_floor`](super::super::super::RelaxReport::rounding_floor)):
+/// [`DescentReport::rounding_floor`](super::super::super::DescentReport::rounding_floor)):
 /// `eps/2 max_i |x_i| (3 sum_i P_i^2)^(1/2)` over the free vertices.
 pub(crate) fn diagonal_rounding_floor<F: ElasticEnergy>(
     objective: &Objective<'_, F>,

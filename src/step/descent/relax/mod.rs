@@ -279,7 +279,7 @@ pub const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 /// the normal reaction (N, the gradient's normal component there).
 ///
 /// Pinned vertices keep position and velocity. Not converging within the budget is not an
-/// error: the best iterate is used and [`RelaxReport::converged`] is false.
+/// error: the best iterate is used and [`DescentReport::converged`] is false.
 ///
 /// ```
 /// use softfem::element::TetRest;

@@ -435,7 +435,7 @@ pub type VbdReport = DescentReport<VbdDetails>;
 /// local quadratic model on the ground plane (one more 3x3 solve with the same factor; the
 /// multiplier is the contact reaction), then projected onto the plane for rounding: the exact
 /// solution of the local contact problem for the quadratic model, where the relaxation only
-/// projects; a step into a [`Collider`] is replaced the same way on its tangent plane at the
+/// projects; a step into a [`Collider`](super::super::Collider) is replaced the same way on its tangent plane at the
 /// vertex. Friction acts on the velocity after the solve, or, opted in with a positive
 /// [`Ground::sticking_speed`], is part of the objective (`docs/math.md` section 4.6): its gradient and
 /// tangent block join the vertex's, lagged to the loop's iterate.
