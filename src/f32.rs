@@ -162,17 +162,17 @@ pub(crate) mod math {
 
 /// How a group of [`lanes::Lanes`] is held: one SSE register on x86_64, an array elsewhere.
 #[cfg(target_arch = "x86_64")]
-#[path = "lanes_sse.rs"]
+#[path = "lanes/sse.rs"]
 mod lane_repr;
 #[cfg(not(target_arch = "x86_64"))]
-#[path = "lanes_portable.rs"]
+#[path = "lanes/portable.rs"]
 mod lane_repr;
 
-#[path = "lanes.rs"]
+#[path = "lanes/mod.rs"]
 pub mod lanes;
 
 /// The AVX2 and AVX-512F instructions of this precision under precision-neutral names, so that
-/// `lanes_avx2.rs` and `lanes_avx512.rs` are written once for both precisions.
+/// `lanes/avx2.rs` and `lanes/avx512.rs` are written once for both precisions.
 #[cfg(target_arch = "x86_64")]
 mod wide_ops {
     pub use core::arch::x86_64::{
@@ -318,16 +318,6 @@ mod wide_ops {
         }
     }
 }
-
-/// One AVX register of values (x86_64, run with AVX2 by `simd::dispatch`).
-#[cfg(target_arch = "x86_64")]
-#[path = "lanes_avx2.rs"]
-pub(crate) mod lanes_avx2;
-
-/// One AVX-512 register of values (x86_64, run with AVX-512F by `simd::dispatch`).
-#[cfg(target_arch = "x86_64")]
-#[path = "lanes_avx512.rs"]
-pub(crate) mod lanes_avx512;
 
 #[path = "svd.rs"]
 pub mod svd;

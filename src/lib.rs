@@ -175,6 +175,9 @@ pub use error::{
     StepError,
 };
 
+// The run-time SIMD dispatch lives with the lane types it picks between (`src/lanes/`), but is
+// compiled once, for both precisions: one detected width and one cap.
+#[path = "lanes/dispatch.rs"]
 pub mod simd;
 
 #[path = "f32.rs"]

@@ -1,11 +1,11 @@
 //! Explicit symplectic Euler with damping, pinned vertices, ground contact, substeps and
 //! blow-up detection.
 
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx2::Avx2Lanes;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx512::Avx512Lanes;
 use super::super::lanes::{LaneArray, Lanes};
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx2::Avx2Lanes;
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx512::Avx512Lanes;
 use super::super::types::Real;
 use super::collider::{Collider, check_colliders};
 use super::descent::line_search::copy;

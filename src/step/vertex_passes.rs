@@ -6,11 +6,11 @@
 //! the same generic per-vertex code, so that every vertex gets the same bits either way and
 //! every target and width the same sums ([`LaneSum`]).
 
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx2::Avx2Lanes;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx512::Avx512Lanes;
 use super::super::lanes::{LANES, Lane, LaneArray, LaneSum, Lanes, MAX_WIDTH};
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx2::Avx2Lanes;
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx512::Avx512Lanes;
 use super::super::math::BATCH_VERTICES;
 use super::super::types::Real;
 use super::collider::Colliders;

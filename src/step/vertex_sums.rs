@@ -22,13 +22,13 @@
 //! one lane costs less than one of the whole group.
 
 use super::super::element::TetRest;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx2::Avx2Lanes;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx512::Avx512Lanes;
 use super::super::lanes::{
     LANES, Lane, LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH, each_lane,
 };
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx2::Avx2Lanes;
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx512::Avx512Lanes;
 use super::super::material::Material;
 use super::super::mesh::Positions;
 use super::super::types::{Mat3, Real, Vec3};

@@ -15,14 +15,14 @@
 // `simd::detected_width` found AVX-512F and the OS's support of the ZMM and mask state. The
 // intrinsics have no memory operands or other preconditions.
 
-use super::lanes::{
-    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
-    set_array_quarter, store_array_quarter,
-};
-use super::types::{Real, Vec3};
-use super::wide_ops::{
+use super::super::types::{Real, Vec3};
+use super::super::wide_ops::{
     AVX512_WIDTH, Mask512, Reg512, abs512, add512, blend512, cmp512, div512, from_bits512, max512,
     mul512, set1_512, sqrt512, store_vec3s_512, sub512, to_bits512, vec3s_512,
+};
+use super::{
+    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
+    set_array_quarter, store_array_quarter,
 };
 use core::arch::x86_64::{
     _CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q, _mm512_and_si512, _mm512_or_si512, _mm512_xor_si512,

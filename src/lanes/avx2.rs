@@ -14,14 +14,14 @@
 // AVX2 and the OS's support of the YMM state. The intrinsics have no memory operands or other
 // preconditions.
 
-use super::lanes::{
-    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
-    set_array_quarter, store_array_quarter,
-};
-use super::types::{Real, Vec3};
-use super::wide_ops::{
+use super::super::types::{Real, Vec3};
+use super::super::wide_ops::{
     AVX2_WIDTH, Reg256, add256, and256, andnot256, blendv256, cmp256, div256, max256, movemask256,
     mul256, or256, set1_256, sqrt256, store_vec3s_256, sub256, vec3s_256, xor256,
+};
+use super::{
+    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
+    set_array_quarter, store_array_quarter,
 };
 use core::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q};
 use core::ops::{Add, Div, Mul, Neg, Sub};
