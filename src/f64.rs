@@ -207,10 +207,6 @@ pub mod material;
 #[path = "generate.rs"]
 pub mod generate;
 
-#[cfg(feature = "std")]
-#[path = "tetgen.rs"]
-pub mod tetgen;
-
 #[path = "element/mod.rs"]
 pub mod element;
 
@@ -228,19 +224,5 @@ pub mod body;
 #[path = "parallel.rs"]
 pub mod parallel;
 
-#[path = "voxel.rs"]
-pub mod voxel;
-
-#[path = "embed.rs"]
-pub mod embed;
-
-#[path = "surface.rs"]
-pub mod surface;
-
-#[cfg(feature = "std")]
-#[path = "obj.rs"]
-pub mod obj;
-
-#[cfg(feature = "std")]
-#[path = "gmsh.rs"]
-pub mod gmsh;
+#[path = "asset/mod.rs"]
+pub mod asset;

@@ -32,9 +32,10 @@
 //!   `svd3`.
 //! * [`svd3_batch`](svd::svd3_batch): the SVDs of a whole slice at the widest SIMD width the CPU
 //!   has (AVX-512F, AVX2, SSE, chosen at run time by [`simd`]), bit-identical to `svd3`.
-//! * From a game asset to a soft body and back: [`voxel`] tet meshing of a closed triangle surface
-//!   (generalised winding number), [`embed`] to drive a detailed render mesh by the simulated one,
-//!   [`surface`] buffers (outward boundary triangles, vertex normals), and with `std` the Gmsh 4.1
+//! * [`asset`]: from a game asset to a soft body and back: [`voxel`](asset::voxel) tet meshing of
+//!   a closed triangle surface (generalised winding number), [`embed`](asset::embed) to drive a
+//!   detailed render mesh by the simulated one, [`surface`](asset::surface) buffers (outward
+//!   boundary triangles, vertex normals), and with `std` the TetGen (`tetgen`), Gmsh 4.1
 //!   (`gmsh`) and OBJ (`obj`) readers and a per-frame OBJ writer.
 //!
 //! Vectors and matrices are [glam](https://docs.rs/glam/0.34)'s `Vec3` and `Mat3` (`DVec3`,
@@ -133,13 +134,14 @@
 //! ```
 //!
 //! ## Features
-//! * `std`: host-only conveniences; the kernels never need it. Enables the `tetgen` module, a
-//!   reader for TetGen `.node` / `.ele` meshes (docs.rs builds with every feature, so it is shown
-//!   there, marked as needing `std`).
+//! * `std`: host-only conveniences; the kernels never need it. Enables the file readers and
+//!   writers of [`asset`]: `asset::tetgen` (TetGen `.node` / `.ele` meshes), `asset::gmsh` and
+//!   `asset::obj` (docs.rs builds with every feature, so they are shown there, marked as needing
+//!   `std`).
 //! * `alloc`: the growable storage of [`body`] (`body::VecStorage`).
 //! * `defmt`: derives `defmt::Format` on every public error and report type.
-//! * `bytemuck`: derives `bytemuck::Pod` on the render-buffer types of [`surface`] (and enables
-//!   glam's `bytemuck`), so vertex and index buffers cast to bytes for a GPU upload.
+//! * `bytemuck`: derives `bytemuck::Pod` on the render-buffer types of [`asset::surface`] (and
+//!   enables glam's `bytemuck`), so vertex and index buffers cast to bytes for a GPU upload.
 //! * `rayon` (implies `std`): `parallel`, the partitioned passes of
 //!   [`TetPartition`](mesh::TetPartition) run on rayon's pool, bit-identical to the sequential
 //!   code for any thread count.
@@ -184,24 +186,14 @@ pub mod simd;
 mod single;
 pub use error::ColliderProblem;
 pub use error::{BodyBuffer, BodyError};
-#[cfg(feature = "std")]
-pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
-pub use single::body;
-#[cfg(feature = "std")]
-#[cfg_attr(docsrs, doc(cfg(feature = "std")))]
-pub use single::tetgen;
-pub use single::{element, generate, lanes, material, mesh, polar, step, svd, types};
-// The asset pipeline: a triangle surface to a soft body and back.
+pub use single::{asset, body, element, generate, lanes, material, mesh, polar, step, svd, types};
+// The asset pipeline's errors (also in `asset` and `error`).
 #[cfg(feature = "std")]
 pub use error::{
     AssetFileError, GmshFormatError, GmshProblem, GmshSection, ObjFormatError, ObjProblem,
+    TetgenError, TetgenFile, TetgenFormatError, TetgenProblem,
 };
 pub use error::{EmbedBuffer, EmbedError, SurfaceError, VoxelBuffer, VoxelError};
-pub use single::embed;
-pub use single::surface;
-pub use single::voxel;
-#[cfg(feature = "std")]
-pub use single::{gmsh, obj};
 
 #[cfg(feature = "rayon")]
 #[cfg_attr(docsrs, doc(cfg(feature = "rayon")))]
