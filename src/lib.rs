@@ -159,8 +159,9 @@
     )
 )]
 #![warn(missing_docs)]
-// One source, two precisions: `src/f32.rs` and `src/f64.rs` each include the shared numeric
-// modules (`svd.rs`, `polar.rs`, ...) against their own `Real`/`Vec3`/`Mat3` aliases.
+// One source, two precisions: `src/f32/` and `src/f64/` each include the shared numeric
+// modules (`svd.rs`, `polar.rs`, ..., listed once in `src/precision.rs`) against their own
+// `Real`/`Vec3`/`Mat3` aliases.
 #![allow(clippy::duplicate_mod)]
 
 #[cfg(feature = "alloc")]
@@ -182,7 +183,9 @@ pub use error::{
 #[path = "lanes/dispatch.rs"]
 pub mod simd;
 
-#[path = "f32.rs"]
+mod precision;
+
+#[path = "f32/mod.rs"]
 mod single;
 pub use error::ColliderProblem;
 pub use error::{BodyBuffer, BodyError};

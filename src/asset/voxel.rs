@@ -4,9 +4,9 @@
 //! covers the surface's bounding box with a regular grid of cubes ([`VoxelGrid`]), keeps the
 //! cubes that lie inside, and splits each kept cube into the five tetrahedra of
 //! [`BoxSplit::Alternating5`] (the same tables as
-//! [`fill_box`](super::super::generate::fill_box), so the faces of neighbouring cubes conform). Grid
-//! corners shared by kept cubes become one vertex, numbered through the grid's own indexing, so
-//! no search or hash map is needed.
+//! [`fill_box`](super::super::generate::fill_box), so the faces of neighbouring cubes
+//! conform). Grid corners shared by kept cubes become one vertex, numbered through the grid's
+//! own indexing, so no search or hash map is needed.
 //!
 //! The pipeline, every step into buffers the caller sized:
 //! 1. [`classify_cells`] checks that the surface is closed and consistently oriented (every

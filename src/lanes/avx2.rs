@@ -2,11 +2,11 @@
 //! that [`simd::dispatch`](crate::simd) runs with AVX2 enabled.
 //!
 //! Written once for both precisions against the precision-neutral names of `wide_ops` (in
-//! `src/f32.rs` and `src/f64.rs`). Every operation is the packed form of the scalar one with
-//! the same IEEE rounding (add, subtract, multiply, divide and square root are correctly
-//! rounded; no fused multiply-add), `max` reproduces the instruction sequence the compiler
-//! emits for the scalar `max`, and selects are bitwise blends, so lane `i` is bit for bit what
-//! the scalar code computes.
+//! `src/f32/wide_ops.rs` and `src/f64/wide_ops.rs`). Every operation is the packed form of the
+//! scalar one with the same IEEE rounding (add, subtract, multiply, divide and square root are
+//! correctly rounded; no fused multiply-add), `max` reproduces the instruction sequence the
+//! compiler emits for the scalar `max`, and selects are bitwise blends, so lane `i` is bit for bit
+//! what the scalar code computes.
 
 // SAFETY (for every `unsafe` block below, which only calls AVX intrinsics on register values):
 // the type is crate-private and only the batched kernels create it, inside the functions that

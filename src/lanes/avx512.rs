@@ -2,11 +2,11 @@
 //! kernels that [`simd::dispatch`](crate::simd) runs with AVX-512F enabled.
 //!
 //! Written once for both precisions against the precision-neutral names of `wide_ops` (in
-//! `src/f32.rs` and `src/f64.rs`). Every operation is the packed form of the scalar one with
-//! the same IEEE rounding (add, subtract, multiply, divide and square root are correctly
-//! rounded; no fused multiply-add), `max` reproduces the result of the instruction sequence the
-//! compiler emits for the scalar `max`, and selects are mask blends, so lane `i` is bit for bit
-//! what the scalar code computes. Only AVX-512F is used: its bitwise operations are the
+//! `src/f32/wide_ops.rs` and `src/f64/wide_ops.rs`). Every operation is the packed form of the
+//! scalar one with the same IEEE rounding (add, subtract, multiply, divide and square root are
+//! correctly rounded; no fused multiply-add), `max` reproduces the result of the instruction
+//! sequence the compiler emits for the scalar `max`, and selects are mask blends, so lane `i` is
+//! bit for bit what the scalar code computes. Only AVX-512F is used: its bitwise operations are the
 //! integer ones (the floating-point `and`/`or`/`xor` forms need AVX-512DQ).
 
 // SAFETY (for every `unsafe` block below, which only calls AVX-512F intrinsics on register
