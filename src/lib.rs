@@ -3,8 +3,8 @@
 //! Elastic soft bodies for firmware and game engines: linear FEM/FVM kernels on tetrahedra and
 //! triangles, `#![no_std]` and allocation-free, on buffers the caller owns.
 //!
-//! * `f32` at the crate root, the same API in `f64` under [`softfem::f64`](mod@f64), compiled from one
-//!   source.
+//! * `f32` at the crate root, the same API in `f64` under [`softfem::f64`](mod@f64) (default
+//!   feature `f64`), compiled from one source.
 //! * [`svd`]: a rotation-variant 3x3 Jacobi SVD (`det u = det v = +1`, inversion carried by the
 //!   smallest singular value), accurate to a few `eps` on every class of input from `1e-30` to
 //!   `1e30`, with the sweep count as a speed/accuracy knob.
@@ -134,6 +134,8 @@
 //! ```
 //!
 //! ## Features
+//! * `f64` (default): [`softfem::f64`](mod@f64), the same API in double precision. Without it
+//!   the numeric modules are compiled once, for `f32` only.
 //! * `std`: host-only conveniences; the kernels never need it. Enables the file readers and
 //!   writers of [`asset`]: `asset::tetgen` (TetGen `.node` / `.ele` meshes), `asset::gmsh` and
 //!   `asset::obj` (docs.rs builds with every feature, so they are shown there, marked as needing
@@ -202,6 +204,8 @@ pub use error::{EmbedBuffer, EmbedError, SurfaceError, VoxelBuffer, VoxelError};
 #[cfg_attr(docsrs, doc(cfg(feature = "rayon")))]
 pub use single::parallel;
 
+#[cfg(feature = "f64")]
+#[cfg_attr(docsrs, doc(cfg(feature = "f64")))]
 pub mod f64;
 
 // The README's Rust examples run as doc tests, so the README cannot drift from the API.
