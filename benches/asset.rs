@@ -23,10 +23,10 @@ use std::time::{Duration, Instant};
 
 use common::TablePass;
 use criterion::Criterion;
-use softfem::embed::{Embedded, Embedding, embed_points_vec};
+use softfem::asset::embed::{Embedded, Embedding, embed_points_vec};
+use softfem::asset::surface::vertex_normals;
+use softfem::asset::voxel::{VoxelGrid, VoxelMesh, VoxelOptions, voxel_mesh};
 use softfem::glam::Vec3;
-use softfem::surface::vertex_normals;
-use softfem::voxel::{VoxelGrid, VoxelMesh, VoxelOptions, voxel_mesh};
 
 struct Inputs {
     surface: Vec<Vec3>,

@@ -3,8 +3,8 @@
 //! Elastic soft bodies for firmware and game engines: linear FEM/FVM kernels on tetrahedra and
 //! triangles, `#![no_std]` and allocation-free, on buffers the caller owns.
 //!
-//! * `f32` at the crate root, the same API in `f64` under [`softfem::f64`](mod@f64), compiled from one
-//!   source.
+//! * `f32` at the crate root, the same API in `f64` under [`softfem::f64`](mod@f64) (default
+//!   feature `f64`), compiled from one source.
 //! * [`svd`]: a rotation-variant 3x3 Jacobi SVD (`det u = det v = +1`, inversion carried by the
 //!   smallest singular value), accurate to a few `eps` on every class of input from `1e-30` to
 //!   `1e30`, with the sweep count as a speed/accuracy knob.
@@ -32,9 +32,10 @@
 //!   `svd3`.
 //! * [`svd3_batch`](svd::svd3_batch): the SVDs of a whole slice at the widest SIMD width the CPU
 //!   has (AVX-512F, AVX2, SSE, chosen at run time by [`simd`]), bit-identical to `svd3`.
-//! * From a game asset to a soft body and back: [`voxel`] tet meshing of a closed triangle surface
-//!   (generalised winding number), [`embed`] to drive a detailed render mesh by the simulated one,
-//!   [`surface`] buffers (outward boundary triangles, vertex normals), and with `std` the Gmsh 4.1
+//! * [`asset`]: from a game asset to a soft body and back: [`voxel`](asset::voxel) tet meshing of
+//!   a closed triangle surface (generalised winding number), [`embed`](asset::embed) to drive a
+//!   detailed render mesh by the simulated one, [`surface`](asset::surface) buffers (outward
+//!   boundary triangles, vertex normals), and with `std` the TetGen (`tetgen`), Gmsh 4.1
 //!   (`gmsh`) and OBJ (`obj`) readers and a per-frame OBJ writer.
 //!
 //! Vectors and matrices are [glam](https://docs.rs/glam/0.34)'s `Vec3` and `Mat3` (`DVec3`,
@@ -133,13 +134,16 @@
 //! ```
 //!
 //! ## Features
-//! * `std`: host-only conveniences; the kernels never need it. Enables the `tetgen` module, a
-//!   reader for TetGen `.node` / `.ele` meshes (docs.rs builds with every feature, so it is shown
-//!   there, marked as needing `std`).
+//! * `f64` (default): [`softfem::f64`](mod@f64), the same API in double precision. Without it
+//!   the numeric modules are compiled once, for `f32` only.
+//! * `std`: host-only conveniences; the kernels never need it. Enables the file readers and
+//!   writers of [`asset`]: `asset::tetgen` (TetGen `.node` / `.ele` meshes), `asset::gmsh` and
+//!   `asset::obj` (docs.rs builds with every feature, so they are shown there, marked as needing
+//!   `std`).
 //! * `alloc`: the growable storage of [`body`] (`body::VecStorage`).
 //! * `defmt`: derives `defmt::Format` on every public error and report type.
-//! * `bytemuck`: derives `bytemuck::Pod` on the render-buffer types of [`surface`] (and enables
-//!   glam's `bytemuck`), so vertex and index buffers cast to bytes for a GPU upload.
+//! * `bytemuck`: derives `bytemuck::Pod` on the render-buffer types of [`asset::surface`] (and
+//!   enables glam's `bytemuck`), so vertex and index buffers cast to bytes for a GPU upload.
 //! * `rayon` (implies `std`): `parallel`, the partitioned passes of
 //!   [`TetPartition`](mesh::TetPartition) run on rayon's pool, bit-identical to the sequential
 //!   code for any thread count.
@@ -157,8 +161,9 @@
     )
 )]
 #![warn(missing_docs)]
-// One source, two precisions: `src/f32.rs` and `src/f64.rs` each include the shared numeric
-// modules (`svd.rs`, `polar.rs`, ...) against their own `Real`/`Vec3`/`Mat3` aliases.
+// One source, two precisions: `src/f32/` and `src/f64/` each include the shared numeric
+// modules (`svd.rs`, `polar.rs`, ..., listed once in `src/precision.rs`) against their own
+// `Real`/`Vec3`/`Mat3` aliases.
 #![allow(clippy::duplicate_mod)]
 
 #[cfg(feature = "alloc")]
@@ -175,35 +180,32 @@ pub use error::{
     StepError,
 };
 
+// The run-time SIMD dispatch lives with the lane types it picks between (`src/lanes/`), but is
+// compiled once, for both precisions: one detected width and one cap.
+#[path = "lanes/dispatch.rs"]
 pub mod simd;
 
-#[path = "f32.rs"]
+mod precision;
+
+#[path = "f32/mod.rs"]
 mod single;
 pub use error::ColliderProblem;
 pub use error::{BodyBuffer, BodyError};
-#[cfg(feature = "std")]
-pub use error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
-pub use single::body;
-#[cfg(feature = "std")]
-#[cfg_attr(docsrs, doc(cfg(feature = "std")))]
-pub use single::tetgen;
-pub use single::{element, generate, lanes, material, mesh, polar, step, svd, types};
-// The asset pipeline: a triangle surface to a soft body and back.
+pub use single::{asset, body, element, generate, lanes, material, mesh, polar, step, svd, types};
+// The asset pipeline's errors (also in `asset` and `error`).
 #[cfg(feature = "std")]
 pub use error::{
     AssetFileError, GmshFormatError, GmshProblem, GmshSection, ObjFormatError, ObjProblem,
+    TetgenError, TetgenFile, TetgenFormatError, TetgenProblem,
 };
 pub use error::{EmbedBuffer, EmbedError, SurfaceError, VoxelBuffer, VoxelError};
-pub use single::embed;
-pub use single::surface;
-pub use single::voxel;
-#[cfg(feature = "std")]
-pub use single::{gmsh, obj};
 
 #[cfg(feature = "rayon")]
 #[cfg_attr(docsrs, doc(cfg(feature = "rayon")))]
 pub use single::parallel;
 
+#[cfg(feature = "f64")]
+#[cfg_attr(docsrs, doc(cfg(feature = "f64")))]
 pub mod f64;
 
 // The README's Rust examples run as doc tests, so the README cannot drift from the API.

@@ -121,7 +121,7 @@ impl WidthKernel for Batch<'_> {
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn avx2(self) {
-        use super::super::lanes_avx2::Avx2Lanes;
+        use super::super::lanes::avx2::Avx2Lanes;
         use crate::simd::outlined_avx2 as run;
         let (matrices, out, sweeps) = (self.matrices, self.out, self.sweeps);
         // SAFETY (each `run`): `avx2` runs only where `dispatch` found AVX2. Each lane type's
@@ -141,14 +141,14 @@ impl WidthKernel for Batch<'_> {
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn avx512(self) {
-        use super::super::lanes_avx512::Avx512Lanes;
+        use super::super::lanes::avx512::Avx512Lanes;
         use crate::simd::outlined_avx512 as run;
         let (matrices, out, sweeps) = (self.matrices, self.out, self.sweeps);
         // SAFETY (each `run`): `avx512` runs only where `dispatch` found AVX-512F. Each lane
         // type's loop gets a function of its own, as in `avx2`.
         #[cfg(not(debug_assertions))]
         unsafe {
-            use super::super::lanes_avx2::Avx2Lanes;
+            use super::super::lanes::avx2::Avx2Lanes;
             let (matrices, out) = run(Groups::<LanePair<Avx512Lanes>>::whole(
                 matrices, out, sweeps,
             ));

@@ -612,7 +612,7 @@ mod alloc_storage {
         // Two tetrahedra sharing a face, the second written negatively oriented.
         let node = "5 3 0 0\n0 0 0 0\n1 1 0 0\n2 0 1 0\n3 0 0 1\n4 1 1 1\n";
         let ele = "2 4 0\n0 0 1 2 3\n1 1 3 2 4\n";
-        let mesh = softfem::tetgen::read_tetgen(node, ele).unwrap();
+        let mesh = softfem::asset::tetgen::read_tetgen(node, ele).unwrap();
         let mut body = Body::<VecStorage, _>::from_tetgen(&mesh, DENSITY, jelly()).unwrap();
         let volume = body.mesh().rest_volume();
         // 1/6 for the corner tet; the second has edges (-1,0,1), (-1,1,0), (0,1,1) from (1,0,0):

@@ -7,10 +7,10 @@
 mod shapes;
 
 use softfem::EmbedError;
-use softfem::embed::{Embedded, Embedding, TetLookup, embed_points, embed_points_vec};
+use softfem::asset::embed::{Embedded, Embedding, TetLookup, embed_points, embed_points_vec};
+use softfem::asset::voxel::{VoxelGrid, VoxelOptions, voxel_mesh};
 use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::{Mat3, Vec3};
-use softfem::voxel::{VoxelGrid, VoxelOptions, voxel_mesh};
 
 fn unit_box(cells: usize) -> (Vec<Vec3>, Vec<[u32; 4]>) {
     let (vertex_count, tet_count) =

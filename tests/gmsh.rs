@@ -3,9 +3,9 @@
 //! line and problem; file errors with their paths; a round trip through the generator's box.
 #![cfg(feature = "std")]
 
+use softfem::asset::gmsh::{read_gmsh, read_gmsh_file};
 use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::Vec3;
-use softfem::gmsh::{read_gmsh, read_gmsh_file};
 use softfem::{AssetFileError, GmshFormatError, GmshProblem, GmshSection};
 
 /// Two tetrahedra sharing the face of nodes 20-30-40, the shared triangle as a surface element,
@@ -76,7 +76,7 @@ fn reads_tets_triangles_and_entities() {
     let crlf = MESH.replace('\n', "\r\n\r\n");
     assert_eq!(read_gmsh(&crlf).unwrap(), mesh);
     // The f64 API reads the same mesh.
-    let double = softfem::f64::gmsh::read_gmsh(MESH).unwrap();
+    let double = softfem::f64::asset::gmsh::read_gmsh(MESH).unwrap();
     assert_eq!(double.tets, mesh.tets);
 }
 

@@ -6,8 +6,8 @@
 #[path = "common/shapes.rs"]
 mod shapes;
 
+use softfem::asset::obj::{read_obj, read_obj_file, write_obj, write_obj_file};
 use softfem::glam::Vec3;
-use softfem::obj::{read_obj, read_obj_file, write_obj, write_obj_file};
 use softfem::{AssetFileError, ObjFormatError, ObjProblem};
 
 /// A square pyramid: a quad base written with texture and normal references, four triangles
@@ -54,7 +54,9 @@ fn reads_references_negative_indices_and_fans() {
     assert!((volume - 1.0 / 3.0).abs() < 1e-6, "{volume}");
     assert_eq!(read_obj(&PYRAMID.replace('\n', "\r\n")).unwrap(), surface);
     assert_eq!(
-        softfem::f64::obj::read_obj(PYRAMID).unwrap().triangles,
+        softfem::f64::asset::obj::read_obj(PYRAMID)
+            .unwrap()
+            .triangles,
         surface.triangles
     );
 }
@@ -214,11 +216,11 @@ fn file_errors_name_the_path() {
 /// coarse-grid error of the enclosed volume.
 #[test]
 fn the_shipped_creature_reads_closed_and_meshes() {
-    use softfem::element::TetRest;
-    use softfem::mesh::TetMesh;
-    use softfem::voxel::{
+    use softfem::asset::voxel::{
         VoxelGrid, VoxelOptions, check_closed, closed_check_scratch_len, voxel_mesh,
     };
+    use softfem::element::TetRest;
+    use softfem::mesh::TetMesh;
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/meshes/creature.obj");
     let surface = read_obj_file(&path).unwrap();
     assert_eq!(
@@ -243,7 +245,7 @@ fn the_shipped_creature_reads_closed_and_meshes() {
     // The first-order bound area * h / (2 V) is about 35% at 16 cells for this shape (thin ears
     // and legs: much surface per volume); cells counted in and left out largely cancel, so the
     // error is far below it. Both the bound and a 3% error are asserted.
-    let area = f64::from(softfem::surface::surface_area(
+    let area = f64::from(softfem::asset::surface::surface_area(
         &surface.positions,
         &surface.triangles,
     ));

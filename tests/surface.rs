@@ -9,13 +9,13 @@ mod shapes;
 use std::collections::HashMap;
 
 use softfem::SurfaceError;
-use softfem::generate::{BoxSplit, box_counts, fill_box};
-use softfem::glam::Vec3;
-use softfem::surface::{
+use softfem::asset::surface::{
     BoundaryFace, RenderVertex, boundary_faces, boundary_scratch_len, interleave, surface_area,
     vertex_normals,
 };
-use softfem::voxel::{VoxelGrid, VoxelOptions, voxel_mesh};
+use softfem::asset::voxel::{VoxelGrid, VoxelOptions, voxel_mesh};
+use softfem::generate::{BoxSplit, box_counts, fill_box};
+use softfem::glam::Vec3;
 
 fn boundary(tets: &[[u32; 4]], vertex_count: usize) -> Vec<BoundaryFace> {
     let mut scratch = vec![BoundaryFace::default(); boundary_scratch_len(tets.len())];

@@ -77,7 +77,7 @@ macro_rules! tetgen_tests {
             use super::*;
             use std::fmt::Write as _;
             use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
-            use $($api)::+::tetgen::{TetgenError, TetgenMesh, read_tetgen, read_tetgen_files};
+            use $($api)::+::asset::tetgen::{TetgenError, TetgenMesh, read_tetgen, read_tetgen_files};
             use $($api)::+::types::{Real, Vec3};
 
             /// What `read_tetgen` must return for `NODE_0` / `ELE_0` and `NODE_1` / `ELE_1`.

@@ -8,13 +8,13 @@ mod shapes;
 
 use shapes::{cube, enclosed_volume, icosphere, tet_volume, torus};
 use softfem::VoxelError;
-use softfem::element::TetRest;
-use softfem::glam::Vec3;
-use softfem::mesh::TetMesh;
-use softfem::voxel::{
+use softfem::asset::voxel::{
     VoxelGrid, VoxelMesh, VoxelOptions, check_closed, closed_check_scratch_len, voxel_mesh,
     winding_number,
 };
+use softfem::element::TetRest;
+use softfem::glam::Vec3;
+use softfem::mesh::TetMesh;
 
 fn mesh_at(positions: &[Vec3], triangles: &[[u32; 3]], cells: usize) -> VoxelMesh {
     let grid = VoxelGrid::with_resolution(positions, cells).unwrap();
@@ -355,7 +355,7 @@ fn print_volume_table() {
 /// inside to f64 rounding.
 #[test]
 fn the_f64_api_meshes_the_same_cube() {
-    use softfem::f64::voxel as voxel64;
+    use softfem::f64::asset::voxel as voxel64;
     use softfem::glam::DVec3;
     let (positions, triangles) = cube();
     let positions64: Vec<DVec3> = positions.iter().map(|x| x.as_dvec3()).collect();

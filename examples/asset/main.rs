@@ -1,8 +1,8 @@
 //! `cargo run --release --example asset`: from a game asset to a soft body and back.
 //!
 //! Takes a closed triangle surface (a procedural long-eared creature, or any OBJ with
-//! `--surface`), voxel-meshes it into tetrahedra (`softfem::voxel`), embeds the surface's
-//! vertices in the tetrahedra (`softfem::embed`), drops the body on the ground with the jelly of
+//! `--surface`), voxel-meshes it into tetrahedra (`softfem::asset::voxel`), embeds the surface's
+//! vertices in the tetrahedra (`softfem::asset::embed`), drops the body on the ground with the jelly of
 //! the bouncy scene (stable neo-Hookean, E = 50 kPa, nu = 0.45, 1000 kg/m^3, explicit steps at
 //! half the stable bound), and every frame deforms the detailed surface from the simulated one:
 //! OBJ files with normals (`frame_0000.obj`, ...) and a filmstrip SVG of the render surface,
@@ -22,18 +22,18 @@ use std::time::Instant;
 use clap::Parser;
 
 use filmstrip::{Camera, Filmstrip, Recorder};
+use softfem::asset::embed::{Embedding, embed_points_vec};
+use softfem::asset::obj::{read_obj_file, write_obj_file};
+use softfem::asset::surface::vertex_normals;
+use softfem::asset::voxel::{VoxelGrid, VoxelOptions, voxel_mesh};
 use softfem::element::TetRest;
-use softfem::embed::{Embedding, embed_points_vec};
 use softfem::glam::Vec3;
 use softfem::material::StableNeoHookean;
 use softfem::mesh::TetMesh;
-use softfem::obj::{read_obj_file, write_obj_file};
 use softfem::step::{
     ExplicitScratch, ExplicitSettings, Ground, TetElastic, explicit_scratch_len, stable_time_step,
     step_explicit,
 };
-use softfem::surface::vertex_normals;
-use softfem::voxel::{VoxelGrid, VoxelOptions, voxel_mesh};
 
 /// Gravity (m/s^2) along -z.
 const GRAVITY: Vec3 = Vec3::new(0.0, 0.0, -9.81);

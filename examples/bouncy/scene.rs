@@ -8,12 +8,12 @@
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+use softfem::asset::tetgen::read_tetgen_files;
 use softfem::element::{TetRest, fix_orientation};
 use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::Vec3;
 use softfem::material::{NeoHookean, StVK, StableNeoHookean};
 use softfem::mesh::TetMesh;
-use softfem::tetgen::read_tetgen_files;
 
 use crate::cli::{Args, Model, Stepper};
 use crate::progress::Progress;

@@ -1,7 +1,7 @@
 //! The boundary surface of a tetrahedral mesh: the faces used by exactly one tetrahedron
-//! (computed by the library's `softfem::surface::boundary_faces`).
+//! (computed by the library's `softfem::asset::surface::boundary_faces`).
 
-use softfem::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
+use softfem::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
 
 /// Boundary triangles of a tetrahedral mesh.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]

@@ -1,14 +1,14 @@
 //! The TetGen reader on arbitrary text (included once per precision by `lib.rs`).
 //!
 //! The input is the `.node` text, a zero byte, and the `.ele` text (invalid UTF-8 replaced).
-//! Promises checked (`src/tetgen.rs`): nothing panics, and the result is exactly what the
+//! Promises checked (`src/asset/tetgen.rs`): nothing panics, and the result is exactly what the
 //! format documented in the module (one header, consecutive records, exact field counts,
 //! numeric fields, finite coordinates, first index 0 or 1, references in range, 4-node
 //! tetrahedra) gives, computed here by an independent reader: the same mesh, or an error naming
 //! the same file, line and problem, whose message starts with `<file> file, line <n>:`.
 
 use super::NAME;
-use super::sf::tetgen::{TetgenMesh, read_tetgen};
+use super::sf::asset::tetgen::{TetgenMesh, read_tetgen};
 use super::sf::types::{Real, Vec3};
 use super::sf::{TetgenFile, TetgenFormatError, TetgenProblem};
 

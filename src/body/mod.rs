@@ -211,7 +211,7 @@ impl<S: Storage, M: Material> Body<S, M> {
     #[cfg(feature = "std")]
     #[cfg_attr(docsrs, doc(cfg(feature = "std")))]
     pub fn from_tetgen(
-        mesh: &super::tetgen::TetgenMesh,
+        mesh: &super::asset::tetgen::TetgenMesh,
         density: Real,
         material: M,
     ) -> Result<Self, BodyError> {

@@ -3,13 +3,13 @@
 //! energies are bit for bit those of the scalar loop.
 
 use super::super::element::TetRest;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx2::Avx2Lanes;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx512::Avx512Lanes;
 use super::super::lanes::{
     LANES, Lane, LaneArray, LaneMat3, LaneSvd3, LaneVec3, Lanes, each_lane, transpose4,
 };
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx2::Avx2Lanes;
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx512::Avx512Lanes;
 use super::super::material::Material;
 use super::super::svd::{Svd3, svd3, svd3_of_lanes};
 use super::super::types::{Mat3, Real, Vec3};
@@ -415,7 +415,7 @@ fn split_groups<'a>(
 }
 
 /// The four interleaved partial sums of the fused energy pass (the order of `LaneSum` in
-/// lanes.rs): element `i < whole` adds to partial sum `i % 4`, the rest to `last`, whether it
+/// lanes/mod.rs): element `i < whole` adds to partial sum `i % 4`, the rest to `last`, whether it
 /// comes in a group or alone.
 pub(super) struct FusedEnergy {
     partial: [Real; LANES],

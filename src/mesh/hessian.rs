@@ -12,11 +12,11 @@
 
 use super::super::element::HESSIAN_ENTRIES as ENTRIES;
 use super::super::element::{MembraneHessian, TetHessian, TriHessian, TriangleStVK};
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx2::Avx2Lanes;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx512::Avx512Lanes;
 use super::super::lanes::{LANES, Lane, LaneArray, Lanes, transpose4};
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx2::Avx2Lanes;
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx512::Avx512Lanes;
 use super::super::material::Material;
 use super::super::math::BATCH_SVD;
 use super::super::svd::svd3_lanes;

@@ -5,11 +5,11 @@ pub(crate) mod frequency;
 pub(crate) mod stability;
 
 use super::super::element::Vector;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx2::Avx2Lanes;
+#[cfg(target_arch = "x86_64")]
+use super::super::lanes::avx512::Avx512Lanes;
 use super::super::lanes::{LaneArray, Lanes};
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx2::Avx2Lanes;
-#[cfg(target_arch = "x86_64")]
-use super::super::lanes_avx512::Avx512Lanes;
 use super::super::types::Real;
 use super::contact::Ground;
 use super::descent::line_search::copy;

@@ -6,7 +6,7 @@
 //! ([`Grouped::Wide`]) and the rest one at a time with the plain vector, elsewhere every vertex
 //! one at a time, through the same generic code: element-wise IEEE operations and selects
 //! instead of branches, so every vertex gets the same bits either way. Sums over vertices follow one fixed order on every target (`LaneSum` in
-//! `lanes.rs`). `LaneVec2` lives here rather than next to `LaneVec3`: only the steppers need 2D
+//! `lanes/mod.rs`). `LaneVec2` lives here rather than next to `LaneVec3`: only the steppers need 2D
 //! lanes.
 
 use core::ops::{Add, Neg, Sub};

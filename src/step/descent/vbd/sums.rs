@@ -26,9 +26,9 @@ use super::super::super::super::lanes::{
     LANES, Lane, LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH, each_lane,
 };
 #[cfg(target_arch = "x86_64")]
-use super::super::super::super::lanes_avx2::Avx2Lanes;
+use super::super::super::super::lanes::avx2::Avx2Lanes;
 #[cfg(target_arch = "x86_64")]
-use super::super::super::super::lanes_avx512::Avx512Lanes;
+use super::super::super::super::lanes::avx512::Avx512Lanes;
 use super::super::super::super::material::Material;
 use super::super::super::super::mesh::Positions;
 use super::super::super::super::types::{Mat3, Real, Vec3};

@@ -2,7 +2,7 @@
 //!
 //! Every operation is the packed form of the scalar one with the same IEEE rounding, so lane `i`
 //! is bit for bit what the scalar code computes; `max` reproduces the exact instruction sequence
-//! the compiler emits for `f64::max`. The f32 counterpart, `lanes_sse.rs`, says why a register
+//! the compiler emits for `f64::max`. The f32 counterpart, `sse.rs`, says why a register
 //! type rather than an array.
 
 // SAFETY (for every `unsafe` block below that only calls SSE2 intrinsics on register values):

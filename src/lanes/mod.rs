@@ -13,6 +13,14 @@ use core::ops::{Add, Div, Mul, Neg, Sub};
 pub(crate) use super::lane_repr::transpose4;
 pub use super::lane_repr::{LaneMask, Lanes, transpose_vec3, untranspose_vec3};
 
+/// One AVX register of values (x86_64, run with AVX2 by `simd::dispatch`).
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod avx2;
+
+/// One AVX-512 register of values (x86_64, run with AVX-512F by `simd::dispatch`).
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod avx512;
+
 /// Number of values a [`Lanes`] holds: 4 in both precisions (one SSE register of f32, two of f64).
 pub const LANES: usize = math::LANES;
 
@@ -74,13 +82,10 @@ mod sealed {
     }
     sealed_by_array!(super::Lanes, super::LANES);
     #[cfg(target_arch = "x86_64")]
-    sealed_by_array!(
-        super::super::lanes_avx2::Avx2Lanes,
-        super::super::wide_ops::AVX2_WIDTH
-    );
+    sealed_by_array!(super::avx2::Avx2Lanes, super::super::wide_ops::AVX2_WIDTH);
     #[cfg(target_arch = "x86_64")]
     sealed_by_array!(
-        super::super::lanes_avx512::Avx512Lanes,
+        super::avx512::Avx512Lanes,
         super::super::wide_ops::AVX512_WIDTH
     );
 

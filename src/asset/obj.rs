@@ -17,7 +17,7 @@ use std::path::Path;
 use std::string::String;
 use std::vec::Vec;
 
-use super::types::{Real, Vec3};
+use super::super::types::{Real, Vec3};
 pub use crate::error::{AssetFileError, ObjFormatError, ObjProblem};
 
 /// A triangle surface read from an OBJ file.
@@ -33,7 +33,7 @@ pub struct ObjSurface {
 /// Reads the vertices and faces of an OBJ text.
 ///
 /// ```
-/// use softfem::obj::read_obj;
+/// use softfem::asset::obj::read_obj;
 ///
 /// let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1/1 2/2 3/3 4/4  # a quad\n";
 /// let surface = read_obj(text)?;
@@ -41,7 +41,7 @@ pub struct ObjSurface {
 ///
 /// let error = read_obj("v 0 0 0\nf 1 2 3\n").unwrap_err();
 /// assert_eq!(error.to_string(), "line 2: vertex index 2 is out of range (1 vertices)");
-/// # Ok::<(), softfem::obj::ObjFormatError>(())
+/// # Ok::<(), softfem::asset::obj::ObjFormatError>(())
 /// ```
 ///
 /// # Errors

@@ -27,7 +27,7 @@ use std::path::Path;
 use std::string::String;
 use std::vec::Vec;
 
-use super::types::{Real, Vec3};
+use super::super::types::{Real, Vec3};
 pub use crate::error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 
 /// A tetrahedral mesh read from TetGen files.
@@ -49,7 +49,7 @@ pub struct TetgenMesh {
 /// (or duplicate) record index, a point reference out of range, or 10-node tetrahedra.
 ///
 /// ```
-/// use softfem::tetgen::read_tetgen;
+/// use softfem::asset::tetgen::read_tetgen;
 ///
 /// // A single tetrahedron, 1-based, with a boundary marker per point.
 /// let node = "\
@@ -67,7 +67,7 @@ pub struct TetgenMesh {
 /// let broken = "1 4 0\n1  1 2 3 5   # there is no point 5\n";
 /// let error = read_tetgen(node, broken).unwrap_err();
 /// assert_eq!(error.to_string(), ".ele file, line 2: point index 5 is out of range (4 points numbered from 1)");
-/// # Ok::<(), softfem::tetgen::TetgenFormatError>(())
+/// # Ok::<(), softfem::asset::tetgen::TetgenFormatError>(())
 /// ```
 pub fn read_tetgen(node: &str, ele: &str) -> Result<TetgenMesh, TetgenFormatError> {
     let (positions, first) = read_node(node)?;

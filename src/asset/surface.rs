@@ -4,8 +4,8 @@
 //! With the `bytemuck` feature, [`BoundaryFace`] and [`RenderVertex`] are `bytemuck::Pod`, so a
 //! slice of them casts to bytes (`bytemuck::cast_slice`) for a GPU upload without copying.
 
-use super::math::sqrt;
-use super::types::{Real, Vec3};
+use super::super::math::sqrt;
+use super::super::types::{Real, Vec3};
 use crate::error::SurfaceError;
 
 /// The faces of a positively oriented tetrahedron `[a, b, c, d]` (`det(b - a, c - a, d - a) > 0`),
@@ -53,7 +53,7 @@ pub const fn boundary_scratch_len(tet_count: usize) -> usize {
 /// dropped. No allocation: the faces are sorted in `scratch`.
 ///
 /// ```
-/// use softfem::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
+/// use softfem::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
 ///
 /// // Two tetrahedra sharing the face 1-2-3: six boundary faces, the shared one is gone.
 /// let tets = [[0, 1, 2, 3], [1, 2, 3, 4]];

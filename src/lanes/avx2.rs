@@ -2,11 +2,11 @@
 //! that [`simd::dispatch`](crate::simd) runs with AVX2 enabled.
 //!
 //! Written once for both precisions against the precision-neutral names of `wide_ops` (in
-//! `src/f32.rs` and `src/f64.rs`). Every operation is the packed form of the scalar one with
-//! the same IEEE rounding (add, subtract, multiply, divide and square root are correctly
-//! rounded; no fused multiply-add), `max` reproduces the instruction sequence the compiler
-//! emits for the scalar `max`, and selects are bitwise blends, so lane `i` is bit for bit what
-//! the scalar code computes.
+//! `src/f32/wide_ops.rs` and `src/f64/wide_ops.rs`). Every operation is the packed form of the
+//! scalar one with the same IEEE rounding (add, subtract, multiply, divide and square root are
+//! correctly rounded; no fused multiply-add), `max` reproduces the instruction sequence the
+//! compiler emits for the scalar `max`, and selects are bitwise blends, so lane `i` is bit for bit
+//! what the scalar code computes.
 
 // SAFETY (for every `unsafe` block below, which only calls AVX intrinsics on register values):
 // the type is crate-private and only the batched kernels create it, inside the functions that
@@ -14,14 +14,14 @@
 // AVX2 and the OS's support of the YMM state. The intrinsics have no memory operands or other
 // preconditions.
 
-use super::lanes::{
-    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
-    set_array_quarter, store_array_quarter,
-};
-use super::types::{Real, Vec3};
-use super::wide_ops::{
+use super::super::types::{Real, Vec3};
+use super::super::wide_ops::{
     AVX2_WIDTH, Reg256, add256, and256, andnot256, blendv256, cmp256, div256, max256, movemask256,
     mul256, or256, set1_256, sqrt256, store_vec3s_256, sub256, vec3s_256, xor256,
+};
+use super::{
+    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
+    set_array_quarter, store_array_quarter,
 };
 use core::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q};
 use core::ops::{Add, Div, Mul, Neg, Sub};

@@ -31,7 +31,7 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::vec::Vec;
 
-use super::types::{Real, Vec3};
+use super::super::types::{Real, Vec3};
 pub use crate::error::{AssetFileError, GmshFormatError, GmshProblem, GmshSection};
 
 /// A mesh read from a Gmsh file.
@@ -52,7 +52,7 @@ pub struct GmshMesh {
 /// Reads a mesh from the text of a `.msh` file (version 4.1, ASCII).
 ///
 /// ```
-/// use softfem::gmsh::read_gmsh;
+/// use softfem::asset::gmsh::read_gmsh;
 ///
 /// let text = "\
 /// $MeshFormat
@@ -81,7 +81,7 @@ pub struct GmshMesh {
 ///
 /// let broken = text.replace("1 1 2 3 4", "1 1 2 3 9");
 /// assert_eq!(read_gmsh(&broken).unwrap_err().to_string(), "line 19: node tag 9 does not exist");
-/// # Ok::<(), softfem::gmsh::GmshFormatError>(())
+/// # Ok::<(), softfem::asset::gmsh::GmshFormatError>(())
 /// ```
 ///
 /// # Errors

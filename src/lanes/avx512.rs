@@ -2,11 +2,11 @@
 //! kernels that [`simd::dispatch`](crate::simd) runs with AVX-512F enabled.
 //!
 //! Written once for both precisions against the precision-neutral names of `wide_ops` (in
-//! `src/f32.rs` and `src/f64.rs`). Every operation is the packed form of the scalar one with
-//! the same IEEE rounding (add, subtract, multiply, divide and square root are correctly
-//! rounded; no fused multiply-add), `max` reproduces the result of the instruction sequence the
-//! compiler emits for the scalar `max`, and selects are mask blends, so lane `i` is bit for bit
-//! what the scalar code computes. Only AVX-512F is used: its bitwise operations are the
+//! `src/f32/wide_ops.rs` and `src/f64/wide_ops.rs`). Every operation is the packed form of the
+//! scalar one with the same IEEE rounding (add, subtract, multiply, divide and square root are
+//! correctly rounded; no fused multiply-add), `max` reproduces the result of the instruction
+//! sequence the compiler emits for the scalar `max`, and selects are mask blends, so lane `i` is
+//! bit for bit what the scalar code computes. Only AVX-512F is used: its bitwise operations are the
 //! integer ones (the floating-point `and`/`or`/`xor` forms need AVX-512DQ).
 
 // SAFETY (for every `unsafe` block below, which only calls AVX-512F intrinsics on register
@@ -15,14 +15,14 @@
 // `simd::detected_width` found AVX-512F and the OS's support of the ZMM and mask state. The
 // intrinsics have no memory operands or other preconditions.
 
-use super::lanes::{
-    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
-    set_array_quarter, store_array_quarter,
-};
-use super::types::{Real, Vec3};
-use super::wide_ops::{
+use super::super::types::{Real, Vec3};
+use super::super::wide_ops::{
     AVX512_WIDTH, Mask512, Reg512, abs512, add512, blend512, cmp512, div512, from_bits512, max512,
     mul512, set1_512, sqrt512, store_vec3s_512, sub512, to_bits512, vec3s_512,
+};
+use super::{
+    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
+    set_array_quarter, store_array_quarter,
 };
 use core::arch::x86_64::{
     _CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q, _mm512_and_si512, _mm512_or_si512, _mm512_xor_si512,

@@ -32,8 +32,8 @@
 //! (ground, friction, pinned vertices; colliders queried lane by lane).
 //!
 //! This module holds the crate's run-time CPU checks and the only calls into code compiled for
-//! CPU features beyond the baseline; the lane types themselves live in `src/lanes_avx2.rs` and
-//! `src/lanes_avx512.rs`.
+//! CPU features beyond the baseline; the lane types themselves live beside it in `src/lanes/`
+//! (`avx2.rs`, `avx512.rs`).
 
 use core::sync::atomic::{AtomicU8, Ordering};
 

@@ -1,5 +1,6 @@
 //! Errors of the asset pipeline: voxel meshing, embedding, surface buffers and (feature `std`)
-//! the Gmsh and OBJ readers. Shared by both precisions, like the rest of [`error`](crate::error).
+//! the TetGen, Gmsh and OBJ readers. Shared by both precisions, like the rest of
+//! [`error`](crate::error), which re-exports them (as do the crate root and every `asset`).
 
 use core::fmt;
 
@@ -553,6 +554,227 @@ impl core::error::Error for AssetFileError {
             AssetFileError::Io { source, .. } => Some(source),
             AssetFileError::Obj { error, .. } => Some(error),
             AssetFileError::Gmsh { error, .. } => Some(error),
+        }
+    }
+}
+
+/// Which file of a TetGen mesh a [`TetgenFormatError`] is in.
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum TetgenFile {
+    /// The `.node` file (vertex positions).
+    Node,
+    /// The `.ele` file (tetrahedra).
+    Ele,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for TetgenFile {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            TetgenFile::Node => ".node",
+            TetgenFile::Ele => ".ele",
+        })
+    }
+}
+
+/// What is wrong with one line of a TetGen file (see [`TetgenFormatError`]).
+///
+/// Field numbers count from 1 within the line, after comments (`#` to the end of the line) are
+/// removed.
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum TetgenProblem {
+    /// The file has no header line (it is empty, or only comments and blank lines).
+    MissingHeader,
+    /// A header field has a value this reader does not accept.
+    BadHeader {
+        /// The field (1-based).
+        field: usize,
+        /// What the field must be, for example `"the dimension 3"`.
+        expected: &'static str,
+    },
+    /// The `.ele` header declares 10-node (quadratic, `-o2`) tetrahedra; only 4-node linear
+    /// tetrahedra are supported.
+    UnsupportedElement {
+        /// The declared number of nodes per tetrahedron.
+        nodes_per_tet: usize,
+    },
+    /// The `.node` header declares more points than `u32` indices can address.
+    TooManyNodes,
+    /// The file has a different number of records than its header declares. Reported on the
+    /// header line when records are missing, and on the first extra record otherwise.
+    WrongCount {
+        /// The count in the header.
+        declared: usize,
+        /// The number of records in the file.
+        found: usize,
+    },
+    /// A line has too few (or too many) fields for what the header declares.
+    FieldCount {
+        /// Fields the header implies: index, coordinates or nodes, attributes, marker.
+        expected: usize,
+        /// Fields on the line.
+        found: usize,
+    },
+    /// A field is not a number (or not an integer where an index or count is expected).
+    NonNumeric {
+        /// The field (1-based).
+        field: usize,
+    },
+    /// A coordinate is NaN or infinite, or overflows this precision.
+    NonFinite {
+        /// The field (1-based).
+        field: usize,
+    },
+    /// The first point's index is neither 0 nor 1.
+    FirstIndex {
+        /// The index found.
+        found: i64,
+    },
+    /// A record's index is not one more than the previous record's (a duplicate, a gap, or, for
+    /// the first tetrahedron, not the numbering base of the points).
+    NonConsecutiveIndex {
+        /// The index the record must have.
+        expected: u64,
+        /// The index found.
+        found: i64,
+    },
+    /// A tetrahedron refers to a point that the `.node` file does not have.
+    IndexOutOfRange {
+        /// The point index found.
+        index: i64,
+        /// The number of points in the `.node` file.
+        points: usize,
+        /// The index of the first point (0 or 1).
+        first: u32,
+    },
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for TetgenProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            TetgenProblem::MissingHeader => f.write_str("missing header line"),
+            TetgenProblem::BadHeader { field, expected } => {
+                write!(f, "header field {field} must be {expected}")
+            }
+            TetgenProblem::UnsupportedElement { nodes_per_tet } => write!(
+                f,
+                "{nodes_per_tet}-node tetrahedra are not supported (only 4-node linear ones)"
+            ),
+            TetgenProblem::TooManyNodes => f.write_str("more points than u32 indices can address"),
+            TetgenProblem::WrongCount { declared, found } => {
+                write!(
+                    f,
+                    "the header declares {declared} records, the file has {found}"
+                )
+            }
+            TetgenProblem::FieldCount { expected, found } => {
+                write!(f, "expected {expected} fields, found {found}")
+            }
+            TetgenProblem::NonNumeric { field } => write!(f, "field {field} is not a valid number"),
+            TetgenProblem::NonFinite { field } => {
+                write!(
+                    f,
+                    "coordinate in field {field} is not finite in this precision"
+                )
+            }
+            TetgenProblem::FirstIndex { found } => {
+                write!(
+                    f,
+                    "the first point has index {found}; indices must start at 0 or 1"
+                )
+            }
+            TetgenProblem::NonConsecutiveIndex { expected, found } => write!(
+                f,
+                "record index {found} where {expected} was expected (indices must be consecutive)"
+            ),
+            TetgenProblem::IndexOutOfRange {
+                index,
+                points,
+                first,
+            } => write!(
+                f,
+                "point index {index} is out of range ({points} points numbered from {first})"
+            ),
+        }
+    }
+}
+
+/// A TetGen `.node` or `.ele` text is malformed: which file, which line (1-based) and what is
+/// wrong with it.
+#[cfg(feature = "std")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TetgenFormatError {
+    /// The file the problem is in.
+    pub file: TetgenFile,
+    /// The line, counting from 1 (past the last line for a missing header).
+    pub line: usize,
+    /// What is wrong.
+    pub problem: TetgenProblem,
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for TetgenFormatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} file, line {}: {}",
+            self.file, self.line, self.problem
+        )
+    }
+}
+
+#[cfg(feature = "std")]
+impl core::error::Error for TetgenFormatError {}
+
+/// Reading a TetGen mesh from files failed (see `read_tetgen_files` in the `tetgen` module).
+#[cfg(feature = "std")]
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum TetgenError {
+    /// A file could not be read.
+    Io {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// A file was read but is malformed.
+    Format {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Where and what.
+        error: TetgenFormatError,
+    },
+}
+
+#[cfg(feature = "std")]
+impl fmt::Display for TetgenError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            TetgenError::Io { path, source } => {
+                write!(f, "cannot read {}: {source}", path.display())
+            }
+            TetgenError::Format { path, error } => {
+                write!(f, "{}:{}: {}", path.display(), error.line, error.problem)
+            }
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl core::error::Error for TetgenError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            TetgenError::Io { source, .. } => Some(source),
+            TetgenError::Format { error, .. } => Some(error),
         }
     }
 }

@@ -4,9 +4,9 @@
 //! covers the surface's bounding box with a regular grid of cubes ([`VoxelGrid`]), keeps the
 //! cubes that lie inside, and splits each kept cube into the five tetrahedra of
 //! [`BoxSplit::Alternating5`] (the same tables as
-//! [`fill_box`](super::generate::fill_box), so the faces of neighbouring cubes conform). Grid
-//! corners shared by kept cubes become one vertex, numbered through the grid's own indexing, so
-//! no search or hash map is needed.
+//! [`fill_box`](super::super::generate::fill_box), so the faces of neighbouring cubes
+//! conform). Grid corners shared by kept cubes become one vertex, numbered through the grid's
+//! own indexing, so no search or hash map is needed.
 //!
 //! The pipeline, every step into buffers the caller sized:
 //! 1. [`classify_cells`] checks that the surface is closed and consistently oriented (every
@@ -52,9 +52,9 @@
 //! would be joined to the body through a single edge or vertex, a hinge with no stiffness.
 //! Dropping such a cell never changes another cell's face neighbours, so one pass suffices.
 
-use super::generate::{BoxSplit, box_cell_tets};
-use super::math::{atan2, sqrt};
-use super::types::{Mat3, Real, Vec3};
+use super::super::generate::{BoxSplit, box_cell_tets};
+use super::super::math::{atan2, sqrt};
+use super::super::types::{Mat3, Real, Vec3};
 use crate::error::{VoxelBuffer, VoxelError};
 
 /// A regular grid of cubes: cell `(i, j, k)` spans `origin + cell_size * ([i, j, k], [i, j, k]
@@ -550,7 +550,7 @@ pub fn voxel_counts(grid: &VoxelGrid, occupied: &[bool]) -> Result<(usize, usize
 /// Writes the voxel mesh of the kept cells: `positions` (m) of the used grid corners in corner
 /// order (x fastest), and five positively oriented tetrahedra per kept cell, cells in x-fastest
 /// order, split as [`BoxSplit::Alternating5`] with the parity of the cell's grid position (so the
-/// faces between kept cells conform exactly as in [`fill_box`](super::generate::fill_box)).
+/// faces between kept cells conform exactly as in [`fill_box`](super::super::generate::fill_box)).
 ///
 /// `corner_map` ([`VoxelGrid::corner_count`] entries) is scratch: afterwards it holds each
 /// corner's vertex index, or `u32::MAX` for unused corners. `positions` and `tets` must have the
@@ -635,7 +635,7 @@ pub struct VoxelMesh {
 ///
 /// ```
 /// use softfem::glam::Vec3;
-/// use softfem::voxel::{VoxelGrid, VoxelOptions, voxel_mesh};
+/// use softfem::asset::voxel::{VoxelGrid, VoxelOptions, voxel_mesh};
 ///
 /// // The unit cube as 12 outward triangles.
 /// let positions: Vec<Vec3> = (0..8)

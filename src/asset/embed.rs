@@ -21,9 +21,9 @@
 //! rest normals carried by each tetrahedron's deformation gradient
 //! ([`Embedding::deform_normals`]).
 
-use super::element::TetRest;
-use super::math::{cbrt, sqrt};
-use super::types::{Mat3, Real, Vec3};
+use super::super::element::TetRest;
+use super::super::math::{cbrt, sqrt};
+use super::super::types::{Mat3, Real, Vec3};
 use crate::error::{EmbedBuffer, EmbedError};
 
 /// A render point bound to a tetrahedron: `x = sum_k weights[k] * positions[tets[tet][k]]`.
@@ -500,7 +500,7 @@ impl Embedding<'_> {
 /// [`TetLookup::plan`] with the default cell size, [`TetLookup::build`], [`embed_points`].
 ///
 /// ```
-/// use softfem::embed::{Embedding, embed_points_vec};
+/// use softfem::asset::embed::{Embedding, embed_points_vec};
 /// use softfem::glam::Vec3;
 ///
 /// let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];

@@ -1,0 +1,21 @@
+//! The single-precision instantiation of softfem's numeric modules.
+//!
+//! Everything here is re-exported at the crate root; `softfem::f64` holds the same items in
+//! double precision, compiled from the same source files (see `src/f64/mod.rs`).
+
+pub mod types;
+
+pub(crate) mod math;
+
+#[cfg(target_arch = "x86_64")]
+mod wide_ops;
+
+/// How a group of [`lanes::Lanes`] is held: one SSE register on x86_64, an array elsewhere.
+#[cfg(target_arch = "x86_64")]
+#[path = "../lanes/sse.rs"]
+mod lane_repr;
+#[cfg(not(target_arch = "x86_64"))]
+#[path = "../lanes/portable.rs"]
+mod lane_repr;
+
+crate::precision::numeric_modules!();
