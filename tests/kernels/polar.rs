@@ -5,9 +5,7 @@
 //! Checks are written once against the [`Polar`] trait and run for `f32` (crate root) and
 //! `f64` (`softfem::f64`); errors are measured in f64 from the outputs widened exactly.
 
-mod common;
-
-use common::{F32, F64, Precision, Rng, frobenius};
+use crate::common::{F32, F64, Precision, Rng, frobenius};
 use nalgebra::{Matrix3, SymmetricEigen};
 use softfem::glam::{DMat3, DVec3};
 
@@ -19,9 +17,9 @@ struct Wide {
 }
 
 /// One precision of softfem's polar decomposition, with the tolerances of its SVD
-/// ([`Precision`]; `tests/svd.rs` checks them: about 80 / 450 eps for orthonormality, 17 / 450 eps
-/// for the reconstruction). Forming `u v^T` and `v diag(sigma) v^T` adds a few more roundings,
-/// each far below those margins.
+/// ([`Precision`]; `tests/kernels/svd.rs` checks them: about 80 / 450 eps for orthonormality, 17 /
+/// 450 eps for the reconstruction). Forming `u v^T` and `v diag(sigma) v^T` adds a few more
+/// roundings, each far below those margins.
 trait Polar: Precision {
     fn polar(a: DMat3) -> Wide;
     /// Whether `Polar3::from_svd(&svd3(a))` equals `polar3(a)` exactly.

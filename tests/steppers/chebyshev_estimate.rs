@@ -2,8 +2,8 @@
 //! against hand-tuned values on two cantilevers (f64, quasi-static, relative tolerance 1e-6):
 //! iterations to converge, each run checked converged and its answer against the others.
 //!
-//! Measured (`cargo test --release --all-features --test chebyshev_estimate -- --ignored
-//! --nocapture`), iterations to 1e-6:
+//! Measured (`cargo test --release --all-features --test steppers chebyshev_estimate:: --
+//! --ignored --nocapture`), iterations to 1e-6:
 //!
 //! | mesh | 0.999 | 0.9995 | 0.9998 | 0.9999 | estimated, delay 100 / 200 / 400 (rho) |
 //! |---|---|---|---|---|---|

@@ -3,19 +3,6 @@
 //! eigenvalues from nalgebra's symmetric eigensolver (in f64), the rotation identities of an
 //! isotropic energy, and sums of element products for the mesh.
 
-mod common;
-
-use std::sync::{Mutex, MutexGuard};
-
-/// The SIMD width cap is process-wide; the tests that set it take turns.
-static WIDTH_LOCK: Mutex<()> = Mutex::new(());
-
-fn lock_width() -> MutexGuard<'static, ()> {
-    WIDTH_LOCK
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner())
-}
-
 macro_rules! hessian_tests {
     ($precision:ident, $($api:ident)::+) => {
         #[allow(dead_code)] // `material_helpers!` brings helpers this suite does not use.
@@ -504,7 +491,7 @@ macro_rules! hessian_tests {
                     .map(|p| Vec3::new(p.x + 0.3 * p.z, p.y * 0.9, p.z * 0.7) + to_vec3(rng.vector()) * 2e-3)
                     .collect();
                 let d: Vec<Vec3> = (0..nv).map(|_| to_vec3(rng.vector() * 0.1)).collect();
-                let _guard = crate::lock_width();
+                let _guard = crate::common::lock_width();
                 let widths: Vec<Width> =
                     Width::ALL.into_iter().filter(|w| *w <= simd::detected_width()).collect();
                 for len in 1..=40.min(nt) {
@@ -550,7 +537,7 @@ macro_rules! hessian_tests {
                     .map(|p| Vec3::new(p.x * 1.1 + 0.2 * p.y, p.y * 0.9, p.z * 0.8) + to_vec3(rng.vector()) * 1e-2)
                     .collect();
                 let d: Vec<Vec3> = (0..nv).map(|_| to_vec3(rng.vector())).collect();
-                let _guard = crate::lock_width();
+                let _guard = crate::common::lock_width();
                 let widths: Vec<Width> =
                     Width::ALL.into_iter().filter(|w| *w <= simd::detected_width()).collect();
                 for len in [nt, nt - 1, nt - 3, nt - 7, nt - 13] {

@@ -22,8 +22,8 @@ macro_rules! stagnation_tests {
             const RELAX_TOLERANCE: Real = $relax_tolerance;
             const NEWTON_TOLERANCE: Real = $newton_tolerance;
 
-            /// The cantilever of tests/relax.rs (4x1x1 Kuhn cells, 0.4 x 0.1 x 0.1 m, E = 1 MPa,
-            /// clamped at x = 0) moved by `offset`, relaxed at `tolerance` with `budget`
+            /// The cantilever of tests/steppers/relax.rs (4x1x1 Kuhn cells, 0.4 x 0.1 x 0.1 m, E =
+            /// 1 MPa, clamped at x = 0) moved by `offset`, relaxed at `tolerance` with `budget`
             /// iterations; returns the report and `|f + m g|` over the free vertices recomputed
             /// from the force kernel.
             fn cantilever(offset: Vec3, tolerance: Real, budget: u32) -> ($($api)::+::step::RelaxReport, f64) {

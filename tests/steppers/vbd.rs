@@ -1,11 +1,9 @@
 //! Vertex Block Descent: one sweep on a single free vertex is the exact Newton step for it
 //! (against finite differences of the force kernel); the quasi-static cantilever of
-//! tests/relax.rs reaches the relaxation's equilibrium; implicit Euler on a stiff block at
+//! tests/steppers/relax.rs reaches the relaxation's equilibrium; implicit Euler on a stiff block at
 //! 1/30 s converges without gaining energy; the colouring is valid and greedy; results do not
 //! depend on the scratch's previous contents; bad input is refused with the state untouched.
 //! The `#[ignore]`d `measure_*` tests print the timings of the report (run them in release).
-
-mod common;
 
 use softfem::StepError;
 use softfem::step::{
@@ -381,7 +379,7 @@ macro_rules! vbd_tests {
                 });
             }
 
-            /// The stiff block of tests/stability.rs (2 x 1 x 1 cubes of 5 cm, E = 1e8 Pa,
+            /// The stiff block of tests/steppers/stability.rs (2 x 1 x 1 cubes of 5 cm, E = 1e8 Pa,
             /// nu = 0.3, 300 times past the explicit limit at this step), perturbed: implicit
             /// Euler at 1/30 s converges to 1e-4 on every step (f32: or reaches the rounding floor of its
 /// force sums) and never gains energy.
@@ -775,7 +773,7 @@ fn adjacency_and_colouring_are_valid_and_greedy() {
         )
         .unwrap();
         // Shuffle the elements (deterministically) so that the order is not the generator's.
-        let mut rng = common::Rng::new(7);
+        let mut rng = crate::common::Rng::new(7);
         for i in (1..nt).rev() {
             let j = (rng.next_u64() % (i as u64 + 1)) as usize;
             tets.swap(i, j);
@@ -867,9 +865,9 @@ fn adjacency_and_colouring_are_valid_and_greedy() {
     ));
 }
 
-/// The quasi-static cantilever of tests/relax.rs (0.4 m bar, 4 x 1 x 1 cubes, stable neo-Hookean
-/// E = 1 MPa, nu = 0.3, pinned at x = 0, f64): VBD and the relaxation, both to 1e-8 of the
-/// gravity load, reach the same equilibrium. Both stop at `|grad Phi| <= r = 1e-8 |M g|`; with
+/// The quasi-static cantilever of tests/steppers/relax.rs (0.4 m bar, 4 x 1 x 1 cubes, stable
+/// neo-Hookean E = 1 MPa, nu = 0.3, pinned at x = 0, f64): VBD and the relaxation, both to 1e-8 of
+/// the gravity load, reach the same equilibrium. Both stop at `|grad Phi| <= r = 1e-8 |M g|`; with
 /// `K >= k_min I` near the solution `|x - x*| <= r / k_min` for each, and k_min, the bending
 /// stiffness of the slowest mode (~|M g| / sag), makes this ~1e-8 sag per vertex: 1e-6 sag
 /// leaves a factor 100 for sqrt(n) and the mode shapes.
@@ -962,8 +960,8 @@ fn quasi_static_cantilever_reaches_the_relaxations_equilibrium() {
 /// Wall time and iterations of VBD against the relaxation with the bouncy example's GD +
 /// Chebyshev settings, each stepper running its own trajectory to the same relative residual
 /// (the two share the stopping test), and the cost of a sweep in force evaluations. Timings,
-/// so not checks: run `cargo test --release --all-features --test vbd measure -- --ignored
-/// --nocapture --test-threads 1`. Columns: scene | solver | steps | converged steps |
+/// so not checks: run `cargo test --release --all-features --test steppers vbd::measure --
+/// --ignored --nocapture --test-threads 1`. Columns: scene | solver | steps | converged steps |
 /// iterations | fused energy-and-force evaluations | wall s | s per step.
 #[test]
 #[ignore]

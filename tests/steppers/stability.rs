@@ -11,13 +11,10 @@
 //! relaxation whose report is checked against the force balance; and a sweep of models, states
 //! and steppers in which no NaN ever comes back silently.
 
-#[path = "common/modes.rs"]
-mod modes;
-
 macro_rules! stability_tests {
     ($precision:ident, $($api:ident)::+) => {
         mod $precision {
-            use crate::modes::squared_frequencies;
+            use crate::common::modes::squared_frequencies;
             squared_frequencies!();
             use $($api)::+::element::TetRest;
             use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
@@ -367,10 +364,10 @@ macro_rules! stability_tests {
                 }
             }
 
-            /// nu = 0.49 on the 24-tet cantilever of tests/relax.rs: the quasi-static solve either
-            /// converges or says it did not, and its reported residual is the force imbalance
-            /// recomputed from the force kernel (`|f + m g|` over free vertices), so a caller can
-            /// trust what it is told. The sag is positive and finite.
+            /// nu = 0.49 on the 24-tet cantilever of tests/steppers/relax.rs: the quasi-static
+            /// solve either converges or says it did not, and its reported residual is the force
+            /// imbalance recomputed from the force kernel (`|f + m g|` over free vertices), so a
+            /// caller can trust what it is told. The sag is positive and finite.
             #[test]
             fn near_incompressible_relaxation_reports_its_true_residual() {
                 let (nv, nt) = box_counts(4, 1, 1, BoxSplit::Kuhn6).unwrap();

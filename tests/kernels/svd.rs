@@ -12,14 +12,12 @@
 //! `f64` (`softfem::f64`). All error measures are computed in f64 from the outputs widened
 //! exactly, on the input as the decomposition saw it (rounded to its precision).
 //!
-//! `cargo test --release --test svd -- report --nocapture` prints the table of maximum errors per
-//! class quoted in the README.
-
-mod common;
+//! `cargo test --release --test kernels svd::report -- --nocapture` prints the table of maximum
+//! errors per class quoted in the README.
 
 use std::sync::OnceLock;
 
-use common::{F32, F64, Precision, Rng, frobenius};
+use crate::common::{F32, F64, Precision, Rng, frobenius};
 use nalgebra::DMatrix;
 use proptest::prelude::*;
 use softfem::glam::{DMat3, DVec3};
@@ -1061,7 +1059,7 @@ fn sweep_errors<P: Svd>(sweeps: u32) -> MaxErrors {
 
 /// Prints the maximum errors per class for both precisions (asserting the contract on every
 /// matrix on the way, through the class checks), then the accuracy per sweep count. Run alone
-/// with `cargo test --release --test svd -- report --nocapture`.
+/// with `cargo test --release --test kernels svd::report -- --nocapture`.
 #[test]
 fn report() {
     let (eps32, eps64) = (f64::from(f32::EPSILON), f64::EPSILON);

@@ -3,8 +3,7 @@
 //! beyond the margin are named, and the cost per render vertex is printed by an ignored test.
 #![cfg(feature = "std")]
 
-#[path = "common/shapes.rs"]
-mod shapes;
+use crate::common::shapes;
 
 use softfem::EmbedError;
 use softfem::embed::{Embedded, Embedding, TetLookup, embed_points, embed_points_vec};
@@ -185,7 +184,7 @@ fn a_surface_embeds_in_its_own_voxel_mesh() {
 }
 
 /// Cost per render vertex of `Embedding::deform`:
-/// `cargo test --release --all-features --test embed -- --ignored --nocapture`.
+/// `cargo test --release --all-features --test assets embed:: -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn print_deform_cost() {

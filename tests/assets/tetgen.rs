@@ -306,8 +306,8 @@ macro_rules! tetgen_tests {
                 assert!((volume - 1.0).abs() <= 64.0 * Real::EPSILON);
             }
 
-            /// `SOFTFEM_BLESS_ASSETS=1 cargo test --features std --test tetgen` rewrites the
-            /// shipped cube from the generator; otherwise the files must match what it writes.
+            /// `SOFTFEM_BLESS_ASSETS=1 cargo test --features std --test assets tetgen::` rewrites
+            /// the shipped cube from the generator; otherwise the files must match what it writes.
             #[test]
             fn shipped_cube_text_is_up_to_date() {
                 let cube = unit_cube();

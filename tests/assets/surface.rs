@@ -3,8 +3,7 @@
 //! render types cast to bytes with the `bytemuck` feature.
 #![cfg(feature = "std")]
 
-#[path = "common/shapes.rs"]
-mod shapes;
+use crate::common::shapes;
 
 use std::collections::HashMap;
 

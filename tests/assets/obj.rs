@@ -3,8 +3,7 @@
 //! errors with their paths; a write/read round trip with and without normals.
 #![cfg(feature = "std")]
 
-#[path = "common/shapes.rs"]
-mod shapes;
+use crate::common::shapes;
 
 use softfem::glam::Vec3;
 use softfem::obj::{read_obj, read_obj_file, write_obj, write_obj_file};

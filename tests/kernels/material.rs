@@ -5,8 +5,6 @@
 //! the crate root and the `f64` API under `softfem::f64`. Tolerances are expressed in the
 //! machine epsilon of the precision (`EPS`), each with the reasoning that sizes it.
 
-mod common;
-
 macro_rules! material_tests {
     ($precision:ident, $($api:ident)::+) => {
         mod $precision {

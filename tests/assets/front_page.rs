@@ -6,7 +6,7 @@
 
 /// The crate-level documentation of `src/lib.rs` as markdown (its `//!` lines, prefix removed).
 fn crate_docs() -> String {
-    include_str!("../src/lib.rs")
+    include_str!("../../src/lib.rs")
         .lines()
         .filter_map(|line| line.strip_prefix("//!"))
         .map(|line| line.strip_prefix(' ').unwrap_or(line))
@@ -51,7 +51,7 @@ fn second_block_after(markdown: &str, heading: &str) -> String {
 /// colliders, in about ten lines (it runs as a doc test through `ReadmeDoctests`).
 #[test]
 fn the_readme_leads_with_a_body_stepped_explicitly_and_implicitly() {
-    let readme = first_block_after(include_str!("../README.md"), "## Using it");
+    let readme = first_block_after(include_str!("../../README.md"), "## Using it");
     for needle in [
         "Body::<FixedStorage",
         "Solver::explicit()",
@@ -72,7 +72,7 @@ fn the_readme_leads_with_a_body_stepped_explicitly_and_implicitly() {
 #[test]
 fn the_readme_leads_with_the_front_page_example_of_stepping_a_body() {
     let front_page = first_block_after(&crate_docs(), "## Stepping a body");
-    let readme = second_block_after(include_str!("../README.md"), "## Using it");
+    let readme = second_block_after(include_str!("../../README.md"), "## Using it");
     assert!(
         front_page.contains("step_explicit(&body"),
         "the front page's first example does not step a body:\n{front_page}"

@@ -3,13 +3,10 @@
 //! ground without penetrating; pinned vertices never move; a 2D body works through the same
 //! stepper; every bad parameter gives its error and touches nothing.
 
-#[path = "common/modes.rs"]
-mod modes;
-
 macro_rules! step_tests {
     ($precision:ident, $($api:ident)::+) => {
         mod $precision {
-            use crate::modes::squared_frequencies;
+            use crate::common::modes::squared_frequencies;
             squared_frequencies!();
             use softfem::{StepBuffer, StepError};
             use $($api)::+::element::{TetRest, TriRest, TriangleStVK};

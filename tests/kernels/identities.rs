@@ -10,8 +10,6 @@
 
 use std::collections::HashMap;
 
-mod common;
-
 /// The boundary faces of a set of elements with `N` corners: every face (the element minus one
 /// corner) that belongs to exactly one element, with the corner it is opposite to.
 fn boundary_faces<const N: usize>(elements: &[[u32; N]]) -> Vec<(Vec<u32>, u32)> {
@@ -218,7 +216,7 @@ macro_rules! identity_tests {
                     let mut clamped = vec![Vec3::ZERO; x.len()];
                     mesh.add_elastic_forces_clamped(&model, 0.1, &x, &mut clamped).unwrap();
                     assert_eq!(principal, clamped, "{model:?}");
-                    // P agrees to 256 eps of the modulus per element (tests/material.rs); a
+                    // P agrees to 256 eps of the modulus per element (tests/kernels/material.rs); a
                     // vertex sums up to ~20 elements' forces of size |P| h^2.
                     let tol = 4096.0 * EPS * modulus(lame) * h * h;
                     for (a, b) in direct.iter().zip(&principal) {
@@ -358,7 +356,7 @@ macro_rules! identity_tests {
 
                 // The closed forms evaluate the same O(modulus) terms as the kernels in a
                 // different order, with F from rounded positions: 256 eps of the modulus as
-                // in tests/material.rs.
+                // in tests/kernels/material.rs.
                 let stress_tol = 256.0 * EPS * modulus(lame);
                 let mut stresses = vec![Mat3::ZERO; tets.len()];
                 mesh.element_stresses(model, &x, &mut stresses).unwrap();

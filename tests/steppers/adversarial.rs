@@ -2,7 +2,8 @@
 //! (the defects of issue 16, D1 and D3 to D9, and the general promises of the README: NaN and
 //! infinite positions, out-of-range indices, mismatched buffers, non-positive masses and steps,
 //! absurd sizes). Every row that expects an error also checks that the caller's buffers are
-//! bit for bit what they were. D2 (early blow-up detection) is measured in `tests/step.rs`.
+//! bit for bit what they were. D2 (early blow-up detection) is measured in
+//! `tests/steppers/step.rs`.
 //!
 //! Each row is a closure returning `Err(what went wrong)`; the test runs the whole table and
 //! reports every failing row by name, so that one regression does not hide the others.
@@ -138,12 +139,12 @@ macro_rules! adversarial_tests {
                 settings: &RelaxSettings<Vec3>,
                 x: &mut [Vec3],
                 v: &mut [Vec3],
-            ) -> (Result<crate::softfem_report::Report, StepError>, bool) {
+            ) -> (Result<crate::adversarial::softfem_report::Report, StepError>, bool) {
                 let n = x.len();
                 let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let before = (bits(x), bits(v));
-                let result = relax_step(body, masses, &[], settings, x, v, &mut scratch).map(|r| crate::softfem_report::Report {
+                let result = relax_step(body, masses, &[], settings, x, v, &mut scratch).map(|r| crate::adversarial::softfem_report::Report {
                     converged: r.converged,
                     iterations: r.iterations,
                     final_residual: r.final_residual as f64,
@@ -156,7 +157,7 @@ macro_rules! adversarial_tests {
             /// default tolerance of [`RelaxSettings::new`] of the larger of its initial residual
             /// and `load` (N, the gravity load computed in f64), with 1e-3 relative slack for the
             /// f32 rounding of the solver's own target.
-            fn claim_holds(report: &crate::softfem_report::Report, load: f64) -> Verdict {
+            fn claim_holds(report: &crate::adversarial::softfem_report::Report, load: f64) -> Verdict {
                 let tolerance = RelaxSettings::<Vec3>::new(1.0 / 60.0).tolerance as f64;
                 let target = tolerance * report.initial_residual.max(load) * (1.0 + 1e-3);
                 ensure(!report.converged || (report.final_residual.is_finite() && report.final_residual <= target), || {

@@ -1,7 +1,7 @@
-//! Newton's method (`src/step/newton.rs`) on the cantilever of tests/relax.rs (quasi-static)
-//! and on a stiff block (implicit Euler at 1/30 s), in both precisions: residuals recomputed
-//! from the force kernel, agreement with the relaxation's converged answer, pins, the ground,
-//! and refused input with the state left as it was.
+//! Newton's method (`src/step/newton.rs`) on the cantilever of tests/steppers/relax.rs
+//! (quasi-static) and on a stiff block (implicit Euler at 1/30 s), in both precisions: residuals
+//! recomputed from the force kernel, agreement with the relaxation's converged answer, pins, the
+//! ground, and refused input with the state left as it was.
 
 macro_rules! newton_tests {
     ($precision:ident, $($api:ident)::+, $tolerance:expr, $relax_tolerance:expr) => {
@@ -20,7 +20,7 @@ macro_rules! newton_tests {
 
             /// The relative residual asked of Newton's method in this precision.
             const TOLERANCE: Real = $tolerance;
-            /// The relaxation's reference tolerance (tests/relax.rs).
+            /// The relaxation's reference tolerance (tests/steppers/relax.rs).
             const RELAX_TOLERANCE: Real = $relax_tolerance;
             const GRAVITY: Vec3 = Vec3::new(0.0, -9.81, 0.0);
 
@@ -117,7 +117,7 @@ macro_rules! newton_tests {
                     }
                 }
 
-                // The relaxation's converged answer (tests/relax.rs settings).
+                // The relaxation's converged answer (tests/steppers/relax.rs settings).
                 let relax_settings = RelaxSettings::new(1.0)
                     .with_gravity(GRAVITY)
                     .with_tolerance(RELAX_TOLERANCE, 50_000)
@@ -169,9 +169,9 @@ macro_rules! newton_tests {
                 large_sag(StVK::from_young_poisson(1.0e4, 0.3).unwrap());
             }
 
-            /// A stiff 2 x 1 x 1 box of 5 cm cubes (tests/stability.rs): E = 1e8 Pa, nu = 0.3,
-            /// started from a perturbation of its rest shape 1 cm above the ground, falling under
-            /// gravity for 1 s of 1/30 s steps: hundreds of times past the explicit stability
+            /// A stiff 2 x 1 x 1 box of 5 cm cubes (tests/steppers/stability.rs): E = 1e8 Pa, nu =
+            /// 0.3, started from a perturbation of its rest shape 1 cm above the ground, falling
+            /// under gravity for 1 s of 1/30 s steps: hundreds of times past the explicit stability
             /// limit, the regime where the relaxation converges on 7-43 % of its solves.
             pub(crate) fn stiff_block_run(tolerance: Real) -> (Vec<NewtonReport>, Vec<Vec3>, Vec<Vec3>, Vec<Real>) {
                 let block = body((2, 1, 1), Vec3::new(0.1, 0.05, 0.05));
@@ -314,7 +314,7 @@ macro_rules! newton_tests {
 
             /// Wall time of Newton against the relaxation on the quasi-static cantilever to 1e-6
             /// (measurement for the closing report, no assertion on time):
-            /// `cargo test --release --test newton -- --ignored --nocapture`.
+            /// `cargo test --release --test steppers newton:: -- --ignored --nocapture`.
             #[test]
             #[ignore]
             fn wall_time_against_the_relaxation() {

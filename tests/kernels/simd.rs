@@ -1,33 +1,20 @@
 //! `svd3_batch` gives, matrix by matrix, exactly the bits of `svd3`, at every SIMD width this
 //! machine has and with each narrower width forced (`softfem::simd::set_max_width`), in both
-//! precisions: for thousands of matrices of every class of tests/svd.rs (random, ill-conditioned,
-//! near-singular, exactly rank 1 and 2, repeated and clustered singular values, reflections,
-//! zero, scales from 1e-30 to 1e30, subnormal, the largest safe magnitudes) mixed with NaN and
-//! infinite ones, for every batch length from 0 to 40 (so every tail of every group width), and
-//! for every sweep count from 0 to 6. An output of the wrong length is an error that names both
+//! precisions: for thousands of matrices of every class of tests/kernels/svd.rs (random,
+//! ill-conditioned, near-singular, exactly rank 1 and 2, repeated and clustered singular values,
+//! reflections, zero, scales from 1e-30 to 1e30, subnormal, the largest safe magnitudes) mixed with
+//! NaN and infinite ones, for every batch length from 0 to 40 (so every tail of every group width),
+//! and for every sweep count from 0 to 6. An output of the wrong length is an error that names both
 //! lengths and leaves the output untouched.
 //!
 //! The reference is the scalar `svd3` itself: the claim under test is bit-identity, and the
-//! accuracy of `svd3` is tests/svd.rs's business.
+//! accuracy of `svd3` is tests/kernels/svd.rs's business.
 //!
 //! `SOFTFEM_MAX_WIDTH=sse` (or `scalar`, `avx2`) caps the widest width these tests try.
 
-mod common;
-
-use std::sync::{Mutex, MutexGuard};
-
-use common::Rng;
+use crate::common::{Rng, lock_width};
 use softfem::glam::{DMat3, DVec3};
 use softfem::simd::{self, Width};
-
-/// The width cap is process-wide; tests that set it take turns.
-static WIDTH_LOCK: Mutex<()> = Mutex::new(());
-
-fn lock_width() -> MutexGuard<'static, ()> {
-    WIDTH_LOCK
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner())
-}
 
 /// The widths to test: every one this machine has, up to `SOFTFEM_MAX_WIDTH` if set.
 fn widths() -> Vec<Width> {
@@ -47,7 +34,7 @@ fn widths() -> Vec<Width> {
 /// Matrices per class.
 const PER_CLASS: usize = 400;
 
-/// Magnitudes at the edges of a precision's range (as in tests/svd.rs).
+/// Magnitudes at the edges of a precision's range (as in tests/kernels/svd.rs).
 struct Extremes {
     subnormal: f64,
     tiniest: f64,
@@ -80,7 +67,8 @@ fn outer(x: DVec3, y: DVec3) -> DMat3 {
     DMat3::from_cols(x * y.x, x * y.y, x * y.z)
 }
 
-/// One matrix of class `class` (the classes of tests/svd.rs, in its order, then non-finite).
+/// One matrix of class `class` (the classes of tests/kernels/svd.rs, in its order, then
+/// non-finite).
 fn class_matrix(class: usize, rng: &mut Rng, extremes: &Extremes) -> DMat3 {
     let short = |rng: &mut Rng, bits| DVec3::new(rng.short(bits), rng.short(bits), rng.short(bits));
     match class {

@@ -3,10 +3,7 @@
 //! inconsistently oriented surfaces are named, and degenerate triangles change nothing.
 #![cfg(feature = "std")]
 
-#[path = "common/shapes.rs"]
-mod shapes;
-
-use shapes::{cube, enclosed_volume, icosphere, tet_volume, torus};
+use crate::common::shapes::{cube, enclosed_volume, icosphere, tet_volume, torus};
 use softfem::VoxelError;
 use softfem::element::TetRest;
 use softfem::glam::Vec3;
@@ -316,8 +313,8 @@ fn cells_hanging_by_an_edge_are_removed() {
     );
 }
 
-/// The accuracy table for the report: `cargo test --release --all-features --test voxel --
-/// --ignored --nocapture`.
+/// The accuracy table for the report: `cargo test --release --all-features --test assets
+/// voxel::print_volume_table -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn print_volume_table() {
