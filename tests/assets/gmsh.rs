@@ -278,21 +278,10 @@ fn file_errors_name_the_path() {
 /// 100 to exercise the translation) reads back as the same mesh.
 #[test]
 fn generated_box_round_trips() {
-    let (vertex_count, tet_count) = box_counts(2, 3, 1, BoxSplit::Alternating5).unwrap();
-    let mut positions = vec![Vec3::ZERO; vertex_count];
-    let mut tets = vec![[0; 4]; tet_count];
     let max = Vec3::new(0.2, 0.3, 0.1);
-    fill_box(
-        Vec3::ZERO,
-        max,
-        2,
-        3,
-        1,
-        BoxSplit::Alternating5,
-        &mut positions,
-        &mut tets,
-    )
-    .unwrap();
+    let (positions, tets) =
+        crate::common::scenes::generated_box!(Vec3::ZERO, max, (2, 3, 1), BoxSplit::Alternating5);
+    let (vertex_count, tet_count) = (positions.len(), tets.len());
     let mut text = String::from("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n");
     text += &format!(
         "1 {vertex_count} 100 {}\n3 1 0 {vertex_count}\n",

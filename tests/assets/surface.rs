@@ -41,11 +41,8 @@ fn assert_closed(triangles: &[[u32; 3]]) {
 fn box_boundary_is_outward_closed_and_encloses_the_box() {
     for split in [BoxSplit::Kuhn6, BoxSplit::Alternating5] {
         let [nx, ny, nz] = [3, 2, 4];
-        let (vertex_count, tet_count) = box_counts(nx, ny, nz, split).unwrap();
-        let mut x = vec![Vec3::ZERO; vertex_count];
-        let mut tets = vec![[0; 4]; tet_count];
         let max = Vec3::new(3.0, 2.0, 4.0);
-        fill_box(Vec3::ZERO, max, nx, ny, nz, split, &mut x, &mut tets).unwrap();
+        let (x, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, max, (nx, ny, nz), split);
         let faces = boundary(&tets, x.len());
         // Two triangles per unit square of the box's six sides.
         assert_eq!(faces.len(), 2 * 2 * (nx * ny + ny * nz + nz * nx));

@@ -121,10 +121,7 @@ macro_rules! tetgen_tests {
 
             fn generated_box(cells: [usize; 3], min: Vec3, max: Vec3) -> TetgenMesh {
                 let [nx, ny, nz] = cells;
-                let (vertex_count, tet_count) = box_counts(nx, ny, nz, BoxSplit::Kuhn6).unwrap();
-                let mut positions = vec![Vec3::ZERO; vertex_count];
-                let mut tets = vec![[0; 4]; tet_count];
-                fill_box(min, max, nx, ny, nz, BoxSplit::Kuhn6, &mut positions, &mut tets).unwrap();
+                let (positions, tets) = crate::common::scenes::generated_box!(min, max, (nx, ny, nz), BoxSplit::Kuhn6);
                 TetgenMesh { positions, tets }
             }
 

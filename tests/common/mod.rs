@@ -1,7 +1,8 @@
 //! Helpers shared by the integration tests (declared once, `mod common;`, in each test binary's
 //! `main.rs`): a deterministic random stream, the two precisions of the SVD-based routines behind
 //! one interface, the per-precision scaffolding of the material and mesh identity tests, the lock
-//! on the process-wide SIMD width, closed surfaces ([`shapes`]) and vibration modes ([`modes`]).
+//! on the process-wide SIMD width, closed surfaces ([`shapes`]), vibration modes ([`modes`]) and
+//! the scene set-ups the suites repeat ([`scenes`]).
 
 // Every test binary compiles its own copy of this module and uses only part of it (tests/assets/
 // none of the material macros, tests/steppers/ none of the SVD helpers), so the items, macros
@@ -9,6 +10,7 @@
 #![allow(dead_code, unused_macros, unused_imports)]
 
 pub mod modes;
+pub mod scenes;
 pub mod shapes;
 
 use std::sync::{Mutex, MutexGuard};

@@ -410,9 +410,7 @@ macro_rules! hessian_tests {
             }
 
             fn block() -> Block {
-                let (nv, nt) = box_counts(2, 2, 1, BoxSplit::Kuhn6).unwrap();
-                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
-                fill_box(Vec3::ZERO, Vec3::new(0.2, 0.2, 0.1), 2, 2, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, Vec3::new(0.2, 0.2, 0.1), (2, 2, 1), BoxSplit::Kuhn6);
                 Block { rest, tets }
             }
 
@@ -479,9 +477,8 @@ macro_rules! hessian_tests {
             #[test]
             fn mesh_product_is_bitwise_the_element_sum_at_every_width() {
                 use softfem::simd::{self, Width};
-                let (nv, nt) = box_counts(4, 2, 1, BoxSplit::Kuhn6).unwrap();
-                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
-                fill_box(Vec3::ZERO, Vec3::new(0.4, 0.2, 0.1), 4, 2, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, Vec3::new(0.4, 0.2, 0.1), (4, 2, 1), BoxSplit::Kuhn6);
+                let (nv, nt) = (rest.len(), tets.len());
                 let model = NeoHookean::from_young_poisson(1.0e6, 0.3).unwrap();
                 let mut rng = Rng::new(23);
                 // Squashed and sheared with a wobble: indefinite exact Hessians, so the
@@ -527,9 +524,8 @@ macro_rules! hessian_tests {
             #[test]
             fn mesh_product_of_many_groups_is_bitwise_the_element_sum_at_every_width() {
                 use softfem::simd::{self, Width};
-                let (nv, nt) = box_counts(6, 4, 3, BoxSplit::Kuhn6).unwrap();
-                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
-                fill_box(Vec3::ZERO, Vec3::new(0.6, 0.4, 0.3), 6, 4, 3, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, Vec3::new(0.6, 0.4, 0.3), (6, 4, 3), BoxSplit::Kuhn6);
+                let (nv, nt) = (rest.len(), tets.len());
                 let model = StableNeoHookean::from_young_poisson(1.0e6, 0.4).unwrap();
                 let mut rng = Rng::new(71);
                 let x: Vec<Vec3> = rest

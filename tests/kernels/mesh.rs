@@ -58,9 +58,8 @@ macro_rules! mesh_tests {
             fn kernels_match_the_element_loop<M: Material>(material: M) {
                 // 3 x 1 x 1 cubes in 5 tetrahedra: 15 elements, three groups of four and three
                 // elements left over.
-                let (nv, nt) = box_counts(3, 1, 1, BoxSplit::Alternating5).unwrap();
-                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
-                fill_box(Vec3::ZERO, Vec3::new(3.0, 1.0, 1.0), 3, 1, 1, BoxSplit::Alternating5, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, Vec3::new(3.0, 1.0, 1.0), (3, 1, 1), BoxSplit::Alternating5);
+                let (nv, nt) = (rest.len(), tets.len());
                 let mut rest_data = vec![TetRest::default(); nt];
                 let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
                 // A general affine map plus a different wobble per vertex; vertex 5 pushed far

@@ -641,12 +641,9 @@ macro_rules! mesh_tests {
             #[test]
             fn explicit_and_relaxation_runs_are_bitwise_the_scalar_run_at_every_width() {
                 let (rest_x, _, tets) = deformed_box(4, 0.0, 0);
-                let mut rest = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(&rest_x, &tets, &mut rest).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest, mesh, masses; &rest_x, &tets, 1000.0);
                 let model = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.45).unwrap());
                 let n = mesh.vertex_count();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 // The bottom layer is pinned.
                 let pinned: Vec<bool> = rest_x.iter().map(|x| x.y == 0.0).collect();
                 let gravity = V::new(0.0, -9.81, 0.0);
@@ -680,12 +677,9 @@ macro_rules! mesh_tests {
             fn explicit_ground_contacts_are_bitwise_the_scalar_run_at_every_width() {
                 use $($crate_path)::+::step::{Ground, stable_time_step};
                 let (rest_x, deformed, tets) = deformed_box(4, 0.1, 0);
-                let mut rest = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(&rest_x, &tets, &mut rest).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest, mesh, masses; &rest_x, &tets, 1000.0);
                 let model = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.45).unwrap());
                 let n = mesh.vertex_count();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let pinned: Vec<bool> = (0..n).map(|i| i % 11 == 4).collect();
                 let mut stiffness = vec![0.0; n];
                 let dt = 0.5 * stable_time_step(&model, &masses, &[], &mut stiffness).unwrap();
@@ -737,13 +731,10 @@ macro_rules! mesh_tests {
                     Collider, FIXED_X, Ground, SUGGESTED_STICKING_SPEED, relax_quasi_static,
                 };
                 let (rest_x, deformed, tets) = deformed_box(4, 0.1, 0);
-                let mut rest = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(&rest_x, &tets, &mut rest).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest, mesh, masses; &rest_x, &tets, 1000.0);
                 let model = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.45).unwrap());
                 let n = mesh.vertex_count();
                 assert_eq!(n, 125);
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let pinned: Vec<bool> = (0..n).map(|i| i % 11 == 4).collect();
                 // The plane cuts the lowest layer: some vertices start inside, the rest fall.
                 let normal = V::new(0.1, 1.0, -0.05).normalize();
@@ -820,12 +811,9 @@ macro_rules! mesh_tests {
                 };
                 fn check<M: Material>(material: M, label: &str) {
                     let (rest_x, deformed, tets) = deformed_box(3, 0.05, 0);
-                    let mut rest = vec![TetRest::default(); tets.len()];
-                    let mesh = TetMesh::new(&rest_x, &tets, &mut rest).unwrap();
+                    crate::common::scenes::mesh_and_masses!(rest, mesh, masses; &rest_x, &tets, 1000.0);
                     let model = TetElastic::new(mesh, material);
                     let n = mesh.vertex_count();
-                    let mut masses = vec![0.0; n];
-                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
                     let pinned: Vec<bool> = rest_x.iter().map(|x| x.y == 0.0).collect();
                     let start: Vec<V> = deformed
                         .iter()

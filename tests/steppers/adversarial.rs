@@ -79,10 +79,8 @@ macro_rules! adversarial_tests {
             }
 
             fn block() -> Block {
-                let (nv, nt) = box_counts(2, 1, 1, BoxSplit::Kuhn6).unwrap();
-                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
                 let max = Vec3::new(0.2, 0.1, 0.1);
-                fill_box(Vec3::ZERO, max, 2, 1, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, max, (2, 1, 1), BoxSplit::Kuhn6);
                 Block { rest, tets }
             }
 
@@ -102,10 +100,7 @@ macro_rules! adversarial_tests {
             /// Runs `f` on a mesh of the block with lumped masses (1000 kg/m^3).
             fn with_mesh<T>(f: impl FnOnce(TetMesh<'_>, &[Vec3], Vec<Real>) -> T) -> T {
                 let b = block();
-                let mut rest_data = vec![TetRest::default(); b.tets.len()];
-                let mesh = TetMesh::new(&b.rest, &b.tets, &mut rest_data).unwrap();
-                let mut masses = vec![0.0; b.rest.len()];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &b.rest, &b.tets, 1000.0);
                 f(mesh, &b.rest, masses)
             }
 

@@ -692,19 +692,9 @@ fn rebuilding_keeps_the_settings_and_replaces_geometry_state_pins_and_history() 
         used.step(1.0 / 60.0).unwrap();
     }
     // Rebuilt as a smaller box of arrays: 2 x 1 x 1 cells.
-    let (n, t) = box_counts(2, 1, 1, BoxSplit::Alternating5).unwrap();
-    let (mut rest, mut tets) = (vec![Vec3::ZERO; n], vec![[0; 4]; t]);
-    fill_box(
-        LOW,
-        HIGH,
-        2,
-        1,
-        1,
-        BoxSplit::Alternating5,
-        &mut rest,
-        &mut tets,
-    )
-    .unwrap();
+    let (rest, tets) =
+        crate::common::scenes::generated_box!(LOW, HIGH, (2, 1, 1), BoxSplit::Alternating5);
+    let (n, t) = (rest.len(), tets.len());
     used.rebuild_from_arrays(&rest, &tets, DENSITY).unwrap();
     assert_eq!((used.vertex_count(), used.tet_count()), (n, t));
     assert_eq!(used.positions(), &rest[..]);

@@ -30,28 +30,19 @@ const GRAVITY: Vec3 = Vec3::new(0.0, -9.81, 0.0);
 /// deflection (m).
 fn cantilever(cells: (usize, usize, usize), settings: RelaxSettings<Vec3>) -> (RelaxReport, f64) {
     let (nx, ny, nz) = cells;
-    let (nv, nt) = box_counts(nx, ny, nz, BoxSplit::Kuhn6).unwrap();
-    let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
     let length = 0.1 * nx as f64;
-    fill_box(
+    let (rest, tets) = crate::common::scenes::generated_box!(
         Vec3::ZERO,
         Vec3::new(length, 0.1, 0.1),
-        nx,
-        ny,
-        nz,
-        BoxSplit::Kuhn6,
-        &mut rest,
-        &mut tets,
-    )
-    .unwrap();
-    let mut rest_data = vec![TetRest::default(); nt];
-    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+        (nx, ny, nz),
+        BoxSplit::Kuhn6
+    );
+    let nv = rest.len();
+    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
     let body = TetElastic::new(
         mesh,
         StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap(),
     );
-    let mut masses = vec![0.0; nv];
-    mesh.lumped_masses(1000.0, &mut masses).unwrap();
     let pinned: Vec<bool> = rest.iter().map(|x| x.x == 0.0).collect();
     let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
@@ -113,19 +104,13 @@ fn an_estimate_needs_a_window_and_no_given_rho() {
         },
     ];
     for settings in bad {
-        let (nv, nt) = box_counts(1, 1, 1, BoxSplit::Kuhn6).unwrap();
-        let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
-        fill_box(
+        let (rest, tets) = crate::common::scenes::generated_box!(
             Vec3::ZERO,
             Vec3::ONE,
-            1,
-            1,
-            1,
-            BoxSplit::Kuhn6,
-            &mut rest,
-            &mut tets,
-        )
-        .unwrap();
+            (1, 1, 1),
+            BoxSplit::Kuhn6
+        );
+        let (nv, nt) = (rest.len(), tets.len());
         let mut rest_data = vec![TetRest::default(); nt];
         let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
         let body = TetElastic::new(

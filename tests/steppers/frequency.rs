@@ -68,21 +68,16 @@ macro_rules! frequency_tests {
             /// A Kuhn box of `cells` with cell edge 0.05 m.
             fn block(cells: (usize, usize, usize)) -> (Vec<Vec3>, Vec<[u32; 4]>) {
                 let (nx, ny, nz) = cells;
-                let (nv, nt) = box_counts(nx, ny, nz, BoxSplit::Kuhn6).unwrap();
-                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
                 let max = Vec3::new(nx as Real, ny as Real, nz as Real) * 0.05;
-                fill_box(Vec3::ZERO, max, nx, ny, nz, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, max, (nx, ny, nz), BoxSplit::Kuhn6);
                 (rest, tets)
             }
 
             fn check(cells: (usize, usize, usize), pin_left_face: bool) {
                 let (rest, tets) = block(cells);
                 let pinned: Vec<bool> = rest.iter().map(|x| pin_left_face && x.x == 0.0).collect();
-                let mut rest_data = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.3).unwrap());
-                let mut masses = vec![0.0; rest.len()];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let mut hessians = vec![TetHessian::default(); tets.len()];
                 let mut vectors = vec![Vec3::ZERO; frequency_scratch_len(rest.len())];
                 let estimate = estimate_max_frequency(&body, &masses, &pinned, &rest, (20_000, $tolerance), &mut hessians, &mut vectors).unwrap();

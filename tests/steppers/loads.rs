@@ -64,11 +64,8 @@ macro_rules! load_tests {
                 (gravity, forces, fixed): (Vec3, &[Vec3], &[u8]),
                 tolerances: [Real; 3],
             ) -> Vec<Vec3> {
-                let mut rest_data = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(rest, tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; rest, tets, 1000.0);
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(YOUNG, POISSON).unwrap());
-                let mut masses = vec![0.0; rest.len()];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let (n, t) = (rest.len(), tets.len());
                 let mut x = rest.to_vec();
                 match solver {
@@ -184,18 +181,13 @@ macro_rules! load_tests {
             /// A box of Kuhn-split cubes from the origin to `max`.
             fn block(cells: (usize, usize, usize), max: Vec3) -> (Vec<Vec3>, Vec<[u32; 4]>) {
                 let (nx, ny, nz) = cells;
-                let (nv, nt) = box_counts(nx, ny, nz, BoxSplit::Kuhn6).unwrap();
-                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
-                fill_box(Vec3::ZERO, max, nx, ny, nz, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, max, (nx, ny, nz), BoxSplit::Kuhn6);
                 (rest, tets)
             }
 
             /// The lumped masses of `rest`, `tets` at 1000 kg/m^3.
             fn masses(rest: &[Vec3], tets: &[[u32; 4]]) -> Vec<Real> {
-                let mut rest_data = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(rest, tets, &mut rest_data).unwrap();
-                let mut m = vec![0.0; rest.len()];
-                mesh.lumped_masses(1000.0, &mut m).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, m; rest, tets, 1000.0);
                 m
             }
 

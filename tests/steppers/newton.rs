@@ -32,9 +32,7 @@ macro_rules! newton_tests {
             /// A box of `cells` Kuhn-split cubes from the origin to `max`.
             fn body(cells: (usize, usize, usize), max: Vec3) -> Body {
                 let (nx, ny, nz) = cells;
-                let (nv, nt) = box_counts(nx, ny, nz, BoxSplit::Kuhn6).unwrap();
-                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
-                fill_box(Vec3::ZERO, max, nx, ny, nz, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, max, (nx, ny, nz), BoxSplit::Kuhn6);
                 Body { rest, tets }
             }
 
@@ -92,13 +90,10 @@ macro_rules! newton_tests {
             fn quasi_static_cantilever_converges_in_few_iterations_to_the_relaxed_answer() {
                 let bar = body((4, 1, 1), Vec3::new(0.4, 0.1, 0.1));
                 let pinned: Vec<bool> = bar.rest.iter().map(|p| p.x == 0.0).collect();
-                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let material = StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap();
                 let model = TetElastic::new(mesh, material);
                 let n = bar.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
 
                 let settings = NewtonSettings::new(1.0).with_gravity(GRAVITY).with_tolerance(TOLERANCE, 25);
                 let mut buffers = Buffers::new(n, bar.tets.len());
@@ -143,12 +138,9 @@ macro_rules! newton_tests {
             fn large_sag<M: Material>(material: M) {
                 let bar = body((8, 2, 2), Vec3::new(0.4, 0.1, 0.1));
                 let pinned: Vec<bool> = bar.rest.iter().map(|p| p.x == 0.0).collect();
-                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let model = TetElastic::new(mesh, material);
                 let n = bar.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let settings = NewtonSettings::new(1.0).with_gravity(GRAVITY).with_tolerance(TOLERANCE, 60).with_cg_iterations(1000);
                 let mut buffers = Buffers::new(n, bar.tets.len());
                 let mut x = bar.rest.clone();
@@ -175,12 +167,9 @@ macro_rules! newton_tests {
             /// limit, the regime where the relaxation converges on 7-43 % of its solves.
             pub(crate) fn stiff_block_run(tolerance: Real) -> (Vec<NewtonReport>, Vec<Vec3>, Vec<Vec3>, Vec<Real>) {
                 let block = body((2, 1, 1), Vec3::new(0.1, 0.05, 0.05));
-                let mut rest_data = vec![TetRest::default(); block.tets.len()];
-                let mesh = TetMesh::new(&block.rest, &block.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &block.rest, &block.tets, 1000.0);
                 let model = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e8, 0.3).unwrap());
                 let n = block.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let mut x: Vec<Vec3> = block.rest.iter().enumerate().map(|(i, &p)| {
                     let (s, c) = ((i as Real * 1.7).sin(), (i as Real * 2.3).cos());
                     p + Vec3::new(s, c, s * c) * 5e-4 + Vec3::new(0.0, 0.01, 0.0)
@@ -228,12 +217,9 @@ macro_rules! newton_tests {
             fn pins_hold_and_bad_input_is_refused_with_the_state_untouched() {
                 let bar = body((2, 1, 1), Vec3::new(0.2, 0.1, 0.1));
                 let pinned: Vec<bool> = bar.rest.iter().map(|p| p.x == 0.0).collect();
-                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let model = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = bar.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let settings = NewtonSettings::new(1.0 / 60.0).with_gravity(GRAVITY).with_tolerance(TOLERANCE.max(1e-6), 20);
                 let mut buffers = Buffers::new(n, bar.tets.len());
 
@@ -321,13 +307,10 @@ macro_rules! newton_tests {
                 for cells in [(4usize, 1usize, 1usize), (8, 2, 2), (12, 3, 3)] {
                     let bar = body(cells, Vec3::new(0.4, 0.1, 0.1));
                     let pinned: Vec<bool> = bar.rest.iter().map(|p| p.x == 0.0).collect();
-                    let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                    let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                     let material = StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap();
                     let model = TetElastic::new(mesh, material);
                     let n = bar.rest.len();
-                    let mut masses = vec![0.0; n];
-                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
                     let tolerance = 1e-6;
                     let mut buffers = Buffers::new(n, bar.tets.len());
                     let settings = NewtonSettings::new(1.0).with_gravity(GRAVITY).with_tolerance(tolerance, 50);

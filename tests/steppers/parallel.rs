@@ -23,20 +23,8 @@ macro_rules! precision_tests {
 
             /// A box of `cells^3` Kuhn cells (6 tets each), its rest positions and tets.
             pub(super) fn box_mesh(cells: usize) -> (Vec<Vec3>, Vec<[u32; 4]>) {
-                let (vertices, tets) = box_counts(cells, cells, cells, BoxSplit::Kuhn6).unwrap();
-                let (mut rest, mut elements) = (vec![Vec3::ZERO; vertices], vec![[0; 4]; tets]);
                 let (low, high) = (Vec3::ZERO, Vec3::splat(0.1) + Vec3::Y * 0.05);
-                fill_box(
-                    low,
-                    high,
-                    cells,
-                    cells,
-                    cells,
-                    BoxSplit::Kuhn6,
-                    &mut rest,
-                    &mut elements,
-                )
-                .unwrap();
+                let (rest, elements) = crate::common::scenes::generated_box!(low, high, (cells, cells, cells), BoxSplit::Kuhn6);
                 (rest, elements)
             }
 
@@ -1004,13 +992,10 @@ macro_rules! precision_tests {
                 fn clamped_explicit_run_on_1_2_3_8_threads_gives_the_sequential_bits() {
                     // Resting on the ground from the start (60 steps are 1 ms): contacts at once.
                     let (start, tets) = box_mesh(5);
-                    let mut rest_data = vec![TetRest::default(); tets.len()];
-                    let mesh = TetMesh::new(&start, &tets, &mut rest_data).unwrap();
+                    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &start, &tets, 1000.0);
                     let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
                     let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
                     let body = TetClamped::checked(mesh, material, 0.3).unwrap();
-                    let mut masses = vec![0.0; nv];
-                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
                     let mut stiffness = vec![0.0; nv];
                     let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                     let settings = ExplicitSettings::new(dt)
@@ -1116,13 +1101,10 @@ macro_rules! precision_tests {
                 /// One sticking speed of the test above.
                 fn runs_on_1_2_3_8_threads_give_the_sequential_bits(sticking_speed: Real) {
                     let (start, tets) = lifted_box(4);
-                    let mut rest_data = vec![TetRest::default(); tets.len()];
-                    let mesh = TetMesh::new(&start, &tets, &mut rest_data).unwrap();
-                    let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
+                    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &start, &tets, 1000.0);
+                    let ne = mesh.element_count();
                     let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
                     let body = TetElastic::new(mesh, material);
-                    let mut masses = vec![0.0; nv];
-                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
                     let relaxed = relax_run(&body, &masses, &start, (6, sticking_speed));
                     let newton = newton_run(&body, &masses, &start, (4, sticking_speed));
                     // Landed: some vertex is on the ground (y = 0) at the end.
@@ -1152,13 +1134,10 @@ macro_rules! precision_tests {
                 fn explicit_box_drop_on_1_2_3_8_threads_gives_the_sequential_bits() {
                     let (rest, tets) = box_mesh(6);
                     let lifted: Vec<Vec3> = rest.iter().map(|p| *p + Vec3::Y * 0.002).collect();
-                    let mut rest_data = vec![TetRest::default(); tets.len()];
-                    let mesh = TetMesh::new(&lifted, &tets, &mut rest_data).unwrap();
+                    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &lifted, &tets, 1000.0);
                     let (nv, ne) = (mesh.vertex_count(), mesh.element_count());
                     let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
                     let body = TetElastic::new(mesh, material);
-                    let mut masses = vec![0.0; nv];
-                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
                     let mut stiffness = vec![0.0; nv];
                     let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                     let settings = ExplicitSettings::new(dt)
@@ -1233,13 +1212,10 @@ macro_rules! precision_tests {
                 #[test]
                 fn split_explicit_update_matches_the_update_written_out_vertex_by_vertex() {
                     let (start, tets) = box_mesh(13); // 2744 vertices: three blocks
-                    let mut rest_data = vec![TetRest::default(); tets.len()];
-                    let mesh = TetMesh::new(&start, &tets, &mut rest_data).unwrap();
+                    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &start, &tets, 1000.0);
                     let nv = mesh.vertex_count();
                     let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
                     let body = TetElastic::new(mesh, material);
-                    let mut masses = vec![0.0; nv];
-                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
                     let pinned: Vec<bool> = (0..nv).map(|i| i % 97 == 5).collect();
                     let loads: Vec<Vec3> = (0..nv)
                         .map(|i| Vec3::new(0.01, -0.02, 0.005) * (i % 13) as Real)
@@ -1305,14 +1281,11 @@ macro_rules! precision_tests {
                 fn runs_with_vertex_passes_split_in_blocks_on_1_2_3_8_threads_give_the_sequential_bits()
                 {
                     let (start, tets) = box_mesh(13); // 2744 vertices: three blocks
-                    let mut rest_data = vec![TetRest::default(); tets.len()];
-                    let mesh = TetMesh::new(&start, &tets, &mut rest_data).unwrap();
+                    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &start, &tets, 1000.0);
                     let nv = mesh.vertex_count();
                     assert!(nv > 2 * sf::step::VERTEX_BLOCK && nv < 3 * sf::step::VERTEX_BLOCK);
                     let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
                     let body = TetElastic::new(mesh, material);
-                    let mut masses = vec![0.0; nv];
-                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
                     let mut stiffness = vec![0.0; nv];
                     let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                     let explicit_settings = ExplicitSettings::new(dt)

@@ -32,11 +32,8 @@ macro_rules! relax_tests {
             }
 
             fn bar() -> Bar {
-                let (nv, nt) = box_counts(4, 1, 1, BoxSplit::Kuhn6).unwrap();
-                let mut rest = vec![Vec3::ZERO; nv];
-                let mut tets = vec![[0; 4]; nt];
                 let max = Vec3::new(0.4, 0.1, 0.1);
-                fill_box(Vec3::ZERO, max, 4, 1, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, max, (4, 1, 1), BoxSplit::Kuhn6);
                 let pinned = rest.iter().map(|p| p.x == 0.0).collect();
                 Bar { rest, tets, pinned }
             }
@@ -56,13 +53,10 @@ macro_rules! relax_tests {
             #[test]
             fn a_kept_scratch_reuses_its_preconditioner_until_reset() {
                 let bar = bar();
-                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let soft = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.3).unwrap());
                 let stiff = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e7, 0.3).unwrap());
                 let n = bar.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 // A fixed budget (tolerance 0), so that results depend on every iterate.
                 let settings = RelaxSettings::new(1.0 / 60.0)
                     .with_gravity(GRAVITY)
@@ -103,13 +97,10 @@ macro_rules! relax_tests {
             #[test]
             fn quasi_static_and_implicit_euler_reach_the_same_equilibrium() {
                 let bar = bar();
-                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let material = StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap();
                 let body = TetElastic::new(mesh, material);
                 let n = bar.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let weight = masses.iter().fold(0.0 as Real, |a, &m| a.max(m)) * 9.81;
                 let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
                 let mut scalars = vec![0.0; n];
@@ -181,13 +172,10 @@ macro_rules! relax_tests {
                 // wherever the bounds differ between vertices (here the clamped end's and the
                 // free tip's vertices have fewer elements).
                 let bar = bar();
-                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let material = StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap();
                 let body = TetElastic::new(mesh, material);
                 let n = bar.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let weight = masses.iter().fold(0.0 as Real, |a, &m| a.max(m)) * 9.81;
                 let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
                 let settings = RelaxSettings::new(1.0 / 60.0)
@@ -231,12 +219,9 @@ macro_rules! relax_tests {
                     return;
                 }
                 let bar = bar();
-                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = bar.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
                 let mut scalars = vec![0.0; n];
                 // The first 1/60 s step of the pinned bar released from rest: the bar starts to
@@ -275,12 +260,9 @@ macro_rules! relax_tests {
             #[test]
             fn free_fall_is_solved_by_the_initial_guess() {
                 let bar = bar();
-                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = bar.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
                 let mut scalars = vec![0.0; n];
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
@@ -307,12 +289,9 @@ macro_rules! relax_tests {
             fn a_free_body_skips_the_losing_guess_with_the_same_bits() {
                 use $($api)::+::step::Collider;
                 let bar = bar();
-                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.3).unwrap());
                 let n = bar.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 // Stretched 20 % along x, sheared, spinning about z and moving up.
                 let start: Vec<Vec3> = bar
                     .rest
@@ -356,12 +335,9 @@ macro_rules! relax_tests {
             fn pinned_vertices_inside_the_ground_stay_put() {
                 use $($api)::+::step::Ground;
                 let bar = bar();
-                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = bar.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 // Ground y = 0.05 with normal +y: the bar (y in [0, 0.1]) is half inside it, the
                 // clamp included.
                 let ground = Ground::new(Vec3::Y, 0.05);
@@ -388,12 +364,9 @@ macro_rules! relax_tests {
             #[test]
             fn bad_settings_are_refused_before_anything_is_touched() {
                 let bar = bar();
-                let mut rest_data = vec![TetRest::default(); bar.tets.len()];
-                let mesh = TetMesh::new(&bar.rest, &bar.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = bar.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let good = RelaxSettings::new(0.01).with_gravity(GRAVITY);
                 let cases = [
                     (RelaxSettings { dt: 0.0, ..good }, StepError::TimeStep),

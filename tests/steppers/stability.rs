@@ -34,11 +34,8 @@ macro_rules! stability_tests {
             }
 
             fn stiff_box() -> Box_ {
-                let (nv, nt) = box_counts(2, 1, 1, BoxSplit::Kuhn6).unwrap();
-                let mut rest = vec![Vec3::ZERO; nv];
-                let mut tets = vec![[0; 4]; nt];
                 let max = Vec3::new(0.1, 0.05, 0.05);
-                fill_box(Vec3::ZERO, max, 2, 1, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, max, (2, 1, 1), BoxSplit::Kuhn6);
                 Box_ { rest, tets }
             }
 
@@ -65,12 +62,9 @@ macro_rules! stability_tests {
             #[test]
             fn bound_never_exceeds_the_true_limit() {
                 let mesh_data = stiff_box();
-                let mut rest_data = vec![TetRest::default(); mesh_data.tets.len()];
-                let mesh = TetMesh::new(&mesh_data.rest, &mesh_data.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &mesh_data.rest, &mesh_data.tets, DENSITY);
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(1.0e8, 0.3).unwrap());
                 let n = mesh.vertex_count();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(DENSITY, &mut masses).unwrap();
                 let mut stiffness = vec![0.0; n];
                 let vertex_bound = stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                 let element_bound = element_stable_time_step(&body, DENSITY).unwrap();
@@ -92,12 +86,9 @@ macro_rules! stability_tests {
             #[test]
             fn explicit_at_nine_tenths_of_the_bound_stays_bounded() {
                 let mesh_data = stiff_box();
-                let mut rest_data = vec![TetRest::default(); mesh_data.tets.len()];
-                let mesh = TetMesh::new(&mesh_data.rest, &mesh_data.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &mesh_data.rest, &mesh_data.tets, DENSITY);
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(1.0e8, 0.3).unwrap());
                 let n = mesh.vertex_count();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(DENSITY, &mut masses).unwrap();
                 let mut stiffness = vec![0.0; n];
                 let dt = 0.9 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                 let settings = ExplicitSettings::new(dt);
@@ -122,12 +113,9 @@ macro_rules! stability_tests {
             #[test]
             fn above_the_limit_the_blow_up_is_reported_and_the_state_kept() {
                 let mesh_data = stiff_box();
-                let mut rest_data = vec![TetRest::default(); mesh_data.tets.len()];
-                let mesh = TetMesh::new(&mesh_data.rest, &mesh_data.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &mesh_data.rest, &mesh_data.tets, DENSITY);
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(1.0e8, 0.3).unwrap());
                 let n = mesh.vertex_count();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(DENSITY, &mut masses).unwrap();
                 let limit = true_limit(&body, &mesh_data.rest, &masses);
                 let settings = ExplicitSettings::new((3.0 * limit) as Real);
                 let mut x = perturbed(&mesh_data.rest, 1e-4);
@@ -370,10 +358,8 @@ macro_rules! stability_tests {
             /// caller can trust what it is told. The sag is positive and finite.
             #[test]
             fn near_incompressible_relaxation_reports_its_true_residual() {
-                let (nv, nt) = box_counts(4, 1, 1, BoxSplit::Kuhn6).unwrap();
-                let mut rest = vec![Vec3::ZERO; nv];
-                let mut tets = vec![[0; 4]; nt];
-                fill_box(Vec3::ZERO, Vec3::new(0.4, 0.1, 0.1), 4, 1, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, Vec3::new(0.4, 0.1, 0.1), (4, 1, 1), BoxSplit::Kuhn6);
+                let (nv, nt) = (rest.len(), tets.len());
                 let mut rest_data = vec![TetRest::default(); nt];
                 let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
                 let pinned: Vec<bool> = rest.iter().map(|p| p.x == 0.0).collect();

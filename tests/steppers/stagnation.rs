@@ -33,15 +33,11 @@ macro_rules! stagnation_tests {
 
             /// [`cantilever`] with `colliders`; also returns the final positions.
             fn cantilever_on(offset: Vec3, tolerance: Real, budget: u32, colliders: &[Collider<'_>]) -> ($($api)::+::step::RelaxReport, f64, Vec<Vec3>) {
-                let (nv, nt) = box_counts(4, 1, 1, BoxSplit::Kuhn6).unwrap();
-                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
-                fill_box(offset, offset + Vec3::new(0.4, 0.1, 0.1), 4, 1, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
-                let mut rest_data = vec![TetRest::default(); nt];
-                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(offset, offset + Vec3::new(0.4, 0.1, 0.1), (4, 1, 1), BoxSplit::Kuhn6);
+                let nv = rest.len();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let material = StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap();
                 let body = TetElastic::new(mesh, material);
-                let mut masses = vec![0.0; nv];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let pinned: Vec<bool> = rest.iter().map(|x| x.x == offset.x).collect();
                 let settings = RelaxSettings::new(1.0)
                     .with_gravity(GRAVITY)
@@ -83,14 +79,10 @@ macro_rules! stagnation_tests {
 
             /// [`newton_cantilever`] with `colliders`.
             fn newton_cantilever_on(offset: Vec3, tolerance: Real, colliders: &[Collider<'_>]) -> $($api)::+::step::NewtonReport {
-                let (nv, nt) = box_counts(4, 1, 1, BoxSplit::Kuhn6).unwrap();
-                let (mut rest, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
-                fill_box(offset, offset + Vec3::new(0.4, 0.1, 0.1), 4, 1, 1, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
-                let mut rest_data = vec![TetRest::default(); nt];
-                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(offset, offset + Vec3::new(0.4, 0.1, 0.1), (4, 1, 1), BoxSplit::Kuhn6);
+                let (nv, nt) = (rest.len(), tets.len());
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
-                let mut masses = vec![0.0; nv];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let pinned: Vec<bool> = rest.iter().map(|x| x.x == offset.x).collect();
                 let settings = NewtonSettings::new(1.0).with_gravity(GRAVITY).with_tolerance(tolerance, 50).with_colliders(colliders);
                 let len = newton_scratch_len(nv, nt);

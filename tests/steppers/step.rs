@@ -20,10 +20,7 @@ macro_rules! step_tests {
             use $($api)::+::types::{Real, Vec2, Vec3};
 
             fn block(n: [usize; 3], min: Vec3, max: Vec3) -> (Vec<Vec3>, Vec<[u32; 4]>) {
-                let (nv, nt) = box_counts(n[0], n[1], n[2], BoxSplit::Kuhn6).unwrap();
-                let mut rest = vec![Vec3::ZERO; nv];
-                let mut tets = vec![[0; 4]; nt];
-                fill_box(min, max, n[0], n[1], n[2], BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(min, max, (n[0], n[1], n[2]), BoxSplit::Kuhn6);
                 (rest, tets)
             }
 
@@ -38,12 +35,9 @@ macro_rules! step_tests {
             #[test]
             fn motion_after_exact_rest_is_not_a_blow_up() {
                 let (rest, tets) = block([1, 1, 1], Vec3::ZERO, Vec3::splat(0.1));
-                let mut rest_data = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let mut stiffness = vec![0.0; n];
                 let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                 let settings = ExplicitSettings::new(dt);
@@ -75,10 +69,7 @@ macro_rules! step_tests {
                 fn new() -> Drop {
                     let h = 0.5 * DROP_SIZE;
                     let (rest, tets) = block([4, 4, 4], Vec3::new(-h, -h, 0.3), Vec3::new(h, h, 0.3 + DROP_SIZE));
-                    let mut rest_data = vec![TetRest::default(); tets.len()];
-                    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
-                    let mut masses = vec![0.0; rest.len()];
-                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                     Drop { rest, tets, masses }
                 }
 
@@ -187,13 +178,10 @@ macro_rules! step_tests {
             #[test]
             fn swinging_cantilever_is_never_taken_for_a_blow_up() {
                 let (rest, tets) = block([6, 1, 1], Vec3::ZERO, Vec3::new(0.6, 0.1, 0.1));
-                let mut rest_data = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let material = StVK::from_young_poisson(1.0e5, 0.3).unwrap();
                 let body = TetClamped::checked(mesh, material, 0.3).unwrap();
                 let n = rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let pinned: Vec<bool> = rest.iter().map(|p| p.x == 0.0).collect();
                 let mut stiffness = vec![0.0; n];
                 let bound = stable_time_step(&body, &masses, &pinned, &mut stiffness).unwrap();
@@ -218,13 +206,10 @@ macro_rules! step_tests {
             #[test]
             fn undamped_energy_does_not_drift_over_1000_periods() {
                 let (rest, tets) = block([1, 1, 1], Vec3::ZERO, Vec3::splat(0.1));
-                let mut rest_data = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let material = StVK::from_young_poisson(1.0e6, 0.3).unwrap();
                 let body = TetElastic::new(mesh, material);
                 let n = rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
 
                 // The lowest non-rigid frequency from K (central differences, f64 eigenvalues).
                 let omegas = squared_frequencies(&body, &rest, &masses, 1e-5);
@@ -273,12 +258,9 @@ macro_rules! step_tests {
             #[test]
             fn dropped_block_lands_and_rests_on_the_ground() {
                 let (rest, tets) = block([2, 2, 2], Vec3::new(0.0, 0.2, 0.0), Vec3::new(0.1, 0.3, 0.1));
-                let mut rest_data = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.3).unwrap());
                 let n = rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let mut stiffness = vec![0.0; n];
                 let dt = 0.9 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                 let settings = ExplicitSettings::new(dt)
@@ -314,12 +296,9 @@ macro_rules! step_tests {
             #[test]
             fn pinned_vertices_never_move() {
                 let (rest, tets) = block([2, 1, 1], Vec3::ZERO, Vec3::new(0.2, 0.1, 0.1));
-                let mut rest_data = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(1.0e5, 0.3).unwrap());
                 let n = rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let pinned: Vec<bool> = rest.iter().map(|p| p.x == 0.0).collect();
                 let mut stiffness = vec![0.0; n];
                 let dt = 0.5 * stable_time_step(&body, &masses, &pinned, &mut stiffness).unwrap();
@@ -376,12 +355,9 @@ macro_rules! step_tests {
             #[test]
             fn every_bad_parameter_gives_its_error_and_touches_nothing() {
                 let (rest, tets) = block([1, 1, 1], Vec3::ZERO, Vec3::splat(0.1));
-                let mut rest_data = vec![TetRest::default(); tets.len()];
-                let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(1.0e5, 0.3).unwrap());
                 let n = rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let good = ExplicitSettings::new(1e-4).with_ground(Ground::new(Vec3::Y, -1.0));
                 let x0: Vec<Vec3> = rest.iter().map(|&p| p * 1.01).collect();
                 let v0 = vec![Vec3::new(0.1, 0.2, 0.3); n];

@@ -34,10 +34,7 @@ macro_rules! vbd_tests {
 
             fn boxed(max: Vec3, cells: [usize; 3]) -> Boxed {
                 let [nx, ny, nz] = cells;
-                let (nv, nt) = box_counts(nx, ny, nz, BoxSplit::Kuhn6).unwrap();
-                let mut rest = vec![Vec3::ZERO; nv];
-                let mut tets = vec![[0; 4]; nt];
-                fill_box(Vec3::ZERO, max, nx, ny, nz, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
+                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, max, (nx, ny, nz), BoxSplit::Kuhn6);
                 Boxed { rest, tets }
             }
 
@@ -96,10 +93,7 @@ macro_rules! vbd_tests {
 
             fn pressed() -> Pressed {
                 let cube = boxed(Vec3::new(0.24, 0.06, 0.2), [12, 3, 10]);
-                let mut rest_data = vec![TetRest::default(); cube.tets.len()];
-                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
-                let mut masses = vec![0.0; cube.rest.len()];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &cube.rest, &cube.tets, 1000.0);
                 let pinned = cube.rest.iter().map(|p| p.x < 1e-6).collect();
                 let loads = cube.rest.iter().map(|p| Vec3::new(0.0, 0.0, -0.05 * p.x)).collect();
                 let fixed = cube.rest.iter().map(|p| u8::from(p.z < 1e-6) * 4).collect();
@@ -168,15 +162,10 @@ macro_rules! vbd_tests {
             fn packed_layout_fits_the_generators_boxes() {
                 for split in [BoxSplit::Kuhn6, BoxSplit::Alternating5] {
                     for [nx, ny, nz] in [[1, 1, 1], [2, 2, 2], [6, 6, 6], [4, 2, 2], [20, 1, 1], [12, 3, 10], [10, 10, 1]] {
-                        let (nv, nt) = box_counts(nx, ny, nz, split).unwrap();
-                        let mut rest = vec![Vec3::ZERO; nv];
-                        let mut tets = vec![[0; 4]; nt];
-                        fill_box(Vec3::ZERO, Vec3::splat(0.1), nx, ny, nz, split, &mut rest, &mut tets).unwrap();
-                        let mut rest_data = vec![TetRest::default(); nt];
-                        let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+                        let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, Vec3::splat(0.1), (nx, ny, nz), split);
+                        let (nv, nt) = (rest.len(), tets.len());
+                        crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                         let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap());
-                        let mut masses = vec![0.0; nv];
-                        mesh.lumped_masses(1000.0, &mut masses).unwrap();
                         let (mut vectors, mut indices) = buffers(nv, nt);
                         let (mut values, mut corners) = layout_buffers(nv, nt);
                         let mut scratch = VbdScratch::new(&mut vectors, &mut indices).with_layout(&mut values, &mut corners);
@@ -235,11 +224,8 @@ macro_rules! vbd_tests {
                     matches!(rows.as_slice(), [.., a, b] if b > a) || rows.len() == 1 && rows[0] > 1
                 });
                 assert!(alone, "no colour with a single longest row");
-                let mut rest_data = vec![TetRest::default(); t];
-                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &cube.rest, &cube.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e8, 0.3).unwrap());
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let pinned: Vec<bool> = cube.rest.iter().map(|p| p.x == 0.0).collect();
                 let mut rng = crate::common::Rng::new(3);
                 let start: Vec<Vec3> = cube.rest.iter().zip(&pinned).map(|(&p, &fixed)| {
@@ -386,11 +372,8 @@ macro_rules! vbd_tests {
             #[test]
             fn implicit_euler_on_a_stiff_block_converges_at_a_thirtieth_of_a_second() {
                 let block = boxed(Vec3::new(0.1, 0.05, 0.05), [2, 1, 1]);
-                let mut rest_data = vec![TetRest::default(); block.tets.len()];
-                let mesh = TetMesh::new(&block.rest, &block.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &block.rest, &block.tets, 1000.0);
                 let n = block.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let material = StableNeoHookean::from_young_poisson(1.0e8, 0.3).unwrap();
                 let body = TetElastic::new(mesh, material);
                 let mut x: Vec<Vec3> = block.rest.iter().enumerate().map(|(i, &p)| {
@@ -439,11 +422,8 @@ macro_rules! vbd_tests {
             fn deferred_sweeps_report_the_residual_and_phi_of_the_returned_state() {
                 use $($api)::+::step::ElasticEnergy;
                 let block = boxed(Vec3::new(0.1, 0.05, 0.05), [4, 2, 2]);
-                let mut rest_data = vec![TetRest::default(); block.tets.len()];
-                let mesh = TetMesh::new(&block.rest, &block.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &block.rest, &block.tets, 1000.0);
                 let n = block.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let material = StableNeoHookean::from_young_poisson(1.0e8, 0.3).unwrap();
                 let body = TetElastic::new(mesh, material);
                 let pinned: Vec<bool> = block.rest.iter().map(|p| p.x == 0.0).collect();
@@ -516,11 +496,8 @@ macro_rules! vbd_tests {
             fn line_search_on_increase_keeps_sweeps_monotone() {
                 fn check<M: Material>(material: M, height: Real, twist: Real) -> u32 {
                     let cube = boxed(Vec3::splat(0.1), [2, 2, 2]);
-                    let mut rest_data = vec![TetRest::default(); cube.tets.len()];
-                    let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &cube.rest, &cube.tets, 1000.0);
                     let n = cube.rest.len();
-                    let mut masses = vec![0.0; n];
-                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
                     let body = TetElastic::new(mesh, material);
                     let start: Vec<Vec3> = cube.rest.iter().map(|p| {
                         let (s, c) = ((twist * p.z).sin(), (twist * p.z).cos());
@@ -559,13 +536,10 @@ macro_rules! vbd_tests {
             #[test]
             fn results_do_not_depend_on_the_scratch_contents() {
                 let cube = boxed(Vec3::splat(0.1), [2, 2, 2]);
-                let mut rest_data = vec![TetRest::default(); cube.tets.len()];
-                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &cube.rest, &cube.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap());
                 let n = cube.rest.len();
                 let t = cube.tets.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 // Falling onto a ground 1 mm below, at 1 m/s, sideways too (friction acts).
                 let ground = Ground::new(Vec3::Y, -1e-3).with_friction(0.5);
                 let settings = VbdSettings::new(1.0 / 60.0)
@@ -601,13 +575,10 @@ macro_rules! vbd_tests {
             #[test]
             fn bad_input_is_refused_with_the_state_untouched() {
                 let cube = boxed(Vec3::splat(0.1), [1, 1, 1]);
-                let mut rest_data = vec![TetRest::default(); cube.tets.len()];
-                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &cube.rest, &cube.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = cube.rest.len();
                 let t = cube.tets.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let good = VbdSettings::new(0.01).with_gravity(GRAVITY);
                 let short_previous = vec![Vec3::ZERO; n - 1];
                 let mut bad_previous = vec![Vec3::ZERO; n];
@@ -675,12 +646,9 @@ macro_rules! vbd_tests {
             #[test]
             fn rest_is_an_equilibrium_without_load() {
                 let cube = boxed(Vec3::splat(0.1), [1, 1, 1]);
-                let mut rest_data = vec![TetRest::default(); cube.tets.len()];
-                let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
+                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &cube.rest, &cube.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = cube.rest.len();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let (mut vectors, mut indices) = buffers(n, cube.tets.len());
                 let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
                 let mut x = cube.rest.clone();
@@ -758,20 +726,9 @@ fn adjacency_and_colouring_are_valid_and_greedy() {
         ([4, 3, 2], BoxSplit::Alternating5),
     ] {
         let [nx, ny, nz] = cells;
-        let (nv, nt) = box_counts(nx, ny, nz, split).unwrap();
-        let mut rest = vec![Vec3::ZERO; nv];
-        let mut tets = vec![[0; 4]; nt];
-        fill_box(
-            Vec3::ZERO,
-            Vec3::ONE,
-            nx,
-            ny,
-            nz,
-            split,
-            &mut rest,
-            &mut tets,
-        )
-        .unwrap();
+        let (rest, mut tets) =
+            crate::common::scenes::generated_box!(Vec3::ZERO, Vec3::ONE, (nx, ny, nz), split);
+        let (nv, nt) = (rest.len(), tets.len());
         // Shuffle the elements (deterministically) so that the order is not the generator's.
         let mut rng = crate::common::Rng::new(7);
         for i in (1..nt).rev() {
@@ -882,30 +839,16 @@ fn quasi_static_cantilever_reaches_the_relaxations_equilibrium() {
         relax_scratch_len, vbd_index_scratch_len, vbd_quasi_static, vbd_scratch_len,
     };
     use softfem::glam::DVec3 as Vec3;
-    let (nv, nt) = box_counts(4, 1, 1, BoxSplit::Kuhn6).unwrap();
-    let mut rest = vec![Vec3::ZERO; nv];
-    let mut tets = vec![[0; 4]; nt];
     let max = Vec3::new(0.4, 0.1, 0.1);
-    fill_box(
-        Vec3::ZERO,
-        max,
-        4,
-        1,
-        1,
-        BoxSplit::Kuhn6,
-        &mut rest,
-        &mut tets,
-    )
-    .unwrap();
+    let (rest, tets) =
+        crate::common::scenes::generated_box!(Vec3::ZERO, max, (4, 1, 1), BoxSplit::Kuhn6);
+    let (nv, nt) = (rest.len(), tets.len());
     let pinned: Vec<bool> = rest.iter().map(|p| p.x == 0.0).collect();
-    let mut rest_data = vec![TetRest::default(); nt];
-    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
     let body = TetElastic::new(
         mesh,
         StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap(),
     );
-    let mut masses = vec![0.0; nv];
-    mesh.lumped_masses(1000.0, &mut masses).unwrap();
     let gravity = Vec3::new(0.0, -9.81, 0.0);
     let tolerance = 1e-8;
 
@@ -1091,19 +1034,15 @@ mod measure {
         use softfem::material::StableNeoHookean;
         use softfem::mesh::TetMesh;
         use softfem::step::*;
-        let (nv, nt) = box_counts(6, 6, 6, BoxSplit::Kuhn6).unwrap();
-        let mut rest = vec![Vec3::ZERO; nv];
-        let mut tets = vec![[0; 4]; nt];
         let (min, max) = (Vec3::new(-0.1, -0.1, 0.5), Vec3::new(0.1, 0.1, 0.7));
-        fill_box(min, max, 6, 6, 6, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
-        let mut rest_data = vec![TetRest::default(); nt];
-        let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+        let (rest, tets) =
+            crate::common::scenes::generated_box!(min, max, (6, 6, 6), BoxSplit::Kuhn6);
+        let (nv, nt) = (rest.len(), tets.len());
+        crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
         let body = TetElastic::new(
             mesh,
             StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap(),
         );
-        let mut masses = vec![0.0; nv];
-        mesh.lumped_masses(1000.0, &mut masses).unwrap();
         let gravity = Vec3::new(0.0, 0.0, -9.81);
         let ground = Ground::new(Vec3::Z, 0.0).with_friction(0.6);
         let (dt, tolerance, steps) = (1.0 / 60.0, 2e-3, 180);
@@ -1256,28 +1195,18 @@ mod measure {
         use softfem::f64::mesh::TetMesh;
         use softfem::f64::step::*;
         use softfem::glam::DVec3 as Vec3;
-        let (nv, nt) = box_counts(4, 2, 2, BoxSplit::Kuhn6).unwrap();
-        let mut rest = vec![Vec3::ZERO; nv];
-        let mut tets = vec![[0; 4]; nt];
-        fill_box(
+        let (rest, tets) = crate::common::scenes::generated_box!(
             Vec3::ZERO,
             Vec3::new(0.1, 0.05, 0.05),
-            4,
-            2,
-            2,
-            BoxSplit::Kuhn6,
-            &mut rest,
-            &mut tets,
-        )
-        .unwrap();
-        let mut rest_data = vec![TetRest::default(); nt];
-        let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+            (4, 2, 2),
+            BoxSplit::Kuhn6
+        );
+        let (nv, nt) = (rest.len(), tets.len());
+        crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
         let body = TetElastic::new(
             mesh,
             StableNeoHookean::from_young_poisson(1.0e8, 0.3).unwrap(),
         );
-        let mut masses = vec![0.0; nv];
-        mesh.lumped_masses(1000.0, &mut masses).unwrap();
         let mut rng = crate::common::Rng::new(3);
         let amplitude = 1e-3 * 0.025;
         let start_x: Vec<Vec3> = rest
@@ -1403,26 +1332,16 @@ mod measure {
         use softfem::material::StableNeoHookean;
         use softfem::mesh::TetMesh;
         use softfem::step::*;
-        let (nv, nt) = box_counts(6, 6, 6, BoxSplit::Kuhn6).unwrap();
-        let mut rest = vec![Vec3::ZERO; nv];
-        let mut tets = vec![[0; 4]; nt];
-        fill_box(
+        let (rest, tets) = crate::common::scenes::generated_box!(
             Vec3::splat(-0.1),
             Vec3::splat(0.1),
-            6,
-            6,
-            6,
-            BoxSplit::Kuhn6,
-            &mut rest,
-            &mut tets,
-        )
-        .unwrap();
-        let mut rest_data = vec![TetRest::default(); nt];
-        let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+            (6, 6, 6),
+            BoxSplit::Kuhn6
+        );
+        let (nv, nt) = (rest.len(), tets.len());
+        crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
         let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
         let body = TetElastic::new(mesh, material);
-        let mut masses = vec![0.0; nv];
-        mesh.lumped_masses(1000.0, &mut masses).unwrap();
         let x: Vec<Vec3> = rest
             .iter()
             .map(|p| *p * Vec3::new(1.05, 0.97, 1.0))
@@ -1569,14 +1488,11 @@ fn landing_step_matches_the_relaxation_with_contact_and_friction() {
     // the ground within the 1/60 s step.
     let (min, max) = (Vec3::new(0.0, 0.0, 0.002), Vec3::new(0.1, 0.1, 0.102));
     fill_box(min, max, 2, 2, 2, BoxSplit::Kuhn6, &mut rest, &mut tets).unwrap();
-    let mut rest_data = vec![TetRest::default(); nt];
-    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
     let body = TetElastic::new(
         mesh,
         StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap(),
     );
-    let mut masses = vec![0.0; nv];
-    mesh.lumped_masses(1000.0, &mut masses).unwrap();
     let gravity = Vec3::new(0.0, 0.0, -9.81);
     let ground = Ground::new(Vec3::Z, 0.0).with_friction(0.6);
     let (h, tolerance) = (1.0 / 60.0, 1e-9);
