@@ -767,7 +767,7 @@ fn the_collider_scene_lands_on_its_colliders_and_stays_there() {
                 let value = clearance(&name);
                 println!("{name}: {value:.3e} m");
                 // The projection's rounding: 64 f32 epsilons on metre-sized coordinates (as
-                // tests/firmware_body.rs).
+                // tests/steppers/firmware_body.rs).
                 assert!(value > -64.0 * f64::from(f32::EPSILON), "{name}: {value}");
                 let bound = if i == 0 { 0.02 } else { 0.005 };
                 assert!(value < bound, "{name}: {value} m, not on the colliders");

@@ -2,7 +2,7 @@
 //! direct path (`first_piola`) and the principal (SVD) path, in f32 and f64.
 //!
 //! The reference is the f64 direct path (itself checked against finite differences of the
-//! energy in `tests/identities.rs`) on the same inputs: the f32 mesh's rest and deformed
+//! energy in `tests/kernels/identities.rs`) on the same inputs: the f32 mesh's rest and deformed
 //! positions, converted exactly to f64, so that only the kernels' arithmetic is compared. The
 //! error is `|f - f_ref| / |f_ref|` over the whole force vector.
 

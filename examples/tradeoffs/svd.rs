@@ -173,8 +173,8 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
                 })
                 .sum::<f64>()
         });
-        // svd3_lanes returns per lane the bits svd3 returns (tested in tests/svd.rs), so the
-        // lanes share the scalar errors.
+        // svd3_lanes returns per lane the bits svd3 returns (tested in tests/kernels/svd.rs), so
+        // the lanes share the scalar errors.
         for (variant, precision, ns, worst_error) in [
             ("softfem svd3_sweeps", "f32", ns32, e32),
             ("softfem svd3_sweeps", "f64", ns64, e64),

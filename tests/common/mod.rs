@@ -1,13 +1,32 @@
-//! Helpers shared by the integration tests (included with `mod common;`): a deterministic random
-//! stream, the two precisions of the SVD-based routines behind one interface, and the
-//! per-precision scaffolding of the material and mesh identity tests.
+//! Helpers shared by the integration tests (declared once, `mod common;`, in each test binary's
+//! `main.rs`): a deterministic random stream, the two precisions of the SVD-based routines behind
+//! one interface, the per-precision scaffolding of the material and mesh identity tests, the lock
+//! on the process-wide SIMD width, closed surfaces ([`shapes`]), vibration modes ([`modes`]) and
+//! the scene set-ups the suites repeat ([`scenes`]).
 
-// Every test crate compiles its own copy of this module and uses only part of it (tests/svd.rs
-// none of the material macros, tests/material.rs none of the SVD helpers), so the items, macros
-// and macro re-exports one crate leaves unused would otherwise warn there.
+// Every test binary compiles its own copy of this module and uses only part of it (tests/assets/
+// none of the material macros, tests/steppers/ none of the SVD helpers), so the items, macros
+// and macro re-exports one binary leaves unused would otherwise warn there.
 #![allow(dead_code, unused_macros, unused_imports)]
 
+pub mod modes;
+pub mod scenes;
+pub mod shapes;
+
+use std::sync::{Mutex, MutexGuard};
+
 use softfem::glam::{DMat3, DQuat, DVec3};
+
+/// The SIMD width cap (`softfem::simd::set_max_width`) is process-wide: the tests that set it
+/// (tests/kernels/simd.rs, tests/kernels/hessian.rs, one binary, one process) take turns.
+static WIDTH_LOCK: Mutex<()> = Mutex::new(());
+
+/// Holds the SIMD width cap for the caller until the guard drops.
+pub fn lock_width() -> MutexGuard<'static, ()> {
+    WIDTH_LOCK
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+}
 
 // ---------------------------------------------------------------------------------------------
 // Deterministic random numbers.
@@ -104,7 +123,7 @@ impl Rng {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The SVD-based routines in both precisions (tests/svd.rs, tests/polar.rs).
+// The SVD-based routines in both precisions (tests/kernels/svd.rs, tests/kernels/polar.rs).
 // ---------------------------------------------------------------------------------------------
 
 /// `||m||_F`.
@@ -166,10 +185,10 @@ impl Precision for F64 {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Per-precision scaffolding of the material and mesh identity tests (tests/material.rs,
-// tests/identities.rs). These are macros because each suite is itself a macro instantiated once
-// per precision: the names below (`Real`, `Mat3`, `Lame`, the models, `Rng`) resolve to the items
-// in scope where they expand.
+// Per-precision scaffolding of the material and mesh identity tests (tests/kernels/material.rs,
+// tests/kernels/identities.rs). These are macros because each suite is itself a macro instantiated
+// once per precision: the names below (`Real`, `Mat3`, `Lame`, the models, `Rng`) resolve to the
+// items in scope where they expand.
 // ---------------------------------------------------------------------------------------------
 
 /// `EPS`, the parameter sets, the modulus, the Frobenius norm and a uniform sample in `Real`.

@@ -1,6 +1,6 @@
 //! The small-vibration modes of a body about a state, for the stepper tests
-//! (`tests/stability.rs`, `tests/step.rs`): the stiffness matrix by central differences of the
-//! force kernel, the eigenvalues of `M^-1/2 K M^-1/2` by nalgebra in f64.
+//! (`tests/steppers/stability.rs`, `tests/steppers/step.rs`): the stiffness matrix by central
+//! differences of the force kernel, the eigenvalues of `M^-1/2 K M^-1/2` by nalgebra in f64.
 
 use nalgebra::{DMatrix, SymmetricEigen};
 
@@ -47,7 +47,7 @@ macro_rules! squared_frequencies {
                 }
             }
             let masses: Vec<f64> = masses.iter().map(|&m| m as f64).collect();
-            crate::modes::frequencies_squared(&k, &masses)
+            crate::common::modes::frequencies_squared(&k, &masses)
         }
     };
 }

@@ -362,7 +362,7 @@ macro_rules! precision {
             }
 
             /// Everything one body needs, with capacity fixed at compile time: `V` vertices,
-            /// `T` tetrahedra (as `tests/firmware_body.rs`).
+            /// `T` tetrahedra (as `tests/steppers/firmware_body.rs`).
             pub struct Body<const V: usize, const T: usize> {
                 /// Rest positions (m).
                 pub rest: [Vec3; V],

@@ -1,0 +1,24 @@
+//! The steppers (explicit, relaxation, Newton, VBD) and what they are given, in both precisions:
+//! stability and frequency estimates, loads and constraints, colliders, stopping and Chebyshev
+//! acceleration, hostile inputs, the owning body (on the heap and in fixed-size statics) and
+//! the partitioned and threaded passes. One test binary (one link) for what were separate files;
+//! each module is one of them, its docs say what it proves. `cargo test --test steppers relax::`
+//! runs one of them.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod adversarial;
+mod body;
+mod chebyshev_estimate;
+mod colliders;
+mod firmware_body;
+mod frequency;
+mod loads;
+mod newton;
+mod parallel;
+mod relax;
+mod stability;
+mod stagnation;
+mod step;
+mod vbd;
