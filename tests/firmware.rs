@@ -412,7 +412,7 @@ const PIECES: [(&str, &str); 21] = [
     ("energy_neo_hookean", "neo-Hookean energy"),
     ("energy_stable_neo_hookean", "stable NH energy"),
     ("mesh_new", "TetMesh::new"),
-    ("step_explicit", "step_explicit (stable NH)"),
+    ("explicit_step", "explicit_step (stable NH)"),
     ("relax_step", "relax_step (stable NH)"),
     ("newton_step", "newton_step (stable NH)"),
     ("vbd_step", "vbd_step (stable NH)"),

@@ -1,8 +1,8 @@
 //! One to three steps of each stepper on arbitrary state (included once per precision by
-//! `lib.rs`): `step_explicit` with `TetElastic` and `TetClamped`; `relax_step`,
+//! `lib.rs`): `explicit_step` with `TetElastic` and `TetClamped`; `relax_step`,
 //! `relax_quasi_static`, `newton_step`, `newton_quasi_static`, `vbd_step` and
 //! `vbd_quasi_static` with `TetElastic`, the implicit solvers with external forces and
-//! fixed-axis masks some of the time; each with all three materials.
+//! fixed-axis masks in their scene some of the time; each with all three materials.
 //!
 //! Promises checked (`src/step/mod.rs`, `src/error.rs`): nothing panics; every call returns
 //! either `Ok`, with every position and velocity finite, every pinned vertex bit-for-bit where
@@ -12,9 +12,9 @@
 //!
 //! The body is a single tetrahedron or a cube of five (one group of four, as the batched
 //! kernels take them, and one more), scaled and perturbed; masses, pinned flags, positions,
-//! velocities and every setting are drawn from a documented range most of the time and anything
-//! otherwise. Iteration budgets and substeps are bounded (at most 40 and 4) to keep each input
-//! fast; `ExplicitSettings::substeps` beyond that only repeats the same substep.
+//! velocities, the scene and every setting are drawn from a documented range most of the time
+//! and anything otherwise. Iteration budgets and substeps are bounded (at most 40 and 4) to keep
+//! each input fast; `ExplicitSettings::substeps` beyond that only repeats the same substep.
 
 use super::NAME;
 use super::precision as draw_real;
@@ -24,10 +24,11 @@ use super::sf::material::{Material, NeoHookean, StVK, StableNeoHookean};
 use super::sf::mesh::TetMesh;
 use super::sf::step::{
     ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, Ground, NewtonScratch,
-    NewtonSettings, RelaxScratch, RelaxSettings, TetClamped, TetElastic, VbdScratch, VbdSettings,
-    explicit_scratch_len, newton_quasi_static, newton_scratch_len, newton_step, relax_quasi_static,
-    relax_scratch_len, relax_step, stable_time_step, step_explicit, vbd_index_scratch_len,
-    vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static, vbd_scratch_len, vbd_step,
+    NewtonSettings, RelaxScratch, RelaxSettings, Scene, TetClamped, TetElastic, VbdScratch,
+    VbdSettings, explicit_scratch_len, explicit_step, newton_quasi_static, newton_scratch_len,
+    newton_step, relax_quasi_static, relax_scratch_len, relax_step, stable_time_step,
+    vbd_index_scratch_len, vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static,
+    vbd_scratch_len, vbd_step,
 };
 use super::sf::types::{Mat3, Real, Vec3};
 use crate::Draw;
@@ -441,15 +442,14 @@ fn explicit<F: ElasticModel<Vector = Vec3>>(
     model_name: &str,
 ) {
     let dt = draw_dt(draw, model, &state.masses);
-    let mut settings = ExplicitSettings::new(dt)
-        .with_gravity(draw_gravity(draw))
-        .with_substeps(draw.up_to(4));
+    let mut scene = Scene::new(dt).with_gravity(draw_gravity(draw));
+    let mut settings = ExplicitSettings::new().with_substeps(draw.up_to(4));
     settings.damping = match draw.up_to(7) {
         0 => draw_real::wild(draw),
         1 | 2 => 0.0,
         _ => draw_real::grid(draw, 10.0).abs(),
     };
-    settings.ground = draw_ground(draw, size);
+    scene.ground = draw_ground(draw, size);
     settings.max_energy_growth = match draw.up_to(7) {
         0 => draw_real::wild(draw),
         1 => 1.5,
@@ -463,17 +463,18 @@ fn explicit<F: ElasticModel<Vector = Vec3>>(
             scratch.forget_history();
         }
         let before = (bits(&state.positions), bits(&state.velocities));
-        let result = step_explicit(
+        let result = explicit_step(
             model,
             &state.masses,
             &state.pinned,
+            &scene,
             &settings,
             &mut state.positions,
             &mut state.velocities,
             &mut scratch,
         );
         check_outcome(
-            || format!("step_explicit({body}<{model_name}>, {settings:?}), call {call}"),
+            || format!("explicit_step({body}<{model_name}>, {scene:?}, {settings:?}), call {call}"),
             &result,
             state,
             &before,
@@ -492,9 +493,9 @@ struct Solve<'s, 'm, M: Material> {
 }
 
 /// Calls the dynamic solver `$step` (with velocities) or the quasi-static `$quasi_static` of
-/// `$solve` on the `State` `$state`, with `$settings` and `$scratch`.
+/// `$solve` on the `State` `$state`, with `$scene`, `$settings` and `$scratch`.
 macro_rules! implicit_call {
-    ($solve:expr, $state:expr, $settings:expr, $scratch:expr, $step:ident, $quasi_static:ident) => {{
+    ($solve:expr, $state:expr, $scene:expr, $settings:expr, $scratch:expr, $step:ident, $quasi_static:ident) => {{
         let (solve, state): (&Solve<'_, '_, _>, &mut State) = ($solve, $state);
         let (masses, pinned) = (&state.masses, &state.pinned);
         if solve.dynamic {
@@ -502,6 +503,7 @@ macro_rules! implicit_call {
                 solve.model,
                 masses,
                 pinned,
+                $scene,
                 $settings,
                 &mut state.positions,
                 &mut state.velocities,
@@ -512,6 +514,7 @@ macro_rules! implicit_call {
                 solve.model,
                 masses,
                 pinned,
+                $scene,
                 $settings,
                 &mut state.positions,
                 $scratch,
@@ -521,20 +524,34 @@ macro_rules! implicit_call {
 }
 
 /// Draws the number of calls (1 to 3) and the `Extras` (external forces, fixed axes) of the
-/// solver whose `$settings` lack them, then runs the calls of [`implicit_call!`], each checked
-/// by [`Solve::check_calls`] against those fixed axes.
+/// solver whose `$scene` lacks them, then runs the calls of [`implicit_call!`] with `$settings`,
+/// each checked by [`Solve::check_calls`] against those fixed axes.
 macro_rules! check_implicit_calls {
-    ($draw:expr, $solve:expr, $state:expr, $settings:expr, $scratch:expr, $step:ident, $quasi_static:ident) => {{
+    ($draw:expr, $solve:expr, $state:expr, $scene:expr, $settings:expr, $scratch:expr, $step:ident, $quasi_static:ident) => {{
         let (draw, solve): (&mut Draw<'_>, &Solve<'_, '_, _>) = ($draw, $solve);
         let calls = draw.up_to(2);
         let extras = draw_extras(draw, solve.model.vertex_count(), solve.size * 1e3);
-        let settings = $settings
+        let scene = $scene
             .with_external_forces(&extras.external_forces)
             .with_fixed_axes(&extras.fixed_axes);
+        let settings = $settings;
         let name = solve.name(stringify!($step), stringify!($quasi_static));
-        let describe = |_| format!("{name}(TetElastic<{}>, {settings:?})", solve.model_name);
+        let describe = |_| {
+            format!(
+                "{name}(TetElastic<{}>, {scene:?}, {settings:?})",
+                solve.model_name
+            )
+        };
         solve.check_calls($state, calls, &extras.fixed_axes, describe, |state, _| {
-            implicit_call!(solve, state, &settings, $scratch, $step, $quasi_static)
+            implicit_call!(
+                solve,
+                state,
+                &scene,
+                &settings,
+                $scratch,
+                $step,
+                $quasi_static
+            )
         });
     }};
 }
@@ -579,8 +596,9 @@ fn draw_search_constants(draw: &mut Draw<'_>) -> (Option<Real>, Option<Real>) {
 
 fn relax<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut State) {
     let dt = solve.draw_dt(draw, &state.masses);
-    let mut settings = RelaxSettings::new(dt).with_gravity(draw_gravity(draw));
-    settings.ground = draw_ground(draw, solve.size);
+    let mut scene = Scene::new(dt).with_gravity(draw_gravity(draw));
+    scene.ground = draw_ground(draw, solve.size);
+    let mut settings = RelaxSettings::new();
     let tolerance = match draw.up_to(7) {
         0 => draw_real::wild(draw),
         1 => 0.0,
@@ -611,7 +629,7 @@ fn relax<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut
         }
     }
     if draw.chance(16) {
-        settings.step_length = draw_real::wild(draw);
+        settings.options.step_length = draw_real::wild(draw);
     }
     let n = solve.model.vertex_count();
     let mut vectors = vec![Vec3::ZERO; length_near(draw, relax_scratch_len(n))];
@@ -621,6 +639,7 @@ fn relax<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut
         draw,
         solve,
         state,
+        scene,
         settings,
         &mut scratch,
         relax_step,
@@ -640,9 +659,9 @@ fn draw_tolerance(draw: &mut Draw<'_>) -> Real {
 
 fn newton<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut State) {
     let dt = solve.draw_dt(draw, &state.masses);
-    let mut settings = NewtonSettings::new(dt).with_gravity(draw_gravity(draw));
-    settings.ground = draw_ground(draw, solve.size);
-    settings = settings
+    let mut scene = Scene::new(dt).with_gravity(draw_gravity(draw));
+    scene.ground = draw_ground(draw, solve.size);
+    let mut settings = NewtonSettings::new()
         .with_tolerance(draw_tolerance(draw), draw.up_to(12))
         .with_cg_iterations(draw.up_to(60));
     let (armijo, backtrack) = draw_search_constants(draw);
@@ -659,6 +678,7 @@ fn newton<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mu
         draw,
         solve,
         state,
+        scene,
         settings,
         &mut scratch,
         newton_step,
@@ -668,9 +688,9 @@ fn newton<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mu
 
 fn vbd<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut State) {
     let dt = solve.draw_dt(draw, &state.masses);
-    let mut settings = VbdSettings::new(dt).with_gravity(draw_gravity(draw));
-    settings.ground = draw_ground(draw, solve.size);
-    settings = settings.with_tolerance(draw_tolerance(draw), draw.up_to(40));
+    let mut scene = Scene::new(dt).with_gravity(draw_gravity(draw));
+    scene.ground = draw_ground(draw, solve.size);
+    let mut settings = VbdSettings::new().with_tolerance(draw_tolerance(draw), draw.up_to(40));
     let (armijo, backtrack) = draw_search_constants(draw);
     settings.armijo = armijo.unwrap_or(settings.armijo);
     settings.backtrack = backtrack.unwrap_or(settings.backtrack);
@@ -712,12 +732,17 @@ fn vbd<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut S
     } else {
         Vec::new()
     };
-    let settings = settings
+    let scene = scene
         .with_external_forces(&extras.external_forces)
         .with_fixed_axes(&extras.fixed_axes)
         .with_previous_velocities(&previous_velocities);
     let name = solve.name("vbd_step", "vbd_quasi_static");
-    let describe = |_| format!("{name}(TetElastic<{}>, {settings:?})", solve.model_name);
+    let describe = |_| {
+        format!(
+            "{name}(TetElastic<{}>, {scene:?}, {settings:?})",
+            solve.model_name
+        )
+    };
     solve.check_calls(state, calls, &extras.fixed_axes, describe, |state, call| {
         if call > 0 && draw.chance(32) {
             scratch.reset_topology();
@@ -725,6 +750,7 @@ fn vbd<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut S
         implicit_call!(
             solve,
             state,
+            &scene,
             &settings,
             &mut scratch,
             vbd_step,

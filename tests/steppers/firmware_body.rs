@@ -12,8 +12,8 @@ use softfem::glam::Vec3;
 use softfem::material::StableNeoHookean;
 use softfem::mesh::TetMesh;
 use softfem::step::{
-    ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings, TetElastic, relax_step,
-    stable_time_step, step_explicit,
+    ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings, Scene, TetElastic,
+    explicit_step, relax_step, stable_time_step,
 };
 
 /// Everything one body needs, with capacity fixed at compile time: `V` vertices, `T` tets.
@@ -88,16 +88,16 @@ fn a_pinned_bar_sags_and_settles_without_allocating() {
     // Explicit: 0.3 s at 0.9 of the stable bound, damped.
     let dt = 0.9
         * stable_time_step(&model, &body.masses, &body.pinned, &mut body.relax_scalars).unwrap();
-    let settings = ExplicitSettings::new(dt)
-        .with_gravity(gravity)
-        .with_damping(20.0);
+    let scene = Scene::new(dt).with_gravity(gravity);
+    let settings = ExplicitSettings::new().with_damping(20.0);
     let mut scratch = ExplicitScratch::new(body.explicit_scratch.as_flattened_mut());
     let steps = (0.3 / dt) as usize;
     for _ in 0..steps {
-        step_explicit(
+        explicit_step(
             &model,
             &body.masses,
             &body.pinned,
+            &scene,
             &settings,
             &mut body.positions,
             &mut body.velocities,
@@ -117,8 +117,8 @@ fn a_pinned_bar_sags_and_settles_without_allocating() {
     let explicit_sag = tip(&body.positions);
 
     // Then implicit Euler at 60 Hz for 1 s from that state.
-    let relax = RelaxSettings::new(1.0 / 60.0)
-        .with_gravity(gravity)
+    let scene = Scene::new(1.0 / 60.0).with_gravity(gravity);
+    let relax = RelaxSettings::new()
         .with_tolerance(1e-3, 500)
         .with_momentum(0.5);
     let mut scratch = RelaxScratch::new(
@@ -131,6 +131,7 @@ fn a_pinned_bar_sags_and_settles_without_allocating() {
             &model,
             &body.masses,
             &body.pinned,
+            &scene,
             &relax,
             &mut body.positions,
             &mut body.velocities,
@@ -207,7 +208,7 @@ fn the_owning_body_rests_on_a_capsule_without_allocating() {
     .with_friction(0.5);
     let colliders = [capsule];
     body.set_solver(Solver::Explicit {
-        settings: ExplicitSettings::new(1.0).with_damping(20.0),
+        settings: ExplicitSettings::new().with_damping(20.0),
         stable_fraction: Some(0.9),
     })
     .unwrap();
@@ -223,7 +224,7 @@ fn the_owning_body_rests_on_a_capsule_without_allocating() {
         deepest = deepest.max(inside(body));
     }
     body.set_solver(Solver::Relax(
-        RelaxSettings::new(1.0)
+        RelaxSettings::new()
             .with_tolerance(1e-3, 500)
             .with_momentum(0.5),
     ))

@@ -224,7 +224,7 @@ macro_rules! precision {
             use $($softfem)::+::mesh::TetMesh;
             use $($softfem)::+::step::{
                 Collider, ExplicitScratch, ExplicitSettings, Ground, NewtonReport, NewtonScratch,
-                NewtonScratchLen, NewtonSettings, RelaxReport, RelaxScratch, RelaxSettings, TetElastic, VbdScratch, VbdSettings,
+                NewtonScratchLen, NewtonSettings, RelaxReport, RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings,
                 newton_scratch_len, stable_time_step, vbd_index_scratch_len, vbd_scratch_len,
             };
             use $($softfem)::+::svd::Svd3;
@@ -243,7 +243,7 @@ macro_rules! precision {
                 use $($softfem)::+::step::{
                     ExplicitReport, ExplicitScratch, ExplicitSettings, NewtonReport,
                     NewtonScratch, NewtonSettings, RelaxReport, RelaxScratch, RelaxSettings,
-                    TetElastic, VbdReport, VbdScratch, VbdSettings,
+                    Scene, TetElastic, VbdReport, VbdScratch, VbdSettings,
                 };
                 use $($softfem)::+::svd::Svd3;
                 use $($softfem)::+::types::{Mat3, Real, Vec3};
@@ -280,18 +280,19 @@ macro_rules! precision {
                 model_pieces!(NeoHookean, forces_neo_hookean_direct, forces_neo_hookean_principal, forces_neo_hookean_clamped, energy_neo_hookean);
                 model_pieces!(StableNeoHookean, forces_stable_neo_hookean_direct, forces_stable_neo_hookean_principal, forces_stable_neo_hookean_clamped, energy_stable_neo_hookean);
 
-                /// [`step_explicit`](fn@$($softfem)::+::step::step_explicit) of a stable
+                /// [`explicit_step`](fn@$($softfem)::+::step::explicit_step) of a stable
                 /// neo-Hookean body.
                 #[inline(never)]
-                pub fn step_explicit(
+                pub fn explicit_step(
                     model: &TetElastic<'_, StableNeoHookean>,
                     masses: &[Real],
-                    settings: &ExplicitSettings<Vec3>,
+                    scene: &Scene<'_, Vec3>,
+                    settings: &ExplicitSettings,
                     positions: &mut [Vec3],
                     velocities: &mut [Vec3],
                     scratch: &mut ExplicitScratch<'_, Vec3>,
                 ) -> Result<ExplicitReport, StepError> {
-                    $($softfem)::+::step::step_explicit(model, masses, &[], settings, positions, velocities, scratch)
+                    $($softfem)::+::step::explicit_step(model, masses, &[], scene, settings, positions, velocities, scratch)
                 }
 
                 /// [`relax_step`](fn@$($softfem)::+::step::relax_step) of a stable neo-Hookean
@@ -300,12 +301,13 @@ macro_rules! precision {
                 pub fn relax_step(
                     model: &TetElastic<'_, StableNeoHookean>,
                     masses: &[Real],
-                    settings: &RelaxSettings<Vec3>,
+                    scene: &Scene<'_, Vec3>,
+                    settings: &RelaxSettings,
                     positions: &mut [Vec3],
                     velocities: &mut [Vec3],
                     scratch: &mut RelaxScratch<'_, Vec3>,
                 ) -> Result<RelaxReport, StepError> {
-                    $($softfem)::+::step::relax_step(model, masses, &[], settings, positions, velocities, scratch)
+                    $($softfem)::+::step::relax_step(model, masses, &[], scene, settings, positions, velocities, scratch)
                 }
 
                 /// [`newton_step`](fn@$($softfem)::+::step::newton_step) of a stable
@@ -314,12 +316,13 @@ macro_rules! precision {
                 pub fn newton_step(
                     model: &TetElastic<'_, StableNeoHookean>,
                     masses: &[Real],
-                    settings: &NewtonSettings<Vec3>,
+                    scene: &Scene<'_, Vec3>,
+                    settings: &NewtonSettings,
                     positions: &mut [Vec3],
                     velocities: &mut [Vec3],
                     scratch: &mut NewtonScratch<'_>,
                 ) -> Result<NewtonReport, StepError> {
-                    $($softfem)::+::step::newton_step(model, masses, &[], settings, positions, velocities, scratch)
+                    $($softfem)::+::step::newton_step(model, masses, &[], scene, settings, positions, velocities, scratch)
                 }
 
                 /// [`vbd_step`](fn@$($softfem)::+::step::vbd_step) of a stable neo-Hookean
@@ -328,12 +331,13 @@ macro_rules! precision {
                 pub fn vbd_step(
                     model: &TetElastic<'_, StableNeoHookean>,
                     masses: &[Real],
+                    scene: &Scene<'_, Vec3>,
                     settings: &VbdSettings,
                     positions: &mut [Vec3],
                     velocities: &mut [Vec3],
                     scratch: &mut VbdScratch<'_>,
                 ) -> Result<VbdReport, StepError> {
-                    $($softfem)::+::step::vbd_step(model, masses, &[], settings, positions, velocities, scratch)
+                    $($softfem)::+::step::vbd_step(model, masses, &[], scene, settings, positions, velocities, scratch)
                 }
 
                 /// `Body::rebuild_from_box` of the body dropped onto the colliders, in place in
@@ -743,7 +747,8 @@ macro_rules! precision {
                 let ground = Ground::new(Vec3::Y, 0.0).with_restitution(0.3).with_friction(0.5);
 
                 // Explicit: half the stable step, light damping.
-                let settings = ExplicitSettings::new(0.5 * dt).with_gravity(gravity).with_damping(2.0).with_ground(ground);
+                let scene = Scene::new(0.5 * dt).with_gravity(gravity).with_ground(ground);
+                let settings = ExplicitSettings::new().with_damping(2.0);
                 body.positions = body.rest;
                 body.velocities = [Vec3::ZERO; DROP_VERTICES];
                 let mut scratch = ExplicitScratch::new(body.explicit_scratch.as_flattened_mut());
@@ -752,10 +757,10 @@ macro_rules! precision {
                 let mut kinetic: Real = 0.0;
                 for step in 1..=EXPLICIT_STEPS {
                     let (positions, velocities) = (&mut body.positions, &mut body.velocities);
-                    let report = meter.measure(concat!($prefix, " step_explicit"), || {
-                        pieces::step_explicit(&model, &body.masses, &settings, positions, velocities, &mut scratch)
+                    let report = meter.measure(concat!($prefix, " explicit_step"), || {
+                        pieces::explicit_step(&model, &body.masses, &scene, &settings, positions, velocities, &mut scratch)
                     });
-                    meter.units(concat!($prefix, " step_explicit"), "vertex step", DROP_VERTICES as u64);
+                    meter.units(concat!($prefix, " explicit_step"), "vertex step", DROP_VERTICES as u64);
                     match report {
                         Ok(report) => {
                             contacts += report.ground_contacts as u64;
@@ -778,9 +783,8 @@ macro_rules! precision {
                 }
 
                 // Implicit Euler at 240 Hz from the same start, Chebyshev-accelerated.
-                let relax = RelaxSettings::new(1.0 / 240.0)
-                    .with_gravity(gravity)
-                    .with_ground(ground)
+                let scene = Scene::new(1.0 / 240.0).with_gravity(gravity).with_ground(ground);
+                let relax = RelaxSettings::new()
                     .with_tolerance(1e-3, 100)
                     .with_chebyshev(0.99, 2.0, 0);
                 body.positions = body.rest;
@@ -791,7 +795,7 @@ macro_rules! precision {
                 for step in 1..=RELAX_STEPS {
                     let (positions, velocities) = (&mut body.positions, &mut body.velocities);
                     let report = meter.measure(concat!($prefix, " relax_step"), || {
-                        pieces::relax_step(&model, &body.masses, &relax, positions, velocities, &mut scratch)
+                        pieces::relax_step(&model, &body.masses, &scene, &relax, positions, velocities, &mut scratch)
                     });
                     match report {
                         Ok(report) => {
@@ -858,10 +862,8 @@ macro_rules! precision {
                 gravity: Vec3,
                 ground: Ground<Vec3>,
             ) {
-                let settings = NewtonSettings::new(DESCENT_DT)
-                    .with_gravity(gravity)
-                    .with_ground(ground)
-                    .with_tolerance(1e-3, 20);
+                let scene = Scene::new(DESCENT_DT).with_gravity(gravity).with_ground(ground);
+                let settings = NewtonSettings::new().with_tolerance(1e-3, 20);
                 *positions = *rest;
                 *velocities = [Vec3::ZERO; DROP_VERTICES];
                 let mut hessians = [TetHessian::default(); NEWTON_LEN.hessians];
@@ -876,14 +878,14 @@ macro_rules! precision {
                 let (mut newton, mut cg) = (0u64, 0u64);
                 for step in 1..=DESCENT_STEPS {
                     let report = meter.measure(concat!($prefix, " newton_step"), || {
-                        pieces::newton_step(model, masses, &settings, &mut *positions, &mut *velocities, &mut scratch)
+                        pieces::newton_step(model, masses, &scene, &settings, &mut *positions, &mut *velocities, &mut scratch)
                     });
                     let digest = &mut out.digest;
                     match report {
                         Ok(report) => {
-                            newton += u64::from(report.newton_iterations);
-                            cg += u64::from(report.cg_iterations);
-                            meter.units(concat!($prefix, " newton_step"), "vertex Newton iteration", DROP_VERTICES as u64 * u64::from(report.newton_iterations));
+                            newton += u64::from(report.iterations);
+                            cg += u64::from(report.details.cg_iterations);
+                            meter.units(concat!($prefix, " newton_step"), "vertex Newton iteration", DROP_VERTICES as u64 * u64::from(report.iterations));
                             newton_report(digest, &report);
                         }
                         Err(_) => digest.u64(u64::MAX),
@@ -898,20 +900,22 @@ macro_rules! precision {
                 push(records, concat!($prefix, " newton drop, CG iterations"), count, cg as Real);
             }
 
-            /// Mixes every field of a relaxation step's report into `digest`.
+            /// Mixes a relaxation step's report into `digest`: the fields it had before the
+            /// implicit solvers shared one report type (all but `target` and `rho`).
             fn relax_report(digest: &mut Digest, report: &RelaxReport) {
                 for count in [report.iterations, report.energy_evaluations, report.backtracks, report.restarts] {
                     digest.u64(u64::from(count));
                 }
                 digest.u64(u64::from(report.converged) | u64::from(report.stagnated) << 1);
-                for value in [report.initial_residual, report.final_residual, report.phi, report.rounding_floor] {
+                for value in [report.initial_residual, report.residual, report.phi, report.rounding_floor] {
                     real(digest, value);
                 }
             }
 
-            /// Mixes every field of a Newton step's report into `digest`.
+            /// Mixes a Newton step's report into `digest`: the fields it had before the implicit
+            /// solvers shared one report type (all but `restarts` and `rho`).
             fn newton_report(digest: &mut Digest, report: &NewtonReport) {
-                for count in [report.newton_iterations, report.cg_iterations, report.energy_evaluations, report.backtracks] {
+                for count in [report.iterations, report.details.cg_iterations, report.energy_evaluations, report.backtracks] {
                     digest.u64(u64::from(count));
                 }
                 digest.u64(u64::from(report.converged) | u64::from(report.stagnated) << 1);
@@ -933,9 +937,8 @@ macro_rules! precision {
                 gravity: Vec3,
                 ground: Ground<Vec3>,
             ) {
-                let settings = VbdSettings::new(DESCENT_DT)
-                    .with_gravity(gravity)
-                    .with_ground(ground)
+                let scene = Scene::new(DESCENT_DT).with_gravity(gravity).with_ground(ground);
+                let settings = VbdSettings::new()
                     .with_tolerance(1e-3, VBD_SWEEPS)
                     .with_estimated_chebyshev(4);
                 *positions = *rest;
@@ -951,18 +954,22 @@ macro_rules! precision {
                 let mut sweeps = 0u64;
                 for step in 1..=DESCENT_STEPS {
                     let report = meter.measure(concat!($prefix, " vbd_step"), || {
-                        pieces::vbd_step(model, masses, &settings, &mut *positions, &mut *velocities, &mut scratch)
+                        pieces::vbd_step(model, masses, &scene, &settings, &mut *positions, &mut *velocities, &mut scratch)
                     });
                     let digest = &mut out.digest;
                     match report {
                         Ok(report) => {
                             sweeps += u64::from(report.iterations);
                             meter.units(concat!($prefix, " vbd_step"), "vertex sweep", DROP_VERTICES as u64 * u64::from(report.iterations));
-                            for count in [report.iterations, report.energy_evaluations, report.colours, report.restarts, report.backtracks, report.skipped, report.projected, report.redone_sweeps] {
+                            // The fields the report had before the implicit solvers shared one
+                            // report type (its `backtracks` were the per-vertex line search's,
+                            // now `details.vertex_backtracks`).
+                            let details = &report.details;
+                            for count in [report.iterations, report.energy_evaluations, details.colours, report.restarts, details.vertex_backtracks, details.skipped, details.projected, details.redone_sweeps] {
                                 digest.u64(u64::from(count));
                             }
                             digest.u64(u64::from(report.converged));
-                            for value in [report.initial_residual, report.final_residual, report.phi, report.rho] {
+                            for value in [report.initial_residual, report.residual, report.phi, report.rho] {
                                 real(digest, value);
                             }
                         }
@@ -1027,7 +1034,7 @@ macro_rules! precision {
                 let (low, high) = (Vec3::new(-0.05, 0.1, -0.05), Vec3::new(0.05, 0.2, 0.05));
                 let explicit = ColliderRun {
                     solver: Solver::Explicit {
-                        settings: ExplicitSettings::new(1.0).with_damping(2.0),
+                        settings: ExplicitSettings::new().with_damping(2.0),
                         stable_fraction: Some(0.5),
                     },
                     steps: COLLIDER_EXPLICIT_STEPS,
@@ -1041,7 +1048,7 @@ macro_rules! precision {
                 };
                 // The drop's relaxation settings (Chebyshev-accelerated, tolerance 1e-3).
                 let relax = ColliderRun {
-                    solver: Solver::Relax(RelaxSettings::new(1.0).with_tolerance(1e-3, 100).with_chebyshev(0.99, 2.0, 0)),
+                    solver: Solver::Relax(RelaxSettings::new().with_tolerance(1e-3, 100).with_chebyshev(0.99, 2.0, 0)),
                     steps: COLLIDER_RELAX_STEPS,
                     section: concat!($prefix, " body relax step"),
                     unit: "vertex iteration",
