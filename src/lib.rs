@@ -95,11 +95,12 @@
 //!
 //! ## Axes
 //!
-//! The library has no preferred "up": gravity is a vector in the step settings and the ground a
-//! plane given by its normal ([`Ground::new(normal, offset)`](step::Ground::new)), so any axis
-//! convention works. The examples in these docs and the README use **y up** (gravity
-//! `(0, -9.81, 0)`, ground normal `Vec3::Y`); the `bouncy` scene and the `tradeoffs` charts use
-//! **z up** (gravity `(0, 0, -9.81)`, ground normal `Vec3::Z`), as ParaView shows it.
+//! The library has no preferred "up": gravity is a vector in the step's [`Scene`](step::Scene)
+//! and the ground a plane given by its normal
+//! ([`Ground::new(normal, offset)`](step::Ground::new)), so any axis convention works. The
+//! examples in these docs and the README use **y up** (gravity `(0, -9.81, 0)`, ground normal
+//! `Vec3::Y`); the `bouncy` scene and the `tradeoffs` charts use **z up** (gravity
+//! `(0, 0, -9.81)`, ground normal `Vec3::Z`), as ParaView shows it.
 //!
 //! ## The kernels on their own
 //!
