@@ -94,7 +94,7 @@ struct Batch<'a> {
 // padded: there every operation of the inlined decomposition keeps its own stack slot, and the
 // full cascade of four lane types in one function took a 2.5 MiB stack frame (AVX-512), more
 // than a thread's default stack; one lane type takes about a quarter of that. Both give the
-// bits of `svd3`; tests/simd.rs checks the debug path and, with `--release`, the other.
+// bits of `svd3`; tests/kernels/simd.rs checks the debug path and, with `--release`, the other.
 impl WidthKernel for Batch<'_> {
     type Output = ();
 

@@ -1070,7 +1070,7 @@ mod tests {
     /// A growable body sweeps VBD with the packed layout, built on the first step and kept
     /// for the next ones (until the solver or the mesh changes); a fixed-capacity one has no
     /// room for it and sweeps without. (That both give the same bits is
-    /// `growable_storage_gives_the_bits_of_fixed_storage` in `tests/body.rs`.)
+    /// `growable_storage_gives_the_bits_of_fixed_storage` in `tests/steppers/body.rs`.)
     #[test]
     fn a_growable_body_keeps_the_packed_vbd_layout_between_steps() {
         let jelly = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();

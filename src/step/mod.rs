@@ -113,7 +113,7 @@
 //! therefore decreases `Phi` by at least `grad.d / 2` (the Armijo test with `c <= 1/2` accepts it
 //! at the first try) and any `alpha < 2` converges on the linearised problem. The bound is loose:
 //! measured on the bouncy jelly cube (1296 tets, `nu = 0.45`, `h = 1/60 s`) the eigenvalues of
-//! `P^-1 A` span `[5.8e-4, 0.27]`, on the 24-tet cantilever of `tests/relax.rs` `[1.4e-3, 0.39]`
+//! `P^-1 A` span `[5.8e-4, 0.27]`, on the 24-tet cantilever of `tests/steppers/relax.rs` `[1.4e-3, 0.39]`
 //! (`[3.3e-4, 0.39]` without inertia). Hence [`RelaxOptions::step_length`]: `2` is still safe
 //! for any mesh and twice as fast; larger steps are faster still on these meshes and the line
 //! search catches them where they are not. The exact Hessian diagonal (Wang and Yang's choice)
@@ -137,7 +137,7 @@
 //!   `~sqrt(kappa)` instead of `kappa` iterations, still one energy-and-force pass each. `rho`
 //!   estimates the spectral radius of `I - alpha P^-1 A`, `1 - alpha lambda_min` at best:
 //!   too small and the slowest modes converge at the plain rate, too close to 1 and everything
-//!   converges at the rate the estimate allows. Measured (see `tests/relax.rs`): `0.995` for
+//!   converges at the rate the estimate allows. Measured (see `tests/steppers/relax.rs`): `0.995` for
 //!   steps of 1/60 s, `0.999` for quasi-static solves, with `alpha = 2`. A trial that raises
 //!   `Phi` beyond rounding (contacts, nonlinearity) is discarded: the acceleration restarts with a
 //!   plain Armijo step ([`DescentReport::restarts`] counts these).
@@ -145,7 +145,7 @@
 //!   ([`RelaxSettings::with_estimated_chebyshev`](DescentSettings::<RelaxOptions>::with_estimated_chebyshev)): the
 //!   largest residual ratio of its first `delay` plain iterations (the estimator Vertex Block
 //!   Descent uses, `descent/chebyshev.rs`), a lower bound that rises with the window. Measured on two
-//!   quasi-static cantilevers (`tests/chebyshev_estimate.rs`, f64, `1e-6`): delay 200 needs
+//!   quasi-static cantilevers (`tests/steppers/chebyshev_estimate.rs`, f64, `1e-6`): delay 200 needs
 //!   911 and 22 376 iterations where the best hand-tuned `rho` of the grid needed 435 and
 //!   15 647, and a fixed `0.999` 727 and 50 844.
 //! * Heavy-ball momentum ([`RelaxSettings::with_momentum`](DescentSettings::<RelaxOptions>::with_momentum)): `d + momentum * (last step)`,
@@ -192,7 +192,7 @@
 //!   simulated second while the step stays under [`stable_time_step`]); no solve to converge.
 //! * [`gradient_descent_step`] / [`gradient_descent_quasi_static`]: only to compare. The same
 //!   loop and cost per iteration as the relaxation with `P = c I`; on the cantilever of
-//!   `tests/relax.rs` it needed 2.1 to 2.2 times the relaxation's iterations.
+//!   `tests/steppers/relax.rs` it needed 2.1 to 2.2 times the relaxation's iterations.
 //! * [`relax_step`] with Chebyshev (the defaults): soft bodies at display-rate steps. Its
 //!   iterations are the cheapest (1 to 4 force evaluations each): over the whole bouncy run it
 //!   is the fastest implicit stepper (21.5 iterations a step in f32), and on a small stiff block

@@ -32,8 +32,8 @@
 //! its frame origin shifted by `-c`, a half-space's re-anchored at its point nearest `c`; the
 //! surface velocities unchanged). A body 60 m (or 1e4 m) from the origin thus converges like
 //! the same body at the origin, with a rounding floor relative to its size
-//! (`tests/stagnation.rs`), on the ground or on a collider; and a block sliding metres down an
-//! incline keeps its Newton steps of a micrometre (`tests/colliders`). A body straddling the
+//! (`tests/steppers/stagnation.rs`), on the ground or on a collider; and a block sliding metres down an
+//! incline keeps its Newton steps of a micrometre (`tests/steppers/colliders`). A body straddling the
 //! origin has `c = 0` and nothing changes.
 
 pub(crate) mod chebyshev;
@@ -753,7 +753,7 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     }
     // After Coulomb friction on the velocity, VBD also tries the rigid guess (y without the
     // shear of the contact vertices' impulses), whose far smaller initial residual sets its
-    // relative target; it stops close to it. Measured on the incline of `tests/colliders`
+    // relative target; it stops close to it. Measured on the incline of `tests/steppers/colliders`
     // (200 steps at mu 0.1 and 0.3): VBD slid 4.7 % short without it, within 1.8 % with it.
     // Newton's method, which overshoots its target, does not: the guess cost it 29 to 38 %
     // more energy evaluations in f64 and 21 to 32 % more Newton iterations in f32, for a slide

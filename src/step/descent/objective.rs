@@ -129,7 +129,7 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     /// slowed, so `y` shears the body by `h` times their velocity changes; for a stiff body that
     /// shear's elastic force is many times the friction force, and the relative tolerance
     /// against that initial residual ends the solve early. Measured on a block sliding down a
-    /// 30 degree incline (`tests/colliders`, `E = 1e6` Pa, 100 Hz): the initial residual at
+    /// 30 degree incline (`tests/steppers/colliders`, `E = 1e6` Pa, 100 Hz): the initial residual at
     /// `y` was 60 N at `mu = 0.1` and 240 N at 0.3 (13 N without friction), at this guess 11 to
     /// 21 N; VBD had stopped at 0.23 N (0.04 N without friction) and slid 4.7 % short. Without
     /// gravity's drop `h^2 g`, which would compress a resting body (208 N measured there).

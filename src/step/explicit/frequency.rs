@@ -4,7 +4,7 @@
 //! Symplectic Euler is stable for `dt < 2 / omega_max`, `omega_max^2` the largest eigenvalue of
 //! `M^-1 H` (`docs/math.md` section 4). The proven bound majorises `omega_max` element by element,
 //! which is safe but loose: on the Kuhn boxes of [`generate`](crate::generate) it allows only
-//! about 0.6 of the true limit (measured in `tests/frequency.rs`: 0.632 on one cube, 0.599 on a
+//! about 0.6 of the true limit (measured in `tests/steppers/frequency.rs`: 0.632 on one cube, 0.599 on a
 //! 3x2x2 bar pinned at one end). Here `omega_max^2` is computed
 //! by power iteration on `M^-1 H` (pinned degrees of freedom removed) with the projected Hessian
 //! `H` at the given positions, through [`ElasticHessian`] products (`docs/math.md` section 6):

@@ -273,7 +273,7 @@ pub struct ExplicitReport {
 ///   a stable mode (`|lambda| = 1`) cannot grow by `1.5` per substep for three substeps in a
 ///   row while reversing each time. The forces weight the highest mode by `omega^2`, so it
 ///   dominates them (and is caught) while its displacement is still far below the other
-///   motion's. Measured on a dropped jelly cube (`tests/step.rs`,
+///   motion's. Measured on a dropped jelly cube (`tests/steppers/step.rs`,
 ///   `early_blow_up_detection_report`): at 1.05, 1.5 and 2.5 times the critical step the error
 ///   comes after 3 to 9 accepted steps and the state handed back lies within 3e-3 body sizes of
 ///   a stable run (most of that is the coarser step's own free-fall error), and no stable step

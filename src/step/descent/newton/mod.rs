@@ -200,7 +200,7 @@ pub type NewtonReport = DescentReport<NewtonDetails>;
 /// stops the solve as stagnated, converged only within the same bound. A tolerance below the
 /// floor thus costs a few iterations and says so, instead of burning the budget.
 ///
-/// What that means in practice (measured in `tests/newton.rs`): in f64 the floor is far below
+/// What that means in practice (measured in `tests/steppers/newton.rs`): in f64 the floor is far below
 /// any useful tolerance (`3e-12` of the load on the quasi-static cantilever, which reaches
 /// `1e-8`); in f32 it is about `2e-3` of the load on that cantilever (E = 1 MPa, 10 cm cells;
 /// the solve stalls at `4e-4`) and about `0.2` of the weight of a stiff block at rest

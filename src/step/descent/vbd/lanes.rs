@@ -2,7 +2,7 @@
 //! of the one-vertex update `Sweep::updated` (`sweep.rs`: no line search, no colliders, no
 //! friction at the vertex, no fixed axes, a definite block, a step that stays above the
 //! ground) for `L::WIDTH` vertices at once, each lane by the operations of the one-vertex
-//! update in its order, so every lane's result has the one-vertex bits (`tests/simd.rs`
+//! update in its order, so every lane's result has the one-vertex bits (`tests/kernels/simd.rs`
 //! compares whole runs at every width with the scalar run). A lane outside that case is left
 //! to the one-vertex update.
 //!

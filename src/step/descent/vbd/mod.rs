@@ -107,7 +107,7 @@ impl<'a> VbdScratch<'a> {
     /// sweep in sweep order, the element's corner indices, `Dm^-1`, volume and the corner's
     /// shape gradient, already laid out for the SIMD lanes, so that the sweeps load them
     /// instead of gathering them element by element. The results are the same bits with or
-    /// without it, at every SIMD width and thread count (`tests/vbd.rs`, `tests/simd.rs`);
+    /// without it, at every SIMD width and thread count (`tests/steppers/vbd.rs`, `tests/kernels/simd.rs`);
     /// only the time differs: measured on one thread, a sweep costs 0.6-0.9 of the gathered
     /// one (see [`vbd_step`](vbd_step#when-to-pick-it)). A mesh whose vertex valences are so
     /// uneven that its layout does not fit is swept without it (see
@@ -250,7 +250,7 @@ impl Default for VbdSettings {
 /// The Chebyshev weights are those of a real spectrum in `[-rho, rho]`, and the iteration
 /// matrix of a Gauss–Seidel sweep has complex eigenvalues, so `rho` at the plain sweeps' own
 /// rate can diverge where that rate is close to 1. Measured on the clamped stiff block of
-/// `tests/vbd.rs` (`measure_stiff_block`): in its third step the plain sweeps contract the
+/// `tests/steppers/vbd.rs` (`measure_stiff_block`): in its third step the plain sweeps contract the
 /// residual by 0.988 each (the first seven ratios all 0.988), the accelerated sweeps diverge
 /// with any `rho` from 0.985 up (at the estimate 0.988: three rejected trials, 500 sweeps, not
 /// converged) and converge up to 0.98 (227 sweeps at 0.98, 295 at 0.95). The cap was 0.99
