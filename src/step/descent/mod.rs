@@ -65,6 +65,7 @@ use crate::error::{StepBuffer, StepError};
 use chebyshev::{Acceleration, AccelerationSettings};
 use line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
 use objective::{Evaluation, Objective, implicit_velocity};
+use settings::DescentReport;
 use stopping::{StallRule, Stopping};
 
 /// The iterate a direction is computed at.
@@ -213,23 +214,9 @@ pub(crate) struct LoopSettings {
     pub rigid_guess: bool,
 }
 
-/// What the loop reports; each solver builds its public report from it.
-#[derive(Clone, Copy)]
-pub(crate) struct Summary {
-    pub iterations: u32,
-    pub energy_evaluations: u32,
-    pub backtracks: u32,
-    pub restarts: u32,
-    pub initial_residual: Real,
-    pub residual: Real,
-    pub target: Real,
-    pub rounding_floor: Real,
-    pub phi: Real,
-    pub converged: bool,
-    pub stagnated: bool,
-    /// The Chebyshev `rho` used (0 for none).
-    pub rho: Real,
-}
+/// What the loop reports: the public report without a solver's details, which each solver
+/// adds ([`DescentReport::with_details`]).
+pub(crate) type Summary = DescentReport<()>;
 
 /// The problem a solver hands the loop: the model, the per-vertex data and what acts on it.
 pub(crate) struct Problem<'p, F: ElasticEnergy> {
@@ -1091,6 +1078,7 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
         converged: stopping.converged(residual, rounding_floor),
         stagnated: stopping.stagnated,
         rho: acceleration.rho(),
+        details: (),
     };
     Ok(Descent {
         summary,

@@ -5,7 +5,6 @@
 //! the [`Scene`](super::super::Scene).
 
 use super::super::super::types::Real;
-use super::Summary;
 
 /// The settings of an implicit solver: the relative tolerance, the iteration budget and the
 /// backtracking line search that every solver here shares, and `options`, what only one
@@ -120,23 +119,38 @@ pub struct DescentReport<D> {
     pub details: D,
 }
 
-impl<D> DescentReport<D> {
-    /// The report of the loop's `summary`, with this solver's `details`.
+impl DescentReport<()> {
+    /// This report (the descent loop's) with a solver's `details`.
     #[inline]
-    pub(crate) fn from_summary(summary: Summary, details: D) -> Self {
+    pub(crate) fn with_details<D>(self, details: D) -> DescentReport<D> {
+        let DescentReport {
+            iterations,
+            energy_evaluations,
+            backtracks,
+            restarts,
+            initial_residual,
+            residual,
+            target,
+            rounding_floor,
+            phi,
+            converged,
+            stagnated,
+            rho,
+            details: (),
+        } = self;
         DescentReport {
-            iterations: summary.iterations,
-            energy_evaluations: summary.energy_evaluations,
-            backtracks: summary.backtracks,
-            restarts: summary.restarts,
-            initial_residual: summary.initial_residual,
-            residual: summary.residual,
-            target: summary.target,
-            rounding_floor: summary.rounding_floor,
-            phi: summary.phi,
-            converged: summary.converged,
-            stagnated: summary.stagnated,
-            rho: summary.rho,
+            iterations,
+            energy_evaluations,
+            backtracks,
+            restarts,
+            initial_residual,
+            residual,
+            target,
+            rounding_floor,
+            phi,
+            converged,
+            stagnated,
+            rho,
             details,
         }
     }

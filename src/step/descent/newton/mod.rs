@@ -382,10 +382,7 @@ fn solve<F: ElasticHessian>(
         velocities,
         work,
     )?;
-    Ok(NewtonReport::from_summary(
-        summary,
-        NewtonDetails {
-            cg_iterations: newton.cg_iterations,
-        },
-    ))
+    Ok(summary.with_details(NewtonDetails {
+        cg_iterations: newton.cg_iterations,
+    }))
 }

@@ -433,5 +433,5 @@ pub(crate) fn minimise<F: ElasticEnergy, D: Direction<F>>(
         velocities,
         work,
     )?;
-    Ok(RelaxReport::from_summary(summary, ()))
+    Ok(summary)
 }

@@ -885,14 +885,11 @@ fn minimise<M: Material, S: Schedule<M>>(
         work,
     )?;
     let counts = direction.counts;
-    Ok(VbdReport::from_summary(
-        summary,
-        VbdDetails {
-            colours,
-            vertex_backtracks: counts.backtracks,
-            redone_sweeps: direction.redone,
-            skipped: counts.skipped,
-            projected: counts.projected,
-        },
-    ))
+    Ok(summary.with_details(VbdDetails {
+        colours,
+        vertex_backtracks: counts.backtracks,
+        redone_sweeps: direction.redone,
+        skipped: counts.skipped,
+        projected: counts.projected,
+    }))
 }

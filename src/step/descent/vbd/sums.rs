@@ -22,13 +22,13 @@
 //! one lane costs less than one of the whole group.
 
 use super::super::super::super::element::TetRest;
-use super::super::super::super::lanes::{
-    LANES, Lane, LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH, each_lane,
-};
 #[cfg(target_arch = "x86_64")]
 use super::super::super::super::lanes::avx2::Avx2Lanes;
 #[cfg(target_arch = "x86_64")]
 use super::super::super::super::lanes::avx512::Avx512Lanes;
+use super::super::super::super::lanes::{
+    LANES, Lane, LaneArray, LaneMat3, LaneVec3, Lanes, MAX_WIDTH, each_lane,
+};
 use super::super::super::super::material::Material;
 use super::super::super::super::mesh::Positions;
 use super::super::super::super::types::{Mat3, Real, Vec3};
