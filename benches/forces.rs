@@ -31,7 +31,7 @@
 //!
 //! Threads: `stvk_direct_partitioned_f32` is the deterministic partitioned scheme
 //! (`mesh::TetPartition`: element pieces into a buffer, then a gather by vertex) run on this
-//! thread, its cost against `stvk_direct_f32`; `explicit_step_f32` is one `step_explicit` of stable
+//! thread, its cost against `stvk_direct_f32`; `explicit_step_f32` is one `explicit_step` of stable
 //! neo-Hookean at half the proven stable step (the body falling from rest), and
 //! `explicit_step_blocks_f32` the same with rest blocks; `relax_step_f32` and
 //! `relax_step_20_f32` are one `relax_step` of 10 and of 20 descent iterations from the same
@@ -79,8 +79,9 @@ use softfem::mesh::{
 use softfem::parallel::ParallelTetElastic;
 use softfem::simd::{self, Width};
 use softfem::step::{
-    ElasticEnergy, ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings, TetElastic,
-    explicit_scratch_len, relax_scratch_len, relax_step, stable_time_step, step_explicit,
+    ElasticEnergy, ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings, Scene,
+    TetElastic, explicit_scratch_len, explicit_step, relax_scratch_len, relax_step,
+    stable_time_step,
 };
 
 /// Cubes per axis of the benchmarked boxes, 6 tetrahedra per cube: 10 368, 105 456 and 998 250
@@ -98,7 +99,7 @@ const LARGE_MESH_TETS: usize = 500_000;
 const YOUNG: f32 = 1.0e6;
 const POISSON: f32 = 0.45;
 
-/// One `step_explicit` call on positions, velocities and scratch.
+/// One `explicit_step` call on positions, velocities and scratch.
 type StepFn<'s> = dyn Fn(&mut [Vec3], &mut [Vec3], &mut ExplicitScratch<'_, Vec3>) + 's;
 
 /// Descent iterations of the two relaxation variants (their labels say 10 and 20): the
@@ -479,7 +480,8 @@ impl<'a> Variant<'a> {
         let n = mesh.vertex_count();
         let mut stiffness = vec![0.0; n];
         let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
-        let settings = ExplicitSettings::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+        let scene = Scene::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+        let settings = ExplicitSettings::new();
         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; n]);
         let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
         let mut step = move |model: &StepFn<'_>| {
@@ -489,7 +491,7 @@ impl<'a> Variant<'a> {
         let run: Box<dyn FnMut() + 'a> = match partition {
             None => Box::new(move || {
                 step(&|x, v, scratch| {
-                    step_explicit(&body, &masses, &[], &settings, x, v, scratch).unwrap();
+                    explicit_step(&body, &masses, &[], &scene, &settings, x, v, scratch).unwrap();
                 });
             }),
             #[cfg(feature = "rayon")]
@@ -507,7 +509,8 @@ impl<'a> Variant<'a> {
                     .with_pool(pool);
                 Box::new(move || {
                     step(&|x, v, scratch| {
-                        step_explicit(&parallel, &masses, &[], &settings, x, v, scratch).unwrap();
+                        explicit_step(&parallel, &masses, &[], &scene, &settings, x, v, scratch)
+                            .unwrap();
                     });
                 })
             }
@@ -534,9 +537,8 @@ impl<'a> Variant<'a> {
     fn relax_step(mesh: TetMesh<'a>, positions: &'a [Vec3], budget: usize) -> Self {
         let (body, masses) = rubber_body(mesh);
         let n = mesh.vertex_count();
-        let settings = RelaxSettings::new(1.0 / 60.0)
-            .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-            .with_tolerance(0.0, RELAX_BUDGETS[budget]);
+        let scene = Scene::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+        let settings = RelaxSettings::new().with_tolerance(0.0, RELAX_BUDGETS[budget]);
         let (mut x, mut v) = (positions.to_vec(), vec![Vec3::ZERO; n]);
         // Leaked so that the scratch, and the preconditioner it keeps, lives across the runs.
         let mut scratch = RelaxScratch::new(
@@ -546,7 +548,17 @@ impl<'a> Variant<'a> {
         let mut step = move || {
             x.copy_from_slice(positions);
             v.fill(Vec3::ZERO);
-            relax_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap()
+            relax_step(
+                &body,
+                &masses,
+                &[],
+                &scene,
+                &settings,
+                &mut x,
+                &mut v,
+                &mut scratch,
+            )
+            .unwrap()
         };
         let report = step();
         println!(

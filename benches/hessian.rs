@@ -35,7 +35,7 @@ use softfem::f64::material::StableNeoHookean;
 use softfem::f64::mesh::TetMesh;
 use softfem::f64::step::{
     ElasticEnergy, ElasticHessian, NewtonReport, NewtonScratch, NewtonSettings, RelaxReport,
-    RelaxScratch, RelaxSettings, TetElastic, newton_quasi_static, newton_scratch_len,
+    RelaxScratch, RelaxSettings, Scene, TetElastic, newton_quasi_static, newton_scratch_len,
     relax_quasi_static, relax_scratch_len,
 };
 use softfem::glam::{DMat3, DVec3};
@@ -102,16 +102,18 @@ impl Beam {
     }
 }
 
-/// Newton's and the relaxation's settings.
-fn newton_settings() -> NewtonSettings<'static, DVec3> {
-    NewtonSettings::new(1.0)
-        .with_gravity(DVec3::new(0.0, 0.0, -G))
-        .with_tolerance(1e-8, 50)
+/// What both quasi-static solves act on: gravity (they ignore the time step).
+fn scene() -> Scene<'static, DVec3> {
+    Scene::new(1.0).with_gravity(DVec3::new(0.0, 0.0, -G))
 }
 
-fn relax_settings() -> RelaxSettings<'static, DVec3> {
-    RelaxSettings::new(1.0)
-        .with_gravity(DVec3::new(0.0, 0.0, -G))
+/// Newton's and the relaxation's settings.
+fn newton_settings() -> NewtonSettings {
+    NewtonSettings::new().with_tolerance(1e-8, 50)
+}
+
+fn relax_settings() -> RelaxSettings {
+    RelaxSettings::new()
         .with_tolerance(1e-6, 2_000_000)
         .with_chebyshev(0.9999, 2.0, 0)
 }
@@ -164,11 +166,12 @@ impl Bench {
         let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
         let mut x = self.beam.rest.clone();
         let beam = self.beam;
-        let settings = newton_settings();
+        let (scene, settings) = (scene(), newton_settings());
         let report = newton_quasi_static(
             &self.model,
             &beam.masses,
             &beam.pinned,
+            &scene,
             &settings,
             &mut x,
             &mut scratch,
@@ -183,11 +186,12 @@ impl Bench {
         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
         let mut x = self.beam.rest.clone();
         let beam = self.beam;
-        let settings = relax_settings();
+        let (scene, settings) = (scene(), relax_settings());
         relax_quasi_static(
             &self.model,
             &beam.masses,
             &beam.pinned,
+            &scene,
             &settings,
             &mut x,
             &mut scratch,
@@ -298,8 +302,8 @@ fn main() {
             per_tet(times[2]),
             format!(
                 "{} / {} CG, {:.1e}, {:.2} ms",
-                newton.newton_iterations,
-                newton.cg_iterations,
+                newton.iterations,
+                newton.details.cg_iterations,
                 newton.residual / newton.initial_residual.max(newton.target / 1e-8),
                 newton_time * 1e3
             ),
@@ -308,7 +312,7 @@ fn main() {
                 relax.iterations,
                 relax.converged,
                 if relax.stagnated { " (stagnated)" } else { "" },
-                relax.final_residual / relax.initial_residual,
+                relax.residual / relax.initial_residual,
                 relax_time * 1e3
             ),
             format!("{:.1}", relax_time / newton_time),

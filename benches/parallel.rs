@@ -12,7 +12,7 @@
 //!   tets: `ElasticEnergy::energy_and_add_forces` of `TetElastic`, the partitioned scheme piece
 //!   by piece on this thread (`TetPartition::energy_and_add_forces`) and
 //!   `parallel::energy_and_add_forces` on each pool.
-//! * `explicit step`: one `step_explicit` of stable neo-Hookean (half the proven stable step, the
+//! * `explicit step`: one `explicit_step` of stable neo-Hookean (half the proven stable step, the
 //!   box falling from rest) at 105k tets, on `TetElastic` and on `ParallelTetElastic` (called
 //!   from the timing thread, and with the whole step inside the pool's `install`).
 //! * `relaxation iteration`: `relax_step` (1/60 s, Chebyshev defaults, tolerance 0 so it runs its
@@ -73,9 +73,9 @@ use softfem::mesh::{
 use softfem::parallel::ParallelTetElastic;
 use softfem::step::{
     ElasticEnergy, ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, Ground,
-    NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, TetElastic, explicit_scratch_len,
-    newton_scratch_len, newton_step, relax_scratch_len, relax_step, stable_time_step,
-    step_explicit,
+    NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, Scene as StepScene, TetElastic,
+    explicit_scratch_len, explicit_step, newton_scratch_len, newton_step, relax_scratch_len,
+    relax_step, stable_time_step,
 };
 
 /// Cells per axis of the two boxes: 105 456 and 998 250 tetrahedra.
@@ -358,7 +358,8 @@ fn explicit_variant<F: ElasticModel<Vector = Vec3> + Send + Sync + 'static>(
     let (n, masses) = (scene.mesh.vertex_count(), scene.masses());
     let mut stiffness = vec![0.0; n];
     let dt = 0.5 * stable_time_step(&model, &masses, &[], &mut stiffness).unwrap();
-    let settings = ExplicitSettings::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+    let step_scene = StepScene::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+    let settings = ExplicitSettings::new();
     let (mut x, mut v) = (scene.rest_positions.to_vec(), vec![Vec3::ZERO; n]);
     let scratch = vec![Vec3::ZERO; explicit_scratch_len(n)].leak();
     let mut scratch = ExplicitScratch::new(scratch);
@@ -367,10 +368,11 @@ fn explicit_variant<F: ElasticModel<Vector = Vec3> + Send + Sync + 'static>(
         threads,
         run: Box::new(move || {
             let step = || {
-                step_explicit(
+                explicit_step(
                     &model,
                     &masses,
                     &[],
+                    &step_scene,
                     &settings,
                     &mut x,
                     &mut v,
@@ -411,15 +413,25 @@ fn relax_variant<F: ElasticEnergy<Vector = Vec3> + Send + Sync + 'static>(
     installed: Option<&'static rayon::ThreadPool>,
 ) -> (Variant, (u32, u32)) {
     let (n, masses) = (scene.mesh.vertex_count(), scene.masses());
-    let settings = RelaxSettings::new(1.0 / 60.0)
+    let step_scene = StepScene::new(1.0 / 60.0)
         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-        .with_ground(Ground::new(Vec3::Y, 0.0))
-        .with_tolerance(0.0, RELAX_ITERATIONS);
+        .with_ground(Ground::new(Vec3::Y, 0.0));
+    let settings = RelaxSettings::new().with_tolerance(0.0, RELAX_ITERATIONS);
     let vectors = vec![Vec3::ZERO; relax_scratch_len(n)].leak();
     let scalars = vec![0.0; n].leak();
     let mut scratch = RelaxScratch::new(vectors, scalars);
     let solve = move |x: &mut [Vec3], v: &mut [Vec3]| {
-        let report = relax_step(&model, &masses, &[], &settings, x, v, &mut scratch).unwrap();
+        let report = relax_step(
+            &model,
+            &masses,
+            &[],
+            &step_scene,
+            &settings,
+            x,
+            v,
+            &mut scratch,
+        )
+        .unwrap();
         (report.iterations, report.energy_evaluations)
     };
     // The first run computes the preconditioner (kept in the scratch, as in a simulation).
@@ -438,9 +450,10 @@ fn newton_variant<F: ElasticHessian + Send + Sync + 'static>(
 ) -> (Variant, (u32, u32)) {
     let (n, ne) = (scene.mesh.vertex_count(), scene.mesh.element_count());
     let masses = scene.masses();
-    let settings = NewtonSettings::new(1.0 / 60.0)
+    let step_scene = StepScene::new(1.0 / 60.0)
         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-        .with_ground(Ground::new(Vec3::Y, 0.0))
+        .with_ground(Ground::new(Vec3::Y, 0.0));
+    let settings = NewtonSettings::new()
         .with_tolerance(0.0, NEWTON_ITERATIONS)
         .with_cg_iterations(NEWTON_CG_ITERATIONS);
     let lengths = newton_scratch_len(n, ne);
@@ -449,8 +462,18 @@ fn newton_variant<F: ElasticHessian + Send + Sync + 'static>(
     let hessians = vec![TetHessian::default(); lengths.hessians].leak();
     let mut scratch = NewtonScratch::new(vectors, blocks, hessians);
     let solve = move |x: &mut [Vec3], v: &mut [Vec3]| {
-        let report = newton_step(&model, &masses, &[], &settings, x, v, &mut scratch).unwrap();
-        (report.newton_iterations, report.cg_iterations)
+        let report = newton_step(
+            &model,
+            &masses,
+            &[],
+            &step_scene,
+            &settings,
+            x,
+            v,
+            &mut scratch,
+        )
+        .unwrap();
+        (report.iterations, report.details.cg_iterations)
     };
     repeated_solve(label, threads, scene.rest_positions, installed, solve)
 }

@@ -41,7 +41,7 @@ use softfem::glam::Vec3;
 use softfem::material::StableNeoHookean;
 use softfem::mesh::TetMesh;
 use softfem::step::{
-    ElasticEnergy, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len,
+    ElasticEnergy, Scene as StepScene, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len,
     vbd_layout_corners_len, vbd_layout_len, vbd_scratch_len, vbd_step,
 };
 
@@ -126,7 +126,8 @@ fn operations<'a>(
             }),
         },
     ];
-    let settings = VbdSettings::new(1.0 / 60.0).with_line_search(0);
+    let step_scene = StepScene::new(1.0 / 60.0);
+    let settings = VbdSettings::new().with_line_search(0);
     let vbd = |budget: u32, (parallel, layout): (bool, bool)| -> Box<dyn FnMut() + 'a> {
         let vectors: &'a mut [Vec3] =
             Box::leak(vec![Vec3::ZERO; vbd_scratch_len(n)].into_boxed_slice());
@@ -156,6 +157,7 @@ fn operations<'a>(
                         body,
                         masses,
                         &[],
+                        &step_scene,
                         &settings,
                         &mut x,
                         &mut v,
@@ -163,10 +165,28 @@ fn operations<'a>(
                     )
                 });
                 #[cfg(not(feature = "rayon"))]
-                let report = vbd_step(body, masses, &[], &settings, &mut x, &mut v, &mut scratch);
+                let report = vbd_step(
+                    body,
+                    masses,
+                    &[],
+                    &step_scene,
+                    &settings,
+                    &mut x,
+                    &mut v,
+                    &mut scratch,
+                );
                 report
             } else {
-                vbd_step(body, masses, &[], &settings, &mut x, &mut v, &mut scratch)
+                vbd_step(
+                    body,
+                    masses,
+                    &[],
+                    &step_scene,
+                    &settings,
+                    &mut x,
+                    &mut v,
+                    &mut scratch,
+                )
             };
             assert_eq!(report.unwrap().iterations, budget);
             assert_eq!(scratch.layout_in_use(), layout);

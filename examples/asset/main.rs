@@ -31,8 +31,8 @@ use softfem::glam::Vec3;
 use softfem::material::StableNeoHookean;
 use softfem::mesh::TetMesh;
 use softfem::step::{
-    ExplicitScratch, ExplicitSettings, Ground, TetElastic, explicit_scratch_len, stable_time_step,
-    step_explicit,
+    ExplicitScratch, ExplicitSettings, Ground, Scene, TetElastic, explicit_scratch_len,
+    explicit_step, stable_time_step,
 };
 
 /// Gravity (m/s^2) along -z.
@@ -187,10 +187,10 @@ fn run(args: &Args) -> Result<(), String> {
     );
     println!("stepper   explicit, dt {dt:.3e} s (stable bound {bound:.3e} s)");
 
-    let settings = ExplicitSettings::new(dt)
+    let scene = Scene::new(dt)
         .with_gravity(GRAVITY)
-        .with_damping(DAMPING)
         .with_ground(Ground::new(Vec3::Z, 0.0).with_friction(FRICTION));
+    let settings = ExplicitSettings::new().with_damping(DAMPING);
     let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(body.positions.len())];
     let mut scratch = ExplicitScratch::new(&mut buffer);
     let mut positions = body.positions.clone();
@@ -230,10 +230,11 @@ fn run(args: &Args) -> Result<(), String> {
         if step == steps {
             break;
         }
-        step_explicit(
+        explicit_step(
             &model,
             &masses,
             &[],
+            &scene,
             &settings,
             &mut positions,
             &mut velocities,

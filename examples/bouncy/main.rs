@@ -38,8 +38,8 @@ use softfem::glam::{Mat3, Vec3};
 use softfem::material::Material;
 use softfem::step::{
     ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonSettings, RelaxScratch,
-    RelaxSettings, TetElastic, VbdScratch, VbdSettings, explicit_scratch_len, newton_scratch_len,
-    newton_step, relax_scratch_len, relax_step, stable_time_step, step_explicit,
+    RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings, explicit_scratch_len, explicit_step,
+    newton_scratch_len, newton_step, relax_scratch_len, relax_step, stable_time_step,
     vbd_index_scratch_len, vbd_layout_corners_len, vbd_layout_len, vbd_scratch_len, vbd_step,
 };
 
@@ -334,6 +334,9 @@ fn simulate<M: Material>(
         Some(speed) => ground.with_sticking_speed(speed),
         None => ground,
     };
+    let scene = Scene::new(dt)
+        .with_gravity(scene::GRAVITY)
+        .with_ground(ground);
     // The implicit solvers' common scale for their tolerance: max(|grad Phi(x_0)|, |M g|) (N).
     let weight = body
         .masses
@@ -349,10 +352,7 @@ fn simulate<M: Material>(
     };
     let stats = match args.stepper {
         Stepper::Explicit => {
-            let settings = ExplicitSettings::new(dt)
-                .with_gravity(scene::GRAVITY)
-                .with_damping(DAMPING)
-                .with_ground(ground);
+            let settings = ExplicitSettings::new().with_damping(DAMPING);
             let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
             let mut scratch = ExplicitScratch::new(&mut buffer);
             scene::run(
@@ -360,10 +360,19 @@ fn simulate<M: Material>(
                 &config,
                 &mut progress,
                 |x, v, h| {
-                    let settings = ExplicitSettings { dt: h, ..settings };
-                    step_explicit(&model, &body.masses, &[], &settings, x, v, &mut scratch)
-                        .map(|_| StepInfo::default())
-                        .map_err(|e| e.to_string())
+                    let scene = Scene { dt: h, ..scene };
+                    explicit_step(
+                        &model,
+                        &body.masses,
+                        &[],
+                        &scene,
+                        &settings,
+                        x,
+                        v,
+                        &mut scratch,
+                    )
+                    .map(|_| StepInfo::default())
+                    .map_err(|e| e.to_string())
                 },
                 on_frame,
             )
@@ -371,14 +380,12 @@ fn simulate<M: Material>(
         Stepper::Relax => {
             // The default solver settings (tolerance 2e-3 of the load, Chebyshev acceleration)
             // are the ones measured on this scene: see `RelaxSettings::new`.
-            let settings = RelaxSettings::new(dt)
-                .with_gravity(scene::GRAVITY)
-                .with_ground(ground);
+            let settings = RelaxSettings::new();
             console.line(format_args!(
                 "solver    gradient descent, P = diagonal bound, step {}, Chebyshev rho {}; \
                  tolerance {:.0e} of the load, at most {} iterations",
-                settings.step_length,
-                settings.chebyshev,
+                settings.options.step_length,
+                settings.options.chebyshev,
                 settings.tolerance,
                 settings.max_iterations
             ));
@@ -390,34 +397,41 @@ fn simulate<M: Material>(
                 &config,
                 &mut progress,
                 |x, v, h| {
-                    let settings = RelaxSettings { dt: h, ..settings };
-                    relax_step(&model, &body.masses, &[], &settings, x, v, &mut scratch)
-                        .map(|report| StepInfo {
-                            solve: Some(SolveInfo {
-                                iterations: report.iterations,
-                                inner_iterations: 0,
-                                line_search_steps: report.backtracks,
-                                relative_residual: report.final_residual
-                                    / report.initial_residual.max(weight),
-                                converged: report.converged,
-                                at_floor: false,
-                            }),
-                        })
-                        .map_err(|e| e.to_string())
+                    let scene = Scene { dt: h, ..scene };
+                    relax_step(
+                        &model,
+                        &body.masses,
+                        &[],
+                        &scene,
+                        &settings,
+                        x,
+                        v,
+                        &mut scratch,
+                    )
+                    .map(|report| StepInfo {
+                        solve: Some(SolveInfo {
+                            iterations: report.iterations,
+                            inner_iterations: 0,
+                            line_search_steps: report.backtracks,
+                            relative_residual: report.residual
+                                / report.initial_residual.max(weight),
+                            converged: report.converged,
+                            at_floor: false,
+                        }),
+                    })
+                    .map_err(|e| e.to_string())
                 },
                 on_frame,
             )
         }
         Stepper::Newton => {
-            let settings = NewtonSettings::new(dt)
-                .with_gravity(scene::GRAVITY)
-                .with_ground(ground)
+            let settings = NewtonSettings::new()
                 .with_tolerance(TOLERANCE, NEWTON_BUDGET.0)
                 .with_cg_iterations(NEWTON_BUDGET.1);
             console.line(format_args!(
                 "solver    Newton, P = projected Hessian, block-Jacobi CG; tolerance {:.0e} of \
                  the load (or the rounding floor), at most {} Newton and {} CG iterations each",
-                settings.tolerance, settings.max_iterations, settings.max_cg_iterations
+                settings.tolerance, settings.max_iterations, settings.options.max_cg_iterations
             ));
             let len = newton_scratch_len(n, body.mesh.element_count());
             let mut vectors = vec![Vec3::ZERO; len.vectors];
@@ -429,20 +443,29 @@ fn simulate<M: Material>(
                 &config,
                 &mut progress,
                 |x, v, h| {
-                    let settings = NewtonSettings { dt: h, ..settings };
-                    newton_step(&model, &body.masses, &[], &settings, x, v, &mut scratch)
-                        .map(|report| StepInfo {
-                            solve: Some(SolveInfo {
-                                iterations: report.newton_iterations,
-                                inner_iterations: report.cg_iterations,
-                                line_search_steps: report.backtracks,
-                                relative_residual: report.residual
-                                    / report.initial_residual.max(weight),
-                                converged: report.converged,
-                                at_floor: report.stagnated && report.residual > report.target,
-                            }),
-                        })
-                        .map_err(|e| e.to_string())
+                    let scene = Scene { dt: h, ..scene };
+                    newton_step(
+                        &model,
+                        &body.masses,
+                        &[],
+                        &scene,
+                        &settings,
+                        x,
+                        v,
+                        &mut scratch,
+                    )
+                    .map(|report| StepInfo {
+                        solve: Some(SolveInfo {
+                            iterations: report.iterations,
+                            inner_iterations: report.details.cg_iterations,
+                            line_search_steps: report.backtracks,
+                            relative_residual: report.residual
+                                / report.initial_residual.max(weight),
+                            converged: report.converged,
+                            at_floor: report.stagnated && report.residual > report.target,
+                        }),
+                    })
+                    .map_err(|e| e.to_string())
                 },
                 on_frame,
             )
@@ -451,17 +474,15 @@ fn simulate<M: Material>(
             // No per-vertex line search (the blocks of this soft cube are well behaved, and
             // it saves two energy densities per element and corner), Chebyshev with a fixed
             // rho: the faster variants measured (see `VBD_CHEBYSHEV`).
-            let settings = VbdSettings::new(dt)
-                .with_gravity(scene::GRAVITY)
-                .with_ground(ground)
+            let settings = VbdSettings::new()
                 .with_tolerance(TOLERANCE, VBD_BUDGET)
                 .with_line_search(0)
                 .with_chebyshev(VBD_CHEBYSHEV.0, VBD_CHEBYSHEV.1);
             console.line(format_args!(
                 "solver    Vertex Block Descent, no line search, Chebyshev rho {} after {} \
                  plain sweeps; tolerance {:.0e} of the load, at most {} sweeps",
-                settings.chebyshev,
-                settings.chebyshev_delay,
+                settings.options.chebyshev,
+                settings.options.chebyshev_delay,
                 settings.tolerance,
                 settings.max_iterations
             ));
@@ -478,20 +499,29 @@ fn simulate<M: Material>(
                 &config,
                 &mut progress,
                 |x, v, h| {
-                    let settings = VbdSettings { dt: h, ..settings };
-                    vbd_step(&model, &body.masses, &[], &settings, x, v, &mut scratch)
-                        .map(|report| StepInfo {
-                            solve: Some(SolveInfo {
-                                iterations: report.iterations,
-                                inner_iterations: 0,
-                                line_search_steps: report.backtracks,
-                                relative_residual: report.final_residual
-                                    / report.initial_residual.max(weight),
-                                converged: report.converged,
-                                at_floor: false,
-                            }),
-                        })
-                        .map_err(|e| e.to_string())
+                    let scene = Scene { dt: h, ..scene };
+                    vbd_step(
+                        &model,
+                        &body.masses,
+                        &[],
+                        &scene,
+                        &settings,
+                        x,
+                        v,
+                        &mut scratch,
+                    )
+                    .map(|report| StepInfo {
+                        solve: Some(SolveInfo {
+                            iterations: report.iterations,
+                            inner_iterations: 0,
+                            line_search_steps: report.details.vertex_backtracks,
+                            relative_residual: report.residual
+                                / report.initial_residual.max(weight),
+                            converged: report.converged,
+                            at_floor: false,
+                        }),
+                    })
+                    .map_err(|e| e.to_string())
                 },
                 on_frame,
             )
@@ -873,7 +903,7 @@ mod tests {
     /// Newton and VBD solve to the relaxation's default tolerance, so that the steppers compare.
     #[test]
     fn the_implicit_steppers_share_one_tolerance() {
-        assert_eq!(RelaxSettings::<Vec3>::new(0.01).tolerance, TOLERANCE);
+        assert_eq!(RelaxSettings::new().tolerance, TOLERANCE);
     }
 
     #[test]

@@ -32,8 +32,8 @@ use softfem::mesh::{
 };
 use softfem::parallel::ParallelTetElastic;
 use softfem::step::{
-    ElasticEnergy, Ground, RelaxReport, RelaxScratch, RelaxSettings, TetElastic, relax_scratch_len,
-    relax_step,
+    ElasticEnergy, Ground, RelaxReport, RelaxScratch, RelaxSettings, Scene, TetElastic,
+    relax_scratch_len, relax_step,
 };
 
 /// Command line.
@@ -116,12 +116,14 @@ impl Run {
         &mut self,
         model: &F,
         masses: &[f32],
-        settings: &RelaxSettings<'_, Vec3>,
+        scene: &Scene<'_, Vec3>,
+        settings: &RelaxSettings,
     ) -> Result<RelaxReport, softfem::StepError> {
         relax_step(
             model,
             masses,
             &[],
+            scene,
             settings,
             &mut self.x,
             &mut self.v,
@@ -211,10 +213,10 @@ fn run(cli: &Cli) -> Result<(), Box<dyn Error>> {
         .map(|&mesh| TetElastic::new(mesh, material))
         .collect();
 
-    let settings = RelaxSettings::new(FRAME)
+    let scene = Scene::new(FRAME)
         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5))
-        .with_tolerance(1.0e-2, 60);
+        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+    let settings = RelaxSettings::new().with_tolerance(1.0e-2, 60);
 
     println!(
         "{} small bodies of {} tets and one of {ne} tets ({nv} vertices), relaxation steps of \
@@ -236,10 +238,10 @@ fn run(cli: &Cli) -> Result<(), Box<dyn Error>> {
                         .zip(&small_bodies)
                         .zip(&small_masses)
                         .try_for_each(|((run, body), masses)| {
-                            run.step(body, masses, &settings).map(|_| ())
+                            run.step(body, masses, &scene, &settings).map(|_| ())
                         })
                 },
-                || large_parallel.step(&parallel_large, &large_masses, &settings),
+                || large_parallel.step(&parallel_large, &large_masses, &scene, &settings),
             )
         });
         small_result?;
@@ -253,9 +255,10 @@ fn run(cli: &Cli) -> Result<(), Box<dyn Error>> {
             .zip(&small_bodies)
             .zip(&small_masses)
         {
-            run.step(body, masses, &settings)?;
+            run.step(body, masses, &scene, &settings)?;
         }
-        let sequential_report = large_sequential.step(&large_body, &large_masses, &settings)?;
+        let sequential_report =
+            large_sequential.step(&large_body, &large_masses, &scene, &settings)?;
         let sequential_time = start.elapsed().as_secs_f64();
         parallel_total += parallel_time;
         sequential_total += sequential_time;
@@ -273,7 +276,7 @@ fn run(cli: &Cli) -> Result<(), Box<dyn Error>> {
             sequential_time * 1e3,
             sequential_time / parallel_time,
             large_report.iterations,
-            large_report.final_residual / large_report.initial_residual.max(f32::MIN_POSITIVE),
+            large_report.residual / large_report.initial_residual.max(f32::MIN_POSITIVE),
             if same { "same bits" } else { "BITS DIFFER" },
         );
         if !same {

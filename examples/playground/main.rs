@@ -62,7 +62,7 @@ impl Stepper {
     fn solver(self) -> Solver {
         match self {
             Stepper::Explicit => Solver::Explicit {
-                settings: ExplicitSettings::new(1.0).with_damping(1.0),
+                settings: ExplicitSettings::new().with_damping(1.0),
                 stable_fraction: Some(0.5),
             },
             Stepper::Relax => Solver::relax(),

@@ -19,7 +19,7 @@ use super::api::generate::{BoxSplit, box_counts, fill_box};
 use super::api::mesh::TetMesh;
 use super::api::step::{
     ElasticEnergy, ElasticModel, ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings,
-    explicit_scratch_len, relax_scratch_len, relax_step, step_explicit,
+    Scene, explicit_scratch_len, explicit_step, relax_scratch_len, relax_step,
 };
 use super::api::types::{Real, Vec3};
 use crate::measure::{Run, StepOutcome};
@@ -148,13 +148,14 @@ pub fn run(
     result
 }
 
-/// [`run`] with explicit symplectic Euler (`settings.dt` per step).
+/// [`run`] with explicit symplectic Euler (`scene.dt` per step).
 #[allow(clippy::too_many_arguments)]
 pub fn run_explicit<F: ElasticModel<Vector = Vec3>>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &ExplicitSettings<Vec3>,
+    scene: &Scene<'_, Vec3>,
+    settings: &ExplicitSettings,
     x: &mut [Vec3],
     v: &mut [Vec3],
     duration: f64,
@@ -162,30 +163,24 @@ pub fn run_explicit<F: ElasticModel<Vector = Vec3>>(
 ) -> Run {
     let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(x.len())];
     let mut scratch = ExplicitScratch::new(&mut buffer);
-    run(
-        x,
-        v,
-        f64::from(settings.dt),
-        duration,
-        sample_times,
-        |x, v| {
-            step_explicit(model, masses, pinned, settings, x, v, &mut scratch).map(|_| {
-                StepOutcome {
-                    iterations: 0,
-                    converged: true,
-                }
-            })
-        },
-    )
+    run(x, v, f64::from(scene.dt), duration, sample_times, |x, v| {
+        explicit_step(model, masses, pinned, scene, settings, x, v, &mut scratch).map(|_| {
+            StepOutcome {
+                iterations: 0,
+                converged: true,
+            }
+        })
+    })
 }
 
-/// [`run`] with implicit Euler steps solved by the relaxation (`settings.dt` per step).
+/// [`run`] with implicit Euler steps solved by the relaxation (`scene.dt` per step).
 #[allow(clippy::too_many_arguments)]
 pub fn run_relax<F: ElasticEnergy<Vector = Vec3>>(
     model: &F,
     masses: &[Real],
     pinned: &[bool],
-    settings: &RelaxSettings<Vec3>,
+    scene: &Scene<'_, Vec3>,
+    settings: &RelaxSettings,
     x: &mut [Vec3],
     v: &mut [Vec3],
     duration: f64,
@@ -194,21 +189,14 @@ pub fn run_relax<F: ElasticEnergy<Vector = Vec3>>(
     let n = x.len();
     let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-    run(
-        x,
-        v,
-        f64::from(settings.dt),
-        duration,
-        sample_times,
-        |x, v| {
-            relax_step(model, masses, pinned, settings, x, v, &mut scratch).map(|report| {
-                StepOutcome {
-                    iterations: report.iterations,
-                    converged: report.converged,
-                }
-            })
-        },
-    )
+    run(x, v, f64::from(scene.dt), duration, sample_times, |x, v| {
+        relax_step(model, masses, pinned, scene, settings, x, v, &mut scratch).map(|report| {
+            StepOutcome {
+                iterations: report.iterations,
+                converged: report.converged,
+            }
+        })
+    })
 }
 
 /// The stiffness matrix `K = -df/dx` (N/m, `3n x 3n`, symmetrised) of `model` at `x`, by

@@ -30,7 +30,7 @@ use plotters::chart::SeriesLabelPosition;
 use softfem::f64::generate::BoxSplit;
 use softfem::f64::material::StableNeoHookean;
 use softfem::f64::step::{
-    RelaxScratch, RelaxSettings, TetElastic, relax_quasi_static, relax_scratch_len,
+    RelaxScratch, RelaxSettings, Scene, TetElastic, relax_quasi_static, relax_scratch_len,
 };
 use softfem::glam::DVec3;
 
@@ -128,8 +128,8 @@ fn solve(split: BoxSplit, n: usize, rho: f64, repeats: u32) -> Result<Solved, St
     let mut rest_data = Vec::new();
     let mesh = beam.mesh(&mut rest_data)?;
     let model = TetElastic::new(mesh, material()?);
-    let settings = RelaxSettings::new(1.0)
-        .with_gravity(DVec3::new(0.0, 0.0, -G))
+    let scene = Scene::new(1.0).with_gravity(DVec3::new(0.0, 0.0, -G));
+    let settings = RelaxSettings::new()
         .with_tolerance(TOLERANCE, BUDGET)
         .with_chebyshev(rho, 2.0, 0);
     let count = beam.rest.len();
@@ -142,8 +142,16 @@ fn solve(split: BoxSplit, n: usize, rho: f64, repeats: u32) -> Result<Solved, St
     let seconds = min_time(repeats, || {
         x.copy_from_slice(&beam.rest);
         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-        outcome = relax_quasi_static(&model, &masses, &pinned, &settings, &mut x, &mut scratch)
-            .map_err(|e| e.to_string());
+        outcome = relax_quasi_static(
+            &model,
+            &masses,
+            &pinned,
+            &scene,
+            &settings,
+            &mut x,
+            &mut scratch,
+        )
+        .map_err(|e| e.to_string());
     })
     .as_secs_f64();
     let report = outcome?;

@@ -11,7 +11,7 @@
 //!   relaxation's budget on each scene); a run that does not reach the tolerance says so in
 //!   the CSV (`converged` false) and in the legend;
 //! * GD plain: `relax_step` / `relax_quasi_static` without acceleration, `P` the diagonal
-//!   stiffness bound, first trial step 2 (the bound's safe step, `RelaxSettings::step_length`);
+//!   stiffness bound, first trial step 2 (the bound's safe step, `RelaxOptions::step_length`);
 //! * GD + Chebyshev: the same with Chebyshev acceleration (`rho = 0.995` for time steps, the
 //!   convergence chart's 0.9999 for the static solve);
 //! * VBD: `vbd_step` / `vbd_quasi_static` without the per-vertex line search, Chebyshev with
@@ -51,11 +51,11 @@ use softfem::f64::element::TetHessian;
 use softfem::f64::generate::BoxSplit;
 use softfem::f64::material::StableNeoHookean;
 use softfem::f64::step::{
-    ElasticEnergy, Ground, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, TetElastic,
-    VbdScratch, VbdSettings, gradient_descent_quasi_static, gradient_descent_step,
-    newton_quasi_static, newton_scratch_len, newton_step, relax_quasi_static, relax_scratch_len,
-    relax_step, vbd_index_scratch_len, vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static,
-    vbd_scratch_len, vbd_step,
+    ElasticEnergy, Ground, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings,
+    Scene as StepScene, TetElastic, VbdScratch, VbdSettings, gradient_descent_quasi_static,
+    gradient_descent_step, newton_quasi_static, newton_scratch_len, newton_step,
+    relax_quasi_static, relax_scratch_len, relax_step, vbd_index_scratch_len,
+    vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static, vbd_scratch_len, vbd_step,
 };
 use softfem::glam::{DMat3, DVec3};
 
@@ -180,6 +180,9 @@ impl Scene<'_> {
         let scale = weight(self.masses, self.pinned);
         let (mut x, mut v) = (self.positions.to_vec(), self.velocities.to_vec());
         let dt = self.dt.unwrap_or(1.0);
+        // What every solve acts on (the quasi-static solves ignore its `dt`).
+        let mut step_scene = StepScene::new(dt).with_gravity(gravity);
+        step_scene.ground = self.ground;
         // Scratch kept over the repeats, as a time loop keeps it: the relaxation's
         // preconditioner and VBD's colouring are built by the first run only.
         let elements = self.model.mesh.element_count();
@@ -210,72 +213,94 @@ impl Scene<'_> {
                     } else {
                         0.0
                     };
-                    let mut settings = RelaxSettings::new(dt)
-                        .with_gravity(gravity)
+                    let settings = RelaxSettings::new()
                         .with_tolerance(tolerance, max_iterations)
                         .with_chebyshev(rho, 2.0, 0);
-                    settings.ground = self.ground;
                     let scratch = &mut relax_scratch;
                     let report = match (self.dt, solver) {
-                        (Some(_), Solver::GdIdentity) => {
-                            gradient_descent_step(model, m, pinned, &settings, x, v, scratch)
+                        (Some(_), Solver::GdIdentity) => gradient_descent_step(
+                            model,
+                            m,
+                            pinned,
+                            &step_scene,
+                            &settings,
+                            x,
+                            v,
+                            scratch,
+                        ),
+                        (None, Solver::GdIdentity) => gradient_descent_quasi_static(
+                            model,
+                            m,
+                            pinned,
+                            &step_scene,
+                            &settings,
+                            x,
+                            scratch,
+                        ),
+                        (Some(_), _) => {
+                            relax_step(model, m, pinned, &step_scene, &settings, x, v, scratch)
                         }
-                        (None, Solver::GdIdentity) => {
-                            gradient_descent_quasi_static(model, m, pinned, &settings, x, scratch)
+                        (None, _) => {
+                            relax_quasi_static(model, m, pinned, &step_scene, &settings, x, scratch)
                         }
-                        (Some(_), _) => relax_step(model, m, pinned, &settings, x, v, scratch),
-                        (None, _) => relax_quasi_static(model, m, pinned, &settings, x, scratch),
                     }
                     .map_err(|e| e.to_string())?;
                     Outcome {
                         iterations: report.iterations,
                         cg_iterations: 0,
                         energy_evaluations: report.energy_evaluations,
-                        relative_residual: report.final_residual
-                            / report.initial_residual.max(scale),
+                        relative_residual: report.residual / report.initial_residual.max(scale),
                         converged: report.converged,
                         seconds: 0.0,
                         wall_seconds: 0.0,
                     }
                 }
                 Solver::Vbd => {
-                    let mut settings = VbdSettings::new(dt)
-                        .with_gravity(gravity)
+                    let settings = VbdSettings::new()
                         .with_tolerance(tolerance, max_iterations)
                         .with_line_search(0)
                         .with_chebyshev(0.95, 2);
-                    settings.ground = self.ground;
                     let scratch = &mut vbd_scratch;
                     let report = match self.dt {
-                        Some(_) => vbd_step(model, m, pinned, &settings, x, v, scratch),
-                        None => vbd_quasi_static(model, m, pinned, &settings, x, scratch),
+                        Some(_) => {
+                            vbd_step(model, m, pinned, &step_scene, &settings, x, v, scratch)
+                        }
+                        None => {
+                            vbd_quasi_static(model, m, pinned, &step_scene, &settings, x, scratch)
+                        }
                     }
                     .map_err(|e| e.to_string())?;
                     Outcome {
                         iterations: report.iterations,
                         cg_iterations: 0,
                         energy_evaluations: report.energy_evaluations,
-                        relative_residual: report.final_residual
-                            / report.initial_residual.max(scale),
+                        relative_residual: report.residual / report.initial_residual.max(scale),
                         converged: report.converged,
                         seconds: 0.0,
                         wall_seconds: 0.0,
                     }
                 }
                 Solver::Newton => {
-                    let mut settings = NewtonSettings::new(dt)
-                        .with_gravity(gravity)
-                        .with_tolerance(tolerance, max_iterations);
-                    settings.ground = self.ground;
+                    let settings = NewtonSettings::new().with_tolerance(tolerance, max_iterations);
                     let scratch = &mut newton_scratch;
                     let report = match self.dt {
-                        Some(_) => newton_step(model, m, pinned, &settings, x, v, scratch),
-                        None => newton_quasi_static(model, m, pinned, &settings, x, scratch),
+                        Some(_) => {
+                            newton_step(model, m, pinned, &step_scene, &settings, x, v, scratch)
+                        }
+                        None => newton_quasi_static(
+                            model,
+                            m,
+                            pinned,
+                            &step_scene,
+                            &settings,
+                            x,
+                            scratch,
+                        ),
                     }
                     .map_err(|e| e.to_string())?;
                     Outcome {
-                        iterations: report.newton_iterations,
-                        cg_iterations: report.cg_iterations,
+                        iterations: report.iterations,
+                        cg_iterations: report.details.cg_iterations,
                         energy_evaluations: report.energy_evaluations,
                         relative_residual: report.residual / report.initial_residual.max(scale),
                         converged: report.converged,
@@ -452,10 +477,10 @@ fn bouncy(size: Size) -> Result<Measured, String> {
     // Newton's trajectory to the landing: the state before the step with the largest initial
     // residual.
     let n = cube.rest.len();
-    let settings = NewtonSettings::new(dt)
+    let step_scene = StepScene::new(dt)
         .with_gravity(DVec3::new(0.0, 0.0, -G))
-        .with_ground(ground)
-        .with_tolerance(1e-8, 50);
+        .with_ground(ground);
+    let settings = NewtonSettings::new().with_tolerance(1e-8, 50);
     let len = newton_scratch_len(n, mesh.element_count());
     let (mut vectors, mut blocks, mut hessians) = (
         vec![DVec3::ZERO; len.vectors],
@@ -472,6 +497,7 @@ fn bouncy(size: Size) -> Result<Measured, String> {
             &model,
             &masses,
             &[],
+            &step_scene,
             &settings,
             &mut x,
             &mut v,

@@ -64,7 +64,7 @@ fn chebyshev_rho(dt: f64) -> f64 {
 macro_rules! run_bar {
     ($p:ident, $method:expr, $cells:expr, $duration:expr, $samples:expr) => {{
         use $p::api::material::StableNeoHookean;
-        use $p::api::step::{ExplicitSettings, RelaxSettings, TetElastic, stable_time_step};
+        use $p::api::step::{ExplicitSettings, RelaxSettings, Scene, TetElastic, stable_time_step};
         use $p::api::types::{Real, Vec3};
         let [n, m] = $cells;
         let size = Vec3::new(LENGTH as Real, WIDTH as Real, WIDTH as Real);
@@ -83,19 +83,21 @@ macro_rules! run_bar {
         let (mut x, mut v) = (boxed.rest.clone(), vec![Vec3::ZERO; boxed.rest.len()]);
         let run = match $method {
             Method::Explicit { fraction } => {
-                let settings =
-                    ExplicitSettings::new(fraction as Real * bound).with_gravity(gravity);
+                let scene = Scene::new(fraction as Real * bound).with_gravity(gravity);
+                let settings = ExplicitSettings::new();
                 $p::body::run_explicit(
-                    &model, &masses, &pinned, &settings, &mut x, &mut v, $duration, $samples,
+                    &model, &masses, &pinned, &scene, &settings, &mut x, &mut v, $duration,
+                    $samples,
                 )
             }
             Method::Relax { dt, budget } => {
-                let settings = RelaxSettings::new(dt as Real)
-                    .with_gravity(gravity)
+                let scene = Scene::new(dt as Real).with_gravity(gravity);
+                let settings = RelaxSettings::new()
                     .with_tolerance(TOLERANCE as Real, budget)
                     .with_chebyshev(chebyshev_rho(dt) as Real, STEP_LENGTH as Real, 0);
                 $p::body::run_relax(
-                    &model, &masses, &pinned, &settings, &mut x, &mut v, $duration, $samples,
+                    &model, &masses, &pinned, &scene, &settings, &mut x, &mut v, $duration,
+                    $samples,
                 )
             }
         };

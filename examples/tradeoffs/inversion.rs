@@ -19,8 +19,8 @@ use softfem::generate::BoxSplit;
 use softfem::glam::Vec3;
 use softfem::material::{NeoHookean, StVK, StableNeoHookean};
 use softfem::step::{
-    ElasticModel, ExplicitScratch, ExplicitSettings, TetClamped, TetElastic, explicit_scratch_len,
-    stable_time_step, step_explicit,
+    ElasticModel, ExplicitScratch, ExplicitSettings, Scene as StepScene, TetClamped, TetElastic,
+    explicit_scratch_len, explicit_step, stable_time_step,
 };
 
 use crate::chart::{Axis, Figure, Panel, Series, Style, Table, num};
@@ -84,7 +84,9 @@ fn drive<F: ElasticModel<Vector = Vec3>>(
     let dt = SAFETY
         * stable_time_step(model, masses, &scene.held, &mut stiffness)
             .map_err(|e| e.to_string())?;
-    let settings = ExplicitSettings::new(dt).with_damping(DAMPING);
+    // What each step acts on: the time step alone (no gravity, no ground).
+    let step_scene = StepScene::new(dt);
+    let settings = ExplicitSettings::new().with_damping(DAMPING);
     let rest = &scene.mesh.rest;
     let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; rest.len()]);
     let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(rest.len())];
@@ -115,10 +117,11 @@ fn drive<F: ElasticModel<Vector = Vec3>>(
             &scene.held
         };
         let t = f64::from(dt) * (step + 1) as f64;
-        if let Err(error) = step_explicit(
+        if let Err(error) = explicit_step(
             model,
             masses,
             pinned,
+            &step_scene,
             &settings,
             &mut x,
             &mut v,

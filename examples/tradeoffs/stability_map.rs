@@ -244,7 +244,7 @@ fn measure(
     scan: &[f64],
 ) -> Result<Cell, String> {
     use single::api::material::StableNeoHookean;
-    use single::api::step::{ExplicitSettings, TetElastic, stable_time_step};
+    use single::api::step::{ExplicitSettings, Scene, TetElastic, stable_time_step};
     use softfem::glam::Vec3;
 
     let size = Vec3::new(SIZE[0] as f32, SIZE[1] as f32, SIZE[2] as f32);
@@ -267,13 +267,14 @@ fn measure(
         .map(|(a, b)| f64::from((*a - *b).length()))
         .fold(0.0, f64::max);
     let explicit = |ratio: f64| {
-        let settings = ExplicitSettings::new((ratio * bound) as f32);
+        let scene = Scene::new((ratio * bound) as f32);
         let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; start.len()]);
         let run = single::body::run_explicit(
             &model,
             &masses,
             &[],
-            &settings,
+            &scene,
+            &ExplicitSettings::new(),
             &mut x,
             &mut v,
             steps as f64 * ratio * bound,
@@ -319,7 +320,7 @@ fn measure(
     };
 
     use double::api::material::StableNeoHookean as StableNeoHookean64;
-    use double::api::step::{RelaxSettings, TetElastic as TetElastic64};
+    use double::api::step::{RelaxSettings, Scene as Scene64, TetElastic as TetElastic64};
     use softfem::glam::DVec3;
     let boxed = double::body::BoxMesh {
         rest: boxed.rest.iter().map(|p| p.as_dvec3()).collect(),
@@ -346,15 +347,25 @@ fn measure(
     let start: Vec<DVec3> = start.iter().map(|p| p.as_dvec3()).collect();
     let initial = energy(&start, &vec![DVec3::ZERO; start.len()]);
     let relax_at = |dt: f64| -> Result<(f64, f64, f64, f64), String> {
-        let settings = RelaxSettings::new(dt)
+        let scene = Scene64::new(dt);
+        let settings = RelaxSettings::new()
             .with_tolerance(1e-4, 500)
             .with_chebyshev(0.995, 2.0, 0);
         let (mut x, mut v) = (start.clone(), vec![DVec3::ZERO; start.len()]);
         let mut largest: f64 = 1.0;
         let mut converged = 0;
         for _ in 0..relax_steps {
-            let run =
-                double::body::run_relax(&model, &masses, &[], &settings, &mut x, &mut v, dt, &[]);
+            let run = double::body::run_relax(
+                &model,
+                &masses,
+                &[],
+                &scene,
+                &settings,
+                &mut x,
+                &mut v,
+                dt,
+                &[],
+            );
             if let Some((_, error)) = run.failure {
                 return Err(format!("relaxation at dt = {dt} s failed: {error}"));
             }

@@ -16,8 +16,8 @@ use std::time::Instant;
 use softfem::f64::element::TetHessian;
 use softfem::f64::generate::BoxSplit;
 use softfem::f64::step::{
-    NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, TetElastic, newton_quasi_static,
-    newton_scratch_len, relax_quasi_static, relax_scratch_len,
+    NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, Scene, TetElastic,
+    newton_quasi_static, newton_scratch_len, relax_quasi_static, relax_scratch_len,
 };
 use softfem::glam::{DMat3, DVec3};
 
@@ -67,7 +67,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
     let mesh = beam.mesh.mesh(&mut rest_data)?;
     let model = TetElastic::new(mesh, material()?);
     let (n, elements) = (beam.mesh.rest.len(), mesh.element_count());
-    let gravity = DVec3::new(0.0, 0.0, -crate::descent::G);
+    let scene = Scene::new(1.0).with_gravity(DVec3::new(0.0, 0.0, -crate::descent::G));
     let scale = weight(&beam.masses, &beam.pinned);
     progress(
         "static-scale",
@@ -82,8 +82,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
     );
     let mut newton = |max_cg: u32| -> Result<Solve, String> {
         let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
-        let settings = NewtonSettings::new(1.0)
-            .with_gravity(gravity)
+        let settings = NewtonSettings::new()
             .with_tolerance(NEWTON_TOLERANCE, NEWTON_ITERATIONS)
             .with_cg_iterations(max_cg);
         let mut x = beam.mesh.rest.clone();
@@ -92,6 +91,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
                 &model,
                 &beam.masses,
                 &beam.pinned,
+                &scene,
                 &settings,
                 &mut x,
                 &mut scratch,
@@ -105,8 +105,8 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
                 "newton"
             },
             max_cg,
-            iterations: report.newton_iterations,
-            cg_iterations: report.cg_iterations,
+            iterations: report.iterations,
+            cg_iterations: report.details.cg_iterations,
             relative_residual: report.residual / report.initial_residual.max(scale),
             converged: report.converged,
             cpu_seconds: cpu,
@@ -130,7 +130,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
         );
         Ok(solve)
     };
-    let default_cg = NewtonSettings::<DVec3>::new(1.0).max_cg_iterations;
+    let default_cg = NewtonSettings::new().options.max_cg_iterations;
     let newtons = [newton(default_cg)?, newton(SMALL_CG)?];
     // The relaxation gets the time of the fastest converged Newton run (else the last one).
     let reference = newtons
@@ -144,8 +144,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
         (vec![DVec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
     let mut relax = |iterations: u32| -> Result<Solve, String> {
         let mut scratch = RelaxScratch::new(&mut relax_vectors, &mut relax_scalars);
-        let settings = RelaxSettings::new(1.0)
-            .with_gravity(gravity)
+        let settings = RelaxSettings::new()
             .with_tolerance(0.0, iterations)
             .with_chebyshev(RHO, 2.0, 0);
         let mut x = beam.mesh.rest.clone();
@@ -154,6 +153,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
                 &model,
                 &beam.masses,
                 &beam.pinned,
+                &scene,
                 &settings,
                 &mut x,
                 &mut scratch,
@@ -165,7 +165,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
             max_cg: 0,
             iterations: report.iterations,
             cg_iterations: 0,
-            relative_residual: report.final_residual / report.initial_residual.max(scale),
+            relative_residual: report.residual / report.initial_residual.max(scale),
             converged: report.converged,
             cpu_seconds: cpu,
             wall_seconds: wall,
