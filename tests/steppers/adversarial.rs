@@ -47,14 +47,16 @@ macro_rules! adversarial_tests {
         mod $precision {
             use super::{Row, Verdict, ensure, run_table, same};
             use softfem::{MeshError, StepBuffer, StepError};
-            use $($api)::+::element::TetRest;
+            use $($api)::+::element::{TetHessian, TetRest};
             use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
             use $($api)::+::material::{Material, StVK, StableNeoHookean};
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
-                ElasticModel, ExplicitScratch, ExplicitSettings, Ground, RelaxScratch,
-                RelaxSettings, TetClamped, TetElastic, explicit_scratch_len, relax_scratch_len,
-                relax_step, stable_time_step, step_explicit,
+                ElasticModel, ExplicitScratch, ExplicitSettings, Ground, NewtonScratch,
+                NewtonSettings, RelaxScratch, RelaxSettings, Scene, TetClamped, TetElastic,
+                VbdScratch, VbdSettings, explicit_scratch_len, explicit_step, newton_scratch_len,
+                newton_step, relax_scratch_len, relax_step, stable_time_step, vbd_index_scratch_len,
+                vbd_scratch_len, vbd_step,
             };
             use $($api)::+::svd::{svd3, svd3_lanes};
             use $($api)::+::types::{Mat3, Real, Vec3};
@@ -109,7 +111,8 @@ macro_rules! adversarial_tests {
             fn explicit_outcome(
                 body: &impl ElasticModel<Vector = Vec3>,
                 masses: &[Real],
-                settings: &ExplicitSettings<Vec3>,
+                scene: &Scene<Vec3>,
+                settings: &ExplicitSettings,
                 x: &mut [Vec3],
                 v: &mut [Vec3],
             ) -> (Result<(), StepError>, bool) {
@@ -117,7 +120,7 @@ macro_rules! adversarial_tests {
                 let mut buffer = vec![Vec3::splat(3.0); explicit_scratch_len(n)];
                 let before = (bits(x), bits(v));
                 let mut scratch = ExplicitScratch::new(&mut buffer);
-                let result = step_explicit(body, masses, &[], settings, x, v, &mut scratch).map(|_| ());
+                let result = explicit_step(body, masses, &[], scene, settings, x, v, &mut scratch).map(|_| ());
                 (result, (bits(x), bits(v)) == before)
             }
 
@@ -131,7 +134,8 @@ macro_rules! adversarial_tests {
             fn relax_outcome(
                 body: &TetElastic<'_, impl Material>,
                 masses: &[Real],
-                settings: &RelaxSettings<Vec3>,
+                scene: &Scene<Vec3>,
+                settings: &RelaxSettings,
                 x: &mut [Vec3],
                 v: &mut [Vec3],
             ) -> (Result<crate::adversarial::softfem_report::Report, StepError>, bool) {
@@ -139,10 +143,10 @@ macro_rules! adversarial_tests {
                 let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let before = (bits(x), bits(v));
-                let result = relax_step(body, masses, &[], settings, x, v, &mut scratch).map(|r| crate::adversarial::softfem_report::Report {
+                let result = relax_step(body, masses, &[], scene, settings, x, v, &mut scratch).map(|r| crate::adversarial::softfem_report::Report {
                     converged: r.converged,
                     iterations: r.iterations,
-                    final_residual: r.final_residual as f64,
+                    final_residual: r.residual as f64,
                     initial_residual: r.initial_residual as f64,
                 });
                 (result, (bits(x), bits(v)) == before)
@@ -153,7 +157,7 @@ macro_rules! adversarial_tests {
             /// and `load` (N, the gravity load computed in f64), with 1e-3 relative slack for the
             /// f32 rounding of the solver's own target.
             fn claim_holds(report: &crate::adversarial::softfem_report::Report, load: f64) -> Verdict {
-                let tolerance = RelaxSettings::<Vec3>::new(1.0 / 60.0).tolerance as f64;
+                let tolerance = RelaxSettings::new().tolerance as f64;
                 let target = tolerance * report.initial_residual.max(load) * (1.0 + 1e-3);
                 ensure(!report.converged || (report.final_residual.is_finite() && report.final_residual <= target), || {
                     format!("{report:?} claims convergence against a target of {target:e} N")
@@ -204,27 +208,64 @@ macro_rules! adversarial_tests {
                 ]
             }
 
+            /// Every stepper refuses a step whose `1 / dt^2` overflows with the same error, and
+            /// leaves the state as it was (one time-step check for all of them).
+            fn time_step_rows() -> Vec<Row> {
+                vec![
+                    ("D3 explicit_step with dt = 1e-20 (f32) / 1e-200 (f64): TimeStepTooSmall", Box::new(|| with_mesh(|mesh, rest, masses| {
+                        let body = TetElastic::new(mesh, snh());
+                        let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; rest.len()]);
+                        let outcome = explicit_outcome(&body, &masses, &Scene::new(TINY_STEP), &ExplicitSettings::new(), &mut x, &mut v);
+                        refused_untouched(outcome, StepError::TimeStepTooSmall)
+                    }))),
+                    ("D3 newton_step with dt = 1e-20 (f32) / 1e-200 (f64): TimeStepTooSmall", Box::new(|| with_mesh(|mesh, rest, masses| {
+                        let body = TetElastic::new(mesh, snh());
+                        let (n, e) = (rest.len(), mesh.element_count());
+                        let len = newton_scratch_len(n, e);
+                        let mut vectors = vec![Vec3::ZERO; len.vectors];
+                        let mut blocks = vec![Mat3::ZERO; len.blocks];
+                        let mut hessians = vec![TetHessian::default(); len.hessians];
+                        let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
+                        let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; n]);
+                        let before = (bits(&x), bits(&v));
+                        let result = newton_step(&body, &masses, &[], &Scene::new(TINY_STEP), &NewtonSettings::new(), &mut x, &mut v, &mut scratch).map(|_| ());
+                        refused_untouched((result, (bits(&x), bits(&v)) == before), StepError::TimeStepTooSmall)
+                    }))),
+                    ("D3 vbd_step with dt = 1e-20 (f32) / 1e-200 (f64): TimeStepTooSmall", Box::new(|| with_mesh(|mesh, rest, masses| {
+                        let body = TetElastic::new(mesh, snh());
+                        let (n, e) = (rest.len(), mesh.element_count());
+                        let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(n)];
+                        let mut indices = vec![0u32; vbd_index_scratch_len(n, e)];
+                        let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+                        let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; n]);
+                        let before = (bits(&x), bits(&v));
+                        let result = vbd_step(&body, &masses, &[], &Scene::new(TINY_STEP), &VbdSettings::new(), &mut x, &mut v, &mut scratch).map(|_| ());
+                        refused_untouched((result, (bits(&x), bits(&v)) == before), StepError::TimeStepTooSmall)
+                    }))),
+                ]
+            }
+
             fn relax_rows() -> Vec<Row> {
                 vec![
                     ("D3 relax_step with dt = 1e-20 (f32) / 1e-200 (f64): a settings error", Box::new(|| with_mesh(|mesh, rest, masses| {
                         let body = TetElastic::new(mesh, snh());
                         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; rest.len()]);
-                        let outcome = relax_outcome(&body, &masses, &RelaxSettings::new(TINY_STEP), &mut x, &mut v);
+                        let outcome = relax_outcome(&body, &masses, &Scene::new(TINY_STEP), &RelaxSettings::new(), &mut x, &mut v);
                         same(outcome.0.err(), Some(StepError::TimeStepTooSmall))?;
                         ensure(outcome.1, || "the state changed".into())
                     }))),
                     ("D3 relax_step with a step just above the limit (10 / sqrt(Real::MAX)): runs", Box::new(|| with_mesh(|mesh, rest, masses| {
                         let body = TetElastic::new(mesh, snh());
                         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; rest.len()]);
-                        let settings = RelaxSettings::new(10.0 / Real::MAX.sqrt()).with_gravity(Vec3::new(0.0, -9.81, 0.0));
-                        let outcome = relax_outcome(&body, &masses, &settings, &mut x, &mut v);
+                        let scene = Scene::new(10.0 / Real::MAX.sqrt()).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+                        let outcome = relax_outcome(&body, &masses, &scene, &RelaxSettings::new(), &mut x, &mut v);
                         ensure(outcome.0.is_ok(), || format!("{:?}", outcome.0.err()))
                     }))),
                     ("D4 relax_step at a speed of 1e15 m/s: a convergence claim must hold", Box::new(|| with_mesh(|mesh, rest, masses| {
                         let body = TetElastic::new(mesh, snh());
                         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::new(1e15, 0.0, 0.0); rest.len()]);
                         v[0].x = -1e15;
-                        match relax_outcome(&body, &masses, &RelaxSettings::new(1.0 / 60.0), &mut x, &mut v).0 {
+                        match relax_outcome(&body, &masses, &Scene::new(1.0 / 60.0), &RelaxSettings::new(), &mut x, &mut v).0 {
                             Ok(r) => claim_holds(&r, 0.0),
                             Err(_) => Ok(()), // an error is honest too
                         }
@@ -237,9 +278,9 @@ macro_rules! adversarial_tests {
                         let heavy = vec![HEAVY; masses.len()];
                         let (mut x, mut v) = (rest.iter().map(|&p| p * 1.1).collect::<Vec<_>>(), vec![Vec3::ZERO; rest.len()]);
                         let g = 9.81;
-                        let settings = RelaxSettings::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -g, 0.0));
+                        let scene = Scene::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -g, 0.0));
                         let load = (HEAVY as f64) * (g as f64) * (masses.len() as f64).sqrt();
-                        match relax_outcome(&body, &heavy, &settings, &mut x, &mut v).0 {
+                        match relax_outcome(&body, &heavy, &scene, &RelaxSettings::new(), &mut x, &mut v).0 {
                             Ok(r) => claim_holds(&r, load),
                             Err(_) => Ok(()),
                         }
@@ -248,7 +289,7 @@ macro_rules! adversarial_tests {
                         let body = TetElastic::new(mesh, snh());
                         for dt in [0.0, -1.0, Real::NAN, Real::INFINITY] {
                             let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; rest.len()]);
-                            let outcome = relax_outcome(&body, &masses, &RelaxSettings::new(dt), &mut x, &mut v);
+                            let outcome = relax_outcome(&body, &masses, &Scene::new(dt), &RelaxSettings::new(), &mut x, &mut v);
                             same(outcome.0.err(), Some(StepError::TimeStep))?;
                             ensure(outcome.1, || "the state changed".into())?;
                         }
@@ -258,7 +299,7 @@ macro_rules! adversarial_tests {
                         let body = TetElastic::new(mesh, snh());
                         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; rest.len()]);
                         x[4].y = Real::NAN;
-                        let outcome = relax_outcome(&body, &masses, &RelaxSettings::new(0.01), &mut x, &mut v);
+                        let outcome = relax_outcome(&body, &masses, &Scene::new(0.01), &RelaxSettings::new(), &mut x, &mut v);
                         same(outcome.0.err(), Some(StepError::NonFiniteInput { vertex: 4 }))?;
                         ensure(outcome.1, || "the state changed".into())
                     }))),
@@ -287,8 +328,8 @@ macro_rules! adversarial_tests {
                     ("D5 a step with TetClamped::new(.., NaN): Mesh(ClampThreshold), untouched", Box::new(move || with_mesh(|mesh, rest, masses| {
                         let body = TetClamped::new(mesh, stvk(), Real::NAN);
                         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; rest.len()]);
-                        let settings = ExplicitSettings::new(1e-4).with_gravity(gravity);
-                        refused_untouched(explicit_outcome(&body, &masses, &settings, &mut x, &mut v), StepError::Mesh(MeshError::ClampThreshold))
+                        let scene = Scene::new(1e-4).with_gravity(gravity);
+                        refused_untouched(explicit_outcome(&body, &masses, &scene, &ExplicitSettings::new(), &mut x, &mut v), StepError::Mesh(MeshError::ClampThreshold))
                     }))),
                     ("D6 explicit_scratch_len(usize::MAX) saturates", Box::new(|| {
                         same(explicit_scratch_len(usize::MAX), usize::MAX)?;
@@ -297,15 +338,15 @@ macro_rules! adversarial_tests {
                     ("D7 with_substeps(u32::MAX): Substeps at once, untouched", Box::new(move || with_mesh(|mesh, rest, masses| {
                         let body = TetElastic::new(mesh, stvk());
                         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; rest.len()]);
-                        let settings = ExplicitSettings::new(1e-4).with_substeps(u32::MAX);
-                        refused_untouched(explicit_outcome(&body, &masses, &settings, &mut x, &mut v), StepError::Substeps)
+                        let settings = ExplicitSettings::new().with_substeps(u32::MAX);
+                        refused_untouched(explicit_outcome(&body, &masses, &Scene::new(1e-4), &settings, &mut x, &mut v), StepError::Substeps)
                     }))),
                     ("D8 a subnormal mass (1e-39 kg in f32): Mass, untouched", Box::new(move || with_mesh(|mesh, rest, mut masses| {
                         let body = TetElastic::new(mesh, stvk());
                         masses[2] = Real::MIN_POSITIVE / 4.0;
                         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; rest.len()]);
-                        let settings = ExplicitSettings::new(1e-4).with_gravity(gravity);
-                        refused_untouched(explicit_outcome(&body, &masses, &settings, &mut x, &mut v), StepError::Mass { vertex: 2 })?;
+                        let scene = Scene::new(1e-4).with_gravity(gravity);
+                        refused_untouched(explicit_outcome(&body, &masses, &scene, &ExplicitSettings::new(), &mut x, &mut v), StepError::Mass { vertex: 2 })?;
                         let mut stiffness = vec![0.0; rest.len()];
                         same(stable_time_step(&body, &masses, &[], &mut stiffness), Err(StepError::Mass { vertex: 2 }))
                     }))),
@@ -313,8 +354,8 @@ macro_rules! adversarial_tests {
                         let body = TetElastic::new(mesh, stvk());
                         let run = |normal: Vec3| {
                             let (mut x, mut v) = (rest.to_vec(), vec![Vec3::new(0.0, -1.0, 0.0); rest.len()]);
-                            let settings = ExplicitSettings::new(1e-4).with_gravity(gravity).with_ground(Ground::new(normal, 0.01));
-                            explicit_outcome(&body, &masses, &settings, &mut x, &mut v).0.map(|()| x)
+                            let scene = Scene::new(1e-4).with_gravity(gravity).with_ground(Ground::new(normal, 0.01));
+                            explicit_outcome(&body, &masses, &scene, &ExplicitSettings::new(), &mut x, &mut v).0.map(|()| x)
                         };
                         let unit = run(Vec3::Y).map_err(|e| format!("{e:?}"))?;
                         let [small, large] = NORMAL_LENGTHS;
@@ -409,16 +450,16 @@ macro_rules! adversarial_tests {
                     ("D9 a step at positions scaled by 1e13 (f32): Mesh(DeformationRange), untouched", Box::new(move || with_mesh(|mesh, rest, masses| {
                         let body = TetElastic::new(mesh, snh());
                         let (mut x, mut v): (Vec<Vec3>, Vec<Vec3>) = (rest.iter().map(|&p| p * HUGE).collect(), vec![Vec3::ZERO; rest.len()]);
-                        let settings = ExplicitSettings::new(1e-4);
-                        refused_untouched(explicit_outcome(&body, &masses, &settings, &mut x, &mut v), StepError::Mesh(MeshError::DeformationRange { element: 0 }))
+                        let scene = Scene::new(1e-4);
+                        refused_untouched(explicit_outcome(&body, &masses, &scene, &ExplicitSettings::new(), &mut x, &mut v), StepError::Mesh(MeshError::DeformationRange { element: 0 }))
                     }))),
                     ("NaN and infinite positions and velocities: NonFiniteInput, untouched", Box::new(move || with_mesh(|mesh, rest, masses| {
                         let body = TetElastic::new(mesh, stvk());
-                        let settings = ExplicitSettings::new(1e-4).with_gravity(gravity);
+                        let scene = Scene::new(1e-4).with_gravity(gravity);
                         for (vertex, value, in_velocity) in [(1, Real::NAN, false), (3, Real::INFINITY, false), (5, Real::NEG_INFINITY, true)] {
                             let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; rest.len()]);
                             if in_velocity { v[vertex].z = value } else { x[vertex].x = value }
-                            refused_untouched(explicit_outcome(&body, &masses, &settings, &mut x, &mut v), StepError::NonFiniteInput { vertex })?;
+                            refused_untouched(explicit_outcome(&body, &masses, &scene, &ExplicitSettings::new(), &mut x, &mut v), StepError::NonFiniteInput { vertex })?;
                         }
                         Ok(())
                     }))),
@@ -428,7 +469,7 @@ macro_rules! adversarial_tests {
                             let mut m = masses.clone();
                             m[7] = bad;
                             let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; rest.len()]);
-                            refused_untouched(explicit_outcome(&body, &m, &ExplicitSettings::new(1e-4), &mut x, &mut v), StepError::Mass { vertex: 7 })?;
+                            refused_untouched(explicit_outcome(&body, &m, &Scene::new(1e-4), &ExplicitSettings::new(), &mut x, &mut v), StepError::Mass { vertex: 7 })?;
                         }
                         Ok(())
                     }))),
@@ -436,7 +477,7 @@ macro_rules! adversarial_tests {
                         let body = TetElastic::new(mesh, stvk());
                         for dt in [0.0, -1e-3, Real::NAN, Real::INFINITY, -0.0] {
                             let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; rest.len()]);
-                            refused_untouched(explicit_outcome(&body, &masses, &ExplicitSettings::new(dt), &mut x, &mut v), StepError::TimeStep)?;
+                            refused_untouched(explicit_outcome(&body, &masses, &Scene::new(dt), &ExplicitSettings::new(), &mut x, &mut v), StepError::TimeStep)?;
                         }
                         Ok(())
                     }))),
@@ -445,7 +486,7 @@ macro_rules! adversarial_tests {
                         let n = rest.len();
                         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; n - 1]);
                         refused_untouched(
-                            explicit_outcome(&body, &masses, &ExplicitSettings::new(1e-4), &mut x, &mut v),
+                            explicit_outcome(&body, &masses, &Scene::new(1e-4), &ExplicitSettings::new(), &mut x, &mut v),
                             StepError::LengthMismatch { buffer: StepBuffer::Velocities, expected: n, actual: n - 1 },
                         )?;
                         let mut forces = vec![Vec3::ZERO; n + 1];
@@ -461,7 +502,7 @@ macro_rules! adversarial_tests {
                         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; n]);
                         let mut scratch = ExplicitScratch::new(&mut buffer);
                         same(
-                            step_explicit(&body, &masses, &[], &ExplicitSettings::new(1e-4), &mut x, &mut v, &mut scratch).map(|_| ()),
+                            explicit_step(&body, &masses, &[], &Scene::new(1e-4), &ExplicitSettings::new(), &mut x, &mut v, &mut scratch).map(|_| ()),
                             Err(StepError::LengthMismatch { buffer: StepBuffer::Scratch, expected: explicit_scratch_len(n), actual: 1 }),
                         )
                     }))),
@@ -503,6 +544,7 @@ macro_rules! adversarial_tests {
             fn every_hostile_input_gets_its_promised_behaviour() {
                 let mut rows = svd_rows();
                 rows.extend(relax_rows());
+                rows.extend(time_step_rows());
                 rows.extend(explicit_rows());
                 run_table(stringify!($precision), rows);
             }

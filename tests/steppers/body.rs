@@ -11,10 +11,10 @@ use softfem::glam::Vec3;
 use softfem::material::StableNeoHookean;
 use softfem::mesh::TetMesh;
 use softfem::step::{
-    ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonSettings, RelaxScratch,
-    RelaxSettings, TetElastic, VbdScratch, VbdSettings, explicit_scratch_len, newton_scratch_len,
-    newton_step, relax_scratch_len, relax_step, stable_time_step, step_explicit,
-    vbd_index_scratch_len, vbd_scratch_len, vbd_step,
+    ExplicitScratch, ExplicitSettings, FIXED_X, Ground, NewtonScratch, NewtonSettings,
+    RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings, explicit_scratch_len,
+    explicit_step, newton_scratch_len, newton_step, relax_scratch_len, relax_step,
+    stable_time_step, vbd_index_scratch_len, vbd_scratch_len, vbd_step,
 };
 use softfem::{BodyBuffer, BodyError, StepError};
 
@@ -102,31 +102,33 @@ fn pin_wall(body: &mut Body<Small, StableNeoHookean>, reference: &mut Reference)
     }
 }
 
-/// Steps `body` and the low-level `step_explicit` of `reference` with `settings` side by side
-/// for `steps` steps of `settings.dt`, asserting the same report and bits each step; then that
+/// Steps `body` and the low-level `explicit_step` of `reference` in `scene` with `settings` side
+/// by side for `steps` steps of `scene.dt`, asserting the same report and bits each step; then that
 /// the body moved by more than `moved` (m) somewhere, so the comparison is not of two bodies at
 /// rest.
 fn assert_explicit_matches(
     body: &mut Body<Small, StableNeoHookean>,
     reference: &mut Reference,
-    settings: &ExplicitSettings<'_, Vec3>,
+    scene: &Scene<'_, Vec3>,
+    settings: &ExplicitSettings,
     steps: usize,
     moved: f32,
 ) {
     let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(36)];
     let mut scratch = ExplicitScratch::new(&mut buffer);
     for step in 0..steps {
-        let expected = step_explicit(
+        let expected = explicit_step(
             &reference.model,
             &reference.masses,
             &reference.pinned,
+            scene,
             settings,
             &mut reference.x,
             &mut reference.v,
             &mut scratch,
         )
         .unwrap();
-        let report = body.step(settings.dt).unwrap();
+        let report = body.step(scene.dt).unwrap();
         assert_eq!(report, StepReport::Explicit(expected), "step {step}");
         assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
         assert_eq!(bits(body.velocities()), bits(&reference.v), "step {step}");
@@ -156,17 +158,16 @@ fn explicit_body_matches_the_low_level_calls_bit_for_bit() {
     let dt = 1.0 / 120.0;
     let substeps = (1..).find(|&k| dt / k as f32 <= 0.5 * stable).unwrap();
     assert!(substeps > 1, "the step must need substeps: {substeps}");
-    let settings = ExplicitSettings::new(dt)
-        .with_gravity(GRAVITY)
+    let scene = Scene::new(dt).with_gravity(GRAVITY).with_ground(ground());
+    let settings = ExplicitSettings::new()
         .with_damping(2.0)
-        .with_ground(ground())
         .with_substeps(substeps);
     body.set_solver(Solver::Explicit {
-        settings: ExplicitSettings::new(1.0).with_damping(2.0),
+        settings: ExplicitSettings::new().with_damping(2.0),
         stable_fraction: Some(0.5),
     })
     .unwrap();
-    assert_explicit_matches(&mut body, &mut reference, &settings, 60, 1e-3);
+    assert_explicit_matches(&mut body, &mut reference, &scene, &settings, 60, 1e-3);
 }
 
 #[test]
@@ -175,21 +176,21 @@ fn explicit_body_with_fixed_substeps_matches_too() {
     let mut body = small_body();
     let model = reference.model;
     let dt = 0.5 * stable_time_step(&model, &reference.masses, &[], &mut [0.0; 36]).unwrap();
-    let settings = ExplicitSettings::new(dt)
-        .with_gravity(GRAVITY)
-        .with_ground(ground());
+    let scene = Scene::new(dt).with_gravity(GRAVITY).with_ground(ground());
+    let settings = ExplicitSettings::new();
     body.set_solver(Solver::Explicit {
-        settings: ExplicitSettings::new(1.0),
+        settings: ExplicitSettings::new(),
         stable_fraction: None,
     })
     .unwrap();
     let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(36)];
     let mut scratch = ExplicitScratch::new(&mut buffer);
     for _ in 0..400 {
-        let expected = step_explicit(
+        let expected = explicit_step(
             &model,
             &reference.masses,
             &[],
+            &scene,
             &settings,
             &mut reference.x,
             &mut reference.v,
@@ -214,17 +215,12 @@ fn relax_body_matches_the_low_level_calls_bit_for_bit() {
     let mut body = small_body();
     pin_wall(&mut body, &mut reference);
     let model = reference.model;
-    let settings = RelaxSettings::new(1.0)
+    let settings = RelaxSettings::new()
         .with_tolerance(1e-3, 200)
         .with_chebyshev(0.995, 2.0, 10);
     body.set_solver(Solver::Relax(settings)).unwrap();
     let dt = 1.0 / 60.0;
-    let settings = RelaxSettings {
-        dt,
-        gravity: GRAVITY,
-        ground: Some(ground()),
-        ..settings
-    };
+    let scene = Scene::new(dt).with_gravity(GRAVITY).with_ground(ground());
     let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(36)], vec![0.0; 36]);
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
     for step in 0..30 {
@@ -232,6 +228,7 @@ fn relax_body_matches_the_low_level_calls_bit_for_bit() {
             &model,
             &reference.masses,
             &reference.pinned,
+            &scene,
             &settings,
             &mut reference.x,
             &mut reference.v,
@@ -263,14 +260,9 @@ fn newton_and_vbd_bodies_match_the_low_level_calls_bit_for_bit() {
     let mut body = small_body();
     pin_wall(&mut body, &mut reference);
     let model = reference.model;
-    let newton = NewtonSettings::new(1.0).with_tolerance(1e-3, 20);
+    let newton = NewtonSettings::new().with_tolerance(1e-3, 20);
     body.set_solver(Solver::Newton(newton)).unwrap();
-    let newton = NewtonSettings {
-        dt,
-        gravity: GRAVITY,
-        ground: Some(ground()),
-        ..newton
-    };
+    let scene = Scene::new(dt).with_gravity(GRAVITY).with_ground(ground());
     let lengths = newton_scratch_len(36, 60);
     let mut vectors = vec![Vec3::ZERO; lengths.vectors];
     let mut blocks = vec![Default::default(); lengths.blocks];
@@ -281,6 +273,7 @@ fn newton_and_vbd_bodies_match_the_low_level_calls_bit_for_bit() {
             &model,
             &reference.masses,
             &reference.pinned,
+            &scene,
             &newton,
             &mut reference.x,
             &mut reference.v,
@@ -297,14 +290,8 @@ fn newton_and_vbd_bodies_match_the_low_level_calls_bit_for_bit() {
     }
 
     // Vertex Block Descent, on the same body switched over (its state carries on).
-    let vbd = VbdSettings::new(1.0).with_tolerance(1e-3, 100);
+    let vbd = VbdSettings::new().with_tolerance(1e-3, 100);
     body.set_solver(Solver::Vbd(vbd)).unwrap();
-    let vbd = VbdSettings {
-        dt,
-        gravity: GRAVITY,
-        ground: Some(ground()),
-        ..vbd
-    };
     let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(36)];
     let mut indices = vec![0; vbd_index_scratch_len(36, 60)];
     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
@@ -313,6 +300,7 @@ fn newton_and_vbd_bodies_match_the_low_level_calls_bit_for_bit() {
             &model,
             &reference.masses,
             &reference.pinned,
+            &scene,
             &vbd,
             &mut reference.x,
             &mut reference.v,
@@ -505,7 +493,7 @@ fn a_failed_step_restores_positions_velocities_and_targets() {
     let (x, v) = (bits(body.positions()), bits(body.velocities()));
     for fraction in [0.0, -1.0, f32::NAN] {
         body.set_solver(Solver::Explicit {
-            settings: ExplicitSettings::new(1.0),
+            settings: ExplicitSettings::new(),
             stable_fraction: Some(fraction),
         })
         .unwrap();
@@ -519,7 +507,7 @@ fn a_failed_step_restores_positions_velocities_and_targets() {
     let mut body = small_body();
     let dt = 3.0 * body.stable_time_step().unwrap();
     body.set_solver(Solver::Explicit {
-        settings: ExplicitSettings::new(1.0),
+        settings: ExplicitSettings::new(),
         stable_fraction: None,
     })
     .unwrap();
@@ -665,21 +653,20 @@ fn a_static_body_rebuilt_in_place_matches_the_low_level_calls_bit_for_bit() {
     assert_eq!(body.positions(), reference.rest);
     pin_wall(&mut body, &mut reference);
     let dt = 0.5 * body.stable_time_step().unwrap();
-    let settings = ExplicitSettings::new(dt)
-        .with_gravity(GRAVITY)
-        .with_ground(ground());
+    let scene = Scene::new(dt).with_gravity(GRAVITY).with_ground(ground());
+    let settings = ExplicitSettings::new();
     body.set_solver(Solver::Explicit {
-        settings: ExplicitSettings::new(1.0),
+        settings,
         stable_fraction: None,
     })
     .unwrap();
-    assert_explicit_matches(&mut body, &mut reference, &settings, 40, 1e-4);
+    assert_explicit_matches(&mut body, &mut reference, &scene, &settings, 40, 1e-4);
 }
 
 #[test]
 fn rebuilding_keeps_the_settings_and_replaces_geometry_state_pins_and_history() {
     let relax = Solver::Relax(
-        RelaxSettings::new(1.0)
+        RelaxSettings::new()
             .with_tolerance(1e-3, 200)
             .with_chebyshev(0.995, 2.0, 10),
     );
@@ -756,4 +743,98 @@ fn a_failed_rebuild_leaves_an_empty_body_that_refuses_to_step() {
     body.rebuild_from_box(LOW, HIGH, CELLS, DENSITY).unwrap();
     assert_eq!(body.masses(), &Reference::new().masses[..]);
     body.step(0.01).unwrap();
+}
+
+/// A body stepped in a scene with borrowed external forces and fixed axes (`Body::step_with`)
+/// gives the bits of the low-level call in the same scene, for the explicit stepper and Newton;
+/// and the loads act: the loaded, x-fixed vertices moved, but never along x.
+#[test]
+fn a_body_steps_with_borrowed_loads_as_the_low_level_calls() {
+    let mut reference = Reference::new();
+    let mut body = small_body();
+    pin_wall(&mut body, &mut reference);
+    let model = reference.model;
+    let dt = 1.0 / 60.0;
+    // A push of 0.2 N along +z on every vertex of the far end, rollers in x there.
+    let far = reference
+        .rest
+        .iter()
+        .map(|x| x.x)
+        .fold(f32::NEG_INFINITY, f32::max);
+    let loaded: Vec<bool> = reference.rest.iter().map(|x| x.x == far).collect();
+    let forces: Vec<Vec3> = loaded
+        .iter()
+        .map(|&l| if l { Vec3::Z * 0.2 } else { Vec3::ZERO })
+        .collect();
+    let axes: Vec<u8> = loaded
+        .iter()
+        .map(|&l| if l { FIXED_X } else { 0 })
+        .collect();
+    let scene = Scene::new(dt)
+        .with_gravity(GRAVITY)
+        .with_ground(ground())
+        .with_external_forces(&forces)
+        .with_fixed_axes(&axes);
+    let newton = NewtonSettings::new().with_tolerance(1e-3, 20);
+    body.set_solver(Solver::Newton(newton)).unwrap();
+    let lengths = newton_scratch_len(36, 60);
+    let mut vectors = vec![Vec3::ZERO; lengths.vectors];
+    let mut blocks = vec![Default::default(); lengths.blocks];
+    let mut hessians = vec![Default::default(); lengths.hessians];
+    let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
+    for step in 0..10 {
+        let expected = newton_step(
+            &model,
+            &reference.masses,
+            &reference.pinned,
+            &scene,
+            &newton,
+            &mut reference.x,
+            &mut reference.v,
+            &mut scratch,
+        )
+        .unwrap();
+        let report = body.step_with(&scene).unwrap();
+        assert_eq!(report, StepReport::Newton(expected), "step {step}");
+        assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
+    }
+    let rows = || reference.x.iter().zip(reference.rest).zip(&loaded);
+    for ((x, r), _) in rows().filter(|(_, l)| **l) {
+        assert_eq!(
+            x.x.to_bits(),
+            r.x.to_bits(),
+            "a fixed x moved: {x} from {r}"
+        );
+    }
+    assert!(
+        rows().any(|((x, r), &l)| l && x.z - r.z > 1e-4),
+        "the push moved nothing along z"
+    );
+    // The same scene with the explicit stepper, fixed substeps.
+    let settings = ExplicitSettings::new().with_substeps(40);
+    body.set_solver(Solver::Explicit {
+        settings,
+        stable_fraction: None,
+    })
+    .unwrap();
+    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(36)];
+    let mut scratch = ExplicitScratch::new(&mut buffer);
+    for step in 0..5 {
+        let expected = explicit_step(
+            &model,
+            &reference.masses,
+            &reference.pinned,
+            &scene,
+            &settings,
+            &mut reference.x,
+            &mut reference.v,
+            &mut scratch,
+        );
+        assert_eq!(
+            body.step_with(&scene),
+            expected.map(StepReport::Explicit),
+            "step {step}"
+        );
+        assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
+    }
 }

@@ -1,4 +1,4 @@
-//! The highest-frequency estimate (`src/step/frequency.rs`) against the exact largest
+//! The highest-frequency estimate (`src/step/explicit/frequency.rs`) against the exact largest
 //! eigenvalue of `M^-1 K` of small meshes, `K` assembled densely by central differences of the
 //! f64 force kernel and diagonalised by nalgebra; and against the proven bound of
 //! `stable_time_step`, whose step it must never undercut.

@@ -15,10 +15,10 @@ macro_rules! load_tests {
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
                 ExplicitScratch, ExplicitSettings, FIXED_X, FIXED_Y, FIXED_Z, NewtonScratch,
-                NewtonSettings, RelaxScratch, RelaxSettings, TetElastic, VbdScratch, VbdSettings,
-                explicit_scratch_len, newton_quasi_static, newton_scratch_len, relax_quasi_static,
-                relax_scratch_len, step_explicit, vbd_index_scratch_len, vbd_quasi_static,
-                vbd_scratch_len,
+                NewtonSettings, RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch,
+                VbdSettings, explicit_scratch_len, explicit_step,
+                newton_quasi_static, newton_scratch_len, relax_quasi_static, relax_scratch_len,
+                vbd_index_scratch_len, vbd_quasi_static, vbd_scratch_len,
             };
             use $($api)::+::types::{Mat3, Real, Vec3};
 
@@ -68,6 +68,10 @@ macro_rules! load_tests {
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(YOUNG, POISSON).unwrap());
                 let (n, t) = (rest.len(), tets.len());
                 let mut x = rest.to_vec();
+                let scene = Scene::new(1.0)
+                    .with_gravity(gravity)
+                    .with_external_forces(forces)
+                    .with_fixed_axes(fixed);
                 match solver {
                     Solver::Newton => {
                         let len = newton_scratch_len(n, t);
@@ -76,36 +80,25 @@ macro_rules! load_tests {
                             vec![Mat3::ZERO; len.blocks],
                             vec![TetHessian::default(); len.hessians],
                         );
-                        let settings = NewtonSettings::new(1.0)
-                            .with_gravity(gravity)
-                            .with_tolerance(tolerances[0], 50)
-                            .with_external_forces(forces)
-                            .with_fixed_axes(fixed);
+                        let settings = NewtonSettings::new().with_tolerance(tolerances[0], 50);
                         let mut scratch = NewtonScratch::new(&mut v, &mut b, &mut h);
-                        let report = newton_quasi_static(&body, &masses, pinned, &settings, &mut x, &mut scratch).unwrap();
+                        let report = newton_quasi_static(&body, &masses, pinned, &scene, &settings, &mut x, &mut scratch).unwrap();
                         assert!(report.converged, "{report:?}");
                     }
                     Solver::Relax => {
                         let (mut v, mut s) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
-                        let settings = RelaxSettings::new(1.0)
-                            .with_gravity(gravity)
+                        let settings = RelaxSettings::new()
                             .with_tolerance(tolerances[1], 400_000)
-                            .with_chebyshev(0.999, 2.0, 0)
-                            .with_external_forces(forces)
-                            .with_fixed_axes(fixed);
+                            .with_chebyshev(0.999, 2.0, 0);
                         let mut scratch = RelaxScratch::new(&mut v, &mut s);
-                        let report = relax_quasi_static(&body, &masses, pinned, &settings, &mut x, &mut scratch).unwrap();
+                        let report = relax_quasi_static(&body, &masses, pinned, &scene, &settings, &mut x, &mut scratch).unwrap();
                         assert!(report.converged, "{report:?}");
                     }
                     Solver::Vbd => {
                         let (mut v, mut i) = (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)]);
-                        let settings = VbdSettings::new(1.0)
-                            .with_gravity(gravity)
-                            .with_tolerance(tolerances[2], 100_000)
-                            .with_external_forces(forces)
-                            .with_fixed_axes(fixed);
+                        let settings = VbdSettings::new().with_tolerance(tolerances[2], 100_000);
                         let mut scratch = VbdScratch::new(&mut v, &mut i);
-                        let report = vbd_quasi_static(&body, &masses, pinned, &settings, &mut x, &mut scratch).unwrap();
+                        let report = vbd_quasi_static(&body, &masses, pinned, &scene, &settings, &mut x, &mut scratch).unwrap();
                         assert!(report.converged, "{report:?}");
                     }
                 }
@@ -300,15 +293,16 @@ macro_rules! load_tests {
                 let forces: Vec<Vec3> = m.iter().map(|&m| acceleration * m).collect();
                 let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(4)];
                 let (h, steps) = (1e-3, 10u32);
-                let run = |settings: &ExplicitSettings<Vec3>, buffer: &mut Vec<Vec3>| {
+                let settings = ExplicitSettings::new();
+                let run = |scene: &Scene<Vec3>, buffer: &mut Vec<Vec3>| {
                     let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; 4]);
                     let mut scratch = ExplicitScratch::new(buffer);
                     for _ in 0..steps {
-                        step_explicit(&body, &m, &[], settings, &mut x, &mut v, &mut scratch).unwrap();
+                        explicit_step(&body, &m, &[], scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     }
                     (x, v)
                 };
-                let (x, v) = run(&ExplicitSettings::new(h).with_external_forces(&forces), &mut buffer);
+                let (x, v) = run(&Scene::new(h).with_external_forces(&forces), &mut buffer);
                 // A rigid translation (no strain, no elastic force): v = n h a and
                 // x = x_0 + h^2 a n (n + 1) / 2 for symplectic Euler.
                 let n = steps as Real;
@@ -325,7 +319,7 @@ macro_rules! load_tests {
                 }
                 // Vertex 0 on a roller in y and z: it moves only along x, by the same law.
                 let fixed = [FIXED_Y | FIXED_Z, 0, 0, 0];
-                let (x, v) = run(&ExplicitSettings::new(h).with_external_forces(&forces).with_fixed_axes(&fixed), &mut buffer);
+                let (x, v) = run(&Scene::new(h).with_external_forces(&forces).with_fixed_axes(&fixed), &mut buffer);
                 assert_eq!((x[0].y.to_bits(), x[0].z.to_bits()), (rest[0].y.to_bits(), rest[0].z.to_bits()));
                 assert_eq!((v[0].y, v[0].z), (0.0, 0.0));
                 assert!(x[0].x > rest[0].x);
@@ -341,24 +335,25 @@ macro_rules! load_tests {
                 let m = masses(rest, tets);
                 let (n, t, dt) = (rest.len(), tets.len(), 1.0 / 60.0);
                 let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; n]);
+                let scene = Scene::new(dt).with_gravity(gravity).with_external_forces(forces);
                 match solver {
                     Solver::Newton => {
                         let len = newton_scratch_len(n, t);
                         let (mut a, mut b, mut h) = (vec![Vec3::ZERO; len.vectors], vec![Mat3::ZERO; len.blocks], vec![TetHessian::default(); len.hessians]);
-                        let settings = NewtonSettings::new(dt).with_gravity(gravity).with_tolerance(TOLERANCES[0], 50).with_external_forces(forces);
-                        let report = newton_step(&body, &m, pinned, &settings, &mut x, &mut v, &mut NewtonScratch::new(&mut a, &mut b, &mut h)).unwrap();
+                        let settings = NewtonSettings::new().with_tolerance(TOLERANCES[0], 50);
+                        let report = newton_step(&body, &m, pinned, &scene, &settings, &mut x, &mut v, &mut NewtonScratch::new(&mut a, &mut b, &mut h)).unwrap();
                         assert!(report.converged, "{report:?}");
                     }
                     Solver::Relax => {
                         let (mut a, mut s) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
-                        let settings = RelaxSettings::new(dt).with_gravity(gravity).with_tolerance(TOLERANCES[1], 100_000).with_external_forces(forces);
-                        let report = relax_step(&body, &m, pinned, &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
+                        let settings = RelaxSettings::new().with_tolerance(TOLERANCES[1], 100_000);
+                        let report = relax_step(&body, &m, pinned, &scene, &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
                         assert!(report.converged, "{report:?}");
                     }
                     Solver::Vbd => {
                         let (mut a, mut i) = (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)]);
-                        let settings = VbdSettings::new(dt).with_gravity(gravity).with_tolerance(TOLERANCES[2], 100_000).with_external_forces(forces);
-                        let report = vbd_step(&body, &m, pinned, &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
+                        let settings = VbdSettings::new().with_tolerance(TOLERANCES[2], 100_000);
+                        let report = vbd_step(&body, &m, pinned, &scene, &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
                         assert!(report.converged, "{report:?}");
                     }
                 }
@@ -415,6 +410,7 @@ macro_rules! load_tests {
                 // Resting on the plane through the origin, thrown into it at 3 m/s.
                 let start: Vec<Vec3> = rest.iter().map(|&p| p + Vec3::new(0.0, 0.7 * (p.x + p.z) + 1e-3, 0.0)).collect();
                 let throw = vec![Vec3::new(0.5, -3.0, 0.2); n];
+                let scene = Scene::new(dt).with_gravity(gravity).with_ground(ground).with_fixed_axes(&fixed);
                 let failures = core::cell::RefCell::new(Vec::new());
                 let keeps = |name: &str, start: &[Vec3], x: &[Vec3]| {
                     let mut failures = failures.borrow_mut();
@@ -435,46 +431,45 @@ macro_rules! load_tests {
                     let (mut x, mut v) = (start.clone(), throw.clone());
                     let len = newton_scratch_len(n, t);
                     let (mut a, mut b, mut h) = (vec![Vec3::ZERO; len.vectors], vec![Mat3::ZERO; len.blocks], vec![TetHessian::default(); len.hessians]);
-                    let settings = NewtonSettings::new(dt).with_gravity(gravity).with_ground(ground).with_fixed_axes(&fixed);
+                    let settings = NewtonSettings::new();
                     for _ in 0..3 {
-                        newton_step(&body, &m, &[], &settings, &mut x, &mut v, &mut NewtonScratch::new(&mut a, &mut b, &mut h)).unwrap();
+                        newton_step(&body, &m, &[], &scene, &settings, &mut x, &mut v, &mut NewtonScratch::new(&mut a, &mut b, &mut h)).unwrap();
                     }
                     keeps("newton_step", &start, &x);
                 }
                 {
                     let (mut x, mut v) = (start.clone(), throw.clone());
                     let (mut a, mut s) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
-                    let mut settings = RelaxSettings::new(dt).with_gravity(gravity).with_fixed_axes(&fixed).with_tolerance(1e-3, 2000);
-                    settings.ground = Some(ground);
+                    let settings = RelaxSettings::new().with_tolerance(1e-3, 2000);
                     for _ in 0..3 {
-                        relax_step(&body, &m, &[], &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
+                        relax_step(&body, &m, &[], &scene, &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
                     }
                     keeps("relax_step", &start, &x);
                     let (mut x, mut v) = (start.clone(), throw.clone());
                     let settings = settings.with_chebyshev(0.9, 1.0, 2);
                     for _ in 0..3 {
-                        relax_step(&body, &m, &[], &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
+                        relax_step(&body, &m, &[], &scene, &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
                     }
                     keeps("relax_step (Chebyshev)", &start, &x);
                     let (mut x, mut v) = (start.clone(), throw.clone());
                     for _ in 0..3 {
-                        gradient_descent_step(&body, &m, &[], &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
+                        gradient_descent_step(&body, &m, &[], &scene, &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
                     }
                     keeps("gradient_descent_step", &start, &x);
                 }
                 {
                     let (mut x, mut v) = (start.clone(), throw.clone());
                     let (mut a, mut i) = (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)]);
-                    let settings = VbdSettings::new(dt).with_gravity(gravity).with_ground(ground).with_fixed_axes(&fixed);
+                    let settings = VbdSettings::new();
                     for _ in 0..3 {
-                        vbd_step(&body, &m, &[], &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
+                        vbd_step(&body, &m, &[], &scene, &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
                     }
                     keeps("vbd_step", &start, &x);
                     // With Chebyshev: the extrapolated trial points too.
                     let (mut x, mut v) = (start.clone(), throw.clone());
                     let settings = settings.with_chebyshev(0.95, 2);
                     for _ in 0..3 {
-                        vbd_step(&body, &m, &[], &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
+                        vbd_step(&body, &m, &[], &scene, &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
                     }
                     keeps("vbd_step (Chebyshev)", &start, &x);
                 }
@@ -486,12 +481,12 @@ macro_rules! load_tests {
                     assert!(unit.dot(low[0]) < -1e-3 && unit.dot(low[last]) < -1e-3);
                     let (mut x, mut v) = (low.clone(), throw.clone());
                     let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
-                    let mut settings = ExplicitSettings::new(1e-5).with_gravity(gravity).with_fixed_axes(&fixed);
-                    settings.ground = Some(ground);
+                    let scene = Scene::new(1e-5).with_gravity(gravity).with_ground(ground).with_fixed_axes(&fixed);
+                    let settings = ExplicitSettings::new();
                     for _ in 0..30 {
-                        step_explicit(&body, &m, &[], &settings, &mut x, &mut v, &mut ExplicitScratch::new(&mut buffer)).unwrap();
+                        explicit_step(&body, &m, &[], &scene, &settings, &mut x, &mut v, &mut ExplicitScratch::new(&mut buffer)).unwrap();
                     }
-                    keeps("step_explicit", &low, &x);
+                    keeps("explicit_step", &low, &x);
                 }
                 let failures = failures.into_inner();
                 assert!(failures.is_empty(), "{}", failures.join("\n"));
@@ -507,14 +502,15 @@ macro_rules! load_tests {
                 let (mut v, mut s) = (vec![Vec3::ZERO; relax_scratch_len(4)], vec![0.0; 4]);
                 let mut x = rest.clone();
                 let bad_forces = [Vec3::ZERO, Vec3::new(0.0, Real::NAN, 0.0), Vec3::ZERO, Vec3::ZERO];
-                let cases: [(RelaxSettings<Vec3>, StepError); 3] = [
-                    (RelaxSettings::new(0.01).with_external_forces(&bad_forces[..3]), StepError::LengthMismatch { buffer: StepBuffer::ExternalForces, expected: 4, actual: 3 }),
-                    (RelaxSettings::new(0.01).with_external_forces(&bad_forces), StepError::ExternalForce { vertex: 1 }),
-                    (RelaxSettings::new(0.01).with_fixed_axes(&[0, 0, 8, 0]), StepError::FixedAxes { vertex: 2 }),
+                let settings = RelaxSettings::new();
+                let cases: [(Scene<Vec3>, StepError); 3] = [
+                    (Scene::new(0.01).with_external_forces(&bad_forces[..3]), StepError::LengthMismatch { buffer: StepBuffer::ExternalForces, expected: 4, actual: 3 }),
+                    (Scene::new(0.01).with_external_forces(&bad_forces), StepError::ExternalForce { vertex: 1 }),
+                    (Scene::new(0.01).with_fixed_axes(&[0, 0, 8, 0]), StepError::FixedAxes { vertex: 2 }),
                 ];
-                for (settings, expected) in cases {
+                for (scene, expected) in cases {
                     let mut scratch = RelaxScratch::new(&mut v, &mut s);
-                    assert_eq!(relax_quasi_static(&body, &m, &[], &settings, &mut x, &mut scratch), Err(expected));
+                    assert_eq!(relax_quasi_static(&body, &m, &[], &scene, &settings, &mut x, &mut scratch), Err(expected));
                     assert_eq!(x, rest);
                 }
             }

@@ -1,4 +1,4 @@
-//! Newton's method (`src/step/newton.rs`) on the cantilever of tests/steppers/relax.rs
+//! Newton's method (`src/step/descent/newton/`) on the cantilever of tests/steppers/relax.rs
 //! (quasi-static) and on a stiff block (implicit Euler at 1/30 s), in both precisions: residuals
 //! recomputed from the force kernel, agreement with the relaxation's converged answer, pins, the
 //! ground, and refused input with the state left as it was.
@@ -12,9 +12,9 @@ macro_rules! newton_tests {
             use $($api)::+::material::{Material, NeoHookean, StVK, StableNeoHookean};
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
-                Ground, NewtonReport, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings,
-                TetElastic, newton_quasi_static, newton_scratch_len, newton_step,
-                relax_quasi_static, relax_scratch_len,
+                Ground, NewtonOptions, NewtonReport, NewtonScratch, NewtonSettings, RelaxScratch,
+                RelaxSettings, Scene, TetElastic, newton_quasi_static, newton_scratch_len,
+                newton_step, relax_quasi_static, relax_scratch_len,
             };
             use $($api)::+::types::{Mat3, Real, Vec3};
 
@@ -95,14 +95,15 @@ macro_rules! newton_tests {
                 let model = TetElastic::new(mesh, material);
                 let n = bar.rest.len();
 
-                let settings = NewtonSettings::new(1.0).with_gravity(GRAVITY).with_tolerance(TOLERANCE, 25);
+                let scene = Scene::new(1.0).with_gravity(GRAVITY);
+                let settings = NewtonSettings::new().with_tolerance(TOLERANCE, 25);
                 let mut buffers = Buffers::new(n, bar.tets.len());
                 let mut x = bar.rest.clone();
-                let report = newton_quasi_static(&model, &masses, &pinned, &settings, &mut x, &mut buffers.scratch()).unwrap();
+                let report = newton_quasi_static(&model, &masses, &pinned, &scene, &settings, &mut x, &mut buffers.scratch()).unwrap();
                 let recomputed = imbalance(&mesh, &material, &x, &masses, &pinned);
                 let load = weight(&masses, &pinned);
                 println!("{}: Newton {report:?}; recomputed imbalance {:.2e} of the load", stringify!($precision), recomputed / load);
-                assert!(report.converged && report.newton_iterations <= 25, "{report:?}");
+                assert!(report.converged && report.iterations <= 25, "{report:?}");
                 assert_reports_imbalance(report.residual, recomputed, load);
                 // The tolerance is honoured, or (f32) the floor it stopped at is reported.
                 assert!(recomputed <= (TOLERANCE as f64 * load).max(2.0 * report.residual as f64));
@@ -113,13 +114,12 @@ macro_rules! newton_tests {
                 }
 
                 // The relaxation's converged answer (tests/steppers/relax.rs settings).
-                let relax_settings = RelaxSettings::new(1.0)
-                    .with_gravity(GRAVITY)
+                let relax_settings = RelaxSettings::new()
                     .with_tolerance(RELAX_TOLERANCE, 50_000)
                     .with_chebyshev(0.999, 2.0, 0);
                 let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
                 let mut relaxed = bar.rest.clone();
-                let relax_report = relax_quasi_static(&model, &masses, &pinned, &relax_settings, &mut relaxed, &mut RelaxScratch::new(&mut vectors, &mut scalars)).unwrap();
+                let relax_report = relax_quasi_static(&model, &masses, &pinned, &scene, &relax_settings, &mut relaxed, &mut RelaxScratch::new(&mut vectors, &mut scalars)).unwrap();
                 assert!(relax_report.converged);
                 let sag = bar.rest.iter().zip(&x).map(|(r, x)| r.y - x.y).fold(0.0, Real::max);
                 let difference = x.iter().zip(&relaxed).map(|(a, b)| (*a - *b).length()).fold(0.0, Real::max);
@@ -141,15 +141,16 @@ macro_rules! newton_tests {
                 crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let model = TetElastic::new(mesh, material);
                 let n = bar.rest.len();
-                let settings = NewtonSettings::new(1.0).with_gravity(GRAVITY).with_tolerance(TOLERANCE, 60).with_cg_iterations(1000);
+                let scene = Scene::new(1.0).with_gravity(GRAVITY);
+                let settings = NewtonSettings::new().with_tolerance(TOLERANCE, 60).with_cg_iterations(1000);
                 let mut buffers = Buffers::new(n, bar.tets.len());
                 let mut x = bar.rest.clone();
-                let report = newton_quasi_static(&model, &masses, &pinned, &settings, &mut x, &mut buffers.scratch()).unwrap();
+                let report = newton_quasi_static(&model, &masses, &pinned, &scene, &settings, &mut x, &mut buffers.scratch()).unwrap();
                 let sag = bar.rest.iter().zip(&x).map(|(r, x)| r.y - x.y).fold(0.0, Real::max);
                 let recomputed = imbalance(&mesh, &material, &x, &masses, &pinned);
                 let load = weight(&masses, &pinned);
                 println!("{} {material:?}: sag {sag:.3} m, {report:?}", stringify!($precision));
-                assert!(report.converged && report.newton_iterations <= 60, "{report:?}");
+                assert!(report.converged && report.iterations <= 60, "{report:?}");
                 assert!(sag > 0.2 && sag < 1.0, "{sag}");
                 assert_reports_imbalance(report.residual, recomputed, load);
             }
@@ -175,13 +176,13 @@ macro_rules! newton_tests {
                     p + Vec3::new(s, c, s * c) * 5e-4 + Vec3::new(0.0, 0.01, 0.0)
                 }).collect();
                 let mut v = vec![Vec3::ZERO; n];
-                let settings = NewtonSettings::new(1.0 / 30.0)
+                let scene = Scene::new(1.0 / 30.0)
                     .with_gravity(GRAVITY)
-                    .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5))
-                    .with_tolerance(tolerance, 50);
+                    .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                let settings = NewtonSettings::new().with_tolerance(tolerance, 50);
                 let mut buffers = Buffers::new(n, block.tets.len());
                 let reports = (0..30)
-                    .map(|_| newton_step(&model, &masses, &[], &settings, &mut x, &mut v, &mut buffers.scratch()).unwrap())
+                    .map(|_| newton_step(&model, &masses, &[], &scene, &settings, &mut x, &mut v, &mut buffers.scratch()).unwrap())
                     .collect();
                 (reports, x, v, masses)
             }
@@ -190,8 +191,8 @@ macro_rules! newton_tests {
             fn implicit_euler_on_a_stiff_block_converges_on_every_step() {
                 let (reports, x, v, masses) = stiff_block_run(1e-4);
                 let at_floor = reports.iter().filter(|r| r.residual > r.target).count();
-                let newton: u32 = reports.iter().map(|r| r.newton_iterations).sum();
-                let cg: u32 = reports.iter().map(|r| r.cg_iterations).sum();
+                let newton: u32 = reports.iter().map(|r| r.iterations).sum();
+                let cg: u32 = reports.iter().map(|r| r.details.cg_iterations).sum();
                 println!(
                     "{}: {} steps, {newton} Newton and {cg} CG iterations, {at_floor} stopped at the rounding floor; last {:?}",
                     stringify!($precision), reports.len(), reports.last().unwrap()
@@ -220,7 +221,8 @@ macro_rules! newton_tests {
                 crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let model = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = bar.rest.len();
-                let settings = NewtonSettings::new(1.0 / 60.0).with_gravity(GRAVITY).with_tolerance(TOLERANCE.max(1e-6), 20);
+                let scene = Scene::new(1.0 / 60.0).with_gravity(GRAVITY);
+                let settings = NewtonSettings::new().with_tolerance(TOLERANCE.max(1e-6), 20);
                 let mut buffers = Buffers::new(n, bar.tets.len());
 
                 // Pins: a few steps, pinned vertices keep position and velocity exactly.
@@ -232,7 +234,7 @@ macro_rules! newton_tests {
                 }
                 let v0 = v.clone();
                 for _ in 0..5 {
-                    let report = newton_step(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut buffers.scratch()).unwrap();
+                    let report = newton_step(&model, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut buffers.scratch()).unwrap();
                     assert!(report.converged, "{report:?}");
                 }
                 for i in 0..n {
@@ -250,36 +252,36 @@ macro_rules! newton_tests {
                 let mut bad = x.clone();
                 bad[4].z = Real::NAN;
                 assert_eq!(
-                    newton_step(&model, &masses, &pinned, &settings, &mut bad, &mut v, &mut buffers.scratch()),
+                    newton_step(&model, &masses, &pinned, &scene, &settings, &mut bad, &mut v, &mut buffers.scratch()),
                     Err(StepError::NonFiniteInput { vertex: 4 })
                 );
                 let mut short = Buffers::new(n - 1, bar.tets.len());
                 assert!(matches!(
-                    newton_step(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut short.scratch()),
+                    newton_step(&model, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut short.scratch()),
                     Err(StepError::LengthMismatch { .. })
                 ));
                 let mut few = Buffers::new(n, bar.tets.len() - 1);
                 assert!(matches!(
-                    newton_step(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut few.scratch()),
+                    newton_step(&model, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut few.scratch()),
                     Err(StepError::LengthMismatch { .. })
                 ));
                 for broken in [
                     NewtonSettings { tolerance: 1.0, ..settings },
                     NewtonSettings { armijo: 0.0, ..settings },
                     NewtonSettings { backtrack: 1.0, ..settings },
-                    NewtonSettings { max_cg_iterations: 0, ..settings },
+                    NewtonSettings { options: NewtonOptions { max_cg_iterations: 0 }, ..settings },
                 ] {
                     assert_eq!(
-                        newton_step(&model, &masses, &pinned, &broken, &mut x, &mut v, &mut buffers.scratch()),
+                        newton_step(&model, &masses, &pinned, &scene, &broken, &mut x, &mut v, &mut buffers.scratch()),
                         Err(StepError::NewtonSettings)
                     );
                 }
                 assert_eq!(
-                    newton_step(&model, &masses, &pinned, &NewtonSettings { dt: 0.0, ..settings }, &mut x, &mut v, &mut buffers.scratch()),
+                    newton_step(&model, &masses, &pinned, &Scene { dt: 0.0, ..scene }, &settings, &mut x, &mut v, &mut buffers.scratch()),
                     Err(StepError::TimeStep)
                 );
                 assert_eq!(
-                    newton_step(&model, &masses, &pinned, &settings.with_ground(Ground::new(Vec3::ZERO, 0.0)), &mut x, &mut v, &mut buffers.scratch()),
+                    newton_step(&model, &masses, &pinned, &scene.with_ground(Ground::new(Vec3::ZERO, 0.0)), &settings, &mut x, &mut v, &mut buffers.scratch()),
                     Err(StepError::Ground)
                 );
                 assert_eq!((bits(&x), bits(&v)), (x0, v0));
@@ -293,7 +295,7 @@ macro_rules! newton_tests {
                 let moving: Vec<bool> = vec![false; n];
                 let still = vec![Vec3::ZERO; n];
                 let (mut xf, mut vf) = (flat.clone(), still.clone());
-                let result = newton_step(&barrier, &masses, &moving, &NewtonSettings::new(1.0 / 60.0), &mut xf, &mut vf, &mut buffers.scratch());
+                let result = newton_step(&barrier, &masses, &moving, &Scene::new(1.0 / 60.0), &NewtonSettings::new(), &mut xf, &mut vf, &mut buffers.scratch());
                 assert!(matches!(result, Err(StepError::NonFiniteState { .. })), "{result:?}");
                 assert_eq!((bits(&xf), bits(&vf)), (bits(&flat), bits(&still)));
             }
@@ -313,7 +315,8 @@ macro_rules! newton_tests {
                     let n = bar.rest.len();
                     let tolerance = 1e-6;
                     let mut buffers = Buffers::new(n, bar.tets.len());
-                    let settings = NewtonSettings::new(1.0).with_gravity(GRAVITY).with_tolerance(tolerance, 50);
+                    let scene = Scene::new(1.0).with_gravity(GRAVITY);
+                    let settings = NewtonSettings::new().with_tolerance(tolerance, 50);
                     // The fastest of several runs: the machine is shared, and the minimum is the
                     // run least disturbed.
                     let mut newton_time = f64::INFINITY;
@@ -321,15 +324,14 @@ macro_rules! newton_tests {
                     for _ in 0..7 {
                         let mut x = bar.rest.clone();
                         let clock = std::time::Instant::now();
-                        let report = newton_quasi_static(&model, &masses, &pinned, &settings, &mut x, &mut buffers.scratch()).unwrap();
+                        let report = newton_quasi_static(&model, &masses, &pinned, &scene, &settings, &mut x, &mut buffers.scratch()).unwrap();
                         newton_time = newton_time.min(clock.elapsed().as_secs_f64());
                         newton = Some(report);
                     }
                     let newton = newton.unwrap();
                     // f32 cannot reach 1e-6 by relaxation (its floor is about 1e-3): a capped budget.
                     let budget = if core::mem::size_of::<Real>() == 4 { 100_000 } else { 2_000_000 };
-                    let relax_settings = RelaxSettings::new(1.0)
-                        .with_gravity(GRAVITY)
+                    let relax_settings = RelaxSettings::new()
                         .with_tolerance(tolerance, budget)
                         .with_chebyshev(0.999, 2.0, 0);
                     let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
@@ -338,7 +340,7 @@ macro_rules! newton_tests {
                     for _ in 0..3 {
                         let mut y = bar.rest.clone();
                         let clock = std::time::Instant::now();
-                        let report = relax_quasi_static(&model, &masses, &pinned, &relax_settings, &mut y, &mut RelaxScratch::new(&mut vectors, &mut scalars)).unwrap();
+                        let report = relax_quasi_static(&model, &masses, &pinned, &scene, &relax_settings, &mut y, &mut RelaxScratch::new(&mut vectors, &mut scalars)).unwrap();
                         relax_time = relax_time.min(clock.elapsed().as_secs_f64());
                         relax = Some(report);
                     }
@@ -346,7 +348,7 @@ macro_rules! newton_tests {
                     println!(
                         "{} {cells:?}, {} tets, tolerance {tolerance:e}: Newton {} iterations ({} CG) {:.4} s, converged {}, residual {:.2e}; \
                          relax {} iterations {:.4} s, converged {}; ratio {:.1}x",
-                        stringify!($precision), bar.tets.len(), newton.newton_iterations, newton.cg_iterations, newton_time,
+                        stringify!($precision), bar.tets.len(), newton.iterations, newton.details.cg_iterations, newton_time,
                         newton.converged, newton.residual, relax.iterations, relax_time, relax.converged, relax_time / newton_time
                     );
                 }

@@ -12,8 +12,9 @@ macro_rules! relax_tests {
             use $($api)::+::material::StableNeoHookean;
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
-                RelaxScratch, RelaxSettings, TetElastic, gradient_descent_quasi_static,
-                gradient_descent_step, relax_quasi_static, relax_scratch_len, relax_step,
+                RelaxOptions, RelaxScratch, RelaxSettings, Scene, TetElastic,
+                gradient_descent_quasi_static, gradient_descent_step, relax_quasi_static,
+                relax_scratch_len, relax_step,
             };
             use $($api)::+::types::{Real, Vec3};
 
@@ -58,9 +59,8 @@ macro_rules! relax_tests {
                 let stiff = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e7, 0.3).unwrap());
                 let n = bar.rest.len();
                 // A fixed budget (tolerance 0), so that results depend on every iterate.
-                let settings = RelaxSettings::new(1.0 / 60.0)
-                    .with_gravity(GRAVITY)
-                    .with_tolerance(0.0, 30);
+                let scene = Scene::new(1.0 / 60.0).with_gravity(GRAVITY);
+                let settings = RelaxSettings::new().with_tolerance(0.0, 30);
                 let bits = |x: &[Vec3]| -> Vec<[u64; 3]> {
                     x.iter().map(|p| p.to_array().map(|c| f64::from(c).to_bits())).collect()
                 };
@@ -71,7 +71,7 @@ macro_rules! relax_tests {
                         let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
                         let mut scalars = vec![0.0; n];
                         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-                        relax_step(body, &masses, &bar.pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        relax_step(body, &masses, &bar.pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     }
                     bits(&x)
                 };
@@ -80,7 +80,7 @@ macro_rules! relax_tests {
                 let kept_steps = |body: &TetElastic<StableNeoHookean>, scratch: &mut RelaxScratch<Vec3>| {
                     let (mut x, mut v) = (bar.rest.clone(), vec![Vec3::ZERO; n]);
                     for _ in 0..2 {
-                        relax_step(body, &masses, &bar.pinned, &settings, &mut x, &mut v, scratch).unwrap();
+                        relax_step(body, &masses, &bar.pinned, &scene, &settings, &mut x, &mut v, scratch).unwrap();
                     }
                     bits(&x)
                 };
@@ -106,13 +106,13 @@ macro_rules! relax_tests {
                 let mut scalars = vec![0.0; n];
 
                 // Quasi-static, from rest.
-                let settings = RelaxSettings::new(1.0 / 60.0)
-                    .with_gravity(GRAVITY)
+                let scene = Scene::new(1.0 / 60.0).with_gravity(GRAVITY);
+                let settings = RelaxSettings::new()
                     .with_tolerance(TOLERANCE, 50_000)
                     .with_chebyshev(QUASI_STATIC_RHO, 2.0, 0);
                 let mut x_static = bar.rest.clone();
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-                let report = relax_quasi_static(&body, &masses, &bar.pinned, &settings, &mut x_static, &mut scratch).unwrap();
+                let report = relax_quasi_static(&body, &masses, &bar.pinned, &scene, &settings, &mut x_static, &mut scratch).unwrap();
                 let static_imbalance = imbalance(&mesh, &material, &x_static, &masses, &bar.pinned);
                 let sag = bar.rest.iter().zip(&x_static).map(|(r, x)| r.y - x.y).fold(0.0, Real::max);
                 // Without inertia the preconditioned system's condition number is about 1100
@@ -136,7 +136,7 @@ macro_rules! relax_tests {
                 let (mut iterations, mut evaluations, mut unconverged) = (0, 0, 0);
                 let steps = 300;
                 for _ in 0..steps {
-                    let report = relax_step(&body, &masses, &bar.pinned, &dynamic, &mut x, &mut v, &mut scratch).unwrap();
+                    let report = relax_step(&body, &masses, &bar.pinned, &scene, &dynamic, &mut x, &mut v, &mut scratch).unwrap();
                     iterations += report.iterations;
                     evaluations += report.energy_evaluations;
                     unconverged += u32::from(!report.converged);
@@ -178,15 +178,15 @@ macro_rules! relax_tests {
                 let n = bar.rest.len();
                 let weight = masses.iter().fold(0.0 as Real, |a, &m| a.max(m)) * 9.81;
                 let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
-                let settings = RelaxSettings::new(1.0 / 60.0)
-                    .with_gravity(GRAVITY)
+                let scene = Scene::new(1.0 / 60.0).with_gravity(GRAVITY);
+                let settings = RelaxSettings::new()
                     .with_tolerance(TOLERANCE, 50_000)
                     .with_chebyshev(QUASI_STATIC_RHO, 2.0, 0);
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let mut relaxed = bar.rest.clone();
-                let relax = relax_quasi_static(&body, &masses, &bar.pinned, &settings, &mut relaxed, &mut scratch).unwrap();
+                let relax = relax_quasi_static(&body, &masses, &bar.pinned, &scene, &settings, &mut relaxed, &mut scratch).unwrap();
                 let mut descended = bar.rest.clone();
-                let descent = gradient_descent_quasi_static(&body, &masses, &bar.pinned, &settings, &mut descended, &mut scratch).unwrap();
+                let descent = gradient_descent_quasi_static(&body, &masses, &bar.pinned, &scene, &settings, &mut descended, &mut scratch).unwrap();
                 println!("{}: relaxation {relax:?}\ngradient descent {descent:?}", stringify!($precision));
                 assert!(relax.converged && descent.converged, "{descent:?}");
                 assert!(imbalance(&mesh, &material, &descended, &masses, &bar.pinned) < 20.0 * TOLERANCE * weight);
@@ -202,8 +202,8 @@ macro_rules! relax_tests {
                 let dynamic = settings.with_tolerance(TOLERANCE.max(1e-4), 5_000).with_chebyshev(DYNAMIC_RHO, 2.0, 0);
                 let (mut x_relax, mut v_relax) = (bar.rest.clone(), vec![Vec3::ZERO; n]);
                 let (mut x_descent, mut v_descent) = (bar.rest.clone(), vec![Vec3::ZERO; n]);
-                let relax = relax_step(&body, &masses, &bar.pinned, &dynamic, &mut x_relax, &mut v_relax, &mut scratch).unwrap();
-                let descent = gradient_descent_step(&body, &masses, &bar.pinned, &dynamic, &mut x_descent, &mut v_descent, &mut scratch).unwrap();
+                let relax = relax_step(&body, &masses, &bar.pinned, &scene, &dynamic, &mut x_relax, &mut v_relax, &mut scratch).unwrap();
+                let descent = gradient_descent_step(&body, &masses, &bar.pinned, &scene, &dynamic, &mut x_descent, &mut v_descent, &mut scratch).unwrap();
                 println!("{}: one step, relaxation {} and gradient descent {} iterations", stringify!($precision), relax.iterations, descent.iterations);
                 assert!(relax.converged && descent.converged, "{descent:?}");
                 let moved = bar.rest.iter().zip(&x_relax).map(|(r, x)| (*r - *x).length()).fold(0.0, Real::max);
@@ -227,15 +227,16 @@ macro_rules! relax_tests {
                 // The first 1/60 s step of the pinned bar released from rest: the bar starts to
                 // sag, a bending (slow) mode. Plain preconditioned descent needs 7951 iterations
                 // to 1e-5 of the load, Chebyshev 332.
-                let solve = |settings: RelaxSettings<Vec3>, vectors: &mut [Vec3], scalars: &mut [Real]| {
+                let scene = Scene::new(1.0 / 60.0).with_gravity(GRAVITY);
+                let solve = |settings: RelaxSettings, vectors: &mut [Vec3], scalars: &mut [Real]| {
                     let (mut x, mut v) = (bar.rest.clone(), vec![Vec3::ZERO; n]);
                     let mut scratch = RelaxScratch::new(vectors, scalars);
-                    let report = relax_step(&body, &masses, &bar.pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    let report = relax_step(&body, &masses, &bar.pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     (report, x)
                 };
                 // Plain descent with the first trial step 1 (no Chebyshev), set explicitly since
                 // `RelaxSettings::new` accelerates by default.
-                let base = RelaxSettings::new(1.0 / 60.0).with_gravity(GRAVITY).with_chebyshev(0.0, 1.0, 0);
+                let base = RelaxSettings::new().with_chebyshev(0.0, 1.0, 0);
                 let tolerance = TOLERANCE.max(1e-5);
                 let budget = 400;
                 let (plain, _) = solve(base.with_tolerance(tolerance, budget), &mut vectors, &mut scalars);
@@ -267,9 +268,10 @@ macro_rules! relax_tests {
                 let mut scalars = vec![0.0; n];
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let h: Real = 1.0 / 60.0;
-                let settings = RelaxSettings::new(h).with_gravity(GRAVITY);
+                let scene = Scene::new(h).with_gravity(GRAVITY);
+                let settings = RelaxSettings::new();
                 let (mut x, mut v) = (bar.rest.clone(), vec![Vec3::new(1.0, 2.0, 0.0); n]);
-                let report = relax_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                let report = relax_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                 // The exact minimiser is the rigid translation x_n + h v_n + h^2 g, which is the
                 // initial guess: no descent iteration is needed.
                 assert!(report.converged && report.iterations == 0, "{report:?}");
@@ -307,20 +309,21 @@ macro_rules! relax_tests {
                     x.iter().map(|p| p.to_array().map(|c| f64::from(c).to_bits())).collect()
                 };
                 for (h, budget) in [(1.0 / 60.0, 30), (1.0 / 240.0, 5), (1e-3, 100)] {
-                    let settings = RelaxSettings::new(h).with_gravity(GRAVITY).with_tolerance(1e-4, budget);
-                    let run = |settings: &RelaxSettings<Vec3>| {
+                    let scene = Scene::new(h).with_gravity(GRAVITY);
+                    let settings = RelaxSettings::new().with_tolerance(1e-4, budget);
+                    let run = |scene: &Scene<Vec3>| {
                         let (mut x, mut v) = (start.clone(), spin.clone());
                         let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
                         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                         let mut evaluations = Vec::new();
                         for _ in 0..5 {
-                            let report = relax_step(&body, &masses, &[], settings, &mut x, &mut v, &mut scratch).unwrap();
+                            let report = relax_step(&body, &masses, &[], scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                             evaluations.push(report.energy_evaluations);
                         }
                         (bits(&x), bits(&v), evaluations)
                     };
-                    let (x, v, evaluations) = run(&settings);
-                    let (x_far, v_far, evaluations_far) = run(&settings.with_colliders(&far));
+                    let (x, v, evaluations) = run(&scene);
+                    let (x_far, v_far, evaluations_far) = run(&scene.with_colliders(&far));
                     assert!(x == x_far && v == v_far, "h = {h}");
                     let fewer: Vec<u32> = evaluations_far.iter().map(|e| e - 1).collect();
                     assert_eq!(evaluations, fewer, "h = {h}");
@@ -341,16 +344,15 @@ macro_rules! relax_tests {
                 // Ground y = 0.05 with normal +y: the bar (y in [0, 0.1]) is half inside it, the
                 // clamp included.
                 let ground = Ground::new(Vec3::Y, 0.05);
-                let settings = RelaxSettings::new(1.0 / 60.0)
-                    .with_gravity(GRAVITY)
-                    .with_ground(ground)
+                let scene = Scene::new(1.0 / 60.0).with_gravity(GRAVITY).with_ground(ground);
+                let settings = RelaxSettings::new()
                     .with_tolerance(TOLERANCE.max(1e-3), 400)
                     .with_chebyshev(DYNAMIC_RHO, 2.0, 0);
                 let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
                 let mut scalars = vec![0.0; n];
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let (mut x, mut v) = (bar.rest.clone(), vec![Vec3::ZERO; n]);
-                let report = relax_step(&body, &masses, &bar.pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                let report = relax_step(&body, &masses, &bar.pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                 assert!(report.converged, "{report:?}");
                 for ((x, x0), pinned) in x.iter().zip(&bar.rest).zip(&bar.pinned) {
                     if *pinned {
@@ -367,27 +369,29 @@ macro_rules! relax_tests {
                 crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = bar.rest.len();
-                let good = RelaxSettings::new(0.01).with_gravity(GRAVITY);
+                let scene = Scene::new(0.01).with_gravity(GRAVITY);
+                let good = RelaxSettings::new();
+                let accelerated = good.with_chebyshev(0.99, 2.0, 0);
                 let cases = [
-                    (RelaxSettings { dt: 0.0, ..good }, StepError::TimeStep),
-                    (RelaxSettings { dt: Real::NAN, ..good }, StepError::TimeStep),
-                    (good.with_gravity(Vec3::splat(Real::INFINITY)), StepError::Gravity),
-                    (good.with_tolerance(1.0, 10), StepError::RelaxSettings),
-                    (good.with_tolerance(-0.1, 10), StepError::RelaxSettings),
-                    (RelaxSettings { armijo: 0.0, ..good }, StepError::RelaxSettings),
-                    (RelaxSettings { backtrack: 1.0, ..good }, StepError::RelaxSettings),
-                    (good.with_momentum(1.0), StepError::RelaxSettings),
-                    (good.with_chebyshev(1.0, 2.0, 0), StepError::RelaxSettings),
-                    (good.with_chebyshev(0.99, 0.0, 0), StepError::RelaxSettings),
-                    (good.with_chebyshev(0.99, Real::INFINITY, 0), StepError::RelaxSettings),
-                    (RelaxSettings { momentum: 0.5, ..good.with_chebyshev(0.99, 2.0, 0) }, StepError::RelaxSettings),
+                    (Scene { dt: 0.0, ..scene }, good, StepError::TimeStep),
+                    (Scene { dt: Real::NAN, ..scene }, good, StepError::TimeStep),
+                    (scene.with_gravity(Vec3::splat(Real::INFINITY)), good, StepError::Gravity),
+                    (scene, good.with_tolerance(1.0, 10), StepError::RelaxSettings),
+                    (scene, good.with_tolerance(-0.1, 10), StepError::RelaxSettings),
+                    (scene, RelaxSettings { armijo: 0.0, ..good }, StepError::RelaxSettings),
+                    (scene, RelaxSettings { backtrack: 1.0, ..good }, StepError::RelaxSettings),
+                    (scene, good.with_momentum(1.0), StepError::RelaxSettings),
+                    (scene, good.with_chebyshev(1.0, 2.0, 0), StepError::RelaxSettings),
+                    (scene, good.with_chebyshev(0.99, 0.0, 0), StepError::RelaxSettings),
+                    (scene, good.with_chebyshev(0.99, Real::INFINITY, 0), StepError::RelaxSettings),
+                    (scene, RelaxSettings { options: RelaxOptions { momentum: 0.5, ..accelerated.options }, ..accelerated }, StepError::RelaxSettings),
                 ];
                 let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
                 let mut scalars = vec![0.0; n];
-                for (settings, expected) in cases {
+                for (scene, settings, expected) in cases {
                     let (mut x, mut v) = (bar.rest.clone(), vec![Vec3::X; n]);
                     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-                    let error = relax_step(&body, &masses, &bar.pinned, &settings, &mut x, &mut v, &mut scratch).unwrap_err();
+                    let error = relax_step(&body, &masses, &bar.pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap_err();
                     assert_eq!(error, expected);
                     assert_eq!((x, v), (bar.rest.clone(), vec![Vec3::X; n]));
                 }
@@ -395,7 +399,7 @@ macro_rules! relax_tests {
                 bad[2] = -1.0;
                 let mut x = bar.rest.clone();
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-                let error = relax_quasi_static(&body, &bad, &[], &good, &mut x, &mut scratch).unwrap_err();
+                let error = relax_quasi_static(&body, &bad, &[], &scene, &good, &mut x, &mut scratch).unwrap_err();
                 assert_eq!(error, StepError::Mass { vertex: 2 });
                 assert_eq!(x, bar.rest);
             }

@@ -15,7 +15,7 @@ macro_rules! step_tests {
             use $($api)::+::mesh::{TetMesh, TriMesh};
             use $($api)::+::step::{
                 ElasticModel, ExplicitScratch, ExplicitSettings, Ground, TetClamped, TetElastic,
-                MAX_SUBSTEPS, TriElastic, explicit_scratch_len, stable_time_step, step_explicit,
+                MAX_SUBSTEPS, Scene, TriElastic, explicit_scratch_len, explicit_step, stable_time_step,
             };
             use $($api)::+::types::{Real, Vec2, Vec3};
 
@@ -40,17 +40,17 @@ macro_rules! step_tests {
                 let n = rest.len();
                 let mut stiffness = vec![0.0; n];
                 let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
-                let settings = ExplicitSettings::new(dt);
+                let (scene, settings) = (Scene::new(dt), ExplicitSettings::new());
                 let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; n]);
-                step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                 v[3] = Vec3::new(0.0, 0.0, 0.5); // kick one vertex, without forget_history
-                step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                 for vertex in &mut v {
                     *vertex *= 1000.0; // now a millionfold jump in kinetic energy
                 }
-                let error = step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch);
+                let error = explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch);
                 assert_eq!(error.unwrap_err(), StepError::EnergyBlowUp);
             }
 
@@ -77,12 +77,11 @@ macro_rules! step_tests {
                     StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap()
                 }
 
-                fn settings(dt: Real, substeps: u32) -> ExplicitSettings<'static, Vec3> {
-                    ExplicitSettings::new(dt)
-                        .with_substeps(substeps)
+                fn settings(dt: Real, substeps: u32) -> (Scene<'static, Vec3>, ExplicitSettings) {
+                    let scene = Scene::new(dt)
                         .with_gravity(Vec3::new(0.0, 0.0, -9.81))
-                        .with_damping(0.5)
-                        .with_ground(Ground::new(Vec3::Z, 0.0).with_friction(0.6).with_restitution(0.3))
+                        .with_ground(Ground::new(Vec3::Z, 0.0).with_friction(0.6).with_restitution(0.3));
+                    (scene, ExplicitSettings::new().with_substeps(substeps).with_damping(0.5))
                 }
 
                 /// `(critical step from the largest eigenvalue of M^-1 K at rest, proven bound)`.
@@ -103,14 +102,14 @@ macro_rules! step_tests {
                     let mesh = TetMesh::new(&self.rest, &self.tets, &mut rest_data).unwrap();
                     let body = TetElastic::new(mesh, Drop::material());
                     let n = self.rest.len();
-                    let settings = Drop::settings(dt, substeps);
+                    let (scene, settings) = Drop::settings(dt, substeps);
                     let (mut x, mut v) = (self.rest.clone(), vec![Vec3::ZERO; n]);
                     let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
                     let mut scratch = ExplicitScratch::new(&mut buffer);
                     let mut states = vec![x.clone()];
                     for _ in 0..(duration / dt) as usize {
                         let before = (bits(&x), bits(&v));
-                        match step_explicit(&body, &self.masses, &[], &settings, &mut x, &mut v, &mut scratch) {
+                        match explicit_step(&body, &self.masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch) {
                             Ok(_) => states.push(x.clone()),
                             Err(error) => {
                                 // The state handed back is the one before the call, bit for bit.
@@ -187,14 +186,15 @@ macro_rules! step_tests {
                 let bound = stable_time_step(&body, &masses, &pinned, &mut stiffness).unwrap();
                 for (fraction, substeps) in [(0.5, 1), (0.9, 1), (0.9, 4)] {
                     let dt = fraction * bound * substeps as Real;
-                    let settings = ExplicitSettings::new(dt).with_substeps(substeps).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+                    let scene = Scene::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+                    let settings = ExplicitSettings::new().with_substeps(substeps);
                     let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; n]);
                     let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
                     let mut scratch = ExplicitScratch::new(&mut buffer);
                     let calls = (3.0 / dt) as usize;
                     let mut lowest: Real = 0.0;
                     for call in 0..calls {
-                        let result = step_explicit(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch);
+                        let result = explicit_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch);
                         assert!(result.is_ok(), "{fraction} x bound, {substeps} substeps: {result:?} at call {call}");
                         lowest = lowest.min(x.iter().map(|p| p.y).fold(Real::INFINITY, Real::min));
                     }
@@ -229,7 +229,7 @@ macro_rules! step_tests {
                 let mut v = vec![Vec3::ZERO; n];
                 let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
-                let settings = ExplicitSettings::new(dt);
+                let (scene, settings) = (Scene::new(dt), ExplicitSettings::new());
                 let energy = |x: &[Vec3], v: &[Vec3]| -> f64 {
                     let kinetic: Real = v.iter().zip(&masses).map(|(v, m)| 0.5 * m * v.length_squared()).sum();
                     (kinetic + mesh.elastic_energy(&material, x).unwrap()) as f64
@@ -238,7 +238,7 @@ macro_rules! step_tests {
                 let window = 50 * steps_per_period;
                 let (mut first, mut last, mut worst) = (0.0, 0.0, 0.0f64);
                 for i in 0..steps {
-                    step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     let e = energy(&x, &v);
                     worst = worst.max((e - e0).abs() / e0);
                     if i < window { first += e; }
@@ -263,10 +263,10 @@ macro_rules! step_tests {
                 let n = rest.len();
                 let mut stiffness = vec![0.0; n];
                 let dt = 0.9 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
-                let settings = ExplicitSettings::new(dt)
+                let scene = Scene::new(dt)
                     .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                    .with_damping(5.0)
                     .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                let settings = ExplicitSettings::new().with_damping(5.0);
                 let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; n]);
                 let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
@@ -274,7 +274,7 @@ macro_rules! step_tests {
                 let mut lowest: Real = Real::INFINITY;
                 let mut contacts = 0;
                 for _ in 0..steps {
-                    let report = step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    let report = explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     lowest = lowest.min(x.iter().map(|p| p.y).fold(Real::INFINITY, Real::min));
                     contacts = report.ground_contacts;
                 }
@@ -302,14 +302,15 @@ macro_rules! step_tests {
                 let pinned: Vec<bool> = rest.iter().map(|p| p.x == 0.0).collect();
                 let mut stiffness = vec![0.0; n];
                 let dt = 0.5 * stable_time_step(&body, &masses, &pinned, &mut stiffness).unwrap();
-                let settings = ExplicitSettings::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0)).with_substeps(3);
+                let scene = Scene::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+                let settings = ExplicitSettings::new().with_substeps(3);
                 let mut x = rest.clone();
                 let mut v: Vec<Vec3> = (0..n).map(|i| Vec3::new(0.0, 0.0, i as Real * 1e-3)).collect();
                 let v0 = v.clone();
                 let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 for _ in 0..200 {
-                    step_explicit(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    explicit_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                 }
                 for i in 0..n {
                     if pinned[i] {
@@ -334,15 +335,15 @@ macro_rules! step_tests {
                 mesh.lumped_masses(1000.0, &mut masses).unwrap();
                 let mut stiffness = vec![0.0; nv];
                 let dt = 0.9 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
-                let settings = ExplicitSettings::new(dt)
+                let scene = Scene::new(dt)
                     .with_gravity(Vec2::new(0.0, -9.81))
-                    .with_damping(5.0)
                     .with_ground(Ground::new(Vec2::Y, 0.0).with_restitution(0.0).with_friction(0.5));
+                let settings = ExplicitSettings::new().with_damping(5.0);
                 let (mut x, mut v) = (rest.clone(), vec![Vec2::ZERO; nv]);
                 let mut buffer = vec![Vec2::ZERO; explicit_scratch_len(nv)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 for _ in 0..(2.0 / dt) as usize {
-                    step_explicit(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                 }
                 let speed = v.iter().map(|v| v.length()).fold(0.0, Real::max);
                 println!("{}: 2D square, max speed {speed:.2e} m/s", stringify!($precision));
@@ -358,26 +359,28 @@ macro_rules! step_tests {
                 crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(1.0e5, 0.3).unwrap());
                 let n = rest.len();
-                let good = ExplicitSettings::new(1e-4).with_ground(Ground::new(Vec3::Y, -1.0));
+                let good = (Scene::new(1e-4).with_ground(Ground::new(Vec3::Y, -1.0)), ExplicitSettings::new());
                 let x0: Vec<Vec3> = rest.iter().map(|&p| p * 1.01).collect();
                 let v0 = vec![Vec3::new(0.1, 0.2, 0.3); n];
                 let mut buffer = vec![Vec3::splat(7.0); explicit_scratch_len(n)];
                 let nan = Real::NAN;
-                let ground = |g: Ground<Vec3>| good.with_ground(g);
-                let cases: Vec<(ExplicitSettings<Vec3>, StepError)> = vec![
-                    (ExplicitSettings { dt: 0.0, ..good }, StepError::TimeStep),
-                    (ExplicitSettings { dt: -1e-3, ..good }, StepError::TimeStep),
-                    (ExplicitSettings { dt: nan, ..good }, StepError::TimeStep),
-                    (ExplicitSettings { dt: Real::INFINITY, ..good }, StepError::TimeStep),
-                    (good.with_substeps(0), StepError::Substeps),
+                let (scene, settings) = good;
+                let ground = |g: Ground<Vec3>| (scene.with_ground(g), settings);
+                let dt = |dt: Real| (Scene { dt, ..scene }, settings);
+                let cases: Vec<((Scene<Vec3>, ExplicitSettings), StepError)> = vec![
+                    (dt(0.0), StepError::TimeStep),
+                    (dt(-1e-3), StepError::TimeStep),
+                    (dt(nan), StepError::TimeStep),
+                    (dt(Real::INFINITY), StepError::TimeStep),
+                    ((scene, settings.with_substeps(0)), StepError::Substeps),
                     // Issue 16 D7: u32::MAX substeps would run for hours.
-                    (good.with_substeps(u32::MAX), StepError::Substeps),
-                    (good.with_substeps(MAX_SUBSTEPS + 1), StepError::Substeps),
-                    (good.with_gravity(Vec3::new(0.0, nan, 0.0)), StepError::Gravity),
-                    (good.with_damping(-1.0), StepError::Damping),
-                    (good.with_damping(nan), StepError::Damping),
-                    (ExplicitSettings { max_energy_growth: 1.0, ..good }, StepError::GrowthLimit),
-                    (ExplicitSettings { max_energy_growth: nan, ..good }, StepError::GrowthLimit),
+                    ((scene, settings.with_substeps(u32::MAX)), StepError::Substeps),
+                    ((scene, settings.with_substeps(MAX_SUBSTEPS + 1)), StepError::Substeps),
+                    ((scene.with_gravity(Vec3::new(0.0, nan, 0.0)), settings), StepError::Gravity),
+                    ((scene, settings.with_damping(-1.0)), StepError::Damping),
+                    ((scene, settings.with_damping(nan)), StepError::Damping),
+                    ((scene, ExplicitSettings { max_energy_growth: 1.0, ..settings }), StepError::GrowthLimit),
+                    ((scene, ExplicitSettings { max_energy_growth: nan, ..settings }), StepError::GrowthLimit),
                     (ground(Ground::new(Vec3::ZERO, 0.0)), StepError::Ground),
                     (ground(Ground::new(Vec3::Y, nan)), StepError::Ground),
                     (ground(Ground::new(Vec3::Y, 0.0).with_restitution(1.5)), StepError::Restitution),
@@ -386,16 +389,16 @@ macro_rules! step_tests {
                     (ground(Ground::new(Vec3::Y, 0.0).with_friction(-0.1)), StepError::Friction),
                     (ground(Ground::new(Vec3::Y, 0.0).with_friction(nan)), StepError::Friction),
                 ];
-                let check = |settings: &ExplicitSettings<Vec3>, masses: &[Real], pinned: &[bool], x: &mut Vec<Vec3>, v: &mut Vec<Vec3>, buffer: &mut Vec<Vec3>, expected: StepError| {
+                let check = |(scene, settings): &(Scene<Vec3>, ExplicitSettings), masses: &[Real], pinned: &[bool], x: &mut Vec<Vec3>, v: &mut Vec<Vec3>, buffer: &mut Vec<Vec3>, expected: StepError| {
                     let (xb, vb, bb) = (bits(x), bits(v), bits(buffer));
                     let mut scratch = ExplicitScratch::new(buffer);
-                    let error = step_explicit(&body, masses, pinned, settings, x, v, &mut scratch).unwrap_err();
+                    let error = explicit_step(&body, masses, pinned, scene, settings, x, v, &mut scratch).unwrap_err();
                     assert_eq!(error, expected);
                     assert!(!error.to_string().is_empty());
                     assert_eq!((bits(x), bits(v), bits(buffer)), (xb, vb, bb));
                 };
-                for (settings, expected) in cases {
-                    check(&settings, &masses, &[], &mut x0.clone(), &mut v0.clone(), &mut buffer, expected);
+                for (case, expected) in cases {
+                    check(&case, &masses, &[], &mut x0.clone(), &mut v0.clone(), &mut buffer, expected);
                 }
                 // Buffers and masses.
                 let mut bad_masses = masses.clone();
