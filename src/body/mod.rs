@@ -70,8 +70,8 @@ use super::material::Material;
 use super::mesh::{TetMesh, TetRestBlock, rest_block_count};
 use super::step::{
     Collider, ExplicitMemory, ExplicitScratch, Ground, NewtonScratch, RelaxScratch, Scene,
-    TetElastic, VbdScratch, VbdTopology, explicit_step, newton_step, relax_step, stable_time_step,
-    vbd_layout_corners_len, vbd_layout_len, vbd_step,
+    TetElastic, VbdScratch, VbdTopology, check_time_step, explicit_step, newton_step, relax_step,
+    stable_time_step, vbd_layout_corners_len, vbd_layout_len, vbd_step,
 };
 use super::types::{Mat3, Real, Vec3};
 use crate::error::{BodyBuffer, BodyError, StepError};
@@ -797,6 +797,7 @@ impl<S: Storage, M: Material> Body<S, M> {
     ///
     /// # Errors
     /// [`StepError::TimeStep`] if the scene's `dt` is not finite and positive,
+    /// [`StepError::TimeStepTooSmall`] if its `1 / dt^2` overflows (as every stepper),
     /// [`StepError::EmptyBody`] if the body has no vertices (never built, or its last rebuild
     /// failed), [`StepError::Substeps`] if the explicit solver's `stable_fraction` is not
     /// positive or asks for more than [`MAX_SUBSTEPS`](super::step::MAX_SUBSTEPS) substeps
@@ -804,9 +805,7 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// with positions, velocities and targets restored bit for bit.
     pub fn step_with(&mut self, scene: &Scene<'_, Vec3>) -> Result<StepReport, StepError> {
         let dt = scene.dt;
-        if !(dt > 0.0 && dt.is_finite()) {
-            return Err(StepError::TimeStep);
-        }
+        check_time_step(dt)?;
         if self.vertex_count() == 0 {
             return Err(StepError::EmptyBody);
         }

@@ -258,6 +258,8 @@ pub use model::{
 pub use scene::Scene;
 pub use vertex_pass::{InOrder, Join, VERTEX_BLOCK, VertexPass};
 
-// The owning body keeps what the scratch views remember between steps.
+// The owning body checks a step's time step as the steppers do, and keeps what the scratch
+// views remember between steps.
 pub(crate) use descent::vbd::VbdTopology;
 pub(crate) use explicit::ExplicitMemory;
+pub(crate) use scene::check_time_step;

@@ -7,11 +7,11 @@
 //! every target and width the same sums ([`LaneSum`]).
 
 use super::super::super::element::Vector;
-use super::super::super::lanes::{LANES, Lane, LaneArray, LaneSum, Lanes, MAX_WIDTH};
 #[cfg(target_arch = "x86_64")]
 use super::super::super::lanes::avx2::Avx2Lanes;
 #[cfg(target_arch = "x86_64")]
 use super::super::super::lanes::avx512::Avx512Lanes;
+use super::super::super::lanes::{LANES, Lane, LaneArray, LaneSum, Lanes, MAX_WIDTH};
 use super::super::super::math::BATCH_VERTICES;
 use super::super::super::types::Real;
 use super::super::contact::Ground;
