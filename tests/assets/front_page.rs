@@ -74,7 +74,7 @@ fn the_readme_leads_with_the_front_page_example_of_stepping_a_body() {
     let front_page = first_block_after(&crate_docs(), "## Stepping a body");
     let readme = second_block_after(include_str!("../../README.md"), "## Using it");
     assert!(
-        front_page.contains("step_explicit(&body"),
+        front_page.contains("explicit_step(&body"),
         "the front page's first example does not step a body:\n{front_page}"
     );
     assert_eq!(

@@ -374,8 +374,8 @@ macro_rules! mesh_tests {
             use $($crate_path)::+::mesh::{TetMesh, TetRestBlock, rest_block_count};
             use $($crate_path)::+::types::Mat3 as M3;
             use $($crate_path)::+::step::{
-                ElasticEnergy, ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings,
-                TetElastic, explicit_scratch_len, relax_scratch_len, relax_step, step_explicit,
+                ElasticEnergy, ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings, Scene,
+                TetElastic, explicit_scratch_len, explicit_step, relax_scratch_len, relax_step,
             };
 
             type Real = $real;
@@ -648,19 +648,21 @@ macro_rules! mesh_tests {
                 let pinned: Vec<bool> = rest_x.iter().map(|x| x.y == 0.0).collect();
                 let gravity = V::new(0.0, -9.81, 0.0);
                 let run = || {
-                    let settings = ExplicitSettings::new(2.0e-5).with_gravity(gravity);
+                    let scene = Scene::new(2.0e-5).with_gravity(gravity);
+                    let settings = ExplicitSettings::new();
                     let (mut x, mut v) = (rest_x.clone(), vec![V::ZERO; n]);
                     let mut buffer = vec![V::ZERO; explicit_scratch_len(n)];
                     for _ in 0..20 {
                         let mut scratch = ExplicitScratch::new(&mut buffer);
-                        step_explicit(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        explicit_step(&model, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     }
                     let explicit = (bits(&x), bits(&v));
-                    let settings = RelaxSettings::new(1.0 / 60.0).with_gravity(gravity).with_tolerance(0.0, 30);
+                    let scene = Scene::new(1.0 / 60.0).with_gravity(gravity);
+                    let settings = RelaxSettings::new().with_tolerance(0.0, 30);
                     let (mut vectors, mut scalars) = (vec![V::ZERO; relax_scratch_len(n)], vec![0.0; n]);
                     for _ in 0..3 {
                         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-                        relax_step(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        relax_step(&model, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     }
                     (explicit, bits(&x), bits(&v))
                 };
@@ -694,11 +696,11 @@ macro_rules! mesh_tests {
                 let run = || {
                     let mut results = Vec::new();
                     for (ground, pushed) in [(ground, false), (ground.with_friction(0.0), false), (ground, true)] {
-                        let settings = ExplicitSettings::new(dt)
+                        let scene = Scene::new(dt)
                             .with_gravity(V::new(0.0, -9.81, 0.0))
-                            .with_damping(0.5)
                             .with_ground(ground)
                             .with_external_forces(if pushed { &pushes[..] } else { &[] });
+                        let settings = ExplicitSettings::new().with_damping(0.5);
                         let mut x = deformed.clone();
                         let mut v: Vec<V> = (0..n).map(|i| V::new(0.0, -0.5 - 0.01 * i as Real, 0.1)).collect();
                         let mut buffer = vec![V::ZERO; explicit_scratch_len(n)];
@@ -706,7 +708,7 @@ macro_rules! mesh_tests {
                         for _ in 0..8 {
                             let mut scratch = ExplicitScratch::new(&mut buffer);
                             let report =
-                                step_explicit(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                                explicit_step(&model, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                             reports.push((f64::from(report.kinetic_energy).to_bits(), report.ground_contacts));
                         }
                         results.push((bits(&x), bits(&v), reports));
@@ -751,36 +753,36 @@ macro_rules! mesh_tests {
                 // A sphere pressing into the top of the box.
                 let highest = deformed.iter().map(|x| x.y).fold(Real::NEG_INFINITY, Real::max);
                 let colliders = [Collider::sphere(V::new(0.5, highest + 0.3, 0.5), 0.4)];
-                let base = RelaxSettings::new(1.0 / 60.0)
+                let scene = Scene::new(1.0 / 60.0)
                     .with_gravity(V::new(0.0, -9.81, 0.0))
-                    .with_ground(ground)
-                    .with_tolerance(0.0, 12);
+                    .with_ground(ground);
+                let base = RelaxSettings::new().with_tolerance(0.0, 12);
                 let run = || {
                     let mut results = Vec::new();
                     let modes = [
-                        base,
-                        base.with_chebyshev(0.9, 1.5, 2),
-                        base.with_estimated_chebyshev(2.0, 3),
-                        base.with_momentum(0.3),
-                        base.with_ground(ground.with_friction(0.0)),
+                        (scene, base),
+                        (scene, base.with_chebyshev(0.9, 1.5, 2)),
+                        (scene, base.with_estimated_chebyshev(2.0, 3)),
+                        (scene, base.with_momentum(0.3)),
+                        (scene.with_ground(ground.with_friction(0.0)), base),
                     ];
-                    for (k, settings) in modes.into_iter().enumerate() {
-                        let settings = settings.with_colliders(&colliders);
-                        let loaded = settings.with_external_forces(&pushes).with_fixed_axes(&fixed);
-                        let settings = if k % 2 == 0 { settings } else { loaded };
+                    for (k, (scene, settings)) in modes.into_iter().enumerate() {
+                        let scene = scene.with_colliders(&colliders);
+                        let loaded = scene.with_external_forces(&pushes).with_fixed_axes(&fixed);
+                        let scene = if k % 2 == 0 { scene } else { loaded };
                         let (mut x, mut v) = (deformed.clone(), vec![V::new(0.0, -0.5, 0.1); n]);
                         let (mut vectors, mut scalars) = (vec![V::ZERO; relax_scratch_len(n)], vec![0.0; n]);
                         let mut reports = Vec::new();
                         for _ in 0..2 {
                             let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                             let report =
-                                relax_step(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                                relax_step(&model, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                             reports.push((report.iterations, report.backtracks, f64::from(report.phi).to_bits()));
                         }
                         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                         let mut settled = x.clone();
                         let report =
-                            relax_quasi_static(&model, &masses, &pinned, &settings, &mut settled, &mut scratch).unwrap();
+                            relax_quasi_static(&model, &masses, &pinned, &scene, &settings, &mut settled, &mut scratch).unwrap();
                         reports.push((report.iterations, report.backtracks, f64::from(report.phi).to_bits()));
                         results.push((bits(&x), bits(&v), bits(&settled), reports));
                     }
@@ -806,7 +808,7 @@ macro_rules! mesh_tests {
             #[test]
             fn vbd_runs_are_bitwise_the_scalar_run_at_every_width() {
                 use $($crate_path)::+::step::{
-                    Ground, SUGGESTED_STICKING_SPEED, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_layout_corners_len,
+                    Ground, SUGGESTED_STICKING_SPEED, Scene, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_layout_corners_len,
                     vbd_layout_len, vbd_scratch_len, vbd_step,
                 };
                 fn check<M: Material>(material: M, label: &str) {
@@ -822,7 +824,8 @@ macro_rules! mesh_tests {
                         .map(|((&d, &r), &p)| if p { r } else { d })
                         .collect();
                     let gravity = V::new(0.0, -9.81, 0.0);
-                    let base = VbdSettings::new(1.0 / 60.0).with_gravity(gravity).with_tolerance(0.0, 12);
+                    let scene = Scene::new(1.0 / 60.0).with_gravity(gravity);
+                    let base = VbdSettings::new().with_tolerance(0.0, 12);
                     // A frictionless tilted ground through the lower layers, loads on some
                     // vertices and one axis fixed on others: the lanes of the sweep's vertex
                     // updates left to the one-vertex update (fixed axes, steps into the ground)
@@ -832,7 +835,7 @@ macro_rules! mesh_tests {
                         .collect();
                     let axes: Vec<u8> = (0..n).map(|i| if i % 7 == 3 { 0b001 } else { 0 }).collect();
                     let ground = Ground::new(V::new(0.1, 1.0, -0.05).normalize(), 0.4);
-                    let loaded = base
+                    let loaded = scene
                         .with_ground(ground)
                         .with_external_forces(&forces)
                         .with_fixed_axes(&axes);
@@ -842,17 +845,17 @@ macro_rules! mesh_tests {
                     let run = || {
                         let mut results = Vec::new();
                         // With and without the packed sweep layout (the same bits either way).
-                        for (settings, packed, falling) in [
-                            (base.with_estimated_chebyshev(3), false, false),
-                            (base.with_line_search(0).with_chebyshev(0.9, 2), false, false),
-                            (loaded.with_line_search(0).with_chebyshev(0.9, 2), false, true),
-                            (loaded.with_line_search(0).with_estimated_chebyshev(3).with_tolerance(1e-5, 60), false, true),
-                            (rough.with_line_search(0).with_chebyshev(0.9, 2), false, true),
-                            (base.with_estimated_chebyshev(3), true, false),
-                            (base.with_line_search(0).with_chebyshev(0.9, 2), true, false),
-                            (loaded.with_line_search(0).with_chebyshev(0.9, 2), true, true),
-                            (loaded.with_line_search(0).with_estimated_chebyshev(3).with_tolerance(1e-5, 60), true, true),
-                            (rough.with_line_search(0).with_chebyshev(0.9, 2), true, true),
+                        for (scene, settings, packed, falling) in [
+                            (scene, base.with_estimated_chebyshev(3), false, false),
+                            (scene, base.with_line_search(0).with_chebyshev(0.9, 2), false, false),
+                            (loaded, base.with_line_search(0).with_chebyshev(0.9, 2), false, true),
+                            (loaded, base.with_line_search(0).with_estimated_chebyshev(3).with_tolerance(1e-5, 60), false, true),
+                            (rough, base.with_line_search(0).with_chebyshev(0.9, 2), false, true),
+                            (scene, base.with_estimated_chebyshev(3), true, false),
+                            (scene, base.with_line_search(0).with_chebyshev(0.9, 2), true, false),
+                            (loaded, base.with_line_search(0).with_chebyshev(0.9, 2), true, true),
+                            (loaded, base.with_line_search(0).with_estimated_chebyshev(3).with_tolerance(1e-5, 60), true, true),
+                            (rough, base.with_line_search(0).with_chebyshev(0.9, 2), true, true),
                         ] {
                             // Falling onto the ground at 3 m/s: steps into it.
                             let fall = if falling { V::new(0.0, -3.0, 0.0) } else { V::ZERO };
@@ -872,14 +875,14 @@ macro_rules! mesh_tests {
                             // residual sets.
                             let mut reports = Vec::new();
                             for _ in 0..2 {
-                                let report = vbd_step(&model, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)
+                                let report = vbd_step(&model, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch)
                                     .unwrap();
                                 reports.push(format!(
                                     "{} {} {} {} {:?}",
                                     report.iterations,
                                     report.energy_evaluations,
-                                    report.skipped,
-                                    report.projected,
+                                    report.details.skipped,
+                                    report.details.projected,
                                     report.rho.to_bits()
                                 ));
                             }
@@ -916,8 +919,8 @@ macro_rules! planar_tests {
             use $($crate_path)::+::material::StVK;
             use $($crate_path)::+::mesh::TriMesh;
             use $($crate_path)::+::step::{
-                ExplicitScratch, ExplicitSettings, Ground, TriElastic, explicit_scratch_len,
-                stable_time_step, step_explicit,
+                ExplicitScratch, ExplicitSettings, Ground, Scene, TriElastic, explicit_scratch_len,
+                explicit_step, stable_time_step,
             };
 
             type Real = $real;
@@ -944,10 +947,8 @@ macro_rules! planar_tests {
                 let ground = Ground::new(V::new(0.05, 1.0), 0.06)
                     .with_restitution(0.3)
                     .with_friction(0.5);
-                let settings = ExplicitSettings::new(dt)
-                    .with_gravity(V::new(0.0, -9.81))
-                    .with_damping(1.0)
-                    .with_ground(ground);
+                let scene = Scene::new(dt).with_gravity(V::new(0.0, -9.81)).with_ground(ground);
+                let settings = ExplicitSettings::new().with_damping(1.0);
                 let run = || {
                     let mut x = rest.clone();
                     let mut v: Vec<V> = (0..nv).map(|i| V::new(0.2, -1.0 - 0.01 * i as Real)).collect();
@@ -956,7 +957,7 @@ macro_rules! planar_tests {
                     for _ in 0..20 {
                         let mut scratch = ExplicitScratch::new(&mut buffer);
                         let report =
-                            step_explicit(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch)
+                            explicit_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch)
                                 .unwrap();
                         reports.push((f64::from(report.kinetic_energy).to_bits(), report.ground_contacts));
                     }

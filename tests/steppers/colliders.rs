@@ -6,7 +6,7 @@
 //! speed, a body dropped at 10 m/s onto each shape that never ends up inside it, and a kinematic
 //! box that pushes a body along at its own speed.
 //! The numeric runs are small (a 27-vertex cube) but many steps: unoptimised builds skip them
-//! (`cargo test --release --test steppers colliders::` runs them, about 25 s here; `.ci/run` does).
+//! (`cargo test --release --test release colliders::` runs them, about 25 s here; `.ci/run` does).
 
 mod single {
     use softfem as p;

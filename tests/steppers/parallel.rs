@@ -560,8 +560,8 @@ macro_rules! precision_tests {
                 use sf::parallel::{self, ParallelTetClamped, ParallelTetElastic};
                 use sf::step::{
                     ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonSettings,
-                    RelaxScratch, RelaxSettings, explicit_scratch_len, newton_scratch_len,
-                    newton_step, relax_scratch_len, relax_step, stable_time_step, step_explicit, TetClamped,
+                    RelaxScratch, RelaxSettings, Scene, explicit_scratch_len, explicit_step, newton_scratch_len,
+                    newton_step, relax_scratch_len, relax_step, stable_time_step, TetClamped,
                 };
 
                 const THREADS: [usize; 4] = [1, 2, 3, 8];
@@ -961,7 +961,8 @@ macro_rules! precision_tests {
                 fn explicit_run<F: ElasticModel<Vector = Vec3>>(
                     model: &F,
                     masses: &[Real],
-                    settings: &ExplicitSettings<'_, Vec3>,
+                    scene: &Scene<'_, Vec3>,
+                    settings: &ExplicitSettings,
                     start: &[Vec3],
                     steps: usize,
                 ) -> RunBits {
@@ -971,10 +972,11 @@ macro_rules! precision_tests {
                     let mut scratch = ExplicitScratch::new(&mut buffer);
                     let mut contacts = 0;
                     for _ in 0..steps {
-                        let report = step_explicit(
+                        let report = explicit_step(
                             model,
                             masses,
                             &[],
+                            scene,
                             settings,
                             &mut x,
                             &mut v,
@@ -998,10 +1000,11 @@ macro_rules! precision_tests {
                     let body = TetClamped::checked(mesh, material, 0.3).unwrap();
                     let mut stiffness = vec![0.0; nv];
                     let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
-                    let settings = ExplicitSettings::new(dt)
+                    let scene = Scene::new(dt)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
                         .with_ground(Ground::new(Vec3::Y, 0.0));
-                    let expected = explicit_run(&body, &masses, &settings, &start, 60);
+                    let settings = ExplicitSettings::new();
+                    let expected = explicit_run(&body, &masses, &scene, &settings, &start, 60);
                     assert_ne!(expected.2, "0 contacts", "the box must touch the ground");
                     for threads in THREADS {
                         let (mut offsets, mut incident) = (Vec::new(), Vec::new());
@@ -1011,7 +1014,7 @@ macro_rules! precision_tests {
                         let parallel_body = ParallelTetClamped::new(body, p, &mut element_forces)
                             .unwrap()
                             .with_pool(&pool);
-                        let got = explicit_run(&parallel_body, &masses, &settings, &start, 60);
+                        let got = explicit_run(&parallel_body, &masses, &scene, &settings, &start, 60);
                         assert!(got == expected, "{threads} threads: clamped run differs");
                     }
                 }
@@ -1030,19 +1033,27 @@ macro_rules! precision_tests {
                     let ground = Ground::new(Vec3::Y, 0.0)
                         .with_friction(0.5)
                         .with_sticking_speed(sticking_speed);
-                    let settings = RelaxSettings::new(1.0 / 60.0)
+                    let scene = Scene::new(1.0 / 60.0)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_ground(ground)
-                        .with_tolerance(1.0e-3, 300);
+                        .with_ground(ground);
+                    let settings = RelaxSettings::new().with_tolerance(1.0e-3, 300);
                     let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
                     let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
                     let mut scalars = vec![0.0; n];
                     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                     let mut reports = String::new();
                     for _ in 0..steps {
-                        let report =
-                            relax_step(model, masses, &[], &settings, &mut x, &mut v, &mut scratch)
-                                .unwrap();
+                        let report = relax_step(
+                            model,
+                            masses,
+                            &[],
+                            &scene,
+                            &settings,
+                            &mut x,
+                            &mut v,
+                            &mut scratch,
+                        )
+                        .unwrap();
                         reports += &format!("{report:?}\n");
                     }
                     (bits(&x), bits(&v), reports)
@@ -1060,10 +1071,10 @@ macro_rules! precision_tests {
                     let ground = Ground::new(Vec3::Y, 0.0)
                         .with_friction(0.5)
                         .with_sticking_speed(sticking_speed);
-                    let settings = NewtonSettings::new(1.0 / 30.0)
+                    let scene = Scene::new(1.0 / 30.0)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_ground(ground)
-                        .with_tolerance(1.0e-4, 30);
+                        .with_ground(ground);
+                    let settings = NewtonSettings::new().with_tolerance(1.0e-4, 30);
                     let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
                     let lengths = newton_scratch_len(n, ne);
                     let mut vectors = vec![Vec3::ZERO; lengths.vectors];
@@ -1076,6 +1087,7 @@ macro_rules! precision_tests {
                             model,
                             masses,
                             &[],
+                            &scene,
                             &settings,
                             &mut x,
                             &mut v,
@@ -1140,10 +1152,10 @@ macro_rules! precision_tests {
                     let body = TetElastic::new(mesh, material);
                     let mut stiffness = vec![0.0; nv];
                     let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
-                    let settings = ExplicitSettings::new(dt)
+                    let scene = Scene::new(dt)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_damping(2.0)
                         .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                    let settings = ExplicitSettings::new().with_damping(2.0);
                     let run = |model: &dyn Fn(
                         &mut [Vec3],
                         &mut [Vec3],
@@ -1158,7 +1170,7 @@ macro_rules! precision_tests {
                         (bits(&x), bits(&v))
                     };
                     let expected = run(&|x, v, scratch| {
-                        step_explicit(&body, &masses, &[], &settings, x, v, scratch).unwrap();
+                        explicit_step(&body, &masses, &[], &scene, &settings, x, v, scratch).unwrap();
                     });
                     // The box has landed: the run exercised contacts, not only free fall.
                     let (mut x, mut v) = (lifted.clone(), vec![Vec3::ZERO; nv]);
@@ -1166,10 +1178,11 @@ macro_rules! precision_tests {
                     let mut scratch = ExplicitScratch::new(&mut buffer);
                     let mut contacts = 0;
                     for _ in 0..100 {
-                        let report = step_explicit(
+                        let report = explicit_step(
                             &body,
                             &masses,
                             &[],
+                            &scene,
                             &settings,
                             &mut x,
                             &mut v,
@@ -1197,7 +1210,7 @@ macro_rules! precision_tests {
                         .unwrap()
                         .with_pool(&pool);
                         let got = run(&|x, v, scratch| {
-                            step_explicit(&parallel_body, &masses, &[], &settings, x, v, scratch)
+                            explicit_step(&parallel_body, &masses, &[], &scene, &settings, x, v, scratch)
                                 .unwrap();
                         });
                         assert!(got == expected, "{threads} threads: explicit run differs");
@@ -1223,12 +1236,11 @@ macro_rules! precision_tests {
                     let (gravity, damping, substeps) = (Vec3::new(0.0, -9.81, 0.0), 3.0, 2);
                     let mut stiffness = vec![0.0; nv];
                     let dt = 0.5 * stable_time_step(&body, &masses, &pinned, &mut stiffness).unwrap();
-                    let settings = ExplicitSettings::new(dt)
-                        .with_gravity(gravity)
+                    let scene = Scene::new(dt).with_gravity(gravity).with_external_forces(&loads);
+                    let settings = ExplicitSettings::new()
                         .with_damping(damping)
-                        .with_substeps(substeps)
-                        .with_external_forces(&loads);
-                    // The update of `step_explicit`'s docs, one vertex at a time.
+                        .with_substeps(substeps);
+                    // The update of `explicit_step`'s docs, one vertex at a time.
                     let (mut x, mut v) = (deformed(&start), vec![Vec3::ZERO; nv]);
                     let h = dt / substeps as Real;
                     let drag = 1.0 / (1.0 + damping * h);
@@ -1257,13 +1269,13 @@ macro_rules! precision_tests {
                         (bits(&x), bits(&v))
                     };
                     let sequential = run(&|x, v, scratch| {
-                        step_explicit(&body, &masses, &pinned, &settings, x, v, scratch).unwrap();
+                        explicit_step(&body, &masses, &pinned, &scene, &settings, x, v, scratch).unwrap();
                     });
                     assert!(sequential == expected, "sequential: the update differs");
                     for threads in [2, 3] {
                         let got = on_parallel_body(body, threads, threads, |parallel_body| {
                             run(&|x, v, scratch| {
-                                step_explicit(parallel_body, &masses, &pinned, &settings, x, v, scratch)
+                                explicit_step(parallel_body, &masses, &pinned, &scene, &settings, x, v, scratch)
                                     .unwrap();
                             })
                         });
@@ -1288,15 +1300,14 @@ macro_rules! precision_tests {
                     let body = TetElastic::new(mesh, material);
                     let mut stiffness = vec![0.0; nv];
                     let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
-                    let explicit_settings = ExplicitSettings::new(dt)
+                    let explicit_scene = Scene::new(dt)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_damping(2.0)
-                        .with_substeps(2)
                         .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
-                    let relax_settings = RelaxSettings::new(1.0 / 60.0)
+                    let explicit_settings = ExplicitSettings::new().with_damping(2.0).with_substeps(2);
+                    let relax_scene = Scene::new(1.0 / 60.0)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5))
-                        .with_tolerance(0.0, 12);
+                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                    let relax_settings = RelaxSettings::new().with_tolerance(0.0, 12);
                     let explicit = |model: &dyn Fn(
                         &mut [Vec3],
                         &mut [Vec3],
@@ -1326,7 +1337,7 @@ macro_rules! precision_tests {
                         (bits(&x), bits(&v), reports)
                     };
                     let expected_explicit = explicit(&|x, v, scratch| {
-                        step_explicit(&body, &masses, &[], &explicit_settings, x, v, scratch)
+                        explicit_step(&body, &masses, &[], &explicit_scene, &explicit_settings, x, v, scratch)
                             .unwrap()
                     });
                     assert!(
@@ -1348,18 +1359,17 @@ macro_rules! precision_tests {
                     };
                     let expected_relax = relax(&|x, v, scratch| {
                         let report =
-                            relax_step(&body, &masses, &[], &relax_settings, x, v, scratch)
+                            relax_step(&body, &masses, &[], &relax_scene, &relax_settings, x, v, scratch)
                                 .unwrap();
                         format!("{report:?}\n")
                     });
                     // Newton with its linear solves cut short, so that the run stays short
                     // but every CG pass (the product's vertex terms, the updates with their
                     // dot products, the preconditioner) runs many times over the three blocks.
-                    let newton_settings = NewtonSettings::new(1.0 / 60.0)
+                    let newton_scene = Scene::new(1.0 / 60.0)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5))
-                        .with_tolerance(0.0, 3)
-                        .with_cg_iterations(40);
+                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                    let newton_settings = NewtonSettings::new().with_tolerance(0.0, 3).with_cg_iterations(40);
                     let ne = mesh.element_count();
                     let newton = |model: &dyn Fn(
                         &mut [Vec3],
@@ -1379,7 +1389,7 @@ macro_rules! precision_tests {
                             // The whole budget of Newton iterations, each with CG passes
                             // over the three blocks (73 to 117 CG iterations a step measured).
                             assert!(
-                                report.newton_iterations == 3 && report.cg_iterations >= 3 * 10,
+                                report.iterations == 3 && report.details.cg_iterations >= 3 * 10,
                                 "{report:?}"
                             );
                             reports += &format!("{report:?}\n");
@@ -1387,7 +1397,7 @@ macro_rules! precision_tests {
                         (bits(&x), bits(&v), reports)
                     };
                     let expected_newton = newton(&|x, v, scratch| {
-                        newton_step(&body, &masses, &[], &newton_settings, x, v, scratch).unwrap()
+                        newton_step(&body, &masses, &[], &newton_scene, &newton_settings, x, v, scratch).unwrap()
                     });
                     for threads in THREADS {
                         on_parallel_body(body, 2 * threads, threads, |parallel_body| {
@@ -1396,6 +1406,7 @@ macro_rules! precision_tests {
                                     parallel_body,
                                     &masses,
                                     &[],
+                                    &newton_scene,
                                     &newton_settings,
                                     x,
                                     v,
@@ -1405,10 +1416,11 @@ macro_rules! precision_tests {
                             });
                             assert!(got == expected_newton, "{threads} threads: Newton differs");
                             let got = explicit(&|x, v, scratch| {
-                                step_explicit(
+                                explicit_step(
                                     parallel_body,
                                     &masses,
                                     &[],
+                                    &explicit_scene,
                                     &explicit_settings,
                                     x,
                                     v,
@@ -1422,6 +1434,7 @@ macro_rules! precision_tests {
                                     parallel_body,
                                     &masses,
                                     &[],
+                                    &relax_scene,
                                     &relax_settings,
                                     x,
                                     v,

@@ -20,7 +20,7 @@ macro_rules! vbd_tests {
             use $($api)::+::material::{Material, StVK, StableNeoHookean};
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
-                Ground, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len,
+                Ground, Scene, TetElastic, VbdOptions, VbdScratch, VbdSettings, vbd_index_scratch_len,
                 vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static, vbd_scratch_len, vbd_step,
             };
             use $($api)::+::types::{Mat3, Real, Vec3};
@@ -105,24 +105,23 @@ macro_rules! vbd_tests {
             /// layout in buffers of `layout` lengths (values, corners) or without one.
             #[allow(clippy::type_complexity)]
             fn pressed_run(
-                scene: &Pressed,
+                pressed: &Pressed,
                 layout: Option<(usize, usize)>,
-                step: &dyn Fn(&TetElastic<'_, StVK>, &Pressed, &VbdSettings<'_>, &mut [Vec3], &mut [Vec3], &mut VbdScratch<'_>) -> String,
-                sag: &dyn Fn(&TetElastic<'_, StVK>, &Pressed, &VbdSettings<'_>, &mut [Vec3], &mut VbdScratch<'_>) -> String,
+                step: &dyn Fn(&TetElastic<'_, StVK>, &Pressed, &Scene<'_, Vec3>, &VbdSettings, &mut [Vec3], &mut [Vec3], &mut VbdScratch<'_>) -> String,
+                sag: &dyn Fn(&TetElastic<'_, StVK>, &Pressed, &Scene<'_, Vec3>, &VbdSettings, &mut [Vec3], &mut VbdScratch<'_>) -> String,
             ) -> (Vec<[u64; 3]>, Vec<[u64; 3]>, Vec<String>, bool) {
-                let cube = &scene.cube;
+                let cube = &pressed.cube;
                 let mut rest_data = vec![TetRest::default(); cube.tets.len()];
                 let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(2.0e5, 0.4).unwrap());
                 let (n, t) = (cube.rest.len(), cube.tets.len());
                 let ground = Ground::new(Vec3::Y, -2e-3).with_friction(0.5);
-                let settings = VbdSettings::new(1.0 / 60.0)
+                let scene = Scene::new(1.0 / 60.0)
                     .with_gravity(GRAVITY)
                     .with_ground(ground)
-                    .with_tolerance(0.0, 8)
-                    .with_chebyshev(0.9, 2)
-                    .with_external_forces(&scene.loads)
-                    .with_fixed_axes(&scene.fixed);
+                    .with_external_forces(&pressed.loads)
+                    .with_fixed_axes(&pressed.fixed);
+                let settings = VbdSettings::new().with_tolerance(0.0, 8).with_chebyshev(0.9, 2);
                 let (mut x, mut v) = (cube.rest.clone(), vec![Vec3::new(0.5, -1.0, 0.2); n]);
                 let (mut vectors, mut indices) = buffers(n, t);
                 let (mut values, mut corners) = layout_buffers(n, t);
@@ -134,10 +133,10 @@ macro_rules! vbd_tests {
                 }
                 let mut reports = Vec::new();
                 for _ in 0..3 {
-                    reports.push(step(&body, scene, &settings, &mut x, &mut v, &mut scratch));
+                    reports.push(step(&body, pressed, &scene, &settings, &mut x, &mut v, &mut scratch));
                 }
                 let still = settings.with_tolerance(1e-6, 6);
-                reports.push(sag(&body, scene, &still, &mut x, &mut scratch));
+                reports.push(sag(&body, pressed, &scene, &still, &mut x, &mut scratch));
                 (bits(&x), bits(&v), reports, scratch.layout_in_use())
             }
 
@@ -146,11 +145,11 @@ macro_rules! vbd_tests {
                 pressed_run(
                     scene,
                     layout,
-                    &|body, scene, settings, x, v, scratch| {
-                        format!("{:?}", vbd_step(body, &scene.masses, &scene.pinned, settings, x, v, scratch).unwrap())
+                    &|body, pressed, scene, settings, x, v, scratch| {
+                        format!("{:?}", vbd_step(body, &pressed.masses, &pressed.pinned, scene, settings, x, v, scratch).unwrap())
                     },
-                    &|body, scene, settings, x, scratch| {
-                        format!("{:?}", vbd_quasi_static(body, &scene.masses, &scene.pinned, settings, x, scratch).unwrap())
+                    &|body, pressed, scene, settings, x, scratch| {
+                        format!("{:?}", vbd_quasi_static(body, &pressed.masses, &pressed.pinned, scene, settings, x, scratch).unwrap())
                     },
                 )
             }
@@ -169,9 +168,10 @@ macro_rules! vbd_tests {
                         let (mut vectors, mut indices) = buffers(nv, nt);
                         let (mut values, mut corners) = layout_buffers(nv, nt);
                         let mut scratch = VbdScratch::new(&mut vectors, &mut indices).with_layout(&mut values, &mut corners);
-                        let settings = VbdSettings::new(1.0 / 60.0).with_gravity(GRAVITY).with_tolerance(0.0, 1);
+                        let scene = Scene::new(1.0 / 60.0).with_gravity(GRAVITY);
+                        let settings = VbdSettings::new().with_tolerance(0.0, 1);
                         let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; nv]);
-                        vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        vbd_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                         assert!(scratch.layout_in_use(), "{split:?} {nx} x {ny} x {nz}");
                     }
                 }
@@ -189,7 +189,7 @@ macro_rules! vbd_tests {
                 let gathered = pressed_sequential(&scene, None);
                 assert!(!gathered.3);
                 // The scene exercises the contact, the line search and the projection.
-                assert!(gathered.2.iter().any(|r| !r.contains("backtracks: 0,")), "{:?}", gathered.2);
+                assert!(gathered.2.iter().any(|r| !r.contains("vertex_backtracks: 0,")), "{:?}", gathered.2);
                 let full = (vbd_layout_len(t), vbd_layout_corners_len(n, t));
                 let packed = pressed_sequential(&scene, Some(full));
                 assert!(packed.3, "the layout fits its documented length");
@@ -234,8 +234,8 @@ macro_rules! vbd_tests {
                     if fixed { p } else { p + offset }
                 }).collect();
                 for backtracks in [0, 8] {
-                    let settings = VbdSettings::new(1.0 / 30.0)
-                        .with_gravity(GRAVITY)
+                    let scene = Scene::new(1.0 / 30.0).with_gravity(GRAVITY);
+                    let settings = VbdSettings::new()
                         .with_tolerance(0.0, 12)
                         .with_line_search(backtracks)
                         .with_chebyshev(0.95, 2);
@@ -247,7 +247,7 @@ macro_rules! vbd_tests {
                             scratch = scratch.with_layout(&mut values, &mut corners);
                         }
                         let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; n]);
-                        let report = vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        let report = vbd_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                         assert_eq!(scratch.layout_in_use(), packed);
                         (bits(&x), bits(&v), format!("{report:?}"))
                     };
@@ -288,12 +288,13 @@ macro_rules! vbd_tests {
                     let step = hessian.inverse() * force_at(y);
                     let expected = y + step;
 
-                    let settings = VbdSettings::new(h).with_tolerance(0.0, 1);
+                    let scene = Scene::new(h);
+                    let settings = VbdSettings::new().with_tolerance(0.0, 1);
                     let (mut vectors, mut indices) = buffers(4, 1);
                     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                    let report = vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    let report = vbd_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     println!("{}: {report:?}; step {step}, VBD - Newton {}", stringify!($precision), x[3] - expected);
-                    assert_eq!((report.iterations, report.backtracks, report.skipped), (1, 0, 0));
+                    assert_eq!((report.iterations, report.details.vertex_backtracks, report.details.skipped), (1, 0, 0));
                     assert!(step.length() > 1e-3 * 0.1, "a real step: {step}");
                     assert!((x[3] - expected).length() <= $newton_tolerance * step.length(), "{} vs {}", x[3], expected);
                     assert_eq!(&x[..3], &rest[..3]);
@@ -329,14 +330,12 @@ macro_rules! vbd_tests {
                     for (along, clamped) in [(0.5, 0.5), (0.3, 0.3), (2.0, 1.0), (-1.0, 0.0), (0.0, 0.0)] {
                         let acceleration = GRAVITY * along + sideways;
                         let previous = [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity - acceleration * h];
-                        let settings = VbdSettings::new(h)
-                            .with_gravity(GRAVITY)
-                            .with_tolerance(0.0, 0)
-                            .with_previous_velocities(&previous);
+                        let scene = Scene::new(h).with_gravity(GRAVITY).with_previous_velocities(&previous);
+                        let settings = VbdSettings::new().with_tolerance(0.0, 0);
                         let (mut x, mut v) = (rest, [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity]);
                         let (mut vectors, mut indices) = buffers(4, 1);
                         let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                        let report = vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        let report = vbd_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                         assert_eq!(report.iterations, 0);
                         let adaptive = y + GRAVITY * (clamped * h * h);
                         let expected = if phi(adaptive) < phi(drop) { adaptive } else { drop };
@@ -350,14 +349,12 @@ macro_rules! vbd_tests {
 
                     // No acceleration: the adaptive guess is y, the default's second candidate.
                     let run = |previous: &[Vec3]| {
-                        let settings = VbdSettings::new(h)
-                            .with_gravity(GRAVITY)
-                            .with_tolerance(1e-6, 50)
-                            .with_previous_velocities(previous);
+                        let scene = Scene::new(h).with_gravity(GRAVITY).with_previous_velocities(previous);
+                        let settings = VbdSettings::new().with_tolerance(1e-6, 50);
                         let (mut x, mut v) = (rest, [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity]);
                         let (mut vectors, mut indices) = buffers(4, 1);
                         let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                        let report = vbd_step(&body, &masses, &pinned, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        let report = vbd_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                         (report, bits(&x), bits(&v))
                     };
                     let still = [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity];
@@ -386,19 +383,20 @@ macro_rules! vbd_tests {
                     kinetic + f64::from(mesh.elastic_energy(&material, x).unwrap())
                 };
                 let start = energy(&x, &v);
-                let settings = VbdSettings::new(1.0 / 30.0).with_tolerance(1e-4, 200);
+                let scene = Scene::new(1.0 / 30.0);
+                let settings = VbdSettings::new().with_tolerance(1e-4, 200);
                 let (mut vectors, mut indices) = buffers(n, block.tets.len());
                 let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
                 let mut sweeps = 0;
                 for step in 0..30 {
-                    let report = vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    let report = vbd_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     sweeps += report.iterations;
                     // Converged, or at the rounding floor of the force sums: element forces of
                     // E L^2 ~ 2.5e5 N cancel to a few eps E L^2 per vertex (0.2 N in f32, above
                     // 1e-4 of the initial residual once the block has settled; 4e-10 N in f64,
                     // never reached).
                     let floor = 2.0 * Real::EPSILON * 1.0e8 * 0.05 * 0.05 * (n as Real).sqrt();
-                    assert!(report.converged || report.final_residual <= floor, "step {step}: {report:?}");
+                    assert!(report.converged || report.residual <= floor, "step {step}: {report:?}");
                     let now = energy(&x, &v);
                     // Implicit Euler dissipates; the tolerance allows 1e-3 of the start.
                     assert!(now <= start * 1.001, "step {step}: energy {now} > {start}");
@@ -456,14 +454,15 @@ macro_rules! vbd_tests {
                 let floor = 16.0 * f64::from(Real::EPSILON) * 1.0e8 * 0.025 * 0.025 * (n as f64).sqrt();
                 let weight = masses.iter().zip(&pinned).filter(|(_, p)| !**p)
                     .map(|(m, _)| (f64::from(*m) * 9.81).powi(2)).sum::<f64>().sqrt();
-                let settings = VbdSettings::new(h).with_gravity(GRAVITY).with_line_search(0).with_chebyshev(0.95, 2);
+                let scene = Scene::new(h).with_gravity(GRAVITY);
+                let settings = VbdSettings::new().with_line_search(0).with_chebyshev(0.95, 2);
                 let (mut vectors, mut indices) = buffers(n, block.tets.len());
                 let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
                 let mut check = |tolerance: Real, budget: u32| {
                     let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; n]);
-                    let report = vbd_step(&body, &masses, &pinned, &settings.with_tolerance(tolerance, budget), &mut x, &mut v, &mut scratch).unwrap();
+                    let report = vbd_step(&body, &masses, &pinned, &scene, &settings.with_tolerance(tolerance, budget), &mut x, &mut v, &mut scratch).unwrap();
                     let (residual, phi) = reference(&x);
-                    let reported = f64::from(report.final_residual);
+                    let reported = f64::from(report.residual);
                     assert!((reported - residual).abs() <= 1e-3 * residual + floor,
                         "budget {budget}: residual {reported} reported, {residual} recomputed: {report:?}");
                     let rounding = f64::from(Real::EPSILON).sqrt() * (phi.abs() + f64::from(mesh.elastic_energy(&material, &x).unwrap()).abs());
@@ -478,7 +477,7 @@ macro_rules! vbd_tests {
                 }
                 let report = check(1e-4, 200);
                 // f32 stops at the rounding floor of its force sums (0.25 N here).
-                assert!(report.converged || f64::from(report.final_residual) <= floor, "{report:?}");
+                assert!(report.converged || f64::from(report.residual) <= floor, "{report:?}");
                 assert!(report.energy_evaluations < report.iterations, "{report:?}");
                 println!("{}: deferred checks on the stiff block: {} sweeps, {} evaluations, {} restarts",
                     stringify!($precision), report.iterations, report.energy_evaluations, report.restarts);
@@ -503,7 +502,8 @@ macro_rules! vbd_tests {
                         let (s, c) = ((twist * p.z).sin(), (twist * p.z).cos());
                         Vec3::new(c * p.x - s * p.y, s * p.x + c * p.y, height * p.z)
                     }).collect();
-                    let settings = VbdSettings::new(1.0).with_line_search_on_increase();
+                    let scene = Scene::new(1.0);
+                    let settings = VbdSettings::new().with_line_search_on_increase();
                     let (mut vectors, mut indices) = buffers(n, cube.tets.len());
                     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
                     let mut last = Real::INFINITY;
@@ -513,15 +513,15 @@ macro_rules! vbd_tests {
                     // vertex's energy resolution, whose sum can exceed the global bound.
                     for k in 0..30 {
                         let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; n]);
-                        let report = vbd_step(&body, &masses, &[], &settings.with_tolerance(0.0, k), &mut x, &mut v, &mut scratch).unwrap();
+                        let report = vbd_step(&body, &masses, &[], &scene, &settings.with_tolerance(0.0, k), &mut x, &mut v, &mut scratch).unwrap();
                         let elastic = mesh.elastic_energy(&material, &x).unwrap();
                         let rounding = Real::EPSILON.sqrt() * (2.0 * report.phi.abs() + elastic.abs());
                         assert!(report.phi <= last + rounding, "{material:?} sweep {k}: {} after {last}", report.phi);
                         last = report.phi;
-                        redone = redone.max(report.redone_sweeps);
+                        redone = redone.max(report.details.redone_sweeps);
                     }
                     let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; n]);
-                    let report = vbd_step(&body, &masses, &[], &settings.with_tolerance(1e-3, 400), &mut x, &mut v, &mut scratch).unwrap();
+                    let report = vbd_step(&body, &masses, &[], &scene, &settings.with_tolerance(1e-3, 400), &mut x, &mut v, &mut scratch).unwrap();
                     assert!(report.converged, "{material:?}: {report:?}");
                     redone
                 }
@@ -542,16 +542,13 @@ macro_rules! vbd_tests {
                 let t = cube.tets.len();
                 // Falling onto a ground 1 mm below, at 1 m/s, sideways too (friction acts).
                 let ground = Ground::new(Vec3::Y, -1e-3).with_friction(0.5);
-                let settings = VbdSettings::new(1.0 / 60.0)
-                    .with_gravity(GRAVITY)
-                    .with_ground(ground)
-                    .with_tolerance(0.0, 12)
-                    .with_chebyshev(0.9, 2);
+                let scene = Scene::new(1.0 / 60.0).with_gravity(GRAVITY).with_ground(ground);
+                let settings = VbdSettings::new().with_tolerance(0.0, 12).with_chebyshev(0.9, 2);
                 let run = |vectors: &mut [Vec3], indices: &mut [u32], steps: usize| {
                     let (mut x, mut v) = (cube.rest.clone(), vec![Vec3::new(0.3, -1.0, 0.0); n]);
                     let mut scratch = VbdScratch::new(vectors, indices);
                     for _ in 0..steps {
-                        vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        vbd_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     }
                     (bits(&x), bits(&v))
                 };
@@ -566,7 +563,7 @@ macro_rules! vbd_tests {
                 for _ in 0..2 {
                     let (mut vectors, mut indices) = buffers(n, t);
                     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                    vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    vbd_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                 }
                 assert_eq!((bits(&x), bits(&v)), fresh);
                 assert!(x.iter().all(|p| p.y >= -1e-3 - 1e-6), "inside the ground");
@@ -579,34 +576,37 @@ macro_rules! vbd_tests {
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = cube.rest.len();
                 let t = cube.tets.len();
-                let good = VbdSettings::new(0.01).with_gravity(GRAVITY);
+                let scene = Scene::new(0.01).with_gravity(GRAVITY);
+                let good = VbdSettings::new();
+                let estimated = good.with_estimated_chebyshev(4);
                 let short_previous = vec![Vec3::ZERO; n - 1];
                 let mut bad_previous = vec![Vec3::ZERO; n];
                 bad_previous[2].y = Real::INFINITY;
                 let cases = [
-                    (good.with_previous_velocities(&short_previous),
+                    (scene.with_previous_velocities(&short_previous), good,
                         StepError::LengthMismatch { buffer: softfem::StepBuffer::PreviousVelocities, expected: n, actual: n - 1 }),
-                    (good.with_previous_velocities(&bad_previous), StepError::NonFiniteInput { vertex: 2 }),
-                    (VbdSettings { dt: 0.0, ..good }, StepError::TimeStep),
-                    (VbdSettings { dt: Real::INFINITY, ..good }, StepError::TimeStep),
-                    (good.with_gravity(Vec3::splat(Real::NAN)), StepError::Gravity),
-                    (good.with_tolerance(1.0, 10), StepError::VbdSettings),
-                    (good.with_tolerance(Real::NAN, 10), StepError::VbdSettings),
-                    (VbdSettings { armijo: 1.0, ..good }, StepError::VbdSettings),
-                    (VbdSettings { backtrack: 0.0, ..good }, StepError::VbdSettings),
-                    (good.with_chebyshev(1.0, 0), StepError::VbdSettings),
-                    (good.with_chebyshev(-0.5, 0), StepError::VbdSettings),
-                    (good.with_estimated_chebyshev(1), StepError::VbdSettings),
-                    (VbdSettings { chebyshev: 0.5, ..good.with_estimated_chebyshev(4) }, StepError::VbdSettings),
-                    (good.with_ground(Ground::new(Vec3::ZERO, 0.0)), StepError::Ground),
-                    (good.with_ground(Ground::new(Vec3::Y, 0.0).with_friction(-1.0)), StepError::Friction),
+                    (scene.with_previous_velocities(&bad_previous), good, StepError::NonFiniteInput { vertex: 2 }),
+                    (Scene { dt: 0.0, ..scene }, good, StepError::TimeStep),
+                    (Scene { dt: Real::INFINITY, ..scene }, good, StepError::TimeStep),
+                    (scene.with_gravity(Vec3::splat(Real::NAN)), good, StepError::Gravity),
+                    (scene, good.with_tolerance(1.0, 10), StepError::VbdSettings),
+                    (scene, good.with_tolerance(Real::NAN, 10), StepError::VbdSettings),
+                    (scene, VbdSettings { armijo: 1.0, ..good }, StepError::VbdSettings),
+                    (scene, VbdSettings { backtrack: 0.0, ..good }, StepError::VbdSettings),
+                    (scene, good.with_chebyshev(1.0, 0), StepError::VbdSettings),
+                    (scene, good.with_chebyshev(-0.5, 0), StepError::VbdSettings),
+                    (scene, good.with_estimated_chebyshev(1), StepError::VbdSettings),
+                    (scene, VbdSettings { options: VbdOptions { chebyshev: 0.5, ..estimated.options }, ..estimated },
+                        StepError::VbdSettings),
+                    (scene.with_ground(Ground::new(Vec3::ZERO, 0.0)), good, StepError::Ground),
+                    (scene.with_ground(Ground::new(Vec3::Y, 0.0).with_friction(-1.0)), good, StepError::Friction),
                 ];
                 let (mut vectors, mut indices) = buffers(n, t);
                 let v0 = vec![Vec3::X; n];
-                for (settings, expected) in cases {
+                for (scene, settings, expected) in cases {
                     let (mut x, mut v) = (cube.rest.clone(), v0.clone());
                     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                    let error = vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap_err();
+                    let error = vbd_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap_err();
                     assert_eq!(error, expected);
                     assert_eq!((bits(&x), bits(&v)), (bits(&cube.rest), bits(&v0)));
                 }
@@ -632,10 +632,10 @@ macro_rules! vbd_tests {
                     let vector_buffer: &mut [Vec3] = if short_vectors { &mut short } else { &mut vectors };
                     let index_buffer: &mut [u32] = if long_indices { &mut short_indices } else { &mut indices };
                     let mut scratch = VbdScratch::new(vector_buffer, index_buffer);
-                    let error = vbd_step(&body, masses, pinned, &good, &mut x, &mut v, &mut scratch).unwrap_err();
+                    let error = vbd_step(&body, masses, pinned, &scene, &good, &mut x, &mut v, &mut scratch).unwrap_err();
                     assert_eq!(error, expected);
                     assert_eq!((bits(&x), bits(&v)), (bits(x0), bits(&v0)));
-                    let error = vbd_quasi_static(&body, masses, pinned, &good, &mut x, &mut scratch).unwrap_err();
+                    let error = vbd_quasi_static(&body, masses, pinned, &scene, &good, &mut x, &mut scratch).unwrap_err();
                     assert_eq!(error, expected);
                     assert_eq!(bits(&x), bits(x0));
                 }
@@ -652,7 +652,7 @@ macro_rules! vbd_tests {
                 let (mut vectors, mut indices) = buffers(n, cube.tets.len());
                 let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
                 let mut x = cube.rest.clone();
-                let report = vbd_quasi_static(&body, &masses, &[], &VbdSettings::new(1.0), &mut x, &mut scratch).unwrap();
+                let report = vbd_quasi_static(&body, &masses, &[], &Scene::new(1.0), &VbdSettings::new(), &mut x, &mut scratch).unwrap();
                 assert!(report.converged && report.iterations == 0, "{report:?}");
                 assert_eq!(x, cube.rest);
                 let _ = Material::energy_density(&body.material, Mat3::IDENTITY);
@@ -685,11 +685,11 @@ macro_rules! vbd_tests {
                             pressed_run(
                                 &scene,
                                 layout,
-                                &|body, scene, settings, x, v, scratch| {
-                                    format!("{:?}", vbd_step_parallel(body, &scene.masses, &scene.pinned, settings, x, v, scratch).unwrap())
+                                &|body, pressed, scene, settings, x, v, scratch| {
+                                    format!("{:?}", vbd_step_parallel(body, &pressed.masses, &pressed.pinned, scene, settings, x, v, scratch).unwrap())
                                 },
-                                &|body, scene, settings, x, scratch| {
-                                    format!("{:?}", vbd_quasi_static_parallel(body, &scene.masses, &scene.pinned, settings, x, scratch).unwrap())
+                                &|body, pressed, scene, settings, x, scratch| {
+                                    format!("{:?}", vbd_quasi_static_parallel(body, &pressed.masses, &pressed.pinned, scene, settings, x, scratch).unwrap())
                                 },
                             )
                         });
@@ -835,8 +835,9 @@ fn quasi_static_cantilever_reaches_the_relaxations_equilibrium() {
     use softfem::f64::material::StableNeoHookean;
     use softfem::f64::mesh::TetMesh;
     use softfem::f64::step::{
-        RelaxScratch, RelaxSettings, TetElastic, VbdScratch, VbdSettings, relax_quasi_static,
-        relax_scratch_len, vbd_index_scratch_len, vbd_quasi_static, vbd_scratch_len,
+        RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings,
+        relax_quasi_static, relax_scratch_len, vbd_index_scratch_len, vbd_quasi_static,
+        vbd_scratch_len,
     };
     use softfem::glam::DVec3 as Vec3;
     let max = Vec3::new(0.4, 0.1, 0.1);
@@ -852,8 +853,8 @@ fn quasi_static_cantilever_reaches_the_relaxations_equilibrium() {
     let gravity = Vec3::new(0.0, -9.81, 0.0);
     let tolerance = 1e-8;
 
-    let settings = RelaxSettings::new(1.0)
-        .with_gravity(gravity)
+    let scene = Scene::new(1.0).with_gravity(gravity);
+    let settings = RelaxSettings::new()
         .with_tolerance(tolerance, 200_000)
         .with_chebyshev(0.999, 2.0, 0);
     let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
@@ -863,21 +864,28 @@ fn quasi_static_cantilever_reaches_the_relaxations_equilibrium() {
         &body,
         &masses,
         &pinned,
+        &scene,
         &settings,
         &mut x_relax,
         &mut scratch,
     )
     .unwrap();
 
-    let settings = VbdSettings::new(1.0)
-        .with_gravity(gravity)
-        .with_tolerance(tolerance, 20_000);
+    let settings = VbdSettings::new().with_tolerance(tolerance, 20_000);
     let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
     let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
     let mut x_vbd = rest.clone();
-    let vbd =
-        vbd_quasi_static(&body, &masses, &pinned, &settings, &mut x_vbd, &mut scratch).unwrap();
+    let vbd = vbd_quasi_static(
+        &body,
+        &masses,
+        &pinned,
+        &scene,
+        &settings,
+        &mut x_vbd,
+        &mut scratch,
+    )
+    .unwrap();
 
     let sag = rest
         .iter()
@@ -1046,11 +1054,10 @@ mod measure {
         let gravity = Vec3::new(0.0, 0.0, -9.81);
         let ground = Ground::new(Vec3::Z, 0.0).with_friction(0.6);
         let (dt, tolerance, steps) = (1.0 / 60.0, 2e-3, 180);
-        let scene = format!("bouncy cube {nt} tets 1/60 s f32");
+        let title = format!("bouncy cube {nt} tets 1/60 s f32");
 
-        let settings = RelaxSettings::new(dt)
-            .with_gravity(gravity)
-            .with_ground(ground)
+        let scene = Scene::new(dt).with_gravity(gravity).with_ground(ground);
+        let settings = RelaxSettings::new()
             .with_tolerance(tolerance, 300)
             .with_chebyshev(0.995, 2.0, 0);
         let (body, masses, rest) = (&body, &masses, &rest);
@@ -1067,8 +1074,17 @@ mod measure {
                         v.fill(Vec3::ZERO);
                     }
                     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
-                    let r = relax_step(body, masses, &[], &settings, &mut x, &mut v, &mut scratch)
-                        .unwrap();
+                    let r = relax_step(
+                        body,
+                        masses,
+                        &[],
+                        &scene,
+                        &settings,
+                        &mut x,
+                        &mut v,
+                        &mut scratch,
+                    )
+                    .unwrap();
                     if k + 1 == steps {
                         assert!(x.iter().all(|p| p.z >= -1e-5));
                     }
@@ -1081,12 +1097,7 @@ mod measure {
                 }),
             ));
         }
-        for (name, vbd) in variants(
-            VbdSettings::new(dt)
-                .with_gravity(gravity)
-                .with_ground(ground)
-                .with_tolerance(tolerance, 300),
-        ) {
+        for (name, vbd) in variants(VbdSettings::new().with_tolerance(tolerance, 300)) {
             let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
             let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
             let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; nv]);
@@ -1098,8 +1109,17 @@ mod measure {
                         v.fill(Vec3::ZERO);
                     }
                     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                    let r =
-                        vbd_step(body, masses, &[], &vbd, &mut x, &mut v, &mut scratch).unwrap();
+                    let r = vbd_step(
+                        body,
+                        masses,
+                        &[],
+                        &scene,
+                        &vbd,
+                        &mut x,
+                        &mut v,
+                        &mut scratch,
+                    )
+                    .unwrap();
                     if k + 1 == steps {
                         assert!(x.iter().all(|p| p.z >= -1e-5));
                     }
@@ -1112,7 +1132,7 @@ mod measure {
                 }),
             ));
         }
-        interleaved(&scene, steps, 3, &mut solvers);
+        interleaved(&title, steps, 3, &mut solvers);
     }
 
     /// The VBD settings measured.
@@ -1151,7 +1171,7 @@ mod measure {
         fn estimated(self) -> Self;
         fn guarded(self) -> Self;
     }
-    impl VbdLike for softfem::step::VbdSettings<'_> {
+    impl VbdLike for softfem::step::VbdSettings {
         fn line_search(self, backtracks: u32) -> Self {
             self.with_line_search(backtracks)
         }
@@ -1165,7 +1185,7 @@ mod measure {
             self.with_line_search_on_increase()
         }
     }
-    impl VbdLike for softfem::f64::step::VbdSettings<'_> {
+    impl VbdLike for softfem::f64::step::VbdSettings {
         fn line_search(self, backtracks: u32) -> Self {
             self.with_line_search(backtracks)
         }
@@ -1231,7 +1251,7 @@ mod measure {
             .enumerate()
             .map(|(i, (x, r))| if pinned.get(i) == Some(&true) { *r } else { *x })
             .collect();
-        let scene = format!(
+        let title = format!(
             "stiff block {nt} tets 1/30 s f64{}",
             if loaded {
                 ", clamped, gravity"
@@ -1240,8 +1260,8 @@ mod measure {
             }
         );
 
-        let settings = RelaxSettings::new(dt)
-            .with_gravity(gravity)
+        let scene = Scene::new(dt).with_gravity(gravity);
+        let settings = RelaxSettings::new()
             .with_tolerance(tolerance, 500)
             .with_chebyshev(0.995, 2.0, 0);
         let (body, masses, pinned, start_x) = (&body, &masses, &pinned, &start_x);
@@ -1263,6 +1283,7 @@ mod measure {
                         body,
                         masses,
                         pinned,
+                        &scene,
                         &settings,
                         &mut x,
                         &mut v,
@@ -1272,7 +1293,7 @@ mod measure {
                     if trace {
                         println!(
                             "  relax: {} iterations, residual {:.3e} -> {:.3e}",
-                            r.iterations, r.initial_residual, r.final_residual
+                            r.iterations, r.initial_residual, r.residual
                         );
                     }
                     Outcome {
@@ -1284,11 +1305,7 @@ mod measure {
                 }),
             ));
         }
-        for (name, vbd) in variants(
-            VbdSettings::new(dt)
-                .with_gravity(gravity)
-                .with_tolerance(tolerance, 500),
-        ) {
+        for (name, vbd) in variants(VbdSettings::new().with_tolerance(tolerance, 500)) {
             let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
             let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
             let (mut x, mut v) = (start_x.clone(), vec![Vec3::ZERO; nv]);
@@ -1300,12 +1317,12 @@ mod measure {
                         v.fill(Vec3::ZERO);
                     }
                     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                    let r =
-                        vbd_step(body, masses, pinned, &vbd, &mut x, &mut v, &mut scratch).unwrap();
+                    let r = vbd_step(body, masses, pinned, &scene, &vbd, &mut x, &mut v, &mut scratch)
+                        .unwrap();
                     if trace {
                         println!(
                             "  {name}: {} sweeps, residual {:.3e} -> {:.3e}, rho {:.3}, {} restarts",
-                            r.iterations, r.initial_residual, r.final_residual, r.rho, r.restarts
+                            r.iterations, r.initial_residual, r.residual, r.rho, r.restarts
                         );
                     }
                     Outcome {
@@ -1317,7 +1334,7 @@ mod measure {
                 }),
             ));
         }
-        interleaved(&scene, steps, 3, &mut solvers);
+        interleaved(&title, steps, 3, &mut solvers);
     }
 
     /// A sweep's cost in force evaluations on the bouncy cube's mesh (f32), released from a
@@ -1370,7 +1387,8 @@ mod measure {
                 std::hint::black_box(body.energy_and_add_forces(&x, &mut forces).unwrap());
             }
         }) / rounds as f64;
-        let line_search = VbdSettings::new(1.0 / 60.0).with_tolerance(0.0, rounds);
+        let scene = Scene::new(1.0 / 60.0);
+        let line_search = VbdSettings::new().with_tolerance(0.0, rounds);
         let plain = line_search.with_line_search(0);
         for (name, settings, packed) in [
             ("line search", line_search, false),
@@ -1391,6 +1409,7 @@ mod measure {
                 &body,
                 &masses,
                 &[],
+                &scene,
                 &settings.with_tolerance(0.0, 0),
                 &mut x.clone(),
                 &mut vec![Vec3::ZERO; nv],
@@ -1400,9 +1419,18 @@ mod measure {
             let mut iterations = 0;
             let total = least(&mut || {
                 let (mut y, mut v) = (x.clone(), vec![Vec3::ZERO; nv]);
-                iterations = vbd_step(&body, &masses, &[], &settings, &mut y, &mut v, &mut scratch)
-                    .unwrap()
-                    .iterations;
+                iterations = vbd_step(
+                    &body,
+                    &masses,
+                    &[],
+                    &scene,
+                    &settings,
+                    &mut y,
+                    &mut v,
+                    &mut scratch,
+                )
+                .unwrap()
+                .iterations;
             });
             // The initial guess costs one fused pass (no gravity: one candidate).
             let per_iteration = (total - fused) / f64::from(iterations);
@@ -1427,6 +1455,7 @@ mod measure {
                     &body,
                     &masses,
                     &[],
+                    &scene,
                     &settings.with_tolerance(0.0, budget),
                     &mut y,
                     &mut v,
@@ -1477,7 +1506,7 @@ fn landing_step_matches_the_relaxation_with_contact_and_friction() {
     use softfem::f64::material::StableNeoHookean;
     use softfem::f64::mesh::TetMesh;
     use softfem::f64::step::{
-        Ground, RelaxScratch, RelaxSettings, TetElastic, VbdScratch, VbdSettings,
+        Ground, RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings,
         relax_scratch_len, relax_step, vbd_index_scratch_len, vbd_scratch_len, vbd_step,
     };
     use softfem::glam::DVec3 as Vec3;
@@ -1498,9 +1527,8 @@ fn landing_step_matches_the_relaxation_with_contact_and_friction() {
     let (h, tolerance) = (1.0 / 60.0, 1e-9);
     let v0 = vec![Vec3::new(0.3, 0.0, -0.5); nv];
 
-    let settings = RelaxSettings::new(h)
-        .with_gravity(gravity)
-        .with_ground(ground)
+    let scene = Scene::new(h).with_gravity(gravity).with_ground(ground);
+    let settings = RelaxSettings::new()
         .with_tolerance(tolerance, 100_000)
         .with_chebyshev(0.995, 2.0, 0);
     let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
@@ -1510,6 +1538,7 @@ fn landing_step_matches_the_relaxation_with_contact_and_friction() {
         &body,
         &masses,
         &[],
+        &scene,
         &settings,
         &mut x_relax,
         &mut v_relax,
@@ -1517,10 +1546,7 @@ fn landing_step_matches_the_relaxation_with_contact_and_friction() {
     )
     .unwrap();
 
-    let settings = VbdSettings::new(h)
-        .with_gravity(gravity)
-        .with_ground(ground)
-        .with_tolerance(tolerance, 10_000);
+    let settings = VbdSettings::new().with_tolerance(tolerance, 10_000);
     let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
     let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
@@ -1529,6 +1555,7 @@ fn landing_step_matches_the_relaxation_with_contact_and_friction() {
         &body,
         &masses,
         &[],
+        &scene,
         &settings,
         &mut x_vbd,
         &mut v_vbd,
@@ -1580,7 +1607,8 @@ fn a_failed_step_restores_the_state() {
     use softfem::material::StVK;
     use softfem::mesh::TetMesh;
     use softfem::step::{
-        TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_scratch_len, vbd_step,
+        Scene, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_scratch_len,
+        vbd_step,
     };
     let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z].map(|p| p * 0.1);
     let tets = [[0, 1, 2, 3]];
@@ -1595,8 +1623,19 @@ fn a_failed_step_restores_the_state() {
     let mut vectors = [Vec3::splat(7.0); vbd_scratch_len(4)];
     let mut indices = [3; vbd_index_scratch_len(4, 1)];
     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-    let settings = VbdSettings::new(0.01).with_gravity(Vec3::new(0.0, 0.0, -9.81));
-    let error = vbd_step(&body, &masses, &[], &settings, &mut x, &mut v, &mut scratch).unwrap_err();
+    let scene = Scene::new(0.01).with_gravity(Vec3::new(0.0, 0.0, -9.81));
+    let settings = VbdSettings::new();
+    let error = vbd_step(
+        &body,
+        &masses,
+        &[],
+        &scene,
+        &settings,
+        &mut x,
+        &mut v,
+        &mut scratch,
+    )
+    .unwrap_err();
     assert!(
         matches!(error, StepError::NonFiniteState { .. }),
         "{error:?}"

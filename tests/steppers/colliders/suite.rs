@@ -102,7 +102,7 @@ fn shapes() -> [(&'static str, Collider<'static>); 5] {
 /// the projection: `1e4 eps` m (1.2 mm in f32; measured: 0 or a few ulp, printed). The
 /// explicit stepper gets a light damping (2/s), as the undamped jelly rings for seconds.
 #[test]
-#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test steppers colliders::")]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test release colliders::")]
 fn a_body_rests_on_every_shape_with_every_solver() {
     for (name, shape) in shapes() {
         let colliders = [shape.with_friction(0.8)];
@@ -110,7 +110,7 @@ fn a_body_rests_on_every_shape_with_every_solver() {
             let mut body = cube(Vec3::new(-0.1, 0.01, -0.1), 1.0e5);
             let solver = match solver {
                 Solver::Explicit { .. } => Solver::Explicit {
-                    settings: ExplicitSettings::new(1.0).with_damping(2.0),
+                    settings: ExplicitSettings::new().with_damping(2.0),
                     stable_fraction: Some(0.5),
                 },
                 other => other,
@@ -190,7 +190,7 @@ fn incline(
 /// 0.4 mm and land further down (measured: 2.3 mm walked between 1 s and 2 s at `mu = 1`).
 fn damped_explicit() -> Solver {
     Solver::Explicit {
-        settings: ExplicitSettings::new(1.0).with_damping(2.0),
+        settings: ExplicitSettings::new().with_damping(2.0),
         stable_fraction: Some(0.5),
     }
 }
@@ -223,7 +223,7 @@ fn damped_explicit() -> Solver {
 /// residuals of 0.07 to 0.09 N, where the f64 solves converge at 0.02 N; without friction f32
 /// VBD is 0.74 % (half-space) and 0.54 % (ground) short.
 #[test]
-#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test steppers colliders::")]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test release colliders::")]
 fn a_block_on_an_incline_sticks_or_slides_by_coulomb_law() {
     let theta = core::f64::consts::FRAC_PI_6 as Real; // 30 degrees: tan = 0.577
     let (sin, cos) = (theta.sin(), theta.cos());
@@ -233,7 +233,7 @@ fn a_block_on_an_incline_sticks_or_slides_by_coulomb_law() {
     // runs in contact once the re-lagging stops moving the normal forces (`docs/math.md` 4.6).
     let accelerated = (
         "vbd chebyshev",
-        Solver::Vbd(VbdSettings::new(1.0).with_estimated_chebyshev(4)),
+        Solver::Vbd(VbdSettings::new().with_estimated_chebyshev(4)),
     );
     for on_ground in [false, true] {
         let surface = if on_ground { "ground" } else { "half-space" };
@@ -309,7 +309,7 @@ fn a_block_on_an_incline_sticks_or_slides_by_coulomb_law() {
 /// slid f64 -0.56 % (-0.13 to -0.17 %), f32 +3.3 % (+0.87 %); now f64 +0.05 % (-0.04 %), f32
 /// +0.22 % (+0.18 to +0.22 %).
 #[test]
-#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test steppers colliders::")]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test release colliders::")]
 fn without_the_opt_in_friction_acts_on_the_velocity_after_the_solve() {
     let theta = core::f64::consts::FRAC_PI_6 as Real;
     let (sin, cos) = (theta.sin(), theta.cos());
@@ -320,7 +320,7 @@ fn without_the_opt_in_friction_acts_on_the_velocity_after_the_solve() {
     }
     let accelerated = (
         "vbd chebyshev",
-        Solver::Vbd(VbdSettings::new(1.0).with_estimated_chebyshev(4)),
+        Solver::Vbd(VbdSettings::new().with_estimated_chebyshev(4)),
     );
     let implicit = solvers()
         .into_iter()
@@ -356,7 +356,7 @@ fn without_the_opt_in_friction_acts_on_the_velocity_after_the_solve() {
 /// sticks and rides along: between 1 s and 2 s its centroid moves 0.5 m within 1 %, for every
 /// stepper (the implicit ones creep at most `eps_v` = 1 mm/s relative to the belt, 0.2 %).
 #[test]
-#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test steppers colliders::")]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test release colliders::")]
 fn a_body_on_a_moving_surface_is_carried_at_its_speed() {
     let speed: Real = 0.5;
     let belt = Collider::half_space(Vec3::ZERO, Vec3::Y)
@@ -397,7 +397,7 @@ fn a_body_on_a_moving_surface_is_carried_at_its_speed() {
 /// shape by more than the projection's rounding, and the body ends on top (it did not pass
 /// through).
 #[test]
-#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test steppers colliders::")]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test release colliders::")]
 fn a_fast_body_never_ends_up_inside_a_shape() {
     let newton = Solver::newton();
     for (name, shape) in shapes() {
@@ -428,7 +428,7 @@ fn a_fast_body_never_ends_up_inside_a_shape() {
 /// ahead of it: from 1 s to 2 s the cube's centroid moves at the box's speed within 2 %, and
 /// no vertex is inside the box. The box is advanced between steps by `Collider::advanced`.
 #[test]
-#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test steppers colliders::")]
+#[cfg_attr(debug_assertions, ignore = "minutes unoptimised: cargo test --release --test release colliders::")]
 fn a_kinematic_box_pushes_a_body_at_its_own_speed() {
     let speed: Real = 0.5;
     for (name, solver) in [("explicit", Solver::explicit()), ("newton", Solver::newton())] {
