@@ -755,8 +755,8 @@ mod tests {
 
     /// The parallel position check decides `true` (so the force passes skip the sequential
     /// check) exactly for finite positions within the deformation bound, on two or more threads
-    /// and from `2 CHECK_CHUNK` vertices on; `tests/steppers/parallel.rs` checks that the passes then
-    /// give the sequential bits and errors.
+    /// and from `2 CHECK_CHUNK` vertices on; `tests/steppers/parallel.rs` checks that the passes
+    /// then give the sequential bits and errors.
     #[test]
     fn positions_pass_only_for_finite_positions_in_range_on_several_threads() {
         let (cells, layers) = (127, 1);

@@ -128,11 +128,11 @@ impl<X: Copy + Default, const ROWS: usize, const N: usize> Slots<X> for Fixed<X,
 /// entries of Vertex Block Descent's index scratch (68), whose `3 V + 1 + 4 T` entries fit in
 /// `17 T` whenever `V <= 4 T` (every steppable body: a vertex in no tetrahedron has no mass).
 /// `core::mem::size_of::<Body<FixedStorage<V, T>, M>>()` is the total (the bar of
-/// `tests/steppers/body.rs`, 54 vertices and 120 tetrahedra, takes 48 KB). It has no room for Vertex
-/// Block Descent's packed sweep layout (312 bytes per tetrahedron in f32), so its sweeps
-/// gather the rest data element by element (the same bits; `VecStorage` keeps the layout),
-/// nor for the rest data in blocks (40 bytes per tetrahedron), which serve only the wide SIMD
-/// lanes of a host.
+/// `tests/steppers/body.rs`, 54 vertices and 120 tetrahedra, takes 48 KB). It has no room for
+/// Vertex Block Descent's packed sweep layout (312 bytes per tetrahedron in f32), so its sweeps
+/// gather the rest data element by element (the same bits; `VecStorage` keeps the layout), nor for
+/// the rest data in blocks (40 bytes per tetrahedron), which serve only the wide SIMD lanes of a
+/// host.
 #[derive(Clone, Copy, Debug)]
 pub struct FixedStorage<const V: usize, const T: usize>;
 

@@ -265,7 +265,8 @@ pub(crate) fn map_lane_corners<L: Lane>(
 /// A sum over `n` items (vertices, elements) in a fixed order, grouped or not: item `i` of the
 /// first `n - n % LANES` adds to partial sum `i % LANES`, the partial sums are added as
 /// `(s0 + s1) + (s2 + s3)`, then the last `n % LANES` terms in order. Groups add one term per
-/// lane to the partial sums (wider groups quarter by quarter), so a grouped pass and a one-at-a-time pass give the same bits.
+/// lane to the partial sums (wider groups quarter by quarter), so a grouped pass and a
+/// one-at-a-time pass give the same bits.
 ///
 /// The partial sums are separate fields, not an array indexed by `i % LANES`, which would keep
 /// the whole sum, the grouped loop's running sum included, in memory rather than in registers.

@@ -1,6 +1,6 @@
 //! Vertex-to-element adjacency in compressed rows, and a greedy vertex colouring: what a
-//! vertex-by-vertex solver ([`vbd_step`](super::super::step::vbd_step)) needs to visit the elements around a
-//! vertex and to order its updates so that a parallel version gives the same bits.
+//! vertex-by-vertex solver ([`vbd_step`](super::super::step::vbd_step)) needs to visit the elements
+//! around a vertex and to order its updates so that a parallel version gives the same bits.
 //!
 //! # Layout
 //! The elements around vertex `i` are `incident[offsets[i]..offsets[i + 1]]`, each entry packing
@@ -239,12 +239,12 @@ pub fn vertex_order(colours: &[u32], count: u32, order: &mut [u32]) -> Result<()
 /// but within each colour by decreasing number of incident elements (`offsets` of
 /// [`build_vertex_adjacency`]), then by index: the sweep's order. Within a colour the order
 /// changes no iterate (no two of its vertices share an element); grouping vertices with rows of
-/// equal length lets a lane group of the sweep (`step/descent/vbd/sums.rs`) finish together, with few
-/// masked lanes, and the most elements first leaves a colour's last, partly filled lane group
+/// equal length lets a lane group of the sweep (`step/descent/vbd/sums.rs`) finish together, with
+/// few masked lanes, and the most elements first leaves a colour's last, partly filled lane group
 /// to the vertices with the fewest (the group runs as long as its longest row): on the bouncy
-/// cube's 1080 tetrahedra the f64 sweep went from 632 visit rows of 8 lanes to 608, on the
-/// 96 of the stiff block of the descent chart from 152 to 124. One scan of the vertices per
-/// colour and distinct row length.
+/// cube's 1080 tetrahedra the f64 sweep went from 632 visit rows of 8 lanes to 608, on the 96 of
+/// the stiff block of the descent chart from 152 to 124. One scan of the vertices per colour and
+/// distinct row length.
 ///
 /// # Errors
 /// As [`vertex_order`]; [`StepError::LengthMismatch`] naming [`StepBuffer::AdjacencyOffsets`]

@@ -572,7 +572,8 @@ impl<M: Material, J: PassJob> Pass<'_, M, J> {
         // The blocks where the run has them, aligned to its groups; else the records. Chosen
         // once per run, so each loop is the one of its layout alone. Unoptimised builds take
         // the records only: both loops inlined in one function overflowed a test thread's stack
-        // there (the release tests check the blocks: tests/kernels/simd.rs, tests/steppers/parallel.rs).
+        // there (the release tests check the blocks: tests/kernels/simd.rs,
+        // tests/steppers/parallel.rs).
         #[cfg(not(debug_assertions))]
         if let Some(blocks) = group_rests.block_run(L::WIDTH) {
             self.job

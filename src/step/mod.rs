@@ -4,15 +4,15 @@
 //!
 //! # Conventions
 //! * SI units: positions m, velocities m/s, masses kg (lumped, one per vertex, e.g. from
-//!   [`TetMesh::lumped_masses`](super::mesh::TetMesh::lumped_masses)(super::mesh::TetMesh::lumped_masses)), forces N, energies J,
-//!   time s, gravity m/s^2, damping 1/s. 2D meshes work per unit thickness (N/m, J/m, kg/m) and
-//!   membranes with moduli in N/m and densities in kg/m^2, exactly as in
+//!   [`TetMesh::lumped_masses`](super::mesh::TetMesh::lumped_masses)(super::mesh::TetMesh::lumped_masses)),
+//!   forces N, energies J, time s, gravity m/s^2, damping 1/s. 2D meshes work per unit thickness
+//!   (N/m, J/m, kg/m) and membranes with moduli in N/m and densities in kg/m^2, exactly as in
 //!   [`mesh`](super::mesh).
 //! * The body is described by an [`ElasticModel`]: a validated mesh plus a material, and which
-//!   force path to use. [`TetElastic`] (direct stress, any [`Material`](super::material::Material)) also implements
-//!   [`ElasticEnergy`] and so works with the relaxation; [`TetClamped`] (inversion-robust clamped
-//!   principal stress, not an energy gradient) is for the explicit stepper only, and so are the
-//!   triangle models [`TriElastic`] (2D) and [`MembraneElastic`].
+//!   force path to use. [`TetElastic`] (direct stress, any [`Material`](super::material::Material))
+//!   also implements [`ElasticEnergy`] and so works with the relaxation; [`TetClamped`]
+//!   (inversion-robust clamped principal stress, not an energy gradient) is for the explicit
+//!   stepper only, and so are the triangle models [`TriElastic`] (2D) and [`MembraneElastic`].
 //! * `pinned` is a slice of flags, empty (nothing pinned) or one per vertex: a pinned vertex's
 //!   position and velocity are never changed by any stepper.
 //! * What a step acts on is its [`Scene`], the same for every stepper: the time step, gravity,
@@ -43,7 +43,8 @@
 //! * Nothing is allocated: scratch space is a caller buffer sized by [`explicit_scratch_len`],
 //!   [`relax_scratch_len`] or [`vbd_scratch_len`] and [`vbd_index_scratch_len`].
 //! * Every stepper validates all parameters and buffers **before** touching anything, and
-//!   restores positions and velocities bit for bit when a step fails ([`StepError`](crate::StepError)).
+//!   restores positions and velocities bit for bit when a step fails
+//!   ([`StepError`](crate::StepError)).
 //!
 //! # Accepted ranges
 //! Everything outside these is refused with the error named, before anything is written:
@@ -113,13 +114,13 @@
 //! therefore decreases `Phi` by at least `grad.d / 2` (the Armijo test with `c <= 1/2` accepts it
 //! at the first try) and any `alpha < 2` converges on the linearised problem. The bound is loose:
 //! measured on the bouncy jelly cube (1296 tets, `nu = 0.45`, `h = 1/60 s`) the eigenvalues of
-//! `P^-1 A` span `[5.8e-4, 0.27]`, on the 24-tet cantilever of `tests/steppers/relax.rs` `[1.4e-3, 0.39]`
-//! (`[3.3e-4, 0.39]` without inertia). Hence [`RelaxOptions::step_length`]: `2` is still safe
-//! for any mesh and twice as fast; larger steps are faster still on these meshes and the line
-//! search catches them where they are not. The exact Hessian diagonal (Wang and Yang's choice)
-//! was measured too: the same condition number (385..400 against 458 for the cube), only a
-//! different scale (its largest eigenvalue is 3.4, so it needs `alpha < 0.6` and has no
-//! guarantee), so the bound stays.
+//! `P^-1 A` span `[5.8e-4, 0.27]`, on the 24-tet cantilever of `tests/steppers/relax.rs` `[1.4e-3,
+//! 0.39]` (`[3.3e-4, 0.39]` without inertia). Hence [`RelaxOptions::step_length`]: `2` is still
+//! safe for any mesh and twice as fast; larger steps are faster still on these meshes and the line
+//! search catches them where they are not. The exact Hessian diagonal (Wang and Yang's choice) was
+//! measured too: the same condition number (385..400 against 458 for the cube), only a different
+//! scale (its largest eigenvalue is 3.4, so it needs `alpha < 0.6` and has no guarantee), so the
+//! bound stays.
 //!
 //! ## Initial guess
 //! The lower-`Phi` of `y = x_n + h v_n` and `y + h^2 g` (both projected on the ground): the
@@ -130,26 +131,28 @@
 //! ## Acceleration
 //! The condition number of `P^-1 A` (`~1/lambda_min`: hundreds to thousands) sets the cost of
 //! plain descent: about `kappa / (2 alpha) ln(1/tol)` iterations. Two accelerations, exclusive:
-//! * Chebyshev semi-iteration ([`RelaxSettings::with_chebyshev`](DescentSettings::<RelaxOptions>::with_chebyshev); Wang and Yang 2016, section 4):
-//!   `x_{k+1} = omega_{k+1} (x_k + alpha d_k - x_{k-1}) + x_{k-1}` with `omega = 1` for the first
-//!   `S` iterations after a (re)start, then `omega = 2 / (2 - rho^2)`, then
-//!   `omega_{k+1} = 4 / (4 - rho^2 omega_k)`, which tends to `2 / (1 + sqrt(1 - rho^2))`. Cost
+//! * Chebyshev semi-iteration
+//!   ([`RelaxSettings::with_chebyshev`](DescentSettings::<RelaxOptions>::with_chebyshev); Wang and
+//!   Yang 2016, section 4): `x_{k+1} = omega_{k+1} (x_k + alpha d_k - x_{k-1}) + x_{k-1}` with
+//!   `omega = 1` for the first `S` iterations after a (re)start, then `omega = 2 / (2 - rho^2)`,
+//!   then `omega_{k+1} = 4 / (4 - rho^2 omega_k)`, which tends to `2 / (1 + sqrt(1 - rho^2))`. Cost
 //!   `~sqrt(kappa)` instead of `kappa` iterations, still one energy-and-force pass each. `rho`
-//!   estimates the spectral radius of `I - alpha P^-1 A`, `1 - alpha lambda_min` at best:
-//!   too small and the slowest modes converge at the plain rate, too close to 1 and everything
-//!   converges at the rate the estimate allows. Measured (see `tests/steppers/relax.rs`): `0.995` for
-//!   steps of 1/60 s, `0.999` for quasi-static solves, with `alpha = 2`. A trial that raises
-//!   `Phi` beyond rounding (contacts, nonlinearity) is discarded: the acceleration restarts with a
-//!   plain Armijo step ([`DescentReport::restarts`] counts these).
-//!   Or let the solver estimate `rho`
-//!   ([`RelaxSettings::with_estimated_chebyshev`](DescentSettings::<RelaxOptions>::with_estimated_chebyshev)): the
-//!   largest residual ratio of its first `delay` plain iterations (the estimator Vertex Block
-//!   Descent uses, `descent/chebyshev.rs`), a lower bound that rises with the window. Measured on two
-//!   quasi-static cantilevers (`tests/steppers/chebyshev_estimate.rs`, f64, `1e-6`): delay 200 needs
-//!   911 and 22 376 iterations where the best hand-tuned `rho` of the grid needed 435 and
-//!   15 647, and a fixed `0.999` 727 and 50 844.
-//! * Heavy-ball momentum ([`RelaxSettings::with_momentum`](DescentSettings::<RelaxOptions>::with_momentum)): `d + momentum * (last step)`,
-//!   line searched as a whole. Kept for comparison; Chebyshev is faster at the same cost.
+//!   estimates the spectral radius of `I - alpha P^-1 A`, `1 - alpha lambda_min` at best: too small
+//!   and the slowest modes converge at the plain rate, too close to 1 and everything converges at
+//!   the rate the estimate allows. Measured (see `tests/steppers/relax.rs`): `0.995` for steps of
+//!   1/60 s, `0.999` for quasi-static solves, with `alpha = 2`. A trial that raises `Phi` beyond
+//!   rounding (contacts, nonlinearity) is discarded: the acceleration restarts with a plain Armijo
+//!   step ([`DescentReport::restarts`] counts these). Or let the solver estimate `rho`
+//!   ([`RelaxSettings::with_estimated_chebyshev`](DescentSettings::<RelaxOptions>::with_estimated_chebyshev)):
+//!   the largest residual ratio of its first `delay` plain iterations (the estimator Vertex Block
+//!   Descent uses, `descent/chebyshev.rs`), a lower bound that rises with the window. Measured on
+//!   two quasi-static cantilevers (`tests/steppers/chebyshev_estimate.rs`, f64, `1e-6`): delay 200
+//!   needs 911 and 22 376 iterations where the best hand-tuned `rho` of the grid needed 435 and 15
+//!   647, and a fixed `0.999` 727 and 50 844.
+//! * Heavy-ball momentum
+//!   ([`RelaxSettings::with_momentum`](DescentSettings::<RelaxOptions>::with_momentum)): `d +
+//!   momentum * (last step)`, line searched as a whole. Kept for comparison; Chebyshev is faster at
+//!   the same cost.
 //!
 //! On the bouncy jelly cube (3 s, 180 steps of 1/60 s, tolerance `2e-3`) Chebyshev with
 //! `rho = 0.995, alpha = 2` averages 29 iterations per step (at most ~270 on landing) and

@@ -32,15 +32,16 @@ pub trait ElasticModel {
 
     /// Calls `visit(corners, stiffness, measure)` for every element: its vertex indices, an upper
     /// bound (N/m) on the largest eigenvalue of its small-strain stiffness matrix at rest, and its
-    /// rest volume or area (m^3 or m^2). Used by [`stable_time_step`](super::stable_time_step) and by the relaxation's
-    /// preconditioner; see `step/explicit/stability.rs` for the derivation.
+    /// rest volume or area (m^3 or m^2). Used by [`stable_time_step`](super::stable_time_step) and
+    /// by the relaxation's preconditioner; see `step/explicit/stability.rs` for the derivation.
     fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real));
 
     /// Runs one of the steppers' passes over the vertices (integration, contact projection,
-    /// trial points, residuals), split into blocks of [`VERTEX_BLOCK`](super::VERTEX_BLOCK) vertices. The default
-    /// runs it on the calling thread ([`InOrder`](super::InOrder)); a model whose forces run on a thread pool
-    /// (as `parallel::ParallelTetElastic`, feature `rayon`) returns
-    /// `pass.run_with(&join)` with its pool's [`Join`](super::Join), which gives the same bits.
+    /// trial points, residuals), split into blocks of [`VERTEX_BLOCK`](super::VERTEX_BLOCK)
+    /// vertices. The default runs it on the calling thread ([`InOrder`](super::InOrder)); a model
+    /// whose forces run on a thread pool (as `parallel::ParallelTetElastic`, feature `rayon`)
+    /// returns `pass.run_with(&join)` with its pool's [`Join`](super::Join), which gives the same
+    /// bits.
     #[inline]
     fn run_vertex_pass<P: VertexPass>(&self, pass: P) -> P::Output {
         pass.run_with(&InOrder)
@@ -48,7 +49,8 @@ pub trait ElasticModel {
 }
 
 /// An [`ElasticModel`] whose forces are minus the gradient of an energy, as the relaxation
-/// ([`relax_step`](super::relax_step), [`relax_quasi_static`](super::relax_quasi_static)) needs for its line search.
+/// ([`relax_step`](super::relax_step), [`relax_quasi_static`](super::relax_quasi_static)) needs for
+/// its line search.
 pub trait ElasticEnergy: ElasticModel {
     /// Returns the elastic energy (J) at `positions` (m) and adds the elastic forces (N) into
     /// `forces`, in one pass. NaN or infinite positions give a non-finite energy (not an error).
@@ -62,9 +64,10 @@ pub trait ElasticEnergy: ElasticModel {
     ) -> Result<Real, MeshError>;
 }
 
-/// An [`ElasticEnergy`] with second derivatives, as Newton's method ([`newton_step`](super::newton_step),
-/// [`newton_quasi_static`](super::newton_quasi_static)) needs: the projected (SPD) Hessian cached per element in a caller
-/// buffer, its product with a direction and its 3x3 diagonal blocks (`docs/math.md` section 6).
+/// An [`ElasticEnergy`] with second derivatives, as Newton's method
+/// ([`newton_step`](super::newton_step), [`newton_quasi_static`](super::newton_quasi_static))
+/// needs: the projected (SPD) Hessian cached per element in a caller buffer, its product with a
+/// direction and its 3x3 diagonal blocks (`docs/math.md` section 6).
 pub trait ElasticHessian: ElasticEnergy<Vector = Vec3> {
     /// The number of elements: the length of the Hessian cache.
     fn element_count(&self) -> usize;

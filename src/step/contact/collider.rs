@@ -3,15 +3,15 @@
 //! angular velocity), with restitution and Coulomb friction relative to the collider's surface
 //! velocity.
 //!
-//! Every stepper treats a collider as it treats the [`Ground`](super::super::Ground): a vertex found
-//! inside is projected onto the surface along the outward normal (the gradient of the signed
+//! Every stepper treats a collider as it treats the [`Ground`](super::super::Ground): a vertex
+//! found inside is projected onto the surface along the outward normal (the gradient of the signed
 //! distance), the implicit solvers project every iterate onto the admissible set and drop the
-//! gradient and direction components into the surface at the vertices in contact. Friction acts
-//! on the motion *relative to the surface*, `v - (v_c + w_c x (x - p_c))`: in the explicit
-//! stepper on the velocity (and the substep's move) after each substep, in the implicit solvers
-//! on the velocity after the solve or, opted in with a positive
-//! [`sticking_speed`](Collider::sticking_speed), inside the step's objective (`step/contact/friction.rs`:
-//! the smoothed, lagged dissipation potential of Li et al. 2020).
+//! gradient and direction components into the surface at the vertices in contact. Friction acts on
+//! the motion *relative to the surface*, `v - (v_c + w_c x (x - p_c))`: in the explicit stepper on
+//! the velocity (and the substep's move) after each substep, in the implicit solvers on the
+//! velocity after the solve or, opted in with a positive
+//! [`sticking_speed`](Collider::sticking_speed), inside the step's objective
+//! (`step/contact/friction.rs`: the smoothed, lagged dissipation potential of Li et al. 2020).
 
 use super::super::super::math;
 use super::super::super::types::{Quat, Real, Vec3};
@@ -138,9 +138,9 @@ impl PartialEq for Shape<'_> {
 ///   between steps move it with [`advanced`](Self::advanced). A static collider has zero
 ///   velocities.
 /// * Contact: restitution `e` in `[0, 1]` and Coulomb friction `>= 0`, exactly as the
-///   [`Ground`](super::super::Ground)'s, applied to the velocity relative to the collider's surface.
-///   Restitution is applied by the explicit stepper only (implicit Euler dissipates the normal
-///   velocity at an impact).
+///   [`Ground`](super::super::Ground)'s, applied to the velocity relative to the collider's
+///   surface. Restitution is applied by the explicit stepper only (implicit Euler dissipates the
+///   normal velocity at an impact).
 /// * Several colliders are resolved one after the other in slice order (a vertex pushed out of
 ///   one into the next ends outside the later one).
 /// * Contact is tested at the vertices only: a collider smaller than the mesh spacing (a thin
@@ -178,8 +178,8 @@ pub struct Collider<'a> {
     pub friction: Real,
     /// The implicit solvers' sticking speed `eps_v` (m/s, finite `>= 0`; default 0: friction on
     /// the velocity after the solve; positive: friction in the step's objective), as the
-    /// [`Ground`](super::super::Ground)'s [`sticking_speed`](super::super::Ground::sticking_speed), relative
-    /// to the collider's surface velocity.
+    /// [`Ground`](super::super::Ground)'s [`sticking_speed`](super::super::Ground::sticking_speed),
+    /// relative to the collider's surface velocity.
     pub sticking_speed: Real,
 }
 
@@ -527,7 +527,8 @@ impl<'a> Collider<'a> {
                 half_length,
                 radius,
             } => {
-                // max then min, not `clamp`, which has a panic path for bounds the optimiser cannot order.
+                // max then min, not `clamp`, which has a panic path for bounds the optimiser cannot
+                // order.
                 let axis = Vec3::new(0.0, 0.0, local.z.max(-half_length).min(half_length));
                 let off = local - axis;
                 let r = math::sqrt(off.dot(off));
@@ -890,8 +891,8 @@ impl Colliders<'_> {
     /// The implicit solvers' velocity at a vertex at `x` touching a collider, after
     /// `v = (x_{n+1} - x_n) / h`: relative to the surface, the normal approach removed and,
     /// unless the collider's friction was part of the step's objective (a positive
-    /// [`sticking_speed`](Collider::sticking_speed), `step/contact/friction.rs`), Coulomb friction with the
-    /// normal impulse `h R` (`R` the reaction: the normal component of the gradient `g` of
+    /// [`sticking_speed`](Collider::sticking_speed), `step/contact/friction.rs`), Coulomb friction
+    /// with the normal impulse `h R` (`R` the reaction: the normal component of the gradient `g` of
     /// `Phi`, N; `m` the mass, kg). `v` unchanged away from every collider.
     #[inline]
     pub fn implicit_velocity(&self, (x, g, m, h): (Vec3, Vec3, Real, Real), v: Vec3) -> Vec3 {

@@ -1,8 +1,8 @@
 //! What a body touches and how contact acts on it: the [`Ground`] half-space
-//! (`step/contact/ground.rs`), rigid [`Collider`]s (`step/contact/collider.rs`), the projection of vertices and directions
-//! onto the admissible set that every stepper shares (`floor.rs`), Coulomb friction inside the
-//! implicit objective (`step/contact/friction.rs`), and the one record of a contact at a vertex that they
-//! exchange ([`Contact`]).
+//! (`step/contact/ground.rs`), rigid [`Collider`]s (`step/contact/collider.rs`), the projection of
+//! vertices and directions onto the admissible set that every stepper shares (`floor.rs`), Coulomb
+//! friction inside the implicit objective (`step/contact/friction.rs`), and the one record of a
+//! contact at a vertex that they exchange ([`Contact`]).
 
 pub(crate) mod collider;
 pub(crate) mod floor;

@@ -1,10 +1,12 @@
 //! The Chebyshev semi-iteration's spectral radius estimated by the solver itself, shared by the
-//! relaxation ([`RelaxSettings::with_estimated_chebyshev`](super::super::DescentSettings::<super::super::RelaxOptions>::with_estimated_chebyshev))
-//! and Vertex Block Descent ([`VbdSettings::with_estimated_chebyshev`](super::super::VbdSettings::with_estimated_chebyshev)):
+//! relaxation
+//! ([`RelaxSettings::with_estimated_chebyshev`](super::super::DescentSettings::<super::super::RelaxOptions>::with_estimated_chebyshev))
+//! and Vertex Block Descent
+//! ([`VbdSettings::with_estimated_chebyshev`](super::super::VbdSettings::with_estimated_chebyshev)):
 //! the largest residual ratio `r_k / r_(k-1)` of the plain iterations `2..=delay` of a solve,
-//! capped. A plain iteration contracts the slow modes by about `rho` per iteration once the
-//! fast ones are gone (power iteration on the iteration matrix), so the ratios rise towards
-//! `rho` from below; the largest is the best of them.
+//! capped. A plain iteration contracts the slow modes by about `rho` per iteration once the fast
+//! ones are gone (power iteration on the iteration matrix), so the ratios rise towards `rho` from
+//! below; the largest is the best of them.
 //!
 //! Also the weights of the semi-iteration itself ([`Acceleration`]), which the descent loop
 //! (`descent/mod.rs`) applies to any first-order direction.

@@ -5,15 +5,17 @@
 //! backtracking line search (`line_search.rs`), until the stopping test (`stopping.rs`: the
 //! relative residual, the rounding floor, stagnation) ends it; then the velocity update, or, if
 //! anything failed, the caller's state restored bit for bit. Friction at the contacts is part
-//! of `Phi` (`objective.rs`, `step/contact/friction.rs`), lagged to the iterate each line search starts from
-//! and re-lagged to every accepted point.
+//! of `Phi` (`objective.rs`, `step/contact/friction.rs`), lagged to the iterate each line search
+//! starts from and re-lagged to every accepted point.
 //!
 //! The search direction is the only thing a solver adds, one folder each (with its settings,
 //! report and entry points in the folder's `mod.rs`), behind [`Direction`]:
-//! * `relax/jacobi.rs`: `P` the diagonal bound `m/h^2 + k_i` (the relaxation, [`relax_step`](super::relax_step)),
+//! * `relax/jacobi.rs`: `P` the diagonal bound `m/h^2 + k_i` (the relaxation,
+//!   [`relax_step`](super::relax_step)),
 //! * `relax/gradient.rs`: `P = c I`, `c` the largest entry of that bound (plain gradient descent,
 //!   [`gradient_descent_step`](super::gradient_descent_step)),
-//! * `newton/cg.rs`: `P` the projected Hessian, solved by block-Jacobi PCG ([`newton_step`](super::newton_step)),
+//! * `newton/cg.rs`: `P` the projected Hessian, solved by block-Jacobi PCG
+//!   ([`newton_step`](super::newton_step)),
 //! * `vbd/sweep.rs`: one block Gauss–Seidel sweep of 3x3 vertex Newton steps, `d = sweep(x) - x`
 //!   (Vertex Block Descent, [`vbd_step`](super::vbd_step)).
 //!
@@ -32,9 +34,9 @@
 //! its frame origin shifted by `-c`, a half-space's re-anchored at its point nearest `c`; the
 //! surface velocities unchanged). A body 60 m (or 1e4 m) from the origin thus converges like
 //! the same body at the origin, with a rounding floor relative to its size
-//! (`tests/steppers/stagnation.rs`), on the ground or on a collider; and a block sliding metres down an
-//! incline keeps its Newton steps of a micrometre (`tests/steppers/colliders`). A body straddling the
-//! origin has `c = 0` and nothing changes.
+//! (`tests/steppers/stagnation.rs`), on the ground or on a collider; and a block sliding metres
+//! down an incline keeps its Newton steps of a micrometre (`tests/steppers/colliders`). A body
+//! straddling the origin has `c = 0` and nothing changes.
 
 pub(crate) mod chebyshev;
 pub(crate) mod line_search;

@@ -3,9 +3,10 @@
 //! step (`y = x_n + h v_n`), or without inertia the static energy `E(x) - sum m g.(x - x_0)`;
 //! its evaluation with the residual every solver stops on, and the velocity update after a step.
 //! With friction at the contacts of a step, `Phi` gains the lagged dissipation potential
-//! `sum mu lambda_i f0(|u_i|)` of `step/contact/friction.rs`, `lambda_i` the normal force of a lagging
-//! gradient (see [`Objective::evaluate`] and [`Objective::relag`]). Shared by every direction of
-//! the descent loop (`mod.rs`): the relaxation, gradient descent, Newton's method and VBD.
+//! `sum mu lambda_i f0(|u_i|)` of `step/contact/friction.rs`, `lambda_i` the normal force of a
+//! lagging gradient (see [`Objective::evaluate`] and [`Objective::relag`]). Shared by every
+//! direction of the descent loop (`mod.rs`): the relaxation, gradient descent, Newton's method and
+//! VBD.
 
 use super::super::super::element::Vector;
 use super::super::super::math;
@@ -129,11 +130,11 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     /// slowed, so `y` shears the body by `h` times their velocity changes; for a stiff body that
     /// shear's elastic force is many times the friction force, and the relative tolerance
     /// against that initial residual ends the solve early. Measured on a block sliding down a
-    /// 30 degree incline (`tests/steppers/colliders`, `E = 1e6` Pa, 100 Hz): the initial residual at
-    /// `y` was 60 N at `mu = 0.1` and 240 N at 0.3 (13 N without friction), at this guess 11 to
+    /// 30 degree incline (`tests/steppers/colliders`, `E = 1e6` Pa, 100 Hz): the initial residual
+    /// at `y` was 60 N at `mu = 0.1` and 240 N at 0.3 (13 N without friction), at this guess 11 to
     /// 21 N; VBD had stopped at 0.23 N (0.04 N without friction) and slid 4.7 % short. Without
-    /// gravity's drop `h^2 g`, which would compress a resting body (208 N measured there).
-    /// Without inertia (or velocities) it is [`initial_guess`](Self::initial_guess)`(0)`.
+    /// gravity's drop `h^2 g`, which would compress a resting body (208 N measured there). Without
+    /// inertia (or velocities) it is [`initial_guess`](Self::initial_guess)`(0)`.
     pub fn rigid_guess(&self, point: TrialPoint<'_, F::Vector>) {
         let (h, velocities) = (self.h, self.vertices.velocities);
         let free = self
@@ -267,14 +268,14 @@ impl<F: ElasticEnergy> Objective<'_, F> {
     }
 
     /// Adds friction to `gradient` at `x`: at every free vertex, the potential and gradient of
-    /// `step/contact/friction.rs` lagged to `lagged` (or to `x` and `gradient` itself if `None`), minus those
-    /// lagged to `included` (whose friction `gradient` holds already; nothing if `None`).
-    /// Returns friction's change of `Phi` (J), the squared residual of the result projected on
-    /// the contact constraints (N^2; 0, not summed, with `lagged` given), which replaces the
-    /// passes' one, and how far the lag moved between `included` and `lagged` (see
-    /// [`relag`](Self::relag)); `None` (and nothing changed) if no vertex got a term. One pass:
-    /// a vertex's residual depends on its own gradient only, so it is summed as soon as that is
-    /// final (in vertex order, as a second pass would).
+    /// `step/contact/friction.rs` lagged to `lagged` (or to `x` and `gradient` itself if `None`),
+    /// minus those lagged to `included` (whose friction `gradient` holds already; nothing if
+    /// `None`). Returns friction's change of `Phi` (J), the squared residual of the result
+    /// projected on the contact constraints (N^2; 0, not summed, with `lagged` given), which
+    /// replaces the passes' one, and how far the lag moved between `included` and `lagged` (see
+    /// [`relag`](Self::relag)); `None` (and nothing changed) if no vertex got a term. One pass: a
+    /// vertex's residual depends on its own gradient only, so it is summed as soon as that is final
+    /// (in vertex order, as a second pass would).
     fn add_friction(
         &self,
         x: &[F::Vector],

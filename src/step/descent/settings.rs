@@ -11,8 +11,9 @@ use super::super::super::types::Real;
 /// solver has ([`RelaxOptions`](super::relax::RelaxOptions),
 /// [`NewtonOptions`](super::newton::NewtonOptions), [`VbdOptions`](super::vbd::VbdOptions)).
 /// Each solver's defaults come from its `new` ([`RelaxSettings::new`](super::super::RelaxSettings),
-/// [`NewtonSettings::new`](super::super::NewtonSettings), [`VbdSettings::new`](super::super::VbdSettings))
-/// and are documented there. The settings borrow nothing, so a body keeps them.
+/// [`NewtonSettings::new`](super::super::NewtonSettings),
+/// [`VbdSettings::new`](super::super::VbdSettings)) and are documented there. The settings borrow
+/// nothing, so a body keeps them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DescentSettings<O> {
     /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` (relative residual, in

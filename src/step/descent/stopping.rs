@@ -7,7 +7,8 @@ use super::super::super::math;
 use super::super::super::types::Real;
 
 /// A solve whose residual stagnated counts as converged when the residual is at most this
-/// many times the estimated rounding floor ([`DescentReport::rounding_floor`](super::super::DescentReport::rounding_floor)).
+/// many times the estimated rounding floor
+/// ([`DescentReport::rounding_floor`](super::super::DescentReport::rounding_floor)).
 pub const FLOOR_FACTOR: Real = 4.0;
 
 /// Whether `residual` meets `target`. Never for an overflowed (infinite) or NaN residual or

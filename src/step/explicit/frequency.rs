@@ -4,16 +4,16 @@
 //! Symplectic Euler is stable for `dt < 2 / omega_max`, `omega_max^2` the largest eigenvalue of
 //! `M^-1 H` (`docs/math.md` section 4). The proven bound majorises `omega_max` element by element,
 //! which is safe but loose: on the Kuhn boxes of [`generate`](crate::generate) it allows only
-//! about 0.6 of the true limit (measured in `tests/steppers/frequency.rs`: 0.632 on one cube, 0.599 on a
-//! 3x2x2 bar pinned at one end). Here `omega_max^2` is computed
-//! by power iteration on `M^-1 H` (pinned degrees of freedom removed) with the projected Hessian
-//! `H` at the given positions, through [`ElasticHessian`] products (`docs/math.md` section 6):
-//! `v <- M^-1 H v / |M^-1 H v|_M`, `omega^2 = v.Hv / v.Mv` (the Rayleigh quotient in the
-//! mass inner product, where `M^-1 H` is symmetric). The Rayleigh quotient never exceeds the
-//! largest eigenvalue and converges to it from below, so the step it implies is **not** a
-//! guarantee: use [`FrequencyEstimate::time_step`], which applies [`FREQUENCY_MARGIN`], and keep
-//! the stepper's blow-up detection on. At rest the projected Hessian is the exact one (it is
-//! positive semi-definite there), so the estimate is the linearised system's.
+//! about 0.6 of the true limit (measured in `tests/steppers/frequency.rs`: 0.632 on one cube, 0.599
+//! on a 3x2x2 bar pinned at one end). Here `omega_max^2` is computed by power iteration on `M^-1 H`
+//! (pinned degrees of freedom removed) with the projected Hessian `H` at the given positions,
+//! through [`ElasticHessian`] products (`docs/math.md` section 6): `v <- M^-1 H v / |M^-1 H v|_M`,
+//! `omega^2 = v.Hv / v.Mv` (the Rayleigh quotient in the mass inner product, where `M^-1 H` is
+//! symmetric). The Rayleigh quotient never exceeds the largest eigenvalue and converges to it from
+//! below, so the step it implies is **not** a guarantee: use [`FrequencyEstimate::time_step`],
+//! which applies [`FREQUENCY_MARGIN`], and keep the stepper's blow-up detection on. At rest the
+//! projected Hessian is the exact one (it is positive semi-definite there), so the estimate is the
+//! linearised system's.
 
 use super::super::super::element::TetHessian;
 use super::super::super::math;

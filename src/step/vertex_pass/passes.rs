@@ -1,10 +1,10 @@
 //! The relaxation's passes over the vertices: the gradient of `Phi` from the elastic forces, the
 //! preconditioned descent direction and the trial points. On x86_64 (`math::BATCH_VERTICES`)
 //! each runs in groups of the width `simd::dispatch` picks (16 f32 lanes on AVX-512, 8 on AVX2,
-//! 4 on SSE and at the scalar width; [`Grouped::Wide`], see `step/vertex_pass/point.rs`), then narrower groups
-//! down to [`LANES`], then the rest one at a time (every vertex one at a time elsewhere), through
-//! the same generic per-vertex code, so that every vertex gets the same bits either way and
-//! every target and width the same sums ([`LaneSum`]).
+//! 4 on SSE and at the scalar width; [`Grouped::Wide`], see `step/vertex_pass/point.rs`), then
+//! narrower groups down to [`LANES`], then the rest one at a time (every vertex one at a time
+//! elsewhere), through the same generic per-vertex code, so that every vertex gets the same bits
+//! either way and every target and width the same sums ([`LaneSum`]).
 
 use super::super::super::element::Vector;
 #[cfg(target_arch = "x86_64")]
@@ -169,9 +169,9 @@ impl<'a, V: Grouped> Frames<'a, V> {
 
     /// The direction `d` (slope term `slope`) of a vertex at `x` moved from `start`, with
     /// gradient `g` and isotropic bound `p`, with friction's tangent curvature `b` added to the
-    /// bound across the contact: `d - b / (p + b) d_t`, `d_t` the tangential part (`step/contact/friction.rs`:
-    /// `b = mu lambda f1(y) / y` bounds the tangent block). Unchanged without a frictional
-    /// contact.
+    /// bound across the contact: `d - b / (p + b) d_t`, `d_t` the tangential part
+    /// (`step/contact/friction.rs`: `b = mu lambda f1(y) / y` bounds the tangent block). Unchanged
+    /// without a frictional contact.
     #[inline(always)]
     fn damped(&self, (x, start, g): (V, V, V), p: Real, (d, slope): (V, Real)) -> (V, Real)
     where

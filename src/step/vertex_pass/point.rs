@@ -1,13 +1,13 @@
 //! Per-vertex arithmetic written once for one vertex and for a group of vertices.
 //!
-//! The relaxation's vertex passes (gradient, direction, trial points; `step/vertex_pass/passes.rs`) run on
-//! x86_64 in groups of the width `simd::dispatch` picks (16 f32 lanes on AVX-512, 8 on AVX2,
-//! then narrower groups down to [`LANES`]) as [`Point`]s with lane coordinates
-//! ([`Grouped::Wide`]) and the rest one at a time with the plain vector, elsewhere every vertex
-//! one at a time, through the same generic code: element-wise IEEE operations and selects
-//! instead of branches, so every vertex gets the same bits either way. Sums over vertices follow one fixed order on every target (`LaneSum` in
-//! `lanes/mod.rs`). `LaneVec2` lives here rather than next to `LaneVec3`: only the steppers need 2D
-//! lanes.
+//! The relaxation's vertex passes (gradient, direction, trial points; `step/vertex_pass/passes.rs`)
+//! run on x86_64 in groups of the width `simd::dispatch` picks (16 f32 lanes on AVX-512, 8 on AVX2,
+//! then narrower groups down to [`LANES`]) as [`Point`]s with lane coordinates ([`Grouped::Wide`])
+//! and the rest one at a time with the plain vector, elsewhere every vertex one at a time, through
+//! the same generic code: element-wise IEEE operations and selects instead of branches, so every
+//! vertex gets the same bits either way. Sums over vertices follow one fixed order on every target
+//! (`LaneSum` in `lanes/mod.rs`). `LaneVec2` lives here rather than next to `LaneVec3`: only the
+//! steppers need 2D lanes.
 
 use core::ops::{Add, Neg, Sub};
 

@@ -123,7 +123,8 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
         let model = objective.model;
         let (masses, pinned) = (objective.vertices.masses, objective.vertices.pinned);
         model.projected_hessians(at.x, self.hessians)?;
-        // Friction's tangent blocks at the iterate, with its own normal forces (`step/contact/friction.rs`).
+        // Friction's tangent blocks at the iterate, with its own normal forces
+        // (`step/contact/friction.rs`).
         let friction = &objective.friction;
         let start = objective.vertices.start;
         let rough = |i: usize| -> Option<Mat3> {
@@ -236,11 +237,11 @@ impl Constraints<'_> {
 }
 
 /// Writes the inverted preconditioner blocks `(B_i + m_i / h^2 I + F_i)^-1` into `blocks`, `B_i`
-/// the diagonal blocks of the projected Hessian, `F_i` friction's tangent block (`rough`). A block whose determinant is below
-/// `eps max(diag)^3` (singular or nearly: a vertex with no stiffness and no inertia) is
-/// replaced by the inverse of its diagonal, zero where a diagonal entry is not positive.
-/// Returns `sum |B_i + m_i / h^2 I|_F^2` over the free vertices (N^2/m^2), for the rounding
-/// floor: a sum over vertex blocks (`step/vertex_pass/mod.rs`), as every sum of this file.
+/// the diagonal blocks of the projected Hessian, `F_i` friction's tangent block (`rough`). A block
+/// whose determinant is below `eps max(diag)^3` (singular or nearly: a vertex with no stiffness and
+/// no inertia) is replaced by the inverse of its diagonal, zero where a diagonal entry is not
+/// positive. Returns `sum |B_i + m_i / h^2 I|_F^2` over the free vertices (N^2/m^2), for the
+/// rounding floor: a sum over vertex blocks (`step/vertex_pass/mod.rs`), as every sum of this file.
 fn invert_blocks<F: ElasticHessian>(
     model: &F,
     hessians: &[TetHessian],
@@ -308,13 +309,14 @@ type CgParts<'p> = (
 /// Preconditioned conjugate gradients on `S A S d = -S g` from `d = 0` (Hestenes and Stiefel;
 /// Saad, "Iterative Methods for Sparse Linear Systems", algorithm 9.1), `A = M / h^2 + H` with
 /// `H` in `hessians` and the preconditioner `S B^-1 S` from the inverted `blocks`, until
-/// `|r| <= eta |r_0|` or `max` iterations; friction's blocks (`rough`) are part of `A`. Writes `d` into `direction`; returns the iterations.
+/// `|r| <= eta |r_0|` or `max` iterations; friction's blocks (`rough`) are part of `A`. Writes `d`
+/// into `direction`; returns the iterations.
 ///
 /// Besides the Hessian product, an iteration is three passes over the vertices in blocks run by
-/// `model` (`step/vertex_pass/mod.rs`): the product's vertex terms with its projection and curvature `p.q`; the
-/// updates of `d` and `r` with `|r|^2`, the preconditioned residual `z` and `r.z`; the next
-/// conjugate direction with the product cleared. Every sum is a sum of block sums over the
-/// fixed tree, so `d` has the same bits on any number of threads.
+/// `model` (`step/vertex_pass/mod.rs`): the product's vertex terms with its projection and
+/// curvature `p.q`; the updates of `d` and `r` with `|r|^2`, the preconditioned residual `z` and
+/// `r.z`; the next conjugate direction with the product cleared. Every sum is a sum of block sums
+/// over the fixed tree, so `d` has the same bits on any number of threads.
 fn conjugate_gradients<F: ElasticHessian>(
     model: &F,
     (hessians, blocks, masses, inertia): (&[TetHessian], &[Mat3], &[Real], Real),

@@ -155,10 +155,10 @@ pub type NewtonReport = DescentReport<NewtonDetails>;
 
 /// One implicit Euler step of the scene's `dt` by Newton's method: minimises the incremental
 /// potential `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`,
-/// the relaxation's objective ([`relax_step`](super::super::relax_step)), from the better of `y` and
-/// `y + h^2 g`; then `v = (x_{n+1} - x_n) / h` with Coulomb friction at the ground contacts.
-/// Pinned vertices keep position and velocity. Not converging within the budget is not an
-/// error ([`DescentReport::converged`]).
+/// the relaxation's objective ([`relax_step`](super::super::relax_step)), from the better of `y`
+/// and `y + h^2 g`; then `v = (x_{n+1} - x_n) / h` with Coulomb friction at the ground contacts.
+/// Pinned vertices keep position and velocity. Not converging within the budget is not an error
+/// ([`DescentReport::converged`]).
 ///
 /// # Algorithm
 /// At the iterate `x` with gradient `g = grad Phi(x)`:
@@ -179,9 +179,9 @@ pub type NewtonReport = DescentReport<NewtonDetails>;
 ///    |g_0|))` took 396 and 2249, for the same residual. A forcing term that tends to zero keeps the local
 ///    convergence superlinear (Dembo, Eisenstat and Steihaug, "Inexact Newton methods", SIAM J.
 ///    Numer. Anal. 1982; Eisenstat and Walker, "Choosing the forcing terms in an inexact Newton
-///    method", SIAM J. Sci. Comput. 1996). A non-positive curvature `p . A p` (only possible without inertia, at
-///    vertices with no stiffness) ends the solve; at the first iteration the preconditioned
-///    gradient is used instead.
+///    method", SIAM J. Sci. Comput. 1996). A non-positive curvature `p . A p` (only possible
+///    without inertia, at vertices with no stiffness) ends the solve; at the first iteration the
+///    preconditioned gradient is used instead.
 /// 4. Armijo backtracking along `d` from the full step (the relaxation's test, with Hager and
 ///    Zhang's rounding-proof fallback), every trial point projected onto the ground.
 ///
@@ -200,13 +200,13 @@ pub type NewtonReport = DescentReport<NewtonDetails>;
 /// stops the solve as stagnated, converged only within the same bound. A tolerance below the
 /// floor thus costs a few iterations and says so, instead of burning the budget.
 ///
-/// What that means in practice (measured in `tests/steppers/newton.rs`): in f64 the floor is far below
-/// any useful tolerance (`3e-12` of the load on the quasi-static cantilever, which reaches
-/// `1e-8`); in f32 it is about `2e-3` of the load on that cantilever (E = 1 MPa, 10 cm cells;
-/// the solve stalls at `4e-4`) and about `0.2` of the weight of a stiff block at rest
-/// (E = 1e8 Pa, 5 cm cells; stalls at `0.05..0.1`): ask f32 for `1e-4` and steps that start far
-/// from their solution reach it, steps that start near rest stop at the floor. Working in
-/// coordinates near the origin (relative to the body's size) keeps `eps |x|` small.
+/// What that means in practice (measured in `tests/steppers/newton.rs`): in f64 the floor is far
+/// below any useful tolerance (`3e-12` of the load on the quasi-static cantilever, which reaches
+/// `1e-8`); in f32 it is about `2e-3` of the load on that cantilever (E = 1 MPa, 10 cm cells; the
+/// solve stalls at `4e-4`) and about `0.2` of the weight of a stiff block at rest (E = 1e8 Pa, 5 cm
+/// cells; stalls at `0.05..0.1`): ask f32 for `1e-4` and steps that start far from their solution
+/// reach it, steps that start near rest stop at the floor. Working in coordinates near the origin
+/// (relative to the body's size) keeps `eps |x|` small.
 ///
 /// ```
 /// use softfem::element::{TetHessian, TetRest};

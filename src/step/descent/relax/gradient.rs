@@ -139,11 +139,12 @@ fn moved<V: Grouped>(floor: &Floor<V>, pinned: bool, x: V, target: V) -> V {
     if pinned { x } else { floor.project(target) }
 }
 
-/// One implicit Euler step by plain gradient descent: the loop of [`relax_step`](super::super::super::relax_step)
-/// (same objective, initial guess, line search, stopping test, momentum and Chebyshev options,
-/// friction) with `P = c I` instead of the per-vertex bound (see this file): `settings` and
-/// `scratch` are the relaxation's, and so is the report. `step_length` is in units of `1 / c`
-/// (`1` the majorisation step, `< 2` converges on the linearised problem).
+/// One implicit Euler step by plain gradient descent: the loop of
+/// [`relax_step`](super::super::super::relax_step) (same objective, initial guess, line search,
+/// stopping test, momentum and Chebyshev options, friction) with `P = c I` instead of the
+/// per-vertex bound (see this file): `settings` and `scratch` are the relaxation's, and so is the
+/// report. `step_length` is in units of `1 / c` (`1` the majorisation step, `< 2` converges on the
+/// linearised problem).
 ///
 /// Pick it only to compare: it is never faster than the relaxation, which costs the same per
 /// iteration and conditions the problem better wherever masses or element sizes vary.
@@ -172,7 +173,8 @@ pub fn gradient_descent_step<F: ElasticEnergy>(
 }
 
 /// Quasi-static equilibrium by plain gradient descent: [`gradient_descent_step`] without
-/// inertia, as [`relax_quasi_static`](super::super::super::relax_quasi_static) is to the relaxation.
+/// inertia, as [`relax_quasi_static`](super::super::super::relax_quasi_static) is to the
+/// relaxation.
 ///
 /// # Errors
 /// As [`relax_quasi_static`](super::super::super::relax_quasi_static).

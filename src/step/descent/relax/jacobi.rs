@@ -1,6 +1,7 @@
 //! The relaxation's direction: `d = -P^-1 grad Phi` with `P` the diagonal bound
 //! `P_i = m_i / h^2 + k_i` (see the `step` module documentation), in the vertex passes of
-//! `step/vertex_pass/passes.rs` (four vertices at a time on x86_64), and its Chebyshev trial in one pass.
+//! `step/vertex_pass/passes.rs` (four vertices at a time on x86_64), and its Chebyshev trial in one
+//! pass.
 
 use super::super::super::super::types::Real;
 use super::super::super::model::ElasticEnergy;

@@ -168,8 +168,8 @@ impl DescentSettings<RelaxOptions> {
     /// 300 unconverged at 5000 tets, 26.7 iterations); f64 solves can ask for far less. `rho`:
     /// `0.99` and `0.999` were each better on one row and worse on others (`0.999` left 259 of
     /// 300 unconverged at 5000 tets); quasi-static solves ([`relax_quasi_static`]) want `0.999`
-    /// (see the [module documentation](super::super#acceleration)). Unconverged steps are those that
-    /// used the whole budget, mostly on landing, not errors.
+    /// (see the [module documentation](super::super#acceleration)). Unconverged steps are those
+    /// that used the whole budget, mostly on landing, not errors.
     #[inline]
     #[must_use]
     pub const fn new() -> Self {
@@ -272,11 +272,11 @@ pub const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 /// (`docs/math.md` section 4), by preconditioned descent from the better (lower `Phi`) of `y` and
 /// `y + h^2 g`, both projected onto the ground (where neither touches the ground, no collider,
 /// pinned vertex, external load or fixed axis acts, `y + h^2 g` is `y` translated rigidly and
-/// lower by `h^2 |g|^2 sum m / 2`: it is taken without evaluating `y`): `d = -P^-1 grad Phi` (see the
-/// [module documentation](super::super)), optional momentum or Chebyshev acceleration, Armijo
-/// backtracking, projection of every free trial point onto the ground. Then `v = (x_{n+1} - x_n) / h`, and at vertices resting on the
-/// ground Coulomb friction removes up to `friction * h R / m` of the tangential velocity, `R`
-/// the normal reaction (N, the gradient's normal component there).
+/// lower by `h^2 |g|^2 sum m / 2`: it is taken without evaluating `y`): `d = -P^-1 grad Phi` (see
+/// the [module documentation](super::super)), optional momentum or Chebyshev acceleration, Armijo
+/// backtracking, projection of every free trial point onto the ground. Then `v = (x_{n+1} - x_n) /
+/// h`, and at vertices resting on the ground Coulomb friction removes up to `friction * h R / m` of
+/// the tangential velocity, `R` the normal reaction (N, the gradient's normal component there).
 ///
 /// Pinned vertices keep position and velocity. Not converging within the budget is not an
 /// error: the best iterate is used and [`DescentReport::converged`] is false.
@@ -310,9 +310,9 @@ pub const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 /// # Errors
 /// Before anything is touched: the scene's errors ([`Scene::validated`]: the time step, gravity,
 /// colliders, the ground), [`StepError::RelaxSettings`], [`StepError::LengthMismatch`],
-/// [`StepError::Mass`], [`StepError::NonFiniteInput`], the loads' errors. [`StepError::NonFiniteState`] if `Phi`
-/// is not finite at both `y` and `x_n` or the result is not finite; the state is then
-/// restored.
+/// [`StepError::Mass`], [`StepError::NonFiniteInput`], the loads' errors.
+/// [`StepError::NonFiniteState`] if `Phi` is not finite at both `y` and `x_n` or the result is not
+/// finite; the state is then restored.
 #[allow(clippy::too_many_arguments)]
 pub fn relax_step<F: ElasticEnergy>(
     model: &F,

@@ -8,15 +8,14 @@
 //! Chen et al., "Vertex Block Descent", TOG 2024, which use the local Hessian as is and guard
 //! its definiteness): [`VertexFactor::new`] factors it by `L D L^T` (Cholesky without square
 //! roots) where it is positive definite, which it is for
-//! [`StableNeoHookean`](super::super::super::super::material::StableNeoHookean) always (every element term
-//! is, see below) and for the other models unless elements are strongly compressed with little
-//! inertia; otherwise it factors
-//! `m / h^2 I + (sum_e V_e K_e)+`, the positive semi-definite part of the elastic sum from its
-//! eigen-decomposition (one 3x3 symmetric SVD for that vertex, not one per element), with the
-//! Levenberg–Marquardt shift of [`Ldlt::regularised`] where even that is singular. Either
-//! way the factored matrix `H` is symmetric positive definite, so `d = -H^-1 grad` satisfies
-//! `grad . d = -grad^T H^-1 grad < 0`: a descent direction of the vertex's local energy, and
-//! with the line search every accepted update lowers `Phi`.
+//! [`StableNeoHookean`](super::super::super::super::material::StableNeoHookean) always (every
+//! element term is, see below) and for the other models unless elements are strongly compressed
+//! with little inertia; otherwise it factors `m / h^2 I + (sum_e V_e K_e)+`, the positive
+//! semi-definite part of the elastic sum from its eigen-decomposition (one 3x3 symmetric SVD for
+//! that vertex, not one per element), with the Levenberg–Marquardt shift of [`Ldlt::regularised`]
+//! where even that is singular. Either way the factored matrix `H` is symmetric positive definite,
+//! so `d = -H^-1 grad` satisfies `grad . d = -grad^T H^-1 grad < 0`: a descent direction of the
+//! vertex's local energy, and with the line search every accepted update lowers `Phi`.
 //!
 //! Why the exact block is mostly definite already: for `W(I_C, J)` the block is
 //! `2 W_I |g|^2 I + [p q] [[4 W_II, 2 W_IJ], [2 W_IJ, W_JJ]] [p q]^T` (`p = F g`,

@@ -1,15 +1,15 @@
 //! The packed element visits of a Vertex Block Descent sweep, in sweep order.
 //!
-//! A sweep visits every element once per corner (`step/descent/vbd/sums.rs`), several vertices of one
-//! colour at a time, one per SIMD lane. Without this layout a visit gathers, lane by lane, the
-//! element's corner indices from the adjacency, its rest data and its corner's shape gradient,
-//! and stores them into the lane groups one value at a time: most of a visit's time. The layout
-//! stores those values once, when the topology is built, already transposed: for each block of
-//! [`BLOCK`] consecutive vertices of a colour (the sweep order of
-//! [`vertex_order_by_degree`](super::super::super::super::mesh::adjacency::vertex_order_by_degree)) and each of the
-//! block's element visits `t` (the longest row of the block), the [`LAYOUT_VALUES`] values of
-//! the visit of every lane side by side, so that a lane group loads each with one load; only
-//! the corner positions, which the sweep changes, are still gathered. Lanes past the end of
+//! A sweep visits every element once per corner (`step/descent/vbd/sums.rs`), several vertices of
+//! one colour at a time, one per SIMD lane. Without this layout a visit gathers, lane by lane, the
+//! element's corner indices from the adjacency, its rest data and its corner's shape gradient, and
+//! stores them into the lane groups one value at a time: most of a visit's time. The layout stores
+//! those values once, when the topology is built, already transposed: for each block of [`BLOCK`]
+//! consecutive vertices of a colour (the sweep order of
+//! [`vertex_order_by_degree`](super::super::super::super::mesh::adjacency::vertex_order_by_degree))
+//! and each of the block's element visits `t` (the longest row of the block), the [`LAYOUT_VALUES`]
+//! values of the visit of every lane side by side, so that a lane group loads each with one load;
+//! only the corner positions, which the sweep changes, are still gathered. Lanes past the end of
 //! their vertex's row hold zeros and are masked by the sweep.
 //!
 //! The values are those the gather computes, bit for bit (`Dm^-1` by columns, the rest volume
@@ -20,9 +20,10 @@
 //! own width.
 //!
 //! The layout fills the caller's buffers of [`vbd_layout_len`] values and
-//! [`vbd_layout_corners_len`] indices (see [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)).
-//! The corner buffer starts with the blocks' first visit rows (one per block and one more;
-//! blocks are at most one per vertex), then the corner indices of the visits.
+//! [`vbd_layout_corners_len`] indices (see
+//! [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)). The corner buffer
+//! starts with the blocks' first visit rows (one per block and one more; blocks are at most one per
+//! vertex), then the corner indices of the visits.
 
 use super::super::super::super::element::TetRest;
 use super::super::super::super::types::Real;
@@ -59,11 +60,11 @@ const fn layout_rows(element_count: usize) -> usize {
 }
 
 /// The length of the value buffer of the packed sweep layout (see
-/// [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)) for a mesh of `element_count`
-/// tetrahedra: 13 values (`Dm^-1`, the rest volume and the corner's shape gradient) per element
-/// visit and lane, for about one and a half times the `4 * element_count` visits of a sweep
-/// plus a margin (78 values, 312 bytes, per tetrahedron in f32 beyond the margin, 624 in f64). A mesh whose
-/// vertex valences are so uneven that its layout needs more is swept without it.
+/// [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)) for a mesh of
+/// `element_count` tetrahedra: 13 values (`Dm^-1`, the rest volume and the corner's shape gradient)
+/// per element visit and lane, for about one and a half times the `4 * element_count` visits of a
+/// sweep plus a margin (78 values, 312 bytes, per tetrahedron in f32 beyond the margin, 624 in
+/// f64). A mesh whose vertex valences are so uneven that its layout needs more is swept without it.
 #[inline]
 #[must_use]
 pub const fn vbd_layout_len(element_count: usize) -> usize {
@@ -73,9 +74,10 @@ pub const fn vbd_layout_len(element_count: usize) -> usize {
 }
 
 /// The length of the index buffer of the packed sweep layout (see
-/// [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)) for `vertex_count` vertices
-/// and `element_count` tetrahedra: the blocks' first rows (`vertex_count + 1`) and the four
-/// corner indices of every visit of [`vbd_layout_len`]'s room (24 indices, 96 bytes, per tetrahedron).
+/// [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)) for `vertex_count`
+/// vertices and `element_count` tetrahedra: the blocks' first rows (`vertex_count + 1`) and the
+/// four corner indices of every visit of [`vbd_layout_len`]'s room (24 indices, 96 bytes, per
+/// tetrahedron).
 #[inline]
 #[must_use]
 pub const fn vbd_layout_corners_len(vertex_count: usize, element_count: usize) -> usize {

@@ -1,7 +1,7 @@
 //! Vertex Block Descent (Chen, Liu, Yang and Yuksel, "Vertex Block Descent", ACM Transactions on
 //! Graphics 43(4), SIGGRAPH 2024): implicit Euler, and the quasi-static equilibrium, as the
-//! minimisation of the same `Phi` as [`relax_step`](super::super::relax_step), by block Gauss–Seidel
-//! over the vertices with one 3x3 Newton step per vertex (`docs/math.md` section 7).
+//! minimisation of the same `Phi` as [`relax_step`](super::super::relax_step), by block
+//! Gauss–Seidel over the vertices with one 3x3 Newton step per vertex (`docs/math.md` section 7).
 //!
 //! The method, its safeguards, contact handling and measured cost are documented on
 //! [`vbd_step`].
@@ -45,7 +45,8 @@ pub const fn vbd_scratch_len(vertex_count: usize) -> usize {
 
 /// The length of the index scratch buffer for `vertex_count` vertices and `element_count`
 /// tetrahedra: `3 * vertex_count + 1 + 4 * element_count` (the vertex adjacency of
-/// [`build_vertex_adjacency`](super::super::build_vertex_adjacency), the colours and the vertex order).
+/// [`build_vertex_adjacency`](super::super::build_vertex_adjacency), the colours and the vertex
+/// order).
 #[inline]
 #[must_use]
 pub const fn vbd_index_scratch_len(vertex_count: usize, element_count: usize) -> usize {
@@ -107,10 +108,10 @@ impl<'a> VbdScratch<'a> {
     /// sweep in sweep order, the element's corner indices, `Dm^-1`, volume and the corner's
     /// shape gradient, already laid out for the SIMD lanes, so that the sweeps load them
     /// instead of gathering them element by element. The results are the same bits with or
-    /// without it, at every SIMD width and thread count (`tests/steppers/vbd.rs`, `tests/kernels/simd.rs`);
-    /// only the time differs: measured on one thread, a sweep costs 0.6-0.9 of the gathered
-    /// one (see [`vbd_step`](vbd_step#when-to-pick-it)). A mesh whose vertex valences are so
-    /// uneven that its layout does not fit is swept without it (see
+    /// without it, at every SIMD width and thread count (`tests/steppers/vbd.rs`,
+    /// `tests/kernels/simd.rs`); only the time differs: measured on one thread, a sweep costs
+    /// 0.6-0.9 of the gathered one (see [`vbd_step`](vbd_step#when-to-pick-it)). A mesh whose
+    /// vertex valences are so uneven that its layout does not fit is swept without it (see
     /// [`layout_in_use`](Self::layout_in_use)). The layout copies the mesh's rest data: after
     /// changing the mesh call [`reset_topology`](Self::reset_topology).
     #[inline]
@@ -215,9 +216,9 @@ pub struct VbdOptions {
     /// did not lower `Phi` enough: the evaluation after each sweep (which the stopping test
     /// needs anyway) detects it (the first trial of the descent loop's Armijo search fails),
     /// and the sweep is then redone from its start with the line search
-    /// ([`max_backtracks`](DescentSettings::max_backtracks) > 0), and the Chebyshev weights restart.
-    /// Iterates stay monotone at the cost of the plain sweep where the full steps are safe.
-    /// Ignored when `max_backtracks` is 0.
+    /// ([`max_backtracks`](DescentSettings::max_backtracks) > 0), and the Chebyshev weights
+    /// restart. Iterates stay monotone at the cost of the plain sweep where the full steps are
+    /// safe. Ignored when `max_backtracks` is 0.
     pub line_search_on_increase: bool,
     /// Chebyshev acceleration over sweeps: `rho` in `[0, 1)`, the estimated spectral radius of
     /// the plain sweep; 0 turns it off (see [`vbd_step`](vbd_step#acceleration)).
@@ -383,9 +384,9 @@ pub type VbdReport = DescentReport<VbdDetails>;
 /// Yuksel, "Vertex Block Descent", ACM Transactions on Graphics 43(4), SIGGRAPH 2024):
 /// minimises
 /// `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`, the
-/// objective of [`relax_step`](super::super::relax_step), from the same initial guess (the lower-`Phi` of
-/// `y` and `y + h^2 g`, both projected on the ground), then sets `v = (x_{n+1} - x_n) / h` and
-/// applies the relaxation's Coulomb friction at the contacts.
+/// objective of [`relax_step`](super::super::relax_step), from the same initial guess (the
+/// lower-`Phi` of `y` and `y + h^2 g`, both projected on the ground), then sets `v = (x_{n+1} -
+/// x_n) / h` and applies the relaxation's Coulomb friction at the contacts.
 ///
 /// Pinned vertices keep position and velocity. Not converging within the budget is not an
 /// error: the last iterate is used and [`DescentReport::converged`] is false. The result does not
@@ -435,20 +436,20 @@ pub type VbdReport = DescentReport<VbdDetails>;
 /// local quadratic model on the ground plane (one more 3x3 solve with the same factor; the
 /// multiplier is the contact reaction), then projected onto the plane for rounding: the exact
 /// solution of the local contact problem for the quadratic model, where the relaxation only
-/// projects; a step into a [`Collider`](super::super::Collider) is replaced the same way on its tangent plane at the
-/// vertex. Friction acts on the velocity after the solve, or, opted in with a positive
-/// [`Ground::sticking_speed`], is part of the objective (`docs/math.md` section 4.6): its gradient and
-/// tangent block join the vertex's, lagged to the loop's iterate.
+/// projects; a step into a [`Collider`](super::super::Collider) is replaced the same way on its
+/// tangent plane at the vertex. Friction acts on the velocity after the solve, or, opted in with a
+/// positive [`Ground::sticking_speed`], is part of the objective (`docs/math.md` section 4.6): its
+/// gradient and tangent block join the vertex's, lagged to the loop's iterate.
 ///
 /// # The descent loop
 /// The sweeps run in the descent loop every implicit solver here shares (`docs/math.md`
 /// section 7.0): a sweep from the iterate `x` is the direction `d = sweep(x) - x`, whose first
 /// trial is the sweep's result itself, and the loop's Armijo line search (constant
-/// [`DescentSettings::armijo`], factor [`DescentSettings::backtrack`], at most 8 halvings) accepts it
-/// or shortens it, with the rounding of the elastic energy (`64 eps sum V_e tr(K_e) / |g_a|^2`
-/// over the element corners, as in the vertex line search) tolerated where `Phi`'s change is
-/// below it; a sweep that is not downhill, or not acceptable after 8 halvings, ends the solve
-/// (not converged).
+/// [`DescentSettings::armijo`], factor [`DescentSettings::backtrack`], at most 8 halvings) accepts
+/// it or shortens it, with the rounding of the elastic energy (`64 eps sum V_e tr(K_e) / |g_a|^2`
+/// over the element corners, as in the vertex line search) tolerated where `Phi`'s change is below
+/// it; a sweep that is not downhill, or not acceptable after 8 halvings, ends the solve (not
+/// converged).
 ///
 /// # Acceleration
 /// The paper's Chebyshev semi-iteration over whole sweeps: `x^(n) = omega_n (xbar^(n) -
@@ -537,27 +538,30 @@ pub type VbdReport = DescentReport<VbdDetails>;
 /// its per-vertex Newton steps (with the exact local Hessian) resolve stiff local modes the
 /// diagonal preconditioner of the relaxation does not; and for threads: the colour-parallel
 /// sweep keeps the bits. For speed take the full steps with the line search only in sweeps
-/// that raised `Phi` ([`VbdSettings::with_line_search_on_increase`](DescentSettings::<VbdOptions>::with_line_search_on_increase): the cost of no line
-/// search, and still monotone) or no line search at all
-/// ([`VbdSettings::with_line_search`](DescentSettings::<VbdOptions>::with_line_search)`(0)`), with Chebyshev acceleration
-/// ([`VbdSettings::with_chebyshev`](DescentSettings::<VbdOptions>::with_chebyshev)`(0.95, 2)` was best on the bouncy cube, the estimate
-/// [`VbdSettings::with_estimated_chebyshev`](DescentSettings::<VbdOptions>::with_estimated_chebyshev) on the 30 steps of the clamped stiff block). On
-/// the single solves of the descent chart (`cargo run --release --example tradeoffs -- --only
-/// descent`, f64, no line search) `(0.95, 2)` took 41 sweeps on the bouncy cube's landing and
-/// 31 on the stiff block's first step, where the estimate from 4 plain sweeps took 111 and 81
-/// (0.9: 65 and 42; 0.98: 40 and 41); in wall time, back to back at a load of 4 to 6, 0.5 to
-/// 0.9 of GD + Chebyshev's on the landing (the estimate: 1.6 to 2.3) and 2.1 to 3.3 of it on
-/// the stiff block (the estimate: 3.4 to 5.5); after the `L D L^T` solve, one quiet run: 40 and
-/// 31 sweeps, 0.62 and 2.0 times GD + Chebyshev's time. With the deferred evaluations of
-/// accelerated sweeps (see [the stopping test](#stopping-test-and-cost)), one run of the chart
-/// at a load of 4 to 5: the same 40 and 31 sweeps and final residuals with 18 and 20
-/// evaluations (44 and 35 before), 2.7 and 5.2 force passes an iteration (3.3 and 5.6 before),
-/// 0.47 and 1.9 times GD + Chebyshev's time. On the stiff block's 96 tetrahedra a sweep alone
-/// costs about 4.4 force passes (8 colours of at most 6 vertices, so the 8 f64 lanes of a group
-/// are partly idle, and every element is visited once per corner), against GD + Chebyshev's
-/// 1.3 an iteration for 64 iterations (85 force passes in all): half its time, after VBD's start
-/// of about 7 force passes (the initial guesses and the block norms of the rounding floor),
-/// would leave 31 sweeps about 1.15 force passes each, or far fewer sweeps.
+/// that raised `Phi`
+/// ([`VbdSettings::with_line_search_on_increase`](DescentSettings::<VbdOptions>::with_line_search_on_increase):
+/// the cost of no line search, and still monotone) or no line search at all
+/// ([`VbdSettings::with_line_search`](DescentSettings::<VbdOptions>::with_line_search)`(0)`), with
+/// Chebyshev acceleration
+/// ([`VbdSettings::with_chebyshev`](DescentSettings::<VbdOptions>::with_chebyshev)`(0.95, 2)` was
+/// best on the bouncy cube, the estimate
+/// [`VbdSettings::with_estimated_chebyshev`](DescentSettings::<VbdOptions>::with_estimated_chebyshev)
+/// on the 30 steps of the clamped stiff block). On the single solves of the descent chart (`cargo
+/// run --release --example tradeoffs -- --only descent`, f64, no line search) `(0.95, 2)` took 41
+/// sweeps on the bouncy cube's landing and 31 on the stiff block's first step, where the estimate
+/// from 4 plain sweeps took 111 and 81 (0.9: 65 and 42; 0.98: 40 and 41); in wall time, back to
+/// back at a load of 4 to 6, 0.5 to 0.9 of GD + Chebyshev's on the landing (the estimate: 1.6 to
+/// 2.3) and 2.1 to 3.3 of it on the stiff block (the estimate: 3.4 to 5.5); after the `L D L^T`
+/// solve, one quiet run: 40 and 31 sweeps, 0.62 and 2.0 times GD + Chebyshev's time. With the
+/// deferred evaluations of accelerated sweeps (see [the stopping test](#stopping-test-and-cost)),
+/// one run of the chart at a load of 4 to 5: the same 40 and 31 sweeps and final residuals with 18
+/// and 20 evaluations (44 and 35 before), 2.7 and 5.2 force passes an iteration (3.3 and 5.6
+/// before), 0.47 and 1.9 times GD + Chebyshev's time. On the stiff block's 96 tetrahedra a sweep
+/// alone costs about 4.4 force passes (8 colours of at most 6 vertices, so the 8 f64 lanes of a
+/// group are partly idle, and every element is visited once per corner), against GD + Chebyshev's
+/// 1.3 an iteration for 64 iterations (85 force passes in all): half its time, after VBD's start of
+/// about 7 force passes (the initial guesses and the block norms of the rounding floor), would
+/// leave 31 sweeps about 1.15 force passes each, or far fewer sweeps.
 ///
 /// ```
 /// use softfem::element::TetRest;
@@ -595,8 +599,9 @@ pub type VbdReport = DescentReport<VbdDetails>;
 /// Before anything is touched: the scene's errors ([`Scene::validated`]: the time step, gravity,
 /// colliders, the ground), [`StepError::VbdSettings`], [`StepError::LengthMismatch`] (also for
 /// the scene's and the scratch buffers), [`StepError::Mass`], [`StepError::NonFiniteInput`]
-/// (also for the previous velocities), the loads' errors, [`StepError::TooManyElements`]. [`StepError::NonFiniteState`] if `Phi` is not finite at both
-/// `y` and `x_n` or the result is not finite; the state is then restored bit for bit.
+/// (also for the previous velocities), the loads' errors, [`StepError::TooManyElements`].
+/// [`StepError::NonFiniteState`] if `Phi` is not finite at both `y` and `x_n` or the result is not
+/// finite; the state is then restored bit for bit.
 #[allow(clippy::too_many_arguments)]
 pub fn vbd_step<M: Material>(
     model: &TetElastic<'_, M>,

@@ -71,8 +71,8 @@ const EMPTY: VertexSums = VertexSums {
 };
 
 /// The mesh a sweep visits: elements, rest data, material and vertex adjacency
-/// (`mesh/adjacency.rs`), and the packed visits of `step/descent/vbd/layout.rs` where the caller gave room for
-/// them (the same sums, bit for bit, without the gather of the rest data).
+/// (`mesh/adjacency.rs`), and the packed visits of `step/descent/vbd/layout.rs` where the caller
+/// gave room for them (the same sums, bit for bit, without the gather of the rest data).
 pub(crate) struct Elements<'s, M> {
     pub tets: &'s [[u32; 4]],
     pub rest: &'s [TetRest],
@@ -186,8 +186,8 @@ impl<'r, M: Material, R: Iterator<Item = Run<'r>>, V: VertexVisitor> SumsPass<'_
             extras,
             mut visitor,
         } = self;
-        // Every width divides the layout's blocks (see `step/descent/vbd/layout.rs`); one that did not
-        // would take the gather path, with the same results.
+        // Every width divides the layout's blocks (see `step/descent/vbd/layout.rs`); one that did
+        // not would take the gather path, with the same results.
         if let Some(layout) = elements.layout
             && BLOCK.is_multiple_of(L::WIDTH)
         {

@@ -171,9 +171,9 @@ fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
 
 impl<M: Material> Sweep<'_, M> {
     /// One Gauss–Seidel sweep over the free vertices in colour order, in place: each colour's
-    /// vertices summed a lane group at a time (`step/descent/vbd/sums.rs`), each group's updates applied
-    /// after its sums. Returns the sweep's Gauss–Seidel residual (N): the norm of the vertex
-    /// gradients `g_i` each update started from (projected as the loop's residual is, see
+    /// vertices summed a lane group at a time (`step/descent/vbd/sums.rs`), each group's updates
+    /// applied after its sums. Returns the sweep's Gauss–Seidel residual (N): the norm of the
+    /// vertex gradients `g_i` each update started from (projected as the loop's residual is, see
     /// [`updated`](Self::updated)), summed in the sweep's order.
     fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) -> Real {
         let line_search = line_search && self.max_backtracks > 0;
@@ -310,7 +310,8 @@ impl<M: Material> Sweep<'_, M> {
         // What the local energy can resolve: 64 eps sum_e V_e W_e-scale, the scale from the
         // element block, tr(K_e) / |g_a|^2 ~ V_e times the elastic modulus (J).
         let resolution = sums.resolution;
-        // Friction lagged to the loop's iterate (`step/contact/friction.rs`): its gradient and tangent block.
+        // Friction lagged to the loop's iterate (`step/contact/friction.rs`): its gradient and
+        // tangent block.
         let rough = self.rough(i, x, x0);
         if let Some((slip, force)) = &rough {
             gradient += slip.gradient() * *force;
