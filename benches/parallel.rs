@@ -34,9 +34,9 @@
 //!   the pool over the one-thread rate).
 //!
 //! The steppers' own passes over the vertices run on the pool too (in blocks of
-//! `step::VERTEX_BLOCK` vertices through `ElasticModel::run_vertex_pass`); the tables give their
-//! share of a sequential step (1 - element passes / step, from the stable neo-Hookean force and
-//! fused-pass rows measured in the same run).
+//! `step::vertex_pass::VERTEX_BLOCK` vertices through `ElasticModel::run_vertex_pass`); the
+//! tables give their share of a sequential step (1 - element passes / step, from the stable
+//! neo-Hookean force and fused-pass rows measured in the same run).
 //!
 //! Every row is timed by one round-robin pass over all variants of a workload (the minimum of
 //! several rounds, a 20 ms pause before every timed block so that the pools' idle workers have

@@ -7,7 +7,7 @@
 //!
 //! The steppers' own passes over the vertices (the explicit update, the relaxation's gradient,
 //! direction and trial points, with their sums) run on the pool too, in blocks of
-//! [`VERTEX_BLOCK`](super::step::VERTEX_BLOCK) vertices ([`RayonJoin`]) whose sums are combined
+//! [`VERTEX_BLOCK`](super::step::vertex_pass::VERTEX_BLOCK) vertices ([`RayonJoin`]) whose sums are combined
 //! over a fixed tree, so their bits do not depend on the thread count either. Newton's and VBD's
 //! own vector operations (conjugate gradients, sweeps) stay on the calling thread.
 //!
@@ -66,9 +66,8 @@ use rayon::prelude::*;
 use super::element::{TetHessian, TetRest};
 use super::material::Material;
 use super::mesh::{ElementForces, TetMesh, TetPartition, element_forces_len};
-use super::step::{
-    ElasticEnergy, ElasticHessian, ElasticModel, Join, TetClamped, TetElastic, VertexPass,
-};
+use super::step::vertex_pass::{Join, VertexPass};
+use super::step::{ElasticEnergy, ElasticHessian, ElasticModel, TetClamped, TetElastic};
 use super::types::{Mat3, Real, Vec3};
 use crate::error::MeshError;
 

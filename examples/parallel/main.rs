@@ -7,7 +7,7 @@
 //! Every frame (1/60 s, implicit Euler by the Chebyshev relaxation) runs twice:
 //! * in parallel: the small bodies spread over the pool's threads (`par_iter_mut`, one body per
 //!   task, each body's step sequential inside) while the large body's element passes and its
-//!   passes over the vertices (in blocks of `softfem::step::VERTEX_BLOCK`) run on the same pool
+//!   passes over the vertices (in blocks of `softfem::step::vertex_pass::VERTEX_BLOCK`) run on the same pool
 //!   through a `softfem::parallel::ParallelTetElastic` (`rayon::join` of the two);
 //! * sequentially: the same bodies one after another on this thread, with the plain
 //!   `TetElastic`.

@@ -47,7 +47,7 @@ fn check(buffer: StepBuffer, expected: usize, actual: usize) -> Result<(), StepE
 /// order. Both buffers are overwritten; their previous contents do not matter.
 ///
 /// ```
-/// use softfem::step::{adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency};
+/// use softfem::mesh::{adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency};
 ///
 /// // Two tetrahedra sharing the face 1 2 3.
 /// let tets = [[0, 1, 2, 3], [1, 2, 3, 4]];
@@ -145,7 +145,7 @@ pub(crate) fn incident_elements<'a>(
 /// [`vbd_step`](super::super::step::vbd_step) visits the vertices in the order of [`vertex_order`].
 ///
 /// ```
-/// use softfem::step::{build_vertex_adjacency, colour_vertices};
+/// use softfem::mesh::{build_vertex_adjacency, colour_vertices};
 ///
 /// let tets = [[0, 1, 2, 3], [1, 2, 3, 4]];
 /// let (mut offsets, mut incident) = ([0; 6], [0; 8]);

@@ -23,6 +23,10 @@ use super::element::Vector;
 use crate::error::{Buffer, ElementError, MeshError};
 
 pub(crate) mod adjacency;
+pub use adjacency::{
+    adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
+    vertex_order,
+};
 mod grouped;
 mod hessian;
 pub mod partition;

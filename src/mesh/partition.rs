@@ -20,7 +20,7 @@
 //!    [`vertex_chunk`](TetPartition::vertex_chunk) vertices) and adds into `forces[v]`, for each
 //!    of its vertices, the element forces at `v` in increasing (element, corner) order, through
 //!    the vertex-to-element adjacency in compressed rows
-//!    ([`build_vertex_adjacency`](crate::step::build_vertex_adjacency)): the very
+//!    ([`build_vertex_adjacency`]): the very
 //!    additions, in the very order, that the sequential scatter makes into `forces[v]`, starting
 //!    from the caller's `forces[v]`.
 //!

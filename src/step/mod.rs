@@ -169,7 +169,7 @@
 //!   the projection onto the admissible set every stepper shares (`floor.rs`) and friction in
 //!   the implicit objective (`friction.rs`).
 //! * `vertex_pass/`: the passes over the vertices (integration, projection, trial points,
-//!   residuals) in blocks of [`VERTEX_BLOCK`] (`mod.rs`), their bodies four to sixteen vertices
+//!   residuals) in blocks of [`VERTEX_BLOCK`](vertex_pass::VERTEX_BLOCK) (`mod.rs`), their bodies four to sixteen vertices
 //!   at a time on x86_64 (`passes.rs`), on the per-vertex arithmetic written once for one vertex
 //!   and a lane group (`point.rs`).
 //! * `explicit/`: [`explicit_step`], its [stability bound](stable_time_step) (`stability.rs`)
@@ -186,7 +186,8 @@
 //!   `cg.rs`, `docs/math.md` section 7) and `vbd/` ([Vertex Block Descent](vbd_step): the
 //!   Gauss–Seidel sweep `sweep.rs` and its SIMD lanes `lanes.rs`, the per-vertex sums
 //!   `sums.rs`, the per-element block `block.rs` and the packed element layout `layout.rs`,
-//!   over the vertex [adjacency and colouring](build_vertex_adjacency) of `mesh/adjacency.rs`).
+//!   over the vertex [adjacency and colouring](super::mesh::build_vertex_adjacency) of
+//!   `mesh/adjacency.rs`).
 //!
 //! # Which solver to pick
 //! Measured by the `tradeoffs` example's `descent` chart (f64, one thread; relative residual
@@ -222,13 +223,9 @@ mod loads;
 mod model;
 mod scene;
 pub(crate) mod state;
-pub(crate) mod vertex_pass;
+pub mod vertex_pass;
 
 pub use super::element::Vector;
-pub use super::mesh::adjacency::{
-    adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
-    vertex_order,
-};
 pub use contact::{Collider, Ground, SUGGESTED_STICKING_SPEED, Shape, SignedDistance};
 pub use descent::newton::{
     FLOOR_FACTOR, NewtonDetails, NewtonOptions, NewtonReport, NewtonScratch, NewtonScratchLen,
@@ -259,7 +256,6 @@ pub use model::{
     TriElastic,
 };
 pub use scene::Scene;
-pub use vertex_pass::{InOrder, Join, VERTEX_BLOCK, VertexPass};
 
 // The owning body checks a step's time step as the steppers do, and keeps what the scratch
 // views remember between steps.

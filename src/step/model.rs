@@ -37,10 +37,10 @@ pub trait ElasticModel {
     fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real));
 
     /// Runs one of the steppers' passes over the vertices (integration, contact projection,
-    /// trial points, residuals), split into blocks of [`VERTEX_BLOCK`](super::VERTEX_BLOCK)
-    /// vertices. The default runs it on the calling thread ([`InOrder`](super::InOrder)); a model
+    /// trial points, residuals), split into blocks of [`VERTEX_BLOCK`](super::vertex_pass::VERTEX_BLOCK)
+    /// vertices. The default runs it on the calling thread ([`InOrder`](super::vertex_pass::InOrder)); a model
     /// whose forces run on a thread pool (as `parallel::ParallelTetElastic`, feature `rayon`)
-    /// returns `pass.run_with(&join)` with its pool's [`Join`](super::Join), which gives the same
+    /// returns `pass.run_with(&join)` with its pool's [`Join`](super::vertex_pass::Join), which gives the same
     /// bits.
     #[inline]
     fn run_vertex_pass<P: VertexPass>(&self, pass: P) -> P::Output {

@@ -1295,7 +1295,7 @@ macro_rules! precision_tests {
                     let (start, tets) = box_mesh(13); // 2744 vertices: three blocks
                     crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &start, &tets, 1000.0);
                     let nv = mesh.vertex_count();
-                    assert!(nv > 2 * sf::step::VERTEX_BLOCK && nv < 3 * sf::step::VERTEX_BLOCK);
+                    assert!(nv > 2 * sf::step::vertex_pass::VERTEX_BLOCK && nv < 3 * sf::step::vertex_pass::VERTEX_BLOCK);
                     let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
                     let body = TetElastic::new(mesh, material);
                     let mut stiffness = vec![0.0; nv];

@@ -6,7 +6,7 @@
 //! The `#[ignore]`d `measure_*` tests print the timings of the report (run them in release).
 
 use softfem::StepError;
-use softfem::step::{
+use softfem::mesh::{
     adjacency_incident_len, adjacency_offsets_len, build_vertex_adjacency, colour_vertices,
     vertex_order,
 };
@@ -212,11 +212,11 @@ macro_rules! vbd_tests {
             fn packed_layout_gives_the_gathered_bits_where_one_lane_runs_alone() {
                 let cube = boxed(Vec3::new(0.1, 0.05, 0.05), [4, 2, 2]);
                 let (n, t) = (cube.rest.len(), cube.tets.len());
-                let mut offsets = vec![0; softfem::step::adjacency_offsets_len(n)];
-                let mut incident = vec![0; softfem::step::adjacency_incident_len(t)];
-                softfem::step::build_vertex_adjacency(&cube.tets, n, &mut offsets, &mut incident).unwrap();
+                let mut offsets = vec![0; softfem::mesh::adjacency_offsets_len(n)];
+                let mut incident = vec![0; softfem::mesh::adjacency_incident_len(t)];
+                softfem::mesh::build_vertex_adjacency(&cube.tets, n, &mut offsets, &mut incident).unwrap();
                 let mut colours = vec![0; n];
-                let count = softfem::step::colour_vertices(&cube.tets, &offsets, &incident, &mut colours).unwrap();
+                let count = softfem::mesh::colour_vertices(&cube.tets, &offsets, &incident, &mut colours).unwrap();
                 let degree = |v: usize| offsets[v + 1] - offsets[v];
                 let alone = (0..count).any(|c| {
                     let mut rows: Vec<u32> = (0..n).filter(|&v| colours[v] == c).map(degree).collect();
@@ -671,9 +671,9 @@ macro_rules! vbd_tests {
                 let (n, t) = (cube.rest.len(), cube.tets.len());
                 // The colouring splits every colour over several tasks.
                 let (mut offsets, mut incident) = (vec![0; n + 1], vec![0; 4 * t]);
-                softfem::step::build_vertex_adjacency(&cube.tets, n, &mut offsets, &mut incident).unwrap();
+                softfem::mesh::build_vertex_adjacency(&cube.tets, n, &mut offsets, &mut incident).unwrap();
                 let mut colours = vec![0; n];
-                let count = softfem::step::colour_vertices(&cube.tets, &offsets, &incident, &mut colours).unwrap();
+                let count = softfem::mesh::colour_vertices(&cube.tets, &offsets, &incident, &mut colours).unwrap();
                 let smallest = (0..count).map(|c| colours.iter().filter(|&&k| k == c).count()).min().unwrap();
                 assert!(smallest > 32, "{count} colours, the smallest of {smallest} vertices");
                 let sequential = pressed_sequential(&scene, None);

@@ -5,14 +5,12 @@
 //! give the bits of the sequential pass.
 //!
 //! Every vertex's own arithmetic does not depend on the block it falls in. A sum over the
-//! vertices is taken block by block, each block in vertex order (its own [`LaneSum`] order where
+//! vertices is taken block by block, each block in vertex order (its own `LaneSum` order where
 //! the pass runs four vertices at a time), and the block totals are added over one fixed binary
 //! tree: the blocks of a range split into the first `blocks / 2` and the rest, recursively. The
 //! tree depends only on the number of vertices, so running the two halves of any split on other
 //! threads changes nothing; a body of at most [`VERTEX_BLOCK`] vertices sums in plain vertex
 //! order, as a single block.
-//!
-//! [`LaneSum`]: super::super::lanes::LaneSum
 
 use core::marker::PhantomData;
 

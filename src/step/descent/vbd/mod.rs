@@ -45,7 +45,7 @@ pub const fn vbd_scratch_len(vertex_count: usize) -> usize {
 
 /// The length of the index scratch buffer for `vertex_count` vertices and `element_count`
 /// tetrahedra: `3 * vertex_count + 1 + 4 * element_count` (the vertex adjacency of
-/// [`build_vertex_adjacency`](super::super::build_vertex_adjacency), the colours and the vertex
+/// [`build_vertex_adjacency`](super::super::super::mesh::build_vertex_adjacency), the colours and the vertex
 /// order).
 #[inline]
 #[must_use]
@@ -405,7 +405,7 @@ pub type VbdReport = DescentReport<VbdDetails>;
 ///
 /// # One sweep
 /// For every free vertex `i`, colour by colour (the colouring of
-/// [`colour_vertices`](super::super::colour_vertices); within a colour by decreasing number of
+/// [`colour_vertices`](super::super::super::mesh::colour_vertices); within a colour by decreasing number of
 /// incident elements, then by index, an order that changes no iterate, since no two vertices of
 /// a colour share an element; only the rounding of the sweep's residual estimate, summed in
 /// sweep order, depends on it), with every other vertex held where it is: the gradient and
@@ -660,7 +660,7 @@ pub fn vbd_quasi_static<M: Material>(
 /// [`vbd_step`] with the updates of each colour spread over the current rayon pool (feature
 /// `rayon`; the global pool, or a pool of your own through `rayon::ThreadPool::install`): the
 /// same result, bit for bit, for any number of threads and any schedule, because two vertices
-/// of one colour share no element (see [`colour_vertices`](super::super::colour_vertices)), so the
+/// of one colour share no element (see [`colour_vertices`](super::super::super::mesh::colour_vertices)), so the
 /// updates of a colour read only positions that no update of that colour writes, and the
 /// sequential sweep gives them the same inputs. The evaluations of `Phi` stay sequential, and
 /// so do the accelerated sweeps (see [`vbd_step`](vbd_step#parallel-sweeps)).
