@@ -476,7 +476,7 @@ impl fmt::Display for StepBuffer {
 pub enum StepError {
     /// The time step `dt` (s) is NaN, infinite, zero or negative.
     TimeStep,
-    /// The number of substeps is zero or above `step::MAX_SUBSTEPS` (65536).
+    /// The number of substeps is zero or above `step::ExplicitSettings::MAX_SUBSTEPS` (65536).
     Substeps,
     /// A buffer does not have the length the model needs.
     LengthMismatch {
@@ -540,9 +540,9 @@ pub enum StepError {
         vertex: usize,
     },
     /// The explicit step is past its stability limit: the elastic forces reversed and grew for
-    /// `step::FLIP_STREAK` substeps in a row (the unstable mode of symplectic Euler, caught
-    /// early), or the energy indicator grew by more than the allowed factor in one substep. The
-    /// state was restored to what it was before the call.
+    /// `step::ExplicitSettings::FLIP_STREAK` substeps in a row (the unstable mode of symplectic
+    /// Euler, caught early), or the energy indicator grew by more than the allowed factor in one
+    /// substep. The state was restored to what it was before the call.
     EnergyBlowUp,
     /// The force or energy kernel refused the input.
     Mesh(MeshError),

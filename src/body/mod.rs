@@ -800,9 +800,9 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// [`StepError::TimeStepTooSmall`] if its `1 / dt^2` overflows (as every stepper),
     /// [`StepError::EmptyBody`] if the body has no vertices (never built, or its last rebuild
     /// failed), [`StepError::Substeps`] if the explicit solver's `stable_fraction` is not
-    /// positive or asks for more than [`MAX_SUBSTEPS`](super::step::MAX_SUBSTEPS) substeps
-    /// (nothing touched in these cases), or the stepper's error (a scene out of range included),
-    /// with positions, velocities and targets restored bit for bit.
+    /// positive or asks for more than [`MAX_SUBSTEPS`](super::step::ExplicitSettings::MAX_SUBSTEPS)
+    /// substeps (nothing touched in these cases), or the stepper's error (a scene out of range
+    /// included), with positions, velocities and targets restored bit for bit.
     pub fn step_with(&mut self, scene: &Scene<'_, Vec3>) -> Result<StepReport, StepError> {
         let dt = scene.dt;
         check_time_step(dt)?;
@@ -1033,8 +1033,8 @@ fn capacity(fits: bool, buffer: BodyBuffer, needed: usize) -> Result<(), BodyErr
 }
 
 /// The fewest substeps, at least `minimum` (and 1), that split `dt` into steps of at most
-/// `limit` (s); above [`MAX_SUBSTEPS`](super::step::MAX_SUBSTEPS) (the stepper then refuses it) when `limit` is too small
-/// (zero or NaN included).
+/// `limit` (s); above [`MAX_SUBSTEPS`](super::step::ExplicitSettings::MAX_SUBSTEPS) (the stepper
+/// then refuses it) when `limit` is too small (zero or NaN included).
 fn substeps(dt: Real, limit: Real, minimum: u32) -> u32 {
     // `as` saturates: a zero or NaN limit gives u32::MAX or 0, both refused or raised below.
     if limit.is_nan() || limit <= 0.0 {

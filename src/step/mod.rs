@@ -53,7 +53,7 @@
 //! |---|---|---|
 //! | `dt` (both steppers) | finite, `> 0` | [`StepError::TimeStep`](crate::StepError::TimeStep) |
 //! | relaxation `dt` | `1 / dt^2` finite: `dt >~ 1e-19` s (f32), `1e-154` s (f64) | [`StepError::TimeStepTooSmall`](crate::StepError::TimeStepTooSmall) |
-//! | substeps | `1..=`[`MAX_SUBSTEPS`] (65536) | [`StepError::Substeps`](crate::StepError::Substeps) |
+//! | substeps | `1..=`[`MAX_SUBSTEPS`](ExplicitSettings::MAX_SUBSTEPS) (65536) | [`StepError::Substeps`](crate::StepError::Substeps) |
 //! | masses | finite normal numbers `>= Real::MIN_POSITIVE` | [`StepError::Mass`](crate::StepError::Mass) |
 //! | positions, velocities | finite | [`StepError::NonFiniteInput`](crate::StepError::NonFiniteInput) |
 //! | gravity / damping | finite / finite `>= 0` | [`StepError::Gravity`](crate::StepError::Gravity) / [`StepError::Damping`](crate::StepError::Damping) |
@@ -232,21 +232,20 @@ pub use descent::newton::{
     NewtonSettings, newton_quasi_static, newton_scratch_len, newton_step,
 };
 pub use descent::relax::{
-    MAX_ESTIMATED_RELAX_RHO, RelaxOptions, RelaxReport, RelaxScratch, RelaxSettings,
+    RelaxOptions, RelaxReport, RelaxScratch, RelaxSettings,
     gradient_descent_quasi_static, gradient_descent_step, relax_quasi_static, relax_scratch_len,
     relax_step,
 };
 pub use descent::settings::{DescentReport, DescentSettings};
 pub use descent::vbd::{
-    MAX_ESTIMATED_RHO, VbdDetails, VbdOptions, VbdReport, VbdScratch, VbdSettings,
+    VbdDetails, VbdOptions, VbdReport, VbdScratch, VbdSettings,
     vbd_index_scratch_len, vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static,
     vbd_scratch_len, vbd_step,
 };
 #[cfg(feature = "rayon")]
 pub use descent::vbd::{vbd_quasi_static_parallel, vbd_step_parallel};
 pub use explicit::{
-    DEFAULT_ENERGY_GROWTH, ExplicitReport, ExplicitScratch, ExplicitSettings, FLIP_GROWTH,
-    FLIP_STREAK, FREQUENCY_MARGIN, FrequencyEstimate, MAX_SUBSTEPS, element_stable_time_step,
+    ExplicitReport, ExplicitScratch, ExplicitSettings, FrequencyEstimate, element_stable_time_step,
     estimate_max_frequency, explicit_scratch_len, explicit_step, frequency_scratch_len,
     linearised_moduli, stable_time_step,
 };

@@ -60,7 +60,7 @@ macro_rules! frequency_tests {
             use $($api)::+::material::StableNeoHookean;
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
-                FREQUENCY_MARGIN, TetElastic, estimate_max_frequency, frequency_scratch_len,
+                FrequencyEstimate, TetElastic, estimate_max_frequency, frequency_scratch_len,
                 stable_time_step,
             };
             use $($api)::+::types::{Real, Vec3};
@@ -94,7 +94,7 @@ macro_rules! frequency_tests {
                 let limit = 2.0 / exact.sqrt();
                 assert!(proven <= limit * (1.0 + 1e-6), "{proven:e} against the limit {limit:e}");
                 assert!(estimate.time_step_with_margin(1.0) as f64 >= proven, "{estimate:?} against {proven:e}");
-                assert_eq!(estimate.time_step(), estimate.time_step_with_margin(FREQUENCY_MARGIN));
+                assert_eq!(estimate.time_step(), estimate.time_step_with_margin(FrequencyEstimate::MARGIN));
                 println!("{cells:?} pinned {pin_left_face}: proven step {proven:e} s = {:.3} of the limit {limit:e} s; estimate {:e} s after {} iterations", proven / limit, 2.0 / estimate.omega_max, estimate.iterations);
             }
 

@@ -15,7 +15,7 @@ macro_rules! step_tests {
             use $($api)::+::mesh::{TetMesh, TriMesh};
             use $($api)::+::step::{
                 ElasticModel, ExplicitScratch, ExplicitSettings, Ground, TetClamped, TetElastic,
-                MAX_SUBSTEPS, Scene, TriElastic, explicit_scratch_len, explicit_step, stable_time_step,
+                Scene, TriElastic, explicit_scratch_len, explicit_step, stable_time_step,
             };
             use $($api)::+::types::{Real, Vec2, Vec3};
 
@@ -375,7 +375,7 @@ macro_rules! step_tests {
                     ((scene, settings.with_substeps(0)), StepError::Substeps),
                     // Issue 16 D7: u32::MAX substeps would run for hours.
                     ((scene, settings.with_substeps(u32::MAX)), StepError::Substeps),
-                    ((scene, settings.with_substeps(MAX_SUBSTEPS + 1)), StepError::Substeps),
+                    ((scene, settings.with_substeps(ExplicitSettings::MAX_SUBSTEPS + 1)), StepError::Substeps),
                     ((scene.with_gravity(Vec3::new(0.0, nan, 0.0)), settings), StepError::Gravity),
                     ((scene, settings.with_damping(-1.0)), StepError::Damping),
                     ((scene, settings.with_damping(nan)), StepError::Damping),

@@ -11,9 +11,9 @@
 //! `omega^2 = v.Hv / v.Mv` (the Rayleigh quotient in the mass inner product, where `M^-1 H` is
 //! symmetric). The Rayleigh quotient never exceeds the largest eigenvalue and converges to it from
 //! below, so the step it implies is **not** a guarantee: use [`FrequencyEstimate::time_step`],
-//! which applies [`FREQUENCY_MARGIN`], and keep the stepper's blow-up detection on. At rest the
-//! projected Hessian is the exact one (it is positive semi-definite there), so the estimate is the
-//! linearised system's.
+//! which applies [`FrequencyEstimate::MARGIN`], and keep the stepper's blow-up detection on. At
+//! rest the projected Hessian is the exact one (it is positive semi-definite there), so the
+//! estimate is the linearised system's.
 
 use super::super::super::element::TetHessian;
 use super::super::super::math;
@@ -25,7 +25,7 @@ use crate::error::{StepBuffer, StepError};
 /// The fraction of the estimated limit `2 / omega_max` that [`FrequencyEstimate::time_step`]
 /// takes: `0.9`, room for the power iteration's shortfall (it approaches `omega_max` from
 /// below) and for stiffening under deformation.
-pub const FREQUENCY_MARGIN: Real = 0.9;
+pub(crate) const FREQUENCY_MARGIN: Real = 0.9;
 
 /// The vector scratch [`estimate_max_frequency`] needs: `2 * vertex_count` (the iterate and
 /// its product).
@@ -49,7 +49,10 @@ pub struct FrequencyEstimate {
 }
 
 impl FrequencyEstimate {
-    /// The explicit step `FREQUENCY_MARGIN * 2 / omega_max` (s); infinite if `omega_max` is 0
+    /// The margin [`time_step`](Self::time_step) leaves below the estimated limit: 0.9.
+    pub const MARGIN: Real = FREQUENCY_MARGIN;
+
+    /// The explicit step `MARGIN * 2 / omega_max` (s); infinite if `omega_max` is 0
     /// (nothing free, or no stiffness).
     #[inline]
     #[must_use]

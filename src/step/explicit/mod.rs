@@ -21,9 +21,7 @@ use super::vertex_pass::passes::{free_lanes, load_scalars, split_check_state};
 use super::vertex_pass::point::Wide;
 use crate::error::{MeshError, StepBuffer, StepError};
 use crate::simd::{WidthKernel, dispatch};
-pub use frequency::{
-    FREQUENCY_MARGIN, FrequencyEstimate, estimate_max_frequency, frequency_scratch_len,
-};
+pub use frequency::{FrequencyEstimate, estimate_max_frequency, frequency_scratch_len};
 pub use stability::{element_stable_time_step, linearised_moduli, stable_time_step};
 
 /// The default [`ExplicitSettings::max_energy_growth`]: 100.
@@ -33,12 +31,12 @@ pub use stability::{element_stable_time_step, linearised_moduli, stable_time_ste
 /// (`|dv| <= dt |f| / m` and `|df|` bounded by `omega_max^2 m |dx|` with `dt omega_max < 2`),
 /// and in practice by at most 4 (a body starting from rest). A mode past the limit, at `k` times
 /// the critical step, multiplies it by about `(4 k^2 - 2)^2` per step: 1156 at 3x.
-pub const DEFAULT_ENERGY_GROWTH: Real = 100.0;
+pub(crate) const DEFAULT_ENERGY_GROWTH: Real = 100.0;
 
 /// The most substeps one [`explicit_step`] call takes: `65536`. More is refused with
 /// [`StepError::Substeps`] before anything runs (a call of `u32::MAX` substeps would otherwise
 /// run for hours without a chance to stop it); take several calls instead.
-pub const MAX_SUBSTEPS: u32 = 1 << 16;
+pub(crate) const MAX_SUBSTEPS: u32 = 1 << 16;
 
 /// The length of the scratch buffer [`explicit_step`] needs for `vertex_count` vertices:
 /// `4 * vertex_count` (the forces of this substep and of the one before, for the blow-up
@@ -55,11 +53,12 @@ pub const fn explicit_scratch_len(vertex_count: usize) -> usize {
 /// `<f_n, f_(n-1)> < -FLIP_GROWTH |f_(n-1)|^2` (mass-weighted: reversed and at least this much
 /// larger than the last substep's) counts as one step of the unstable mode; see
 /// [`explicit_step`].
-pub const FLIP_GROWTH: Real = 1.5;
+pub(crate) const FLIP_GROWTH: Real = 1.5;
 
-/// The number of consecutive substeps that must pass the [`FLIP_GROWTH`] test for
-/// [`explicit_step`] to report [`StepError::EnergyBlowUp`].
-pub const FLIP_STREAK: u32 = 3;
+/// The number of consecutive substeps that must pass the
+/// [`FLIP_GROWTH`](ExplicitSettings::FLIP_GROWTH) test for [`explicit_step`] to report
+/// [`StepError::EnergyBlowUp`].
+pub(crate) const FLIP_STREAK: u32 = 3;
 
 /// How [`explicit_step`] integrates a step: its substeps, damping and the blow-up detector's
 /// limit. What the step acts on (the time step, gravity, the ground, colliders, loads) is the
@@ -67,8 +66,8 @@ pub const FLIP_STREAK: u32 = 3;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ExplicitSettings {
     /// The number of equal substeps the scene's `dt` is split into (at least 1, at most
-    /// [`MAX_SUBSTEPS`]); for stability each substep must stay below
-    /// [`stable_time_step`](super::stable_time_step).
+    /// [`MAX_SUBSTEPS`](ExplicitSettings::MAX_SUBSTEPS)); for stability each substep must stay
+    /// below [`stable_time_step`](super::stable_time_step).
     pub substeps: u32,
     /// Mass-proportional damping `c >= 0` (1/s): each substep, after the force update,
     /// `v <- v / (1 + c h)`, a backward-Euler drag `dv/dt = -c v` that is stable for every `c`
@@ -76,7 +75,7 @@ pub struct ExplicitSettings {
     pub damping: Real,
     /// The blow-up detector's limit (> 1): a substep whose energy indicator exceeds this factor
     /// times the previous substep's is refused with [`StepError::EnergyBlowUp`]. See
-    /// [`DEFAULT_ENERGY_GROWTH`].
+    /// [`DEFAULT_ENERGY_GROWTH`](ExplicitSettings::DEFAULT_ENERGY_GROWTH).
     pub max_energy_growth: Real,
 }
 
@@ -89,6 +88,16 @@ impl Default for ExplicitSettings {
 }
 
 impl ExplicitSettings {
+    /// The default growth limit of the blow-up detector (see
+    /// [`max_energy_growth`](Self::max_energy_growth)): 100.
+    pub const DEFAULT_ENERGY_GROWTH: Real = DEFAULT_ENERGY_GROWTH;
+    /// The most substeps a call takes: 65536 (`substeps` above it is refused).
+    pub const MAX_SUBSTEPS: u32 = MAX_SUBSTEPS;
+    /// The growth factor of the early blow-up test (see [`explicit_step`]): 1.5.
+    pub const FLIP_GROWTH: Real = FLIP_GROWTH;
+    /// The substeps in a row that must pass the early blow-up test for a blow-up: 3.
+    pub const FLIP_STREAK: u32 = FLIP_STREAK;
+
     /// One substep, no damping, the default growth limit.
     #[inline]
     #[must_use]
@@ -161,7 +170,8 @@ struct History {
     /// `sum |f|^2 / m` over the free vertices (N^2/kg); its forces are the older of the two
     /// force buffers when the next substep runs.
     force_norm: Real,
-    /// Consecutive substeps, up to and including it, that passed the [`FLIP_GROWTH`] test.
+    /// Consecutive substeps, up to and including it, that passed the
+    /// [`FLIP_GROWTH`](ExplicitSettings::FLIP_GROWTH) test.
     streak: u32,
 }
 
@@ -266,18 +276,19 @@ pub struct ExplicitReport {
 ///   `lambda + 1/lambda = 2 - h^2 omega^2`, `lambda = -1.88` at 1.05 times the critical step,
 ///   `-23` at 2.5 times): that mode's forces reverse and grow by `|lambda|` every substep from
 ///   the rounding noise up. A substep whose forces satisfy
-///   `sum f_n . f_(n-1) / m < -`[`FLIP_GROWTH`]` sum |f_(n-1)|^2 / m` (reversed, and larger by
-///   at least that factor) counts; [`FLIP_STREAK`] such substeps in a row are an
-///   [`StepError::EnergyBlowUp`]. Physical motion does not do this: rigid motion has no
-///   elastic forces, a compression or impact keeps their direction (`<f_n, f_(n-1)> > 0`), and
-///   a stable mode (`|lambda| = 1`) cannot grow by `1.5` per substep for three substeps in a
-///   row while reversing each time. The forces weight the highest mode by `omega^2`, so it
-///   dominates them (and is caught) while its displacement is still far below the other
-///   motion's. Measured on a dropped jelly cube (`tests/steppers/step.rs`,
-///   `early_blow_up_detection_report`): at 1.05, 1.5 and 2.5 times the critical step the error
-///   comes after 3 to 9 accepted steps and the state handed back lies within 3e-3 body sizes of
-///   a stable run (most of that is the coarser step's own free-fall error), and no stable step
-///   (0.5 and 0.9 times the proven bound, 3 s of drop and bounce) is refused.
+///   `sum f_n . f_(n-1) / m < -`[`FLIP_GROWTH`](ExplicitSettings::FLIP_GROWTH)` sum |f_(n-1)|^2 /
+///   m` (reversed, and larger by at least that factor) counts;
+///   [`FLIP_STREAK`](ExplicitSettings::FLIP_STREAK) such substeps in a row are an
+///   [`StepError::EnergyBlowUp`]. Physical motion does not do this: rigid motion has no elastic
+///   forces, a compression or impact keeps their direction (`<f_n, f_(n-1)> > 0`), and a stable
+///   mode (`|lambda| = 1`) cannot grow by `1.5` per substep for three substeps in a row while
+///   reversing each time. The forces weight the highest mode by `omega^2`, so it dominates them
+///   (and is caught) while its displacement is still far below the other motion's. Measured on a
+///   dropped jelly cube (`tests/steppers/step.rs`, `early_blow_up_detection_report`): at 1.05, 1.5
+///   and 2.5 times the critical step the error comes after 3 to 9 accepted steps and the state
+///   handed back lies within 3e-3 body sizes of a stable run (most of that is the coarser step's
+///   own free-fall error), and no stable step (0.5 and 0.9 times the proven bound, 3 s of drop and
+///   bounce) is refused.
 /// * *Coarse: a jump.* The indicator
 ///   `E = sum m |v|^2 / 2 + h^2 sum |f|^2 / (8 m) + h^2 sum m |g|^2 / 2` (J) must not exceed
 ///   [`max_energy_growth`](ExplicitSettings::max_energy_growth) times the previous substep's.

@@ -123,9 +123,15 @@ pub struct RelaxOptions {
     /// Estimate `rho` instead of taking [`chebyshev`](Self::chebyshev) (which must then be 0,
     /// with no momentum): the largest residual ratio `r_k / r_(k-1)` of the plain iterations
     /// `2..=chebyshev_delay` of the solve (`chebyshev_delay >= 2`), at most
-    /// [`MAX_ESTIMATED_RELAX_RHO`], the estimator Vertex Block Descent uses
-    /// ([`VbdOptions::estimate_chebyshev`](super::vbd::VbdOptions::estimate_chebyshev)).
+    /// [`MAX_ESTIMATED_RHO`](RelaxOptions::MAX_ESTIMATED_RHO), the estimator Vertex Block Descent
+    /// uses ([`VbdOptions::estimate_chebyshev`](super::vbd::VbdOptions::estimate_chebyshev)).
     pub estimate_chebyshev: bool,
+}
+
+impl RelaxOptions {
+    /// The largest spectral radius [`estimate_chebyshev`](Self::estimate_chebyshev) uses:
+    /// 0.9999.
+    pub const MAX_ESTIMATED_RHO: Real = MAX_ESTIMATED_RELAX_RHO;
 }
 
 /// The settings of the relaxation ([`relax_step`], [`relax_quasi_static`], and the gradient
@@ -265,7 +271,7 @@ impl DescentSettings<RelaxOptions> {
 pub type RelaxReport = DescentReport<()>;
 
 /// The largest spectral radius [`RelaxOptions::estimate_chebyshev`] uses: `0.9999`.
-pub const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
+pub(crate) const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 
 /// One implicit Euler step of the scene's `dt` as the minimisation of
 /// `Phi(x) = sum m/(2 h^2) |x - y|^2 + E(x) - sum m g.(x - x_n)`, `y = x_n + h v_n`

@@ -227,11 +227,27 @@ pub struct VbdOptions {
     pub chebyshev_delay: u32,
     /// Estimate `rho` instead of taking [`chebyshev`](Self::chebyshev) (which must then be 0):
     /// the largest residual ratio `r_k / r_(k-1)` of plain sweeps `2..=chebyshev_delay` of the
-    /// solve (`chebyshev_delay >= 2`), at most [`MAX_ESTIMATED_RHO`]. Plain Gauss–Seidel
-    /// contracts the slow modes by about a fixed rate a sweep once the fast ones are gone,
-    /// which the largest early ratio measures; it errs high, which Chebyshev tolerates better
-    /// than low, up to the cap (see [`MAX_ESTIMATED_RHO`]).
+    /// solve (`chebyshev_delay >= 2`), at most
+    /// [`MAX_ESTIMATED_RHO`](VbdOptions::MAX_ESTIMATED_RHO). Plain Gauss–Seidel contracts the slow
+    /// modes by about a fixed rate a sweep once the fast ones are gone, which the largest early
+    /// ratio measures; it errs high, which Chebyshev tolerates better than low, up to the cap (see
+    /// [`MAX_ESTIMATED_RHO`](VbdOptions::MAX_ESTIMATED_RHO)).
     pub estimate_chebyshev: bool,
+}
+
+impl VbdOptions {
+    /// The largest spectral radius [`estimate_chebyshev`](Self::estimate_chebyshev) uses: 0.98.
+    ///
+    /// The Chebyshev weights are those of a real spectrum in `[-rho, rho]`, and the iteration
+    /// matrix of a Gauss–Seidel sweep has complex eigenvalues, so `rho` at the plain sweeps' own
+    /// rate can diverge where that rate is close to 1. Measured on the clamped stiff block of
+    /// `tests/steppers/vbd.rs` (`measure_stiff_block`): in its third step the plain sweeps contract
+    /// the residual by 0.988 each (the first seven ratios all 0.988), the accelerated sweeps
+    /// diverge with any `rho` from 0.985 up (at the estimate 0.988: three rejected trials, 500
+    /// sweeps, not converged) and converge up to 0.98 (227 sweeps at 0.98, 295 at 0.95). The cap
+    /// was 0.99 until then, which let that step fail (29 of 30 steps converged, 1093 sweeps); with
+    /// 0.98 all 30 do in 663 sweeps.
+    pub const MAX_ESTIMATED_RHO: Real = MAX_ESTIMATED_RHO;
 }
 
 /// The settings of Vertex Block Descent ([`vbd_step`], [`vbd_quasi_static`]): the shared
@@ -246,18 +262,8 @@ impl Default for VbdSettings {
     }
 }
 
-/// The largest spectral radius [`VbdOptions::estimate_chebyshev`] uses: 0.98.
-///
-/// The Chebyshev weights are those of a real spectrum in `[-rho, rho]`, and the iteration
-/// matrix of a Gauss–Seidel sweep has complex eigenvalues, so `rho` at the plain sweeps' own
-/// rate can diverge where that rate is close to 1. Measured on the clamped stiff block of
-/// `tests/steppers/vbd.rs` (`measure_stiff_block`): in its third step the plain sweeps contract the
-/// residual by 0.988 each (the first seven ratios all 0.988), the accelerated sweeps diverge
-/// with any `rho` from 0.985 up (at the estimate 0.988: three rejected trials, 500 sweeps, not
-/// converged) and converge up to 0.98 (227 sweeps at 0.98, 295 at 0.95). The cap was 0.99
-/// until then, which let that step fail (29 of 30 steps converged, 1093 sweeps); with 0.98
-/// all 30 do in 663 sweeps.
-pub const MAX_ESTIMATED_RHO: Real = 0.98;
+/// See [`VbdOptions::MAX_ESTIMATED_RHO`].
+pub(crate) const MAX_ESTIMATED_RHO: Real = 0.98;
 
 impl DescentSettings<VbdOptions> {
     /// Relative tolerance `1e-3`, 100 sweeps, line search with `c = 1e-4`, `beta = 0.5` and 8
@@ -526,19 +532,19 @@ pub type VbdReport = DescentReport<VbdDetails>;
 /// (tolerance 2e-3) 2239 sweeps with Chebyshev 0.95 (all 180 steps converge) against the
 /// relaxation's 5351 iterations, 2.0 times the relaxation's wall time (1.96 times its CPU
 /// time). On the clamped stiff block (E = 1e8 Pa, 1/30 s, tolerance 1e-4) 663 sweeps with the
-/// estimated `rho` (30 of 30 steps converge; see [`MAX_ESTIMATED_RHO`]) or 724 with Chebyshev
-/// 0.95 (30 of 30) against 1798 iterations (28 of 30), 1.7-1.8 times its wall time (the
-/// relaxation's whole run there is about 6 ms, so these ratios vary most). On the free stiff
-/// block, where both sit at the rounding floor and use their budget (6 and 4 of 30 steps
-/// converge), VBD took 0.22-0.37 of the relaxation's wall time. So the target of half the
-/// relaxation's wall time at the same residual is not met on the bouncy cube or the clamped
-/// block; only on the free block, where neither reaches the tolerance. Pick it for what the
-/// count of iterations cannot show: every accepted vertex update lowers `Phi` (sweeps are
-/// monotone, accelerated ones checked), so a small fixed budget of sweeps is always safe, and
-/// its per-vertex Newton steps (with the exact local Hessian) resolve stiff local modes the
-/// diagonal preconditioner of the relaxation does not; and for threads: the colour-parallel
-/// sweep keeps the bits. For speed take the full steps with the line search only in sweeps
-/// that raised `Phi`
+/// estimated `rho` (30 of 30 steps converge; see
+/// [`MAX_ESTIMATED_RHO`](VbdOptions::MAX_ESTIMATED_RHO)) or 724 with Chebyshev 0.95 (30 of 30)
+/// against 1798 iterations (28 of 30), 1.7-1.8 times its wall time (the relaxation's whole run
+/// there is about 6 ms, so these ratios vary most). On the free stiff block, where both sit at the
+/// rounding floor and use their budget (6 and 4 of 30 steps converge), VBD took 0.22-0.37 of the
+/// relaxation's wall time. So the target of half the relaxation's wall time at the same residual is
+/// not met on the bouncy cube or the clamped block; only on the free block, where neither reaches
+/// the tolerance. Pick it for what the count of iterations cannot show: every accepted vertex
+/// update lowers `Phi` (sweeps are monotone, accelerated ones checked), so a small fixed budget of
+/// sweeps is always safe, and its per-vertex Newton steps (with the exact local Hessian) resolve
+/// stiff local modes the diagonal preconditioner of the relaxation does not; and for threads: the
+/// colour-parallel sweep keeps the bits. For speed take the full steps with the line search only in
+/// sweeps that raised `Phi`
 /// ([`VbdSettings::with_line_search_on_increase`](DescentSettings::<VbdOptions>::with_line_search_on_increase):
 /// the cost of no line search, and still monotone) or no line search at all
 /// ([`VbdSettings::with_line_search`](DescentSettings::<VbdOptions>::with_line_search)`(0)`), with
