@@ -1,10 +1,10 @@
-//! Time stepping on caller-owned state (`docs/math.md` section 4): explicit symplectic Euler with its
-//! stability bound and blow-up detection, and implicit Euler as a minimisation solved by
+//! Time stepping on caller-owned state (`docs/math.md` section 4): explicit symplectic Euler with
+//! its stability bound and blow-up detection, and implicit Euler as a minimisation solved by
 //! preconditioned gradient descent (also a quasi-static relaxation to equilibrium).
 //!
 //! # Conventions
 //! * SI units: positions m, velocities m/s, masses kg (lumped, one per vertex, e.g. from
-//!   [`TetMesh::lumped_masses`](super::mesh::TetMesh::lumped_masses)(super::mesh::TetMesh::lumped_masses)),
+//!   [`TetMesh::lumped_masses`](super::mesh::TetMesh::lumped_masses)),
 //!   forces N, energies J, time s, gravity m/s^2, damping 1/s. 2D meshes work per unit thickness
 //!   (N/m, J/m, kg/m) and membranes with moduli in N/m and densities in kg/m^2, exactly as in
 //!   [`mesh`](super::mesh).
@@ -52,7 +52,7 @@
 //! | input | accepted | error |
 //! |---|---|---|
 //! | `dt` (both steppers) | finite, `> 0` | [`StepError::TimeStep`](crate::StepError::TimeStep) |
-//! | relaxation `dt` | `1 / dt^2` finite: `dt >~ 1e-19` s (f32), `1e-154` s (f64) | [`StepError::TimeStepTooSmall`](crate::StepError::TimeStepTooSmall) |
+//! | `dt` (every stepper; not the quasi-static solves) | `1 / dt^2` finite: `dt >~ 1e-19` s (f32), `1e-154` s (f64) | [`StepError::TimeStepTooSmall`](crate::StepError::TimeStepTooSmall) |
 //! | substeps | `1..=`[`MAX_SUBSTEPS`](ExplicitSettings::MAX_SUBSTEPS) (65536) | [`StepError::Substeps`](crate::StepError::Substeps) |
 //! | masses | finite normal numbers `>= Real::MIN_POSITIVE` | [`StepError::Mass`](crate::StepError::Mass) |
 //! | positions, velocities | finite | [`StepError::NonFiniteInput`](crate::StepError::NonFiniteInput) |
@@ -72,8 +72,8 @@
 //!
 //! ## What is computed
 //! Symplectic Euler on `M a = -K u` is stable when `dt < 2 / omega_max`, `omega_max^2` the
-//! largest eigenvalue of `M^-1 K` (`docs/math.md` section 4). Two upper bounds on `omega_max^2`, both
-//! from per-element bounds `k_e >= lambda_max(K_e)`:
+//! largest eigenvalue of `M^-1 K` (`docs/math.md` section 4). Two upper bounds on `omega_max^2`,
+//! both from per-element bounds `k_e >= lambda_max(K_e)`:
 //!
 //! * Element stiffness. With `g_j = grad N_j` the shape-function gradients (rows of `Dm^-1`,
 //!   `g_0 = -(g_1 + g_2 + g_3)`) and `U` the nodal displacements as columns, the displacement
@@ -88,21 +88,21 @@
 //!   vertices (pinned ones are removed degrees of freedom) for **any** positive masses, and
 //!   `dt = min_i 2 sqrt(m_i / k_i)`. With lumped masses this is never smaller than the element
 //!   bound below (a mass-weighted average of it).
-//! * Element bound ([`element_stable_time_step`]): with each element's own lumped share
-//!   `rho V / N` per corner, `omega_e^2 <= N k_e / (rho V)` and `omega_max <= max_e omega_e`
-//!   (Irons' element eigenvalue inequality), so `dt = min_e 2 sqrt(rho V / (N k_e))`. For a
-//!   regular tetrahedron with `nu = 0.3` this is `0.52 a / c_d` (edge `a`,
+//! * Element bound ([`element_stable_time_step`](explicit::element_stable_time_step)): with each
+//!   element's own lumped share `rho V / N` per corner, `omega_e^2 <= N k_e / (rho V)` and
+//!   `omega_max <= max_e omega_e` (Irons' element eigenvalue inequality), so `dt = min_e 2 sqrt(rho
+//!   V / (N k_e))`. For a regular tetrahedron with `nu = 0.3` this is `0.52 a / c_d` (edge `a`,
 //!   `c_d = sqrt((lambda + 2 mu) / rho)`), the rule of thumb `0.45..0.5 h / c_d`.
 //!
 //! ## What it guarantees
 //! Both are guaranteed lower bounds on the critical step **of the linearised system at
 //! rest**: small strains about the rest shape, with `lambda` and `mu` the material's
-//! small-strain moduli ([`linearised_moduli`], measured from the material by central
-//! differences and enlarged by 0.1% to cover their error). A body strongly compressed (a
-//! stiffening model) or rotated far from rest with a non-rotation-invariant force path has
-//! higher frequencies: leave a margin (0.5..0.9 of the bound), and rely on the stepper's
-//! blow-up detection for the rest. Damping (mass-proportional, applied as
-//! `v / (1 + c dt)`) only lowers the amplification and needs no margin.
+//! small-strain moduli ([`linearised_moduli`](explicit::linearised_moduli), measured from the
+//! material by central differences and enlarged by 0.1% to cover their error). A body strongly
+//! compressed (a stiffening model) or rotated far from rest with a non-rotation-invariant force
+//! path has higher frequencies: leave a margin (0.5..0.9 of the bound), and rely on the stepper's
+//! blow-up detection for the rest. Damping (mass-proportional, applied as `v / (1 + c dt)`) only
+//! lowers the amplification and needs no margin.
 //!
 //! # The relaxation
 //!
@@ -169,11 +169,11 @@
 //!   the projection onto the admissible set every stepper shares (`floor.rs`) and friction in
 //!   the implicit objective (`friction.rs`).
 //! * `vertex_pass/`: the passes over the vertices (integration, projection, trial points,
-//!   residuals) in blocks of [`VERTEX_BLOCK`](vertex_pass::VERTEX_BLOCK) (`mod.rs`), their bodies four to sixteen vertices
-//!   at a time on x86_64 (`passes.rs`), on the per-vertex arithmetic written once for one vertex
-//!   and a lane group (`point.rs`).
+//!   residuals) in blocks of [`VERTEX_BLOCK`](vertex_pass::VERTEX_BLOCK) (`mod.rs`), their bodies
+//!   four to sixteen vertices at a time on x86_64 (`passes.rs`), on the per-vertex arithmetic
+//!   written once for one vertex and a lane group (`point.rs`).
 //! * `explicit/`: [`explicit_step`], its [stability bound](stable_time_step) (`stability.rs`)
-//!   and the [frequency estimate](estimate_max_frequency) (`frequency.rs`).
+//!   and the [frequency estimate](explicit::estimate_max_frequency) (`frequency.rs`).
 //! * `descent/`: the implicit solvers on one loop (`docs/math.md` section 7.0): `mod.rs` the loop
 //!   (initial guess, Chebyshev and momentum trials, line search, velocity update, restore on
 //!   failure) in coordinates shifted next to the body, `objective.rs` the objective `Phi`,
@@ -218,7 +218,7 @@
 
 mod contact;
 mod descent;
-mod explicit;
+pub mod explicit;
 mod loads;
 mod model;
 mod scene;
@@ -245,9 +245,8 @@ pub use descent::vbd::{
 #[cfg(feature = "rayon")]
 pub use descent::vbd::{vbd_quasi_static_parallel, vbd_step_parallel};
 pub use explicit::{
-    ExplicitReport, ExplicitScratch, ExplicitSettings, FrequencyEstimate, element_stable_time_step,
-    estimate_max_frequency, explicit_scratch_len, explicit_step, frequency_scratch_len,
-    linearised_moduli, stable_time_step,
+    ExplicitReport, ExplicitScratch, ExplicitSettings, explicit_scratch_len, explicit_step,
+    stable_time_step,
 };
 pub use loads::{FIXED_X, FIXED_Y, FIXED_Z};
 pub use model::{

@@ -59,10 +59,10 @@ macro_rules! frequency_tests {
             use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
             use $($api)::+::material::StableNeoHookean;
             use $($api)::+::mesh::TetMesh;
-            use $($api)::+::step::{
-                FrequencyEstimate, TetElastic, estimate_max_frequency, frequency_scratch_len,
-                stable_time_step,
+            use $($api)::+::step::explicit::{
+                FrequencyEstimate, estimate_max_frequency, frequency_scratch_len,
             };
+            use $($api)::+::step::{TetElastic, stable_time_step};
             use $($api)::+::types::{Real, Vec3};
 
             /// A Kuhn box of `cells` with cell edge 0.05 m.

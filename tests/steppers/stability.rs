@@ -22,8 +22,9 @@ macro_rules! stability_tests {
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
                 ElasticModel, ExplicitScratch, ExplicitSettings, Scene, TetElastic,
-                element_stable_time_step, explicit_scratch_len, explicit_step, stable_time_step,
+                explicit_scratch_len, explicit_step, stable_time_step,
             };
+            use $($api)::+::step::explicit::element_stable_time_step;
             use $($api)::+::types::{Real, Vec3};
             use softfem::StepError;
 

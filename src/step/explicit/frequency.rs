@@ -80,7 +80,8 @@ impl FrequencyEstimate {
 /// use softfem::glam::Vec3;
 /// use softfem::material::StableNeoHookean;
 /// use softfem::mesh::TetMesh;
-/// use softfem::step::{TetElastic, estimate_max_frequency, frequency_scratch_len, stable_time_step};
+/// use softfem::step::explicit::{estimate_max_frequency, frequency_scratch_len};
+/// use softfem::step::{TetElastic, stable_time_step};
 ///
 /// let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z].map(|x| x * 0.1);
 /// let tets = [[0, 1, 2, 3]];

@@ -1,5 +1,12 @@
-//! Explicit symplectic Euler with damping, pinned vertices, ground contact, substeps and
-//! blow-up detection.
+//! The explicit stepper and how large its time step may be: [`explicit_step`] (symplectic
+//! Euler with damping, pinned vertices, contact, substeps and blow-up detection), the
+//! guaranteed stability bounds [`stable_time_step`] and [`element_stable_time_step`] with the
+//! small-strain moduli they rest on ([`linearised_moduli`]), and the measured highest frequency
+//! [`estimate_max_frequency`] (a power iteration, [`FrequencyEstimate`]).
+//!
+//! The stepper's settings, report and scratch and [`stable_time_step`] are also at
+//! [`softfem::step`](super); the rest is used by name from here, for example
+//! `softfem::step::explicit::estimate_max_frequency`.
 
 pub(crate) mod frequency;
 pub(crate) mod stability;
@@ -67,7 +74,7 @@ pub(crate) const FLIP_STREAK: u32 = 3;
 pub struct ExplicitSettings {
     /// The number of equal substeps the scene's `dt` is split into (at least 1, at most
     /// [`MAX_SUBSTEPS`](ExplicitSettings::MAX_SUBSTEPS)); for stability each substep must stay
-    /// below [`stable_time_step`](super::stable_time_step).
+    /// below [`stable_time_step`].
     pub substeps: u32,
     /// Mass-proportional damping `c >= 0` (1/s): each substep, after the force update,
     /// `v <- v / (1 + c h)`, a backward-Euler drag `dv/dt = -c v` that is stable for every `c`

@@ -27,7 +27,7 @@ const MODULUS_MARGIN: Real = 1.001;
 ///
 /// ```
 /// use softfem::material::StableNeoHookean;
-/// use softfem::step::linearised_moduli;
+/// use softfem::step::explicit::linearised_moduli;
 ///
 /// let rubber = StableNeoHookean::from_lame(4.0e5, 1.0e5)?;
 /// let (lambda, mu) = linearised_moduli(&rubber);
@@ -142,7 +142,8 @@ pub(crate) fn triangle_stiffness(
 /// use softfem::glam::Vec3;
 /// use softfem::material::StVK;
 /// use softfem::mesh::TetMesh;
-/// use softfem::step::{TetElastic, element_stable_time_step, stable_time_step};
+/// use softfem::step::explicit::element_stable_time_step;
+/// use softfem::step::{TetElastic, stable_time_step};
 ///
 /// let (mut rest, mut tets) = ([Vec3::ZERO; 12], [[0u32; 4]; 12]);
 /// fill_box(Vec3::ZERO, Vec3::new(0.2, 0.1, 0.1), 2, 1, 1, BoxSplit::Kuhn6, &mut rest, &mut tets)?;
