@@ -2,8 +2,8 @@
 //! (feature `rayon`): the elastic forces (direct, principal and clamped paths), the energy, the
 //! fused energy-and-force pass, the projected Hessians, their products and diagonal blocks, and,
 //! through [`ParallelTetElastic`] and [`ParallelTetClamped`], the steppers (explicit,
-//! relaxation, Newton, Vertex Block Descent), **bit for bit** the results of the sequential code for any number of
-//! threads and any schedule (see [`TetPartition`] for why).
+//! relaxation, Newton, Vertex Block Descent), **bit for bit** the results of the sequential
+//! code for any number of threads and any schedule (see [`TetPartition`] for why).
 //!
 //! The steppers' own passes over the vertices (the explicit update, the relaxation's gradient,
 //! direction and trial points, with their sums) run on the pool too, in blocks of
