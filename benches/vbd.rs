@@ -19,8 +19,11 @@
 //! * **VBD, packed layout**: the same with the scratch's packed sweep layout
 //!   (`VbdScratch::with_layout`; the same bits, the visits' rest data loaded instead of
 //!   gathered);
-//! * with feature `rayon`, the same with the layout through `vbd_step_parallel` on a pool of
-//!   2 threads (its result is the sequential one bit for bit; only the sweep is parallel).
+//! * with feature `rayon`, the same with the layout through `vbd_step` of a
+//!   `softfem::parallel::ParallelTetElastic` (one piece per thread) on a pool of 2 threads,
+//!   the whole call in `pool.install` (its result is the sequential one bit for bit; the sweeps
+//!   and the fused passes are parallel), and the model's fused pass alone
+//!   (**energy + forces, parallel**), which its row's sweep is measured against.
 //!
 //! `cargo bench --bench vbd [--features rayon]` runs criterion (one group per mesh, flat
 //! sampling, 10 samples) and then a plain `Instant` pass that times every operation round-robin,
@@ -40,6 +43,12 @@ use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::Vec3;
 use softfem::material::StableNeoHookean;
 use softfem::mesh::TetMesh;
+#[cfg(feature = "rayon")]
+use softfem::mesh::{
+    TetPartition, element_forces_len, partition_incident_len, partition_offsets_len,
+};
+#[cfg(feature = "rayon")]
+use softfem::parallel::ParallelTetElastic;
 use softfem::step::{
     ElasticEnergy, Scene as StepScene, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len,
     vbd_layout_corners_len, vbd_layout_len, vbd_scratch_len, vbd_step,
@@ -128,6 +137,8 @@ fn operations<'a>(
     ];
     let step_scene = StepScene::new(1.0 / 60.0);
     let settings = VbdSettings::new().with_line_search(0);
+    #[cfg(feature = "rayon")]
+    let (parallel_model, pool) = parallel_model(body);
     let vbd = |budget: u32, (parallel, layout): (bool, bool)| -> Box<dyn FnMut() + 'a> {
         let vectors: &'a mut [Vec3] =
             Box::leak(vec![Vec3::ZERO; vbd_scratch_len(n)].into_boxed_slice());
@@ -142,19 +153,14 @@ fn operations<'a>(
         }
         let (mut x, mut v) = (x0.to_vec(), vec![Vec3::ZERO; n]);
         let settings = settings.with_tolerance(0.0, budget);
-        #[cfg(feature = "rayon")]
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(THREADS)
-            .build()
-            .unwrap();
         let mut call = move || {
             x.copy_from_slice(x0);
             v.fill(Vec3::ZERO);
             let report = if parallel {
                 #[cfg(feature = "rayon")]
                 let report = pool.install(|| {
-                    softfem::step::vbd_step_parallel(
-                        body,
+                    vbd_step(
+                        parallel_model,
                         masses,
                         &[],
                         &step_scene,
@@ -206,7 +212,42 @@ fn operations<'a>(
             });
         }
     }
+    #[cfg(feature = "rayon")]
+    {
+        let mut forces = vec![Vec3::ZERO; n];
+        operations.push(Operation {
+            id: "energy_and_forces_parallel",
+            run: Box::new(move || {
+                forces.fill(Vec3::ZERO);
+                let energy = pool.install(|| parallel_model.energy_and_add_forces(x0, &mut forces));
+                black_box(energy.unwrap());
+            }),
+        });
+    }
     operations
+}
+
+/// `body` partitioned into one piece per thread as a parallel model, and a pool of [`THREADS`]
+/// threads (both leaked: they live as long as the bench).
+#[cfg(feature = "rayon")]
+fn parallel_model<'a>(
+    body: &'a TetElastic<'a, StableNeoHookean>,
+) -> (
+    &'a ParallelTetElastic<'a, StableNeoHookean>,
+    &'a rayon::ThreadPool,
+) {
+    let (n, t) = (body.mesh.vertex_count(), body.mesh.element_count());
+    let offsets = vec![0; partition_offsets_len(n)].leak();
+    let incident = vec![0; partition_incident_len(t)].leak();
+    let partition = TetPartition::new(body.mesh, THREADS, offsets, incident).unwrap();
+    let element_forces = vec![[Vec3::ZERO; 4]; element_forces_len(t)].leak();
+    let energies = vec![0.0; t].leak();
+    let model = ParallelTetElastic::new(*body, partition, element_forces, energies).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(THREADS)
+        .build()
+        .unwrap();
+    (Box::leak(Box::new(model)), Box::leak(Box::new(pool)))
 }
 
 /// The VBD rows: (parallel, packed layout), and the ids of the calls of [`BUDGETS`] sweeps.
@@ -255,11 +296,15 @@ fn table_pass(operations: &mut [Operation<'_>], block: Duration, rounds: u32) ->
     best
 }
 
-/// One row per mesh (and schedule): ns per tetrahedron of the force pass, the fused pass, the
-/// VBD iteration and the sweep alone, and the sweep in force passes.
+/// One row per mesh (and schedule): ns per tetrahedron of the force pass, the fused pass (the
+/// parallel model's in the parallel row), the VBD iteration and the sweep alone, and the sweep
+/// in force passes.
 fn rows(tets: usize, ns: &[f64]) -> Vec<Vec<String>> {
     let per_tet = |ns: f64| format!("{:.1}", ns / tets as f64);
-    let (force, fused) = (ns[0], ns[1]);
+    let force = ns[0];
+    // The VBD calls, then (with feature `rayon`) the parallel model's fused pass.
+    let vbd_end = (2 + 2 * SCHEDULES.len()).min(ns.len());
+    let parallel_fused = ns.get(vbd_end).copied();
     let extra = f64::from(BUDGETS[1] - BUDGETS[0]);
     let mut rows = Vec::new();
     let names = [
@@ -267,7 +312,12 @@ fn rows(tets: usize, ns: &[f64]) -> Vec<Vec<String>> {
         "sequential, packed layout",
         "parallel, packed layout",
     ];
-    for (schedule, pair) in names.iter().zip(ns[2..].chunks(2)) {
+    let vbd = &ns[2..vbd_end];
+    for ((schedule, pair), &((parallel, _), _)) in names.iter().zip(vbd.chunks(2)).zip(SCHEDULES) {
+        let fused = match (parallel, parallel_fused) {
+            (true, Some(fused)) => fused,
+            _ => ns[1],
+        };
         let iteration = (pair[1] - pair[0]) / extra;
         let sweep = iteration - fused;
         rows.push(vec![

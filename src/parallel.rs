@@ -2,14 +2,16 @@
 //! (feature `rayon`): the elastic forces (direct, principal and clamped paths), the energy, the
 //! fused energy-and-force pass, the projected Hessians, their products and diagonal blocks, and,
 //! through [`ParallelTetElastic`] and [`ParallelTetClamped`], the steppers (explicit,
-//! relaxation, Newton), **bit for bit** the results of the sequential code for any number of
-//! threads and any schedule (see [`TetPartition`] for why).
+//! relaxation, Newton, Vertex Block Descent), **bit for bit** the results of the sequential
+//! code for any number of threads and any schedule (see [`TetPartition`] for why).
 //!
 //! The steppers' own passes over the vertices (the explicit update, the relaxation's gradient,
 //! direction and trial points, with their sums) run on the pool too, in blocks of
 //! [`VERTEX_BLOCK`](super::step::vertex_pass::VERTEX_BLOCK) vertices ([`RayonJoin`]) whose sums are combined
-//! over a fixed tree, so their bits do not depend on the thread count either. Newton's and VBD's
-//! own vector operations (conjugate gradients, sweeps) stay on the calling thread.
+//! over a fixed tree, so their bits do not depend on the thread count either. Newton's own
+//! vector operations (conjugate gradients) stay on the calling thread; VBD's sweeps run the
+//! vertex updates of each colour in parallel ([`ParallelTetElastic`]'s
+//! [`VertexBlockModel`]).
 //!
 //! The owner-computes passes (forces, fused pass, Hessian products and blocks) run one task per
 //! *span* of consecutive vertex pieces, evaluated as one owner: on a pool of one thread a single
@@ -68,6 +70,7 @@ use super::material::Material;
 use super::mesh::{ElementForces, TetMesh, TetPartition, element_forces_len};
 use super::step::vertex_pass::{Join, VertexPass};
 use super::step::{ElasticEnergy, ElasticHessian, ElasticModel, TetClamped, TetElastic};
+use super::step::{SweepRun, SweepSchedule, VertexBlockModel};
 use super::types::{Mat3, Real, Vec3};
 use crate::error::MeshError;
 
@@ -375,8 +378,9 @@ fn span_pieces(k: usize, len: usize, pieces: usize) -> Range<usize> {
 /// A [`TetElastic`] body whose force (and fused energy-and-force) passes run in parallel through
 /// a [`TetPartition`], with the bits of the sequential body: hand it to
 /// [`explicit_step`](super::step::explicit_step), [`relax_step`](super::step::relax_step),
-/// [`newton_step`](super::step::newton_step) (any stepper taking an [`ElasticModel`],
-/// [`ElasticEnergy`] or [`ElasticHessian`]) for a parallel step whose result does not depend on
+/// [`newton_step`](super::step::newton_step), [`vbd_step`](super::step::vbd_step) (any stepper
+/// taking an [`ElasticModel`], [`ElasticEnergy`], [`ElasticHessian`] or [`VertexBlockModel`])
+/// for a parallel step whose result does not depend on
 /// the thread count. The steppers' passes over the vertices run on the pool too
 /// ([`ElasticModel::run_vertex_pass`]).
 ///
@@ -622,6 +626,24 @@ impl<M: Material + Sync> ElasticHessian for ParallelTetElastic<'_, M> {
         })
     }
 }
+
+/// Vertex Block Descent's sweeps ([`vbd_step`](super::step::vbd_step)) run the updates of each
+/// colour in parallel, on the model's pool if one was given, else on the current pool: the
+/// sequential bits, since two vertices of one colour share no element.
+impl<'a, M: Material + Sync> SweepSchedule for ParallelTetElastic<'a, M> {
+    type Material = M;
+
+    #[inline]
+    fn tet_body(&self) -> &TetElastic<'_, M> {
+        &self.body
+    }
+
+    fn run_sweep(&self, run: SweepRun<'_, '_, M>) {
+        on_pool(self.pool, || run.on_pool());
+    }
+}
+
+impl<M: Material + Sync> VertexBlockModel for ParallelTetElastic<'_, M> {}
 
 /// A [`TetClamped`] body (clamped principal stress, **explicit stepping only**) whose force
 /// passes run in parallel through a [`TetPartition`], with the bits of the sequential body:

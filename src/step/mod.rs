@@ -238,12 +238,12 @@ pub use descent::relax::{
 };
 pub use descent::settings::{DescentReport, DescentSettings};
 pub use descent::vbd::{
-    VbdDetails, VbdOptions, VbdReport, VbdScratch, VbdSettings,
+    VbdDetails, VbdOptions, VbdReport, VbdScratch, VbdSettings, VertexBlockModel,
     vbd_index_scratch_len, vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static,
     vbd_scratch_len, vbd_step,
 };
 #[cfg(feature = "rayon")]
-pub use descent::vbd::{vbd_quasi_static_parallel, vbd_step_parallel};
+pub(crate) use descent::vbd::{SweepRun, SweepSchedule};
 pub use explicit::{
     ExplicitReport, ExplicitScratch, ExplicitSettings, explicit_scratch_len, explicit_step,
     stable_time_step,

@@ -292,7 +292,7 @@ macro_rules! vbd_tests {
                     let settings = VbdSettings::new().with_tolerance(0.0, 1);
                     let (mut vectors, mut indices) = buffers(4, 1);
                     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                    let report = vbd_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                    let report = vbd_step(body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     println!("{}: {report:?}; step {step}, VBD - Newton {}", stringify!($precision), x[3] - expected);
                     assert_eq!((report.iterations, report.details.vertex_backtracks, report.details.skipped), (1, 0, 0));
                     assert!(step.length() > 1e-3 * 0.1, "a real step: {step}");
@@ -335,7 +335,7 @@ macro_rules! vbd_tests {
                         let (mut x, mut v) = (rest, [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity]);
                         let (mut vectors, mut indices) = buffers(4, 1);
                         let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                        let report = vbd_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        let report = vbd_step(body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                         assert_eq!(report.iterations, 0);
                         let adaptive = y + GRAVITY * (clamped * h * h);
                         let expected = if phi(adaptive) < phi(drop) { adaptive } else { drop };
@@ -354,7 +354,7 @@ macro_rules! vbd_tests {
                         let (mut x, mut v) = (rest, [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity]);
                         let (mut vectors, mut indices) = buffers(4, 1);
                         let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
-                        let report = vbd_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
+                        let report = vbd_step(body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                         (report, bits(&x), bits(&v))
                     };
                     let still = [Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, velocity];
@@ -658,14 +658,33 @@ macro_rules! vbd_tests {
                 let _ = Material::energy_density(&body.material, Mat3::IDENTITY);
             }
 
-            /// The colour-parallel sweeps give the sequential solver's bits, positions,
-            /// velocities and reports, on pools of 1, 2, 3 and 8 threads, with and without the
-            /// packed layout: the [`pressed`] scene (8 colours of 43 or more vertices, over the
-            /// 32 a task takes, so every colour is split), three steps and a quasi-static sag.
+            /// The colour-parallel sweeps of a `ParallelTetElastic` model give the sequential
+            /// solver's bits, positions, velocities and reports, on pools of 1, 2, 3 and 8
+            /// threads (the model's own, `with_pool`, and the current one, `install`), with and
+            /// without the packed layout: the [`pressed`] scene (8 colours of 43 or more
+            /// vertices, over the 32 a task takes, so every colour is split), three steps and
+            /// a quasi-static sag.
             #[cfg(feature = "rayon")]
             #[test]
             fn parallel_sweeps_give_the_sequential_bits_for_any_thread_count() {
-                use $($api)::+::step::{vbd_quasi_static_parallel, vbd_step_parallel};
+                use $($api)::+::mesh::{TetPartition, partition_incident_len, partition_offsets_len};
+                use $($api)::+::parallel::ParallelTetElastic;
+                /// `run` of `body` made parallel (8 pieces), on `pool` if given.
+                fn on_parallel<R>(
+                    body: &TetElastic<'_, StVK>,
+                    pool: Option<&rayon::ThreadPool>,
+                    run: impl FnOnce(&ParallelTetElastic<'_, StVK>) -> R,
+                ) -> R {
+                    let (n, t) = (body.mesh.vertex_count(), body.mesh.element_count());
+                    let (mut offsets, mut incident) = (vec![0; partition_offsets_len(n)], vec![0; partition_incident_len(t)]);
+                    let partition = TetPartition::new(body.mesh, 8, &mut offsets, &mut incident).unwrap();
+                    let (mut element_forces, mut energies) = (vec![[Vec3::ZERO; 4]; t], vec![0.0; t]);
+                    let model = ParallelTetElastic::new(*body, partition, &mut element_forces, &mut energies).unwrap();
+                    match pool {
+                        Some(pool) => run(&model.with_pool(pool)),
+                        None => run(&model),
+                    }
+                }
                 let scene = pressed();
                 let cube = &scene.cube;
                 let (n, t) = (cube.rest.len(), cube.tets.len());
@@ -680,23 +699,29 @@ macro_rules! vbd_tests {
                 let full = (vbd_layout_len(t), vbd_layout_corners_len(n, t));
                 for threads in [1, 2, 3, 8] {
                     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-                    for layout in [None, Some(full)] {
-                        let parallel = pool.install(|| {
+                    for (layout, own_pool) in [(None, false), (Some(full), false), (None, true), (Some(full), true)] {
+                        let model_pool = own_pool.then_some(&pool);
+                        let run = || {
                             pressed_run(
                                 &scene,
                                 layout,
                                 &|body, pressed, scene, settings, x, v, scratch| {
-                                    format!("{:?}", vbd_step_parallel(body, &pressed.masses, &pressed.pinned, scene, settings, x, v, scratch).unwrap())
+                                    on_parallel(body, model_pool, |model| {
+                                        format!("{:?}", vbd_step(model, &pressed.masses, &pressed.pinned, scene, settings, x, v, scratch).unwrap())
+                                    })
                                 },
                                 &|body, pressed, scene, settings, x, scratch| {
-                                    format!("{:?}", vbd_quasi_static_parallel(body, &pressed.masses, &pressed.pinned, scene, settings, x, scratch).unwrap())
+                                    on_parallel(body, model_pool, |model| {
+                                        format!("{:?}", vbd_quasi_static(model, &pressed.masses, &pressed.pinned, scene, settings, x, scratch).unwrap())
+                                    })
                                 },
                             )
-                        });
+                        };
+                        let parallel = if own_pool { run() } else { pool.install(run) };
                         assert_eq!(parallel.3, layout.is_some());
                         assert!(
                             (&parallel.0, &parallel.1, &parallel.2) == (&sequential.0, &sequential.1, &sequential.2),
-                            "{threads} threads, layout {}: {:?} vs {:?}",
+                            "{threads} threads (the model's pool: {own_pool}), layout {}: {:?} vs {:?}",
                             layout.is_some(),
                             parallel.2,
                             sequential.2

@@ -248,6 +248,28 @@ mod tests {
         }
     }
 
+    /// Calls `$check(material, f, g)` at every one of the [`gradients`] `f`, with `g` the next
+    /// vector of `$stream` times `$scale`, for StVK and stable neo-Hookean, and for neo-Hookean
+    /// where `det F > 0.2` (away from its singularity at `det F = 0`). A macro: `$check` is
+    /// generic over the material.
+    macro_rules! check_materials {
+        ($check:ident, $stream:expr, $scale:expr) => {
+            let mut stream = $stream;
+            for f in gradients() {
+                let g = stream.vector() * $scale;
+                $check(&StVK::from_young_poisson(1e6, 0.3).unwrap(), f, g);
+                $check(
+                    &StableNeoHookean::from_young_poisson(1e6, 0.45).unwrap(),
+                    f,
+                    g,
+                );
+                if f.determinant() > 0.2 {
+                    $check(&NeoHookean::from_young_poisson(1e6, 0.3).unwrap(), f, g);
+                }
+            }
+        };
+    }
+
     /// Deformation gradients: `I + 0.4 R` for random `R`, half of them with a column negated
     /// (inverted), and a few flat and strongly stretched ones.
     fn gradients() -> [Mat3; 42] {
@@ -298,19 +320,7 @@ mod tests {
             );
             assert!(largest(k - k.transpose()) <= 8.0 * Real::EPSILON * largest(k));
         }
-        let mut stream = Stream(17);
-        for f in gradients() {
-            let g = stream.vector() * 20.0;
-            check(&StVK::from_young_poisson(1e6, 0.3).unwrap(), f, g);
-            check(
-                &StableNeoHookean::from_young_poisson(1e6, 0.45).unwrap(),
-                f,
-                g,
-            );
-            if f.determinant() > 0.2 {
-                check(&NeoHookean::from_young_poisson(1e6, 0.3).unwrap(), f, g);
-            }
-        }
+        check_materials!(check, Stream(17), 20.0);
     }
 
     /// The closed forms equal the provided method of [`Material`] (three stress
@@ -330,19 +340,7 @@ mod tests {
                 "{material:?} F = {f}: {k} vs {provided}"
             );
         }
-        let mut stream = Stream(5);
-        for f in gradients() {
-            let g = stream.vector();
-            check(&StVK::from_young_poisson(1e6, 0.3).unwrap(), f, g);
-            check(
-                &StableNeoHookean::from_young_poisson(1e6, 0.45).unwrap(),
-                f,
-                g,
-            );
-            if f.determinant() > 0.2 {
-                check(&NeoHookean::from_young_poisson(1e6, 0.3).unwrap(), f, g);
-            }
-        }
+        check_materials!(check, Stream(5), 1.0);
     }
 
     /// Where the element's exact 9x9 stress derivative is positive semi-definite already (its

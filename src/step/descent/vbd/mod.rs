@@ -21,7 +21,7 @@ use super::super::super::types::{Real, Vec3};
 use super::super::contact::Ground;
 use super::super::contact::collider::Colliders;
 use super::super::descent::{self, LoopSettings, Problem, Work};
-use super::super::model::TetElastic;
+use super::super::model::{ElasticEnergy, TetElastic};
 use super::super::scene::Scene;
 use super::super::state::{check_length, check_state};
 use super::chebyshev::AccelerationSettings;
@@ -30,9 +30,8 @@ use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
 use layout::{Layout, LayoutSource, build_layout};
 pub use layout::{vbd_layout_corners_len, vbd_layout_len};
-#[cfg(feature = "rayon")]
-use sweep::OnPool;
-use sweep::{InOrder, Schedule, Sweep, VbdSweep};
+use sweep::{Sweep, VbdSweep};
+pub(crate) use sweep::{SweepRun, SweepSchedule};
 
 /// The length of the vector scratch buffer of [`vbd_step`] and [`vbd_quasi_static`] for
 /// `vertex_count` vertices: `5 * vertex_count` (the descent loop's start positions, gradient,
@@ -386,6 +385,77 @@ pub struct VbdDetails {
 /// one per shortened sweep step).
 pub type VbdReport = DescentReport<VbdDetails>;
 
+/// A model Vertex Block Descent solves ([`vbd_step`], [`vbd_quasi_static`]): a tetrahedral body
+/// whose energy ([`ElasticEnergy`]) the descent loop evaluates and whose vertices the sweeps
+/// update, each sweep's updates run in the model's schedule. Sealed: implemented by
+/// [`TetElastic`] (every sweep on the calling thread, the vertices one after the other) and,
+/// with feature `rayon`, by `softfem::parallel::ParallelTetElastic` (the updates of each colour
+/// in parallel, on the model's pool if `with_pool` gave one, else on the current pool, and the
+/// energy evaluations and vertex passes on that pool as for the other solvers): the same
+/// result, bit for bit, for any number of threads (see [`vbd_step`](vbd_step#parallel-sweeps)).
+///
+/// ```
+/// # #[cfg(feature = "rayon")] {
+/// use softfem::element::TetRest;
+/// use softfem::generate::{BoxSplit, box_counts, fill_box};
+/// use softfem::glam::Vec3;
+/// use softfem::material::StableNeoHookean;
+/// use softfem::mesh::{TetMesh, TetPartition, element_forces_len};
+/// use softfem::mesh::{partition_incident_len, partition_offsets_len};
+/// use softfem::parallel::ParallelTetElastic;
+/// use softfem::step::{Scene, TetElastic, VbdScratch, VbdSettings, vbd_step};
+/// use softfem::step::{vbd_index_scratch_len, vbd_scratch_len};
+///
+/// let (n, t) = box_counts(3, 3, 3, BoxSplit::Kuhn6)?;
+/// let (mut rest, mut tets) = (vec![Vec3::ZERO; n], vec![[0; 4]; t]);
+/// fill_box(Vec3::ZERO, Vec3::splat(0.1), 3, 3, 3, BoxSplit::Kuhn6, &mut rest, &mut tets)?;
+/// let mut rest_data = vec![TetRest::default(); t];
+/// let mesh = TetMesh::new(&rest, &tets, &mut rest_data)?;
+/// let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.3)?);
+/// let mut masses = vec![0.0; n];
+/// mesh.lumped_masses(1000.0, &mut masses)?;
+/// let pinned: Vec<bool> = rest.iter().map(|p| p.y == 0.0).collect();
+/// let scene = Scene::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+/// let settings = VbdSettings::new();
+/// let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(n)];
+/// let mut indices = vec![0; vbd_index_scratch_len(n, t)];
+/// let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
+/// let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; n]);
+/// vbd_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch)?;
+///
+/// // The same step with the sweeps and evaluations on a pool of two threads.
+/// let mut offsets = vec![0; partition_offsets_len(n)];
+/// let mut incident = vec![0; partition_incident_len(t)];
+/// let partition = TetPartition::new(mesh, 2, &mut offsets, &mut incident)?;
+/// let mut element_forces = vec![[Vec3::ZERO; 4]; element_forces_len(t)];
+/// let mut energies = vec![0.0; t];
+/// let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build()?;
+/// let threaded = ParallelTetElastic::new(body, partition, &mut element_forces, &mut energies)?
+///     .with_pool(&pool);
+/// let (mut x2, mut v2) = (rest.clone(), vec![Vec3::ZERO; n]);
+/// vbd_step(&threaded, &masses, &pinned, &scene, &settings, &mut x2, &mut v2, &mut scratch)?;
+/// assert_eq!((x2, v2), (x, v)); // and bit for bit
+/// # }
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub trait VertexBlockModel: ElasticEnergy<Vector = Vec3> + SweepSchedule {}
+
+impl<M: Material> SweepSchedule for TetElastic<'_, M> {
+    type Material = M;
+
+    #[inline]
+    fn tet_body(&self) -> &TetElastic<'_, M> {
+        self
+    }
+
+    #[inline]
+    fn run_sweep(&self, run: SweepRun<'_, '_, M>) {
+        run.in_order();
+    }
+}
+
+impl<M: Material> VertexBlockModel for TetElastic<'_, M> {}
+
 /// One implicit Euler step of the scene's `dt` by Vertex Block Descent (Chen, Liu, Yang and
 /// Yuksel, "Vertex Block Descent", ACM Transactions on Graphics 43(4), SIGGRAPH 2024):
 /// minimises
@@ -492,13 +562,17 @@ pub type VbdReport = DescentReport<VbdDetails>;
 /// stiff block the same 31 sweeps with 20 instead of 35, the same final residuals.
 ///
 /// # Parallel sweeps
-/// `vbd_step_parallel` (feature `rayon`) runs each colour's updates on the current rayon
-/// pool and returns this function's result bit for bit, for any number of threads: two
+/// Given a `softfem::parallel::ParallelTetElastic` (feature `rayon`; see
+/// [`VertexBlockModel`]), the solve runs each colour's updates on the model's pool (the
+/// current rayon pool unless `with_pool` gave one), and the energy evaluations and passes over
+/// the vertices between sweeps there too, as the other solvers do with that model; it returns
+/// the result of the sequential [`TetElastic`] bit for bit, for any number of threads: two
 /// vertices of one colour share no element, so a colour's updates are computed from the
 /// positions before the colour and written back after it, which is what the sequential sweep
-/// computes in place (`docs/math.md` section 7.2). The sweep of an accelerated trial runs
-/// in order (the loop has no vector left over for the parallel schedule's staging there):
-/// the same bits, on one thread.
+/// computes in place (`docs/math.md` section 7.2), and the model's passes have the sequential
+/// bits (see `softfem::parallel`). The sweep of an accelerated trial runs in order (the loop
+/// has no vector left over for the parallel schedule's staging there): the same bits, on one
+/// thread.
 ///
 /// # When to pick it
 /// Measured with `cargo test --release --all-features --test vbd measure_ -- --ignored
@@ -609,8 +683,8 @@ pub type VbdReport = DescentReport<VbdDetails>;
 /// [`StepError::NonFiniteState`] if `Phi` is not finite at both `y` and `x_n` or the result is not
 /// finite; the state is then restored bit for bit.
 #[allow(clippy::too_many_arguments)]
-pub fn vbd_step<M: Material>(
-    model: &TetElastic<'_, M>,
+pub fn vbd_step<F: VertexBlockModel>(
+    model: &F,
     masses: &[Real],
     pinned: &[bool],
     scene: &Scene<'_, Vec3>,
@@ -619,7 +693,7 @@ pub fn vbd_step<M: Material>(
     velocities: &mut [Vec3],
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
-    minimise::<M, InOrder>(
+    minimise(
         (model, masses, pinned),
         scene,
         settings,
@@ -644,8 +718,8 @@ pub fn vbd_step<M: Material>(
 ///
 /// # Errors
 /// As [`vbd_step`] (without the time-step errors).
-pub fn vbd_quasi_static<M: Material>(
-    model: &TetElastic<'_, M>,
+pub fn vbd_quasi_static<F: VertexBlockModel>(
+    model: &F,
     masses: &[Real],
     pinned: &[bool],
     scene: &Scene<'_, Vec3>,
@@ -653,64 +727,7 @@ pub fn vbd_quasi_static<M: Material>(
     positions: &mut [Vec3],
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
-    minimise::<M, InOrder>(
-        (model, masses, pinned),
-        scene,
-        settings,
-        positions,
-        None,
-        scratch,
-    )
-}
-
-/// [`vbd_step`] with the updates of each colour spread over the current rayon pool (feature
-/// `rayon`; the global pool, or a pool of your own through `rayon::ThreadPool::install`): the
-/// same result, bit for bit, for any number of threads and any schedule, because two vertices
-/// of one colour share no element (see [`colour_vertices`](super::super::super::mesh::colour_vertices)), so the
-/// updates of a colour read only positions that no update of that colour writes, and the
-/// sequential sweep gives them the same inputs. The evaluations of `Phi` stay sequential, and
-/// so do the accelerated sweeps (see [`vbd_step`](vbd_step#parallel-sweeps)).
-///
-/// # Errors
-/// As [`vbd_step`].
-#[cfg(feature = "rayon")]
-#[allow(clippy::too_many_arguments)]
-pub fn vbd_step_parallel<M: Material + Sync>(
-    model: &TetElastic<'_, M>,
-    masses: &[Real],
-    pinned: &[bool],
-    scene: &Scene<'_, Vec3>,
-    settings: &VbdSettings,
-    positions: &mut [Vec3],
-    velocities: &mut [Vec3],
-    scratch: &mut VbdScratch<'_>,
-) -> Result<VbdReport, StepError> {
-    minimise::<M, OnPool>(
-        (model, masses, pinned),
-        scene,
-        settings,
-        positions,
-        Some(velocities),
-        scratch,
-    )
-}
-
-/// [`vbd_quasi_static`] with the sweeps of [`vbd_step_parallel`]: the same bits as the
-/// sequential solve for any number of threads.
-///
-/// # Errors
-/// As [`vbd_quasi_static`].
-#[cfg(feature = "rayon")]
-pub fn vbd_quasi_static_parallel<M: Material + Sync>(
-    model: &TetElastic<'_, M>,
-    masses: &[Real],
-    pinned: &[bool],
-    scene: &Scene<'_, Vec3>,
-    settings: &VbdSettings,
-    positions: &mut [Vec3],
-    scratch: &mut VbdScratch<'_>,
-) -> Result<VbdReport, StepError> {
-    minimise::<M, OnPool>(
+    minimise(
         (model, masses, pinned),
         scene,
         settings,
@@ -755,18 +772,19 @@ fn ensure_topology(
 const SWEEP_BACKTRACKS: u32 = 8;
 
 /// The shared solve of [`vbd_step`] (`velocities` given) and [`vbd_quasi_static`], their
-/// sweeps run by `S`: checks, then the descent loop (`descent/mod.rs`) along the sweep
-/// direction (`step/descent/vbd/sweep.rs`).
-fn minimise<M: Material, S: Schedule<M>>(
-    (model, masses, pinned): (&TetElastic<'_, M>, &[Real], &[bool]),
+/// sweeps run by the model's schedule: checks, then the descent loop (`descent/mod.rs`) along
+/// the sweep direction (`step/descent/vbd/sweep.rs`).
+fn minimise<F: VertexBlockModel>(
+    (model, masses, pinned): (&F, &[Real], &[bool]),
     scene: &Scene<'_, Vec3>,
     settings: &VbdSettings,
     positions: &mut [Vec3],
     velocities: Option<&mut [Vec3]>,
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
-    let n = model.mesh.vertex_count();
-    let tets = model.mesh.tets();
+    let body = model.tet_body();
+    let n = body.mesh.vertex_count();
+    let tets = body.mesh.tets();
     let dynamic = velocities.is_some();
     let ground = descent::validated_scene(scene, dynamic)?;
     settings.check()?;
@@ -797,7 +815,7 @@ fn minimise<M: Material, S: Schedule<M>>(
     {
         let source = LayoutSource {
             tets,
-            rest: model.mesh.rest(),
+            rest: body.mesh.rest(),
             offsets,
             incident,
             colours: colours_of,
@@ -828,8 +846,8 @@ fn minimise<M: Material, S: Schedule<M>>(
     let origin = descent::reference_point(positions);
     let sweep = Sweep {
         tets,
-        rest: model.mesh.rest(),
-        material: &model.material,
+        rest: body.mesh.rest(),
+        material: &body.material,
         offsets,
         incident,
         colours: colours_of,
@@ -854,7 +872,7 @@ fn minimise<M: Material, S: Schedule<M>>(
         max_backtracks: settings.max_backtracks,
     };
     let lazy = settings.options.line_search_on_increase && settings.max_backtracks > 0;
-    let mut direction = VbdSweep::<M, S>::new(sweep, !lazy);
+    let mut direction = VbdSweep::new(sweep, !lazy);
     let problem = Problem::new(
         (model, masses, pinned),
         &[],

@@ -6,8 +6,6 @@
 //! its vertex updates and its colour-parallel schedule are documented on
 //! [`vbd_step`](super::super::super::vbd_step).
 
-use core::marker::PhantomData;
-
 use super::super::super::super::element::TetRest;
 use super::super::super::super::lanes::LaneArray;
 use super::super::super::super::material::Material;
@@ -19,13 +17,14 @@ use super::super::super::contact::collider::Colliders;
 use super::super::super::contact::floor::Floor;
 use super::super::super::contact::friction::{Friction, Lag, Slip};
 use super::super::super::loads::Loads;
-use super::super::super::model::TetElastic;
+use super::super::super::model::{ElasticEnergy, TetElastic};
 use super::super::super::vertex_pass::passes::{TrialPoint, trial_pass};
 use super::super::super::vertex_pass::point::{Grouped, Point};
 use super::super::line_search::{copy, slope_along};
 use super::super::objective::Objective;
 use super::super::stopping::rounding_floor;
 use super::super::{Direction, Iterate};
+use super::VertexBlockModel;
 use super::block::{VertexFactor, shape_gradient};
 use super::lanes::LaneUpdate;
 #[cfg(feature = "rayon")]
@@ -106,26 +105,56 @@ impl SweepCounts {
     }
 }
 
-/// How the vertex updates of a sweep are run: one after the other ([`InOrder`]) or colour by
-/// colour on a thread pool; the result is the same bits either way.
-pub(crate) trait Schedule<M: Material> {
-    /// One sweep of `sweep` over `positions` in place; `staging` (one vector per vertex) is
-    /// free to use.
-    fn sweep(
-        sweep: &Sweep<'_, M>,
-        positions: &mut [Vec3],
-        staging: &mut [Vec3],
-        counts: &mut SweepCounts,
-        line_search: bool,
-    );
+/// One sweep a model's schedule runs
+/// ([`SweepSchedule::run_sweep`](super::SweepSchedule::run_sweep)): `sweep` over `positions` in
+/// place, its vertex updates one after the other ([`in_order`](Self::in_order)) or colour by
+/// colour on a thread pool ([`on_pool`](Self::on_pool)), the same bits either way. Public in
+/// name only, for the sealed trait's signature: nothing outside the crate can reach it.
+pub struct SweepRun<'a, 's, M: Material> {
+    pub(crate) sweep: &'a Sweep<'s, M>,
+    pub(crate) positions: &'a mut [Vec3],
+    /// One vector per vertex, free to use (the parallel schedule stages there).
+    #[cfg_attr(not(feature = "rayon"), allow(dead_code))]
+    pub(crate) staging: &'a mut [Vec3],
+    pub(crate) counts: &'a mut SweepCounts,
+    pub(crate) line_search: bool,
 }
 
-/// The vertex updates one after the other in the vertex order.
-pub(crate) struct InOrder;
+impl<M: Material> SweepRun<'_, '_, M> {
+    /// The vertex updates one after the other in the vertex order, on the calling thread.
+    #[inline]
+    pub(crate) fn in_order(self) {
+        self.sweep.run(self.positions, self.counts, self.line_search);
+    }
 
-/// The vertex updates of each colour in parallel on the current rayon pool.
-#[cfg(feature = "rayon")]
-pub(crate) struct OnPool;
+    /// The vertex updates of each colour in parallel on the current rayon pool.
+    #[cfg(feature = "rayon")]
+    #[inline]
+    pub(crate) fn on_pool(self)
+    where
+        M: Sync,
+    {
+        self.sweep
+            .run_on_pool(self.positions, self.staging, self.counts, self.line_search);
+    }
+}
+
+/// What Vertex Block Descent needs of a model besides its energy: the tetrahedral body the
+/// sweeps visit and the schedule of their vertex updates. The supertrait of
+/// [`VertexBlockModel`]; public in name only, so that no model outside the crate implements
+/// it (sealed).
+pub trait SweepSchedule {
+    /// The material of the body.
+    type Material: Material;
+
+    /// The tetrahedral body the sweeps visit: its energy is the model's
+    /// ([`ElasticEnergy::energy_and_add_forces`]), which the descent loop evaluates.
+    fn tet_body(&self) -> &TetElastic<'_, Self::Material>;
+
+    /// Runs one sweep: [`SweepRun::in_order`], or [`SweepRun::on_pool`] on the model's pool
+    /// (the same bits).
+    fn run_sweep(&self, run: SweepRun<'_, '_, Self::Material>);
+}
 
 /// The vertices a task of a parallel sweep updates: small enough to split the colours of
 /// small meshes over the threads, large enough to pay for a task.
@@ -135,33 +164,6 @@ const VERTEX_CHUNK: usize = 32;
 
 #[cfg(feature = "rayon")]
 const _: () = assert!(VERTEX_CHUNK.is_multiple_of(BLOCK));
-
-#[cfg(feature = "rayon")]
-impl<M: Material + Sync> Schedule<M> for OnPool {
-    #[inline]
-    fn sweep(
-        sweep: &Sweep<'_, M>,
-        positions: &mut [Vec3],
-        staging: &mut [Vec3],
-        counts: &mut SweepCounts,
-        line_search: bool,
-    ) {
-        sweep.run_on_pool(positions, staging, counts, line_search);
-    }
-}
-
-impl<M: Material> Schedule<M> for InOrder {
-    #[inline]
-    fn sweep(
-        sweep: &Sweep<'_, M>,
-        positions: &mut [Vec3],
-        _staging: &mut [Vec3],
-        counts: &mut SweepCounts,
-        line_search: bool,
-    ) {
-        sweep.run(positions, counts, line_search);
-    }
-}
 
 /// The corner positions of `corners`.
 #[inline(always)]
@@ -182,9 +184,9 @@ impl<M: Material> Sweep<'_, M> {
             skip: self.pinned,
             runs: self.colour_runs(),
             extras: line_search_extras(line_search),
-            visitor: InPlace {
+            visitor: Updates {
                 sweep: self,
-                positions,
+                target: InPlace(positions),
                 counts: *counts,
                 line_search,
                 residual_squared: 0.0,
@@ -232,12 +234,12 @@ impl<M: Material> Sweep<'_, M> {
                         skip: self.pinned,
                         runs: core::iter::once(chunk),
                         extras: line_search_extras(line_search),
-                        visitor: Staged {
+                        visitor: Updates {
                             sweep: self,
-                            read,
-                            out,
+                            target: Staged { read, out },
                             counts: SweepCounts::default(),
                             line_search,
+                            residual_squared: 0.0,
                         },
                     });
                     visitor.counts
@@ -463,36 +465,83 @@ impl<M: Material> Sweep<'_, M> {
     }
 }
 
-/// The sequential sweep's visitor: each update applied in place.
-struct InPlace<'a, 's, M: Material> {
-    sweep: &'a Sweep<'s, M>,
-    positions: &'a mut [Vec3],
-    counts: SweepCounts,
-    line_search: bool,
-    /// The Gauss–Seidel residual's square so far (N^2), in sweep order.
-    residual_squared: Real,
+/// Where a sweep's visitor reads the positions its updates start from and writes each update.
+trait UpdateTarget {
+    /// The positions the updates read.
+    fn read(&self) -> &[Vec3];
+
+    /// Writes `to`, the new position of `vertex`, the `index`-th vertex of the visited run.
+    fn write(&mut self, index: usize, vertex: u32, to: Vec3);
 }
 
-impl<M: Material> VertexVisitor for InPlace<'_, '_, M> {
+/// The sequential sweep's target: each update applied in place.
+struct InPlace<'a>(&'a mut [Vec3]);
+
+impl UpdateTarget for InPlace<'_> {
     #[inline]
-    fn positions(&self) -> &[Vec3] {
-        self.positions
+    fn read(&self) -> &[Vec3] {
+        self.0
     }
 
     #[inline]
-    fn visit(&mut self, _index: usize, vertex: u32, sums: &VertexSums) {
-        let i = vertex as usize;
+    fn write(&mut self, _index: usize, vertex: u32, to: Vec3) {
+        if let Some(slot) = self.0.get_mut(vertex as usize) {
+            *slot = to;
+        }
+    }
+}
+
+/// The parallel sweep's target: the positions before the colour are read, each update is
+/// written to the staging entry of its vertex.
+#[cfg(feature = "rayon")]
+struct Staged<'a> {
+    read: &'a [Vec3],
+    out: &'a mut [Vec3],
+}
+
+#[cfg(feature = "rayon")]
+impl UpdateTarget for Staged<'_> {
+    #[inline]
+    fn read(&self) -> &[Vec3] {
+        self.read
+    }
+
+    #[inline]
+    fn write(&mut self, index: usize, _vertex: u32, to: Vec3) {
+        if let Some(slot) = self.out.get_mut(index) {
+            *slot = to;
+        }
+    }
+}
+
+/// A sweep's visitor: each vertex's update from its sums, read from and written to `target`.
+struct Updates<'a, 's, M: Material, T> {
+    sweep: &'a Sweep<'s, M>,
+    target: T,
+    counts: SweepCounts,
+    line_search: bool,
+    /// The Gauss–Seidel residual's square so far (N^2), in visit order (the parallel sweep's
+    /// is not used: its sum would depend on the tasks).
+    residual_squared: Real,
+}
+
+impl<M: Material, T: UpdateTarget> VertexVisitor for Updates<'_, '_, M, T> {
+    #[inline]
+    fn positions(&self) -> &[Vec3] {
+        self.target.read()
+    }
+
+    #[inline]
+    fn visit(&mut self, index: usize, vertex: u32, sums: &VertexSums) {
         let update = self.sweep.updated(
-            self.positions,
-            i,
+            self.target.read(),
+            vertex as usize,
             sums,
             (&mut self.counts, &mut self.residual_squared),
             self.line_search,
         );
-        if let Some(x) = update
-            && let Some(slot) = self.positions.get_mut(i)
-        {
-            *slot = x;
+        if let Some(x) = update {
+            self.target.write(index, vertex, x);
         }
     }
 
@@ -500,7 +549,7 @@ impl<M: Material> VertexVisitor for InPlace<'_, '_, M> {
     fn visit_group<L: LaneArray>(&mut self, group: &SummedGroup<'_>) {
         let updates = self
             .sweep
-            .lane_updates::<L>(self.positions, group, self.line_search);
+            .lane_updates::<L>(self.target.read(), group, self.line_search);
         // In lane order, as the one-vertex visits: the residual's sum keeps its order.
         for (j, index, vertex, sums) in group.visits() {
             match updates.get(j) {
@@ -510,65 +559,7 @@ impl<M: Material> VertexVisitor for InPlace<'_, '_, M> {
                 }
                 Some(&LaneUpdate::Moves { residual, to }) => {
                     self.residual_squared += residual;
-                    if let Some(slot) = self.positions.get_mut(vertex as usize) {
-                        *slot = to;
-                    }
-                }
-                _ => self.visit(index, vertex, sums),
-            }
-        }
-    }
-}
-
-/// The parallel sweep's visitor: each update written to the staging entry of its vertex.
-#[cfg(feature = "rayon")]
-struct Staged<'a, 's, M: Material> {
-    sweep: &'a Sweep<'s, M>,
-    read: &'a [Vec3],
-    out: &'a mut [Vec3],
-    counts: SweepCounts,
-    line_search: bool,
-}
-
-#[cfg(feature = "rayon")]
-impl<M: Material> VertexVisitor for Staged<'_, '_, M> {
-    #[inline]
-    fn positions(&self) -> &[Vec3] {
-        self.read
-    }
-
-    #[inline]
-    fn visit(&mut self, index: usize, vertex: u32, sums: &VertexSums) {
-        // The parallel sweep's residual is not used (its sum would depend on the tasks).
-        let mut residual_squared = 0.0;
-        let update = self.sweep.updated(
-            self.read,
-            vertex as usize,
-            sums,
-            (&mut self.counts, &mut residual_squared),
-            self.line_search,
-        );
-        if let Some(x) = update
-            && let Some(slot) = self.out.get_mut(index)
-        {
-            *slot = x;
-        }
-    }
-
-    #[inline(always)]
-    fn visit_group<L: LaneArray>(&mut self, group: &SummedGroup<'_>) {
-        let updates = self
-            .sweep
-            .lane_updates::<L>(self.read, group, self.line_search);
-        for (j, index, vertex, sums) in group.visits() {
-            match updates.get(j) {
-                Some(&LaneUpdate::Stays { skipped, .. }) => {
-                    self.counts.skipped += u32::from(skipped);
-                }
-                Some(&LaneUpdate::Moves { to, .. }) => {
-                    if let Some(slot) = self.out.get_mut(index) {
-                        *slot = to;
-                    }
+                    self.target.write(index, vertex, to);
                 }
                 _ => self.visit(index, vertex, sums),
             }
@@ -611,9 +602,9 @@ impl<M: Material> Clone for Sweep<'_, M> {
 
 impl<M: Material> Copy for Sweep<'_, M> {}
 
-/// The sweep as a direction of the descent loop, run by schedule `S`, with the counts of its
-/// vertex updates and its rounding floor.
-pub(crate) struct VbdSweep<'s, M: Material, S> {
+/// The sweep as a direction of the descent loop, run by the model's schedule
+/// ([`SweepSchedule::run_sweep`]), with the counts of its vertex updates and its rounding floor.
+pub(crate) struct VbdSweep<'s, M: Material> {
     /// The mesh, topology and settings of the sweeps; the start positions, velocities and time
     /// step come from the objective of each call (the loop's shifted coordinates), the ground
     /// is given already shifted.
@@ -636,10 +627,9 @@ pub(crate) struct VbdSweep<'s, M: Material, S> {
     /// The Gauss–Seidel residual (N) of the last accelerated trial's sweep: an estimate of
     /// `|grad Phi|` at the iterate it started from (see [`Direction::residual_estimate`]).
     estimate: Real,
-    schedule: PhantomData<S>,
 }
 
-impl<'s, M: Material, S: Schedule<M>> VbdSweep<'s, M, S> {
+impl<'s, M: Material> VbdSweep<'s, M> {
     /// The direction of the sweeps of `sweep` (its `start`, `velocities`, `h` and `inertia`
     /// are ignored), each vertex update line-searched where `line_search`.
     pub fn new(sweep: Sweep<'s, M>, line_search: bool) -> Self {
@@ -653,15 +643,14 @@ impl<'s, M: Material, S: Schedule<M>> VbdSweep<'s, M, S> {
             counts: SweepCounts::default(),
             floor: 0.0,
             estimate: Real::NAN,
-            schedule: PhantomData,
         }
     }
 
     /// The sweep at the objective's start positions, velocities and time step, with its
     /// friction lagged to `lag` (none if `None`).
-    fn at<'o>(
+    fn at<'o, F: ElasticEnergy<Vector = Vec3>>(
         &'o self,
-        objective: &'o Objective<'_, TetElastic<'_, M>>,
+        objective: &'o Objective<'_, F>,
         lag: Option<Lag<'o, Vec3>>,
     ) -> Sweep<'o, M> {
         let h = objective.h;
@@ -676,8 +665,8 @@ impl<'s, M: Material, S: Schedule<M>> VbdSweep<'s, M, S> {
     }
 }
 
-impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<'_, M, S> {
-    fn begin(&mut self, objective: &Objective<'_, TetElastic<'m, M>>, x: &[Vec3]) {
+impl<F: VertexBlockModel> Direction<F> for VbdSweep<'_, F::Material> {
+    fn begin(&mut self, objective: &Objective<'_, F>, x: &[Vec3]) {
         // The relaxation's estimate with the exact vertex blocks in place of the diagonal
         // bounds: `eps/2 max |x| (sum_i |m_i/h^2 I + sum_e V_e K_e,ii|_F^2)^(1/2)`.
         let sweep = self.at(objective, None);
@@ -726,7 +715,7 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
 
     fn search(
         &mut self,
-        objective: &Objective<'_, TetElastic<'m, M>>,
+        objective: &Objective<'_, F>,
         at: &Iterate<'_, Vec3>,
         direction: &mut [Vec3],
         _momentum: Option<Real>,
@@ -743,7 +732,13 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
         // `direction` is free until the sweep is done: the parallel schedule stages there.
         let mut counts = self.counts;
         let line_search = self.line_search || self.redo;
-        S::sweep(&sweep, swept, direction, &mut counts, line_search);
+        objective.model.run_sweep(SweepRun {
+            sweep: &sweep,
+            positions: swept,
+            staging: direction,
+            counts: &mut counts,
+            line_search,
+        });
         self.counts = counts;
         self.redo = false;
         self.searched_safely = line_search;
@@ -770,7 +765,7 @@ impl<'m, M: Material, S: Schedule<M>> Direction<TetElastic<'m, M>> for VbdSweep<
 
     fn extrapolate(
         &mut self,
-        objective: &Objective<'_, TetElastic<'m, M>>,
+        objective: &Objective<'_, F>,
         at: &Iterate<'_, Vec3>,
         stepped: bool,
         trial: TrialPoint<'_, Vec3>,
