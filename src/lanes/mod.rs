@@ -498,6 +498,7 @@ pub(crate) trait LaneArray: Lane {
 
 /// `f` of each lane of `lanes`, in order, through its array of values (the lane types held in
 /// registers, whose intrinsics have no `map`).
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub(crate) fn map_lane_array<L: LaneArray<Array = [Real; N]>, const N: usize>(
     lanes: L,
