@@ -826,6 +826,30 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// Moves the kinematic vertices to their targets with the velocity that takes them there;
     /// `targets` then holds their positions before, `held_velocities` their velocities.
     fn move_kinematic(&mut self, dt: Real) {
+        self.each_kinematic(|x, v, target, held| {
+            *held = *v;
+            *v = (*target - *x) / dt;
+            core::mem::swap(x, target);
+        });
+    }
+
+    /// After the step: on success the targets are the kinematic vertices' positions again; on
+    /// failure (the stepper restored the state of after [`move_kinematic`]) the vertices go
+    /// back.
+    fn settle_kinematic(&mut self, succeeded: bool) {
+        self.each_kinematic(|x, v, target, held| {
+            if succeeded {
+                *target = *x;
+            } else {
+                core::mem::swap(x, target);
+                *v = *held;
+            }
+        });
+    }
+
+    /// `each(x, v, target, held)` of every kinematic vertex in order: its position, velocity,
+    /// target and held velocity.
+    fn each_kinematic(&mut self, mut each: impl FnMut(&mut Vec3, &mut Vec3, &mut Vec3, &mut Vec3)) {
         let rows = self
             .positions
             .slice_mut()
@@ -836,33 +860,7 @@ impl<S: Storage, M: Material> Body<S, M> {
             .zip(self.kinematic.slice());
         for ((((x, v), target), held), &kinematic) in rows {
             if kinematic {
-                *held = *v;
-                *v = (*target - *x) / dt;
-                core::mem::swap(x, target);
-            }
-        }
-    }
-
-    /// After the step: on success the targets are the kinematic vertices' positions again; on
-    /// failure (the stepper restored the state of after [`move_kinematic`]) the vertices go
-    /// back.
-    fn settle_kinematic(&mut self, succeeded: bool) {
-        let rows = self
-            .positions
-            .slice_mut()
-            .iter_mut()
-            .zip(self.velocities.slice_mut())
-            .zip(self.targets.slice_mut())
-            .zip(self.held_velocities.slice())
-            .zip(self.kinematic.slice());
-        for ((((x, v), target), held), &kinematic) in rows {
-            if kinematic {
-                if succeeded {
-                    *target = *x;
-                } else {
-                    core::mem::swap(x, target);
-                    *v = *held;
-                }
+                each(x, v, target, held);
             }
         }
     }

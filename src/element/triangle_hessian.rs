@@ -225,38 +225,24 @@ trait Coordinates: Vector {
     fn unit(r: usize) -> Self;
 }
 
-impl Coordinates for Vec2 {
-    const DIM: usize = 2;
-    #[inline(always)]
-    fn coordinate(self, r: usize) -> Real {
-        self.to_array().get(r).copied().unwrap_or(0.0)
-    }
-    #[inline(always)]
-    fn unit(r: usize) -> Self {
-        match r {
-            0 => Vec2::X,
-            1 => Vec2::Y,
-            _ => Vec2::ZERO,
+/// [`Coordinates`] of a glam vector type with the unit vectors `axes`, in order.
+macro_rules! coordinates {
+    ($vector:ident, $dim:literal, [$($axis:ident),*]) => {
+        impl Coordinates for $vector {
+            const DIM: usize = $dim;
+            #[inline(always)]
+            fn coordinate(self, r: usize) -> Real {
+                self.to_array().get(r).copied().unwrap_or(0.0)
+            }
+            #[inline(always)]
+            fn unit(r: usize) -> Self {
+                [$($vector::$axis),*].get(r).copied().unwrap_or($vector::ZERO)
+            }
         }
-    }
+    };
 }
-
-impl Coordinates for Vec3 {
-    const DIM: usize = 3;
-    #[inline(always)]
-    fn coordinate(self, r: usize) -> Real {
-        self.to_array().get(r).copied().unwrap_or(0.0)
-    }
-    #[inline(always)]
-    fn unit(r: usize) -> Self {
-        match r {
-            0 => Vec3::X,
-            1 => Vec3::Y,
-            2 => Vec3::Z,
-            _ => Vec3::ZERO,
-        }
-    }
-}
+coordinates!(Vec2, 2, [X, Y]);
+coordinates!(Vec3, 3, [X, Y, Z]);
 
 impl TriangleStVK {
     /// `dP` of a deformation gradient given by its columns (either dimension).

@@ -20,8 +20,8 @@ use super::super::wide_ops::{
     mul256, or256, set1_256, sqrt256, store_vec3s_256, sub256, vec3s_256, xor256,
 };
 use super::{
-    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
-    set_array_quarter, store_array_quarter,
+    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, map_lane_array,
+    register_lanes, set_array_lane_value, set_array_quarter, store_array_quarter,
 };
 use core::arch::x86_64::{_CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q};
 use core::ops::{Add, Div, Mul, Neg, Sub};
@@ -35,22 +35,8 @@ pub(crate) struct Avx2Lanes(Reg256);
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Avx2Mask(Reg256);
 
-macro_rules! lanes_binary_op {
-    ($trait:ident, $method:ident, $intrinsic:ident) => {
-        impl $trait for Avx2Lanes {
-            type Output = Avx2Lanes;
-            #[inline(always)]
-            fn $method(self, other: Avx2Lanes) -> Avx2Lanes {
-                // SAFETY: see the module comment.
-                Avx2Lanes(unsafe { $intrinsic(self.0, other.0) })
-            }
-        }
-    };
-}
-lanes_binary_op!(Add, add, add256);
-lanes_binary_op!(Sub, sub, sub256);
-lanes_binary_op!(Mul, mul, mul256);
-lanes_binary_op!(Div, div, div256);
+register_lanes!(binary_ops Avx2Lanes:
+    Add add add256, Sub sub sub256, Mul mul mul256, Div div div256);
 
 impl Neg for Avx2Lanes {
     type Output = Avx2Lanes;
@@ -105,17 +91,7 @@ impl Lane for Avx2Lanes {
         }
     }
 
-    #[inline(always)]
-    fn gt(self, other: Self) -> Avx2Mask {
-        // SAFETY: see the module comment. Ordered: false where either lane is NaN.
-        Avx2Mask(unsafe { cmp256::<_CMP_GT_OQ>(self.0, other.0) })
-    }
-
-    #[inline(always)]
-    fn ge(self, other: Self) -> Avx2Mask {
-        // SAFETY: see the module comment. Ordered: false where either lane is NaN.
-        Avx2Mask(unsafe { cmp256::<_CMP_GE_OQ>(self.0, other.0) })
-    }
+    register_lanes!(compare Avx2Mask: cmp256);
 
     #[inline(always)]
     fn none(mask: Avx2Mask) -> bool {
@@ -132,66 +108,17 @@ impl Lane for Avx2Lanes {
 
     #[inline(always)]
     fn map(self, f: impl Fn(Real) -> Real) -> Self {
-        let mut values = self.to_lane_array();
-        for value in &mut values {
-            *value = f(*value);
-        }
-        Avx2Lanes::from_lane_array(values)
+        map_lane_array(self, f)
     }
 }
 
 impl LaneArray for Avx2Lanes {
-    type Array = [Real; AVX2_WIDTH];
-    const ZEROS: Self::Array = [0.0; AVX2_WIDTH];
-
-    #[inline(always)]
-    fn from_lane_array(values: Self::Array) -> Self {
-        // SAFETY: `[Real; AVX2_WIDTH]` and the register have the same size (32 bytes), and
-        // every bit pattern is valid for both; element `i` is lane `i` (little-endian lane
-        // order).
-        Avx2Lanes(unsafe { core::mem::transmute::<Self::Array, Reg256>(values) })
-    }
-
-    #[inline(always)]
-    fn to_lane_array(self) -> Self::Array {
-        // SAFETY: as in `from_lane_array`.
-        unsafe { core::mem::transmute::<Reg256, Self::Array>(self.0) }
-    }
-
-    #[inline(always)]
-    fn from_slice(values: &[Real]) -> Option<Self> {
-        Some(Self::from_lane_array(*values.first_chunk()?))
-    }
-
-    #[inline(always)]
-    fn lane_value(values: &Self::Array, lane: usize) -> Real {
-        array_lane_value(values, lane)
-    }
+    register_lanes!(array Avx2Lanes: Reg256, AVX2_WIDTH);
 
     #[inline(always)]
     fn exponent_part(self) -> Self {
         // SAFETY: see the module comment. The bits of +inf are the exponent field's mask.
         Avx2Lanes(unsafe { and256(self.0, set1_256(Real::INFINITY)) })
-    }
-
-    #[inline(always)]
-    fn quarter(values: &Self::Array, q: usize) -> Lanes {
-        array_quarter(values, q)
-    }
-
-    #[inline(always)]
-    fn set_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
-        set_array_quarter(values, q, quarter);
-    }
-
-    #[inline(always)]
-    fn store_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
-        store_array_quarter(values, q, quarter);
-    }
-
-    #[inline(always)]
-    fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
-        set_array_lane_value(values, lane, value);
     }
 
     #[inline(always)]

@@ -21,8 +21,8 @@ use super::super::wide_ops::{
     mul512, set1_512, sqrt512, store_vec3s_512, sub512, to_bits512, vec3s_512,
 };
 use super::{
-    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, set_array_lane_value,
-    set_array_quarter, store_array_quarter,
+    Lane, LaneArray, LaneVec3, Lanes, array_lane_value, array_quarter, map_lane_array,
+    register_lanes, set_array_lane_value, set_array_quarter, store_array_quarter,
 };
 use core::arch::x86_64::{
     _CMP_GE_OQ, _CMP_GT_OQ, _CMP_UNORD_Q, _mm512_and_si512, _mm512_or_si512, _mm512_xor_si512,
@@ -38,22 +38,8 @@ pub(crate) struct Avx512Lanes(Reg512);
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Avx512Mask(Mask512);
 
-macro_rules! lanes_binary_op {
-    ($trait:ident, $method:ident, $intrinsic:ident) => {
-        impl $trait for Avx512Lanes {
-            type Output = Avx512Lanes;
-            #[inline(always)]
-            fn $method(self, other: Avx512Lanes) -> Avx512Lanes {
-                // SAFETY: see the module comment.
-                Avx512Lanes(unsafe { $intrinsic(self.0, other.0) })
-            }
-        }
-    };
-}
-lanes_binary_op!(Add, add, add512);
-lanes_binary_op!(Sub, sub, sub512);
-lanes_binary_op!(Mul, mul, mul512);
-lanes_binary_op!(Div, div, div512);
+register_lanes!(binary_ops Avx512Lanes:
+    Add add add512, Sub sub sub512, Mul mul mul512, Div div div512);
 
 impl Neg for Avx512Lanes {
     type Output = Avx512Lanes;
@@ -117,17 +103,7 @@ impl Lane for Avx512Lanes {
         }
     }
 
-    #[inline(always)]
-    fn gt(self, other: Self) -> Avx512Mask {
-        // SAFETY: see the module comment. Ordered: false where either lane is NaN.
-        Avx512Mask(unsafe { cmp512::<_CMP_GT_OQ>(self.0, other.0) })
-    }
-
-    #[inline(always)]
-    fn ge(self, other: Self) -> Avx512Mask {
-        // SAFETY: see the module comment. Ordered: false where either lane is NaN.
-        Avx512Mask(unsafe { cmp512::<_CMP_GE_OQ>(self.0, other.0) })
-    }
+    register_lanes!(compare Avx512Mask: cmp512);
 
     #[inline(always)]
     fn none(mask: Avx512Mask) -> bool {
@@ -142,41 +118,12 @@ impl Lane for Avx512Lanes {
 
     #[inline(always)]
     fn map(self, f: impl Fn(Real) -> Real) -> Self {
-        let mut values = self.to_lane_array();
-        for value in &mut values {
-            *value = f(*value);
-        }
-        Avx512Lanes::from_lane_array(values)
+        map_lane_array(self, f)
     }
 }
 
 impl LaneArray for Avx512Lanes {
-    type Array = [Real; AVX512_WIDTH];
-    const ZEROS: Self::Array = [0.0; AVX512_WIDTH];
-
-    #[inline(always)]
-    fn from_lane_array(values: Self::Array) -> Self {
-        // SAFETY: `[Real; AVX512_WIDTH]` and the register have the same size (64 bytes), and
-        // every bit pattern is valid for both; element `i` is lane `i` (little-endian lane
-        // order).
-        Avx512Lanes(unsafe { core::mem::transmute::<Self::Array, Reg512>(values) })
-    }
-
-    #[inline(always)]
-    fn to_lane_array(self) -> Self::Array {
-        // SAFETY: as in `from_lane_array`.
-        unsafe { core::mem::transmute::<Reg512, Self::Array>(self.0) }
-    }
-
-    #[inline(always)]
-    fn from_slice(values: &[Real]) -> Option<Self> {
-        Some(Self::from_lane_array(*values.first_chunk()?))
-    }
-
-    #[inline(always)]
-    fn lane_value(values: &Self::Array, lane: usize) -> Real {
-        array_lane_value(values, lane)
-    }
+    register_lanes!(array Avx512Lanes: Reg512, AVX512_WIDTH);
 
     #[inline(always)]
     fn exponent_part(self) -> Self {
@@ -185,26 +132,6 @@ impl LaneArray for Avx512Lanes {
             let mask = to_bits512(set1_512(Real::INFINITY));
             Avx512Lanes(from_bits512(_mm512_and_si512(to_bits512(self.0), mask)))
         }
-    }
-
-    #[inline(always)]
-    fn quarter(values: &Self::Array, q: usize) -> Lanes {
-        array_quarter(values, q)
-    }
-
-    #[inline(always)]
-    fn set_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
-        set_array_quarter(values, q, quarter);
-    }
-
-    #[inline(always)]
-    fn store_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
-        store_array_quarter(values, q, quarter);
-    }
-
-    #[inline(always)]
-    fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
-        set_array_lane_value(values, lane, value);
     }
 
     #[inline(always)]

@@ -496,6 +496,105 @@ pub(crate) trait LaneArray: Lane {
     }
 }
 
+/// `f` of each lane of `lanes`, in order, through its array of values (the lane types held in
+/// registers, whose intrinsics have no `map`).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) fn map_lane_array<L: LaneArray<Array = [Real; N]>, const N: usize>(
+    lanes: L,
+    f: impl Fn(Real) -> Real,
+) -> L {
+    let mut values = lanes.to_lane_array();
+    for value in &mut values {
+        *value = f(*value);
+    }
+    L::from_lane_array(values)
+}
+
+/// The items every lane type held in one x86_64 register shares, written once: the arithmetic
+/// operators from their packed intrinsics (`binary_ops`), the ordered comparisons of
+/// [`Lane`] from a compare intrinsic taking the predicate as a const generic (`compare`), and
+/// the [`LaneArray`] items of a register of `WIDTH` values (`array`). Each arm expands to
+/// the items alone, for the `impl` blocks of `sse.rs`, `avx2.rs` and `avx512.rs`; every
+/// `unsafe` block calls only intrinsics on register values, under the caller's module comment.
+#[cfg(target_arch = "x86_64")]
+macro_rules! register_lanes {
+    (binary_ops $lanes:ident: $($trait:ident $method:ident $intrinsic:ident),*) => {
+        $(
+            impl $trait for $lanes {
+                type Output = $lanes;
+                #[inline(always)]
+                fn $method(self, other: $lanes) -> $lanes {
+                    // SAFETY: see the module comment.
+                    $lanes(unsafe { $intrinsic(self.0, other.0) })
+                }
+            }
+        )*
+    };
+    (compare $mask:ident: $cmp:ident) => {
+        #[inline(always)]
+        fn gt(self, other: Self) -> $mask {
+            // SAFETY: see the module comment. Ordered: false where either lane is NaN.
+            $mask(unsafe { $cmp::<_CMP_GT_OQ>(self.0, other.0) })
+        }
+
+        #[inline(always)]
+        fn ge(self, other: Self) -> $mask {
+            // SAFETY: see the module comment. Ordered: false where either lane is NaN.
+            $mask(unsafe { $cmp::<_CMP_GE_OQ>(self.0, other.0) })
+        }
+    };
+    (array $lanes:ident: $reg:ty, $width:expr) => {
+        type Array = [Real; $width];
+        const ZEROS: Self::Array = [0.0; $width];
+
+        #[inline(always)]
+        fn from_lane_array(values: Self::Array) -> Self {
+            // SAFETY: the array and the register have the same size, and every bit pattern is
+            // valid for both; element `i` is lane `i` (little-endian lane order).
+            $lanes(unsafe { core::mem::transmute::<Self::Array, $reg>(values) })
+        }
+
+        #[inline(always)]
+        fn to_lane_array(self) -> Self::Array {
+            // SAFETY: as in `from_lane_array`.
+            unsafe { core::mem::transmute::<$reg, Self::Array>(self.0) }
+        }
+
+        #[inline(always)]
+        fn from_slice(values: &[Real]) -> Option<Self> {
+            Some(Self::from_lane_array(*values.first_chunk()?))
+        }
+
+        #[inline(always)]
+        fn lane_value(values: &Self::Array, lane: usize) -> Real {
+            array_lane_value(values, lane)
+        }
+
+        #[inline(always)]
+        fn quarter(values: &Self::Array, q: usize) -> Lanes {
+            array_quarter(values, q)
+        }
+
+        #[inline(always)]
+        fn set_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+            set_array_quarter(values, q, quarter);
+        }
+
+        #[inline(always)]
+        fn store_quarter(values: &mut Self::Array, q: usize, quarter: Lanes) {
+            store_array_quarter(values, q, quarter);
+        }
+
+        #[inline(always)]
+        fn set_lane_value(values: &mut Self::Array, lane: usize, value: Real) {
+            set_array_lane_value(values, lane, value);
+        }
+    };
+}
+#[cfg(target_arch = "x86_64")]
+pub(crate) use register_lanes;
+
 /// [`LaneArray::lane_value`] for a plain array.
 #[inline(always)]
 pub(crate) fn array_lane_value(values: &[Real], lane: usize) -> Real {

@@ -9,7 +9,7 @@
 // values): these instructions are part of the x86_64 baseline, so they are always available, and
 // they have no memory operands or other preconditions.
 
-use super::lanes::{LANES, Lane, LaneVec3, each_lane};
+use super::lanes::{LANES, Lane, LaneVec3, each_lane, map_lane_array, register_lanes};
 use super::types::{Real, Vec3};
 use core::arch::x86_64::{
     __m128, _mm_add_ps, _mm_and_ps, _mm_andnot_ps, _mm_cmpge_ps, _mm_cmpgt_ps, _mm_cmpunord_ps,
@@ -48,22 +48,8 @@ impl Lanes {
     }
 }
 
-macro_rules! lanes_binary_op {
-    ($trait:ident, $method:ident, $intrinsic:ident) => {
-        impl $trait for Lanes {
-            type Output = Lanes;
-            #[inline(always)]
-            fn $method(self, other: Lanes) -> Lanes {
-                // SAFETY: see the module comment.
-                Lanes(unsafe { $intrinsic(self.0, other.0) })
-            }
-        }
-    };
-}
-lanes_binary_op!(Add, add, _mm_add_ps);
-lanes_binary_op!(Sub, sub, _mm_sub_ps);
-lanes_binary_op!(Mul, mul, _mm_mul_ps);
-lanes_binary_op!(Div, div, _mm_div_ps);
+register_lanes!(binary_ops Lanes:
+    Add add _mm_add_ps, Sub sub _mm_sub_ps, Mul mul _mm_mul_ps, Div div _mm_div_ps);
 
 impl Neg for Lanes {
     type Output = Lanes;
@@ -146,7 +132,7 @@ impl Lane for Lanes {
 
     #[inline(always)]
     fn map(self, f: impl Fn(Real) -> Real) -> Self {
-        Lanes::from_array(each_lane(self.to_array(), f))
+        map_lane_array(self, f)
     }
 }
 

@@ -9,7 +9,7 @@
 // these instructions are part of the x86_64 baseline, so they are always available, and they
 // have no memory operands or other preconditions.
 
-use super::lanes::{LANES, Lane, LaneVec3, each_lane};
+use super::lanes::{LANES, Lane, LaneVec3, map_lane_array};
 use super::types::{Real, Vec3};
 use core::arch::x86_64::{
     __m128d, _mm_add_pd, _mm_and_pd, _mm_andnot_pd, _mm_cmpge_pd, _mm_cmpgt_pd, _mm_cmpunord_pd,
@@ -174,7 +174,7 @@ impl Lane for Lanes {
 
     #[inline(always)]
     fn map(self, f: impl Fn(Real) -> Real) -> Self {
-        Lanes::from_array(each_lane(self.to_array(), f))
+        map_lane_array(self, f)
     }
 }
 

@@ -39,6 +39,26 @@ fn check(buffer: StepBuffer, expected: usize, actual: usize) -> Result<(), StepE
     super::super::step::state::check_length(buffer, expected, actual)
 }
 
+/// The lengths of an adjacency's buffers for `vertex_count` vertices and `element_count`
+/// elements: the offsets first, then the incident elements.
+fn check_adjacency(
+    vertex_count: usize,
+    element_count: usize,
+    offsets: usize,
+    incident: usize,
+) -> Result<(), StepError> {
+    check(
+        StepBuffer::AdjacencyOffsets,
+        adjacency_offsets_len(vertex_count),
+        offsets,
+    )?;
+    check(
+        StepBuffer::AdjacencyIncident,
+        adjacency_incident_len(element_count),
+        incident,
+    )
+}
+
 /// Builds the vertex-to-element adjacency of the tetrahedra `tets` over `vertex_count`
 /// vertices into `offsets` ([`adjacency_offsets_len`]`(vertex_count)` entries) and `incident`
 /// ([`adjacency_incident_len`]`(tets.len())` entries) in compressed rows: the elements
@@ -74,16 +94,7 @@ pub fn build_vertex_adjacency(
     if tets.len() > (u32::MAX / 4) as usize {
         return Err(StepError::TooManyElements);
     }
-    check(
-        StepBuffer::AdjacencyOffsets,
-        adjacency_offsets_len(vertex_count),
-        offsets.len(),
-    )?;
-    check(
-        StepBuffer::AdjacencyIncident,
-        adjacency_incident_len(tets.len()),
-        incident.len(),
-    )?;
+    check_adjacency(vertex_count, tets.len(), offsets.len(), incident.len())?;
     for (element, corners) in tets.iter().enumerate() {
         if let Some(&index) = corners.iter().find(|&&i| i as usize >= vertex_count) {
             return Err(StepError::VertexIndex { element, index });
@@ -168,16 +179,7 @@ pub fn colour_vertices(
     colours: &mut [u32],
 ) -> Result<u32, StepError> {
     let vertex_count = offsets.len().saturating_sub(1);
-    check(
-        StepBuffer::AdjacencyOffsets,
-        adjacency_offsets_len(colours.len()),
-        offsets.len(),
-    )?;
-    check(
-        StepBuffer::AdjacencyIncident,
-        adjacency_incident_len(tets.len()),
-        incident.len(),
-    )?;
+    check_adjacency(colours.len(), tets.len(), offsets.len(), incident.len())?;
     let mut count = 0;
     for vertex in 0..vertex_count {
         // The colours of the earlier neighbours below 64 as bits; the rare vertex with all 64

@@ -14,7 +14,7 @@ use super::super::material::Material;
 use super::super::svd::{Svd3, svd3, svd3_of_lanes};
 use super::super::types::{Mat3, Real, Vec3};
 use super::rest_blocks::{BlockRun, Rests};
-use super::{gather, scatter_add};
+use super::gather;
 use crate::simd::WidthKernel;
 
 /// A group of [`LANES`] consecutive tetrahedra: vertex indices and rest data.
@@ -78,8 +78,8 @@ impl GroupGradients {
     }
 
     /// Writes the nodal forces (N) of the stresses `p` (Pa) into `out`, one entry per lane,
-    /// corner by corner: the vectors [`scatter_forces`](Self::scatter_forces) adds, as
-    /// [`TetRest::nodal_forces`] forms them.
+    /// corner by corner: the vectors [`scatter_forces_from`](Self::scatter_forces_from) adds,
+    /// as [`TetRest::nodal_forces`] forms them.
     #[inline(always)]
     pub fn write_forces(&self, p: LaneMat3<Lanes>, out: &mut [[Vec3; 4]]) {
         let h = p.scale(-self.volume) * self.dm_inv.transpose();
@@ -317,15 +317,10 @@ impl<L: LaneArray> WideGradients<L> {
 
     /// Adds the nodal forces of the stresses `p` (Pa) into `forces`, element by element and
     /// corner by corner in order (the order of the scalar loop, which matters where elements
-    /// share vertices), as [`TetRest::nodal_forces`] forms them.
-    #[inline(always)]
-    pub fn scatter_forces(&self, tets: &[[u32; 4]], p: LaneMat3<L>, forces: &mut [Vec3]) {
-        self.scatter_forces_from(tets, p, forces, 0);
-    }
-
-    /// As [`scatter_forces`](Self::scatter_forces) into the slice `forces` of a force buffer
-    /// that starts at vertex `first`: corners outside it are skipped (the owner-computes pieces
-    /// of a partition, `partition/owner.rs`). One bounds test per corner, as with `first = 0`.
+    /// share vertices), as [`TetRest::nodal_forces`] forms them. `forces` is the slice of a
+    /// force buffer that starts at vertex `first` (0 for the whole buffer): corners outside it
+    /// are skipped (the owner-computes pieces of a partition, `partition/owner.rs`). One bounds
+    /// test per corner, whatever `first`.
     #[inline(always)]
     pub fn scatter_forces_from(
         &self,
@@ -478,15 +473,32 @@ impl EnergySink for FusedEnergy {
 pub(super) trait ForceSink {
     /// Whether no element of `tets` adds a force here, so that they need not be evaluated.
     fn skips(&self, tets: &[[u32; 4]]) -> bool;
-    /// Adds the nodal forces of the stresses `p` (Pa) of a group of elements `tets`.
+    /// The forces (N) this sink adds into and the vertex its first entry belongs to.
+    fn slots(&mut self) -> (&mut [Vec3], usize);
+    /// Adds the nodal forces of the stresses `p` (Pa) of a group of elements `tets`, at the
+    /// corners that are vertices of [`slots`](Self::slots).
+    #[inline(always)]
     fn add_group<L: LaneArray>(
         &mut self,
         gradients: &WideGradients<L>,
         tets: &[[u32; 4]],
         p: LaneMat3<L>,
-    );
-    /// Adds one element's nodal `forces` (N) at its `corners`.
-    fn add(&mut self, corners: &[u32; 4], forces: [Vec3; 4]);
+    ) {
+        let (out, first) = self.slots();
+        gradients.scatter_forces_from(tets, p, out, first);
+    }
+    /// Adds one element's nodal `forces` (N) at its `corners` that are vertices of
+    /// [`slots`](Self::slots), corner by corner.
+    #[inline(always)]
+    fn add(&mut self, corners: &[u32; 4], forces: [Vec3; 4]) {
+        let (out, first) = self.slots();
+        for (&v, force) in corners.iter().zip(forces) {
+            // Below `first` the index wraps past any slice length.
+            if let Some(slot) = out.get_mut((v as usize).wrapping_sub(first)) {
+                *slot += force;
+            }
+        }
+    }
 }
 
 impl ForceSink for &mut [Vec3] {
@@ -496,18 +508,8 @@ impl ForceSink for &mut [Vec3] {
     }
 
     #[inline(always)]
-    fn add_group<L: LaneArray>(
-        &mut self,
-        gradients: &WideGradients<L>,
-        tets: &[[u32; 4]],
-        p: LaneMat3<L>,
-    ) {
-        gradients.scatter_forces(tets, p, self);
-    }
-
-    #[inline(always)]
-    fn add(&mut self, corners: &[u32; 4], forces: [Vec3; 4]) {
-        scatter_add(self, corners, forces);
+    fn slots(&mut self) -> (&mut [Vec3], usize) {
+        (self, 0)
     }
 }
 
@@ -535,26 +537,59 @@ pub(super) struct Pass<'k, M, J> {
     pub job: J,
 }
 
-/// What a [`Pass`] does with each group and each single element.
+/// What a [`Pass`] does with each group and each single element. Element indices count from
+/// the start of the pass's elements (for per-element outputs and the energy order).
 pub(super) trait PassJob {
-    /// Elements before the current slice (for per-element outputs and the energy order).
-    fn groups<L: LaneArray, M: Material, R: GroupRests>(
+    /// Whether the elements `tets`, from element `first` on, need nothing from this job, so
+    /// that they need not be evaluated.
+    #[inline(always)]
+    fn skips(&self, _first: usize, _tets: &[[u32; 4]]) -> bool {
+        false
+    }
+    /// The group of elements `tets` from element `first` on, with their `F` and rest data.
+    fn group<L: LaneArray, M: Material>(
         &mut self,
         material: &M,
-        positions: &[Vec3],
         first: usize,
         tets: &[[u32; 4]],
-        rests: R,
+        gradients: &WideGradients<L>,
     );
-    /// One element `i` at a time.
+    /// Element `i` alone, with its `corners` at deformed positions `x` (m).
     fn single<M: Material>(
         &mut self,
         material: &M,
-        positions: &[Vec3],
         i: usize,
         corners: &[u32; 4],
         rest: &TetRest,
+        x: [Vec3; 4],
     );
+}
+
+/// The whole groups of `L::WIDTH` elements of `tets` (from pass element `first` on) for `job`,
+/// their rest data from `rests`.
+#[inline(always)]
+fn job_groups<L: LaneArray, M: Material, R: GroupRests>(
+    job: &mut impl PassJob,
+    material: &M,
+    positions: &[Vec3],
+    first: usize,
+    tets: &[[u32; 4]],
+    rests: R,
+) {
+    // Nothing to read without positions (never: the mesh checked their number).
+    let Some(all) = Positions::new(positions) else {
+        return;
+    };
+    for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
+        let start = first + group * L::WIDTH;
+        if job.skips(start, tets) {
+            continue;
+        }
+        let Some(gradients) = rests.gradients::<L>(all, tets, group) else {
+            continue;
+        };
+        job.group(material, start, tets, &gradients);
+    }
 }
 
 impl<M: Material, J: PassJob> Pass<'_, M, J> {
@@ -576,11 +611,12 @@ impl<M: Material, J: PassJob> Pass<'_, M, J> {
         // tests/steppers/parallel.rs).
         #[cfg(not(debug_assertions))]
         if let Some(blocks) = group_rests.block_run(L::WIDTH) {
-            self.job
-                .groups::<L, M, _>(self.material, self.positions, first, group_tets, blocks);
+            let (material, positions) = (self.material, self.positions);
+            job_groups::<L, M, _>(&mut self.job, material, positions, first, group_tets, blocks);
             return (first + group_tets.len(), tail_tets, tail_rests);
         }
-        self.job.groups::<L, M, _>(
+        job_groups::<L, M, _>(
+            &mut self.job,
             self.material,
             self.positions,
             first,
@@ -594,8 +630,11 @@ impl<M: Material, J: PassJob> Pass<'_, M, J> {
     #[inline(always)]
     fn singles(&mut self, first: usize, tets: &[[u32; 4]], rests: Rests<'_>) {
         for (i, (corners, rest)) in (first..).zip(tets.iter().zip(rests.elements)) {
-            self.job
-                .single(self.material, self.positions, i, corners, rest);
+            if self.job.skips(i, core::slice::from_ref(corners)) {
+                continue;
+            }
+            let x = gather(self.positions, corners);
+            self.job.single(self.material, i, corners, rest, x);
         }
     }
 }
@@ -648,43 +687,32 @@ pub(super) struct DirectForces<S>(pub S);
 
 impl<S: ForceSink> PassJob for DirectForces<S> {
     #[inline(always)]
-    fn groups<L: LaneArray, M: Material, R: GroupRests>(
+    fn skips(&self, _first: usize, tets: &[[u32; 4]]) -> bool {
+        self.0.skips(tets)
+    }
+
+    #[inline(always)]
+    fn group<L: LaneArray, M: Material>(
         &mut self,
         material: &M,
-        positions: &[Vec3],
         _first: usize,
         tets: &[[u32; 4]],
-        rests: R,
+        gradients: &WideGradients<L>,
     ) {
-        // Nothing to read without positions (never: the mesh checked their number).
-        let Some(all) = Positions::new(positions) else {
-            return;
-        };
-        for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
-            if self.0.skips(tets) {
-                continue;
-            }
-            let Some(gradients) = rests.gradients::<L>(all, tets, group) else {
-                continue;
-            };
-            self.0
-                .add_group(&gradients, tets, material.first_piola_wide(gradients.f));
-        }
+        self.0
+            .add_group(gradients, tets, material.first_piola_wide(gradients.f));
     }
 
     #[inline(always)]
     fn single<M: Material>(
         &mut self,
         material: &M,
-        positions: &[Vec3],
         _i: usize,
         corners: &[u32; 4],
         rest: &TetRest,
+        x: [Vec3; 4],
     ) {
-        if self.0.skips(core::slice::from_ref(corners)) {
-            return;
-        }
-        let f = rest.deformation_gradient(gather(positions, corners));
+        let f = rest.deformation_gradient(x);
         self.0
             .add(corners, rest.nodal_forces(material.first_piola(f)));
     }
@@ -699,45 +727,33 @@ pub(super) struct EnergyAndForces<S, E> {
 
 impl<S: ForceSink, E: EnergySink> PassJob for EnergyAndForces<S, E> {
     #[inline(always)]
-    fn groups<L: LaneArray, M: Material, R: GroupRests>(
+    fn skips(&self, first: usize, tets: &[[u32; 4]]) -> bool {
+        !self.energy.owes(first, tets.len()) && self.forces.skips(tets)
+    }
+
+    #[inline(always)]
+    fn group<L: LaneArray, M: Material>(
         &mut self,
         material: &M,
-        positions: &[Vec3],
         first: usize,
         tets: &[[u32; 4]],
-        rests: R,
+        gradients: &WideGradients<L>,
     ) {
-        // Nothing to read without positions (never: the mesh checked their number).
-        let Some(all) = Positions::new(positions) else {
-            return;
-        };
-        for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
-            let start = first + group * L::WIDTH;
-            if !self.energy.owes(start, L::WIDTH) && self.forces.skips(tets) {
-                continue;
-            }
-            let Some(gradients) = rests.gradients::<L>(all, tets, group) else {
-                continue;
-            };
-            let (density, p) = material.energy_and_first_piola_wide(gradients.f);
-            self.energy.add_group(start, gradients.volume * density);
-            self.forces.add_group(&gradients, tets, p);
-        }
+        let (density, p) = material.energy_and_first_piola_wide(gradients.f);
+        self.energy.add_group(first, gradients.volume * density);
+        self.forces.add_group(gradients, tets, p);
     }
 
     #[inline(always)]
     fn single<M: Material>(
         &mut self,
         material: &M,
-        positions: &[Vec3],
         i: usize,
         corners: &[u32; 4],
         rest: &TetRest,
+        x: [Vec3; 4],
     ) {
-        if !self.energy.owes(i, 1) && self.forces.skips(core::slice::from_ref(corners)) {
-            return;
-        }
-        let f = rest.deformation_gradient(gather(positions, corners));
+        let f = rest.deformation_gradient(x);
         let (density, stress) = material.energy_and_first_piola(f);
         self.energy.add_single(i, rest.volume * density);
         self.forces.add(corners, rest.nodal_forces(stress));
@@ -749,28 +765,17 @@ pub(super) struct Energies<E>(pub E);
 
 impl<E: FnMut(usize, Real)> PassJob for Energies<E> {
     #[inline(always)]
-    fn groups<L: LaneArray, M: Material, R: GroupRests>(
+    fn group<L: LaneArray, M: Material>(
         &mut self,
         material: &M,
-        positions: &[Vec3],
         first: usize,
-        tets: &[[u32; 4]],
-        rests: R,
+        _tets: &[[u32; 4]],
+        gradients: &WideGradients<L>,
     ) {
-        // Nothing to read without positions (never: the mesh checked their number).
-        let Some(all) = Positions::new(positions) else {
-            return;
-        };
-        for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
-            let start = first + group * L::WIDTH;
-            let Some(gradients) = rests.gradients::<L>(all, tets, group) else {
-                continue;
-            };
-            let energies =
-                (gradients.volume * material.energy_density_wide(gradients.f)).to_lane_array();
-            for lane in 0..L::WIDTH {
-                (self.0)(start + lane, L::lane_value(&energies, lane));
-            }
+        let energies =
+            (gradients.volume * material.energy_density_wide(gradients.f)).to_lane_array();
+        for lane in 0..L::WIDTH {
+            (self.0)(first + lane, L::lane_value(&energies, lane));
         }
     }
 
@@ -778,12 +783,12 @@ impl<E: FnMut(usize, Real)> PassJob for Energies<E> {
     fn single<M: Material>(
         &mut self,
         material: &M,
-        positions: &[Vec3],
         i: usize,
-        corners: &[u32; 4],
+        _corners: &[u32; 4],
         rest: &TetRest,
+        x: [Vec3; 4],
     ) {
-        (self.0)(i, rest.elastic_energy(material, gather(positions, corners)));
+        (self.0)(i, rest.elastic_energy(material, x));
     }
 }
 
@@ -844,44 +849,33 @@ pub(super) struct SvdForces<F, S> {
 
 impl<F: ForceSink, S: SvdStress> PassJob for SvdForces<F, S> {
     #[inline(always)]
-    fn groups<L: LaneArray, M: Material, R: GroupRests>(
+    fn skips(&self, _first: usize, tets: &[[u32; 4]]) -> bool {
+        self.forces.skips(tets)
+    }
+
+    #[inline(always)]
+    fn group<L: LaneArray, M: Material>(
         &mut self,
         _material: &M,
-        positions: &[Vec3],
         _first: usize,
         tets: &[[u32; 4]],
-        rests: R,
+        gradients: &WideGradients<L>,
     ) {
-        // Nothing to read without positions (never: the mesh checked their number).
-        let Some(all) = Positions::new(positions) else {
-            return;
-        };
-        for (group, tets) in tets.chunks_exact(L::WIDTH).enumerate() {
-            if self.forces.skips(tets) {
-                continue;
-            }
-            let Some(gradients) = rests.gradients::<L>(all, tets, group) else {
-                continue;
-            };
-            let svd = svd3_of_lanes(&gradients.f);
-            self.forces
-                .add_group(&gradients, tets, self.stress.stress_wide(&svd));
-        }
+        let svd = svd3_of_lanes(&gradients.f);
+        self.forces
+            .add_group(gradients, tets, self.stress.stress_wide(&svd));
     }
 
     #[inline(always)]
     fn single<M: Material>(
         &mut self,
         _material: &M,
-        positions: &[Vec3],
         _i: usize,
         corners: &[u32; 4],
         rest: &TetRest,
+        x: [Vec3; 4],
     ) {
-        if self.forces.skips(core::slice::from_ref(corners)) {
-            return;
-        }
-        let svd = svd3(rest.deformation_gradient(gather(positions, corners)));
+        let svd = svd3(rest.deformation_gradient(x));
         self.forces
             .add(corners, rest.nodal_forces(self.stress.stress(&svd)));
     }

@@ -179,20 +179,44 @@ pub struct MembraneElastic<'a> {
     pub material: TriangleStVK,
 }
 
-impl<M: Material> ElasticModel for TetElastic<'_, M> {
-    type Vector = Vec3;
-    #[inline]
-    fn vertex_count(&self) -> usize {
-        self.mesh.vertex_count()
-    }
-    #[inline]
-    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
-        self.mesh
-            .add_elastic_forces(&self.material, positions, forces)
-    }
-    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
-        stability::tet_stiffness(&self.mesh, &self.material, visit);
-    }
+/// The [`ElasticModel`] of a shipped model whose `mesh` counts the vertices: its forces from
+/// `add_forces` (with `model` the model) and the per-element stiffness bounds of the
+/// explicit stepper from `stiffness`.
+macro_rules! shipped_model {
+    (
+        impl[$($generics:tt)*] for $model_type:ty, $vector:ident,
+        add_forces: |$model:ident, $positions:ident, $forces:ident| $add_forces:expr,
+        stiffness: |$visit:ident| $stiffness:expr $(,)?
+    ) => {
+        impl<$($generics)*> ElasticModel for $model_type {
+            type Vector = $vector;
+            #[inline]
+            fn vertex_count(&self) -> usize {
+                self.mesh.vertex_count()
+            }
+            #[inline]
+            fn add_forces(
+                &self,
+                $positions: &[$vector],
+                $forces: &mut [$vector],
+            ) -> Result<(), MeshError> {
+                let $model = self;
+                $add_forces
+            }
+            fn for_each_element_stiffness(&self, $visit: impl FnMut(&[u32], Real, Real)) {
+                let $model = self;
+                $stiffness
+            }
+        }
+    };
+}
+
+shipped_model! {
+    impl[M: Material] for TetElastic<'_, M>, Vec3,
+    add_forces: |model, positions, forces| {
+        model.mesh.add_elastic_forces(&model.material, positions, forces)
+    },
+    stiffness: |visit| stability::tet_stiffness(&model.mesh, &model.material, visit),
 }
 
 impl<M: Material> ElasticEnergy for TetElastic<'_, M> {
@@ -236,50 +260,33 @@ impl<M: Material> ElasticHessian for TetElastic<'_, M> {
     }
 }
 
-impl<M: Material> ElasticModel for TetClamped<'_, M> {
-    type Vector = Vec3;
-    #[inline]
-    fn vertex_count(&self) -> usize {
-        self.mesh.vertex_count()
-    }
-    #[inline]
-    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
-        self.mesh
-            .add_elastic_forces_clamped(&self.material, self.threshold, positions, forces)
-    }
-    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
-        stability::tet_stiffness(&self.mesh, &self.material, visit);
-    }
+shipped_model! {
+    impl[M: Material] for TetClamped<'_, M>, Vec3,
+    add_forces: |model, positions, forces| {
+        let (material, threshold) = (&model.material, model.threshold);
+        model.mesh.add_elastic_forces_clamped(material, threshold, positions, forces)
+    },
+    stiffness: |visit| stability::tet_stiffness(&model.mesh, &model.material, visit),
 }
 
-impl ElasticModel for TriElastic<'_> {
-    type Vector = Vec2;
-    #[inline]
-    fn vertex_count(&self) -> usize {
-        self.mesh.vertex_count()
-    }
-    #[inline]
-    fn add_forces(&self, positions: &[Vec2], forces: &mut [Vec2]) -> Result<(), MeshError> {
-        self.mesh
-            .add_elastic_forces(&self.material, positions, forces)
-    }
-    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
-        stability::triangle_stiffness(self.mesh.tris(), self.mesh.rest(), &self.material, visit);
-    }
+shipped_model! {
+    impl[] for TriElastic<'_>, Vec2,
+    add_forces: |model, positions, forces| {
+        model.mesh.add_elastic_forces(&model.material, positions, forces)
+    },
+    stiffness: |visit| {
+        let (mesh, material) = (&model.mesh, &model.material);
+        stability::triangle_stiffness(mesh.tris(), mesh.rest(), material, visit);
+    },
 }
 
-impl ElasticModel for MembraneElastic<'_> {
-    type Vector = Vec3;
-    #[inline]
-    fn vertex_count(&self) -> usize {
-        self.mesh.vertex_count()
-    }
-    #[inline]
-    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
-        self.mesh
-            .add_elastic_forces(&self.material, positions, forces)
-    }
-    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
-        stability::triangle_stiffness(self.mesh.tris(), self.mesh.rest(), &self.material, visit);
-    }
+shipped_model! {
+    impl[] for MembraneElastic<'_>, Vec3,
+    add_forces: |model, positions, forces| {
+        model.mesh.add_elastic_forces(&model.material, positions, forces)
+    },
+    stiffness: |visit| {
+        let (mesh, material) = (&model.mesh, &model.material);
+        stability::triangle_stiffness(mesh.tris(), mesh.rest(), material, visit);
+    },
 }

@@ -35,7 +35,7 @@
 
 use core::ops::Range;
 
-use super::super::super::lanes::{LANES, LaneArray, LaneMat3};
+use super::super::super::lanes::{LANES, LaneArray};
 use super::super::super::material::Material;
 use super::super::super::math::BATCH_FORCES;
 use super::super::super::types::{Real, Vec3};
@@ -44,7 +44,6 @@ use super::super::TetMesh;
 use super::super::check_length;
 use super::super::grouped::{
     DirectForces, EnergyAndForces, EnergySink, ForceSink, Pass, PassJob, SvdForces, SvdStress,
-    WideGradients,
 };
 use super::super::rest_blocks::{Rests, TetRestBlock};
 use super::{CACHED_PIECES, ElementForces, TetPartition};
@@ -483,23 +482,8 @@ impl ForceSink for OwnerSlice<'_> {
     }
 
     #[inline(always)]
-    fn add_group<L: LaneArray>(
-        &mut self,
-        gradients: &WideGradients<L>,
-        tets: &[[u32; 4]],
-        p: LaneMat3<L>,
-    ) {
-        gradients.scatter_forces_from(tets, p, self.out, self.first);
-    }
-
-    /// Adds `forces` at the corners that are this piece's vertices, corner by corner.
-    #[inline(always)]
-    fn add(&mut self, corners: &[u32; 4], forces: ElementForces) {
-        for (&v, force) in corners.iter().zip(forces) {
-            if let Some(slot) = self.out.get_mut((v as usize).wrapping_sub(self.first)) {
-                *slot += force;
-            }
-        }
+    fn slots(&mut self) -> (&mut [Vec3], usize) {
+        (self.out, self.first)
     }
 }
 
