@@ -67,7 +67,7 @@ use crate::error::{StepBuffer, StepError};
 use chebyshev::{Acceleration, AccelerationSettings};
 use line_search::{ROUNDING, copy, downhill, slope_along, sufficient_decrease};
 use objective::{Evaluation, Objective, implicit_velocity};
-use settings::DescentReport;
+use settings::{DescentReport, DescentSettings};
 use stopping::{StallRule, Stopping};
 
 /// The iterate a direction is computed at.
@@ -153,9 +153,8 @@ pub(crate) trait Direction<F: ElasticEnergy> {
     /// Whether, after Coulomb friction on the velocity, the relative target is measured against
     /// the smaller of the residuals at the initial guess and at [`Objective::rigid_guess`]
     /// (evaluated for it where the initial residual exceeds the load: one more energy
-    /// evaluation) instead of the initial guess's
-    /// alone; either way against the load too (the relaxation; see `descend`). `false` (the
-    /// default) for the initial guess's.
+    /// evaluation) instead of the initial guess's alone; either way against the load too (the
+    /// relaxation; see [`Start::try_rigid`]). `false` (the default) for the initial guess's.
     fn rigid_scale(&self) -> bool {
         false
     }
@@ -212,8 +211,29 @@ pub(crate) struct LoopSettings {
     /// The stagnation rule.
     pub stall: StallRule,
     /// Whether to also try [`Objective::rigid_guess`] after Coulomb friction on the velocity
-    /// (VBD only, see `descend`).
+    /// (VBD, see [`Start::try_rigid`]).
     pub rigid_guess: bool,
+}
+
+impl LoopSettings {
+    /// The loop settings of a solver's `settings` (their shared part: tolerance, budget, line
+    /// search) with the stagnation rule `stall`, and the plain loop for the rest: every line
+    /// search from the full step (`step_length` 1), no momentum, no acceleration, no rigid
+    /// guess. A solver with more sets those fields by struct update.
+    pub(crate) fn new<O>(settings: &DescentSettings<O>, stall: StallRule) -> Self {
+        LoopSettings {
+            tolerance: settings.tolerance,
+            max_iterations: settings.max_iterations,
+            armijo: settings.armijo,
+            backtrack: settings.backtrack,
+            max_backtracks: settings.max_backtracks,
+            step_length: 1.0,
+            momentum: 0.0,
+            acceleration: AccelerationSettings::NONE,
+            stall,
+            rigid_guess: false,
+        }
+    }
 }
 
 /// What the loop reports: the public report without a solver's details, which each solver
@@ -266,6 +286,116 @@ impl<'p, F: ElasticEnergy> Problem<'p, F> {
             previous_velocities,
         }
     }
+
+    /// `h` (s) and the inertia weight `1 / h^2` (1/s^2), both 0 in the quasi-static mode: the
+    /// one place they are computed, for the loop and for a direction that needs them first.
+    #[inline]
+    pub fn time_scales(&self) -> (Real, Real) {
+        match self.dt {
+            Some(dt) => (dt, 1.0 / (dt * dt)),
+            None => (0.0, 0.0),
+        }
+    }
+}
+
+impl<'p, F: ElasticEnergy> Problem<'p, F> {
+    /// The objective of this problem in the loop's coordinates: `start` the shifted start
+    /// positions `x_n`, `velocities` `v_n` (empty without inertia), `ground` and `colliders`
+    /// shifted (see the module documentation).
+    fn objective<'o>(
+        &self,
+        start: &'o [F::Vector],
+        velocities: &'o [F::Vector],
+        ground: Option<&'o Ground<F::Vector>>,
+        colliders: Colliders<'o>,
+    ) -> Objective<'o, F>
+    where
+        'p: 'o,
+    {
+        let (h, inertia) = self.time_scales();
+        let friction = Friction::new(ground, colliders, h);
+        Objective {
+            model: self.model,
+            vertices: Vertices {
+                masses: self.masses,
+                pinned: self.pinned,
+                stiffness: self.stiffness,
+                start,
+                velocities,
+            },
+            frames: Frames::new(h, inertia, self.gravity, ground)
+                .with_colliders(colliders)
+                .with_friction(friction),
+            h,
+            inertia,
+            gravity: self.gravity,
+            loads: self.loads,
+            friction,
+            velocity_friction: velocity_friction(ground, colliders),
+            previous_velocities: self.previous_velocities,
+        }
+    }
+}
+
+/// What a solver's entry checks ([`checked_solve`]) hand on to the solve.
+pub(crate) struct Checked<'s, V> {
+    /// The scene's ground, with a unit normal.
+    pub ground: Option<Ground<V>>,
+    /// The scene's previous velocities, checked, when the step has inertia and gives them.
+    pub previous: Option<&'s [V]>,
+    /// Whether the solve has inertia (an implicit Euler step) or not (quasi-static).
+    pub dynamic: bool,
+}
+
+impl<'s, V: Vector> Checked<'s, V> {
+    /// The problem of `model` with `masses` and `pinned` in the checked `scene`, `stiffness` the
+    /// relaxation's per-vertex bounds (or empty): [`Problem::new`] with what the checks found.
+    pub fn problem<'p, F: ElasticEnergy<Vector = V>>(
+        &self,
+        body: (&'p F, &'p [Real], &'p [bool]),
+        stiffness: &'p [Real],
+        scene: &'p Scene<'p, V>,
+    ) -> Problem<'p, F>
+    where
+        's: 'p,
+    {
+        Problem::new(
+            body,
+            stiffness,
+            scene,
+            self.ground,
+            self.previous,
+            self.dynamic,
+        )
+    }
+}
+
+/// The checks every implicit solver runs before it touches anything, in this order (the order
+/// of the errors a caller sees): the scene ([`validated_scene`]: the time step only with
+/// inertia, `dynamic`), the solver's `settings` (its own check's result), the `state` (masses,
+/// positions and velocities: `check_state` or `split_check_state`, run here), the scene's
+/// per-vertex buffers ([`checked_scene`]) and the solver's `scratch` lengths (run here).
+///
+/// # Errors
+/// The first of those checks' errors.
+pub(crate) fn checked_solve<'s, V: Vector>(
+    scene: &Scene<'s, V>,
+    vertex_count: usize,
+    dynamic: bool,
+    settings: Result<(), StepError>,
+    state: impl FnOnce() -> Result<(), StepError>,
+    scratch: impl FnOnce() -> Result<(), StepError>,
+) -> Result<Checked<'s, V>, StepError> {
+    let ground = validated_scene(scene, dynamic)?;
+    settings?;
+    state()?;
+    let previous = checked_scene(scene, vertex_count, dynamic)?;
+    scratch()?;
+    Ok(Checked {
+        ground,
+        previous,
+        dynamic,
+    })
 }
 
 /// The scene's checks for a solve of `vertex_count` vertices, the time step only with inertia
@@ -312,6 +442,28 @@ pub(crate) struct Work<'b, V> {
     pub trial_gradient: &'b mut [V],
     pub trial: &'b mut [V],
     pub direction: &'b mut [V],
+}
+
+impl<'b, V> Work<'b, V> {
+    /// The loop's scratch from the front of a solver's vector buffer, `vertex_count` entries
+    /// each (start, gradient, trial gradient, trial point, direction), and the rest of the
+    /// buffer. A buffer too short (the solver checked its length) gives empty slices.
+    pub fn split(vectors: &'b mut [V], vertex_count: usize) -> (Self, &'b mut [V]) {
+        let n = vertex_count;
+        let (start, rest) = vectors.split_at_mut_checked(n).unwrap_or_default();
+        let (gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+        let (trial_gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+        let (trial, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+        let (direction, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+        let work = Work {
+            start,
+            gradient,
+            trial_gradient,
+            trial,
+            direction,
+        };
+        (work, rest)
+    }
 }
 
 /// The reference point the loop's coordinates are measured from (see the module
@@ -448,30 +600,9 @@ pub(crate) fn solve<F: ElasticEnergy, D: Direction<F>>(
         offset: g.offset - g.normal.dot(origin),
         ..g
     });
-    let (h, inertia) = match problem.dt {
-        Some(dt) => (dt, 1.0 / (dt * dt)),
-        None => (0.0, 0.0),
-    };
-    let friction = Friction::new(ground.as_ref(), colliders, h);
-    let objective = Objective {
-        model: problem.model,
-        vertices: Vertices {
-            masses: problem.masses,
-            pinned: problem.pinned,
-            stiffness: problem.stiffness,
-            start,
-            velocities: velocities.as_deref().unwrap_or(&[]),
-        },
-        frames: Frames::new(h, inertia, problem.gravity, ground.as_ref())
-            .with_colliders(colliders)
-            .with_friction(friction),
-        h,
-        gravity: problem.gravity,
-        loads: problem.loads,
-        friction,
-        velocity_friction: velocity_friction(ground.as_ref(), colliders),
-        previous_velocities: problem.previous_velocities,
-    };
+    let velocities_at_start = velocities.as_deref().unwrap_or(&[]);
+    let objective = problem.objective(start, velocities_at_start, ground.as_ref(), colliders);
+    let h = objective.h;
     let buffers = Buffers {
         gradient,
         trial_gradient,
@@ -669,10 +800,15 @@ struct Descent<'b, V> {
 /// loop ended on it (see [`Descent`]).
 ///
 /// The iterate lives in `positions` or in `trial`, which trade places on every accepted step
-/// instead of being copied: after the swap the other buffer holds `x_{k-1}`, from which the
-/// next direction takes the last step `x_k - x_{k-1}` (for momentum and Chebyshev) before
-/// overwriting it with the next trial point. The caller's last pass (`finish`) moves the
+/// instead of being copied ([`Points`]): after the swap the other buffer holds `x_{k-1}`, from
+/// which the next direction takes the last step `x_k - x_{k-1}` (for momentum and Chebyshev)
+/// before overwriting it with the next trial point. The caller's last pass (`finish`) moves the
 /// result into `positions` where it is in `trial`.
+///
+/// The phases: the initial guess ([`Start`]), the target ([`Descender::new`]), then per
+/// iteration the stall check, the accelerated trial ([`Descender::accelerated_trial`]) and,
+/// where there is none or it is rejected, the plain line-searched step
+/// ([`Descender::plain_step`]); last the finish ([`Descender::finish`]: deferred trials settled).
 fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     objective: &Objective<'_, F>,
     settings: &LoopSettings,
@@ -681,160 +817,363 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
     buffers: Buffers<'b, F::Vector>,
 ) -> Result<Descent<'b, F::Vector>, StepError> {
     let Buffers {
-        mut gradient,
-        mut trial_gradient,
+        gradient,
+        trial_gradient,
         trial,
         direction,
     } = buffers;
-    let mut current: &mut [F::Vector] = &mut *positions;
-    let mut other: &mut [F::Vector] = &mut *trial;
-    // Whether `current` is the scratch buffer (an odd number of swaps).
-    let mut swapped = false;
-    // Initial guess: the better (lower Phi) of the inertial target y and y + h^2 g, both
-    // projected on the ground. The second is the predictor of projective dynamics (Bouaziz et
-    // al. 2014) and the exact minimiser in free fall, a rigid translation: without it the
-    // descent would have to find this lowest, slowest mode of the preconditioned system itself.
-    // For a body resting on the ground it is a poor guess (the ground stops the bottom layer
-    // and the drop compresses it): y wins there.
-    //
-    // Where no free vertex touches the ground at either guess (or there is none), and nothing
-    // else holds a vertex or pushes it (`Objective::translation_invariant`), y + h^2 g is y
-    // moved rigidly by t = h^2 g: the elastic energy is the same, the inertia term grows by
-    // sum m |t|^2 / (2 h^2) and the gravity term falls by sum m g.t, twice that, so
-    // Phi(y + h^2 g) = Phi(y) - h^2 |g|^2 sum m / 2 < Phi(y), and y is not evaluated (one fused
-    // pass of the two a free body's step began with). The evaluated comparison could only have
-    // differed where the rounding of the two evaluations exceeded that margin.
-    let drop = objective.gravity * (objective.h * objective.h);
-    objective.initial_guess(
-        TrialPoint {
-            positions: current,
-            gradient,
-        },
-        drop,
-    );
-    let mut evaluation = objective.evaluate(current, gradient, None)?;
-    let mut energy_evaluations = 1;
-    let translated = drop != F::Vector::ZERO
-        && evaluation.phi.is_finite()
-        && objective.previous_velocities.is_none()
-        && objective.translation_invariant()
-        && !objective.touches_ground(drop);
-    if drop != F::Vector::ZERO && !translated {
-        let second = TrialPoint {
-            positions: other,
-            gradient: trial_gradient,
-        };
-        // With the previous velocities, the adaptive guess (between y and y + h^2 g, vertex
-        // by vertex) takes the place of y.
-        match objective.previous_velocities {
-            Some(previous) => objective.adaptive_guess(second, previous),
-            None => objective.initial_guess(second, F::Vector::ZERO),
-        }
-        let inertial = objective.evaluate(other, trial_gradient, None)?;
-        energy_evaluations += 1;
-        // y also wins when y + h^2 g is not finite (NaN compares false).
-        if inertial.phi < evaluation.phi || !evaluation.phi.is_finite() {
-            swap(&mut current, &mut other);
-            swap(&mut gradient, &mut trial_gradient);
-            swapped = !swapped;
-            evaluation = inertial;
-        }
+    let mut points = Points {
+        current: &mut *positions,
+        gradient,
+        other: &mut *trial,
+        trial_gradient,
+        swapped: false,
+    };
+    let mut start = Start::inertial(objective, &mut points)?;
+    start.try_rigid(objective, settings, &*rule, &mut points)?;
+    start.or_start_positions(objective, &mut points)?;
+    let mut descender = Descender::new(objective, settings, rule, points, direction, &start);
+    descender.run()?;
+    let (summary, gradient, in_spare) = descender.finish()?;
+    Ok(Descent {
+        summary,
+        gradient,
+        spare: trial,
+        in_spare,
+    })
+}
+
+/// The loop's two points and their gradients: the iterate `current` and `other` (`x_{k-1}`, or
+/// a trial point), which trade places on every accepted step instead of being copied.
+struct Points<'a, 'b, V> {
+    /// The iterate `x_k`.
+    current: &'a mut [V],
+    /// `grad Phi(x_k)`.
+    gradient: &'b mut [V],
+    /// `x_{k-1}` where the last step is known, or the trial point.
+    other: &'a mut [V],
+    /// The gradient at the trial point.
+    trial_gradient: &'b mut [V],
+    /// Whether `current` is the scratch buffer (an odd number of swaps).
+    swapped: bool,
+}
+
+impl<V> Points<'_, '_, V> {
+    /// The trial point (`other`) becomes the iterate, and the iterate `x_{k-1}`; the gradients
+    /// with them.
+    fn take_trial(&mut self) {
+        self.swap_points();
+        swap(&mut self.gradient, &mut self.trial_gradient);
     }
-    // After Coulomb friction on the velocity, VBD also tries the rigid guess (y without the
-    // shear of the contact vertices' impulses), whose far smaller initial residual sets its
-    // relative target; it stops close to it. Measured on the incline of `tests/steppers/colliders`
-    // (200 steps at mu 0.1 and 0.3): VBD slid 4.7 % short without it, within 1.8 % with it.
-    // Newton's method, which overshoots its target, does not: the guess cost it 29 to 38 %
-    // more energy evaluations in f64 and 21 to 32 % more Newton iterations in f32, for a slide
-    // within 0.03 % either way. The relaxation does not start from it (starting there left 2
-    // of the bouncy example's first 90 solves, the landing, at their 300-iteration budget) but
-    // measures its target against it ([`Direction::rigid_scale`]): against the smaller of the
-    // residuals at the start and at the rigid guess (and the load), so that the shear of the
-    // friction impulses, an artefact of the guess, does not loosen the target. Measured on the
-    // incline at mu 0.3: the f32 block slid 3.3 % fast against the start's residual, 0.22 %
-    // against this scale (f64 -0.56 and +0.05 %), for 50.6 -> 75.0 iterations per step.
-    // (Where the start's residual is within the load, the target is the load's either way and
-    // the scale needs no rigid guess.)
-    let load = objective.gravity_load();
-    let mut scale = None;
-    if objective.velocity_friction
-        && (settings.rigid_guess || (rule.rigid_scale() && evaluation.residual > load))
-        && objective.h > 0.0
-        && evaluation.phi.is_finite()
-    {
+
+    /// The points alone trade places (a deferred trial, whose gradient is not evaluated).
+    fn swap_points(&mut self) {
+        swap(&mut self.current, &mut self.other);
+        self.swapped = !self.swapped;
+    }
+}
+
+/// The initial guess's evaluation, what it cost, and what the target is measured against.
+struct Start {
+    /// `Phi`, `E` and the residual at the guess (in [`Points::current`]).
+    evaluation: Evaluation,
+    /// The evaluations of `Phi` the guesses took.
+    energy_evaluations: u32,
+    /// The gravity load `|M g|` (N) on the free vertices ([`Objective::gravity_load`]).
+    load: Real,
+    /// The smaller of the residuals at the guess and at the rigid guess, where the direction
+    /// measures its target against it ([`Direction::rigid_scale`]).
+    scale: Option<Real>,
+}
+
+impl Start {
+    /// The first phase: the better (lower `Phi`) of `y + h^2 g` and `y` (or the adaptive guess)
+    /// into `points.current`, evaluated.
+    ///
+    /// # Errors
+    /// The model's.
+    fn inertial<F: ElasticEnergy>(
+        objective: &Objective<'_, F>,
+        points: &mut Points<'_, '_, F::Vector>,
+    ) -> Result<Self, StepError> {
+        // Initial guess: the better (lower Phi) of the inertial target y and y + h^2 g, both
+        // projected on the ground. The second is the predictor of projective dynamics (Bouaziz
+        // et al. 2014) and the exact minimiser in free fall, a rigid translation: without it the
+        // descent would have to find this lowest, slowest mode of the preconditioned system
+        // itself. For a body resting on the ground it is a poor guess (the ground stops the
+        // bottom layer and the drop compresses it): y wins there.
+        //
+        // Where no free vertex touches the ground at either guess (or there is none), and
+        // nothing else holds a vertex or pushes it (`Objective::translation_invariant`),
+        // y + h^2 g is y moved rigidly by t = h^2 g: the elastic energy is the same, the inertia
+        // term grows by sum m |t|^2 / (2 h^2) and the gravity term falls by sum m g.t, twice
+        // that, so Phi(y + h^2 g) = Phi(y) - h^2 |g|^2 sum m / 2 < Phi(y), and y is not
+        // evaluated (one fused pass of the two a free body's step began with). The evaluated
+        // comparison could only have differed where the rounding of the two evaluations
+        // exceeded that margin.
+        let drop = objective.gravity * (objective.h * objective.h);
+        objective.initial_guess(
+            TrialPoint {
+                positions: points.current,
+                gradient: points.gradient,
+            },
+            drop,
+        );
+        let mut evaluation = objective.evaluate(points.current, points.gradient, None)?;
+        let mut energy_evaluations = 1;
+        let translated = drop != F::Vector::ZERO
+            && evaluation.phi.is_finite()
+            && objective.previous_velocities.is_none()
+            && objective.translation_invariant()
+            && !objective.touches_ground(drop);
+        if drop != F::Vector::ZERO && !translated {
+            let second = TrialPoint {
+                positions: points.other,
+                gradient: points.trial_gradient,
+            };
+            // With the previous velocities, the adaptive guess (between y and y + h^2 g, vertex
+            // by vertex) takes the place of y.
+            match objective.previous_velocities {
+                Some(previous) => objective.adaptive_guess(second, previous),
+                None => objective.initial_guess(second, F::Vector::ZERO),
+            }
+            let inertial = objective.evaluate(points.other, points.trial_gradient, None)?;
+            energy_evaluations += 1;
+            // y also wins when y + h^2 g is not finite (NaN compares false).
+            if inertial.phi < evaluation.phi || !evaluation.phi.is_finite() {
+                points.take_trial();
+                evaluation = inertial;
+            }
+        }
+        Ok(Start {
+            evaluation,
+            energy_evaluations,
+            load: objective.gravity_load(),
+            scale: None,
+        })
+    }
+
+    /// The second phase, after Coulomb friction on the velocity only: the rigid guess, as a
+    /// start (`settings.rigid_guess`) or as the target's scale ([`Direction::rigid_scale`]).
+    ///
+    /// # Errors
+    /// The model's.
+    fn try_rigid<F: ElasticEnergy, D: Direction<F>>(
+        &mut self,
+        objective: &Objective<'_, F>,
+        settings: &LoopSettings,
+        rule: &D,
+        points: &mut Points<'_, '_, F::Vector>,
+    ) -> Result<(), StepError> {
+        // After Coulomb friction on the velocity, VBD also tries the rigid guess (y without the
+        // shear of the contact vertices' impulses), whose far smaller initial residual sets its
+        // relative target; it stops close to it. Measured on the incline of
+        // `tests/steppers/colliders` (200 steps at mu 0.1 and 0.3): VBD slid 4.7 % short without
+        // it, within 1.8 % with it. Newton's method, which overshoots its target, does not: the
+        // guess cost it 29 to 38 % more energy evaluations in f64 and 21 to 32 % more Newton
+        // iterations in f32, for a slide within 0.03 % either way. The relaxation does not start
+        // from it (starting there left 2 of the bouncy example's first 90 solves, the landing, at
+        // their 300-iteration budget) but measures its target against it
+        // ([`Direction::rigid_scale`]): against the smaller of the residuals at the start and at
+        // the rigid guess (and the load), so that the shear of the friction impulses, an artefact
+        // of the guess, does not loosen the target. Measured on the incline at mu 0.3: the f32
+        // block slid 3.3 % fast against the start's residual, 0.22 % against this scale (f64
+        // -0.56 and +0.05 %), for 50.6 -> 75.0 iterations per step. (Where the start's residual
+        // is within the load, the target is the load's either way and the scale needs no rigid
+        // guess.)
+        if !(objective.velocity_friction
+            && (settings.rigid_guess
+                || (rule.rigid_scale() && self.evaluation.residual > self.load))
+            && objective.h > 0.0
+            && self.evaluation.phi.is_finite())
+        {
+            return Ok(());
+        }
         let second = TrialPoint {
-            positions: other,
-            gradient: trial_gradient,
+            positions: points.other,
+            gradient: points.trial_gradient,
         };
         objective.rigid_guess(second);
-        let rigid = objective.evaluate(other, trial_gradient, None)?;
-        energy_evaluations += 1;
+        let rigid = objective.evaluate(points.other, points.trial_gradient, None)?;
+        self.energy_evaluations += 1;
         if rule.rigid_scale() {
-            scale = Some(rigid.residual.min(evaluation.residual));
+            self.scale = Some(rigid.residual.min(self.evaluation.residual));
         }
-        if settings.rigid_guess && rigid.phi < evaluation.phi {
-            swap(&mut current, &mut other);
-            swap(&mut gradient, &mut trial_gradient);
-            swapped = !swapped;
-            evaluation = rigid;
+        if settings.rigid_guess && rigid.phi < self.evaluation.phi {
+            points.take_trial();
+            self.evaluation = rigid;
         }
+        Ok(())
     }
-    if !evaluation.phi.is_finite() {
-        // y may invert an element of a barrier model: start from x_n instead.
-        copy(current, objective.vertices.start);
-        gradient.fill(F::Vector::ZERO);
-        evaluation = objective.evaluate(current, gradient, None)?;
-        energy_evaluations += 1;
-    }
-    if !evaluation.phi.is_finite() {
-        let vertex = first_non_finite(gradient, &[]).unwrap_or(0);
-        return Err(StepError::NonFiniteState { vertex });
-    }
-    let mut phi = evaluation.phi;
 
-    let initial_residual = evaluation.residual;
-    let mut residual = initial_residual;
-    let mut stopping = Stopping::new(
-        settings.stall,
-        settings.tolerance,
-        initial_residual,
-        scale.unwrap_or(initial_residual).max(load),
-    );
-    let target = stopping.target;
-    rule.begin(objective, current);
-    // Whether `other` holds x_{k-1}, so that the last step is known (false at the start and
-    // after a restart, when it counts as zero).
-    let mut stepped = false;
-    let mut iterations = 0;
-    let mut restarts = 0;
-    let mut backtracks = 0;
-    // The step length of the accelerated trials: the one the last plain line search accepted.
-    let mut alpha = settings.step_length;
-    let mut acceleration = Acceleration::new(settings.acceleration);
-    // Accelerated trials accepted since the last evaluated iterate (see `MAX_DEFERRED`), which
-    // `direction` then holds, with its gradient in `gradient` and its `Phi` and residual in
-    // `phi` and `residual`.
-    let mut deferred: u32 = 0;
-    // Evaluated trials the Chebyshev check accepted since the last restart.
-    let mut accepted_in_row: u32 = 0;
-    // The estimate of the last trial (N), and the ratio of the true residual to the estimate at
-    // the last evaluated iterate.
-    let mut last_estimate = Real::INFINITY;
-    let mut calibration: Real = 1.0;
-    // How far the last re-lag moved friction's force factors (relative; 1 until the first).
-    let mut lag_moved: Real = if objective.friction.is_active() {
-        1.0
-    } else {
-        0.0
-    };
-    while stopping.unmet(residual) && iterations < settings.max_iterations {
-        // Deferred trials count in the stall window as iterations without progress: the
-        // window stays one of sweeps, its progress seen at the evaluated ones.
-        if stopping.stalled_before(iterations, residual, rule.rounding_floor()) {
-            break;
+    /// The last phase of the guess: `x_n` where `Phi` is not finite at the guess.
+    ///
+    /// # Errors
+    /// The model's, and [`StepError::NonFiniteState`] where `Phi` is not finite at `x_n`
+    /// either.
+    fn or_start_positions<F: ElasticEnergy>(
+        &mut self,
+        objective: &Objective<'_, F>,
+        points: &mut Points<'_, '_, F::Vector>,
+    ) -> Result<(), StepError> {
+        if !self.evaluation.phi.is_finite() {
+            // y may invert an element of a barrier model: start from x_n instead.
+            copy(points.current, objective.vertices.start);
+            points.gradient.fill(F::Vector::ZERO);
+            self.evaluation = objective.evaluate(points.current, points.gradient, None)?;
+            self.energy_evaluations += 1;
         }
-        let mut omega = acceleration.next_weight(iterations, residual);
-        if omega > 1.0 && !rule.accelerates_with_friction() && lag_moved > LAG_SETTLED {
+        if !self.evaluation.phi.is_finite() {
+            let vertex = first_non_finite(points.gradient, &[]).unwrap_or(0);
+            return Err(StepError::NonFiniteState { vertex });
+        }
+        Ok(())
+    }
+}
+
+/// What the loop does after a phase of an iteration.
+enum Flow {
+    /// Go on: the next iteration, if the stopping test and the budget allow.
+    Next,
+    /// End the loop.
+    Stop,
+}
+
+/// How a plain step's line search ended.
+enum LineSearch {
+    /// A trial passed the test, with this evaluation (in `Points::other`).
+    Accepted(Evaluation),
+    /// The first trial failed and the direction falls back to a safer variant
+    /// ([`Direction::fall_back`]): search again from the same iterate.
+    Redo,
+    /// Every trial failed.
+    Failed,
+}
+
+/// The descent loop's state from the initial guess on.
+struct Descender<'a, 'p, 'b, F: ElasticEnergy, D> {
+    objective: &'a Objective<'p, F>,
+    settings: &'a LoopSettings,
+    rule: &'a mut D,
+    points: Points<'a, 'b, F::Vector>,
+    /// The direction; while trials are deferred, the last evaluated iterate.
+    direction: &'b mut [F::Vector],
+    stopping: Stopping,
+    /// The report so far: the counts, the initial residual and the target, and `Phi` and the
+    /// residual at the last evaluated iterate.
+    report: Summary,
+    /// Whether `other` holds x_{k-1}, so that the last step is known (false at the start and
+    /// after a restart, when it counts as zero).
+    stepped: bool,
+    /// The step length of the accelerated trials: the one the last plain line search accepted.
+    alpha: Real,
+    acceleration: Acceleration,
+    /// Accelerated trials accepted since the last evaluated iterate (see `MAX_DEFERRED`), which
+    /// `direction` then holds, with its gradient in `gradient` and its `Phi` and residual in
+    /// `phi` and `residual`.
+    deferred: u32,
+    /// Evaluated trials the Chebyshev check accepted since the last restart.
+    accepted_in_row: u32,
+    /// The estimate of the last trial (N).
+    last_estimate: Real,
+    /// The ratio of the true residual to the estimate at the last evaluated iterate.
+    calibration: Real,
+    /// How far the last re-lag moved friction's force factors (relative; 1 until the first).
+    lag_moved: Real,
+}
+
+impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> {
+    /// The target phase: the stopping test from the residual at the initial guess (or the
+    /// scale of [`Start`]) and the load; then the direction's [`begin`](Direction::begin).
+    fn new(
+        objective: &'a Objective<'p, F>,
+        settings: &'a LoopSettings,
+        rule: &'a mut D,
+        points: Points<'a, 'b, F::Vector>,
+        direction: &'b mut [F::Vector],
+        start: &Start,
+    ) -> Self {
+        let initial_residual = start.evaluation.residual;
+        let stopping = Stopping::new(
+            settings.stall,
+            settings.tolerance,
+            initial_residual,
+            start.scale.unwrap_or(initial_residual).max(start.load),
+        );
+        let target = stopping.target;
+        rule.begin(objective, points.current);
+        Descender {
+            objective,
+            settings,
+            rule,
+            points,
+            direction,
+            stopping,
+            report: Summary {
+                iterations: 0,
+                energy_evaluations: start.energy_evaluations,
+                backtracks: 0,
+                restarts: 0,
+                initial_residual,
+                residual: initial_residual,
+                target,
+                rounding_floor: 0.0,
+                phi: start.evaluation.phi,
+                converged: false,
+                stagnated: false,
+                rho: 0.0,
+                details: (),
+            },
+            stepped: false,
+            alpha: settings.step_length,
+            acceleration: Acceleration::new(settings.acceleration),
+            deferred: 0,
+            accepted_in_row: 0,
+            last_estimate: Real::INFINITY,
+            calibration: 1.0,
+            lag_moved: if objective.friction.is_active() {
+                1.0
+            } else {
+                0.0
+            },
+        }
+    }
+
+    /// The iterations, until the stopping test is met, the budget is spent, the residual
+    /// stalls or a step fails.
+    ///
+    /// # Errors
+    /// The model's and the direction's.
+    fn run(&mut self) -> Result<(), StepError> {
+        while self.stopping.unmet(self.report.residual) && self.report.iterations < self.settings.max_iterations
+        {
+            // Deferred trials count in the stall window as iterations without progress: the
+            // window stays one of sweeps, its progress seen at the evaluated ones.
+            let floor = self.rule.rounding_floor();
+            if self.stopping.stalled_before(self.report.iterations, self.report.residual, floor) {
+                break;
+            }
+            let omega = self.weight();
+            if omega > 1.0 && self.accelerated_trial(omega)? {
+                continue;
+            }
+            match self.plain_step()? {
+                Flow::Next => {}
+                Flow::Stop => break,
+            }
+        }
+        Ok(())
+    }
+
+    /// The Chebyshev weight `omega` of this iteration (1 or less: a plain step), the
+    /// semi-iteration restarted while friction's re-lagging still moves the contact forces for
+    /// a direction that does not accelerate through it.
+    fn weight(&mut self) -> Real {
+        let omega = self
+            .acceleration
+            .next_weight(self.report.iterations, self.report.residual);
+        if omega > 1.0 && !self.rule.accelerates_with_friction() && self.lag_moved > LAG_SETTLED
+        {
             // The semi-iteration's weights assume one fixed linear iteration; friction's stiff
             // tangent springs and its re-lagging at every accepted point break that for VBD's
             // sweeps while the contact forces still change (measured: the bouncy drop, ground
@@ -842,252 +1181,297 @@ fn descend<'b, F: ElasticEnergy, D: Direction<F>>(
             // acceleration throughout; 48 of 48 converged with plain sweeps while in contact).
             // Once the re-lagging stops moving the forces, the objective is one fixed function
             // again and the semi-iteration restarts on it.
-            acceleration.restart();
-            omega = 1.0;
+            self.acceleration.restart();
+            return 1.0;
         }
-        if omega > 1.0 {
-            let at = Iterate {
-                x: current,
-                gradient,
-                residual,
-                target,
-            };
-            let point = TrialPoint {
-                positions: other,
-                gradient: trial_gradient,
-            };
-            rule.extrapolate(objective, &at, stepped, point, (omega * alpha, omega));
-            objective.loads.restore_fixed(current, other);
-            let estimate = rule.residual_estimate().unwrap_or(Real::NAN);
-            if deferred == 0 {
-                calibration = residual / estimate;
-                last_estimate = estimate;
+        omega
+    }
+
+    /// The accelerated trial `x + omega alpha d + (omega - 1) (x - x_{k-1})`: deferred (see
+    /// [`MAX_DEFERRED`]), or evaluated and accepted where `Phi` did not rise beyond rounding,
+    /// or rejected (the weights restarted, back to the last evaluated iterate). Returns whether
+    /// the iteration is done (accepted or deferred); `false` asks for a plain step.
+    ///
+    /// # Errors
+    /// The model's.
+    fn accelerated_trial(&mut self, omega: Real) -> Result<bool, StepError> {
+        let (objective, points) = (self.objective, &mut self.points);
+        let at = Iterate {
+            x: points.current,
+            gradient: points.gradient,
+            residual: self.report.residual,
+            target: self.report.target,
+        };
+        let point = TrialPoint {
+            positions: points.other,
+            gradient: points.trial_gradient,
+        };
+        let weights = (omega * self.alpha, omega);
+        self.rule
+            .extrapolate(objective, &at, self.stepped, point, weights);
+        objective.loads.restore_fixed(points.current, points.other);
+        if self.defers() {
+            if self.deferred == 0 {
+                copy(self.direction, self.points.current);
             }
-            // The trial's residual predicted from the estimate: calibrated at the last evaluated
-            // iterate, times the estimate's last contraction.
-            let predicted = estimate * calibration * (estimate / last_estimate);
-            let window = match accepted_in_row.checked_sub(DEFER_AFTER) {
-                Some(doublings) => MAX_DEFERRED.min(1 << doublings.min(8)),
-                None => 0,
-            };
-            let defer = deferred < window
-                && !objective.friction.is_active()
-                && predicted > target
-                && estimate <= last_estimate;
-            last_estimate = estimate;
-            if defer {
-                if deferred == 0 {
-                    copy(direction, current);
-                }
-                deferred += 1;
-                swap(&mut current, &mut other);
-                swapped = !swapped;
-                stepped = true;
-                iterations += 1;
-                continue;
-            }
-            let lag = Lag::new(current, gradient);
-            let mut extrapolated = objective.evaluate(other, trial_gradient, Some(lag))?;
-            energy_evaluations += 1;
-            let Evaluation {
-                phi: trial_phi,
-                elastic: trial_elastic,
-                ..
-            } = extrapolated;
-            // The semi-iteration is not monotone in Phi in general, but an increase (beyond
-            // rounding) means the nonlinearity or the contacts broke the linear model it
-            // relies on: restart from a plain, line-searched step (Wang and Yang's fallback).
-            let noise = ROUNDING * (phi.abs() + trial_phi.abs() + trial_elastic.abs())
-                + rule.phi_resolution();
-            if trial_phi <= phi + noise {
-                deferred = 0;
-                accepted_in_row = accepted_in_row.saturating_add(1);
-                lag_moved = objective.relag(
-                    other,
-                    trial_gradient,
-                    Lag::new(current, gradient),
-                    &mut extrapolated,
-                );
-                swap(&mut current, &mut other);
-                swap(&mut gradient, &mut trial_gradient);
-                swapped = !swapped;
-                stepped = true;
-                phi = extrapolated.phi;
-                iterations += 1;
-                residual = extrapolated.residual;
-                continue;
-            }
-            restarts += 1;
-            acceleration.restart();
-            stepped = false;
-            accepted_in_row = 0;
-            if deferred > 0 {
-                // Back to the last evaluated iterate.
-                copy(current, direction);
-                deferred = 0;
-            }
+            self.deferred += 1;
+            self.points.swap_points();
+            self.stepped = true;
+            self.report.iterations += 1;
+            return Ok(true);
         }
+        let points = &mut self.points;
+        let lag = Lag::new(points.current, points.gradient);
+        let extrapolated = objective.evaluate(points.other, points.trial_gradient, Some(lag))?;
+        self.report.energy_evaluations += 1;
+        let Evaluation {
+            phi: trial_phi,
+            elastic: trial_elastic,
+            ..
+        } = extrapolated;
+        // The semi-iteration is not monotone in Phi in general, but an increase (beyond
+        // rounding) means the nonlinearity or the contacts broke the linear model it
+        // relies on: restart from a plain, line-searched step (Wang and Yang's fallback).
+        let noise = ROUNDING * (self.report.phi.abs() + trial_phi.abs() + trial_elastic.abs())
+            + self.rule.phi_resolution();
+        if trial_phi <= self.report.phi + noise {
+            self.deferred = 0;
+            self.accepted_in_row = self.accepted_in_row.saturating_add(1);
+            self.take(extrapolated);
+            return Ok(true);
+        }
+        self.report.restarts += 1;
+        self.restart_weights();
+        self.accepted_in_row = 0;
+        if self.deferred > 0 {
+            // Back to the last evaluated iterate.
+            copy(self.points.current, self.direction);
+            self.deferred = 0;
+        }
+        Ok(false)
+    }
+
+    /// Whether to accept the trial just extrapolated without evaluating `Phi` (see
+    /// [`MAX_DEFERRED`]), from the direction's residual estimate; updates the calibration.
+    fn defers(&mut self) -> bool {
+        let estimate = self.rule.residual_estimate().unwrap_or(Real::NAN);
+        if self.deferred == 0 {
+            self.calibration = self.report.residual / estimate;
+            self.last_estimate = estimate;
+        }
+        // The trial's residual predicted from the estimate: calibrated at the last evaluated
+        // iterate, times the estimate's last contraction.
+        let predicted = estimate * self.calibration * (estimate / self.last_estimate);
+        let window = match self.accepted_in_row.checked_sub(DEFER_AFTER) {
+            Some(doublings) => MAX_DEFERRED.min(1 << doublings.min(8)),
+            None => 0,
+        };
+        let defer = self.deferred < window
+            && !self.objective.friction.is_active()
+            && predicted > self.report.target
+            && estimate <= self.last_estimate;
+        self.last_estimate = estimate;
+        defer
+    }
+
+    /// The plain step: the direction, then the Armijo line search along it; the accepted
+    /// point becomes the iterate, and the stall check follows.
+    ///
+    /// # Errors
+    /// The model's and the direction's.
+    fn plain_step(&mut self) -> Result<Flow, StepError> {
         // Trials are deferred only inside the accelerated branch above, and every way out of it
         // that falls through to here (a rejected trial) settles them first. Once a trial was
         // deferred the semi-iteration's weight stays above 1 until a restart (the Chebyshev
         // recurrence with rho > 0), friction is off (deferral needs it off, so `lag_moved` is
         // 0) and the next pass takes the accelerated branch again: a plain step never sees a
         // deferred iterate. Every debug-build test that runs accelerated descent checks it.
-        debug_assert_eq!(deferred, 0, "a plain descent step on a deferred iterate");
-        // d = -P^-1 g (+ momentum * last step), projected; plain descent if that is not
-        // downhill. The same pass writes the first trial point, at the full step.
-        alpha = settings.step_length;
-        let momentum = (stepped && settings.momentum > 0.0).then_some(settings.momentum);
-        let at = Iterate {
-            x: current,
-            gradient,
-            residual,
-            target,
+        debug_assert_eq!(self.deferred, 0, "a plain descent step on a deferred iterate");
+        let slope = self.search()?;
+        if !downhill(slope) {
+            if self.rule.fall_back() {
+                self.restart_weights();
+                return Ok(Flow::Next);
+            }
+            self.stopping.failed();
+            return Ok(Flow::Stop); // stationary to rounding
+        }
+        let evaluation = match self.line_search(slope)? {
+            LineSearch::Accepted(evaluation) => evaluation,
+            LineSearch::Redo => {
+                // The trial overwrote x_(k-1): the last step is unknown again.
+                self.restart_weights();
+                return Ok(Flow::Next);
+            }
+            LineSearch::Failed => {
+                self.stopping.failed();
+                return Ok(Flow::Stop);
+            }
         };
-        let mut slope = rule.search(
-            objective,
+        let previous = self.report.residual;
+        self.take(evaluation);
+        let floor = self.rule.rounding_floor();
+        if self.stopping.stalled_after(previous, self.report.residual, floor) {
+            return Ok(Flow::Stop);
+        }
+        Ok(Flow::Next)
+    }
+
+    /// The plain step's direction and first trial point: `d = -P^-1 g` (+ momentum * last
+    /// step), projected; plain descent if that is not downhill. The same pass writes the first
+    /// trial point, at the full step. Returns the slope `g.d`.
+    ///
+    /// # Errors
+    /// The direction's.
+    fn search(&mut self) -> Result<Real, StepError> {
+        let settings = self.settings;
+        self.alpha = settings.step_length;
+        let momentum = (self.stepped && settings.momentum > 0.0).then_some(settings.momentum);
+        let points = &mut self.points;
+        let at = Iterate {
+            x: points.current,
+            gradient: points.gradient,
+            residual: self.report.residual,
+            target: self.report.target,
+        };
+        let mut slope = self.rule.search(
+            self.objective,
             &at,
-            direction,
+            self.direction,
             momentum,
             TrialPoint {
-                positions: other,
-                gradient: trial_gradient,
+                positions: points.other,
+                gradient: points.trial_gradient,
             },
-            alpha,
+            self.alpha,
         )?;
         if !downhill(slope) && momentum.is_some() {
-            slope = rule.search(
-                objective,
+            slope = self.rule.search(
+                self.objective,
                 &at,
-                direction,
+                self.direction,
                 None,
                 TrialPoint {
-                    positions: other,
-                    gradient: trial_gradient,
+                    positions: points.other,
+                    gradient: points.trial_gradient,
                 },
-                alpha,
+                self.alpha,
             )?;
         }
-        objective.loads.restore_fixed(current, other);
-        if !downhill(slope) {
-            if rule.fall_back() {
-                acceleration.restart();
-                stepped = false;
-                continue;
-            }
-            stopping.failed();
-            break; // stationary to rounding
-        }
-        let mut accepted = None;
-        let mut redo = false;
+        self.objective
+            .loads
+            .restore_fixed(points.current, points.other);
+        Ok(slope)
+    }
+
+    /// The backtracking line search along the direction from the first trial point: each trial
+    /// evaluated (friction lagged to the iterate) and tested.
+    ///
+    /// # Errors
+    /// The model's.
+    fn line_search(&mut self, slope: Real) -> Result<LineSearch, StepError> {
+        let (objective, settings) = (self.objective, self.settings);
+        let points = &mut self.points;
         for attempt in 0..=settings.max_backtracks {
             if attempt > 0 {
                 split_trial_pass(
                     objective.model,
                     &objective.frames,
                     objective.vertices.pinned,
-                    (current, direction),
-                    alpha,
+                    (points.current, self.direction),
+                    self.alpha,
                     TrialPoint {
-                        positions: other,
-                        gradient: trial_gradient,
+                        positions: points.other,
+                        gradient: points.trial_gradient,
                     },
                 );
-                objective.loads.restore_fixed(current, other);
+                objective.loads.restore_fixed(points.current, points.other);
             }
-            let lag = Lag::new(current, gradient);
-            let evaluation = objective.evaluate(other, trial_gradient, Some(lag))?;
-            energy_evaluations += 1;
+            let lag = Lag::new(points.current, points.gradient);
+            let evaluation = objective.evaluate(points.other, points.trial_gradient, Some(lag))?;
+            self.report.energy_evaluations += 1;
             let (trial_phi, trial_elastic) = (evaluation.phi, evaluation.elastic);
             // Armijo on Phi, or, where Phi's change is below its rounding, Hager and Zhang's
             // approximate Armijo test (see `line_search.rs`).
-            let trial_gradient: &[F::Vector] = trial_gradient;
+            let trial_gradient: &[F::Vector] = points.trial_gradient;
+            let direction: &[F::Vector] = self.direction;
             let sufficient = sufficient_decrease(
-                (phi, trial_phi, trial_elastic),
+                (self.report.phi, trial_phi, trial_elastic),
                 settings.armijo,
-                alpha,
+                self.alpha,
                 slope,
                 || slope_along(trial_gradient, direction),
             );
-            let resolution = rule.phi_resolution();
+            let resolution = self.rule.phi_resolution();
             if sufficient
                 || (resolution > 0.0
-                    && trial_phi <= phi + resolution
+                    && trial_phi <= self.report.phi + resolution
                     && slope_along(trial_gradient, direction)
                         <= (2.0 * settings.armijo - 1.0) * slope)
             {
-                accepted = Some(evaluation);
-                break;
+                return Ok(LineSearch::Accepted(evaluation));
             }
-            if attempt == 0 && rule.fall_back() {
-                redo = true;
-                break;
+            if attempt == 0 && self.rule.fall_back() {
+                return Ok(LineSearch::Redo);
             }
-            alpha *= settings.backtrack;
-            backtracks += 1;
+            self.alpha *= settings.backtrack;
+            self.report.backtracks += 1;
         }
-        let Some(mut evaluation) = accepted else {
-            if redo {
-                // The trial overwrote x_(k-1): the last step is unknown again.
-                acceleration.restart();
-                stepped = false;
-                continue;
-            }
-            stopping.failed();
-            break;
-        };
-        lag_moved = objective.relag(
-            other,
-            trial_gradient,
-            Lag::new(current, gradient),
+        Ok(LineSearch::Failed)
+    }
+
+    /// The evaluated trial point becomes the iterate: friction re-lagged to it, the points
+    /// swapped, its `Phi` and residual taken.
+    fn take(&mut self, mut evaluation: Evaluation) {
+        let points = &mut self.points;
+        self.lag_moved = self.objective.relag(
+            points.other,
+            points.trial_gradient,
+            Lag::new(points.current, points.gradient),
             &mut evaluation,
         );
-        swap(&mut current, &mut other);
-        swap(&mut gradient, &mut trial_gradient);
-        swapped = !swapped;
-        stepped = true;
-        phi = evaluation.phi;
-        iterations += 1;
-        let previous = residual;
-        residual = evaluation.residual;
-        if stopping.stalled_after(previous, residual, rule.rounding_floor()) {
-            break;
+        points.take_trial();
+        self.stepped = true;
+        self.report.phi = evaluation.phi;
+        self.report.iterations += 1;
+        self.report.residual = evaluation.residual;
+    }
+
+    /// The acceleration restarts with a plain step, the last step unknown.
+    fn restart_weights(&mut self) {
+        self.acceleration.restart();
+        self.stepped = false;
+    }
+
+    /// The finish: the deferred trials settled (see [`settle`]) and the summary. Returns it,
+    /// the buffer holding the final gradient, and whether the result is in the scratch buffer.
+    ///
+    /// # Errors
+    /// The model's.
+    fn finish(mut self) -> Result<(Summary, &'b mut [F::Vector], bool), StepError> {
+        if self.deferred > 0 {
+            let points = &mut self.points;
+            let settled = settle(
+                self.objective,
+                (&mut *points.current, &*self.direction),
+                &mut points.gradient,
+                &mut points.trial_gradient,
+                (&mut self.report.phi, &mut self.report.residual),
+                self.rule.phi_resolution(),
+            )?;
+            self.report.energy_evaluations += 1;
+            self.report.restarts += u32::from(!settled);
         }
+        let rounding_floor = self.rule.rounding_floor();
+        let summary = Summary {
+            rounding_floor,
+            converged: self.stopping.converged(self.report.residual, rounding_floor),
+            stagnated: self.stopping.stagnated,
+            rho: self.acceleration.rho(),
+            ..self.report
+        };
+        Ok((summary, self.points.gradient, self.points.swapped))
     }
-    if deferred > 0 {
-        let settled = settle(
-            objective,
-            (&mut *current, &*direction),
-            &mut gradient,
-            &mut trial_gradient,
-            (&mut phi, &mut residual),
-            rule.phi_resolution(),
-        )?;
-        energy_evaluations += 1;
-        restarts += u32::from(!settled);
-    }
-    let rounding_floor = rule.rounding_floor();
-    let summary = Summary {
-        iterations,
-        energy_evaluations,
-        backtracks,
-        restarts,
-        initial_residual,
-        residual,
-        target,
-        rounding_floor,
-        phi,
-        converged: stopping.converged(residual, rounding_floor),
-        stagnated: stopping.stagnated,
-        rho: acceleration.rho(),
-        details: (),
-    };
-    Ok(Descent {
-        summary,
-        gradient,
-        spare: trial,
-        in_spare: swapped,
-    })
 }
 
 /// Evaluates the last of the accelerated trials the loop accepted without evaluating `Phi`,

@@ -36,6 +36,8 @@ pub(crate) struct Objective<'p, F: ElasticEnergy> {
     pub frames: Frames<'p, F::Vector>,
     /// `h` (unused in the quasi-static mode).
     pub h: Real,
+    /// `1 / h^2` (1/s^2; 0 in the quasi-static mode), [`Problem::time_scales`](super::Problem::time_scales).
+    pub inertia: Real,
     pub gravity: F::Vector,
     /// External forces and fixed axes (both empty for none).
     pub loads: Loads<'p, F::Vector>,
@@ -52,6 +54,19 @@ pub(crate) struct Objective<'p, F: ElasticEnergy> {
 }
 
 impl<F: ElasticEnergy> Objective<'_, F> {
+    /// The relaxation's diagonal bound `P_i = k_i + m_i / h^2` (N/m) at each free vertex, in
+    /// vertex order (`k_i` the per-vertex stiffness bounds, none where they are empty).
+    pub fn free_diagonals(&self) -> impl Iterator<Item = Real> + '_ {
+        let vertices = &self.vertices;
+        vertices
+            .stiffness
+            .iter()
+            .zip(vertices.masses)
+            .zip(pinned_flags(vertices.pinned))
+            .filter(|(_, pinned)| !pinned)
+            .map(|((&k, &m), _)| k + m * self.inertia)
+    }
+
     /// Writes `y + offset` (`x_n + offset` without inertia) projected on the ground into
     /// `point.positions` at free vertices, `x_n` at pinned ones, and zeroes `point.gradient`.
     pub fn initial_guess(&self, point: TrialPoint<'_, F::Vector>, offset: F::Vector) {

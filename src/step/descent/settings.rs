@@ -120,38 +120,24 @@ pub struct DescentReport<D> {
     pub details: D,
 }
 
-impl DescentReport<()> {
-    /// This report (the descent loop's) with a solver's `details`.
+impl<D> DescentReport<D> {
+    /// This report with `details` in place of its own (the descent loop's report, whose details
+    /// are `()`, with a solver's).
     #[inline]
-    pub(crate) fn with_details<D>(self, details: D) -> DescentReport<D> {
-        let DescentReport {
-            iterations,
-            energy_evaluations,
-            backtracks,
-            restarts,
-            initial_residual,
-            residual,
-            target,
-            rounding_floor,
-            phi,
-            converged,
-            stagnated,
-            rho,
-            details: (),
-        } = self;
+    pub(crate) fn with_details<E>(self, details: E) -> DescentReport<E> {
         DescentReport {
-            iterations,
-            energy_evaluations,
-            backtracks,
-            restarts,
-            initial_residual,
-            residual,
-            target,
-            rounding_floor,
-            phi,
-            converged,
-            stagnated,
-            rho,
+            iterations: self.iterations,
+            energy_evaluations: self.energy_evaluations,
+            backtracks: self.backtracks,
+            restarts: self.restarts,
+            initial_residual: self.initial_residual,
+            residual: self.residual,
+            target: self.target,
+            rounding_floor: self.rounding_floor,
+            phi: self.phi,
+            converged: self.converged,
+            stagnated: self.stagnated,
+            rho: self.rho,
             details,
         }
     }

@@ -4,7 +4,9 @@
 //! acceleration; "two steps in a row that do not halve it" for Newton's method).
 
 use super::super::super::math;
+use super::super::super::element::Vector;
 use super::super::super::types::Real;
+use super::super::state::length;
 
 /// A solve whose residual stagnated counts as converged when the residual is at most this
 /// many times the estimated rounding floor
@@ -29,6 +31,12 @@ pub(crate) fn reached(residual: Real, target: Real) -> bool {
 #[inline]
 pub(crate) fn rounding_floor(reach: Real, stiffness_squared: Real) -> Real {
     0.5 * Real::EPSILON * reach * math::sqrt(stiffness_squared)
+}
+
+/// `max_i |x_i|` (m, Euclidean), the reach of [`rounding_floor`] for the diagonal estimates (the
+/// relaxation's and gradient descent's).
+pub(crate) fn reach<V: Vector>(x: &[V]) -> Real {
+    x.iter().fold(0.0, |a: Real, p| a.max(length(*p)))
 }
 
 /// Iterations without a 1 % fall of the best residual, with the residual within the floor
@@ -107,8 +115,9 @@ impl Stopping {
     /// The test for a solve starting at `initial_residual` (N) with relative `tolerance`
     /// against `scale` (N): the larger of the load and a residual of the start (the initial
     /// residual, or for the relaxation after friction on the velocity the smaller of it and the
-    /// rigid guess's; see `descend`), so that a step that starts at (or near) equilibrium,
-    /// whose initial residual is mostly rounding, is not asked to reduce it further.
+    /// rigid guess's; see `Start::try_rigid` in `mod.rs`), so that a step that starts at (or
+    /// near) equilibrium, whose initial residual is mostly rounding, is not asked to reduce it
+    /// further.
     pub fn new(rule: StallRule, tolerance: Real, initial_residual: Real, scale: Real) -> Self {
         Stopping {
             rule,

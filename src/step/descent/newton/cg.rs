@@ -25,8 +25,6 @@ pub(crate) struct Newton<'b> {
     pub cg: CgVectors<'b>,
     /// The budget of CG iterations per Newton iteration.
     pub max_cg_iterations: u32,
-    /// `1 / h^2` (0 without inertia).
-    pub inertia: Real,
     /// The ground's unit normal, if there is a ground.
     pub normal: Option<Vec3>,
     /// CG iterations so far.
@@ -43,7 +41,6 @@ impl<'b> Newton<'b> {
     pub fn new(
         (hessians, blocks, cg): (&'b mut [TetHessian], &'b mut [Mat3], CgVectors<'b>),
         max_cg_iterations: u32,
-        inertia: Real,
         normal: Option<Vec3>,
     ) -> Self {
         Newton {
@@ -51,7 +48,6 @@ impl<'b> Newton<'b> {
             blocks,
             cg,
             max_cg_iterations,
-            inertia,
             normal,
             cg_iterations: 0,
             reach: 0.0,
@@ -138,7 +134,7 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
         let stiffness_squared = invert_blocks(
             model,
             self.hessians,
-            (masses, pinned, self.inertia),
+            (masses, pinned, objective.inertia),
             &rough,
             self.blocks,
         )?;
@@ -154,7 +150,7 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
         let eta = self.forcing.next(at);
         self.cg_iterations += conjugate_gradients(
             model,
-            (self.hessians, self.blocks, masses, self.inertia),
+            (self.hessians, self.blocks, masses, objective.inertia),
             &rough,
             &constraints,
             (eta, self.max_cg_iterations),

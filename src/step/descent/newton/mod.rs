@@ -9,12 +9,11 @@ mod cg;
 
 use super::super::super::element::TetHessian;
 use super::super::super::types::{Mat3, Real, Vec3};
-use super::super::descent::{self, LoopSettings, Problem, Work};
+use super::super::descent::{self, LoopSettings, Work};
 use super::super::model::ElasticHessian;
 use super::super::scene::Scene;
 use super::super::state::check_length;
 use super::super::vertex_pass::passes::split_check_state;
-use super::chebyshev::AccelerationSettings;
 use super::settings::{DescentReport, DescentSettings};
 use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
@@ -304,37 +303,28 @@ fn solve<F: ElasticHessian>(
     scratch: &mut NewtonScratch<'_>,
 ) -> Result<NewtonReport, StepError> {
     let n = model.vertex_count();
-    let dynamic = velocities.is_some();
-    let ground = descent::validated_scene(scene, dynamic)?;
-    settings.check()?;
-    split_check_state(model, masses, pinned, positions, velocities.as_deref())?;
-    let previous = descent::checked_scene(scene, n, dynamic)?;
-    let lengths = newton_scratch_len(n, model.element_count());
-    check_length(StepBuffer::Scratch, lengths.vectors, scratch.vectors.len())?;
-    check_length(
-        StepBuffer::BlockScratch,
-        lengths.blocks,
-        scratch.blocks.len(),
+    let checked = descent::checked_solve(
+        scene,
+        n,
+        velocities.is_some(),
+        settings.check(),
+        || split_check_state(model, masses, pinned, positions, velocities.as_deref()),
+        || {
+            let lengths = newton_scratch_len(n, model.element_count());
+            let vectors = scratch.vectors.len();
+            check_length(StepBuffer::Scratch, lengths.vectors, vectors)?;
+            let blocks = scratch.blocks.len();
+            check_length(StepBuffer::BlockScratch, lengths.blocks, blocks)?;
+            let hessians = scratch.hessians.len();
+            check_length(StepBuffer::HessianScratch, lengths.hessians, hessians)
+        },
     )?;
-    check_length(
-        StepBuffer::HessianScratch,
-        lengths.hessians,
-        scratch.hessians.len(),
-    )?;
+    let problem = checked.problem((model, masses, pinned), &[], scene);
 
-    let (start, rest) = scratch.vectors.split_at_mut_checked(n).unwrap_or_default();
-    let (gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (trial_gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (trial, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (direction, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (work, rest) = Work::split(scratch.vectors, n);
     let (residual, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
     let (preconditioned, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
     let (conjugate, product) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let inertia = if dynamic {
-        1.0 / (scene.dt * scene.dt)
-    } else {
-        0.0
-    };
     let cg = CgVectors {
         residual,
         preconditioned,
@@ -344,36 +334,9 @@ fn solve<F: ElasticHessian>(
     let mut newton = Newton::new(
         (&mut *scratch.hessians, &mut *scratch.blocks, cg),
         settings.options.max_cg_iterations,
-        inertia,
-        ground.as_ref().map(|g| g.normal),
+        problem.ground.as_ref().map(|g| g.normal),
     );
-    let problem = Problem::new(
-        (model, masses, pinned),
-        &[],
-        scene,
-        ground,
-        previous,
-        dynamic,
-    );
-    let loop_settings = LoopSettings {
-        tolerance: settings.tolerance,
-        max_iterations: settings.max_iterations,
-        armijo: settings.armijo,
-        backtrack: settings.backtrack,
-        max_backtracks: settings.max_backtracks,
-        step_length: 1.0,
-        momentum: 0.0,
-        acceleration: AccelerationSettings::NONE,
-        stall: StallRule::Halving,
-        rigid_guess: false,
-    };
-    let work = Work {
-        start,
-        gradient,
-        trial_gradient,
-        trial,
-        direction,
-    };
+    let loop_settings = LoopSettings::new(settings, StallRule::Halving);
     let summary = descent::solve(
         &problem,
         &loop_settings,

@@ -14,7 +14,7 @@ use super::super::super::state::pinned_flags;
 use super::super::super::vertex_pass::passes::TrialPoint;
 use super::super::super::vertex_pass::point::{Grouped, Point};
 use super::super::objective::Objective;
-use super::super::stopping::rounding_floor;
+use super::super::stopping::{reach, rounding_floor};
 use super::super::{Direction, Iterate};
 use super::{RelaxReport, RelaxScratch, RelaxSettings, minimise};
 use crate::error::StepError;
@@ -29,33 +29,20 @@ pub(crate) struct Gradient {
 
 impl<F: ElasticEnergy> Direction<F> for Gradient {
     fn begin(&mut self, objective: &Objective<'_, F>, x: &[F::Vector]) {
-        let vertices = &objective.vertices;
-        let inertia = if objective.h > 0.0 {
-            1.0 / (objective.h * objective.h)
-        } else {
-            0.0
-        };
-        let scale = vertices
-            .stiffness
-            .iter()
-            .zip(vertices.masses)
-            .zip(pinned_flags(vertices.pinned))
-            .filter(|(_, pinned)| !pinned)
-            .fold(0.0, |c: Real, ((&k, &m), _)| c.max(k + m * inertia));
+        let scale = objective
+            .free_diagonals()
+            .fold(0.0, |c: Real, diagonal| c.max(diagonal));
         self.inverse_scale = if scale > 0.0 && scale.is_finite() {
             1.0 / scale
         } else {
             0.0
         };
         // The same estimate as the relaxation's with `P = c I`: `eps/2 max|x| (3 n c^2)^(1/2)`.
-        let reach = x.iter().fold(0.0, |a: Real, p| {
-            a.max(super::super::super::state::length(*p))
-        });
-        let free = pinned_flags(vertices.pinned)
+        let free = pinned_flags(objective.vertices.pinned)
             .take(x.len())
             .filter(|pinned| !pinned)
             .count() as Real;
-        self.floor = rounding_floor(reach, 3.0 * free * scale * scale);
+        self.floor = rounding_floor(reach(x), 3.0 * free * scale * scale);
     }
 
     fn search(

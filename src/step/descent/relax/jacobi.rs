@@ -5,10 +5,9 @@
 
 use super::super::super::super::types::Real;
 use super::super::super::model::ElasticEnergy;
-use super::super::super::state::pinned_flags;
 use super::super::super::vertex_pass::passes::{TrialPoint, chebyshev_pass, direction_pass};
 use super::super::objective::Objective;
-use super::super::stopping::rounding_floor;
+use super::super::stopping::{reach, rounding_floor};
 use super::super::{Direction, Iterate};
 
 /// The Jacobi direction, with its rounding floor estimated once at the initial guess.
@@ -79,25 +78,9 @@ pub(crate) fn diagonal_rounding_floor<F: ElasticEnergy>(
     objective: &Objective<'_, F>,
     x: &[F::Vector],
 ) -> Real {
-    let vertices = &objective.vertices;
-    let inertia = if objective.h > 0.0 {
-        1.0 / (objective.h * objective.h)
-    } else {
-        0.0
-    };
-    let reach = x.iter().fold(0.0, |a: Real, p| {
-        a.max(super::super::super::state::length(*p))
-    });
-    let stiffness_squared: Real = vertices
-        .stiffness
-        .iter()
-        .zip(vertices.masses)
-        .zip(pinned_flags(vertices.pinned))
-        .filter(|(_, pinned)| !pinned)
-        .map(|((&k, &m), _)| {
-            let diagonal = k + m * inertia;
-            3.0 * diagonal * diagonal
-        })
+    let stiffness_squared: Real = objective
+        .free_diagonals()
+        .map(|diagonal| 3.0 * diagonal * diagonal)
         .sum();
-    rounding_floor(reach, stiffness_squared)
+    rounding_floor(reach(x), stiffness_squared)
 }

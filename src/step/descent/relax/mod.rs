@@ -10,7 +10,7 @@ mod jacobi;
 
 use super::super::super::element::Vector;
 use super::super::super::types::Real;
-use super::super::descent::{self, Direction, LoopSettings, Problem, Work};
+use super::super::descent::{self, Direction, LoopSettings, Work};
 use super::super::explicit::stability::vertex_stiffness;
 use super::super::model::ElasticEnergy;
 use super::super::scene::Scene;
@@ -378,41 +378,27 @@ pub(crate) fn minimise<F: ElasticEnergy, D: Direction<F>>(
     mut direction: D,
 ) -> Result<RelaxReport, StepError> {
     let n = model.vertex_count();
-    let dynamic = velocities.is_some();
-    let ground = descent::validated_scene(scene, dynamic)?;
-    settings.check()?;
-    split_check_state(model, masses, pinned, positions, velocities.as_deref())?;
-    let previous = descent::checked_scene(scene, n, dynamic)?;
-    check_length(
-        StepBuffer::Scratch,
-        relax_scratch_len(n),
-        scratch.vectors.len(),
+    let checked = descent::checked_solve(
+        scene,
+        n,
+        velocities.is_some(),
+        settings.check(),
+        || split_check_state(model, masses, pinned, positions, velocities.as_deref()),
+        || {
+            let vectors = scratch.vectors.len();
+            check_length(StepBuffer::Scratch, relax_scratch_len(n), vectors)?;
+            check_length(StepBuffer::ScalarScratch, n, scratch.scalars.len())
+        },
     )?;
-    check_length(StepBuffer::ScalarScratch, n, scratch.scalars.len())?;
 
-    let (start, rest) = scratch.vectors.split_at_mut_checked(n).unwrap_or_default();
-    let (gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (trial_gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (trial, direction_buffer) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let (work, _) = Work::split(scratch.vectors, n);
     if !scratch.stiffness_ready {
         vertex_stiffness(model, scratch.scalars);
         scratch.stiffness_ready = true;
     }
-    let problem = Problem::new(
-        (model, masses, pinned),
-        scratch.scalars,
-        scene,
-        ground,
-        previous,
-        dynamic,
-    );
+    let problem = checked.problem((model, masses, pinned), scratch.scalars, scene);
     let o = &settings.options;
     let loop_settings = LoopSettings {
-        tolerance: settings.tolerance,
-        max_iterations: settings.max_iterations,
-        armijo: settings.armijo,
-        backtrack: settings.backtrack,
-        max_backtracks: settings.max_backtracks,
         step_length: o.step_length,
         momentum: o.momentum,
         acceleration: AccelerationSettings {
@@ -421,15 +407,7 @@ pub(crate) fn minimise<F: ElasticEnergy, D: Direction<F>>(
             estimate: o.estimate_chebyshev,
             cap: MAX_ESTIMATED_RELAX_RHO,
         },
-        stall: StallRule::Window,
-        rigid_guess: false,
-    };
-    let work = Work {
-        start,
-        gradient,
-        trial_gradient,
-        trial,
-        direction: direction_buffer,
+        ..LoopSettings::new(settings, StallRule::Window)
     };
     let summary = descent::solve(
         &problem,
