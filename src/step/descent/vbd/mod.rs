@@ -20,7 +20,7 @@ use super::super::super::mesh::adjacency::{
 use super::super::super::types::{Real, Vec3};
 use super::super::contact::Ground;
 use super::super::contact::collider::Colliders;
-use super::super::descent::{self, LoopSettings, Problem, Work};
+use super::super::descent::{self, LoopSettings, Work};
 use super::super::model::{ElasticEnergy, TetElastic};
 use super::super::scene::Scene;
 use super::super::state::{check_length, check_state};
@@ -785,22 +785,21 @@ fn minimise<F: VertexBlockModel>(
     let body = model.tet_body();
     let n = body.mesh.vertex_count();
     let tets = body.mesh.tets();
-    let dynamic = velocities.is_some();
-    let ground = descent::validated_scene(scene, dynamic)?;
-    settings.check()?;
-    check_state(n, masses, pinned, positions, velocities.as_deref())?;
-    let previous = descent::checked_scene(scene, n, dynamic)?;
+    let checked = descent::checked_solve(
+        scene,
+        n,
+        velocities.is_some(),
+        settings.check(),
+        || check_state(n, masses, pinned, positions, velocities.as_deref()),
+        || {
+            let vectors = scratch.vectors.len();
+            check_length(StepBuffer::Scratch, vbd_scratch_len(n), vectors)?;
+            let indices = scratch.indices.len();
+            let index_len = vbd_index_scratch_len(n, tets.len());
+            check_length(StepBuffer::IndexScratch, index_len, indices)
+        },
+    )?;
     let loads = scene.loads();
-    check_length(
-        StepBuffer::Scratch,
-        vbd_scratch_len(n),
-        scratch.vectors.len(),
-    )?;
-    check_length(
-        StepBuffer::IndexScratch,
-        vbd_index_scratch_len(n, tets.len()),
-        scratch.indices.len(),
-    )?;
     let colours = ensure_topology(scratch, tets, n)?;
     let indices: &[u32] = scratch.indices;
     let (offsets, rest) = indices
@@ -835,11 +834,7 @@ fn minimise<F: VertexBlockModel>(
         })
     });
 
-    let (start, rest) = scratch.vectors.split_at_mut_checked(n).unwrap_or_default();
-    let (gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (trial_gradient, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (trial, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let direction_buffer = rest.get_mut(..n).unwrap_or_default();
+    let (work, _) = Work::split(scratch.vectors, n);
 
     // The sweeps see the ground and the colliders in the loop's coordinates, shifted as the
     // loop shifts them.
@@ -861,7 +856,7 @@ fn minimise<F: VertexBlockModel>(
         inertia: 0.0,
         gravity: scene.gravity,
         loads,
-        ground: ground.map(|g| Ground {
+        ground: checked.ground.map(|g| Ground {
             offset: g.offset - g.normal.dot(origin),
             ..g
         }),
@@ -873,37 +868,17 @@ fn minimise<F: VertexBlockModel>(
     };
     let lazy = settings.options.line_search_on_increase && settings.max_backtracks > 0;
     let mut direction = VbdSweep::new(sweep, !lazy);
-    let problem = Problem::new(
-        (model, masses, pinned),
-        &[],
-        scene,
-        ground,
-        previous,
-        dynamic,
-    );
+    let problem = checked.problem((model, masses, pinned), &[], scene);
     let loop_settings = LoopSettings {
-        tolerance: settings.tolerance,
-        max_iterations: settings.max_iterations,
-        armijo: settings.armijo,
-        backtrack: settings.backtrack,
         max_backtracks: SWEEP_BACKTRACKS,
-        step_length: 1.0,
-        momentum: 0.0,
         acceleration: AccelerationSettings {
             rho: settings.options.chebyshev,
             delay: settings.options.chebyshev_delay,
             estimate: settings.options.estimate_chebyshev,
             cap: MAX_ESTIMATED_RHO,
         },
-        stall: StallRule::Window,
         rigid_guess: true,
-    };
-    let work = Work {
-        start,
-        gradient,
-        trial_gradient,
-        trial,
-        direction: direction_buffer,
+        ..LoopSettings::new(settings, StallRule::Window)
     };
     let summary = descent::solve(
         &problem,
