@@ -80,8 +80,7 @@ use softfem::parallel::ParallelTetElastic;
 use softfem::simd::{self, Width};
 use softfem::step::{
     ElasticEnergy, ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings, Scene,
-    TetElastic, explicit_scratch_len, explicit_step, relax_scratch_len, relax_step,
-    stable_time_step,
+    TetElastic, explicit_step, relax_step, scratch_len, stable_time_step,
 };
 
 /// Cubes per axis of the benchmarked boxes, 6 tetrahedra per cube: 10 368, 105 456 and 998 250
@@ -483,7 +482,7 @@ impl<'a> Variant<'a> {
         let scene = Scene::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
         let settings = ExplicitSettings::new();
         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; n]);
-        let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+        let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
         let mut step = move |model: &StepFn<'_>| {
             let mut scratch = ExplicitScratch::new(&mut buffer);
             model(&mut x, &mut v, &mut scratch);
@@ -542,7 +541,7 @@ impl<'a> Variant<'a> {
         let (mut x, mut v) = (positions.to_vec(), vec![Vec3::ZERO; n]);
         // Leaked so that the scratch, and the preconditioner it keeps, lives across the runs.
         let mut scratch = RelaxScratch::new(
-            vec![Vec3::ZERO; relax_scratch_len(n)].leak(),
+            vec![Vec3::ZERO; scratch_len::relax(n)].leak(),
             vec![0.0; n].leak(),
         );
         let mut step = move || {

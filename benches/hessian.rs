@@ -35,8 +35,8 @@ use softfem::f64::material::StableNeoHookean;
 use softfem::f64::mesh::TetMesh;
 use softfem::f64::step::{
     ElasticEnergy, ElasticHessian, NewtonReport, NewtonScratch, NewtonSettings, RelaxReport,
-    RelaxScratch, RelaxSettings, Scene, TetElastic, newton_quasi_static, newton_scratch_len,
-    relax_quasi_static, relax_scratch_len,
+    RelaxScratch, RelaxSettings, Scene, TetElastic, newton_quasi_static, relax_quasi_static,
+    scratch_len,
 };
 use softfem::glam::{DMat3, DVec3};
 
@@ -157,7 +157,7 @@ impl Bench {
 
     fn newton(&self) -> (NewtonReport, Vec<DVec3>) {
         let n = self.beam.rest.len();
-        let len = newton_scratch_len(n, self.beam.tets.len());
+        let len = scratch_len::newton(n, self.beam.tets.len());
         let (mut vectors, mut blocks, mut hessians) = (
             vec![DVec3::ZERO; len.vectors],
             vec![DMat3::ZERO; len.blocks],
@@ -182,7 +182,7 @@ impl Bench {
 
     fn relax(&self) -> RelaxReport {
         let n = self.beam.rest.len();
-        let (mut vectors, mut scalars) = (vec![DVec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+        let (mut vectors, mut scalars) = (vec![DVec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
         let mut x = self.beam.rest.clone();
         let beam = self.beam;

@@ -72,10 +72,9 @@ use softfem::mesh::{
 };
 use softfem::parallel::ParallelTetElastic;
 use softfem::step::{
-    ElasticEnergy, ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, Ground,
+    ElasticEnergy, ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, HalfSpace,
     NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, Scene as StepScene, TetElastic,
-    explicit_scratch_len, explicit_step, newton_scratch_len, newton_step, relax_scratch_len,
-    relax_step, stable_time_step,
+    explicit_step, newton_step, relax_step, scratch_len, stable_time_step,
 };
 
 /// Cells per axis of the two boxes: 105 456 and 998 250 tetrahedra.
@@ -361,7 +360,7 @@ fn explicit_variant<F: ElasticModel<Vector = Vec3> + Send + Sync + 'static>(
     let step_scene = StepScene::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
     let settings = ExplicitSettings::new();
     let (mut x, mut v) = (scene.rest_positions.to_vec(), vec![Vec3::ZERO; n]);
-    let scratch = vec![Vec3::ZERO; explicit_scratch_len(n)].leak();
+    let scratch = vec![Vec3::ZERO; scratch_len::explicit(n)].leak();
     let mut scratch = ExplicitScratch::new(scratch);
     Variant {
         label,
@@ -415,9 +414,9 @@ fn relax_variant<F: ElasticEnergy<Vector = Vec3> + Send + Sync + 'static>(
     let (n, masses) = (scene.mesh.vertex_count(), scene.masses());
     let step_scene = StepScene::new(1.0 / 60.0)
         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-        .with_ground(Ground::new(Vec3::Y, 0.0));
+        .with_ground(HalfSpace::new(Vec3::Y, 0.0));
     let settings = RelaxSettings::new().with_tolerance(0.0, RELAX_ITERATIONS);
-    let vectors = vec![Vec3::ZERO; relax_scratch_len(n)].leak();
+    let vectors = vec![Vec3::ZERO; scratch_len::relax(n)].leak();
     let scalars = vec![0.0; n].leak();
     let mut scratch = RelaxScratch::new(vectors, scalars);
     let solve = move |x: &mut [Vec3], v: &mut [Vec3]| {
@@ -452,11 +451,11 @@ fn newton_variant<F: ElasticHessian + Send + Sync + 'static>(
     let masses = scene.masses();
     let step_scene = StepScene::new(1.0 / 60.0)
         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-        .with_ground(Ground::new(Vec3::Y, 0.0));
+        .with_ground(HalfSpace::new(Vec3::Y, 0.0));
     let settings = NewtonSettings::new()
         .with_tolerance(0.0, NEWTON_ITERATIONS)
         .with_cg_iterations(NEWTON_CG_ITERATIONS);
-    let lengths = newton_scratch_len(n, ne);
+    let lengths = scratch_len::newton(n, ne);
     let vectors = vec![Vec3::ZERO; lengths.vectors].leak();
     let blocks = vec![Mat3::ZERO; lengths.blocks].leak();
     let hessians = vec![TetHessian::default(); lengths.hessians].leak();

@@ -66,10 +66,9 @@ use softfem::glam::Vec3;
 use softfem::material::{Material, StVK, StableNeoHookean};
 use softfem::mesh::TetMesh;
 use softfem::step::{
-    ElasticEnergy, ExplicitScratch, ExplicitSettings, Ground, RelaxReport, RelaxScratch,
-    RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings, explicit_scratch_len, explicit_step,
-    relax_scratch_len, relax_step, stable_time_step, vbd_index_scratch_len, vbd_scratch_len,
-    vbd_step,
+    ElasticEnergy, ExplicitScratch, ExplicitSettings, HalfSpace, RelaxReport, RelaxScratch,
+    RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings, explicit_step, relax_step,
+    scratch_len, stable_time_step, vbd_step,
 };
 
 /// Cubes per axis of the benchmarked box: 105 456 tetrahedra.
@@ -215,7 +214,7 @@ fn case<'a, M: Material + 'a>(
 ) -> Case<'a> {
     let n = mesh.vertex_count();
     let body = TetElastic::new(mesh, material);
-    let ground = Ground::new(Vec3::Z, 0.0).with_friction(FRICTION);
+    let ground = HalfSpace::new(Vec3::Z, 0.0).with_friction(FRICTION);
     // What the implicit steps (the relaxation and VBD) act on.
     let implicit_scene = Scene::new(RELAX_DT)
         .with_gravity(GRAVITY)
@@ -240,7 +239,7 @@ fn case<'a, M: Material + 'a>(
         // timing) computes the preconditioner, the later ones reuse it. It borrows buffers
         // that outlive the closure.
         let vectors: &'a mut [Vec3] =
-            Box::leak(vec![Vec3::ZERO; relax_scratch_len(n)].into_boxed_slice());
+            Box::leak(vec![Vec3::ZERO; scratch_len::relax(n)].into_boxed_slice());
         let scalars: &'a mut [f32] = Box::leak(vec![0.0; n].into_boxed_slice());
         let mut scratch = RelaxScratch::new(vectors, scalars);
         move || {
@@ -273,7 +272,7 @@ fn case<'a, M: Material + 'a>(
         let settings = relax_settings(RELAX_BUDGETS[0], false);
         let mut positions = rest_positions.to_vec();
         let mut velocities = vec![Vec3::ZERO; n];
-        let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
+        let mut vectors = vec![Vec3::ZERO; scratch_len::relax(n)];
         let mut scalars = vec![0.0; n];
         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
         relax_step(
@@ -300,7 +299,7 @@ fn case<'a, M: Material + 'a>(
     let mut positions = rest_positions.to_vec();
     let mut velocities = vec![Vec3::ZERO; n];
     let buffer: &'a mut [Vec3] =
-        Box::leak(vec![Vec3::ZERO; explicit_scratch_len(n)].into_boxed_slice());
+        Box::leak(vec![Vec3::ZERO; scratch_len::explicit(n)].into_boxed_slice());
     let mut scratch = ExplicitScratch::new(buffer);
     let mut step = move || {
         explicit_step(
@@ -325,9 +324,10 @@ fn case<'a, M: Material + 'a>(
         let mut positions = rest_positions.to_vec();
         let mut velocities = vec![Vec3::ZERO; n];
         let vectors: &'a mut [Vec3] =
-            Box::leak(vec![Vec3::ZERO; vbd_scratch_len(n)].into_boxed_slice());
-        let indices: &'a mut [u32] =
-            Box::leak(vec![0; vbd_index_scratch_len(n, mesh.element_count())].into_boxed_slice());
+            Box::leak(vec![Vec3::ZERO; scratch_len::vbd(n)].into_boxed_slice());
+        let indices: &'a mut [u32] = Box::leak(
+            vec![0; scratch_len::vbd_indices(n, mesh.element_count())].into_boxed_slice(),
+        );
         let mut scratch = VbdScratch::new(vectors, indices);
         move || {
             positions.copy_from_slice(rest_positions);

@@ -50,8 +50,7 @@ use softfem::mesh::{
 #[cfg(feature = "rayon")]
 use softfem::parallel::ParallelTetElastic;
 use softfem::step::{
-    ElasticEnergy, Scene as StepScene, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len,
-    vbd_layout_corners_len, vbd_layout_len, vbd_scratch_len, vbd_step,
+    ElasticEnergy, Scene as StepScene, TetElastic, VbdScratch, VbdSettings, scratch_len, vbd_step,
 };
 
 /// Cubes per axis of the two meshes: 10 368 and 105 456 tetrahedra.
@@ -141,14 +140,15 @@ fn operations<'a>(
     let (parallel_model, pool) = parallel_model(body);
     let vbd = |budget: u32, (parallel, layout): (bool, bool)| -> Box<dyn FnMut() + 'a> {
         let vectors: &'a mut [Vec3] =
-            Box::leak(vec![Vec3::ZERO; vbd_scratch_len(n)].into_boxed_slice());
+            Box::leak(vec![Vec3::ZERO; scratch_len::vbd(n)].into_boxed_slice());
         let indices: &'a mut [u32] =
-            Box::leak(vec![0; vbd_index_scratch_len(n, t)].into_boxed_slice());
+            Box::leak(vec![0; scratch_len::vbd_indices(n, t)].into_boxed_slice());
         let mut scratch = VbdScratch::new(vectors, indices);
         if layout {
-            let values: &'a mut [f32] = Box::leak(vec![0.0; vbd_layout_len(t)].into_boxed_slice());
+            let values: &'a mut [f32] =
+                Box::leak(vec![0.0; scratch_len::vbd_layout(t)].into_boxed_slice());
             let corners: &'a mut [u32] =
-                Box::leak(vec![0; vbd_layout_corners_len(n, t)].into_boxed_slice());
+                Box::leak(vec![0; scratch_len::vbd_layout_corners(n, t)].into_boxed_slice());
             scratch = scratch.with_layout(values, corners);
         }
         let (mut x, mut v) = (x0.to_vec(), vec![Vec3::ZERO; n]);

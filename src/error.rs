@@ -412,11 +412,11 @@ pub enum StepBuffer {
     Masses,
     /// The pinned-vertex flags: empty (nothing pinned) or one per vertex.
     Pinned,
-    /// The vector scratch buffer (see `explicit_scratch_len` / `relax_scratch_len`).
+    /// The vector scratch buffer (see `scratch_len::explicit` / `scratch_len::relax`).
     Scratch,
     /// The scalar scratch buffer of the relaxation (one per vertex).
     ScalarScratch,
-    /// The index scratch buffer of Vertex Block Descent (see `vbd_index_scratch_len`).
+    /// The index scratch buffer of Vertex Block Descent (see `scratch_len::vbd_indices`).
     IndexScratch,
     /// The offsets of a vertex adjacency, `vertex_count + 1` (see `adjacency_offsets_len`).
     AdjacencyOffsets,

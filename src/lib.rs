@@ -51,8 +51,8 @@
 //! ```
 //! use softfem::{element::TetRest, generate::{BoxSplit, fill_box}, glam::Vec3, mesh::TetMesh};
 //! use softfem::material::StableNeoHookean;
-//! use softfem::step::{ExplicitScratch, ExplicitSettings, Ground, TetElastic};
-//! use softfem::step::{Scene, explicit_scratch_len, explicit_step, stable_time_step};
+//! use softfem::step::{ExplicitScratch, ExplicitSettings, HalfSpace, TetElastic};
+//! use softfem::step::{Scene, scratch_len, explicit_step, stable_time_step};
 //!
 //! // A 0.2 m cube of 4 x 4 x 4 cells, 5 tets each (`generate::box_counts` gives these counts).
 //! const VERTICES: usize = 5 * 5 * 5;
@@ -70,10 +70,10 @@
 //! let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness)?; // s, half the bound
 //! let scene = Scene::new(dt) // what the step acts on
 //!     .with_gravity(Vec3::new(0.0, -9.81, 0.0)) // m/s^2
-//!     .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5)); // the plane y = 0
+//!     .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5)); // the plane y = 0
 //! let settings = ExplicitSettings::new().with_damping(2.0); // how it is solved; 1/s
 //! let (mut x, mut v) = (rest, [Vec3::ZERO; VERTICES]);
-//! let mut buffer = [Vec3::ZERO; explicit_scratch_len(VERTICES)];
+//! let mut buffer = [Vec3::ZERO; scratch_len::explicit(VERTICES)];
 //! let mut scratch = ExplicitScratch::new(&mut buffer);
 //! let steps = (1.0 / dt) as usize; // one second
 //! for _ in 0..steps {
@@ -90,14 +90,14 @@
 //! as they were. For steps far above the explicit bound (1/60 s on a stiff body),
 //! [`relax_step`](step::relax_step) takes implicit Euler steps by minimising an energy
 //! ([`RelaxSettings`](step::RelaxSettings), scratch sized by
-//! [`relax_scratch_len`](step::relax_scratch_len)): stable at any step, at the price of
+//! [`scratch_len::relax`](step::scratch_len::relax)): stable at any step, at the price of
 //! numerical damping.
 //!
 //! ## Axes
 //!
 //! The library has no preferred "up": gravity is a vector in the step's [`Scene`](step::Scene)
 //! and the ground a plane given by its normal
-//! ([`Ground::new(normal, offset)`](step::Ground::new)), so any axis convention works. The
+//! ([`HalfSpace::new(normal, offset)`](step::HalfSpace::new)), so any axis convention works. The
 //! examples in these docs and the README use **y up** (gravity `(0, -9.81, 0)`, ground normal
 //! `Vec3::Y`); the `bouncy` scene and the `tradeoffs` charts use **z up** (gravity
 //! `(0, 0, -9.81)`, ground normal `Vec3::Z`), as ParaView shows it.

@@ -396,7 +396,7 @@ fn span_pieces(k: usize, len: usize, pieces: usize) -> Range<usize> {
 /// use softfem::mesh::{TetMesh, TetPartition, element_forces_len};
 /// use softfem::mesh::{partition_incident_len, partition_offsets_len};
 /// use softfem::parallel::ParallelTetElastic;
-/// use softfem::step::{ExplicitScratch, ExplicitSettings, Scene, TetElastic, explicit_scratch_len};
+/// use softfem::step::{ExplicitScratch, ExplicitSettings, Scene, TetElastic, scratch_len};
 /// use softfem::step::explicit_step;
 ///
 /// let (vertices, tets) = box_counts(3, 3, 3, BoxSplit::Kuhn6)?;
@@ -419,7 +419,7 @@ fn span_pieces(k: usize, len: usize, pieces: usize) -> Range<usize> {
 /// mesh.lumped_masses(1000.0, &mut masses)?;
 /// let scene = Scene::new(1.0e-4).with_gravity(Vec3::new(0.0, -9.81, 0.0));
 /// let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; vertices]);
-/// let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(vertices)];
+/// let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(vertices)];
 /// let mut scratch = ExplicitScratch::new(&mut buffer);
 /// let settings = ExplicitSettings::new();
 /// explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch)?;

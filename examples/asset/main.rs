@@ -31,8 +31,8 @@ use softfem::glam::Vec3;
 use softfem::material::StableNeoHookean;
 use softfem::mesh::TetMesh;
 use softfem::step::{
-    ExplicitScratch, ExplicitSettings, Ground, Scene, TetElastic, explicit_scratch_len,
-    explicit_step, stable_time_step,
+    ExplicitScratch, ExplicitSettings, HalfSpace, Scene, TetElastic, explicit_step, scratch_len,
+    stable_time_step,
 };
 
 /// Gravity (m/s^2) along -z.
@@ -189,9 +189,9 @@ fn run(args: &Args) -> Result<(), String> {
 
     let scene = Scene::new(dt)
         .with_gravity(GRAVITY)
-        .with_ground(Ground::new(Vec3::Z, 0.0).with_friction(FRICTION));
+        .with_ground(HalfSpace::new(Vec3::Z, 0.0).with_friction(FRICTION));
     let settings = ExplicitSettings::new().with_damping(DAMPING);
-    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(body.positions.len())];
+    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(body.positions.len())];
     let mut scratch = ExplicitScratch::new(&mut buffer);
     let mut positions = body.positions.clone();
     let mut velocities = vec![Vec3::ZERO; positions.len()];

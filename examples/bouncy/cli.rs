@@ -57,7 +57,7 @@ pub struct Args {
     pub mesh: Option<PathBuf>,
 
     /// The ground's sticking speed for the implicit steppers (m/s, >= 0): positive puts the
-    /// ground's Coulomb friction into the step's objective (`softfem::step::Ground::
+    /// ground's Coulomb friction into the step's objective (`softfem::step::HalfSpace::
     /// sticking_speed`), 0 applies it to the velocity after each solve. Default: the library's.
     #[arg(long, value_parser = non_negative_finite)]
     pub sticking_speed: Option<f32>,

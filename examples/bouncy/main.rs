@@ -37,10 +37,9 @@ use softfem::element::{TetHessian, TetRest};
 use softfem::glam::{Mat3, Vec3};
 use softfem::material::Material;
 use softfem::step::{
-    ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonSettings, RelaxScratch,
-    RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings, explicit_scratch_len, explicit_step,
-    newton_scratch_len, newton_step, relax_scratch_len, relax_step, stable_time_step,
-    vbd_index_scratch_len, vbd_layout_corners_len, vbd_layout_len, vbd_scratch_len, vbd_step,
+    ExplicitScratch, ExplicitSettings, HalfSpace, NewtonScratch, NewtonSettings, RelaxScratch,
+    RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings, explicit_step, newton_step,
+    relax_step, scratch_len, stable_time_step, vbd_step,
 };
 
 /// Mass-proportional damping (1/s) of the explicit stepper: a little, so the wobble settles
@@ -329,7 +328,7 @@ fn simulate<M: Material>(
         _ => String::new(),
     };
     estimate.check(args.yes, &hint).map_err(Failure::Refused)?;
-    let ground = Ground::new(Vec3::Z, 0.0).with_friction(FRICTION);
+    let ground = HalfSpace::new(Vec3::Z, 0.0).with_friction(FRICTION);
     let ground = match args.sticking_speed {
         Some(speed) => ground.with_sticking_speed(speed),
         None => ground,
@@ -353,7 +352,7 @@ fn simulate<M: Material>(
     let stats = match args.stepper {
         Stepper::Explicit => {
             let settings = ExplicitSettings::new().with_damping(DAMPING);
-            let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+            let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
             let mut scratch = ExplicitScratch::new(&mut buffer);
             scene::run(
                 state,
@@ -389,7 +388,7 @@ fn simulate<M: Material>(
                 settings.tolerance,
                 settings.max_iterations
             ));
-            let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
+            let mut vectors = vec![Vec3::ZERO; scratch_len::relax(n)];
             let mut scalars = vec![0.0; n];
             let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
             scene::run(
@@ -433,7 +432,7 @@ fn simulate<M: Material>(
                  the load (or the rounding floor), at most {} Newton and {} CG iterations each",
                 settings.tolerance, settings.max_iterations, settings.options.max_cg_iterations
             ));
-            let len = newton_scratch_len(n, body.mesh.element_count());
+            let len = scratch_len::newton(n, body.mesh.element_count());
             let mut vectors = vec![Vec3::ZERO; len.vectors];
             let mut blocks = vec![Mat3::ZERO; len.blocks];
             let mut hessians = vec![TetHessian::default(); len.hessians];
@@ -487,11 +486,11 @@ fn simulate<M: Material>(
                 settings.max_iterations
             ));
             let elements = body.mesh.element_count();
-            let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(n)];
-            let mut indices = vec![0; vbd_index_scratch_len(n, elements)];
+            let mut vectors = vec![Vec3::ZERO; scratch_len::vbd(n)];
+            let mut indices = vec![0; scratch_len::vbd_indices(n, elements)];
             // The packed sweep layout: the same steps, cheaper sweeps.
-            let mut values = vec![0.0; vbd_layout_len(elements)];
-            let mut corners = vec![0; vbd_layout_corners_len(n, elements)];
+            let mut values = vec![0.0; scratch_len::vbd_layout(elements)];
+            let mut corners = vec![0; scratch_len::vbd_layout_corners(n, elements)];
             let mut scratch =
                 VbdScratch::new(&mut vectors, &mut indices).with_layout(&mut values, &mut corners);
             scene::run(

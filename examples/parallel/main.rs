@@ -32,8 +32,8 @@ use softfem::mesh::{
 };
 use softfem::parallel::ParallelTetElastic;
 use softfem::step::{
-    ElasticEnergy, Ground, RelaxReport, RelaxScratch, RelaxSettings, Scene, TetElastic,
-    relax_scratch_len, relax_step,
+    ElasticEnergy, HalfSpace, RelaxReport, RelaxScratch, RelaxSettings, Scene, TetElastic,
+    relax_step, scratch_len,
 };
 
 /// Command line.
@@ -102,7 +102,7 @@ impl Run {
     /// At rest at `rest`. The scratch buffers live for the whole program.
     fn at_rest(rest: &[Vec3]) -> Self {
         let n = rest.len();
-        let vectors = vec![Vec3::ZERO; relax_scratch_len(n)].leak();
+        let vectors = vec![Vec3::ZERO; scratch_len::relax(n)].leak();
         let scalars = vec![0.0; n].leak();
         Run {
             x: rest.to_vec(),
@@ -215,7 +215,7 @@ fn run(cli: &Cli) -> Result<(), Box<dyn Error>> {
 
     let scene = Scene::new(FRAME)
         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+        .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5));
     let settings = RelaxSettings::new().with_tolerance(1.0e-2, 60);
 
     println!(

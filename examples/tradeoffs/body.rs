@@ -19,7 +19,7 @@ use super::api::generate::{BoxSplit, box_counts, fill_box};
 use super::api::mesh::TetMesh;
 use super::api::step::{
     ElasticEnergy, ElasticModel, ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings,
-    Scene, explicit_scratch_len, explicit_step, relax_scratch_len, relax_step,
+    Scene, explicit_step, relax_step, scratch_len,
 };
 use super::api::types::{Real, Vec3};
 use crate::measure::{Run, StepOutcome};
@@ -161,7 +161,7 @@ pub fn run_explicit<F: ElasticModel<Vector = Vec3>>(
     duration: f64,
     sample_times: &[f64],
 ) -> Run {
-    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(x.len())];
+    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(x.len())];
     let mut scratch = ExplicitScratch::new(&mut buffer);
     run(x, v, f64::from(scene.dt), duration, sample_times, |x, v| {
         explicit_step(model, masses, pinned, scene, settings, x, v, &mut scratch).map(|_| {
@@ -187,7 +187,7 @@ pub fn run_relax<F: ElasticEnergy<Vector = Vec3>>(
     sample_times: &[f64],
 ) -> Run {
     let n = x.len();
-    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
     run(x, v, f64::from(scene.dt), duration, sample_times, |x, v| {
         relax_step(model, masses, pinned, scene, settings, x, v, &mut scratch).map(|report| {

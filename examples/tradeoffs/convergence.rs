@@ -30,7 +30,7 @@ use plotters::chart::SeriesLabelPosition;
 use softfem::f64::generate::BoxSplit;
 use softfem::f64::material::StableNeoHookean;
 use softfem::f64::step::{
-    RelaxScratch, RelaxSettings, Scene, TetElastic, relax_quasi_static, relax_scratch_len,
+    RelaxScratch, RelaxSettings, Scene, TetElastic, relax_quasi_static, scratch_len,
 };
 use softfem::glam::DVec3;
 
@@ -134,7 +134,7 @@ fn solve(split: BoxSplit, n: usize, rho: f64, repeats: u32) -> Result<Solved, St
         .with_chebyshev(rho, 2.0, 0);
     let count = beam.rest.len();
     let (mut vectors, mut scalars) = (
-        vec![DVec3::ZERO; relax_scratch_len(count)],
+        vec![DVec3::ZERO; scratch_len::relax(count)],
         vec![0.0; count],
     );
     let mut x = beam.rest.clone();

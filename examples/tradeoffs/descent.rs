@@ -51,11 +51,10 @@ use softfem::f64::element::TetHessian;
 use softfem::f64::generate::BoxSplit;
 use softfem::f64::material::StableNeoHookean;
 use softfem::f64::step::{
-    ElasticEnergy, Ground, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings,
+    ElasticEnergy, HalfSpace, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings,
     Scene as StepScene, TetElastic, VbdScratch, VbdSettings, gradient_descent_quasi_static,
-    gradient_descent_step, newton_quasi_static, newton_scratch_len, newton_step,
-    relax_quasi_static, relax_scratch_len, relax_step, vbd_index_scratch_len,
-    vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static, vbd_scratch_len, vbd_step,
+    gradient_descent_step, newton_quasi_static, newton_step, relax_quasi_static, relax_step,
+    scratch_len, vbd_quasi_static, vbd_step,
 };
 use softfem::glam::{DMat3, DVec3};
 
@@ -112,7 +111,7 @@ struct Scene<'a> {
     model: TetElastic<'a, StableNeoHookean>,
     masses: &'a [f64],
     pinned: &'a [bool],
-    ground: Option<Ground<DVec3>>,
+    ground: Option<HalfSpace<DVec3>>,
     /// The time step (s); `None`: the quasi-static solve.
     dt: Option<f64>,
     positions: &'a [DVec3],
@@ -187,15 +186,15 @@ impl Scene<'_> {
         // preconditioner and VBD's colouring are built by the first run only.
         let elements = self.model.mesh.element_count();
         let (mut relax_vectors, mut relax_scalars) =
-            (vec![DVec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+            (vec![DVec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
         let mut relax_scratch = RelaxScratch::new(&mut relax_vectors, &mut relax_scalars);
-        let mut vbd_vectors = vec![DVec3::ZERO; vbd_scratch_len(n)];
-        let mut vbd_indices = vec![0; vbd_index_scratch_len(n, elements)];
-        let mut vbd_values = vec![0.0; vbd_layout_len(elements)];
-        let mut vbd_corners = vec![0; vbd_layout_corners_len(n, elements)];
+        let mut vbd_vectors = vec![DVec3::ZERO; scratch_len::vbd(n)];
+        let mut vbd_indices = vec![0; scratch_len::vbd_indices(n, elements)];
+        let mut vbd_values = vec![0.0; scratch_len::vbd_layout(elements)];
+        let mut vbd_corners = vec![0; scratch_len::vbd_layout_corners(n, elements)];
         let mut vbd_scratch = VbdScratch::new(&mut vbd_vectors, &mut vbd_indices)
             .with_layout(&mut vbd_values, &mut vbd_corners);
-        let len = newton_scratch_len(n, elements);
+        let len = scratch_len::newton(n, elements);
         let mut newton_vectors = vec![DVec3::ZERO; len.vectors];
         let mut blocks = vec![DMat3::ZERO; len.blocks];
         let mut hessians = vec![TetHessian::default(); len.hessians];
@@ -472,7 +471,7 @@ fn bouncy(size: Size) -> Result<Measured, String> {
     let masses = masses(&mesh, 1000.0)?;
     let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).map_err(|e| e.to_string())?;
     let model = TetElastic::new(mesh, material);
-    let ground = Ground::new(DVec3::Z, 0.0).with_friction(0.6);
+    let ground = HalfSpace::new(DVec3::Z, 0.0).with_friction(0.6);
     let dt = 1.0 / 60.0;
     // Newton's trajectory to the landing: the state before the step with the largest initial
     // residual.
@@ -481,7 +480,7 @@ fn bouncy(size: Size) -> Result<Measured, String> {
         .with_gravity(DVec3::new(0.0, 0.0, -G))
         .with_ground(ground);
     let settings = NewtonSettings::new().with_tolerance(1e-8, 50);
-    let len = newton_scratch_len(n, mesh.element_count());
+    let len = scratch_len::newton(n, mesh.element_count());
     let (mut vectors, mut blocks, mut hessians) = (
         vec![DVec3::ZERO; len.vectors],
         vec![DMat3::ZERO; len.blocks],

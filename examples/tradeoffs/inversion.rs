@@ -20,7 +20,7 @@ use softfem::glam::Vec3;
 use softfem::material::{NeoHookean, StVK, StableNeoHookean};
 use softfem::step::{
     ElasticModel, ExplicitScratch, ExplicitSettings, Scene as StepScene, TetClamped, TetElastic,
-    explicit_scratch_len, explicit_step, stable_time_step,
+    explicit_step, scratch_len, stable_time_step,
 };
 
 use crate::chart::{Axis, Figure, Panel, Series, Style, Table, num};
@@ -89,7 +89,7 @@ fn drive<F: ElasticModel<Vector = Vec3>>(
     let settings = ExplicitSettings::new().with_damping(DAMPING);
     let rest = &scene.mesh.rest;
     let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; rest.len()]);
-    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(rest.len())];
+    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(rest.len())];
     let mut scratch = ExplicitScratch::new(&mut buffer);
     let mut rest_data = Vec::new();
     let mesh = scene.mesh.mesh(&mut rest_data)?;

@@ -17,7 +17,7 @@ use softfem::f64::element::TetHessian;
 use softfem::f64::generate::BoxSplit;
 use softfem::f64::step::{
     NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, Scene, TetElastic,
-    newton_quasi_static, newton_scratch_len, relax_quasi_static, relax_scratch_len,
+    newton_quasi_static, relax_quasi_static, scratch_len,
 };
 use softfem::glam::{DMat3, DVec3};
 
@@ -74,7 +74,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
         &format!("cantilever: {elements} tets, {n} vertices; Newton to {NEWTON_TOLERANCE:.0e}"),
     );
 
-    let len = newton_scratch_len(n, elements);
+    let len = scratch_len::newton(n, elements);
     let (mut vectors, mut blocks, mut hessians) = (
         vec![DVec3::ZERO; len.vectors],
         vec![DMat3::ZERO; len.blocks],
@@ -141,7 +141,7 @@ pub fn run(size: Size, out: &Path) -> Result<Findings, String> {
     let newton_seconds = reference.cpu_seconds;
 
     let (mut relax_vectors, mut relax_scalars) =
-        (vec![DVec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+        (vec![DVec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
     let mut relax = |iterations: u32| -> Result<Solve, String> {
         let mut scratch = RelaxScratch::new(&mut relax_vectors, &mut relax_scalars);
         let settings = RelaxSettings::new()

@@ -23,12 +23,10 @@ use super::sf::element::TetRest;
 use super::sf::material::{Material, NeoHookean, StVK, StableNeoHookean};
 use super::sf::mesh::TetMesh;
 use super::sf::step::{
-    ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, Ground, NewtonScratch,
+    ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, HalfSpace, NewtonScratch,
     NewtonSettings, RelaxScratch, RelaxSettings, Scene, TetClamped, TetElastic, VbdScratch,
-    VbdSettings, explicit_scratch_len, explicit_step, newton_quasi_static, newton_scratch_len,
-    newton_step, relax_quasi_static, relax_scratch_len, relax_step, stable_time_step,
-    vbd_index_scratch_len, vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static,
-    vbd_scratch_len, vbd_step,
+    VbdSettings, explicit_step, newton_quasi_static, newton_step, relax_quasi_static, relax_step,
+    scratch_len, stable_time_step, vbd_quasi_static, vbd_step,
 };
 use super::sf::types::{Mat3, Real, Vec3};
 use crate::Draw;
@@ -208,7 +206,7 @@ fn draw_state(draw: &mut Draw<'_>, mesh: &TetMesh<'_>, rest: &[Vec3]) -> State {
 
 /// A ground below the body most of the time (a plane through its lower part), anything
 /// otherwise.
-fn draw_ground(draw: &mut Draw<'_>, size: Real) -> Option<Ground<Vec3>> {
+fn draw_ground(draw: &mut Draw<'_>, size: Real) -> Option<HalfSpace<Vec3>> {
     if draw.chance(128) {
         return None;
     }
@@ -237,7 +235,7 @@ fn draw_ground(draw: &mut Draw<'_>, size: Real) -> Option<Ground<Vec3>> {
         Real::from(draw.up_to(8) as u8) / 8.0
     };
     Some(
-        Ground::new(normal, offset)
+        HalfSpace::new(normal, offset)
             .with_restitution(restitution)
             .with_friction(friction),
     )
@@ -456,7 +454,7 @@ fn explicit<F: ElasticModel<Vector = Vec3>>(
         _ => settings.max_energy_growth,
     };
     let n = model.vertex_count();
-    let mut buffer = vec![Vec3::ZERO; length_near(draw, explicit_scratch_len(n))];
+    let mut buffer = vec![Vec3::ZERO; length_near(draw, scratch_len::explicit(n))];
     let mut scratch = ExplicitScratch::new(&mut buffer);
     for call in 0..=draw.up_to(2) {
         if call > 0 && draw.chance(32) {
@@ -632,7 +630,7 @@ fn relax<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut
         settings.options.step_length = draw_real::wild(draw);
     }
     let n = solve.model.vertex_count();
-    let mut vectors = vec![Vec3::ZERO; length_near(draw, relax_scratch_len(n))];
+    let mut vectors = vec![Vec3::ZERO; length_near(draw, scratch_len::relax(n))];
     let mut scalars = vec![0.0; length_near(draw, n)];
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
     check_implicit_calls!(
@@ -669,7 +667,7 @@ fn newton<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mu
     settings.backtrack = backtrack.unwrap_or(settings.backtrack);
     settings.max_backtracks = draw.up_to(30);
     let n = solve.model.vertex_count();
-    let lengths = newton_scratch_len(n, solve.model.element_count());
+    let lengths = scratch_len::newton(n, solve.model.element_count());
     let mut vectors = vec![Vec3::ZERO; length_near(draw, lengths.vectors)];
     let mut blocks = vec![Mat3::ZERO; length_near(draw, lengths.blocks)];
     let mut hessians = vec![TetHessian::ZERO; length_near(draw, lengths.hessians)];
@@ -714,10 +712,10 @@ fn vbd<M: Material>(draw: &mut Draw<'_>, solve: &Solve<'_, '_, M>, state: &mut S
     }
     let n = solve.model.vertex_count();
     let elements = solve.model.element_count();
-    let mut vectors = vec![Vec3::ZERO; length_near(draw, vbd_scratch_len(n))];
-    let mut indices = vec![0u32; length_near(draw, vbd_index_scratch_len(n, elements))];
-    let mut values = vec![0.0 as Real; length_near(draw, vbd_layout_len(elements))];
-    let mut corners = vec![0u32; length_near(draw, vbd_layout_corners_len(n, elements))];
+    let mut vectors = vec![Vec3::ZERO; length_near(draw, scratch_len::vbd(n))];
+    let mut indices = vec![0u32; length_near(draw, scratch_len::vbd_indices(n, elements))];
+    let mut values = vec![0.0 as Real; length_near(draw, scratch_len::vbd_layout(elements))];
+    let mut corners = vec![0u32; length_near(draw, scratch_len::vbd_layout_corners(n, elements))];
     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
     if draw.chance(128) {
         scratch = scratch.with_layout(&mut values, &mut corners);

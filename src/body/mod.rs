@@ -18,14 +18,14 @@
 //! A jelly cube dropped onto the ground and stepped explicitly for a second (y up), no heap:
 //! ```
 //! use softfem::body::{Body, FixedStorage};
-//! use softfem::{glam::Vec3, material::StableNeoHookean, step::Ground};
+//! use softfem::{glam::Vec3, material::StableNeoHookean, step::HalfSpace};
 //!
 //! let jelly = StableNeoHookean::from_young_poisson(5.0e4, 0.45)?; // Pa
 //! let (low, high) = (Vec3::new(-0.1, 0.1, -0.1), Vec3::new(0.1, 0.3, 0.1)); // m
 //! // 4 x 4 x 4 cells: 125 vertices, 320 tetrahedra, 1000 kg/m^3.
 //! let mut body = Body::<FixedStorage<125, 320>, _>::from_box(low, high, [4; 3], 1000.0, jelly)?;
 //! body.set_gravity(Vec3::new(0.0, -9.81, 0.0)); // m/s^2
-//! body.set_ground(Some(Ground::new(Vec3::Y, 0.0).with_friction(0.5))); // the plane y = 0
+//! body.set_ground(Some(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5))); // the plane y = 0
 //! for _ in 0..60 {
 //!     body.step(1.0 / 60.0)?; // substeps of half the stable step, computed once
 //! }
@@ -69,9 +69,9 @@ use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
 use super::mesh::{TetMesh, TetRestBlock, rest_block_count};
 use super::step::{
-    Collider, ExplicitMemory, ExplicitScratch, Ground, NewtonScratch, RelaxScratch, Scene,
+    Collider, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, RelaxScratch, Scene,
     TetElastic, VbdScratch, VbdTopology, check_time_step, explicit_step, newton_step, relax_step,
-    stable_time_step, vbd_layout_corners_len, vbd_layout_len, vbd_step,
+    stable_time_step, scratch_len, vbd_step,
 };
 use super::types::{Mat3, Real, Vec3};
 use crate::error::{BodyBuffer, BodyError, StepError};
@@ -143,7 +143,7 @@ pub struct Body<S: Storage, M: Material> {
     material: M,
     solver: Solver,
     gravity: Vec3,
-    ground: Option<Ground<Vec3>>,
+    ground: Option<HalfSpace<Vec3>>,
     explicit_memory: ExplicitMemory,
     preconditioner_ready: bool,
     topology: VbdTopology,
@@ -425,7 +425,7 @@ impl<S: Storage, M: Material> Body<S, M> {
             capacity(fits, BodyBuffer::Tetrahedra, t)?;
         }
         if let Solver::Vbd(_) = solver {
-            let needed = super::step::vbd_index_scratch_len(n, t);
+            let needed = super::step::scratch_len::vbd_indices(n, t);
             capacity(
                 self.indices.resize(needed, 0),
                 BodyBuffer::IndexScratch,
@@ -433,7 +433,7 @@ impl<S: Storage, M: Material> Body<S, M> {
             )?;
             // The packed layout where the storage holds it; without it the sweeps gather (the
             // same bits).
-            let (values, corners) = (vbd_layout_len(t), vbd_layout_corners_len(n, t));
+            let (values, corners) = (scratch_len::vbd_layout(t), scratch_len::vbd_layout_corners(n, t));
             if !(self.layout_values.resize(values, 0.0) && self.layout_corners.resize(corners, 0)) {
                 // Empty buffers always fit.
                 let _ = self.layout_values.resize(0, 0.0) && self.layout_corners.resize(0, 0);
@@ -624,13 +624,13 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// The ground half-space, if any.
     #[inline]
     #[must_use]
-    pub fn ground(&self) -> Option<Ground<Vec3>> {
+    pub fn ground(&self) -> Option<HalfSpace<Vec3>> {
         self.ground
     }
 
     /// Sets (or, with `None`, removes) the ground half-space; checked by the step.
     #[inline]
-    pub fn set_ground(&mut self, ground: Option<Ground<Vec3>>) {
+    pub fn set_ground(&mut self, ground: Option<HalfSpace<Vec3>>) {
         self.ground = ground;
     }
 

@@ -54,11 +54,11 @@ pub trait Storage {
     /// Vertex Block Descent's index scratch: `3 V + 1 + 4 T` entries.
     type Indices: Slots<u32>;
     /// Vertex Block Descent's packed sweep layout, values
-    /// ([`vbd_layout_len`](crate::step::vbd_layout_len)): optional, a storage that cannot
+    /// ([`scratch_len::vbd_layout`](crate::step::scratch_len::vbd_layout)): optional, a storage that cannot
     /// hold it sweeps without it (the same bits, slower).
     type LayoutValues: Slots<Real>;
     /// Vertex Block Descent's packed sweep layout, corner indices
-    /// ([`vbd_layout_corners_len`](crate::step::vbd_layout_corners_len)); as
+    /// ([`scratch_len::vbd_layout_corners`](crate::step::scratch_len::vbd_layout_corners)); as
     /// [`LayoutValues`](Self::LayoutValues).
     type LayoutCorners: Slots<u32>;
 }

@@ -25,10 +25,10 @@
 //!   [`FIXED_Z`]; rollers, symmetry planes). A fixed coordinate keeps its bits exactly (with a
 //!   ground whose normal is not a coordinate axis, the contact projection is applied first and
 //!   the fixed coordinates restored after it).
-//! * The ground is a half-space, see [`Ground`].
+//! * The ground is a half-space, see [`HalfSpace`].
 //! * Friction: the explicit stepper applies Coulomb's law to the velocity (and the substep's
 //!   move) at each contact. The implicit solvers apply it to the velocity after the solve by
-//!   default, or, opted in with a positive [`sticking_speed`](Ground::sticking_speed) `eps_v`
+//!   default, or, opted in with a positive [`sticking_speed`](HalfSpace::sticking_speed) `eps_v`
 //!   (m/s, [`SUGGESTED_STICKING_SPEED`] 1 mm/s) on the ground or a collider, minimise it with
 //!   the step as the lagged, smoothed dissipation potential of Incremental Potential Contact
 //!   (`docs/math.md` section 4.6): a contact held below the Coulomb limit then creeps at most at
@@ -38,10 +38,10 @@
 //!   and each settings type's `with_colliders`.
 //! * No axis is special: gravity is a vector in the scene and the ground a plane given by its
 //!   normal, so y up, z up or any other convention works. The examples in these docs use y up
-//!   (gravity `(0, -9.81, 0)`, `Ground::new(Vec3::Y, 0.0)`); the `bouncy` scene and the
-//!   `tradeoffs` charts use z up (gravity `(0, 0, -9.81)`, `Ground::new(Vec3::Z, 0.0)`).
-//! * Nothing is allocated: scratch space is a caller buffer sized by [`explicit_scratch_len`],
-//!   [`relax_scratch_len`] or [`vbd_scratch_len`] and [`vbd_index_scratch_len`].
+//!   (gravity `(0, -9.81, 0)`, `HalfSpace::new(Vec3::Y, 0.0)`); the `bouncy` scene and the
+//!   `tradeoffs` charts use z up (gravity `(0, 0, -9.81)`, `HalfSpace::new(Vec3::Z, 0.0)`).
+//! * Nothing is allocated: scratch space is caller buffers sized by the functions of
+//!   [`scratch_len`], one per buffer (`scratch_len::relax(n)`, `scratch_len::newton(n, e)`, ...).
 //! * Every stepper validates all parameters and buffers **before** touching anything, and
 //!   restores positions and velocities bit for bit when a step fails
 //!   ([`StepError`](crate::StepError)).
@@ -65,7 +65,7 @@
 //! | density ([`TetMesh::lumped_masses`](super::mesh::TetMesh::lumped_masses)) | finite `> 0`, each element's share `density V / 4` normal and `<= Real::MAX / elements` | [`MeshError::Density`](crate::MeshError::Density), [`MeshError::MassRange`](crate::MeshError::MassRange) |
 //! | stiffness bounds ([`stable_time_step`]) | finite `k_i`, finite `k_i / m_i` | [`StepError::Stiffness`](crate::StepError::Stiffness) |
 //!
-//! Scratch lengths ([`explicit_scratch_len`], [`relax_scratch_len`]) saturate at `usize::MAX`,
+//! Scratch lengths ([`scratch_len::explicit`], [`scratch_len::relax`]) saturate at `usize::MAX`,
 //! which no buffer can match.
 //!
 //! # The stability bound
@@ -165,7 +165,7 @@
 //!   [`ElasticHessian`]) and the shipped models; `state.rs`: the checks of the state every
 //!   stepper makes first; `scene.rs`: what a step acts on ([`Scene`]) and its one validation;
 //!   `loads.rs`: how external forces and fixed axes enter a step.
-//! * `contact/`: the [`Ground`] and [`Collider`]s, the one contact record (`contact::Contact`),
+//! * `contact/`: the [`HalfSpace`] and [`Collider`]s, the one contact record (`contact::Contact`),
 //!   the projection onto the admissible set every stepper shares (`floor.rs`) and friction in
 //!   the implicit objective (`friction.rs`).
 //! * `vertex_pass/`: the passes over the vertices (integration, projection, trial points,
@@ -222,31 +222,28 @@ pub mod explicit;
 mod loads;
 mod model;
 mod scene;
+pub mod scratch_len;
 pub(crate) mod state;
 pub mod vertex_pass;
 
-pub use super::element::Vector;
-pub use contact::{Collider, Ground, SUGGESTED_STICKING_SPEED, Shape, SignedDistance};
+pub use contact::{Collider, HalfSpace, SUGGESTED_STICKING_SPEED, Shape, SignedDistance};
 pub use descent::newton::{
-    FLOOR_FACTOR, NewtonDetails, NewtonOptions, NewtonReport, NewtonScratch, NewtonScratchLen,
-    NewtonSettings, newton_quasi_static, newton_scratch_len, newton_step,
+    NewtonDetails, NewtonOptions, NewtonReport, NewtonScratch, NewtonSettings, newton_quasi_static,
+    newton_step,
 };
 pub use descent::relax::{
-    RelaxOptions, RelaxReport, RelaxScratch, RelaxSettings,
-    gradient_descent_quasi_static, gradient_descent_step, relax_quasi_static, relax_scratch_len,
-    relax_step,
+    RelaxOptions, RelaxReport, RelaxScratch, RelaxSettings, gradient_descent_quasi_static,
+    gradient_descent_step, relax_quasi_static, relax_step,
 };
 pub use descent::settings::{DescentReport, DescentSettings};
-pub use descent::vbd::{
-    VbdDetails, VbdOptions, VbdReport, VbdScratch, VbdSettings, VertexBlockModel,
-    vbd_index_scratch_len, vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static,
-    vbd_scratch_len, vbd_step,
-};
 #[cfg(feature = "rayon")]
 pub(crate) use descent::vbd::{SweepRun, SweepSchedule};
+pub use descent::vbd::{
+    VbdDetails, VbdOptions, VbdReport, VbdScratch, VbdSettings, VertexBlockModel, vbd_quasi_static,
+    vbd_step,
+};
 pub use explicit::{
-    ExplicitReport, ExplicitScratch, ExplicitSettings, explicit_scratch_len, explicit_step,
-    stable_time_step,
+    ExplicitReport, ExplicitScratch, ExplicitSettings, explicit_step, stable_time_step,
 };
 pub use loads::{FIXED_X, FIXED_Y, FIXED_Z};
 pub use model::{

@@ -9,7 +9,7 @@
 use super::super::element::Vector;
 use super::super::types::Real;
 use super::contact::collider::check_colliders;
-use super::contact::{Collider, Ground};
+use super::contact::{Collider, HalfSpace};
 use super::loads::Loads;
 use crate::error::StepError;
 
@@ -23,13 +23,13 @@ use crate::error::StepError;
 ///
 /// ```
 /// use softfem::glam::Vec3;
-/// use softfem::step::{FIXED_X, Ground, Scene};
+/// use softfem::step::{FIXED_X, HalfSpace, Scene};
 ///
 /// let forces = [Vec3::ZERO, Vec3::new(0.0, -2.0, 0.0)]; // N, one per vertex
 /// let rollers = [FIXED_X, 0];
 /// let scene = Scene::new(1.0 / 60.0)
 ///     .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-///     .with_ground(Ground::new(Vec3::Y, 0.0))
+///     .with_ground(HalfSpace::new(Vec3::Y, 0.0))
 ///     .with_external_forces(&forces)
 ///     .with_fixed_axes(&rollers);
 /// assert_eq!(scene.external_forces.len(), 2);
@@ -42,8 +42,8 @@ pub struct Scene<'a, V> {
     pub dt: Real,
     /// The gravitational acceleration (m/s^2), e.g. `(0, -9.81, 0)`. Finite.
     pub gravity: V,
-    /// An optional ground half-space (see [`Ground`]).
-    pub ground: Option<Ground<V>>,
+    /// An optional ground half-space (see [`HalfSpace`]).
+    pub ground: Option<HalfSpace<V>>,
     /// Rigid colliders (empty, the default, for none; 3D bodies only): projection and friction
     /// as the ground's, relative to each collider's surface velocity; see [`Collider`].
     pub colliders: &'a [Collider<'a>],
@@ -91,7 +91,7 @@ impl<'a, V: Vector> Scene<'a, V> {
     /// This scene with `ground`.
     #[inline]
     #[must_use]
-    pub fn with_ground(self, ground: Ground<V>) -> Self {
+    pub fn with_ground(self, ground: HalfSpace<V>) -> Self {
         Scene {
             ground: Some(ground),
             ..self
@@ -166,7 +166,7 @@ impl<'a, V: Vector> Scene<'a, V> {
     /// [`StepError::TimeStep`], [`StepError::TimeStepTooSmall`], [`StepError::Gravity`],
     /// [`StepError::Collider`], [`StepError::Ground`] (and the ground's restitution and
     /// friction errors), in that order.
-    pub fn validated(&self) -> Result<Option<Ground<V>>, StepError> {
+    pub fn validated(&self) -> Result<Option<HalfSpace<V>>, StepError> {
         check_time_step(self.dt)?;
         self.validated_static()
     }
@@ -175,12 +175,12 @@ impl<'a, V: Vector> Scene<'a, V> {
     ///
     /// # Errors
     /// As [`validated`](Self::validated), less the time-step errors.
-    pub fn validated_static(&self) -> Result<Option<Ground<V>>, StepError> {
+    pub fn validated_static(&self) -> Result<Option<HalfSpace<V>>, StepError> {
         if !self.gravity.is_finite() {
             return Err(StepError::Gravity);
         }
         check_colliders(self.colliders, V::ALL_AXES == 0b111)?;
-        self.ground.as_ref().map(Ground::validated).transpose()
+        self.ground.as_ref().map(HalfSpace::validated).transpose()
     }
 
     /// The external forces and fixed axes, as the solvers apply them.

@@ -375,7 +375,7 @@ macro_rules! mesh_tests {
             use $($crate_path)::+::types::Mat3 as M3;
             use $($crate_path)::+::step::{
                 ElasticEnergy, ExplicitScratch, ExplicitSettings, RelaxScratch, RelaxSettings, Scene,
-                TetElastic, explicit_scratch_len, explicit_step, relax_scratch_len, relax_step,
+                TetElastic, scratch_len, explicit_step, relax_step,
             };
 
             type Real = $real;
@@ -651,7 +651,7 @@ macro_rules! mesh_tests {
                     let scene = Scene::new(2.0e-5).with_gravity(gravity);
                     let settings = ExplicitSettings::new();
                     let (mut x, mut v) = (rest_x.clone(), vec![V::ZERO; n]);
-                    let mut buffer = vec![V::ZERO; explicit_scratch_len(n)];
+                    let mut buffer = vec![V::ZERO; scratch_len::explicit(n)];
                     for _ in 0..20 {
                         let mut scratch = ExplicitScratch::new(&mut buffer);
                         explicit_step(&model, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
@@ -659,7 +659,7 @@ macro_rules! mesh_tests {
                     let explicit = (bits(&x), bits(&v));
                     let scene = Scene::new(1.0 / 60.0).with_gravity(gravity);
                     let settings = RelaxSettings::new().with_tolerance(0.0, 30);
-                    let (mut vectors, mut scalars) = (vec![V::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                    let (mut vectors, mut scalars) = (vec![V::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                     for _ in 0..3 {
                         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                         relax_step(&model, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
@@ -677,7 +677,7 @@ macro_rules! mesh_tests {
             /// then one vertex at a time (125 vertices: groups of 16, 8 and 4 and a tail).
             #[test]
             fn explicit_ground_contacts_are_bitwise_the_scalar_run_at_every_width() {
-                use $($crate_path)::+::step::{Ground, stable_time_step};
+                use $($crate_path)::+::step::{HalfSpace, stable_time_step};
                 let (rest_x, deformed, tets) = deformed_box(4, 0.1, 0);
                 crate::common::scenes::mesh_and_masses!(rest, mesh, masses; &rest_x, &tets, 1000.0);
                 let model = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.45).unwrap());
@@ -688,7 +688,7 @@ macro_rules! mesh_tests {
                 // The plane cuts the lowest layer: some vertices start inside, the rest fall.
                 let normal = V::new(0.1, 1.0, -0.05).normalize();
                 let lowest = deformed.iter().map(|&x| normal.dot(x)).fold(Real::INFINITY, Real::min);
-                let ground = Ground::new(normal, lowest + 0.03)
+                let ground = HalfSpace::new(normal, lowest + 0.03)
                     .with_restitution(0.5)
                     .with_friction(0.4);
                 // Pushed sideways and up, every vertex differently.
@@ -703,7 +703,7 @@ macro_rules! mesh_tests {
                         let settings = ExplicitSettings::new().with_damping(0.5);
                         let mut x = deformed.clone();
                         let mut v: Vec<V> = (0..n).map(|i| V::new(0.0, -0.5 - 0.01 * i as Real, 0.1)).collect();
-                        let mut buffer = vec![V::ZERO; explicit_scratch_len(n)];
+                        let mut buffer = vec![V::ZERO; scratch_len::explicit(n)];
                         let mut reports = Vec::new();
                         for _ in 0..8 {
                             let mut scratch = ExplicitScratch::new(&mut buffer);
@@ -730,7 +730,7 @@ macro_rules! mesh_tests {
             #[test]
             fn relaxation_contacts_are_bitwise_the_scalar_run_at_every_width() {
                 use $($crate_path)::+::step::{
-                    Collider, FIXED_X, Ground, SUGGESTED_STICKING_SPEED, relax_quasi_static,
+                    Collider, FIXED_X, HalfSpace, SUGGESTED_STICKING_SPEED, relax_quasi_static,
                 };
                 let (rest_x, deformed, tets) = deformed_box(4, 0.1, 0);
                 crate::common::scenes::mesh_and_masses!(rest, mesh, masses; &rest_x, &tets, 1000.0);
@@ -743,7 +743,7 @@ macro_rules! mesh_tests {
                 let lowest = deformed.iter().map(|&x| normal.dot(x)).fold(Real::INFINITY, Real::min);
                 // Friction in the objective (a sticking speed): the direction passes damp the
                 // tangential direction at the vertices in contact.
-                let ground = Ground::new(normal, lowest + 0.03)
+                let ground = HalfSpace::new(normal, lowest + 0.03)
                     .with_friction(0.4)
                     .with_sticking_speed(SUGGESTED_STICKING_SPEED);
                 // Pushed sideways and up, every vertex differently; every seventh vertex moves
@@ -771,7 +771,7 @@ macro_rules! mesh_tests {
                         let loaded = scene.with_external_forces(&pushes).with_fixed_axes(&fixed);
                         let scene = if k % 2 == 0 { scene } else { loaded };
                         let (mut x, mut v) = (deformed.clone(), vec![V::new(0.0, -0.5, 0.1); n]);
-                        let (mut vectors, mut scalars) = (vec![V::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                        let (mut vectors, mut scalars) = (vec![V::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                         let mut reports = Vec::new();
                         for _ in 0..2 {
                             let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
@@ -808,8 +808,7 @@ macro_rules! mesh_tests {
             #[test]
             fn vbd_runs_are_bitwise_the_scalar_run_at_every_width() {
                 use $($crate_path)::+::step::{
-                    Ground, SUGGESTED_STICKING_SPEED, Scene, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_layout_corners_len,
-                    vbd_layout_len, vbd_scratch_len, vbd_step,
+                    HalfSpace, SUGGESTED_STICKING_SPEED, Scene, VbdScratch, VbdSettings, scratch_len, vbd_step,
                 };
                 fn check<M: Material>(material: M, label: &str) {
                     let (rest_x, deformed, tets) = deformed_box(3, 0.05, 0);
@@ -834,7 +833,7 @@ macro_rules! mesh_tests {
                         .map(|i| if i % 5 == 0 { V::new(30.0, 0.0, -20.0) } else { V::ZERO })
                         .collect();
                     let axes: Vec<u8> = (0..n).map(|i| if i % 7 == 3 { 0b001 } else { 0 }).collect();
-                    let ground = Ground::new(V::new(0.1, 1.0, -0.05).normalize(), 0.4);
+                    let ground = HalfSpace::new(V::new(0.1, 1.0, -0.05).normalize(), 0.4);
                     let loaded = scene
                         .with_ground(ground)
                         .with_external_forces(&forces)
@@ -862,10 +861,10 @@ macro_rules! mesh_tests {
                             let velocities: Vec<V> =
                                 pinned.iter().map(|&p| if p { V::ZERO } else { fall }).collect();
                             let (mut x, mut v) = (start.clone(), velocities);
-                            let mut vectors = vec![V::ZERO; vbd_scratch_len(n)];
-                            let mut indices = vec![0; vbd_index_scratch_len(n, tets.len())];
-                            let mut values = vec![0.0; vbd_layout_len(tets.len())];
-                            let mut corners = vec![0; vbd_layout_corners_len(n, tets.len())];
+                            let mut vectors = vec![V::ZERO; scratch_len::vbd(n)];
+                            let mut indices = vec![0; scratch_len::vbd_indices(n, tets.len())];
+                            let mut values = vec![0.0; scratch_len::vbd_layout(tets.len())];
+                            let mut corners = vec![0; scratch_len::vbd_layout_corners(n, tets.len())];
                             let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
                             if packed {
                                 scratch = scratch.with_layout(&mut values, &mut corners);
@@ -919,7 +918,7 @@ macro_rules! planar_tests {
             use $($crate_path)::+::material::StVK;
             use $($crate_path)::+::mesh::TriMesh;
             use $($crate_path)::+::step::{
-                ExplicitScratch, ExplicitSettings, Ground, Scene, TriElastic, explicit_scratch_len,
+                ExplicitScratch, ExplicitSettings, HalfSpace, Scene, TriElastic, scratch_len,
                 explicit_step, stable_time_step,
             };
 
@@ -944,7 +943,7 @@ macro_rules! planar_tests {
                 let mut stiffness = vec![0.0; nv];
                 let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                 let pinned: Vec<bool> = (0..nv).map(|i| i % 13 == 6).collect();
-                let ground = Ground::new(V::new(0.05, 1.0), 0.06)
+                let ground = HalfSpace::new(V::new(0.05, 1.0), 0.06)
                     .with_restitution(0.3)
                     .with_friction(0.5);
                 let scene = Scene::new(dt).with_gravity(V::new(0.0, -9.81)).with_ground(ground);
@@ -952,7 +951,7 @@ macro_rules! planar_tests {
                 let run = || {
                     let mut x = rest.clone();
                     let mut v: Vec<V> = (0..nv).map(|i| V::new(0.2, -1.0 - 0.01 * i as Real)).collect();
-                    let mut buffer = vec![V::ZERO; explicit_scratch_len(nv)];
+                    let mut buffer = vec![V::ZERO; scratch_len::explicit(nv)];
                     let mut reports = Vec::new();
                     for _ in 0..20 {
                         let mut scratch = ExplicitScratch::new(&mut buffer);

@@ -52,11 +52,10 @@ macro_rules! adversarial_tests {
             use $($api)::+::material::{Material, StVK, StableNeoHookean};
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
-                ElasticModel, ExplicitScratch, ExplicitSettings, Ground, NewtonScratch,
+                ElasticModel, ExplicitScratch, ExplicitSettings, HalfSpace, NewtonScratch,
                 NewtonSettings, RelaxScratch, RelaxSettings, Scene, TetClamped, TetElastic,
-                VbdScratch, VbdSettings, explicit_scratch_len, explicit_step, newton_scratch_len,
-                newton_step, relax_scratch_len, relax_step, stable_time_step, vbd_index_scratch_len,
-                vbd_scratch_len, vbd_step,
+                VbdScratch, VbdSettings, scratch_len, explicit_step,
+                newton_step, relax_step, stable_time_step, vbd_step,
             };
             use $($api)::+::svd::{svd3, svd3_lanes};
             use $($api)::+::types::{Mat3, Real, Vec3};
@@ -117,7 +116,7 @@ macro_rules! adversarial_tests {
                 v: &mut [Vec3],
             ) -> (Result<(), StepError>, bool) {
                 let n = x.len();
-                let mut buffer = vec![Vec3::splat(3.0); explicit_scratch_len(n)];
+                let mut buffer = vec![Vec3::splat(3.0); scratch_len::explicit(n)];
                 let before = (bits(x), bits(v));
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 let result = explicit_step(body, masses, &[], scene, settings, x, v, &mut scratch).map(|_| ());
@@ -140,7 +139,7 @@ macro_rules! adversarial_tests {
                 v: &mut [Vec3],
             ) -> (Result<crate::adversarial::softfem_report::Report, StepError>, bool) {
                 let n = x.len();
-                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let before = (bits(x), bits(v));
                 let result = relax_step(body, masses, &[], scene, settings, x, v, &mut scratch).map(|r| crate::adversarial::softfem_report::Report {
@@ -221,7 +220,7 @@ macro_rules! adversarial_tests {
                     ("D3 newton_step with dt = 1e-20 (f32) / 1e-200 (f64): TimeStepTooSmall", Box::new(|| with_mesh(|mesh, rest, masses| {
                         let body = TetElastic::new(mesh, snh());
                         let (n, e) = (rest.len(), mesh.element_count());
-                        let len = newton_scratch_len(n, e);
+                        let len = scratch_len::newton(n, e);
                         let mut vectors = vec![Vec3::ZERO; len.vectors];
                         let mut blocks = vec![Mat3::ZERO; len.blocks];
                         let mut hessians = vec![TetHessian::default(); len.hessians];
@@ -234,8 +233,8 @@ macro_rules! adversarial_tests {
                     ("D3 vbd_step with dt = 1e-20 (f32) / 1e-200 (f64): TimeStepTooSmall", Box::new(|| with_mesh(|mesh, rest, masses| {
                         let body = TetElastic::new(mesh, snh());
                         let (n, e) = (rest.len(), mesh.element_count());
-                        let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(n)];
-                        let mut indices = vec![0u32; vbd_index_scratch_len(n, e)];
+                        let mut vectors = vec![Vec3::ZERO; scratch_len::vbd(n)];
+                        let mut indices = vec![0u32; scratch_len::vbd_indices(n, e)];
                         let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
                         let (mut x, mut v) = (rest.to_vec(), vec![Vec3::ZERO; n]);
                         let before = (bits(&x), bits(&v));
@@ -303,7 +302,7 @@ macro_rules! adversarial_tests {
                         same(outcome.0.err(), Some(StepError::NonFiniteInput { vertex: 4 }))?;
                         ensure(outcome.1, || "the state changed".into())
                     }))),
-                    ("D6 relax_scratch_len(usize::MAX) saturates", Box::new(|| same(relax_scratch_len(usize::MAX), usize::MAX))),
+                    ("D6 scratch_len::relax(usize::MAX) saturates", Box::new(|| same(scratch_len::relax(usize::MAX), usize::MAX))),
                 ]
             }
 
@@ -331,9 +330,9 @@ macro_rules! adversarial_tests {
                         let scene = Scene::new(1e-4).with_gravity(gravity);
                         refused_untouched(explicit_outcome(&body, &masses, &scene, &ExplicitSettings::new(), &mut x, &mut v), StepError::Mesh(MeshError::ClampThreshold))
                     }))),
-                    ("D6 explicit_scratch_len(usize::MAX) saturates", Box::new(|| {
-                        same(explicit_scratch_len(usize::MAX), usize::MAX)?;
-                        same(explicit_scratch_len(usize::MAX / 2 + 1), usize::MAX)
+                    ("D6 scratch_len::explicit(usize::MAX) saturates", Box::new(|| {
+                        same(scratch_len::explicit(usize::MAX), usize::MAX)?;
+                        same(scratch_len::explicit(usize::MAX / 2 + 1), usize::MAX)
                     })),
                     ("D7 with_substeps(u32::MAX): Substeps at once, untouched", Box::new(move || with_mesh(|mesh, rest, masses| {
                         let body = TetElastic::new(mesh, stvk());
@@ -354,7 +353,7 @@ macro_rules! adversarial_tests {
                         let body = TetElastic::new(mesh, stvk());
                         let run = |normal: Vec3| {
                             let (mut x, mut v) = (rest.to_vec(), vec![Vec3::new(0.0, -1.0, 0.0); rest.len()]);
-                            let scene = Scene::new(1e-4).with_gravity(gravity).with_ground(Ground::new(normal, 0.01));
+                            let scene = Scene::new(1e-4).with_gravity(gravity).with_ground(HalfSpace::new(normal, 0.01));
                             explicit_outcome(&body, &masses, &scene, &ExplicitSettings::new(), &mut x, &mut v).0.map(|()| x)
                         };
                         let unit = run(Vec3::Y).map_err(|e| format!("{e:?}"))?;
@@ -503,7 +502,7 @@ macro_rules! adversarial_tests {
                         let mut scratch = ExplicitScratch::new(&mut buffer);
                         same(
                             explicit_step(&body, &masses, &[], &Scene::new(1e-4), &ExplicitSettings::new(), &mut x, &mut v, &mut scratch).map(|_| ()),
-                            Err(StepError::LengthMismatch { buffer: StepBuffer::Scratch, expected: explicit_scratch_len(n), actual: 1 }),
+                            Err(StepError::LengthMismatch { buffer: StepBuffer::Scratch, expected: scratch_len::explicit(n), actual: 1 }),
                         )
                     }))),
                     ("an index out of range: IndexOutOfRange naming element and corner", Box::new(|| {

@@ -11,10 +11,9 @@ use softfem::glam::Vec3;
 use softfem::material::StableNeoHookean;
 use softfem::mesh::TetMesh;
 use softfem::step::{
-    ExplicitScratch, ExplicitSettings, FIXED_X, Ground, NewtonScratch, NewtonSettings,
-    RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings, explicit_scratch_len,
-    explicit_step, newton_scratch_len, newton_step, relax_scratch_len, relax_step,
-    stable_time_step, vbd_index_scratch_len, vbd_scratch_len, vbd_step,
+    ExplicitScratch, ExplicitSettings, FIXED_X, HalfSpace, NewtonScratch, NewtonSettings,
+    RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings, explicit_step,
+    newton_step, relax_step, scratch_len, stable_time_step, vbd_step,
 };
 use softfem::{BodyBuffer, BodyError, StepError};
 
@@ -30,8 +29,8 @@ fn jelly() -> StableNeoHookean {
     StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap()
 }
 
-fn ground() -> Ground<Vec3> {
-    Ground::new(Vec3::Y, 0.0).with_friction(0.5)
+fn ground() -> HalfSpace<Vec3> {
+    HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5)
 }
 
 /// The low-level pieces the body replaces, written out as a caller would (the mesh buffers
@@ -114,7 +113,7 @@ fn assert_explicit_matches(
     steps: usize,
     moved: f32,
 ) {
-    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(36)];
+    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(36)];
     let mut scratch = ExplicitScratch::new(&mut buffer);
     for step in 0..steps {
         let expected = explicit_step(
@@ -183,7 +182,7 @@ fn explicit_body_with_fixed_substeps_matches_too() {
         stable_fraction: None,
     })
     .unwrap();
-    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(36)];
+    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(36)];
     let mut scratch = ExplicitScratch::new(&mut buffer);
     for _ in 0..400 {
         let expected = explicit_step(
@@ -221,7 +220,7 @@ fn relax_body_matches_the_low_level_calls_bit_for_bit() {
     body.set_solver(Solver::Relax(settings)).unwrap();
     let dt = 1.0 / 60.0;
     let scene = Scene::new(dt).with_gravity(GRAVITY).with_ground(ground());
-    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(36)], vec![0.0; 36]);
+    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(36)], vec![0.0; 36]);
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
     for step in 0..30 {
         let expected = relax_step(
@@ -263,7 +262,7 @@ fn newton_and_vbd_bodies_match_the_low_level_calls_bit_for_bit() {
     let newton = NewtonSettings::new().with_tolerance(1e-3, 20);
     body.set_solver(Solver::Newton(newton)).unwrap();
     let scene = Scene::new(dt).with_gravity(GRAVITY).with_ground(ground());
-    let lengths = newton_scratch_len(36, 60);
+    let lengths = scratch_len::newton(36, 60);
     let mut vectors = vec![Vec3::ZERO; lengths.vectors];
     let mut blocks = vec![Default::default(); lengths.blocks];
     let mut hessians = vec![Default::default(); lengths.hessians];
@@ -292,8 +291,8 @@ fn newton_and_vbd_bodies_match_the_low_level_calls_bit_for_bit() {
     // Vertex Block Descent, on the same body switched over (its state carries on).
     let vbd = VbdSettings::new().with_tolerance(1e-3, 100);
     body.set_solver(Solver::Vbd(vbd)).unwrap();
-    let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(36)];
-    let mut indices = vec![0; vbd_index_scratch_len(36, 60)];
+    let mut vectors = vec![Vec3::ZERO; scratch_len::vbd(36)];
+    let mut indices = vec![0; scratch_len::vbd_indices(36, 60)];
     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
     for step in 0..10 {
         let expected = vbd_step(
@@ -777,7 +776,7 @@ fn a_body_steps_with_borrowed_loads_as_the_low_level_calls() {
         .with_fixed_axes(&axes);
     let newton = NewtonSettings::new().with_tolerance(1e-3, 20);
     body.set_solver(Solver::Newton(newton)).unwrap();
-    let lengths = newton_scratch_len(36, 60);
+    let lengths = scratch_len::newton(36, 60);
     let mut vectors = vec![Vec3::ZERO; lengths.vectors];
     let mut blocks = vec![Default::default(); lengths.blocks];
     let mut hessians = vec![Default::default(); lengths.hessians];
@@ -817,7 +816,7 @@ fn a_body_steps_with_borrowed_loads_as_the_low_level_calls() {
         stable_fraction: None,
     })
     .unwrap();
-    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(36)];
+    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(36)];
     let mut scratch = ExplicitScratch::new(&mut buffer);
     for step in 0..5 {
         let expected = explicit_step(

@@ -20,7 +20,7 @@ use softfem::f64::material::StableNeoHookean;
 use softfem::f64::mesh::TetMesh;
 use softfem::f64::step::{
     RelaxOptions, RelaxReport, RelaxScratch, RelaxSettings, Scene, TetElastic, relax_quasi_static,
-    relax_scratch_len,
+    scratch_len,
 };
 use softfem::f64::types::Vec3;
 
@@ -45,7 +45,7 @@ fn cantilever(cells: (usize, usize, usize), settings: RelaxSettings) -> (RelaxRe
         StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap(),
     );
     let pinned: Vec<bool> = rest.iter().map(|x| x.x == 0.0).collect();
-    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(nv)], vec![0.0; nv]);
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
     let mut x = rest.clone();
     let report = relax_quasi_static(
@@ -127,7 +127,7 @@ fn an_estimate_needs_a_window_and_no_given_rho() {
             StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap(),
         );
         let masses = vec![1.0; nv];
-        let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+        let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(nv)], vec![0.0; nv]);
         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
         let mut x = rest.clone();
         assert_eq!(

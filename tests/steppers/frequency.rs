@@ -60,9 +60,9 @@ macro_rules! frequency_tests {
             use $($api)::+::material::StableNeoHookean;
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::explicit::{
-                FrequencyEstimate, estimate_max_frequency, frequency_scratch_len,
+                FrequencyEstimate, estimate_max_frequency,
             };
-            use $($api)::+::step::{TetElastic, stable_time_step};
+            use $($api)::+::step::{TetElastic, scratch_len, stable_time_step};
             use $($api)::+::types::{Real, Vec3};
 
             /// A Kuhn box of `cells` with cell edge 0.05 m.
@@ -79,7 +79,7 @@ macro_rules! frequency_tests {
                 crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.3).unwrap());
                 let mut hessians = vec![TetHessian::default(); tets.len()];
-                let mut vectors = vec![Vec3::ZERO; frequency_scratch_len(rest.len())];
+                let mut vectors = vec![Vec3::ZERO; scratch_len::frequency(rest.len())];
                 let estimate = estimate_max_frequency(&body, &masses, &pinned, &rest, (20_000, $tolerance), &mut hessians, &mut vectors).unwrap();
                 let rest64: Vec<softfem::f64::types::Vec3> = rest.iter().map(|x| softfem::f64::types::Vec3::new(x.x as f64, x.y as f64, x.z as f64)).collect();
                 let exact = exact_omega_squared(&rest64, &tets, &pinned);

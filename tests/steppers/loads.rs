@@ -16,9 +16,8 @@ macro_rules! load_tests {
             use $($api)::+::step::{
                 ExplicitScratch, ExplicitSettings, FIXED_X, FIXED_Y, FIXED_Z, NewtonScratch,
                 NewtonSettings, RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch,
-                VbdSettings, explicit_scratch_len, explicit_step,
-                newton_quasi_static, newton_scratch_len, relax_quasi_static, relax_scratch_len,
-                vbd_index_scratch_len, vbd_quasi_static, vbd_scratch_len,
+                VbdSettings, scratch_len, explicit_step,
+                newton_quasi_static, relax_quasi_static, vbd_quasi_static,
             };
             use $($api)::+::types::{Mat3, Real, Vec3};
 
@@ -74,7 +73,7 @@ macro_rules! load_tests {
                     .with_fixed_axes(fixed);
                 match solver {
                     Solver::Newton => {
-                        let len = newton_scratch_len(n, t);
+                        let len = scratch_len::newton(n, t);
                         let (mut v, mut b, mut h) = (
                             vec![Vec3::ZERO; len.vectors],
                             vec![Mat3::ZERO; len.blocks],
@@ -86,7 +85,7 @@ macro_rules! load_tests {
                         assert!(report.converged, "{report:?}");
                     }
                     Solver::Relax => {
-                        let (mut v, mut s) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                        let (mut v, mut s) = (vec![Vec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                         let settings = RelaxSettings::new()
                             .with_tolerance(tolerances[1], 400_000)
                             .with_chebyshev(0.999, 2.0, 0);
@@ -95,7 +94,7 @@ macro_rules! load_tests {
                         assert!(report.converged, "{report:?}");
                     }
                     Solver::Vbd => {
-                        let (mut v, mut i) = (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)]);
+                        let (mut v, mut i) = (vec![Vec3::ZERO; scratch_len::vbd(n)], vec![0; scratch_len::vbd_indices(n, t)]);
                         let settings = VbdSettings::new().with_tolerance(tolerances[2], 100_000);
                         let mut scratch = VbdScratch::new(&mut v, &mut i);
                         let report = vbd_quasi_static(&body, &masses, pinned, &scene, &settings, &mut x, &mut scratch).unwrap();
@@ -291,7 +290,7 @@ macro_rules! load_tests {
                 let m = masses(&rest, &tets);
                 let acceleration = Vec3::new(0.5, -2.0, 1.0);
                 let forces: Vec<Vec3> = m.iter().map(|&m| acceleration * m).collect();
-                let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(4)];
+                let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(4)];
                 let (h, steps) = (1e-3, 10u32);
                 let settings = ExplicitSettings::new();
                 let run = |scene: &Scene<Vec3>, buffer: &mut Vec<Vec3>| {
@@ -338,20 +337,20 @@ macro_rules! load_tests {
                 let scene = Scene::new(dt).with_gravity(gravity).with_external_forces(forces);
                 match solver {
                     Solver::Newton => {
-                        let len = newton_scratch_len(n, t);
+                        let len = scratch_len::newton(n, t);
                         let (mut a, mut b, mut h) = (vec![Vec3::ZERO; len.vectors], vec![Mat3::ZERO; len.blocks], vec![TetHessian::default(); len.hessians]);
                         let settings = NewtonSettings::new().with_tolerance(TOLERANCES[0], 50);
                         let report = newton_step(&body, &m, pinned, &scene, &settings, &mut x, &mut v, &mut NewtonScratch::new(&mut a, &mut b, &mut h)).unwrap();
                         assert!(report.converged, "{report:?}");
                     }
                     Solver::Relax => {
-                        let (mut a, mut s) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                        let (mut a, mut s) = (vec![Vec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                         let settings = RelaxSettings::new().with_tolerance(TOLERANCES[1], 100_000);
                         let report = relax_step(&body, &m, pinned, &scene, &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
                         assert!(report.converged, "{report:?}");
                     }
                     Solver::Vbd => {
-                        let (mut a, mut i) = (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)]);
+                        let (mut a, mut i) = (vec![Vec3::ZERO; scratch_len::vbd(n)], vec![0; scratch_len::vbd_indices(n, t)]);
                         let settings = VbdSettings::new().with_tolerance(TOLERANCES[2], 100_000);
                         let report = vbd_step(&body, &m, pinned, &scene, &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
                         assert!(report.converged, "{report:?}");
@@ -389,7 +388,7 @@ macro_rules! load_tests {
             /// constraint wins over the contact for them).
             #[test]
             fn fixed_axes_keep_their_bits_against_a_slanted_ground() {
-                use $($api)::+::step::{Ground, gradient_descent_step, newton_step, relax_step, vbd_step};
+                use $($api)::+::step::{HalfSpace, gradient_descent_step, newton_step, relax_step, vbd_step};
                 let (rest, tets) = block((2, 1, 1), Vec3::new(0.2, 0.1, 0.1));
                 let mut rest_data = vec![TetRest::default(); tets.len()];
                 let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
@@ -405,7 +404,7 @@ macro_rules! load_tests {
                 fixed[0] = FIXED_X;
                 fixed[last] = FIXED_Y | FIXED_Z;
                 let normal = Vec3::new(-0.7, 1.0, -0.7);
-                let (ground, unit) = (Ground::new(normal, 0.0), normal.normalize());
+                let (ground, unit) = (HalfSpace::new(normal, 0.0), normal.normalize());
                 let gravity = Vec3::new(0.0, -9.81, 0.0);
                 // Resting on the plane through the origin, thrown into it at 3 m/s.
                 let start: Vec<Vec3> = rest.iter().map(|&p| p + Vec3::new(0.0, 0.7 * (p.x + p.z) + 1e-3, 0.0)).collect();
@@ -429,7 +428,7 @@ macro_rules! load_tests {
                 };
                 {
                     let (mut x, mut v) = (start.clone(), throw.clone());
-                    let len = newton_scratch_len(n, t);
+                    let len = scratch_len::newton(n, t);
                     let (mut a, mut b, mut h) = (vec![Vec3::ZERO; len.vectors], vec![Mat3::ZERO; len.blocks], vec![TetHessian::default(); len.hessians]);
                     let settings = NewtonSettings::new();
                     for _ in 0..3 {
@@ -439,7 +438,7 @@ macro_rules! load_tests {
                 }
                 {
                     let (mut x, mut v) = (start.clone(), throw.clone());
-                    let (mut a, mut s) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                    let (mut a, mut s) = (vec![Vec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                     let settings = RelaxSettings::new().with_tolerance(1e-3, 2000);
                     for _ in 0..3 {
                         relax_step(&body, &m, &[], &scene, &settings, &mut x, &mut v, &mut RelaxScratch::new(&mut a, &mut s)).unwrap();
@@ -459,7 +458,7 @@ macro_rules! load_tests {
                 }
                 {
                     let (mut x, mut v) = (start.clone(), throw.clone());
-                    let (mut a, mut i) = (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)]);
+                    let (mut a, mut i) = (vec![Vec3::ZERO; scratch_len::vbd(n)], vec![0; scratch_len::vbd_indices(n, t)]);
                     let settings = VbdSettings::new();
                     for _ in 0..3 {
                         vbd_step(&body, &m, &[], &scene, &settings, &mut x, &mut v, &mut VbdScratch::new(&mut a, &mut i)).unwrap();
@@ -480,7 +479,7 @@ macro_rules! load_tests {
                     let low: Vec<Vec3> = start.iter().map(|&p| p - Vec3::new(0.0, 3e-3, 0.0)).collect();
                     assert!(unit.dot(low[0]) < -1e-3 && unit.dot(low[last]) < -1e-3);
                     let (mut x, mut v) = (low.clone(), throw.clone());
-                    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
                     let scene = Scene::new(1e-5).with_gravity(gravity).with_ground(ground).with_fixed_axes(&fixed);
                     let settings = ExplicitSettings::new();
                     for _ in 0..30 {
@@ -499,7 +498,7 @@ macro_rules! load_tests {
                 let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(YOUNG, POISSON).unwrap());
                 let m = masses(&rest, &tets);
-                let (mut v, mut s) = (vec![Vec3::ZERO; relax_scratch_len(4)], vec![0.0; 4]);
+                let (mut v, mut s) = (vec![Vec3::ZERO; scratch_len::relax(4)], vec![0.0; 4]);
                 let mut x = rest.clone();
                 let bad_forces = [Vec3::ZERO, Vec3::new(0.0, Real::NAN, 0.0), Vec3::ZERO, Vec3::ZERO];
                 let settings = RelaxSettings::new();

@@ -12,9 +12,9 @@ macro_rules! newton_tests {
             use $($api)::+::material::{Material, NeoHookean, StVK, StableNeoHookean};
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
-                Ground, NewtonOptions, NewtonReport, NewtonScratch, NewtonSettings, RelaxScratch,
-                RelaxSettings, Scene, TetElastic, newton_quasi_static, newton_scratch_len,
-                newton_step, relax_quasi_static, relax_scratch_len,
+                HalfSpace, NewtonOptions, NewtonReport, NewtonScratch, NewtonSettings, RelaxScratch,
+                RelaxSettings, Scene, TetElastic, newton_quasi_static, scratch_len,
+                newton_step, relax_quasi_static,
             };
             use $($api)::+::types::{Mat3, Real, Vec3};
 
@@ -45,7 +45,7 @@ macro_rules! newton_tests {
 
             impl Buffers {
                 fn new(vertices: usize, elements: usize) -> Self {
-                    let len = newton_scratch_len(vertices, elements);
+                    let len = scratch_len::newton(vertices, elements);
                     Buffers {
                         vectors: vec![Vec3::ZERO; len.vectors],
                         blocks: vec![Mat3::ZERO; len.blocks],
@@ -117,7 +117,7 @@ macro_rules! newton_tests {
                 let relax_settings = RelaxSettings::new()
                     .with_tolerance(RELAX_TOLERANCE, 50_000)
                     .with_chebyshev(0.999, 2.0, 0);
-                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                 let mut relaxed = bar.rest.clone();
                 let relax_report = relax_quasi_static(&model, &masses, &pinned, &scene, &relax_settings, &mut relaxed, &mut RelaxScratch::new(&mut vectors, &mut scalars)).unwrap();
                 assert!(relax_report.converged);
@@ -178,7 +178,7 @@ macro_rules! newton_tests {
                 let mut v = vec![Vec3::ZERO; n];
                 let scene = Scene::new(1.0 / 30.0)
                     .with_gravity(GRAVITY)
-                    .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                    .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5));
                 let settings = NewtonSettings::new().with_tolerance(tolerance, 50);
                 let mut buffers = Buffers::new(n, block.tets.len());
                 let reports = (0..30)
@@ -281,7 +281,7 @@ macro_rules! newton_tests {
                     Err(StepError::TimeStep)
                 );
                 assert_eq!(
-                    newton_step(&model, &masses, &pinned, &scene.with_ground(Ground::new(Vec3::ZERO, 0.0)), &settings, &mut x, &mut v, &mut buffers.scratch()),
+                    newton_step(&model, &masses, &pinned, &scene.with_ground(HalfSpace::new(Vec3::ZERO, 0.0)), &settings, &mut x, &mut v, &mut buffers.scratch()),
                     Err(StepError::Ground)
                 );
                 assert_eq!((bits(&x), bits(&v)), (x0, v0));
@@ -334,7 +334,7 @@ macro_rules! newton_tests {
                     let relax_settings = RelaxSettings::new()
                         .with_tolerance(tolerance, budget)
                         .with_chebyshev(0.999, 2.0, 0);
-                    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                     let mut relax_time = f64::INFINITY;
                     let mut relax = None;
                     for _ in 0..3 {

@@ -559,9 +559,9 @@ macro_rules! precision_tests {
                 use super::*;
                 use sf::parallel::{self, ParallelTetClamped, ParallelTetElastic};
                 use sf::step::{
-                    ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, Ground, NewtonScratch, NewtonSettings,
-                    RelaxScratch, RelaxSettings, Scene, explicit_scratch_len, explicit_step, newton_scratch_len,
-                    newton_step, relax_scratch_len, relax_step, stable_time_step, TetClamped,
+                    ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, HalfSpace, NewtonScratch, NewtonSettings,
+                    RelaxScratch, RelaxSettings, Scene, scratch_len, explicit_step,
+                    newton_step, relax_step, stable_time_step, TetClamped,
                 };
 
                 const THREADS: [usize; 4] = [1, 2, 3, 8];
@@ -968,7 +968,7 @@ macro_rules! precision_tests {
                 ) -> RunBits {
                     let n = start.len();
                     let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
-                    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
                     let mut scratch = ExplicitScratch::new(&mut buffer);
                     let mut contacts = 0;
                     for _ in 0..steps {
@@ -1002,7 +1002,7 @@ macro_rules! precision_tests {
                     let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                     let scene = Scene::new(dt)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_ground(Ground::new(Vec3::Y, 0.0));
+                        .with_ground(HalfSpace::new(Vec3::Y, 0.0));
                     let settings = ExplicitSettings::new();
                     let expected = explicit_run(&body, &masses, &scene, &settings, &start, 60);
                     assert_ne!(expected.2, "0 contacts", "the box must touch the ground");
@@ -1030,7 +1030,7 @@ macro_rules! precision_tests {
                     (steps, sticking_speed): (usize, Real),
                 ) -> RunBits {
                     let n = start.len();
-                    let ground = Ground::new(Vec3::Y, 0.0)
+                    let ground = HalfSpace::new(Vec3::Y, 0.0)
                         .with_friction(0.5)
                         .with_sticking_speed(sticking_speed);
                     let scene = Scene::new(1.0 / 60.0)
@@ -1038,7 +1038,7 @@ macro_rules! precision_tests {
                         .with_ground(ground);
                     let settings = RelaxSettings::new().with_tolerance(1.0e-3, 300);
                     let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
-                    let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
+                    let mut vectors = vec![Vec3::ZERO; scratch_len::relax(n)];
                     let mut scalars = vec![0.0; n];
                     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                     let mut reports = String::new();
@@ -1068,7 +1068,7 @@ macro_rules! precision_tests {
                     (steps, sticking_speed): (usize, Real),
                 ) -> RunBits {
                     let (n, ne) = (start.len(), model.element_count());
-                    let ground = Ground::new(Vec3::Y, 0.0)
+                    let ground = HalfSpace::new(Vec3::Y, 0.0)
                         .with_friction(0.5)
                         .with_sticking_speed(sticking_speed);
                     let scene = Scene::new(1.0 / 30.0)
@@ -1076,7 +1076,7 @@ macro_rules! precision_tests {
                         .with_ground(ground);
                     let settings = NewtonSettings::new().with_tolerance(1.0e-4, 30);
                     let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
-                    let lengths = newton_scratch_len(n, ne);
+                    let lengths = scratch_len::newton(n, ne);
                     let mut vectors = vec![Vec3::ZERO; lengths.vectors];
                     let mut blocks = vec![Mat3::ZERO; lengths.blocks];
                     let mut hessians = vec![TetHessian::default(); lengths.hessians];
@@ -1154,7 +1154,7 @@ macro_rules! precision_tests {
                     let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                     let scene = Scene::new(dt)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                        .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5));
                     let settings = ExplicitSettings::new().with_damping(2.0);
                     let run = |model: &dyn Fn(
                         &mut [Vec3],
@@ -1162,7 +1162,7 @@ macro_rules! precision_tests {
                         &mut ExplicitScratch<'_, Vec3>,
                     )| {
                         let (mut x, mut v) = (lifted.clone(), vec![Vec3::ZERO; nv]);
-                        let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(nv)];
+                        let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(nv)];
                         let mut scratch = ExplicitScratch::new(&mut buffer);
                         for _ in 0..100 {
                             model(&mut x, &mut v, &mut scratch);
@@ -1174,7 +1174,7 @@ macro_rules! precision_tests {
                     });
                     // The box has landed: the run exercised contacts, not only free fall.
                     let (mut x, mut v) = (lifted.clone(), vec![Vec3::ZERO; nv]);
-                    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(nv)];
+                    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(nv)];
                     let mut scratch = ExplicitScratch::new(&mut buffer);
                     let mut contacts = 0;
                     for _ in 0..100 {
@@ -1261,7 +1261,7 @@ macro_rules! precision_tests {
                         &mut ExplicitScratch<'_, Vec3>,
                     )| {
                         let (mut x, mut v) = (deformed(&start), vec![Vec3::ZERO; nv]);
-                        let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(nv)];
+                        let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(nv)];
                         let mut scratch = ExplicitScratch::new(&mut buffer);
                         for _ in 0..6 {
                             model(&mut x, &mut v, &mut scratch);
@@ -1302,11 +1302,11 @@ macro_rules! precision_tests {
                     let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                     let explicit_scene = Scene::new(dt)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                        .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5));
                     let explicit_settings = ExplicitSettings::new().with_damping(2.0).with_substeps(2);
                     let relax_scene = Scene::new(1.0 / 60.0)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                        .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5));
                     let relax_settings = RelaxSettings::new().with_tolerance(0.0, 12);
                     let explicit = |model: &dyn Fn(
                         &mut [Vec3],
@@ -1314,7 +1314,7 @@ macro_rules! precision_tests {
                         &mut ExplicitScratch<'_, Vec3>,
                     ) -> sf::step::ExplicitReport| {
                         let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; nv]);
-                        let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(nv)];
+                        let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(nv)];
                         let mut scratch = ExplicitScratch::new(&mut buffer);
                         let mut reports = String::new();
                         for _ in 0..8 {
@@ -1350,7 +1350,7 @@ macro_rules! precision_tests {
                         &mut RelaxScratch<'_, Vec3>,
                     ) -> String| {
                         let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; nv]);
-                        let mut vectors = vec![Vec3::ZERO; relax_scratch_len(nv)];
+                        let mut vectors = vec![Vec3::ZERO; scratch_len::relax(nv)];
                         let mut scalars = vec![0.0; nv];
                         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                         let reports: String =
@@ -1368,7 +1368,7 @@ macro_rules! precision_tests {
                     // dot products, the preconditioner) runs many times over the three blocks.
                     let newton_scene = Scene::new(1.0 / 60.0)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                        .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                        .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5));
                     let newton_settings = NewtonSettings::new().with_tolerance(0.0, 3).with_cg_iterations(40);
                     let ne = mesh.element_count();
                     let newton = |model: &dyn Fn(
@@ -1377,7 +1377,7 @@ macro_rules! precision_tests {
                         &mut NewtonScratch<'_>,
                     ) -> sf::step::NewtonReport| {
                         let (mut x, mut v) = (start.clone(), vec![Vec3::ZERO; nv]);
-                        let lengths = newton_scratch_len(nv, ne);
+                        let lengths = scratch_len::newton(nv, ne);
                         let mut vectors = vec![Vec3::ZERO; lengths.vectors];
                         let mut blocks = vec![Mat3::ZERO; lengths.blocks];
                         let mut hessians = vec![TetHessian::default(); lengths.hessians];

@@ -14,7 +14,7 @@ macro_rules! relax_tests {
             use $($api)::+::step::{
                 RelaxOptions, RelaxScratch, RelaxSettings, Scene, TetElastic,
                 gradient_descent_quasi_static, gradient_descent_step, relax_quasi_static,
-                relax_scratch_len, relax_step,
+                scratch_len, relax_step,
             };
             use $($api)::+::types::{Real, Vec3};
 
@@ -68,14 +68,14 @@ macro_rules! relax_tests {
                 let fresh = |body: &TetElastic<StableNeoHookean>| {
                     let (mut x, mut v) = (bar.rest.clone(), vec![Vec3::ZERO; n]);
                     for _ in 0..2 {
-                        let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
+                        let mut vectors = vec![Vec3::ZERO; scratch_len::relax(n)];
                         let mut scalars = vec![0.0; n];
                         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                         relax_step(body, &masses, &bar.pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
                     }
                     bits(&x)
                 };
-                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                 let mut kept = RelaxScratch::new(&mut vectors, &mut scalars);
                 let kept_steps = |body: &TetElastic<StableNeoHookean>, scratch: &mut RelaxScratch<Vec3>| {
                     let (mut x, mut v) = (bar.rest.clone(), vec![Vec3::ZERO; n]);
@@ -102,7 +102,7 @@ macro_rules! relax_tests {
                 let body = TetElastic::new(mesh, material);
                 let n = bar.rest.len();
                 let weight = masses.iter().fold(0.0 as Real, |a, &m| a.max(m)) * 9.81;
-                let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
+                let mut vectors = vec![Vec3::ZERO; scratch_len::relax(n)];
                 let mut scalars = vec![0.0; n];
 
                 // Quasi-static, from rest.
@@ -177,7 +177,7 @@ macro_rules! relax_tests {
                 let body = TetElastic::new(mesh, material);
                 let n = bar.rest.len();
                 let weight = masses.iter().fold(0.0 as Real, |a, &m| a.max(m)) * 9.81;
-                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                 let scene = Scene::new(1.0 / 60.0).with_gravity(GRAVITY);
                 let settings = RelaxSettings::new()
                     .with_tolerance(TOLERANCE, 50_000)
@@ -222,7 +222,7 @@ macro_rules! relax_tests {
                 crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = bar.rest.len();
-                let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
+                let mut vectors = vec![Vec3::ZERO; scratch_len::relax(n)];
                 let mut scalars = vec![0.0; n];
                 // The first 1/60 s step of the pinned bar released from rest: the bar starts to
                 // sag, a bending (slow) mode. Plain preconditioned descent needs 7951 iterations
@@ -264,7 +264,7 @@ macro_rules! relax_tests {
                 crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = bar.rest.len();
-                let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
+                let mut vectors = vec![Vec3::ZERO; scratch_len::relax(n)];
                 let mut scalars = vec![0.0; n];
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let h: Real = 1.0 / 60.0;
@@ -313,7 +313,7 @@ macro_rules! relax_tests {
                     let settings = RelaxSettings::new().with_tolerance(1e-4, budget);
                     let run = |scene: &Scene<Vec3>| {
                         let (mut x, mut v) = (start.clone(), spin.clone());
-                        let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                        let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                         let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                         let mut evaluations = Vec::new();
                         for _ in 0..5 {
@@ -336,19 +336,19 @@ macro_rules! relax_tests {
             /// every trial point moved the clamp, Armijo rejected them all and nothing converged).
             #[test]
             fn pinned_vertices_inside_the_ground_stay_put() {
-                use $($api)::+::step::Ground;
+                use $($api)::+::step::HalfSpace;
                 let bar = bar();
                 crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let n = bar.rest.len();
                 // Ground y = 0.05 with normal +y: the bar (y in [0, 0.1]) is half inside it, the
                 // clamp included.
-                let ground = Ground::new(Vec3::Y, 0.05);
+                let ground = HalfSpace::new(Vec3::Y, 0.05);
                 let scene = Scene::new(1.0 / 60.0).with_gravity(GRAVITY).with_ground(ground);
                 let settings = RelaxSettings::new()
                     .with_tolerance(TOLERANCE.max(1e-3), 400)
                     .with_chebyshev(DYNAMIC_RHO, 2.0, 0);
-                let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
+                let mut vectors = vec![Vec3::ZERO; scratch_len::relax(n)];
                 let mut scalars = vec![0.0; n];
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let (mut x, mut v) = (bar.rest.clone(), vec![Vec3::ZERO; n]);
@@ -386,7 +386,7 @@ macro_rules! relax_tests {
                     (scene, good.with_chebyshev(0.99, Real::INFINITY, 0), StepError::RelaxSettings),
                     (scene, RelaxSettings { options: RelaxOptions { momentum: 0.5, ..accelerated.options }, ..accelerated }, StepError::RelaxSettings),
                 ];
-                let mut vectors = vec![Vec3::ZERO; relax_scratch_len(n)];
+                let mut vectors = vec![Vec3::ZERO; scratch_len::relax(n)];
                 let mut scalars = vec![0.0; n];
                 for (scene, settings, expected) in cases {
                     let (mut x, mut v) = (bar.rest.clone(), vec![Vec3::X; n]);

@@ -22,7 +22,7 @@ macro_rules! stability_tests {
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
                 ElasticModel, ExplicitScratch, ExplicitSettings, Scene, TetElastic,
-                explicit_scratch_len, explicit_step, stable_time_step,
+                scratch_len, explicit_step, stable_time_step,
             };
             use $($api)::+::step::explicit::element_stable_time_step;
             use $($api)::+::types::{Real, Vec3};
@@ -97,7 +97,7 @@ macro_rules! stability_tests {
                 let amplitude = 1e-3;
                 let mut x = perturbed(&mesh_data.rest, amplitude);
                 let mut v = vec![Vec3::ZERO; n];
-                let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 let mut largest: Real = 0.0;
                 for _ in 0..10_000 {
@@ -123,7 +123,7 @@ macro_rules! stability_tests {
                 let settings = ExplicitSettings::new();
                 let mut x = perturbed(&mesh_data.rest, 1e-4);
                 let mut v = vec![Vec3::ZERO; n];
-                let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 for step in 0..200 {
                     let (x_before, v_before) = (x.clone(), v.clone());
@@ -149,7 +149,7 @@ macro_rules! stability_tests {
 
             use $($api)::+::material::{Material, NeoHookean, StableNeoHookean};
             use $($api)::+::step::{
-                RelaxScratch, RelaxSettings, TetClamped, relax_quasi_static, relax_scratch_len,
+                RelaxScratch, RelaxSettings, TetClamped, relax_quasi_static,
                 relax_step,
             };
 
@@ -174,7 +174,7 @@ macro_rules! stability_tests {
                 steps: usize,
             ) -> (Option<StepError>, Real) {
                 let mut v = vec![Vec3::ZERO; x.len()];
-                let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(x.len())];
+                let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(x.len())];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 let mut largest: Real = 0.0;
                 for _ in 0..steps {
@@ -303,7 +303,7 @@ macro_rules! stability_tests {
                 assert_eq!(x, x0);
 
                 let mut v = [Vec3::ZERO; 4];
-                let (mut vectors, mut scalars) = ([Vec3::ZERO; relax_scratch_len(4)], [0.0; 4]);
+                let (mut vectors, mut scalars) = ([Vec3::ZERO; scratch_len::relax(4)], [0.0; 4]);
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let settings = RelaxSettings::new();
                 let error = relax_step(&body, &masses, &BASE_PINNED, &Scene::new(1.0 / 30.0), &settings, &mut x, &mut v, &mut scratch).unwrap_err();
@@ -346,7 +346,7 @@ macro_rules! stability_tests {
                 let mut v = vec![Vec3::ZERO; x.len()];
                 let start = energy(&mesh, &material, &masses, &x, &v);
                 let n = x.len();
-                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(n)], vec![0.0; n]);
+                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(n)], vec![0.0; n]);
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let scene = Scene::new(dt);
                 let settings = RelaxSettings::new().with_tolerance(1e-3, 500).with_chebyshev(0.995, 2.0, 0);
@@ -376,7 +376,7 @@ macro_rules! stability_tests {
                 let scene = Scene::new(1.0).with_gravity(gravity);
                 let settings = RelaxSettings::new().with_tolerance(1e-4, 20_000).with_chebyshev(0.999, 2.0, 0);
                 let mut x = rest.clone();
-                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(nv)], vec![0.0; nv]);
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let report = relax_quasi_static(&body, &masses, &pinned, &scene, &settings, &mut x, &mut scratch).unwrap();
                 let mut f = vec![Vec3::ZERO; nv];
@@ -412,7 +412,7 @@ macro_rules! stability_tests {
                 let mut errors = Vec::new();
                 fn relax_checked<M: Material>(body: &TetElastic<M>, masses: &[Real], x: &mut [Vec3; 4], dt: Real) -> Option<StepError> {
                     let mut v = [Vec3::ZERO; 4];
-                    let (mut vectors, mut scalars) = ([Vec3::ZERO; relax_scratch_len(4)], [0.0; 4]);
+                    let (mut vectors, mut scalars) = ([Vec3::ZERO; scratch_len::relax(4)], [0.0; 4]);
                     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                     let scene = Scene::new(dt);
                     let settings = RelaxSettings::new().with_tolerance(1e-3, 200);

@@ -12,7 +12,7 @@ macro_rules! stagnation_tests {
             use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
             use $($api)::+::material::StableNeoHookean;
             use $($api)::+::mesh::TetMesh;
-            use $($api)::+::step::{Collider, FLOOR_FACTOR, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, Scene, TetElastic, newton_quasi_static, newton_scratch_len, relax_quasi_static, relax_scratch_len};
+            use $($api)::+::step::{Collider, NewtonReport, NewtonScratch, NewtonSettings, RelaxScratch, RelaxSettings, Scene, TetElastic, newton_quasi_static, scratch_len, relax_quasi_static};
             use $($api)::+::types::{Mat3, Real, Vec3};
 
             const GRAVITY: Vec3 = Vec3::new(0.0, -9.81, 0.0);
@@ -43,7 +43,7 @@ macro_rules! stagnation_tests {
                 let settings = RelaxSettings::new()
                     .with_tolerance(tolerance, budget)
                     .with_chebyshev(0.999, 2.0, 0);
-                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+                let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(nv)], vec![0.0; nv]);
                 let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
                 let mut x = rest.clone();
                 let report = relax_quasi_static(&body, &masses, &pinned, &scene, &settings, &mut x, &mut scratch).unwrap();
@@ -67,7 +67,7 @@ macro_rules! stagnation_tests {
                 assert!((imbalance - report.residual as f64).abs() <= 1e-3 * imbalance + floor, "{imbalance:e} against {report:?}");
                 // The floor is an estimate from above: the stall happens within its bound. A
                 // tolerance of 0 is never reached, and the report says so.
-                assert!(report.rounding_floor > 0.0 && report.residual <= FLOOR_FACTOR * report.rounding_floor, "{report:?}");
+                assert!(report.rounding_floor > 0.0 && report.residual <= NewtonReport::FLOOR_FACTOR * report.rounding_floor, "{report:?}");
                 assert!(!report.converged);
             }
 
@@ -85,7 +85,7 @@ macro_rules! stagnation_tests {
                 let pinned: Vec<bool> = rest.iter().map(|x| x.x == offset.x).collect();
                 let scene = Scene::new(1.0).with_gravity(GRAVITY).with_colliders(colliders);
                 let settings = NewtonSettings::new().with_tolerance(tolerance, 50);
-                let len = newton_scratch_len(nv, nt);
+                let len = scratch_len::newton(nv, nt);
                 let mut vectors = vec![Vec3::ZERO; len.vectors];
                 let mut blocks = vec![Mat3::ZERO; len.blocks];
                 let mut hessians = vec![TetHessian::default(); len.hessians];

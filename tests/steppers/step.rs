@@ -14,8 +14,8 @@ macro_rules! step_tests {
             use $($api)::+::material::{StVK, StableNeoHookean};
             use $($api)::+::mesh::{TetMesh, TriMesh};
             use $($api)::+::step::{
-                ElasticModel, ExplicitScratch, ExplicitSettings, Ground, TetClamped, TetElastic,
-                Scene, TriElastic, explicit_scratch_len, explicit_step, stable_time_step,
+                ElasticModel, ExplicitScratch, ExplicitSettings, HalfSpace, TetClamped, TetElastic,
+                Scene, TriElastic, scratch_len, explicit_step, stable_time_step,
             };
             use $($api)::+::types::{Real, Vec2, Vec3};
 
@@ -41,7 +41,7 @@ macro_rules! step_tests {
                 let mut stiffness = vec![0.0; n];
                 let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                 let (scene, settings) = (Scene::new(dt), ExplicitSettings::new());
-                let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; n]);
                 explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
@@ -80,7 +80,7 @@ macro_rules! step_tests {
                 fn settings(dt: Real, substeps: u32) -> (Scene<'static, Vec3>, ExplicitSettings) {
                     let scene = Scene::new(dt)
                         .with_gravity(Vec3::new(0.0, 0.0, -9.81))
-                        .with_ground(Ground::new(Vec3::Z, 0.0).with_friction(0.6).with_restitution(0.3));
+                        .with_ground(HalfSpace::new(Vec3::Z, 0.0).with_friction(0.6).with_restitution(0.3));
                     (scene, ExplicitSettings::new().with_substeps(substeps).with_damping(0.5))
                 }
 
@@ -104,7 +104,7 @@ macro_rules! step_tests {
                     let n = self.rest.len();
                     let (scene, settings) = Drop::settings(dt, substeps);
                     let (mut x, mut v) = (self.rest.clone(), vec![Vec3::ZERO; n]);
-                    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
                     let mut scratch = ExplicitScratch::new(&mut buffer);
                     let mut states = vec![x.clone()];
                     for _ in 0..(duration / dt) as usize {
@@ -189,7 +189,7 @@ macro_rules! step_tests {
                     let scene = Scene::new(dt).with_gravity(Vec3::new(0.0, -9.81, 0.0));
                     let settings = ExplicitSettings::new().with_substeps(substeps);
                     let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; n]);
-                    let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
                     let mut scratch = ExplicitScratch::new(&mut buffer);
                     let calls = (3.0 / dt) as usize;
                     let mut lowest: Real = 0.0;
@@ -227,7 +227,7 @@ macro_rules! step_tests {
                 // rounding of the 0.1 m positions stays far below the tolerance).
                 let mut x: Vec<Vec3> = rest.iter().map(|&p| p + Vec3::new(p.y, 0.0, 0.5 * p.z) * 1e-2).collect();
                 let mut v = vec![Vec3::ZERO; n];
-                let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 let (scene, settings) = (Scene::new(dt), ExplicitSettings::new());
                 let energy = |x: &[Vec3], v: &[Vec3]| -> f64 {
@@ -265,10 +265,10 @@ macro_rules! step_tests {
                 let dt = 0.9 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                 let scene = Scene::new(dt)
                     .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-                    .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+                    .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5));
                 let settings = ExplicitSettings::new().with_damping(5.0);
                 let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; n]);
-                let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 let steps = (3.0 / dt) as usize;
                 let mut lowest: Real = Real::INFINITY;
@@ -307,7 +307,7 @@ macro_rules! step_tests {
                 let mut x = rest.clone();
                 let mut v: Vec<Vec3> = (0..n).map(|i| Vec3::new(0.0, 0.0, i as Real * 1e-3)).collect();
                 let v0 = v.clone();
-                let mut buffer = vec![Vec3::ZERO; explicit_scratch_len(n)];
+                let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(n)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 for _ in 0..200 {
                     explicit_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
@@ -337,10 +337,10 @@ macro_rules! step_tests {
                 let dt = 0.9 * stable_time_step(&body, &masses, &[], &mut stiffness).unwrap();
                 let scene = Scene::new(dt)
                     .with_gravity(Vec2::new(0.0, -9.81))
-                    .with_ground(Ground::new(Vec2::Y, 0.0).with_restitution(0.0).with_friction(0.5));
+                    .with_ground(HalfSpace::new(Vec2::Y, 0.0).with_restitution(0.0).with_friction(0.5));
                 let settings = ExplicitSettings::new().with_damping(5.0);
                 let (mut x, mut v) = (rest.clone(), vec![Vec2::ZERO; nv]);
-                let mut buffer = vec![Vec2::ZERO; explicit_scratch_len(nv)];
+                let mut buffer = vec![Vec2::ZERO; scratch_len::explicit(nv)];
                 let mut scratch = ExplicitScratch::new(&mut buffer);
                 for _ in 0..(2.0 / dt) as usize {
                     explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch).unwrap();
@@ -359,13 +359,13 @@ macro_rules! step_tests {
                 crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(1.0e5, 0.3).unwrap());
                 let n = rest.len();
-                let good = (Scene::new(1e-4).with_ground(Ground::new(Vec3::Y, -1.0)), ExplicitSettings::new());
+                let good = (Scene::new(1e-4).with_ground(HalfSpace::new(Vec3::Y, -1.0)), ExplicitSettings::new());
                 let x0: Vec<Vec3> = rest.iter().map(|&p| p * 1.01).collect();
                 let v0 = vec![Vec3::new(0.1, 0.2, 0.3); n];
-                let mut buffer = vec![Vec3::splat(7.0); explicit_scratch_len(n)];
+                let mut buffer = vec![Vec3::splat(7.0); scratch_len::explicit(n)];
                 let nan = Real::NAN;
                 let (scene, settings) = good;
-                let ground = |g: Ground<Vec3>| (scene.with_ground(g), settings);
+                let ground = |g: HalfSpace<Vec3>| (scene.with_ground(g), settings);
                 let dt = |dt: Real| (Scene { dt, ..scene }, settings);
                 let cases: Vec<((Scene<Vec3>, ExplicitSettings), StepError)> = vec![
                     (dt(0.0), StepError::TimeStep),
@@ -381,13 +381,13 @@ macro_rules! step_tests {
                     ((scene, settings.with_damping(nan)), StepError::Damping),
                     ((scene, ExplicitSettings { max_energy_growth: 1.0, ..settings }), StepError::GrowthLimit),
                     ((scene, ExplicitSettings { max_energy_growth: nan, ..settings }), StepError::GrowthLimit),
-                    (ground(Ground::new(Vec3::ZERO, 0.0)), StepError::Ground),
-                    (ground(Ground::new(Vec3::Y, nan)), StepError::Ground),
-                    (ground(Ground::new(Vec3::Y, 0.0).with_restitution(1.5)), StepError::Restitution),
-                    (ground(Ground::new(Vec3::Y, 0.0).with_restitution(-0.1)), StepError::Restitution),
-                    (ground(Ground::new(Vec3::Y, 0.0).with_restitution(nan)), StepError::Restitution),
-                    (ground(Ground::new(Vec3::Y, 0.0).with_friction(-0.1)), StepError::Friction),
-                    (ground(Ground::new(Vec3::Y, 0.0).with_friction(nan)), StepError::Friction),
+                    (ground(HalfSpace::new(Vec3::ZERO, 0.0)), StepError::Ground),
+                    (ground(HalfSpace::new(Vec3::Y, nan)), StepError::Ground),
+                    (ground(HalfSpace::new(Vec3::Y, 0.0).with_restitution(1.5)), StepError::Restitution),
+                    (ground(HalfSpace::new(Vec3::Y, 0.0).with_restitution(-0.1)), StepError::Restitution),
+                    (ground(HalfSpace::new(Vec3::Y, 0.0).with_restitution(nan)), StepError::Restitution),
+                    (ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(-0.1)), StepError::Friction),
+                    (ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(nan)), StepError::Friction),
                 ];
                 let check = |(scene, settings): &(Scene<Vec3>, ExplicitSettings), masses: &[Real], pinned: &[bool], x: &mut Vec<Vec3>, v: &mut Vec<Vec3>, buffer: &mut Vec<Vec3>, expected: StepError| {
                     let (xb, vb, bb) = (bits(x), bits(v), bits(buffer));

@@ -20,8 +20,7 @@ macro_rules! vbd_tests {
             use $($api)::+::material::{Material, StVK, StableNeoHookean};
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::{
-                Ground, Scene, TetElastic, VbdOptions, VbdScratch, VbdSettings, vbd_index_scratch_len,
-                vbd_layout_corners_len, vbd_layout_len, vbd_quasi_static, vbd_scratch_len, vbd_step,
+                HalfSpace, Scene, TetElastic, VbdOptions, VbdScratch, VbdSettings, scratch_len, vbd_quasi_static, vbd_step,
             };
             use $($api)::+::types::{Mat3, Real, Vec3};
 
@@ -69,14 +68,14 @@ macro_rules! vbd_tests {
 
             /// Scratch buffers for `n` vertices and `t` tetrahedra.
             fn buffers(n: usize, t: usize) -> (Vec<Vec3>, Vec<u32>) {
-                (vec![Vec3::ZERO; vbd_scratch_len(n)], vec![0; vbd_index_scratch_len(n, t)])
+                (vec![Vec3::ZERO; scratch_len::vbd(n)], vec![0; scratch_len::vbd_indices(n, t)])
             }
 
             /// Packed-layout buffers for `n` vertices and `t` tetrahedra, full of garbage (NaN
             /// values, arbitrary indices): the layout overwrites what it reads.
             fn layout_buffers(n: usize, t: usize) -> (Vec<Real>, Vec<u32>) {
-                let corners = (0..vbd_layout_corners_len(n, t) as u32).map(|i| i.wrapping_mul(2_654_435_761)).collect();
-                (vec![Real::NAN; vbd_layout_len(t)], corners)
+                let corners = (0..scratch_len::vbd_layout_corners(n, t) as u32).map(|i| i.wrapping_mul(2_654_435_761)).collect();
+                (vec![Real::NAN; scratch_len::vbd_layout(t)], corners)
             }
 
             /// The scene of the layout and parallel tests: a block (12 x 10 x 3 cubes: 8
@@ -115,7 +114,7 @@ macro_rules! vbd_tests {
                 let mesh = TetMesh::new(&cube.rest, &cube.tets, &mut rest_data).unwrap();
                 let body = TetElastic::new(mesh, StVK::from_young_poisson(2.0e5, 0.4).unwrap());
                 let (n, t) = (cube.rest.len(), cube.tets.len());
-                let ground = Ground::new(Vec3::Y, -2e-3).with_friction(0.5);
+                let ground = HalfSpace::new(Vec3::Y, -2e-3).with_friction(0.5);
                 let scene = Scene::new(1.0 / 60.0)
                     .with_gravity(GRAVITY)
                     .with_ground(ground)
@@ -190,7 +189,7 @@ macro_rules! vbd_tests {
                 assert!(!gathered.3);
                 // The scene exercises the contact, the line search and the projection.
                 assert!(gathered.2.iter().any(|r| !r.contains("vertex_backtracks: 0,")), "{:?}", gathered.2);
-                let full = (vbd_layout_len(t), vbd_layout_corners_len(n, t));
+                let full = (scratch_len::vbd_layout(t), scratch_len::vbd_layout_corners(n, t));
                 let packed = pressed_sequential(&scene, Some(full));
                 assert!(packed.3, "the layout fits its documented length");
                 assert!(packed.0 == gathered.0 && packed.1 == gathered.1, "{:?} vs {:?}", packed.2, gathered.2);
@@ -541,7 +540,7 @@ macro_rules! vbd_tests {
                 let n = cube.rest.len();
                 let t = cube.tets.len();
                 // Falling onto a ground 1 mm below, at 1 m/s, sideways too (friction acts).
-                let ground = Ground::new(Vec3::Y, -1e-3).with_friction(0.5);
+                let ground = HalfSpace::new(Vec3::Y, -1e-3).with_friction(0.5);
                 let scene = Scene::new(1.0 / 60.0).with_gravity(GRAVITY).with_ground(ground);
                 let settings = VbdSettings::new().with_tolerance(0.0, 12).with_chebyshev(0.9, 2);
                 let run = |vectors: &mut [Vec3], indices: &mut [u32], steps: usize| {
@@ -555,8 +554,8 @@ macro_rules! vbd_tests {
                 let (mut vectors, mut indices) = buffers(n, t);
                 let fresh = run(&mut vectors, &mut indices, 2);
                 assert_eq!(run(&mut vectors, &mut indices, 2), fresh);
-                let mut garbage = vec![Vec3::splat(Real::NAN); vbd_scratch_len(n)];
-                let mut noise: Vec<u32> = (0..vbd_index_scratch_len(n, t) as u32).map(|i| i.wrapping_mul(2_654_435_761)).collect();
+                let mut garbage = vec![Vec3::splat(Real::NAN); scratch_len::vbd(n)];
+                let mut noise: Vec<u32> = (0..scratch_len::vbd_indices(n, t) as u32).map(|i| i.wrapping_mul(2_654_435_761)).collect();
                 assert_eq!(run(&mut garbage, &mut noise, 2), fresh);
                 // One step at a time with fresh scratch each, against two with one scratch.
                 let (mut x, mut v) = (cube.rest.clone(), vec![Vec3::new(0.3, -1.0, 0.0); n]);
@@ -598,8 +597,8 @@ macro_rules! vbd_tests {
                     (scene, good.with_estimated_chebyshev(1), StepError::VbdSettings),
                     (scene, VbdSettings { options: VbdOptions { chebyshev: 0.5, ..estimated.options }, ..estimated },
                         StepError::VbdSettings),
-                    (scene.with_ground(Ground::new(Vec3::ZERO, 0.0)), good, StepError::Ground),
-                    (scene.with_ground(Ground::new(Vec3::Y, 0.0).with_friction(-1.0)), good, StepError::Friction),
+                    (scene.with_ground(HalfSpace::new(Vec3::ZERO, 0.0)), good, StepError::Ground),
+                    (scene.with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(-1.0)), good, StepError::Friction),
                 ];
                 let (mut vectors, mut indices) = buffers(n, t);
                 let v0 = vec![Vec3::X; n];
@@ -615,8 +614,8 @@ macro_rules! vbd_tests {
                 bad_masses[3] = 0.0;
                 let mut bad_x = cube.rest.clone();
                 bad_x[5].z = Real::NAN;
-                let mut short = vec![Vec3::ZERO; vbd_scratch_len(n) - 1];
-                let mut short_indices = vec![0; vbd_index_scratch_len(n, t) + 1];
+                let mut short = vec![Vec3::ZERO; scratch_len::vbd(n) - 1];
+                let mut short_indices = vec![0; scratch_len::vbd_indices(n, t) + 1];
                 let cases: [(&[Real], &[bool], &[Vec3], bool, bool, StepError); 5] = [
                     (&bad_masses, &[], &cube.rest, false, false, StepError::Mass { vertex: 3 }),
                     (&masses, &[true], &cube.rest, false, false,
@@ -696,7 +695,7 @@ macro_rules! vbd_tests {
                 let smallest = (0..count).map(|c| colours.iter().filter(|&&k| k == c).count()).min().unwrap();
                 assert!(smallest > 32, "{count} colours, the smallest of {smallest} vertices");
                 let sequential = pressed_sequential(&scene, None);
-                let full = (vbd_layout_len(t), vbd_layout_corners_len(n, t));
+                let full = (scratch_len::vbd_layout(t), scratch_len::vbd_layout_corners(n, t));
                 for threads in [1, 2, 3, 8] {
                     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
                     for (layout, own_pool) in [(None, false), (Some(full), false), (None, true), (Some(full), true)] {
@@ -861,8 +860,7 @@ fn quasi_static_cantilever_reaches_the_relaxations_equilibrium() {
     use softfem::f64::mesh::TetMesh;
     use softfem::f64::step::{
         RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings,
-        relax_quasi_static, relax_scratch_len, vbd_index_scratch_len, vbd_quasi_static,
-        vbd_scratch_len,
+        relax_quasi_static, scratch_len, vbd_quasi_static,
     };
     use softfem::glam::DVec3 as Vec3;
     let max = Vec3::new(0.4, 0.1, 0.1);
@@ -882,7 +880,7 @@ fn quasi_static_cantilever_reaches_the_relaxations_equilibrium() {
     let settings = RelaxSettings::new()
         .with_tolerance(tolerance, 200_000)
         .with_chebyshev(0.999, 2.0, 0);
-    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(nv)], vec![0.0; nv]);
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
     let mut x_relax = rest.clone();
     let relax = relax_quasi_static(
@@ -897,8 +895,8 @@ fn quasi_static_cantilever_reaches_the_relaxations_equilibrium() {
     .unwrap();
 
     let settings = VbdSettings::new().with_tolerance(tolerance, 20_000);
-    let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
-    let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
+    let mut vectors = vec![Vec3::ZERO; scratch_len::vbd(nv)];
+    let mut indices = vec![0; scratch_len::vbd_indices(nv, nt)];
     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
     let mut x_vbd = rest.clone();
     let vbd = vbd_quasi_static(
@@ -1077,7 +1075,7 @@ mod measure {
             StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap(),
         );
         let gravity = Vec3::new(0.0, 0.0, -9.81);
-        let ground = Ground::new(Vec3::Z, 0.0).with_friction(0.6);
+        let ground = HalfSpace::new(Vec3::Z, 0.0).with_friction(0.6);
         let (dt, tolerance, steps) = (1.0 / 60.0, 2e-3, 180);
         let title = format!("bouncy cube {nt} tets 1/60 s f32");
 
@@ -1089,7 +1087,7 @@ mod measure {
         let mut solvers: Vec<Solver<'_>> = Vec::new();
         {
             let (mut vectors, mut scalars) =
-                (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+                (vec![Vec3::ZERO; scratch_len::relax(nv)], vec![0.0; nv]);
             let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; nv]);
             solvers.push((
                 "GD+Chebyshev 0.995".into(),
@@ -1123,8 +1121,8 @@ mod measure {
             ));
         }
         for (name, vbd) in variants(VbdSettings::new().with_tolerance(tolerance, 300)) {
-            let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
-            let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
+            let mut vectors = vec![Vec3::ZERO; scratch_len::vbd(nv)];
+            let mut indices = vec![0; scratch_len::vbd_indices(nv, nt)];
             let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; nv]);
             solvers.push((
                 format!("VBD {name}"),
@@ -1294,7 +1292,7 @@ mod measure {
         let mut solvers: Vec<Solver<'_>> = Vec::new();
         {
             let (mut vectors, mut scalars) =
-                (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+                (vec![Vec3::ZERO; scratch_len::relax(nv)], vec![0.0; nv]);
             let (mut x, mut v) = (start_x.clone(), vec![Vec3::ZERO; nv]);
             solvers.push((
                 "GD+Chebyshev 0.995".into(),
@@ -1331,8 +1329,8 @@ mod measure {
             ));
         }
         for (name, vbd) in variants(VbdSettings::new().with_tolerance(tolerance, 500)) {
-            let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
-            let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
+            let mut vectors = vec![Vec3::ZERO; scratch_len::vbd(nv)];
+            let mut indices = vec![0; scratch_len::vbd_indices(nv, nt)];
             let (mut x, mut v) = (start_x.clone(), vec![Vec3::ZERO; nv]);
             solvers.push((
                 format!("VBD {name}"),
@@ -1421,10 +1419,10 @@ mod measure {
             ("no line search", plain, false),
             ("no line search, packed layout", plain, true),
         ] {
-            let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
-            let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
-            let mut values = vec![0.0; vbd_layout_len(nt)];
-            let mut corners = vec![0; vbd_layout_corners_len(nv, nt)];
+            let mut vectors = vec![Vec3::ZERO; scratch_len::vbd(nv)];
+            let mut indices = vec![0; scratch_len::vbd_indices(nv, nt)];
+            let mut values = vec![0.0; scratch_len::vbd_layout(nt)];
+            let mut corners = vec![0; scratch_len::vbd_layout_corners(nv, nt)];
             let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
             if packed {
                 scratch = scratch.with_layout(&mut values, &mut corners);
@@ -1531,8 +1529,8 @@ fn landing_step_matches_the_relaxation_with_contact_and_friction() {
     use softfem::f64::material::StableNeoHookean;
     use softfem::f64::mesh::TetMesh;
     use softfem::f64::step::{
-        Ground, RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings,
-        relax_scratch_len, relax_step, vbd_index_scratch_len, vbd_scratch_len, vbd_step,
+        HalfSpace, RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings,
+        relax_step, scratch_len, vbd_step,
     };
     use softfem::glam::DVec3 as Vec3;
     let (nv, nt) = box_counts(2, 2, 2, BoxSplit::Kuhn6).unwrap();
@@ -1548,7 +1546,7 @@ fn landing_step_matches_the_relaxation_with_contact_and_friction() {
         StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap(),
     );
     let gravity = Vec3::new(0.0, 0.0, -9.81);
-    let ground = Ground::new(Vec3::Z, 0.0).with_friction(0.6);
+    let ground = HalfSpace::new(Vec3::Z, 0.0).with_friction(0.6);
     let (h, tolerance) = (1.0 / 60.0, 1e-9);
     let v0 = vec![Vec3::new(0.3, 0.0, -0.5); nv];
 
@@ -1556,7 +1554,7 @@ fn landing_step_matches_the_relaxation_with_contact_and_friction() {
     let settings = RelaxSettings::new()
         .with_tolerance(tolerance, 100_000)
         .with_chebyshev(0.995, 2.0, 0);
-    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; relax_scratch_len(nv)], vec![0.0; nv]);
+    let (mut vectors, mut scalars) = (vec![Vec3::ZERO; scratch_len::relax(nv)], vec![0.0; nv]);
     let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
     let (mut x_relax, mut v_relax) = (rest.clone(), v0.clone());
     let relax = relax_step(
@@ -1572,8 +1570,8 @@ fn landing_step_matches_the_relaxation_with_contact_and_friction() {
     .unwrap();
 
     let settings = VbdSettings::new().with_tolerance(tolerance, 10_000);
-    let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(nv)];
-    let mut indices = vec![0; vbd_index_scratch_len(nv, nt)];
+    let mut vectors = vec![Vec3::ZERO; scratch_len::vbd(nv)];
+    let mut indices = vec![0; scratch_len::vbd_indices(nv, nt)];
     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
     let (mut x_vbd, mut v_vbd) = (rest.clone(), v0.clone());
     let vbd = vbd_step(
@@ -1631,10 +1629,7 @@ fn a_failed_step_restores_the_state() {
     use softfem::glam::Vec3;
     use softfem::material::StVK;
     use softfem::mesh::TetMesh;
-    use softfem::step::{
-        Scene, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_scratch_len,
-        vbd_step,
-    };
+    use softfem::step::{Scene, TetElastic, VbdScratch, VbdSettings, scratch_len, vbd_step};
     let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z].map(|p| p * 0.1);
     let tets = [[0, 1, 2, 3]];
     let mut rest_data = [TetRest::default(); 1];
@@ -1645,8 +1640,8 @@ fn a_failed_step_restores_the_state() {
     let stretched = rest.map(|p| p * 1e12);
     let velocities = [Vec3::new(0.1, 0.2, 0.3); 4];
     let (mut x, mut v) = (stretched, velocities);
-    let mut vectors = [Vec3::splat(7.0); vbd_scratch_len(4)];
-    let mut indices = [3; vbd_index_scratch_len(4, 1)];
+    let mut vectors = [Vec3::splat(7.0); scratch_len::vbd(4)];
+    let mut indices = [3; scratch_len::vbd_indices(4, 1)];
     let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
     let scene = Scene::new(0.01).with_gravity(Vec3::new(0.0, 0.0, -9.81));
     let settings = VbdSettings::new();

@@ -3,7 +3,7 @@
 //! angular velocity), with restitution and Coulomb friction relative to the collider's surface
 //! velocity.
 //!
-//! Every stepper treats a collider as it treats the [`Ground`](super::super::Ground): a vertex
+//! Every stepper treats a collider as it treats the [`HalfSpace`](super::super::HalfSpace): a vertex
 //! found inside is projected onto the surface along the outward normal (the gradient of the signed
 //! distance), the implicit solvers project every iterate onto the admissible set and drop the
 //! gradient and direction components into the surface at the vertices in contact. Friction acts on
@@ -138,7 +138,7 @@ impl PartialEq for Shape<'_> {
 ///   between steps move it with [`advanced`](Self::advanced). A static collider has zero
 ///   velocities.
 /// * Contact: restitution `e` in `[0, 1]` and Coulomb friction `>= 0`, exactly as the
-///   [`Ground`](super::super::Ground)'s, applied to the velocity relative to the collider's
+///   [`HalfSpace`](super::super::HalfSpace)'s, applied to the velocity relative to the collider's
 ///   surface. Restitution is applied by the explicit stepper only (implicit Euler dissipates the
 ///   normal velocity at an impact).
 /// * Several colliders are resolved one after the other in slice order (a vertex pushed out of
@@ -178,7 +178,7 @@ pub struct Collider<'a> {
     pub friction: Real,
     /// The implicit solvers' sticking speed `eps_v` (m/s, finite `>= 0`; default 0: friction on
     /// the velocity after the solve; positive: friction in the step's objective), as the
-    /// [`Ground`](super::super::Ground)'s [`sticking_speed`](super::super::Ground::sticking_speed),
+    /// [`HalfSpace`](super::super::HalfSpace)'s [`sticking_speed`](super::super::HalfSpace::sticking_speed),
     /// relative to the collider's surface velocity.
     pub sticking_speed: Real,
 }
@@ -343,7 +343,7 @@ impl<'a> Collider<'a> {
     }
 
     /// This collider with the implicit solvers' sticking speed `sticking_speed` (m/s, finite
-    /// `>= 0`; see [`Ground::sticking_speed`](super::super::Ground::sticking_speed)).
+    /// `>= 0`; see [`HalfSpace::sticking_speed`](super::super::HalfSpace::sticking_speed)).
     #[inline]
     #[must_use]
     pub fn with_sticking_speed(self, sticking_speed: Real) -> Self {
@@ -844,7 +844,7 @@ fn coulomb(tangential: Vec3, reduction: Real) -> Vec3 {
 /// The explicit stepper's contact response at one vertex: pushed out of every collider it is
 /// inside, in order, and for each the velocity relative to the surface gets restitution (for
 /// approaches faster than `resting_speed`, m/s) and Coulomb friction as at the ground, whose
-/// tangential change also corrects the substep's move `h v` (`h` in s, see `Ground::resolve`).
+/// tangential change also corrects the substep's move `h v` (`h` in s, see `HalfSpace::resolve`).
 /// Returns the number of colliders the vertex was inside.
 #[inline]
 pub(crate) fn resolve(

@@ -7,7 +7,7 @@
 use super::super::super::lanes::Lane;
 use super::super::super::types::{Real, Vec3};
 use super::super::vertex_pass::point::{Grouped, Point};
-use super::Ground;
+use super::HalfSpace;
 use super::collider::Colliders;
 
 /// The ground and the colliders as seen by [`Point`]s (or neither): contact tests and
@@ -39,7 +39,7 @@ const CONTACT_EPS: Real = 16.0 * Real::EPSILON;
 impl<'a, P: Point> Floor<'a, P> {
     /// `ground` (with a unit normal) for points of type `P`, no colliders.
     #[inline(always)]
-    pub fn new(ground: Option<&Ground<P::Vector>>) -> Self {
+    pub fn new(ground: Option<&HalfSpace<P::Vector>>) -> Self {
         Floor {
             plane: ground.map(|g| (P::splat(g.normal), P::Scalar::splat(g.offset))),
             slack: P::Scalar::splat(ground.map_or(0.0, |g| CONTACT_EPS * g.offset.abs())),
@@ -253,7 +253,7 @@ mod tests {
     use super::super::super::super::lanes::{LANES, Lane, LaneVec3, Lanes};
     use super::super::super::super::types::{Real, Vec3};
     use super::super::super::vertex_pass::point::Grouped;
-    use super::super::Ground;
+    use super::super::HalfSpace;
     use super::Floor;
 
     /// The contact test holds at equality: a vertex exactly at the origin, on a ground plane
@@ -261,7 +261,7 @@ mod tests {
     /// lane); just above the tolerance it is not, and a NaN position never is.
     #[test]
     fn contact_holds_at_equality_in_every_representation() {
-        let ground = Ground::new(Vec3::Z, 0.0);
+        let ground = HalfSpace::new(Vec3::Z, 0.0);
         let one = Floor::<Vec3>::new(Some(&ground));
         let lanes = Floor::<LaneVec3<Lanes>>::new(Some(&ground));
         let above = Vec3::new(1.0, 0.0, 1e-3);
@@ -300,7 +300,7 @@ mod tests {
     fn one_touch_constrains_as_a_query_per_constraint() {
         use super::super::super::super::types::Quat;
         use super::super::collider::{Collider, Colliders};
-        let ground = Ground::new(Vec3::Z, -0.5);
+        let ground = HalfSpace::new(Vec3::Z, -0.5);
         let list = [
             Collider::sphere(Vec3::new(0.0, 0.0, 1.0), 0.5),
             Collider::capsule(Vec3::new(-1.0, 1.0, 0.0), Vec3::new(1.0, 1.0, 0.5), 0.25),

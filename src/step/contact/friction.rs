@@ -11,7 +11,7 @@
 //! and `lambda` are lagged to the iterate a line search starts from and re-lagged to every
 //! accepted point (`descent/objective.rs`), and `f0` is the C1 smoothing of `|u|` with
 //! the threshold `eps = eps_v h` (m), `eps_v` the contact's
-//! [`sticking_speed`](super::super::Ground::sticking_speed) (m/s):
+//! [`sticking_speed`](super::super::HalfSpace::sticking_speed) (m/s):
 //!
 //! * `f0(y) = y^2 / eps - y^3 / (3 eps^2)` for `y < eps`, `y - eps / 3` beyond (so `f0(0) = 0`),
 //! * `f1(y) = f0'(y) = 2 y / eps - y^2 / eps^2` for `y < eps`, `1` beyond.
@@ -35,9 +35,9 @@ use super::super::super::types::{Mat3, Real, Vec3};
 use super::super::vertex_pass::point::Grouped;
 use super::collider::{Collider, Colliders};
 use super::floor::Floor;
-use super::{Contact, Ground};
+use super::{Contact, HalfSpace};
 
-/// A [`sticking_speed`](super::super::Ground::sticking_speed) `eps_v` to start from (m/s): a stuck
+/// A [`sticking_speed`](super::super::HalfSpace::sticking_speed) `eps_v` to start from (m/s): a stuck
 /// contact creeps at most this fast (IPC's default, 1 mm/s). Friction in the implicit
 /// objective is opt-in: the default sticking speed is 0 (Coulomb's law on the velocity after
 /// the solve, which lets a loaded contact creep, see the field's documentation).
@@ -45,7 +45,7 @@ pub const SUGGESTED_STICKING_SPEED: Real = 1e-3;
 
 /// Whether a contact with Coulomb coefficient `friction` and sticking speed `sticking_speed`
 /// (m/s) has its friction in the implicit objective (both positive) rather than on the velocity
-/// after the solve: the one test behind `Ground`'s, `Collider`'s and [`Contact`]'s.
+/// after the solve: the one test behind `HalfSpace`'s, `Collider`'s and [`Contact`]'s.
 #[inline(always)]
 pub(crate) fn in_objective(friction: Real, sticking_speed: Real) -> bool {
     friction > 0.0 && sticking_speed > 0.0
@@ -187,7 +187,7 @@ pub(crate) fn normal_force<V: Vector>(normal: V, gradient: V) -> Real {
 #[derive(Clone, Copy)]
 pub(crate) struct Friction<'a, V: Grouped> {
     floor: Floor<'a, V>,
-    ground: Option<Ground<V>>,
+    ground: Option<HalfSpace<V>>,
     h: Real,
     active: bool,
 }
@@ -204,8 +204,8 @@ impl<V: Grouped> Friction<'_, V> {
 impl<'a, V: Grouped + Vector> Friction<'a, V> {
     /// The friction of a step of `h` (0 for the quasi-static mode, which has none) on `ground`
     /// (unit normal) and the validated `colliders`, both in the solve's coordinates.
-    pub fn new(ground: Option<&Ground<V>>, colliders: Colliders<'a>, h: Real) -> Self {
-        let rough_ground = ground.is_some_and(Ground::friction_in_objective);
+    pub fn new(ground: Option<&HalfSpace<V>>, colliders: Colliders<'a>, h: Real) -> Self {
+        let rough_ground = ground.is_some_and(HalfSpace::friction_in_objective);
         let rough_collider = colliders.iter().any(Collider::friction_in_objective);
         Friction {
             floor: Floor::new(ground).with_colliders(colliders),

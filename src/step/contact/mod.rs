@@ -1,4 +1,4 @@
-//! What a body touches and how contact acts on it: the [`Ground`] half-space
+//! What a body touches and how contact acts on it: the [`HalfSpace`] half-space
 //! (`step/contact/ground.rs`), rigid [`Collider`]s (`step/contact/collider.rs`), the projection of
 //! vertices and directions onto the admissible set that every stepper shares (`floor.rs`), Coulomb
 //! friction inside the implicit objective (`step/contact/friction.rs`), and the one record of a
@@ -7,13 +7,13 @@
 pub(crate) mod collider;
 pub(crate) mod floor;
 pub(crate) mod friction;
-pub(crate) mod ground;
+pub(crate) mod half_space;
 
 use super::super::types::Real;
 
 pub use collider::{Collider, Shape, SignedDistance};
 pub use friction::SUGGESTED_STICKING_SPEED;
-pub use ground::Ground;
+pub use half_space::HalfSpace;
 
 /// What friction needs of one contact at a vertex.
 #[derive(Clone, Copy, Debug)]

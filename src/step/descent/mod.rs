@@ -51,7 +51,7 @@ use core::mem::swap;
 
 use super::super::element::Vector;
 use super::super::types::Real;
-use super::contact::Ground;
+use super::contact::HalfSpace;
 use super::contact::collider::{Collider, Colliders};
 use super::contact::floor::Floor;
 use super::contact::friction::{Friction, Lag};
@@ -249,7 +249,7 @@ pub(crate) struct Problem<'p, F: ElasticEnergy> {
     pub stiffness: &'p [Real],
     pub gravity: F::Vector,
     /// The ground, with a unit normal.
-    pub ground: Option<Ground<F::Vector>>,
+    pub ground: Option<HalfSpace<F::Vector>>,
     /// The validated colliders (empty for none).
     pub colliders: &'p [Collider<'p>],
     pub loads: Loads<'p, F::Vector>,
@@ -269,7 +269,7 @@ impl<'p, F: ElasticEnergy> Problem<'p, F> {
         (model, masses, pinned): (&'p F, &'p [Real], &'p [bool]),
         stiffness: &'p [Real],
         scene: &'p Scene<'p, F::Vector>,
-        ground: Option<Ground<F::Vector>>,
+        ground: Option<HalfSpace<F::Vector>>,
         previous_velocities: Option<&'p [F::Vector]>,
         dynamic: bool,
     ) -> Self {
@@ -306,7 +306,7 @@ impl<'p, F: ElasticEnergy> Problem<'p, F> {
         &self,
         start: &'o [F::Vector],
         velocities: &'o [F::Vector],
-        ground: Option<&'o Ground<F::Vector>>,
+        ground: Option<&'o HalfSpace<F::Vector>>,
         colliders: Colliders<'o>,
     ) -> Objective<'o, F>
     where
@@ -340,7 +340,7 @@ impl<'p, F: ElasticEnergy> Problem<'p, F> {
 /// What a solver's entry checks ([`checked_solve`]) hand on to the solve.
 pub(crate) struct Checked<'s, V> {
     /// The scene's ground, with a unit normal.
-    pub ground: Option<Ground<V>>,
+    pub ground: Option<HalfSpace<V>>,
     /// The scene's previous velocities, checked, when the step has inertia and gives them.
     pub previous: Option<&'s [V]>,
     /// Whether the solve has inertia (an implicit Euler step) or not (quasi-static).
@@ -404,7 +404,7 @@ pub(crate) fn checked_solve<'s, V: Vector>(
 pub(crate) fn validated_scene<V: Vector>(
     scene: &Scene<'_, V>,
     dynamic: bool,
-) -> Result<Option<Ground<V>>, StepError> {
+) -> Result<Option<HalfSpace<V>>, StepError> {
     if dynamic {
         scene.validated()
     } else {
@@ -596,7 +596,7 @@ pub(crate) fn solve<F: ElasticEnergy, D: Direction<F>>(
         copy(positions, start);
         translate(positions, origin);
     };
-    let ground = problem.ground.map(|g| Ground {
+    let ground = problem.ground.map(|g| HalfSpace {
         offset: g.offset - g.normal.dot(origin),
         ..g
     });
@@ -664,7 +664,7 @@ pub(crate) fn solve<F: ElasticEnergy, D: Direction<F>>(
 /// each buffer.
 struct Finish<'f, V: Grouped> {
     /// The ground of the solve (shifted), with a unit normal.
-    ground: Option<&'f Ground<V>>,
+    ground: Option<&'f HalfSpace<V>>,
     /// The ground and colliders of the solve (shifted).
     floor: &'f Floor<'f, V>,
     /// `h` (s; unused in the quasi-static mode).
@@ -767,7 +767,7 @@ impl<V: Vector + Send + Sync> Finish<'_, V> {
 
 /// Whether the ground or a collider applies Coulomb friction to the velocity after the solve
 /// (friction with a zero sticking speed, see `implicit_velocities`).
-fn velocity_friction<V: Vector>(ground: Option<&Ground<V>>, colliders: Colliders<'_>) -> bool {
+fn velocity_friction<V: Vector>(ground: Option<&HalfSpace<V>>, colliders: Colliders<'_>) -> bool {
     let at_velocity =
         |friction: Real, sticking_speed: Real| friction > 0.0 && sticking_speed <= 0.0;
     ground.is_some_and(|g| at_velocity(g.friction, g.sticking_speed))
@@ -1145,12 +1145,16 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
     /// # Errors
     /// The model's and the direction's.
     fn run(&mut self) -> Result<(), StepError> {
-        while self.stopping.unmet(self.report.residual) && self.report.iterations < self.settings.max_iterations
+        while self.stopping.unmet(self.report.residual)
+            && self.report.iterations < self.settings.max_iterations
         {
             // Deferred trials count in the stall window as iterations without progress: the
             // window stays one of sweeps, its progress seen at the evaluated ones.
             let floor = self.rule.rounding_floor();
-            if self.stopping.stalled_before(self.report.iterations, self.report.residual, floor) {
+            if self
+                .stopping
+                .stalled_before(self.report.iterations, self.report.residual, floor)
+            {
                 break;
             }
             let omega = self.weight();
@@ -1172,8 +1176,7 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
         let omega = self
             .acceleration
             .next_weight(self.report.iterations, self.report.residual);
-        if omega > 1.0 && !self.rule.accelerates_with_friction() && self.lag_moved > LAG_SETTLED
-        {
+        if omega > 1.0 && !self.rule.accelerates_with_friction() && self.lag_moved > LAG_SETTLED {
             // The semi-iteration's weights assume one fixed linear iteration; friction's stiff
             // tangent springs and its re-lagging at every accepted point break that for VBD's
             // sweeps while the contact forces still change (measured: the bouncy drop, ground
@@ -1286,7 +1289,10 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
         // recurrence with rho > 0), friction is off (deferral needs it off, so `lag_moved` is
         // 0) and the next pass takes the accelerated branch again: a plain step never sees a
         // deferred iterate. Every debug-build test that runs accelerated descent checks it.
-        debug_assert_eq!(self.deferred, 0, "a plain descent step on a deferred iterate");
+        debug_assert_eq!(
+            self.deferred, 0,
+            "a plain descent step on a deferred iterate"
+        );
         let slope = self.search()?;
         if !downhill(slope) {
             if self.rule.fall_back() {
@@ -1311,7 +1317,10 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
         let previous = self.report.residual;
         self.take(evaluation);
         let floor = self.rule.rounding_floor();
-        if self.stopping.stalled_after(previous, self.report.residual, floor) {
+        if self
+            .stopping
+            .stalled_after(previous, self.report.residual, floor)
+        {
             return Ok(Flow::Stop);
         }
         Ok(Flow::Next)
@@ -1465,7 +1474,9 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
         let rounding_floor = self.rule.rounding_floor();
         let summary = Summary {
             rounding_floor,
-            converged: self.stopping.converged(self.report.residual, rounding_floor),
+            converged: self
+                .stopping
+                .converged(self.report.residual, rounding_floor),
             stagnated: self.stopping.stagnated,
             rho: self.acceleration.rho(),
             ..self.report

@@ -11,7 +11,7 @@
 use super::super::super::element::Vector;
 use super::super::super::math;
 use super::super::super::types::Real;
-use super::super::contact::Ground;
+use super::super::contact::HalfSpace;
 use super::super::contact::floor::Floor;
 use super::super::contact::friction::{Friction, Lag};
 use super::super::loads::Loads;
@@ -440,7 +440,7 @@ pub(crate) struct Evaluation {
 /// (the caller's).
 #[inline(always)]
 pub(crate) fn implicit_velocity<V: Vector>(
-    ground: Option<&Ground<V>>,
+    ground: Option<&HalfSpace<V>>,
     floor: &Floor<V>,
     (h, m): (Real, Real),
     (x, x0, g): (V, V, V),

@@ -5,6 +5,7 @@
 //! the [`Scene`](super::super::Scene).
 
 use super::super::super::types::Real;
+use super::stopping::FLOOR_FACTOR;
 
 /// The settings of an implicit solver: the relative tolerance, the iteration budget and the
 /// backtracking line search that every solver here shares, and `options`, what only one
@@ -104,12 +105,12 @@ pub struct DescentReport<D> {
     /// `Phi` (J) at the result, with the gravity potential measured from the start positions.
     pub phi: Real,
     /// Whether the solve converged: the residual reached [`target`](Self::target) (Newton's
-    /// method also counts a stall within [`FLOOR_FACTOR`](super::super::FLOOR_FACTOR) times the
+    /// method also counts a stall within [`FLOOR_FACTOR`](Self::FLOOR_FACTOR) times the
     /// rounding floor, see [`newton_step`](super::super::newton_step)).
     pub converged: bool,
     /// Whether the solve stopped because the residual stopped falling: its best value fell by
     /// less than 1 % over the last 100 iterations while within
-    /// [`FLOOR_FACTOR`](super::super::FLOOR_FACTOR) times the rounding floor (the answer is as
+    /// [`FLOOR_FACTOR`](Self::FLOOR_FACTOR) times the rounding floor (the answer is as
     /// good as the precision allows), or did not fall at all over 1000 iterations (a plateau
     /// above the estimated floor). Either way the budget is not burnt.
     pub stagnated: bool,
@@ -121,6 +122,11 @@ pub struct DescentReport<D> {
 }
 
 impl<D> DescentReport<D> {
+    /// How close to the estimated rounding floor a stalled solve must be to count as converged:
+    /// a residual of at most `FLOOR_FACTOR` times [`rounding_floor`](Self::rounding_floor)
+    /// (4). Name it through a solver's report, e.g. `NewtonReport::FLOOR_FACTOR`.
+    pub const FLOOR_FACTOR: Real = FLOOR_FACTOR;
+
     /// This report with `details` in place of its own (the descent loop's report, whose details
     /// are `()`, with a solver's).
     #[inline]

@@ -3,15 +3,15 @@
 //! best residual for the first-order directions, whose residual is not monotone under
 //! acceleration; "two steps in a row that do not halve it" for Newton's method).
 
-use super::super::super::math;
 use super::super::super::element::Vector;
+use super::super::super::math;
 use super::super::super::types::Real;
 use super::super::state::length;
 
 /// A solve whose residual stagnated counts as converged when the residual is at most this
 /// many times the estimated rounding floor
 /// ([`DescentReport::rounding_floor`](super::super::DescentReport::rounding_floor)).
-pub const FLOOR_FACTOR: Real = 4.0;
+pub(crate) const FLOOR_FACTOR: Real = 4.0;
 
 /// Whether `residual` meets `target`. Never for an overflowed (infinite) or NaN residual or
 /// target: a measure that overflowed says nothing about convergence.

@@ -19,6 +19,7 @@ use super::super::super::element::TetHessian;
 use super::super::super::math;
 use super::super::super::types::{Real, Vec3};
 use super::super::model::ElasticHessian;
+use super::super::scratch_len;
 use super::super::state::{check_length, pinned_flags};
 use crate::error::{StepBuffer, StepError};
 
@@ -26,14 +27,6 @@ use crate::error::{StepBuffer, StepError};
 /// takes: `0.9`, room for the power iteration's shortfall (it approaches `omega_max` from
 /// below) and for stiffening under deformation.
 pub(crate) const FREQUENCY_MARGIN: Real = 0.9;
-
-/// The vector scratch [`estimate_max_frequency`] needs: `2 * vertex_count` (the iterate and
-/// its product).
-#[inline]
-#[must_use]
-pub const fn frequency_scratch_len(vertex_count: usize) -> usize {
-    2 * vertex_count
-}
 
 /// What [`estimate_max_frequency`] found.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -72,7 +65,7 @@ impl FrequencyEstimate {
 /// rest shape) with lumped `masses` (kg) and `pinned` vertices removed: at most
 /// `max_iterations` power iterations, stopping once `omega^2` changes by at most `tolerance`
 /// (relative) in one iteration. `hessians` ([`ElasticHessian::element_count`] entries) receives
-/// the projected Hessian at `positions`; `vectors` is scratch of [`frequency_scratch_len`].
+/// the projected Hessian at `positions`; `vectors` is scratch of [`scratch_len::frequency`].
 /// Deterministic: the start vector is a fixed pseudo-random pattern.
 ///
 /// ```
@@ -80,7 +73,8 @@ impl FrequencyEstimate {
 /// use softfem::glam::Vec3;
 /// use softfem::material::StableNeoHookean;
 /// use softfem::mesh::TetMesh;
-/// use softfem::step::explicit::{estimate_max_frequency, frequency_scratch_len};
+/// use softfem::step::explicit::estimate_max_frequency;
+/// use softfem::step::scratch_len;
 /// use softfem::step::{TetElastic, stable_time_step};
 ///
 /// let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z].map(|x| x * 0.1);
@@ -90,7 +84,7 @@ impl FrequencyEstimate {
 /// let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e5, 0.3)?);
 /// let mut masses = [0.0; 4];
 /// mesh.lumped_masses(1000.0, &mut masses)?;
-/// let (mut hessians, mut vectors) = ([TetHessian::default(); 1], [Vec3::ZERO; frequency_scratch_len(4)]);
+/// let (mut hessians, mut vectors) = ([TetHessian::default(); 1], [Vec3::ZERO; scratch_len::frequency(4)]);
 /// let estimate = estimate_max_frequency(&body, &masses, &[], &rest, (200, 1e-6), &mut hessians, &mut vectors)?;
 /// let proven = stable_time_step(&body, &masses, &[], &mut [0.0; 4])?;
 /// assert!(estimate.time_step_with_margin(1.0) >= proven);
@@ -116,7 +110,11 @@ pub fn estimate_max_frequency<F: ElasticHessian>(
         check_length(StepBuffer::Pinned, n, pinned.len())?;
     }
     check_length(StepBuffer::Positions, n, positions.len())?;
-    check_length(StepBuffer::Scratch, frequency_scratch_len(n), vectors.len())?;
+    check_length(
+        StepBuffer::Scratch,
+        scratch_len::frequency(n),
+        vectors.len(),
+    )?;
     check_length(
         StepBuffer::HessianScratch,
         model.element_count(),

@@ -18,17 +18,18 @@ use super::super::lanes::avx2::Avx2Lanes;
 use super::super::lanes::avx512::Avx512Lanes;
 use super::super::lanes::{LaneArray, Lanes};
 use super::super::types::Real;
-use super::contact::Ground;
+use super::contact::HalfSpace;
 use super::descent::line_search::copy;
 use super::model::ElasticModel;
 use super::scene::Scene;
+use super::scratch_len;
 use super::state::{check_length, pinned_flags};
 use super::vertex_pass::Blocks;
 use super::vertex_pass::passes::{free_lanes, load_scalars, split_check_state};
 use super::vertex_pass::point::Wide;
 use crate::error::{MeshError, StepBuffer, StepError};
 use crate::simd::{WidthKernel, dispatch};
-pub use frequency::{FrequencyEstimate, estimate_max_frequency, frequency_scratch_len};
+pub use frequency::{FrequencyEstimate, estimate_max_frequency};
 pub use stability::{element_stable_time_step, linearised_moduli, stable_time_step};
 
 /// The default [`ExplicitSettings::max_energy_growth`]: 100.
@@ -44,17 +45,6 @@ pub(crate) const DEFAULT_ENERGY_GROWTH: Real = 100.0;
 /// [`StepError::Substeps`] before anything runs (a call of `u32::MAX` substeps would otherwise
 /// run for hours without a chance to stop it); take several calls instead.
 pub(crate) const MAX_SUBSTEPS: u32 = 1 << 16;
-
-/// The length of the scratch buffer [`explicit_step`] needs for `vertex_count` vertices:
-/// `4 * vertex_count` (the forces of this substep and of the one before, for the blow-up
-/// detector, and a backup of the positions and velocities). Saturates at `usize::MAX` for
-/// counts whose product does not fit (no such buffer can exist, so the stepper's length check
-/// then refuses any buffer given).
-#[inline]
-#[must_use]
-pub const fn explicit_scratch_len(vertex_count: usize) -> usize {
-    vertex_count.saturating_mul(4)
-}
 
 /// The growth factor of the early blow-up test: a substep whose elastic forces `f_n` satisfy
 /// `<f_n, f_(n-1)> < -FLIP_GROWTH |f_(n-1)|^2` (mass-weighted: reversed and at least this much
@@ -149,7 +139,7 @@ impl ExplicitSettings {
 }
 
 /// Scratch space of [`explicit_step`] over a caller buffer of
-/// [`explicit_scratch_len`]`(vertex_count)` vectors, and the blow-up detector's memory of the
+/// [`scratch_len::explicit`]`(vertex_count)` vectors, and the blow-up detector's memory of the
 /// last substeps.
 ///
 /// Keep one per body across calls: the detector compares each substep with the ones before,
@@ -269,7 +259,7 @@ pub struct ExplicitReport {
 /// 1. `f = ` the elastic forces of `model` at `x` (N);
 /// 2. `v <- (v + h (f / m + g)) / (1 + c h)` (gravity `g`, damping `c`);
 /// 3. `x <- x + h v`;
-/// 4. contact with the scene's ground ([`Ground`]) and colliders: projection, restitution,
+/// 4. contact with the scene's ground ([`HalfSpace`]) and colliders: projection, restitution,
 ///    friction.
 ///
 /// Pinned vertices (`pinned[i]`; an empty slice pins nothing) keep their position and velocity
@@ -315,7 +305,7 @@ pub struct ExplicitReport {
 /// use softfem::material::StableNeoHookean;
 /// use softfem::mesh::TetMesh;
 /// use softfem::step::{
-///     ExplicitScratch, ExplicitSettings, Ground, Scene, TetElastic, explicit_scratch_len,
+///     ExplicitScratch, ExplicitSettings, HalfSpace, Scene, TetElastic, scratch_len,
 ///     explicit_step, stable_time_step,
 /// };
 ///
@@ -332,10 +322,10 @@ pub struct ExplicitReport {
 /// let dt = 0.5 * stable_time_step(&body, &masses, &[], &mut stiffness)?;
 /// let scene = Scene::new(dt)
 ///     .with_gravity(Vec3::new(0.0, -9.81, 0.0))
-///     .with_ground(Ground::new(Vec3::Y, 0.0).with_friction(0.5));
+///     .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5));
 /// let settings = ExplicitSettings::new().with_damping(5.0);
 /// let (mut x, mut v) = (rest, [Vec3::ZERO; 4]);
-/// let mut buffer = [Vec3::ZERO; explicit_scratch_len(4)];
+/// let mut buffer = [Vec3::ZERO; scratch_len::explicit(4)];
 /// let mut scratch = ExplicitScratch::new(&mut buffer);
 /// for _ in 0..(0.5 / dt) as usize {
 ///     explicit_step(&body, &masses, &[], &scene, &settings, &mut x, &mut v, &mut scratch)?;
@@ -373,7 +363,7 @@ pub fn explicit_step<F: ElasticModel>(
     scene.loads().check(n)?;
     check_length(
         StepBuffer::Scratch,
-        explicit_scratch_len(n),
+        scratch_len::explicit(n),
         scratch.buffer.len(),
     )?;
     let (first_forces, rest) = scratch.buffer.split_at_mut_checked(n).unwrap_or_default();
@@ -442,7 +432,7 @@ fn substep<F: ElasticModel>(
     masses: &[Real],
     pinned: &[bool],
     (scene, settings): (&Scene<'_, F::Vector>, &ExplicitSettings),
-    ground: Option<&Ground<F::Vector>>,
+    ground: Option<&HalfSpace<F::Vector>>,
     h: Real,
     positions: &mut [F::Vector],
     velocities: &mut [F::Vector],
@@ -523,7 +513,7 @@ struct Update<'s, 'a, V: Vector> {
     scene: &'s Scene<'a, V>,
     /// The settings' damping (1/s).
     damping: Real,
-    ground: Option<&'s Ground<V>>,
+    ground: Option<&'s HalfSpace<V>>,
     h: Real,
     gravity_squared: Real,
 }

@@ -14,7 +14,7 @@ use super::super::super::lanes::avx512::Avx512Lanes;
 use super::super::super::lanes::{LANES, Lane, LaneArray, LaneSum, Lanes, MAX_WIDTH};
 use super::super::super::math::BATCH_VERTICES;
 use super::super::super::types::Real;
-use super::super::contact::Ground;
+use super::super::contact::HalfSpace;
 use super::super::contact::collider::Colliders;
 use super::super::contact::floor::Floor;
 use super::super::contact::friction::Friction;
@@ -39,7 +39,12 @@ struct Frame<'a, P: Point> {
 
 impl<P: Point> Frame<'_, P> {
     #[inline(always)]
-    fn new(h: Real, inertia: Real, gravity: P::Vector, ground: Option<&Ground<P::Vector>>) -> Self {
+    fn new(
+        h: Real,
+        inertia: Real,
+        gravity: P::Vector,
+        ground: Option<&HalfSpace<P::Vector>>,
+    ) -> Self {
         Frame {
             h: P::Scalar::splat(h),
             inertia: P::Scalar::splat(inertia),
@@ -126,7 +131,7 @@ pub(crate) struct Frames<'a, V: Grouped> {
 impl<'a, V: Grouped> Frames<'a, V> {
     /// The frames of a solve: time step `h` and `inertia = 1 / h^2` (both 0 without inertia),
     /// `gravity`, and `ground` with a unit normal.
-    pub fn new(h: Real, inertia: Real, gravity: V, ground: Option<&Ground<V>>) -> Self {
+    pub fn new(h: Real, inertia: Real, gravity: V, ground: Option<&HalfSpace<V>>) -> Self {
         Frames {
             single: Frame::new(h, inertia, gravity, ground),
             friction: None,
@@ -1012,7 +1017,7 @@ mod tests {
     use std::vec::Vec;
 
     use super::super::super::super::types::{Real, Vec2, Vec3};
-    use super::super::super::contact::Ground;
+    use super::super::super::contact::HalfSpace;
     use super::super::super::contact::collider::Colliders;
     use super::super::super::contact::friction::Friction;
     use super::super::point::{Grouped, Point};
@@ -1031,7 +1036,9 @@ mod tests {
     /// 4 and a tail; `n = 61` on AVX-512 in f32 three groups of 16, one of 8, one of 4 and a
     /// tail), against the one-vertex arithmetic applied to each vertex alone: the same bits,
     /// and sums in the documented order.
-    fn passes_match_one_vertex_at_a_time<V: Grouped + super::super::super::Vector>(
+    fn passes_match_one_vertex_at_a_time<
+        V: Grouped + super::super::super::super::element::Vector,
+    >(
         n: usize,
         make: impl Fn(usize, usize) -> V,
         up: V,
@@ -1067,10 +1074,10 @@ mod tests {
             (true, &[]),
         ] {
             let ground = match rough {
-                true => Ground::new(up, 0.0)
+                true => HalfSpace::new(up, 0.0)
                     .with_friction(0.5)
                     .with_sticking_speed(1e-3),
-                false => Ground::new(up, 0.0),
+                false => HalfSpace::new(up, 0.0),
             };
             let frames = Frames::new(h, inertia, gravity, Some(&ground));
             let frames = match rough {

@@ -559,7 +559,7 @@ fn report_ram<Real, Vec3, TetRest>(precision: &str, body_bytes: usize) {
     let vector = size_of::<Vec3>() as u64;
     let scalar = size_of::<Real>() as u64;
     // rest, position, velocity, mass, pinned flag; explicit scratch 4 vectors; relaxation
-    // scratch 5 vectors and 1 scalar (see softfem's explicit_scratch_len / relax_scratch_len).
+    // scratch 5 vectors and 1 scalar (see softfem's scratch_len::explicit / scratch_len::relax).
     let state = 3 * vector + scalar + 1;
     let mut line = Line::new();
     line.str("ram ")
@@ -583,17 +583,17 @@ fn report_ram<Real, Vec3, TetRest>(precision: &str, body_bytes: usize) {
 /// the precision's `Vec3`, `Mat3` and `TetHessian`.
 fn report_descent_ram<Vec3, Mat3, TetHessian>(precision: &str, descent_bytes: usize) {
     use core::mem::size_of;
-    use softfem::step::{newton_scratch_len, vbd_index_scratch_len, vbd_scratch_len};
+    use softfem::step::{scratch_len};
     let vector = size_of::<Vec3>() as u64;
     let index = size_of::<u32>() as u64;
-    let per_vertex = newton_scratch_len(1, 0);
+    let per_vertex = scratch_len::newton(1, 0);
     let newton_vertex =
         per_vertex.vectors as u64 * vector + per_vertex.blocks as u64 * size_of::<Mat3>() as u64;
-    let newton_tet = newton_scratch_len(0, 1).hessians as u64 * size_of::<TetHessian>() as u64;
-    let base = vbd_index_scratch_len(0, 0) as u64;
+    let newton_tet = scratch_len::newton(0, 1).hessians as u64 * size_of::<TetHessian>() as u64;
+    let base = scratch_len::vbd_indices(0, 0) as u64;
     let vbd_vertex =
-        vbd_scratch_len(1) as u64 * vector + (vbd_index_scratch_len(1, 0) as u64 - base) * index;
-    let vbd_tet = (vbd_index_scratch_len(0, 1) as u64 - base) * index;
+        scratch_len::vbd(1) as u64 * vector + (scratch_len::vbd_indices(1, 0) as u64 - base) * index;
+    let vbd_tet = (scratch_len::vbd_indices(0, 1) as u64 - base) * index;
     let mut line = Line::new();
     line.str("ram ")
         .str(precision)

@@ -223,9 +223,9 @@ macro_rules! precision {
             use $($softfem)::+::material::{Lame, NeoHookean, StVK, StableNeoHookean};
             use $($softfem)::+::mesh::TetMesh;
             use $($softfem)::+::step::{
-                Collider, ExplicitScratch, ExplicitSettings, Ground, NewtonReport, NewtonScratch,
-                NewtonScratchLen, NewtonSettings, RelaxReport, RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings,
-                newton_scratch_len, stable_time_step, vbd_index_scratch_len, vbd_scratch_len,
+                Collider, ExplicitScratch, ExplicitSettings, HalfSpace, NewtonReport, NewtonScratch,
+                NewtonSettings, RelaxReport, RelaxScratch, RelaxSettings, Scene, TetElastic, VbdScratch, VbdSettings,
+                scratch_len, stable_time_step,
             };
             use $($softfem)::+::svd::Svd3;
             use $($softfem)::+::types::{Mat3, Real, Vec3};
@@ -417,10 +417,10 @@ macro_rules! precision {
             pub type DropBody = Body<DROP_VERTICES, DROP_TETS>;
 
             /// The buffer lengths of Newton's method for the dropped cube.
-            const NEWTON_LEN: NewtonScratchLen = newton_scratch_len(DROP_VERTICES, DROP_TETS);
+            const NEWTON_LEN: scratch_len::NewtonScratchLen = scratch_len::newton(DROP_VERTICES, DROP_TETS);
 
             /// The scratch of the two descent solvers for the dropped cube, sized by softfem's
-            /// `newton_scratch_len`, `vbd_scratch_len` and `vbd_index_scratch_len` (const
+            /// `scratch_len::newton`, `scratch_len::vbd` and `scratch_len::vbd_indices` (const
             /// fns). The [`TetHessian`]s Newton's method caches are not here: `TetHessian` has no
             /// const value to initialise a static with, so they live on the stack of
             /// [`newton_drop`] (`NEWTON_LEN.hessians` of them).
@@ -430,9 +430,9 @@ macro_rules! precision {
                 /// Newton: the inverted block-Jacobi preconditioner blocks.
                 pub newton_blocks: [Mat3; NEWTON_LEN.blocks],
                 /// VBD: vectors (start, gradient, the iterates of the last two sweeps, sweep).
-                pub vbd_vectors: [Vec3; vbd_scratch_len(DROP_VERTICES)],
+                pub vbd_vectors: [Vec3; scratch_len::vbd(DROP_VERTICES)],
                 /// VBD: vertex adjacency, colours and vertex order.
-                pub vbd_indices: [u32; vbd_index_scratch_len(DROP_VERTICES, DROP_TETS)],
+                pub vbd_indices: [u32; scratch_len::vbd_indices(DROP_VERTICES, DROP_TETS)],
             }
 
             impl DescentScratch {
@@ -440,8 +440,8 @@ macro_rules! precision {
                 pub const EMPTY: Self = DescentScratch {
                     newton_vectors: [Vec3::ZERO; NEWTON_LEN.vectors],
                     newton_blocks: [Mat3::ZERO; NEWTON_LEN.blocks],
-                    vbd_vectors: [Vec3::ZERO; vbd_scratch_len(DROP_VERTICES)],
-                    vbd_indices: [0; vbd_index_scratch_len(DROP_VERTICES, DROP_TETS)],
+                    vbd_vectors: [Vec3::ZERO; scratch_len::vbd(DROP_VERTICES)],
+                    vbd_indices: [0; scratch_len::vbd_indices(DROP_VERTICES, DROP_TETS)],
                 };
             }
 
@@ -744,7 +744,7 @@ macro_rules! precision {
                 push(records, concat!($prefix, " drop masses and stable dt"), digest, dt);
 
                 let gravity = Vec3::new(0.0, -9.81, 0.0);
-                let ground = Ground::new(Vec3::Y, 0.0).with_restitution(0.3).with_friction(0.5);
+                let ground = HalfSpace::new(Vec3::Y, 0.0).with_restitution(0.3).with_friction(0.5);
 
                 // Explicit: half the stable step, light damping.
                 let scene = Scene::new(0.5 * dt).with_gravity(gravity).with_ground(ground);
@@ -860,7 +860,7 @@ macro_rules! precision {
                 (positions, velocities): (&mut [Vec3; DROP_VERTICES], &mut [Vec3; DROP_VERTICES]),
                 descent: &mut DescentScratch,
                 gravity: Vec3,
-                ground: Ground<Vec3>,
+                ground: HalfSpace<Vec3>,
             ) {
                 let scene = Scene::new(DESCENT_DT).with_gravity(gravity).with_ground(ground);
                 let settings = NewtonSettings::new().with_tolerance(1e-3, 20);
@@ -935,7 +935,7 @@ macro_rules! precision {
                 (positions, velocities): (&mut [Vec3; DROP_VERTICES], &mut [Vec3; DROP_VERTICES]),
                 descent: &mut DescentScratch,
                 gravity: Vec3,
-                ground: Ground<Vec3>,
+                ground: HalfSpace<Vec3>,
             ) {
                 let scene = Scene::new(DESCENT_DT).with_gravity(gravity).with_ground(ground);
                 let settings = VbdSettings::new()

@@ -3,7 +3,7 @@
 
 use p::body::{Body, FixedStorage, Solver};
 use p::material::StableNeoHookean;
-use p::step::{Collider, ExplicitSettings, Ground, SignedDistance, VbdSettings};
+use p::step::{Collider, ExplicitSettings, HalfSpace, SignedDistance, VbdSettings};
 use p::types::{Quat, Real, Vec3};
 
 /// A 0.2 m cube of 2 x 2 x 2 cells: 27 vertices, 40 tetrahedra.
@@ -163,7 +163,7 @@ fn incline(
     body.set_solver(solver).unwrap();
     if on_ground {
         body.set_ground(Some(
-            Ground::new(normal, 0.0)
+            HalfSpace::new(normal, 0.0)
                 .with_friction(mu)
                 .with_sticking_speed(eps_v),
         ));
@@ -198,7 +198,7 @@ fn damped_explicit() -> Solver {
 /// `tan(theta) < mu` sticks, on a half-space collider and on the ground. The implicit solvers,
 /// with friction in their objective (`with_sticking_speed`, opt-in),
 /// smooth static friction below the sticking speed `eps_v` (1 mm/s here; see
-/// `step::Ground::sticking_speed`): a contact held by a tangential load `F < mu lambda` creeps
+/// `step::HalfSpace::sticking_speed`): a contact held by a tangential load `F < mu lambda` creeps
 /// at `eps_v (1 - sqrt(1 - F / (mu lambda)))`, for the block `F / (mu lambda) = tan(theta) /
 /// mu` (0.58 mm/s at `mu = 0.7`, 0.35 mm/s at `mu = 1`): between 1 s and 2 s it moves that far
 /// within 10 % (the load is not shared exactly evenly by the contact vertices, and the solves

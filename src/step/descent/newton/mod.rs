@@ -12,6 +12,7 @@ use super::super::super::types::{Mat3, Real, Vec3};
 use super::super::descent::{self, LoopSettings, Work};
 use super::super::model::ElasticHessian;
 use super::super::scene::Scene;
+use super::super::scratch_len;
 use super::super::state::check_length;
 use super::super::vertex_pass::passes::split_check_state;
 use super::settings::{DescentReport, DescentSettings};
@@ -19,34 +20,8 @@ use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
 use cg::{CgVectors, Newton};
 
-pub use super::stopping::FLOOR_FACTOR;
-
-/// The buffer lengths Newton's method needs ([`newton_scratch_len`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct NewtonScratchLen {
-    /// Vectors: `9 * vertex_count` (start positions, two gradients, a trial point, the
-    /// direction and the four vectors of conjugate gradients).
-    pub vectors: usize,
-    /// 3x3 blocks: `vertex_count` (the inverted preconditioner blocks).
-    pub blocks: usize,
-    /// [`TetHessian`]s: `element_count` (180 bytes each in f32, 360 in f64).
-    pub hessians: usize,
-}
-
-/// The scratch lengths of [`newton_step`] and [`newton_quasi_static`] for a body of
-/// `vertex_count` vertices and `element_count` elements.
-#[inline]
-#[must_use]
-pub const fn newton_scratch_len(vertex_count: usize, element_count: usize) -> NewtonScratchLen {
-    NewtonScratchLen {
-        vectors: 9 * vertex_count,
-        blocks: vertex_count,
-        hessians: element_count,
-    }
-}
-
 /// Scratch space of Newton's method over caller buffers of the lengths of
-/// [`newton_scratch_len`] (checked by the solvers). Nothing in it survives between solves.
+/// [`scratch_len::newton`] (checked by the solvers). Nothing in it survives between solves.
 #[derive(Debug)]
 pub struct NewtonScratch<'a> {
     vectors: &'a mut [Vec3],
@@ -193,7 +168,7 @@ pub type NewtonReport = DescentReport<NewtonDetails>;
 /// Newton's method measures the estimate `eps/2 max|x| (sum_i |B_i|_F^2)^(1/2)`
 /// ([`DescentReport::rounding_floor`], `B_i` the diagonal blocks of `A` at the free vertices;
 /// from above, measured 1.5-5x the residual where solves stall) and, when two steps in a row
-/// fail to halve the residual while it is within [`FLOOR_FACTOR`] times that floor, stops
+/// fail to halve the residual while it is within [`FLOOR_FACTOR`](DescentReport::FLOOR_FACTOR) times that floor, stops
 /// there ([`DescentReport::stagnated`]) and counts the solve as converged: the answer is as good
 /// as the precision allows. A failed line search or a direction that is not downhill also
 /// stops the solve as stagnated, converged only within the same bound. A tolerance below the
@@ -212,7 +187,7 @@ pub type NewtonReport = DescentReport<NewtonDetails>;
 /// use softfem::glam::{Mat3, Vec3};
 /// use softfem::material::StableNeoHookean;
 /// use softfem::mesh::TetMesh;
-/// use softfem::step::{NewtonScratch, NewtonSettings, Scene, TetElastic, newton_scratch_len, newton_step};
+/// use softfem::step::{NewtonScratch, NewtonSettings, Scene, TetElastic, scratch_len, newton_step};
 ///
 /// // A tetrahedron hanging from three pinned corners sags under gravity.
 /// let rest = [Vec3::ZERO, Vec3::X, Vec3::Z, -Vec3::Y].map(|x| x * 0.1);
@@ -226,7 +201,7 @@ pub type NewtonReport = DescentReport<NewtonDetails>;
 /// let scene = Scene::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
 /// let settings = NewtonSettings::new();
 /// let (mut x, mut v) = (rest, [Vec3::ZERO; 4]);
-/// let len = newton_scratch_len(4, 1);
+/// let len = scratch_len::newton(4, 1);
 /// let mut vectors = [Vec3::ZERO; 36];
 /// let mut blocks = [Mat3::ZERO; 4];
 /// let mut hessians = [TetHessian::default(); 1];
@@ -310,7 +285,7 @@ fn solve<F: ElasticHessian>(
         settings.check(),
         || split_check_state(model, masses, pinned, positions, velocities.as_deref()),
         || {
-            let lengths = newton_scratch_len(n, model.element_count());
+            let lengths = scratch_len::newton(n, model.element_count());
             let vectors = scratch.vectors.len();
             check_length(StepBuffer::Scratch, lengths.vectors, vectors)?;
             let blocks = scratch.blocks.len();

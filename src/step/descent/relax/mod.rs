@@ -14,6 +14,7 @@ use super::super::descent::{self, Direction, LoopSettings, Work};
 use super::super::explicit::stability::vertex_stiffness;
 use super::super::model::ElasticEnergy;
 use super::super::scene::Scene;
+use super::super::scratch_len;
 use super::super::state::check_length;
 use super::super::vertex_pass::passes::split_check_state;
 use super::chebyshev::AccelerationSettings;
@@ -23,19 +24,8 @@ use crate::error::{StepBuffer, StepError};
 pub use gradient::{gradient_descent_quasi_static, gradient_descent_step};
 use jacobi::Jacobi;
 
-/// The length of the vector scratch buffer the relaxation needs for `vertex_count` vertices:
-/// `5 * vertex_count` (the start positions, two gradients, a second point buffer that trades
-/// places with `positions` as iterate and trial point, and the direction).
-/// The scalar scratch buffer has one entry per vertex. Saturates at `usize::MAX` for counts
-/// whose product does not fit (no such buffer can exist, so the length check refuses any).
-#[inline]
-#[must_use]
-pub const fn relax_scratch_len(vertex_count: usize) -> usize {
-    vertex_count.saturating_mul(5)
-}
-
 /// Scratch space of [`relax_step`] and [`relax_quasi_static`]: `vectors` of
-/// [`relax_scratch_len`]`(vertex_count)` entries and `scalars` of `vertex_count` entries
+/// [`scratch_len::relax`]`(vertex_count)` entries and `scalars` of `vertex_count` entries
 /// (lengths checked by the solvers).
 ///
 /// `scalars` keeps the preconditioner's stiffness part between calls: a per-vertex bound that
@@ -292,7 +282,7 @@ pub(crate) const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 /// use softfem::glam::Vec3;
 /// use softfem::material::StableNeoHookean;
 /// use softfem::mesh::TetMesh;
-/// use softfem::step::{RelaxScratch, RelaxSettings, Scene, TetElastic, relax_scratch_len, relax_step};
+/// use softfem::step::{RelaxScratch, RelaxSettings, Scene, TetElastic, scratch_len, relax_step};
 ///
 /// // A tetrahedron hanging from three pinned corners sags under gravity.
 /// let rest = [Vec3::ZERO, Vec3::X, Vec3::Z, -Vec3::Y].map(|x| x * 0.1);
@@ -306,7 +296,7 @@ pub(crate) const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 /// let scene = Scene::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
 /// let settings = RelaxSettings::new();
 /// let (mut x, mut v) = (rest, [Vec3::ZERO; 4]);
-/// let (mut vectors, mut scalars) = ([Vec3::ZERO; relax_scratch_len(4)], [0.0; 4]);
+/// let (mut vectors, mut scalars) = ([Vec3::ZERO; scratch_len::relax(4)], [0.0; 4]);
 /// let mut scratch = RelaxScratch::new(&mut vectors, &mut scalars);
 /// let report = relax_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch)?;
 /// assert!(report.converged && x[3].y < rest[3].y && v[3].y < 0.0);
@@ -386,7 +376,7 @@ pub(crate) fn minimise<F: ElasticEnergy, D: Direction<F>>(
         || split_check_state(model, masses, pinned, positions, velocities.as_deref()),
         || {
             let vectors = scratch.vectors.len();
-            check_length(StepBuffer::Scratch, relax_scratch_len(n), vectors)?;
+            check_length(StepBuffer::Scratch, scratch_len::relax(n), vectors)?;
             check_length(StepBuffer::ScalarScratch, n, scratch.scalars.len())
         },
     )?;

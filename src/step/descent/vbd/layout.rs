@@ -19,8 +19,9 @@
 //! in f64) all divide [`BLOCK`], and a narrower width walks a block's lanes in groups of its
 //! own width.
 //!
-//! The layout fills the caller's buffers of [`vbd_layout_len`] values and
-//! [`vbd_layout_corners_len`] indices (see
+//! The layout fills the caller's buffers of
+//! [`scratch_len::vbd_layout`](crate::step::scratch_len::vbd_layout) values and
+//! [`scratch_len::vbd_layout_corners`](crate::step::scratch_len::vbd_layout_corners) indices (see
 //! [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)). The corner buffer
 //! starts with the blocks' first visit rows (one per block and one more; blocks are at most one per
 //! vertex), then the corner indices of the visits.
@@ -59,28 +60,23 @@ const fn layout_rows(element_count: usize) -> usize {
         .saturating_add(8 * 64)
 }
 
-/// The length of the value buffer of the packed sweep layout (see
-/// [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)) for a mesh of
-/// `element_count` tetrahedra: 13 values (`Dm^-1`, the rest volume and the corner's shape gradient)
-/// per element visit and lane, for about one and a half times the `4 * element_count` visits of a
-/// sweep plus a margin (78 values, 312 bytes, per tetrahedron in f32 beyond the margin, 624 in
-/// f64). A mesh whose vertex valences are so uneven that its layout needs more is swept without it.
+/// The length of the value buffer of the packed layout for `element_count` tetrahedra
+/// ([`scratch_len::vbd_layout`](crate::step::scratch_len::vbd_layout) documents it).
 #[inline]
 #[must_use]
-pub const fn vbd_layout_len(element_count: usize) -> usize {
+pub(crate) const fn values_len(element_count: usize) -> usize {
     layout_rows(element_count)
         .saturating_mul(BLOCK)
         .saturating_mul(LAYOUT_VALUES)
 }
 
-/// The length of the index buffer of the packed sweep layout (see
-/// [`VbdScratch::with_layout`](super::super::super::VbdScratch::with_layout)) for `vertex_count`
-/// vertices and `element_count` tetrahedra: the blocks' first rows (`vertex_count + 1`) and the
-/// four corner indices of every visit of [`vbd_layout_len`]'s room (24 indices, 96 bytes, per
-/// tetrahedron).
+/// The length of the index buffer of the packed layout for `vertex_count` vertices and
+/// `element_count` tetrahedra
+/// ([`scratch_len::vbd_layout_corners`](crate::step::scratch_len::vbd_layout_corners) documents
+/// it).
 #[inline]
 #[must_use]
-pub const fn vbd_layout_corners_len(vertex_count: usize, element_count: usize) -> usize {
+pub(crate) const fn corners_len(vertex_count: usize, element_count: usize) -> usize {
     vertex_count
         .saturating_add(1)
         .saturating_add(layout_rows(element_count).saturating_mul(BLOCK * 4))

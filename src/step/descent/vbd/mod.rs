@@ -8,7 +8,7 @@
 
 mod block;
 mod lanes;
-mod layout;
+pub(crate) mod layout;
 mod sums;
 mod sweep;
 
@@ -18,45 +18,24 @@ use super::super::super::mesh::adjacency::{
     vertex_order_by_degree,
 };
 use super::super::super::types::{Real, Vec3};
-use super::super::contact::Ground;
+use super::super::contact::HalfSpace;
 use super::super::contact::collider::Colliders;
 use super::super::descent::{self, LoopSettings, Work};
 use super::super::model::{ElasticEnergy, TetElastic};
 use super::super::scene::Scene;
+use super::super::scratch_len;
 use super::super::state::{check_length, check_state};
 use super::chebyshev::AccelerationSettings;
 use super::settings::{DescentReport, DescentSettings};
 use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
 use layout::{Layout, LayoutSource, build_layout};
-pub use layout::{vbd_layout_corners_len, vbd_layout_len};
 use sweep::{Sweep, VbdSweep};
 pub(crate) use sweep::{SweepRun, SweepSchedule};
 
-/// The length of the vector scratch buffer of [`vbd_step`] and [`vbd_quasi_static`] for
-/// `vertex_count` vertices: `5 * vertex_count` (the descent loop's start positions, gradient,
-/// trial gradient, trial point and direction).
-#[inline]
-#[must_use]
-pub const fn vbd_scratch_len(vertex_count: usize) -> usize {
-    vertex_count.saturating_mul(5)
-}
-
-/// The length of the index scratch buffer for `vertex_count` vertices and `element_count`
-/// tetrahedra: `3 * vertex_count + 1 + 4 * element_count` (the vertex adjacency of
-/// [`build_vertex_adjacency`](super::super::super::mesh::build_vertex_adjacency), the colours and the vertex
-/// order).
-#[inline]
-#[must_use]
-pub const fn vbd_index_scratch_len(vertex_count: usize, element_count: usize) -> usize {
-    adjacency_offsets_len(vertex_count)
-        .saturating_add(adjacency_incident_len(element_count))
-        .saturating_add(vertex_count.saturating_mul(2))
-}
-
 /// Scratch space of [`vbd_step`] and [`vbd_quasi_static`]: `vectors` of
-/// [`vbd_scratch_len`]`(vertex_count)` entries and `indices` of
-/// [`vbd_index_scratch_len`]`(vertex_count, element_count)` (lengths checked by the solvers).
+/// [`scratch_len::vbd`]`(vertex_count)` entries and `indices` of
+/// [`scratch_len::vbd_indices`]`(vertex_count, element_count)` (lengths checked by the solvers).
 ///
 /// `indices` keeps the mesh's vertex adjacency, colouring and vertex order between calls: built
 /// by the first solve with this scratch (or the first after a change of the mesh's vertex or
@@ -99,8 +78,8 @@ impl<'a> VbdScratch<'a> {
     }
 
     /// This scratch with room for the packed sweep layout: `values` of
-    /// [`vbd_layout_len`](super::super::vbd_layout_len)`(element_count)` entries and `corners` of
-    /// [`vbd_layout_corners_len`](super::super::vbd_layout_corners_len)`(vertex_count,
+    /// [`scratch_len::vbd_layout`](super::super::scratch_len::vbd_layout)`(element_count)` entries and `corners` of
+    /// [`scratch_len::vbd_layout_corners`](super::super::scratch_len::vbd_layout_corners)`(vertex_count,
     /// element_count)` (longer buffers are fine, shorter ones leave the layout unused).
     ///
     /// The first solve (after a change of topology) stores there, for every element visit of a
@@ -404,7 +383,7 @@ pub type VbdReport = DescentReport<VbdDetails>;
 /// use softfem::mesh::{partition_incident_len, partition_offsets_len};
 /// use softfem::parallel::ParallelTetElastic;
 /// use softfem::step::{Scene, TetElastic, VbdScratch, VbdSettings, vbd_step};
-/// use softfem::step::{vbd_index_scratch_len, vbd_scratch_len};
+/// use softfem::step::{scratch_len};
 ///
 /// let (n, t) = box_counts(3, 3, 3, BoxSplit::Kuhn6)?;
 /// let (mut rest, mut tets) = (vec![Vec3::ZERO; n], vec![[0; 4]; t]);
@@ -417,8 +396,8 @@ pub type VbdReport = DescentReport<VbdDetails>;
 /// let pinned: Vec<bool> = rest.iter().map(|p| p.y == 0.0).collect();
 /// let scene = Scene::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
 /// let settings = VbdSettings::new();
-/// let mut vectors = vec![Vec3::ZERO; vbd_scratch_len(n)];
-/// let mut indices = vec![0; vbd_index_scratch_len(n, t)];
+/// let mut vectors = vec![Vec3::ZERO; scratch_len::vbd(n)];
+/// let mut indices = vec![0; scratch_len::vbd_indices(n, t)];
 /// let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
 /// let (mut x, mut v) = (rest.clone(), vec![Vec3::ZERO; n]);
 /// vbd_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch)?;
@@ -508,13 +487,13 @@ impl<M: Material> VertexBlockModel for TetElastic<'_, M> {}
 /// sweep is monotone.
 ///
 /// # Contact
-/// A step that would end inside the [`Ground`] is replaced by the minimiser of the vertex's
+/// A step that would end inside the [`HalfSpace`] is replaced by the minimiser of the vertex's
 /// local quadratic model on the ground plane (one more 3x3 solve with the same factor; the
 /// multiplier is the contact reaction), then projected onto the plane for rounding: the exact
 /// solution of the local contact problem for the quadratic model, where the relaxation only
 /// projects; a step into a [`Collider`](super::super::Collider) is replaced the same way on its
 /// tangent plane at the vertex. Friction acts on the velocity after the solve, or, opted in with a
-/// positive [`Ground::sticking_speed`], is part of the objective (`docs/math.md` section 4.6): its
+/// positive [`HalfSpace::sticking_speed`], is part of the objective (`docs/math.md` section 4.6): its
 /// gradient and tangent block join the vertex's, lagged to the loop's iterate.
 ///
 /// # The descent loop
@@ -649,7 +628,7 @@ impl<M: Material> VertexBlockModel for TetElastic<'_, M> {}
 /// use softfem::material::StableNeoHookean;
 /// use softfem::mesh::TetMesh;
 /// use softfem::step::{
-///     Scene, TetElastic, VbdScratch, VbdSettings, vbd_index_scratch_len, vbd_scratch_len,
+///     Scene, TetElastic, VbdScratch, VbdSettings, scratch_len,
 ///     vbd_step,
 /// };
 ///
@@ -665,8 +644,8 @@ impl<M: Material> VertexBlockModel for TetElastic<'_, M> {}
 /// let scene = Scene::new(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
 /// let settings = VbdSettings::new();
 /// let (mut x, mut v) = (rest, [Vec3::ZERO; 4]);
-/// let mut vectors = [Vec3::ZERO; vbd_scratch_len(4)];
-/// let mut indices = [0; vbd_index_scratch_len(4, 1)];
+/// let mut vectors = [Vec3::ZERO; scratch_len::vbd(4)];
+/// let mut indices = [0; scratch_len::vbd_indices(4, 1)];
 /// let mut scratch = VbdScratch::new(&mut vectors, &mut indices);
 /// let report = vbd_step(&body, &masses, &pinned, &scene, &settings, &mut x, &mut v, &mut scratch)?;
 /// // One free vertex: each sweep is a Newton step on Phi.
@@ -793,9 +772,9 @@ fn minimise<F: VertexBlockModel>(
         || check_state(n, masses, pinned, positions, velocities.as_deref()),
         || {
             let vectors = scratch.vectors.len();
-            check_length(StepBuffer::Scratch, vbd_scratch_len(n), vectors)?;
+            check_length(StepBuffer::Scratch, scratch_len::vbd(n), vectors)?;
             let indices = scratch.indices.len();
-            let index_len = vbd_index_scratch_len(n, tets.len());
+            let index_len = scratch_len::vbd_indices(n, tets.len());
             check_length(StepBuffer::IndexScratch, index_len, indices)
         },
     )?;
@@ -856,7 +835,7 @@ fn minimise<F: VertexBlockModel>(
         inertia: 0.0,
         gravity: scene.gravity,
         loads,
-        ground: checked.ground.map(|g| Ground {
+        ground: checked.ground.map(|g| HalfSpace {
             offset: g.offset - g.normal.dot(origin),
             ..g
         }),

@@ -12,7 +12,7 @@ use super::super::super::super::material::Material;
 use super::super::super::super::math;
 use super::super::super::super::mesh::adjacency::incident_elements;
 use super::super::super::super::types::{Mat3, Real, Vec3};
-use super::super::super::contact::Ground;
+use super::super::super::contact::HalfSpace;
 use super::super::super::contact::collider::Colliders;
 use super::super::super::contact::floor::Floor;
 use super::super::super::contact::friction::{Friction, Lag, Slip};
@@ -75,7 +75,7 @@ pub(crate) struct Sweep<'s, M: Material> {
     pub gravity: Vec3,
     /// External forces and fixed axes (both empty for none).
     pub loads: Loads<'s, Vec3>,
-    pub ground: Option<Ground<Vec3>>,
+    pub ground: Option<HalfSpace<Vec3>>,
     /// The colliders, in the sweep's (shifted) coordinates.
     pub colliders: Colliders<'s>,
     /// Friction and the iterate it is lagged to (`None` for none: set per sweep).
@@ -124,7 +124,8 @@ impl<M: Material> SweepRun<'_, '_, M> {
     /// The vertex updates one after the other in the vertex order, on the calling thread.
     #[inline]
     pub(crate) fn in_order(self) {
-        self.sweep.run(self.positions, self.counts, self.line_search);
+        self.sweep
+            .run(self.positions, self.counts, self.line_search);
     }
 
     /// The vertex updates of each colour in parallel on the current rayon pool.

@@ -1,4 +1,8 @@
-//! The ground half-space: position projection, restitution and Coulomb friction.
+//! The half-space, the crate's one plane: the scene's ground ([`Scene::with_ground`]), with its
+//! position projection, restitution and Coulomb friction. A moving or rotating plane among the
+//! colliders is a [`Collider::half_space`](super::Collider::half_space) of the same shape.
+//!
+//! [`Scene::with_ground`]: super::super::Scene::with_ground
 
 use super::super::super::element::Vector;
 use super::super::super::math;
@@ -6,7 +10,7 @@ use super::super::super::types::Real;
 use super::super::state::length;
 use crate::error::StepError;
 
-/// A ground half-space: the solid side is `{x : n . x < offset}` with `n = normal / |normal|`,
+/// A half-space, used as the scene's ground: the solid side is `{x : n . x < offset}` with `n = normal / |normal|`,
 /// so the ground's surface is the plane `n . x = offset` (metres along `n`) and `n` points out
 /// of the ground, into the free space.
 ///
@@ -25,14 +29,14 @@ use crate::error::StepError;
 ///
 /// ```
 /// use softfem::glam::Vec3;
-/// use softfem::step::Ground;
+/// use softfem::step::HalfSpace;
 ///
 /// // The plane y = 0, bouncy and slippery.
-/// let ground = Ground::new(Vec3::Y, 0.0).with_restitution(0.5).with_friction(0.1);
+/// let ground = HalfSpace::new(Vec3::Y, 0.0).with_restitution(0.5).with_friction(0.1);
 /// assert_eq!(ground.restitution, 0.5);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Ground<V> {
+pub struct HalfSpace<V> {
     /// The outward normal (need not be unit length: any non-zero finite vector, of any length
     /// the precision can represent).
     pub normal: V,
@@ -65,12 +69,12 @@ pub struct Ground<V> {
     pub sticking_speed: Real,
 }
 
-impl<V: Vector> Ground<V> {
+impl<V: Vector> HalfSpace<V> {
     /// The plane `normal . x = offset` (normalised), without restitution or friction.
     #[inline]
     #[must_use]
     pub fn new(normal: V, offset: Real) -> Self {
-        Ground {
+        HalfSpace {
             normal,
             offset,
             restitution: 0.0,
@@ -83,7 +87,7 @@ impl<V: Vector> Ground<V> {
     #[inline]
     #[must_use]
     pub fn with_restitution(self, restitution: Real) -> Self {
-        Ground {
+        HalfSpace {
             restitution,
             ..self
         }
@@ -93,7 +97,7 @@ impl<V: Vector> Ground<V> {
     #[inline]
     #[must_use]
     pub fn with_friction(self, friction: Real) -> Self {
-        Ground { friction, ..self }
+        HalfSpace { friction, ..self }
     }
 
     /// This ground with the implicit solvers' sticking speed `sticking_speed` (m/s, finite
@@ -102,14 +106,14 @@ impl<V: Vector> Ground<V> {
     #[inline]
     #[must_use]
     pub fn with_sticking_speed(self, sticking_speed: Real) -> Self {
-        Ground {
+        HalfSpace {
             sticking_speed,
             ..self
         }
     }
 
     /// Checks the parameters and normalises the normal.
-    pub(crate) fn validated(&self) -> Result<Ground<V>, StepError> {
+    pub(crate) fn validated(&self) -> Result<HalfSpace<V>, StepError> {
         // Every finite non-zero normal is valid, also one whose squared length under- or
         // overflows (`1e-30` or `1e30` in f32): it is first brought near unit length by an exact
         // power of two, `2^(3/4 MAX_EXP)` up or down, which maps both ends of the range into
@@ -136,7 +140,7 @@ impl<V: Vector> Ground<V> {
         {
             return Err(StepError::Friction);
         }
-        Ok(Ground {
+        Ok(HalfSpace {
             normal: normal * (1.0 / norm),
             ..*self
         })
@@ -210,13 +214,13 @@ impl<V: Vector> Ground<V> {
 #[cfg(test)]
 mod tests {
     use super::super::super::super::types::Vec3;
-    use super::Ground;
+    use super::HalfSpace;
 
     /// Restitution applies to real impacts; an approach at or below the resting speed leaves the
     /// vertex on the plane with zero normal velocity (no jitter at rest), even with restitution 1.
     #[test]
     fn slow_impacts_do_not_bounce_and_fast_ones_do() {
-        let ground = Ground::new(Vec3::Z, 0.0)
+        let ground = HalfSpace::new(Vec3::Z, 0.0)
             .with_restitution(1.0)
             .validated()
             .unwrap();
@@ -238,7 +242,7 @@ mod tests {
     #[test]
     fn sticking_speed_is_opt_in_and_validated() {
         use super::{Real, StepError};
-        let ground = Ground::new(Vec3::Z, 0.0).with_friction(0.5);
+        let ground = HalfSpace::new(Vec3::Z, 0.0).with_friction(0.5);
         assert_eq!(ground.sticking_speed, 0.0);
         assert!(!ground.validated().unwrap().friction_in_objective());
         let rough = ground.with_sticking_speed(1e-3).validated().unwrap();
