@@ -150,6 +150,50 @@ pub struct Body<S: Storage, M: Material> {
     stable_step: Option<Real>,
 }
 
+/// The literal of a [`Body`] with no vertices, no tetrahedra and no history: `$material`, the
+/// explicit solver, no gravity or ground, every buffer `$buffer(zero)` for the zero of its
+/// entries (`Fixed::filled` in the `const` [`Body::empty`], [`no_entries`] for any storage).
+macro_rules! unbuilt_body {
+    ($material:expr, $buffer:path) => {
+        Body {
+            rest_positions: $buffer(Vec3::ZERO),
+            tets: $buffer([0; 4]),
+            rest_data: $buffer(TetRest::ZERO),
+            rest_blocks: $buffer(TetRestBlock::ZERO),
+            gradient_gain: 0.0,
+            masses: $buffer(0.0),
+            pinned: $buffer(false),
+            kinematic: $buffer(false),
+            targets: $buffer(Vec3::ZERO),
+            held_velocities: $buffer(Vec3::ZERO),
+            positions: $buffer(Vec3::ZERO),
+            velocities: $buffer(Vec3::ZERO),
+            vectors: $buffer(Vec3::ZERO),
+            scalars: $buffer(0.0),
+            blocks: $buffer(Mat3::ZERO),
+            hessians: $buffer(TetHessian::ZERO),
+            indices: $buffer(0),
+            layout_values: $buffer(0.0),
+            layout_corners: $buffer(0),
+            layout_built: None,
+            material: $material,
+            solver: Solver::explicit(),
+            gravity: Vec3::ZERO,
+            ground: None,
+            explicit_memory: ExplicitMemory::FRESH,
+            preconditioner_ready: false,
+            topology: None,
+            stable_step: None,
+        }
+    };
+}
+
+/// An empty buffer of any storage: `unbuilt_body!`'s buffer for [`Body::unbuilt`] (`_zero`
+/// names the entry type only).
+fn no_entries<X: Copy, B: Slots<X>>(_zero: X) -> B {
+    B::empty()
+}
+
 impl<S: Storage, M: Material> Body<S, M> {
     /// A box `[min, max]` (m) of `cells[0] x cells[1] x cells[2]` cubes, five tetrahedra each
     /// ([`BoxSplit::Alternating5`]), of `material` with `density` (kg/m^3), at rest at its rest
@@ -331,36 +375,7 @@ impl<S: Storage, M: Material> Body<S, M> {
 
     /// A body with no vertices and no tetrahedra, the explicit solver, no gravity or ground.
     fn unbuilt(material: M) -> Self {
-        Body {
-            rest_positions: S::Vectors::empty(),
-            tets: S::Tets::empty(),
-            rest_data: S::Rests::empty(),
-            rest_blocks: S::RestBlocks::empty(),
-            gradient_gain: 0.0,
-            masses: S::Reals::empty(),
-            pinned: S::Flags::empty(),
-            kinematic: S::Flags::empty(),
-            targets: S::Vectors::empty(),
-            held_velocities: S::Vectors::empty(),
-            positions: S::Vectors::empty(),
-            velocities: S::Vectors::empty(),
-            vectors: S::Scratch::empty(),
-            scalars: S::Reals::empty(),
-            blocks: S::Blocks::empty(),
-            hessians: S::Hessians::empty(),
-            indices: S::Indices::empty(),
-            layout_values: S::LayoutValues::empty(),
-            layout_corners: S::LayoutCorners::empty(),
-            layout_built: None,
-            material,
-            solver: Solver::explicit(),
-            gravity: Vec3::ZERO,
-            ground: None,
-            explicit_memory: ExplicitMemory::FRESH,
-            preconditioner_ready: false,
-            topology: None,
-            stable_step: None,
-        }
+        unbuilt_body!(material, no_entries)
     }
 
     /// Sets every buffer to `vertices` and `tets` zeroed entries (unvalidated) and forgets the
@@ -973,36 +988,7 @@ impl<const V: usize, const T: usize, M: Material> Body<FixedStorage<V, T>, M> {
     /// ```
     #[must_use]
     pub const fn empty(material: M) -> Self {
-        Body {
-            rest_positions: Fixed::filled(Vec3::ZERO),
-            tets: Fixed::filled([0; 4]),
-            rest_data: Fixed::filled(TetRest::ZERO),
-            rest_blocks: Fixed::filled(TetRestBlock::ZERO),
-            gradient_gain: 0.0,
-            masses: Fixed::filled(0.0),
-            pinned: Fixed::filled(false),
-            kinematic: Fixed::filled(false),
-            targets: Fixed::filled(Vec3::ZERO),
-            held_velocities: Fixed::filled(Vec3::ZERO),
-            positions: Fixed::filled(Vec3::ZERO),
-            velocities: Fixed::filled(Vec3::ZERO),
-            vectors: Fixed::filled(Vec3::ZERO),
-            scalars: Fixed::filled(0.0),
-            blocks: Fixed::filled(Mat3::ZERO),
-            hessians: Fixed::filled(TetHessian::ZERO),
-            indices: Fixed::filled(0),
-            layout_values: Fixed::filled(0.0),
-            layout_corners: Fixed::filled(0),
-            layout_built: None,
-            material,
-            solver: Solver::explicit(),
-            gravity: Vec3::ZERO,
-            ground: None,
-            explicit_memory: ExplicitMemory::FRESH,
-            preconditioner_ready: false,
-            topology: None,
-            stable_step: None,
-        }
+        unbuilt_body!(material, Fixed::filled)
     }
 }
 

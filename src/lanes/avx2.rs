@@ -106,10 +106,7 @@ impl Lane for Avx2Lanes {
         Avx2Lanes(unsafe { blendv256(b.0, a.0, mask.0) })
     }
 
-    #[inline(always)]
-    fn map(self, f: impl Fn(Real) -> Real) -> Self {
-        map_lane_array(self, f)
-    }
+    register_lanes!(map);
 }
 
 impl LaneArray for Avx2Lanes {

@@ -116,10 +116,7 @@ impl Lane for Avx512Lanes {
         Avx512Lanes(unsafe { blend512(mask.0, b.0, a.0) })
     }
 
-    #[inline(always)]
-    fn map(self, f: impl Fn(Real) -> Real) -> Self {
-        map_lane_array(self, f)
-    }
+    register_lanes!(map);
 }
 
 impl LaneArray for Avx512Lanes {

@@ -517,8 +517,29 @@ pub(crate) fn map_lane_array<L: LaneArray<Array = [Real; N]>, const N: usize>(
 /// the [`LaneArray`] items of a register of `WIDTH` values (`array`). Each arm expands to
 /// the items alone, for the `impl` blocks of `sse.rs`, `avx2.rs` and `avx512.rs`; every
 /// `unsafe` block calls only intrinsics on register values, under the caller's module comment.
+/// [`Lane::map`] through the lanes' array (`map`) serves the f64 lanes in two registers of
+/// `sse2_f64.rs` too, and so do their operators (`pair_binary_ops`: the intrinsic on both
+/// registers through that file's `pairwise`).
 #[cfg(target_arch = "x86_64")]
 macro_rules! register_lanes {
+    (map) => {
+        #[inline(always)]
+        fn map(self, f: impl Fn(Real) -> Real) -> Self {
+            map_lane_array(self, f)
+        }
+    };
+    (pair_binary_ops $lanes:ident: $($trait:ident $method:ident $intrinsic:ident),*) => {
+        $(
+            impl $trait for $lanes {
+                type Output = $lanes;
+                #[inline(always)]
+                fn $method(self, other: $lanes) -> $lanes {
+                    // SAFETY: see the module comment.
+                    $lanes(pairwise(self.0, other.0, |a, b| unsafe { $intrinsic(a, b) }))
+                }
+            }
+        )*
+    };
     (binary_ops $lanes:ident: $($trait:ident $method:ident $intrinsic:ident),*) => {
         $(
             impl $trait for $lanes {

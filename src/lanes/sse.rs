@@ -130,10 +130,7 @@ impl Lane for Lanes {
         Lanes(unsafe { _mm_or_ps(_mm_and_ps(mask.0, a.0), _mm_andnot_ps(mask.0, b.0)) })
     }
 
-    #[inline(always)]
-    fn map(self, f: impl Fn(Real) -> Real) -> Self {
-        map_lane_array(self, f)
-    }
+    register_lanes!(map);
 }
 
 /// The 4x4 transpose of `rows`: lane `j` of result `i` is lane `i` of `rows[j]` (how the

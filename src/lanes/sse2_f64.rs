@@ -9,7 +9,7 @@
 // these instructions are part of the x86_64 baseline, so they are always available, and they
 // have no memory operands or other preconditions.
 
-use super::lanes::{LANES, Lane, LaneVec3, map_lane_array};
+use super::lanes::{LANES, Lane, LaneVec3, map_lane_array, register_lanes};
 use super::types::{Real, Vec3};
 use core::arch::x86_64::{
     __m128d, _mm_add_pd, _mm_and_pd, _mm_andnot_pd, _mm_cmpge_pd, _mm_cmpgt_pd, _mm_cmpunord_pd,
@@ -66,24 +66,8 @@ impl Lanes {
     }
 }
 
-macro_rules! lanes_binary_op {
-    ($trait:ident, $method:ident, $intrinsic:ident) => {
-        impl $trait for Lanes {
-            type Output = Lanes;
-            #[inline(always)]
-            fn $method(self, other: Lanes) -> Lanes {
-                // SAFETY: see the module comment.
-                Lanes(pairwise(self.0, other.0, |a, b| unsafe {
-                    $intrinsic(a, b)
-                }))
-            }
-        }
-    };
-}
-lanes_binary_op!(Add, add, _mm_add_pd);
-lanes_binary_op!(Sub, sub, _mm_sub_pd);
-lanes_binary_op!(Mul, mul, _mm_mul_pd);
-lanes_binary_op!(Div, div, _mm_div_pd);
+register_lanes!(pair_binary_ops Lanes:
+    Add add _mm_add_pd, Sub sub _mm_sub_pd, Mul mul _mm_mul_pd, Div div _mm_div_pd);
 
 impl Neg for Lanes {
     type Output = Lanes;
@@ -172,10 +156,7 @@ impl Lane for Lanes {
         Lanes([pick(m_lo, a_lo, b_lo), pick(m_hi, a_hi, b_hi)])
     }
 
-    #[inline(always)]
-    fn map(self, f: impl Fn(Real) -> Real) -> Self {
-        map_lane_array(self, f)
-    }
+    register_lanes!(map);
 }
 
 /// The 4x4 transpose of `rows`: lane `j` of result `i` is lane `i` of `rows[j]` (how the

@@ -639,6 +639,24 @@ impl<M: Material, J: PassJob> Pass<'_, M, J> {
     }
 }
 
+/// The body of a [`Pass`]'s width kernel: groups of `$widest`, then (in optimised builds) of
+/// each `$narrower` width in turn, then the elements left one at a time; returns the job.
+///
+/// Unoptimised builds run the widest lanes and then one element at a time, as the batched SVD
+/// does (src/svd_batch.rs): there the inlined SVD of every lane type keeps its own stack slots,
+/// and three of them in one function overflowed a test thread's stack.
+macro_rules! groups_then_singles {
+    ($pass:ident: $widest:ty $(, $narrower:ty)*) => {{
+        let (first, tets, rests) = $pass.groups_of::<$widest>(0, $pass.tets, $pass.rests);
+        $(
+            #[cfg(not(debug_assertions))]
+            let (first, tets, rests) = $pass.groups_of::<$narrower>(first, tets, rests);
+        )*
+        $pass.singles(first, tets, rests);
+        $pass.job
+    }};
+}
+
 impl<M: Material, J: PassJob> WidthKernel for Pass<'_, M, J> {
     type Output = J;
 
@@ -651,34 +669,19 @@ impl<M: Material, J: PassJob> WidthKernel for Pass<'_, M, J> {
 
     #[inline(always)]
     fn sse(mut self) -> J {
-        let (first, tets, rests) = self.groups_of::<Lanes>(0, self.tets, self.rests);
-        self.singles(first, tets, rests);
-        self.job
+        groups_then_singles!(self: Lanes)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn avx2(mut self) -> J {
-        let (first, tets, rests) = self.groups_of::<Avx2Lanes>(0, self.tets, self.rests);
-        #[cfg(not(debug_assertions))]
-        let (first, tets, rests) = self.groups_of::<Lanes>(first, tets, rests);
-        self.singles(first, tets, rests);
-        self.job
+        groups_then_singles!(self: Avx2Lanes, Lanes)
     }
 
-    // Unoptimised builds run the widest lanes and then one element at a time, as the batched SVD
-    // does (src/svd_batch.rs): there the inlined SVD of every lane type keeps its own stack
-    // slots, and three of them in one function overflowed a test thread's stack.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     unsafe fn avx512(mut self) -> J {
-        let (first, tets, rests) = self.groups_of::<Avx512Lanes>(0, self.tets, self.rests);
-        #[cfg(not(debug_assertions))]
-        let (first, tets, rests) = self.groups_of::<Avx2Lanes>(first, tets, rests);
-        #[cfg(not(debug_assertions))]
-        let (first, tets, rests) = self.groups_of::<Lanes>(first, tets, rests);
-        self.singles(first, tets, rests);
-        self.job
+        groups_then_singles!(self: Avx512Lanes, Avx2Lanes, Lanes)
     }
 }
 

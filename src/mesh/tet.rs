@@ -226,9 +226,8 @@ impl<'a> TetMesh<'a> {
         positions: &[Vec3],
         forces: &mut [Vec3],
     ) -> Result<(), MeshError> {
-        self.check_positions(positions)?;
-        check_length(Buffer::Forces, self.vertex_count, forces.len())?;
-        self.check_deformation(material, positions)?;
+        let out = (Buffer::Forces, self.vertex_count, forces.len());
+        self.check_output(material, positions, out)?;
         self.pass(material, positions, DirectForces(forces), BATCH_FORCES);
         Ok(())
     }
@@ -348,9 +347,7 @@ impl<'a> TetMesh<'a> {
         positions: &[Vec3],
         out: &mut [Real],
     ) -> Result<(), MeshError> {
-        self.check_positions(positions)?;
-        check_length(Buffer::Energies, self.tets.len(), out.len())?;
-        self.check_deformation(material, positions)?;
+        self.check_output(material, positions, (Buffer::Energies, self.tets.len(), out.len()))?;
         let job = Energies(|i, energy| {
             if let Some(slot) = out.get_mut(i) {
                 *slot = energy;
@@ -373,9 +370,7 @@ impl<'a> TetMesh<'a> {
         positions: &[Vec3],
         out: &mut [Mat3],
     ) -> Result<(), MeshError> {
-        self.check_positions(positions)?;
-        check_length(Buffer::Stresses, self.tets.len(), out.len())?;
-        self.check_deformation(material, positions)?;
+        self.check_output(material, positions, (Buffer::Stresses, self.tets.len(), out.len()))?;
         for ((corners, rest), stress) in self.tets.iter().zip(self.rest).zip(out) {
             *stress = material.first_piola(rest.deformation_gradient(gather(positions, corners)));
         }
@@ -508,6 +503,20 @@ impl<'a> TetMesh<'a> {
     /// Length and finiteness of a deformed position buffer.
     fn check_positions(&self, positions: &[Vec3]) -> Result<(), MeshError> {
         check_positions(self.vertex_count, positions)
+    }
+
+    /// The checks of a pass that writes an output buffer, in their order: `positions` (length,
+    /// finite), the output's `(buffer, expected, actual)` length, then the deformation range of
+    /// `material` ([`check_deformation`](Self::check_deformation)).
+    fn check_output<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        (buffer, expected, actual): (Buffer, usize, usize),
+    ) -> Result<(), MeshError> {
+        self.check_positions(positions)?;
+        check_length(buffer, expected, actual)?;
+        self.check_deformation(material, positions)
     }
 
     /// The principal-path force loop, with `stress` mapping an SVD of `F` to `P`.

@@ -9,17 +9,15 @@
 use core::ops::Range;
 
 use super::super::super::element::{TetHessian, TetRest};
-use super::super::super::lanes::LANES;
 use super::super::super::material::Material;
 use super::super::super::math::BATCH_SVD;
-use super::super::super::svd::svd3_lanes;
 use super::super::super::types::{Mat3, Vec3};
 #[cfg(doc)]
 use super::super::TetMesh;
-use super::super::grouped::tet_groups;
 use super::super::hessian::Product;
 use super::super::{check_finite, check_length, check_positions, gather};
 use super::owner::one_piece;
+use super::principal::piece_svd_loop;
 use super::{ElementForces, TetPartition, grouped_len};
 use crate::error::{Buffer, MeshError};
 use crate::simd::dispatch;
@@ -58,26 +56,18 @@ impl<'a> TetPartition<'a> {
         let (tets, rests, range) = self.piece_elements(piece, Buffer::Hessians, out.len())?;
         check_length(Buffer::Positions, self.mesh.vertex_count(), positions.len())?;
         let grouped = grouped_len(BATCH_SVD, self.mesh.element_count(), range);
-        let (out_groups, out_tail) = out.split_at_mut(grouped.min(out.len()));
-        let (tets_groups, tets_tail) = tets.split_at(grouped.min(tets.len()));
-        let (rests_groups, rests_tail) = rests.split_at(grouped.min(rests.len()));
-        let groups = tet_groups(tets_groups, rests_groups);
-        for ((tets, rests), slots) in groups.zip(out_groups.chunks_exact_mut(LANES)) {
-            let gradients = core::array::from_fn(|lane| match (tets.get(lane), rests.get(lane)) {
-                (Some(corners), Some(rest)) => {
-                    rest.deformation_gradient(gather(positions, corners))
-                }
-                _ => Mat3::ZERO,
-            });
-            let svds = svd3_lanes(&gradients);
-            for ((rest, svd), slot) in rests.iter().zip(&svds).zip(slots) {
+        piece_svd_loop(
+            positions,
+            (tets, rests, grouped),
+            out,
+            |rest, svd, slot| {
                 let derivative = material.projected_stress_derivative_from_svd(svd);
                 *slot = TetHessian::from_stress_derivative(&derivative, rest);
-            }
-        }
-        for ((corners, rest), slot) in tets_tail.iter().zip(rests_tail).zip(out_tail) {
-            *slot = TetHessian::new(material, rest, gather(positions, corners));
-        }
+            },
+            |corners, rest, slot| {
+                *slot = TetHessian::new(material, rest, gather(positions, corners));
+            },
+        );
         Ok(())
     }
 

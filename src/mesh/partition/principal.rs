@@ -7,7 +7,8 @@ use core::ops::Range;
 use super::super::super::lanes::LANES;
 use super::super::super::material::Material;
 use super::super::super::math::BATCH_SVD;
-use super::super::super::svd::{svd3, svd3_lanes};
+use super::super::super::element::TetRest;
+use super::super::super::svd::{Svd3, svd3, svd3_lanes};
 use super::super::super::types::{Mat3, Real, Vec3};
 #[cfg(doc)]
 use super::super::TetMesh;
@@ -212,26 +213,48 @@ impl TetPartition<'_> {
             self.mesh.element_count(),
             self.element_piece(piece),
         );
-        let (out_groups, out_tail) = out.split_at_mut(grouped.min(out.len()));
-        let (tets_groups, tets_tail) = tets.split_at(grouped.min(tets.len()));
-        let (rests_groups, rests_tail) = rests.split_at(grouped.min(rests.len()));
-        let groups = tet_groups(tets_groups, rests_groups);
-        for ((tets, rests), slots) in groups.zip(out_groups.chunks_exact_mut(LANES)) {
-            let gradients = core::array::from_fn(|lane| match (tets.get(lane), rests.get(lane)) {
-                (Some(corners), Some(rest)) => {
-                    rest.deformation_gradient(gather(positions, corners))
-                }
-                _ => Mat3::ZERO,
-            });
-            let svds = svd3_lanes(&gradients);
-            for ((rest, svd), slot) in rests.iter().zip(&svds).zip(slots) {
-                *slot = rest.nodal_forces(stress.stress(svd));
-            }
-        }
-        for ((corners, rest), slot) in tets_tail.iter().zip(rests_tail).zip(out_tail) {
-            let svd = svd3(rest.deformation_gradient(gather(positions, corners)));
-            *slot = rest.nodal_forces(stress.stress(&svd));
-        }
+        piece_svd_loop(
+            positions,
+            (tets, rests, grouped),
+            out,
+            |rest, svd, slot| *slot = rest.nodal_forces(stress.stress(svd)),
+            |corners, rest, slot| {
+                let svd = svd3(rest.deformation_gradient(gather(positions, corners)));
+                *slot = rest.nodal_forces(stress.stress(&svd));
+            },
+        );
         Ok(())
+    }
+}
+
+/// The element loop of a piece whose elements need the SVD of `F` at `positions` (m), batched
+/// where the sequential kernel batches: the first `grouped` elements of `(tets, rests)` (a
+/// multiple of [`LANES`]) a group at a time, their SVDs by [`svd3_lanes`] (the bits of [`svd3`]),
+/// each handed to `from_svd` with the element's rest data and its slot of `out`; the elements
+/// after them handed one at a time to `single`, with their corners.
+#[inline(always)]
+pub(super) fn piece_svd_loop<T>(
+    positions: &[Vec3],
+    (tets, rests, grouped): (&[[u32; 4]], &[TetRest], usize),
+    out: &mut [T],
+    mut from_svd: impl FnMut(&TetRest, &Svd3, &mut T),
+    mut single: impl FnMut(&[u32; 4], &TetRest, &mut T),
+) {
+    let (out_groups, out_tail) = out.split_at_mut(grouped.min(out.len()));
+    let (tets_groups, tets_tail) = tets.split_at(grouped.min(tets.len()));
+    let (rests_groups, rests_tail) = rests.split_at(grouped.min(rests.len()));
+    let groups = tet_groups(tets_groups, rests_groups);
+    for ((tets, rests), slots) in groups.zip(out_groups.chunks_exact_mut(LANES)) {
+        let gradients = core::array::from_fn(|lane| match (tets.get(lane), rests.get(lane)) {
+            (Some(corners), Some(rest)) => rest.deformation_gradient(gather(positions, corners)),
+            _ => Mat3::ZERO,
+        });
+        let svds = svd3_lanes(&gradients);
+        for ((rest, svd), slot) in rests.iter().zip(&svds).zip(slots) {
+            from_svd(rest, svd, slot);
+        }
+    }
+    for ((corners, rest), slot) in tets_tail.iter().zip(rests_tail).zip(out_tail) {
+        single(corners, rest, slot);
     }
 }

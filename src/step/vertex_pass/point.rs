@@ -339,101 +339,102 @@ impl<L: Lane> Neg for LaneVec2<L> {
     }
 }
 
+/// The [`Point`] arithmetic of one vertex's plain vector `$vector` (coordinates `$first`,
+/// `$axis`...): glam's, `abs_sum` added in coordinate order.
+macro_rules! one_vertex_point {
+    ($vector:ident: $first:ident $(, $axis:ident)*) => {
+        type Scalar = Real;
+        type Vector = $vector;
+        #[inline(always)]
+        fn splat(v: $vector) -> Self {
+            v
+        }
+        #[inline(always)]
+        fn zero() -> Self {
+            $vector::ZERO
+        }
+        #[inline(always)]
+        fn inner(self, o: Self) -> Real {
+            $vector::dot(self, o)
+        }
+        #[inline(always)]
+        fn scale(self, k: Real) -> Self {
+            self * k
+        }
+        #[inline(always)]
+        fn abs_sum(self) -> Real {
+            self.$first.abs() $(+ self.$axis.abs())*
+        }
+        #[inline(always)]
+        fn select(mask: bool, a: Self, b: Self) -> Self {
+            if mask { a } else { b }
+        }
+    };
+}
+
+/// The [`Point`] arithmetic of a group of `L` lanes of `$vector` (coordinates `$first`,
+/// `$axis`...): that of its [`Wide`] impl, `abs_sum` added in coordinate order.
+macro_rules! wide_point {
+    ($vector:ident: $first:ident $(, $axis:ident)*) => {
+        type Scalar = L;
+        type Vector = $vector;
+        #[inline(always)]
+        fn splat(v: $vector) -> Self {
+            Self::wide_splat(v)
+        }
+        #[inline(always)]
+        fn zero() -> Self {
+            Self::splat($vector::ZERO)
+        }
+        #[inline(always)]
+        fn inner(self, o: Self) -> L {
+            self.wide_inner(o)
+        }
+        #[inline(always)]
+        fn scale(self, k: L) -> Self {
+            self.wide_scale(k)
+        }
+        #[inline(always)]
+        fn abs_sum(self) -> L {
+            self.$first.abs() $(+ self.$axis.abs())*
+        }
+        #[inline(always)]
+        fn select(mask: L::Mask, a: Self, b: Self) -> Self {
+            Self::wide_select(mask, a, b)
+        }
+    };
+}
+
+/// The [`Point`] items of a 2D point, plain or in lanes, about colliders: they act on 3D
+/// points only, so every query is the identity and touches nothing.
+macro_rules! no_colliders_point {
+    () => {
+        #[inline(always)]
+        fn pushed_out(self, _: Colliders<'_>) -> Self {
+            self
+        }
+        #[inline(always)]
+        fn constrained_by(self, _: Colliders<'_>, v: Self, _: Real) -> Self {
+            v
+        }
+        type Touch = ();
+        #[inline(always)]
+        fn touch(self, _: Colliders<'_>) {}
+        #[inline(always)]
+        fn constrained_at((): (), v: Self, _: Real) -> Self {
+            v
+        }
+    };
+}
+
 impl Point for Vec2 {
-    type Scalar = Real;
-    type Vector = Vec2;
-    #[inline(always)]
-    fn splat(v: Vec2) -> Self {
-        v
-    }
-    #[inline(always)]
-    fn zero() -> Self {
-        Vec2::ZERO
-    }
-    #[inline(always)]
-    fn inner(self, o: Self) -> Real {
-        Vec2::dot(self, o)
-    }
-    #[inline(always)]
-    fn scale(self, k: Real) -> Self {
-        self * k
-    }
-    #[inline(always)]
-    fn abs_sum(self) -> Real {
-        self.x.abs() + self.y.abs()
-    }
-    #[inline(always)]
-    fn select(mask: bool, a: Self, b: Self) -> Self {
-        if mask { a } else { b }
-    }
-    #[inline(always)]
-    fn pushed_out(self, _: Colliders<'_>) -> Self {
-        self
-    }
-    #[inline(always)]
-    fn constrained_by(self, _: Colliders<'_>, v: Self, _: Real) -> Self {
-        v
-    }
-    type Touch = ();
-    #[inline(always)]
-    fn touch(self, _: Colliders<'_>) {}
-    #[inline(always)]
-    fn constrained_at((): (), v: Self, _: Real) -> Self {
-        v
-    }
+    one_vertex_point!(Vec2: x, y);
+    no_colliders_point!();
 }
 
 impl<L: Lane> Point for LaneVec2<L> {
-    type Scalar = L;
-    type Vector = Vec2;
-    #[inline(always)]
-    fn splat(v: Vec2) -> Self {
-        LaneVec2 {
-            x: L::splat(v.x),
-            y: L::splat(v.y),
-        }
-    }
-    #[inline(always)]
-    fn zero() -> Self {
-        Self::splat(Vec2::ZERO)
-    }
-    #[inline(always)]
-    fn inner(self, o: Self) -> L {
-        self.x * o.x + self.y * o.y
-    }
-    #[inline(always)]
-    fn scale(self, k: L) -> Self {
-        LaneVec2 {
-            x: self.x * k,
-            y: self.y * k,
-        }
-    }
-    #[inline(always)]
-    fn abs_sum(self) -> L {
-        self.x.abs() + self.y.abs()
-    }
-    #[inline(always)]
-    fn select(mask: L::Mask, a: Self, b: Self) -> Self {
-        LaneVec2 {
-            x: L::select(mask, a.x, b.x),
-            y: L::select(mask, a.y, b.y),
-        }
-    }
-    #[inline(always)]
-    fn pushed_out(self, _: Colliders<'_>) -> Self {
-        self
-    }
-    #[inline(always)]
-    fn constrained_by(self, _: Colliders<'_>, v: Self, _: Real) -> Self {
-        v
-    }
-    type Touch = ();
-    #[inline(always)]
-    fn touch(self, _: Colliders<'_>) {}
-    #[inline(always)]
-    fn constrained_at((): (), v: Self, _: Real) -> Self {
-        v
-    }
+    wide_point!(Vec2: x, y);
+    no_colliders_point!();
 }
 
 impl Grouped for Vec2 {
@@ -483,32 +484,7 @@ impl Grouped for Vec2 {
 }
 
 impl Point for Vec3 {
-    type Scalar = Real;
-    type Vector = Vec3;
-    #[inline(always)]
-    fn splat(v: Vec3) -> Self {
-        v
-    }
-    #[inline(always)]
-    fn zero() -> Self {
-        Vec3::ZERO
-    }
-    #[inline(always)]
-    fn inner(self, o: Self) -> Real {
-        Vec3::dot(self, o)
-    }
-    #[inline(always)]
-    fn scale(self, k: Real) -> Self {
-        self * k
-    }
-    #[inline(always)]
-    fn abs_sum(self) -> Real {
-        self.x.abs() + self.y.abs() + self.z.abs()
-    }
-    #[inline(always)]
-    fn select(mask: bool, a: Self, b: Self) -> Self {
-        if mask { a } else { b }
-    }
+    one_vertex_point!(Vec3: x, y, z);
     #[inline(always)]
     fn pushed_out(self, colliders: Colliders<'_>) -> Self {
         colliders.pushed_out(self)
@@ -531,32 +507,7 @@ impl Point for Vec3 {
 // Groups of any width: the colliders' queries go lane by lane, each lane through the one-vertex
 // query; the arithmetic that follows a query is element-wise, in the one-vertex code's order.
 impl<L: Lane> Point for LaneVec3<L> {
-    type Scalar = L;
-    type Vector = Vec3;
-    #[inline(always)]
-    fn splat(v: Vec3) -> Self {
-        LaneVec3::new(L::splat(v.x), L::splat(v.y), L::splat(v.z))
-    }
-    #[inline(always)]
-    fn zero() -> Self {
-        Self::splat(Vec3::ZERO)
-    }
-    #[inline(always)]
-    fn inner(self, o: Self) -> L {
-        LaneVec3::dot(self, o)
-    }
-    #[inline(always)]
-    fn scale(self, k: L) -> Self {
-        LaneVec3::scale(self, k)
-    }
-    #[inline(always)]
-    fn abs_sum(self) -> L {
-        self.x.abs() + self.y.abs() + self.z.abs()
-    }
-    #[inline(always)]
-    fn select(mask: L::Mask, a: Self, b: Self) -> Self {
-        LaneVec3::select(mask, a, b)
-    }
+    wide_point!(Vec3: x, y, z);
     #[inline(always)]
     fn pushed_out(self, colliders: Colliders<'_>) -> Self {
         map_lane_vectors(|lane| colliders.pushed_out(lane_vec3(&self, lane)))
