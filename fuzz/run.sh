@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs softfem's cargo-fuzz targets for a bounded time each and fails on any crash (a panic is a
 # broken promise: see fuzz/README.md). Used by .ci/run; runnable by hand from anywhere:
-#   fuzz/run.sh                    # every target, 60 s each
+#   fuzz/run.sh                    # every target, 60 s each (CI: 30 s each, 8 x 30 s = 240 s)
 #   fuzz/run.sh 10 svd_contract    # one target, 10 s
 # Installs the nightly toolchain (minimal profile) and cargo-fuzz if they are missing.
 # Replays the inputs kept under fuzz/regressions/<target>/ first, then fuzzes from the seeds of
@@ -15,7 +15,7 @@ seconds="${1:-60}"
 shift || true
 targets=("$@")
 if [[ ${#targets[@]} -eq 0 ]]; then
-    targets=(tetgen_reader mesh_kernels svd_contract stepper)
+    targets=(tetgen_reader gmsh_reader obj_reader voxel_embed body mesh_kernels svd_contract stepper)
 fi
 
 if ! cargo +nightly --version >/dev/null 2>&1; then
@@ -35,6 +35,9 @@ options=(--sanitizer none)
 "${fuzz[@]}" build "${options[@]}"
 
 declare -A dictionary=([tetgen_reader]=$PWD/fuzz/dict/tetgen.dict)
+# The targets of the std helpers run them with a 1 MiB budget (fuzz/src/voxel_checks.rs) on
+# inputs of a few kilobytes: 512 MB is far above what they may use.
+declare -A rss_limit_mb=([gmsh_reader]=512 [obj_reader]=512 [voxel_embed]=512 [body]=512)
 failed=()
 summary=()
 log_dir=target/fuzz-logs
@@ -51,7 +54,11 @@ for target in "${targets[@]}"; do
     echo "=== $target: fuzzing for $seconds s"
     corpus="$PWD/target/fuzz-corpus/$target"
     mkdir -p "$corpus"
-    args=(-max_total_time="$seconds" -timeout=30 -print_final_stats=1)
+    # A memory limit per target: an input that makes the library allocate without bound (an
+    # abort on allocation, or a buffer sized from the input without a check that the kernel
+    # lets through and the library then fills) is a crash.
+    args=(-max_total_time="$seconds" -timeout=30 -rss_limit_mb="${rss_limit_mb[$target]:-2048}"
+        -print_final_stats=1)
     if [[ -n ${dictionary[$target]:-} ]]; then
         args+=(-dict="${dictionary[$target]}")
     fi

@@ -807,6 +807,15 @@ pub enum BodyError {
     Mesh(MeshError),
     /// The masses or the stable time step were refused.
     Step(StepError),
+    /// A vertex is in no tetrahedron: it would have no mass, and every step would refuse it
+    /// ([`StepError::Mass`]). Drop unused vertices (and renumber) before building the body.
+    UnusedVertex {
+        /// The vertex index.
+        vertex: usize,
+    },
+    /// The explicit solver's `stable_fraction` is NaN, infinite, or outside `(0, 1]` (a fraction
+    /// of the stable time step: above 1 the steps are not proven stable).
+    StableFraction,
 }
 
 impl From<GenerateError> for BodyError {
@@ -849,6 +858,14 @@ impl fmt::Display for BodyError {
             BodyError::Generate(error) => write!(f, "{error}"),
             BodyError::Mesh(error) => write!(f, "{error}"),
             BodyError::Step(error) => write!(f, "{error}"),
+            BodyError::UnusedVertex { vertex } => write!(
+                f,
+                "vertex {vertex} is in no tetrahedron (it would have no mass)"
+            ),
+            BodyError::StableFraction => f.write_str(
+                "the explicit solver's stable_fraction must be a finite fraction in (0, 1] of the \
+                 stable time step",
+            ),
         }
     }
 }

@@ -4,13 +4,14 @@
 //! Promises checked (`src/asset/tetgen.rs`): nothing panics, and the result is exactly what the
 //! format documented in the module (one header, consecutive records, exact field counts,
 //! numeric fields, finite coordinates, first index 0 or 1, references in range, 4-node
-//! tetrahedra) gives, computed here by an independent reader: the same mesh, or an error naming
+//! tetrahedra, no degenerate tetrahedron) gives, computed here by an independent reader: the same mesh, or an error naming
 //! the same file, line and problem, whose message starts with `<file> file, line <n>:`.
 
 use super::NAME;
 use super::sf::asset::tetgen::{TetgenMesh, read_tetgen};
+use super::sf::element::{TetRest, fix_orientation};
 use super::sf::types::{Real, Vec3};
-use super::sf::{TetgenFile, TetgenFormatError, TetgenProblem};
+use super::sf::{ElementError, TetgenFile, TetgenFormatError, TetgenProblem};
 
 /// Runs the reader checks on one fuzzer input.
 pub fn check(data: &[u8]) {
@@ -118,6 +119,9 @@ enum Problem {
         points: usize,
         first: u32,
     },
+    DegenerateTet {
+        index: i64,
+    },
     Unknown,
 }
 
@@ -146,6 +150,7 @@ fn summary(error: &TetgenFormatError) -> Failure {
             points,
             first,
         },
+        TetgenProblem::DegenerateTet { index } => Problem::DegenerateTet { index },
         _ => Problem::Unknown,
     };
     Failure {
@@ -175,7 +180,7 @@ fn reference(node: &str, ele: &str) -> Result<(Vec<Vec3>, Vec<[u32; 4]>), Failur
         line,
         problem,
     })?;
-    let tets = reference_ele(ele, positions.len(), first).map_err(|(line, problem)| Failure {
+    let tets = reference_ele(ele, &positions, first).map_err(|(line, problem)| Failure {
         node_file: false,
         line,
         problem,
@@ -313,7 +318,8 @@ fn reference_node(text: &str) -> Result<(Vec<Vec3>, u32), LineProblem> {
     Ok((positions, first))
 }
 
-fn reference_ele(text: &str, points: usize, first: u32) -> Result<Vec<[u32; 4]>, LineProblem> {
+fn reference_ele(text: &str, positions: &[Vec3], first: u32) -> Result<Vec<[u32; 4]>, LineProblem> {
+    let points = positions.len();
     let records = records(text);
     let (line, fields) = header(text, &records)?;
     let line = *line;
@@ -354,6 +360,18 @@ fn reference_ele(text: &str, points: usize, first: u32) -> Result<Vec<[u32; 4]>,
             fields[5]
                 .parse::<f64>()
                 .map_err(|_| (line, Problem::NonNumeric { field: 6 }))?;
+        }
+        // The documented degeneracy test: the element module's, on the tetrahedron oriented
+        // positively (the reader accepts either orientation).
+        let corners = |tet: [u32; 4]| tet.map(|v| positions[v as usize]);
+        let oriented = fix_orientation(tet, corners(tet));
+        if let Err(ElementError::Degenerate) = TetRest::new(corners(oriented)) {
+            return Err((
+                line,
+                Problem::DegenerateTet {
+                    index: integer(line, fields, 1)?,
+                },
+            ));
         }
         tets.push(tet);
     }

@@ -497,7 +497,11 @@ impl Embedding<'_> {
 }
 
 /// Binds render points in one call, allocating the lookup grid and the result (feature `std`):
-/// [`TetLookup::plan`] with the default cell size, [`TetLookup::build`], [`embed_points`].
+/// [`TetLookup::plan`] with the default cell size, [`TetLookup::build`], [`embed_points`],
+/// within the memory budget [`MEMORY_BUDGET`](super::MEMORY_BUDGET) (2 GiB): see
+/// [`embed_points_vec_with_budget`]. The grid spans the mesh's bounding box grown by the
+/// margin, in cells the size of a mean tetrahedron, so a margin far larger than the mesh asks
+/// for a large grid.
 ///
 /// ```
 /// use softfem::asset::embed::{Embedding, embed_points_vec};
@@ -517,7 +521,8 @@ impl Embedding<'_> {
 /// ```
 ///
 /// # Errors
-/// Those of the three steps.
+/// Those of [`embed_points_vec_with_budget`] with the budget
+/// [`MEMORY_BUDGET`](super::MEMORY_BUDGET).
 #[cfg(feature = "std")]
 pub fn embed_points_vec(
     positions: &[Vec3],
@@ -525,12 +530,42 @@ pub fn embed_points_vec(
     points: &[Vec3],
     margin: Real,
 ) -> Result<std::vec::Vec<Embedded>, EmbedError> {
-    use std::vec;
+    embed_points_vec_with_budget(positions, tets, points, margin, super::MEMORY_BUDGET)
+}
+
+/// [`embed_points_vec`] with a memory budget of `budget` bytes (feature `std`): the bytes of
+/// the planned bucket starts and entries (4 bytes each) and of the result (one [`Embedded`] a
+/// render point) are added up and compared with `budget` before anything is allocated, and the
+/// buffers are allocated fallibly.
+///
+/// # Errors
+/// Those of the three steps; [`EmbedError::OverBudget`] with the bytes and the budget;
+/// [`EmbedError::Allocation`] with the bytes the allocator refused.
+#[cfg(feature = "std")]
+pub fn embed_points_vec_with_budget(
+    positions: &[Vec3],
+    tets: &[[u32; 4]],
+    points: &[Vec3],
+    margin: Real,
+    budget: usize,
+) -> Result<std::vec::Vec<Embedded>, EmbedError> {
+    use super::{bytes_of, filled};
     let plan = TetLookup::plan(positions, tets, None, margin)?;
-    let mut starts = vec![0u32; plan.starts_len];
-    let mut entries = vec![0u32; plan.entries_len];
+    let bytes = [
+        bytes_of::<u32>(plan.starts_len),
+        bytes_of::<u32>(plan.entries_len),
+        bytes_of::<Embedded>(points.len()),
+    ]
+    .into_iter()
+    .fold(0, usize::saturating_add);
+    if bytes > budget {
+        return Err(EmbedError::OverBudget { bytes, budget });
+    }
+    let allocation = |bytes| EmbedError::Allocation { bytes };
+    let mut starts = filled(plan.starts_len, 0u32).map_err(allocation)?;
+    let mut entries = filled(plan.entries_len, 0u32).map_err(allocation)?;
     let lookup = TetLookup::build(&plan, positions, tets, &mut starts, &mut entries)?;
-    let mut out = vec![Embedded::default(); points.len()];
+    let mut out = filled(points.len(), Embedded::default()).map_err(allocation)?;
     embed_points(&lookup, positions, tets, points, &mut out)?;
     Ok(out)
 }

@@ -90,6 +90,31 @@ pub enum VoxelError {
     /// After rounding, some tetrahedron would not have a positive finite volume (cells too small
     /// for this precision so far from the origin).
     DegenerateCells,
+    /// The buffers a `std` helper would allocate, `bytes` in all, exceed its memory budget
+    /// (`budget` bytes; `asset::MEMORY_BUDGET` unless the caller gave one). Checked before
+    /// anything is allocated.
+    OverBudget {
+        /// The bytes the buffers need.
+        bytes: usize,
+        /// The budget (bytes).
+        budget: usize,
+    },
+    /// The allocator refused `bytes` bytes for a buffer (a `std` helper allocates fallibly).
+    Allocation {
+        /// The bytes asked for.
+        bytes: usize,
+    },
+    /// The cell size `h` is too large or too small for this precision: `8 h^3` (a bound on a
+    /// cell's volume determinants) overflows, or `h^3 / 6` (m^3, its smallest tetrahedron) is
+    /// not a normal number, so no tetrahedron could be built (for example a 1 m asset scaled by
+    /// `1e30` or `1e-30` in f32).
+    CellScale,
+    /// The closed surface encloses no positive volume: it is inside out (its triangles are
+    /// clockwise seen from outside) or flat (it encloses nothing), so no cell can be inside.
+    NoVolume,
+    /// No cell of the grid is kept: the solid is thinner than the cells (or, with coverage
+    /// options, than the fraction asked for). Refine the grid; an empty mesh is never returned.
+    NoCellsInside,
 }
 
 impl fmt::Display for VoxelError {
@@ -133,6 +158,25 @@ impl fmt::Display for VoxelError {
             VoxelError::DegenerateCells => f.write_str(
                 "the cells are too small for this precision: a tetrahedron would not have a \
                  positive finite volume",
+            ),
+            VoxelError::OverBudget { bytes, budget } => write!(
+                f,
+                "voxel meshing needs {bytes} bytes of buffers, over its memory budget of \
+                 {budget} bytes (use a coarser grid)"
+            ),
+            VoxelError::Allocation { bytes } => {
+                write!(f, "the allocator refused {bytes} bytes for a voxel buffer")
+            }
+            VoxelError::CellScale => f.write_str(
+                "the cell size is too large or too small for this precision: a cell's volume \
+                 would overflow or underflow (rescale the surface to metres)",
+            ),
+            VoxelError::NoVolume => f.write_str(
+                "the closed surface encloses no positive volume: it is inside out (clockwise \
+                 triangles) or flat",
+            ),
+            VoxelError::NoCellsInside => f.write_str(
+                "no cell of the grid is inside the surface: the grid is too coarse for the solid",
             ),
         }
     }
@@ -211,6 +255,20 @@ pub enum EmbedError {
         /// The render point.
         point: usize,
     },
+    /// The buffers a `std` helper would allocate, `bytes` in all, exceed its memory budget
+    /// (`budget` bytes; `asset::MEMORY_BUDGET` unless the caller gave one). Checked before
+    /// anything is allocated.
+    OverBudget {
+        /// The bytes the buffers need.
+        bytes: usize,
+        /// The budget (bytes).
+        budget: usize,
+    },
+    /// The allocator refused `bytes` bytes for a buffer (a `std` helper allocates fallibly).
+    Allocation {
+        /// The bytes asked for.
+        bytes: usize,
+    },
 }
 
 impl fmt::Display for EmbedError {
@@ -245,6 +303,17 @@ impl fmt::Display for EmbedError {
                 f,
                 "render point {point} is farther than the margin from every tetrahedron"
             ),
+            EmbedError::OverBudget { bytes, budget } => write!(
+                f,
+                "embedding needs {bytes} bytes of buffers, over its memory budget of {budget} \
+                 bytes (a smaller margin, or render points closer to the mesh)"
+            ),
+            EmbedError::Allocation { bytes } => {
+                write!(
+                    f,
+                    "the allocator refused {bytes} bytes for an embedding buffer"
+                )
+            }
         }
     }
 }
@@ -450,6 +519,9 @@ pub enum GmshProblem {
     },
     /// A line other than the expected `$End...` closes a section.
     ExpectedEnd(GmshSection),
+    /// A section this reader needs appears a second time (on the reported line): which of
+    /// the two the elements refer to would be a guess.
+    RepeatedSection(GmshSection),
 }
 
 #[cfg(feature = "std")]
@@ -478,6 +550,9 @@ impl fmt::Display for GmshProblem {
                  tetrahedra; points and lines are skipped)"
             ),
             GmshProblem::ExpectedEnd(section) => write!(f, "expected the end of {section}"),
+            GmshProblem::RepeatedSection(section) => {
+                write!(f, "a second {section} section (the file may have only one)")
+            }
         }
     }
 }
@@ -653,6 +728,12 @@ pub enum TetgenProblem {
         /// The index of the first point (0 or 1).
         first: u32,
     },
+    /// A tetrahedron's rest volume is (near) zero relative to its edge lengths (the element
+    /// module's degeneracy test, `DEGENERACY_RATIO`), or not finite: it cannot be simulated.
+    DegenerateTet {
+        /// The tetrahedron's index as written in the file.
+        index: i64,
+    },
 }
 
 #[cfg(feature = "std")]
@@ -701,6 +782,10 @@ impl fmt::Display for TetgenProblem {
             } => write!(
                 f,
                 "point index {index} is out of range ({points} points numbered from {first})"
+            ),
+            TetgenProblem::DegenerateTet { index } => write!(
+                f,
+                "tetrahedron {index} is degenerate (near-zero or non-finite rest volume)"
             ),
         }
     }

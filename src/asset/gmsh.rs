@@ -88,7 +88,8 @@ pub struct GmshMesh {
 /// A [`GmshFormatError`] with the line and problem: a missing or unterminated section, a
 /// version other than 4.1 or a binary file, a wrong number of fields or a field that is not a
 /// number, a non-finite coordinate, a duplicate or unknown node tag, a header count that does not
-/// match its records, or an unsupported element type.
+/// match its records, an unsupported element type, or a second `$MeshFormat`, `$Nodes` or
+/// `$Elements` section (named on the line that opens it).
 pub fn read_gmsh(text: &str) -> Result<GmshMesh, GmshFormatError> {
     let mut lines = Lines::new(text);
     let mut mesh = GmshMesh::default();
@@ -98,6 +99,7 @@ pub fn read_gmsh(text: &str) -> Result<GmshMesh, GmshFormatError> {
     while let Some((line, content)) = lines.next_line() {
         match content {
             "$MeshFormat" => {
+                refuse_repeat(seen_format, GmshSection::MeshFormat, line)?;
                 let (line, fields) = lines.record(GmshSection::MeshFormat)?;
                 let error = |problem| GmshFormatError { line, problem };
                 let [version, file_type, ..] = fields.as_slice() else {
@@ -117,10 +119,12 @@ pub fn read_gmsh(text: &str) -> Result<GmshMesh, GmshFormatError> {
             }
             "$Nodes" => {
                 require_format(seen_format, line)?;
+                refuse_repeat(node_tags.is_some(), GmshSection::Nodes, line)?;
                 node_tags = Some(read_nodes(&mut lines, &mut mesh)?);
             }
             "$Elements" => {
                 require_format(seen_format, line)?;
+                refuse_repeat(seen_elements, GmshSection::Elements, line)?;
                 let tags = node_tags.as_ref().ok_or(GmshFormatError {
                     line,
                     problem: GmshProblem::MissingSection(GmshSection::Nodes),
@@ -183,6 +187,19 @@ fn require_format(seen: bool, line: usize) -> Result<(), GmshFormatError> {
             line,
             problem: GmshProblem::MissingSection(GmshSection::MeshFormat),
         })
+    }
+}
+
+/// A second `$MeshFormat`, `$Nodes` or `$Elements` section (at `line`) is refused: elements
+/// would refer to the nodes of one of two sections, and which is a guess.
+fn refuse_repeat(seen: bool, section: GmshSection, line: usize) -> Result<(), GmshFormatError> {
+    if seen {
+        Err(GmshFormatError {
+            line,
+            problem: GmshProblem::RepeatedSection(section),
+        })
+    } else {
+        Ok(())
     }
 }
 

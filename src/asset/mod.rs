@@ -14,6 +14,34 @@
 
 pub use crate::error::asset::*;
 
+/// The memory budget of the `std` helpers that size their own buffers from their input,
+/// [`voxel::voxel_mesh`] and [`embed::embed_points_vec`]: 2 GiB (bytes), the same limit as the
+/// `bouncy` example's refusal of a scene. Each helper adds up the bytes of the buffers it would
+/// hold at once, from the grid and mesh sizes, and refuses (`VoxelError::OverBudget`,
+/// `EmbedError::OverBudget`, naming the bytes and the budget) before allocating anything when
+/// they exceed it; what it does allocate, it allocates fallibly (`Vec::try_reserve_exact`),
+/// so a refused allocation is an error naming its size, never an abort. The `_with_budget`
+/// variants take another budget; the buffer-level functions allocate nothing and take any size.
+pub const MEMORY_BUDGET: usize = 1 << 31;
+
+/// The bytes of `len` values of `T` (saturating: a size that overflows is over any budget).
+#[cfg(feature = "std")]
+fn bytes_of<T>(len: usize) -> usize {
+    core::mem::size_of::<T>().saturating_mul(len)
+}
+
+/// A vector of `len` copies of `value`, allocated fallibly: `Err(bytes)` with the bytes asked
+/// for if the allocator refuses.
+#[cfg(feature = "std")]
+fn filled<T: Clone>(len: usize, value: T) -> Result<std::vec::Vec<T>, usize> {
+    let mut buffer = std::vec::Vec::new();
+    buffer
+        .try_reserve_exact(len)
+        .map_err(|_| bytes_of::<T>(len))?;
+    buffer.resize(len, value);
+    Ok(buffer)
+}
+
 pub mod embed;
 pub mod surface;
 pub mod voxel;

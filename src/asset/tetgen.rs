@@ -18,7 +18,9 @@
 //! The format does not fix the orientation of a tetrahedron, so a file (TetGen's own output, or
 //! a mesh such as the GAMES103 "house") may list tetrahedra with `det([x2 - x1, x3 - x1,
 //! x4 - x1]) < 0`, some or all of them. This reader returns the tetrahedra exactly as written
-//! and does not check. Callers must not assume either sign: compute each rest volume and swap two
+//! and does not check their orientation. It does refuse a degenerate tetrahedron (zero or
+//! near-zero volume, by the element module's test, in either orientation), naming the `.ele`
+//! line, since no body could be built from it. Callers must not assume either sign: compute each rest volume and swap two
 //! vertices (for example `n3` and `n4`) of every negatively oriented tetrahedron, with the
 //! element module's orientation helper or by hand, before building rest data, which requires
 //! positive volumes (`docs/math.md` section 1).
@@ -27,7 +29,9 @@ use std::path::Path;
 use std::string::String;
 use std::vec::Vec;
 
+use super::super::element::{TetRest, fix_orientation};
 use super::super::types::{Real, Vec3};
+use crate::error::ElementError;
 pub use crate::error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 
 /// A tetrahedral mesh read from TetGen files.
@@ -46,7 +50,8 @@ pub struct TetgenMesh {
 /// A [`TetgenFormatError`] naming the file, the 1-based line and the problem: a bad or missing
 /// header, a record count different from the header's, a wrong number of fields, a field that
 /// is not a number, a non-finite coordinate, a first index other than 0 or 1, a non-consecutive
-/// (or duplicate) record index, a point reference out of range, or 10-node tetrahedra.
+/// (or duplicate) record index, a point reference out of range, 10-node tetrahedra, or a
+/// degenerate tetrahedron ([`TetgenProblem::DegenerateTet`]).
 ///
 /// ```
 /// use softfem::asset::tetgen::read_tetgen;
@@ -71,7 +76,7 @@ pub struct TetgenMesh {
 /// ```
 pub fn read_tetgen(node: &str, ele: &str) -> Result<TetgenMesh, TetgenFormatError> {
     let (positions, first) = read_node(node)?;
-    let tets = read_ele(ele, positions.len(), first)?;
+    let tets = read_ele(ele, &positions, first)?;
     Ok(TetgenMesh { positions, tets })
 }
 
@@ -91,7 +96,7 @@ pub fn read_tetgen_files(
         path: node_path.to_path_buf(),
         error,
     })?;
-    let tets = read_ele(&ele, positions.len(), first).map_err(|error| TetgenError::Format {
+    let tets = read_ele(&ele, &positions, first).map_err(|error| TetgenError::Format {
         path: ele_path.to_path_buf(),
         error,
     })?;
@@ -319,9 +324,14 @@ fn read_node(text: &str) -> Result<(Vec<Vec3>, u32), TetgenFormatError> {
     Ok((positions, first))
 }
 
-/// The tetrahedra of an `.ele` text as 0-based indices into `points` points numbered from
-/// `first`.
-fn read_ele(text: &str, points: usize, first: u32) -> Result<Vec<[u32; 4]>, TetgenFormatError> {
+/// The tetrahedra of an `.ele` text as 0-based indices into `positions`, numbered from `first`
+/// in the file; a degenerate tetrahedron is refused on its line.
+fn read_ele(
+    text: &str,
+    positions: &[Vec3],
+    first: u32,
+) -> Result<Vec<[u32; 4]>, TetgenFormatError> {
+    let points = positions.len();
     let mut records = Records::new(TetgenFile::Ele, text);
     let head = header(&mut records)?;
     head.expect_fields(3)?;
@@ -360,6 +370,17 @@ fn read_ele(text: &str, points: usize, first: u32) -> Result<Vec<[u32; 4]>, Tetg
         }
         if region {
             record.check_number(6)?;
+        }
+        // The test a body applies when built from this mesh: positively oriented first (the
+        // reader accepts either orientation), then `TetRest::new`'s degeneracy test.
+        let corners = tet.map(|v| positions.get(v as usize).copied().unwrap_or(Vec3::ZERO));
+        let oriented = fix_orientation(tet, corners);
+        let oriented_corners =
+            oriented.map(|v| positions.get(v as usize).copied().unwrap_or(Vec3::ZERO));
+        if let Err(ElementError::Degenerate) = TetRest::new(oriented_corners) {
+            return Err(record.error(TetgenProblem::DegenerateTet {
+                index: record.integer(1)?,
+            }));
         }
         tets.push(tet);
     }

@@ -53,7 +53,7 @@
 //! Dropping such a cell never changes another cell's face neighbours, so one pass suffices.
 
 use super::super::generate::{BoxSplit, box_cell_tets};
-use super::super::math::{atan2, sqrt};
+use super::super::math::{atan2, exponent, pow2, sqrt};
 use super::super::types::{Mat3, Real, Vec3};
 use crate::error::{VoxelBuffer, VoxelError};
 
@@ -307,8 +307,32 @@ pub fn winding_number(positions: &[Vec3], triangles: &[[u32; 3]], point: Vec3) -
 
 /// Half the signed solid angle of the triangle `a, b, c` (corners relative to the viewpoint):
 /// Van Oosterom and Strackee's formula.
+///
+/// Both terms of the quotient are cubic in the corners, so far from unit scale they overflow
+/// (f32: a surface of 1e13 m) or underflow (1e-13 m) and the angle comes out NaN or 0. The solid
+/// angle does not depend on scale, so corners whose largest coordinate is outside
+/// `2^-SCALE_FREE ..= 2^SCALE_FREE` are first multiplied by a power of two that brings it to
+/// `[1, 2)`: exact, so the quotient (and the angle) is what it would be at unit scale, and
+/// corners inside that range are used as they are (the same bits as without the rescaling).
 #[inline]
 fn half_solid_angle(a: Vec3, b: Vec3, c: Vec3) -> Real {
+    /// The binary exponents of the largest coordinate used without rescaling: cubes of
+    /// `2^+-25` and sums of a few are normal numbers in f32.
+    const SCALE_FREE: i32 = 24;
+    let largest = a.abs().max(b.abs()).max(c.abs()).max_element();
+    let e = if largest > 0.0 && largest.is_finite() {
+        exponent(largest)
+    } else {
+        0
+    };
+    let (a, b, c) = if (-SCALE_FREE..=SCALE_FREE).contains(&e) {
+        (a, b, c)
+    } else {
+        // In two factors, each a normal power of two even where `2^-e` is not (subnormal
+        // corners); the first product is normal, so both multiplications are exact.
+        let (first, second) = (pow2(-e / 2), pow2(-e - (-e / 2)));
+        (a * first * second, b * first * second, c * first * second)
+    };
     let (la, lb, lc) = (sqrt(a.dot(a)), sqrt(b.dot(b)), sqrt(c.dot(c)));
     let numerator = a.dot(b.cross(c));
     let denominator = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
@@ -326,8 +350,10 @@ fn half_solid_angle(a: Vec3, b: Vec3, c: Vec3) -> Real {
 /// # Errors
 /// [`VoxelError::Coverage`] for bad options; those of [`check_closed`];
 /// [`VoxelError::NonFinitePosition`]; [`VoxelError::BufferLength`] if `occupied` does not have
-/// [`VoxelGrid::cell_count`] entries; [`VoxelError::TooManyCells`] for an invalid grid. On
-/// error `occupied` is unchanged.
+/// [`VoxelGrid::cell_count`] entries; [`VoxelError::TooManyCells`] for an invalid grid;
+/// [`VoxelError::CellScale`] if a cell's volume is not a normal number in this precision;
+/// [`VoxelError::NoVolume`] if the surface is inside out or flat (its signed enclosed volume is
+/// not positive beyond rounding). On error `occupied` is unchanged.
 pub fn classify_cells(
     positions: &[Vec3],
     triangles: &[[u32; 3]],
@@ -341,9 +367,20 @@ pub fn classify_cells(
     if !(grid.cell_size.is_finite() && grid.cell_size > 0.0 && grid.origin.is_finite()) {
         return Err(VoxelError::CellSize);
     }
+    // A cell's tetrahedra have volumes `h^3 / 6` and `h^3 / 3`, from determinants of up to
+    // `2 h^3` summed from terms of up to that size: if `8 h^3` overflows or `h^3 / 6` is not a
+    // normal number, `fill_voxel_mesh` could not build them in this precision, so the
+    // classification (whose winding numbers would be wasted) is not started.
+    let cell_cube = grid.cell_size * grid.cell_size * grid.cell_size;
+    if !((cell_cube * 8.0).is_finite() && cell_cube / 6.0 >= Real::MIN_POSITIVE) {
+        return Err(VoxelError::CellScale);
+    }
     check_length(VoxelBuffer::Occupancy, grid.cell_count(), occupied.len())?;
     let (surface_min, surface_max) = bounding_box(positions)?;
     check_closed(triangles, positions.len(), edge_scratch)?;
+    if !encloses_volume(positions, triangles, surface_min, surface_max) {
+        return Err(VoxelError::NoVolume);
+    }
 
     let s = options.samples_per_axis as usize;
     // Bounding boxes are padded by a small fraction of the cell so that rounding in the sample
@@ -429,6 +466,36 @@ pub fn classify_cells(
         kept -= remove_hanging_cells(grid, occupied);
     }
     Ok(kept)
+}
+
+/// Whether the closed surface encloses a positive volume beyond rounding: the signed volume
+/// `sum_t a . (b x c) / 6` (divergence theorem; corners relative to the bounding box's centre)
+/// exceeds `64 eps` times the sum of the terms' magnitudes, which is what rounding can make of
+/// a flat surface. An inside-out surface gives a negative volume. The corners are scaled by a
+/// power of two that brings the box's extent to `[1, 2)`, so that the cubic terms neither
+/// overflow nor underflow.
+fn encloses_volume(positions: &[Vec3], triangles: &[[u32; 3]], min: Vec3, max: Vec3) -> bool {
+    let extent = (max - min).max_element();
+    if !(extent > 0.0 && extent.is_finite()) {
+        return false;
+    }
+    let e = exponent(extent);
+    let (first, second) = (pow2(-e / 2), pow2(-e - (-e / 2)));
+    let centre = (min + max) * 0.5;
+    let local = |v: u32| {
+        positions
+            .get(v as usize)
+            .map(|&x| (x - centre) * first * second)
+    };
+    let (mut volume, mut magnitude) = (0.0, 0.0);
+    for &[a, b, c] in triangles {
+        if let (Some(xa), Some(xb), Some(xc)) = (local(a), local(b), local(c)) {
+            let term = xa.dot(xb.cross(xc));
+            volume += term;
+            magnitude += term.abs();
+        }
+    }
+    volume > 64.0 * Real::EPSILON * magnitude
 }
 
 /// The bounding box of every triangle, padded by `pad` (an empty box for a triangle with an index
@@ -536,11 +603,15 @@ fn remove_hanging_cells(grid: &VoxelGrid, occupied: &mut [bool]) -> usize {
 ///
 /// # Errors
 /// [`VoxelError::TooManyCells`] for an invalid grid, [`VoxelError::BufferLength`] if `occupied`
-/// does not have [`VoxelGrid::cell_count`] entries.
+/// does not have [`VoxelGrid::cell_count`] entries, [`VoxelError::NoCellsInside`] if no cell is
+/// kept (so that an empty mesh is never made).
 pub fn voxel_counts(grid: &VoxelGrid, occupied: &[bool]) -> Result<(usize, usize), VoxelError> {
     grid.corner_count()?;
     check_length(VoxelBuffer::Occupancy, grid.cell_count(), occupied.len())?;
     let cells = occupied.iter().filter(|&&kept| kept).count();
+    if cells == 0 {
+        return Err(VoxelError::NoCellsInside);
+    }
     let vertices = corners(grid)
         .filter(|&corner| corner_is_used(grid, occupied, corner))
         .count();
@@ -631,7 +702,8 @@ pub struct VoxelMesh {
 }
 
 /// Voxel-meshes a closed surface with [`classify_cells`], [`voxel_counts`] and
-/// [`fill_voxel_mesh`], allocating the buffers (feature `std`).
+/// [`fill_voxel_mesh`], allocating the buffers (feature `std`) within the memory budget
+/// [`MEMORY_BUDGET`](super::MEMORY_BUDGET) (2 GiB): see [`voxel_mesh_with_budget`].
 ///
 /// ```
 /// use softfem::glam::Vec3;
@@ -660,7 +732,7 @@ pub struct VoxelMesh {
 /// ```
 ///
 /// # Errors
-/// Those of the three steps.
+/// Those of [`voxel_mesh_with_budget`] with the budget [`MEMORY_BUDGET`](super::MEMORY_BUDGET).
 #[cfg(feature = "std")]
 pub fn voxel_mesh(
     positions: &[Vec3],
@@ -668,9 +740,41 @@ pub fn voxel_mesh(
     grid: &VoxelGrid,
     options: &VoxelOptions,
 ) -> Result<VoxelMesh, VoxelError> {
-    use std::vec;
-    let mut edge_scratch = vec![[0u32; 3]; closed_check_scratch_len(triangles.len())];
-    let mut occupied = vec![false; grid.cell_count()];
+    voxel_mesh_with_budget(positions, triangles, grid, options, super::MEMORY_BUDGET)
+}
+
+/// [`voxel_mesh`] with a memory budget of `budget` bytes (feature `std`).
+///
+/// The grid is checked first ([`VoxelGrid::corner_count`]), then the bytes of the buffers held
+/// at once are added up and compared with `budget` before they are allocated: for the
+/// classification the edge scratch (36 bytes a triangle) and the occupancy (a byte a cell), for
+/// the mesh the occupancy, the corner map (4 bytes a grid corner), the positions and the
+/// tetrahedra (16 bytes each). The buffers are allocated fallibly.
+///
+/// # Errors
+/// [`VoxelError::TooManyCells`] for a grid whose corners `u32` cannot index (checked before
+/// any size is computed); [`VoxelError::OverBudget`] with the bytes and the budget;
+/// [`VoxelError::Allocation`] with the bytes the allocator refused; those of the three steps
+/// (an inside-out or flat surface, a cell size this precision cannot mesh, no cell inside).
+#[cfg(feature = "std")]
+pub fn voxel_mesh_with_budget(
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    grid: &VoxelGrid,
+    options: &VoxelOptions,
+    budget: usize,
+) -> Result<VoxelMesh, VoxelError> {
+    use super::{bytes_of, filled};
+    let corner_count = grid.corner_count()?;
+    let cell_count = grid.cell_count();
+    let scratch_len = closed_check_scratch_len(triangles.len());
+    within_budget(
+        bytes_of::<[u32; 3]>(scratch_len).saturating_add(bytes_of::<bool>(cell_count)),
+        budget,
+    )?;
+    let allocation = |bytes| VoxelError::Allocation { bytes };
+    let mut edge_scratch = filled(scratch_len, [0u32; 3]).map_err(allocation)?;
+    let mut occupied = filled(cell_count, false).map_err(allocation)?;
     classify_cells(
         positions,
         triangles,
@@ -679,10 +783,22 @@ pub fn voxel_mesh(
         &mut edge_scratch,
         &mut occupied,
     )?;
+    drop(edge_scratch);
     let (vertex_count, tet_count) = voxel_counts(grid, &occupied)?;
-    let mut corner_map = vec![0u32; grid.corner_count()?];
-    let mut mesh_positions = vec![Vec3::ZERO; vertex_count];
-    let mut tets = vec![[0u32; 4]; tet_count];
+    within_budget(
+        [
+            bytes_of::<bool>(cell_count),
+            bytes_of::<u32>(corner_count),
+            bytes_of::<Vec3>(vertex_count),
+            bytes_of::<[u32; 4]>(tet_count),
+        ]
+        .into_iter()
+        .fold(0, usize::saturating_add),
+        budget,
+    )?;
+    let mut corner_map = filled(corner_count, 0u32).map_err(allocation)?;
+    let mut mesh_positions = filled(vertex_count, Vec3::ZERO).map_err(allocation)?;
+    let mut tets = filled(tet_count, [0u32; 4]).map_err(allocation)?;
     fill_voxel_mesh(
         grid,
         &occupied,
@@ -695,6 +811,16 @@ pub fn voxel_mesh(
         tets,
         grid: *grid,
     })
+}
+
+/// `Ok` if `bytes` is within `budget`.
+#[cfg(feature = "std")]
+fn within_budget(bytes: usize, budget: usize) -> Result<(), VoxelError> {
+    if bytes <= budget {
+        Ok(())
+    } else {
+        Err(VoxelError::OverBudget { bytes, budget })
+    }
 }
 
 /// The grid corner of local `corner` (numbered `x + 2 y + 4 z`) of `cell`.

@@ -234,7 +234,8 @@ impl<S: Storage, M: Material> Body<S, M> {
     ///
     /// # Errors
     /// [`BodyError::Capacity`] if the storage cannot hold it; [`BodyError::Mesh`] for the mesh
-    /// ([`TetMesh::new`]) or the density.
+    /// ([`TetMesh::new`]) or the density; [`BodyError::UnusedVertex`] for the first vertex in
+    /// no tetrahedron (it would have no mass).
     pub fn from_arrays(
         rest_positions: &[Vec3],
         tets: &[[u32; 4]],
@@ -413,7 +414,8 @@ impl<S: Storage, M: Material> Body<S, M> {
         self.size_scratch(&solver)
     }
 
-    /// Validates the mesh once ([`TetMesh::new`]) and computes the masses.
+    /// Validates the mesh once ([`TetMesh::new`]) and computes the masses; a vertex in no
+    /// tetrahedron (mass zero) is refused.
     fn validate(&mut self, density: Real) -> Result<(), BodyError> {
         let mesh = TetMesh::new(
             self.rest_positions.slice(),
@@ -421,6 +423,11 @@ impl<S: Storage, M: Material> Body<S, M> {
             self.rest_data.slice_mut(),
         )?;
         mesh.lumped_masses(density, self.masses.slice_mut())?;
+        // Every tetrahedron's share of the mass is a positive normal number (`lumped_masses`
+        // checks it), so a vertex has mass zero exactly when no tetrahedron uses it.
+        if let Some(vertex) = self.masses.slice().iter().position(|&mass| mass <= 0.0) {
+            return Err(BodyError::UnusedVertex { vertex });
+        }
         self.gradient_gain = mesh.gradient_gain();
         if !self.rest_blocks.slice().is_empty() {
             mesh.with_rest_blocks(self.rest_blocks.slice_mut())?;
@@ -676,9 +683,11 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// remembers; changing the solver sizes its scratch and starts it afresh.
     ///
     /// # Errors
-    /// [`BodyError::Capacity`] if the storage cannot hold the new solver's scratch (the body
-    /// keeps its solver then).
+    /// [`BodyError::StableFraction`] for an explicit `stable_fraction` that is not finite and in
+    /// `(0, 1]`; [`BodyError::Capacity`] if the storage cannot hold the new solver's scratch (the
+    /// body keeps its solver in both cases).
     pub fn set_solver(&mut self, solver: Solver) -> Result<(), BodyError> {
+        solver.check()?;
         if !solver.same_kind(&self.solver) {
             self.size_scratch(&solver)?;
             self.forget_history();

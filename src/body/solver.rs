@@ -6,6 +6,7 @@ use super::super::step::{
     Scene, VbdReport, VbdSettings,
 };
 use super::super::types::Real;
+use crate::error::BodyError;
 
 /// The stepper of a [`Body`](super::Body) and its settings.
 ///
@@ -26,7 +27,9 @@ pub enum Solver {
         /// `settings.substeps`) of at most `f` times the body's
         /// [`stable_time_step`](super::Body::stable_time_step), computed once and cached until
         /// the pins or the material change. `f` in `(0, 1)` leaves the margin the bound's
-        /// documentation asks for; 0.5 is the default. `None`: exactly `settings.substeps`.
+        /// documentation asks for; 0.5 is the default; `f` must be finite and in `(0, 1]`
+        /// ([`Body::set_solver`](super::Body::set_solver) refuses anything else with
+        /// [`BodyError::StableFraction`]). `None`: exactly `settings.substeps`.
         stable_fraction: Option<Real>,
     },
     /// Implicit Euler by preconditioned descent ([`relax_step`](super::super::step::relax_step));
@@ -82,6 +85,18 @@ impl Solver {
                 .with_chebyshev(0.95, 2)
                 .with_line_search_on_increase(),
         )
+    }
+
+    /// Checks what the body checks when given this solver: an explicit `stable_fraction` must
+    /// be finite and in `(0, 1]`.
+    pub(crate) fn check(&self) -> Result<(), BodyError> {
+        match *self {
+            Solver::Explicit {
+                stable_fraction: Some(fraction),
+                ..
+            } if !(fraction > 0.0 && fraction <= 1.0) => Err(BodyError::StableFraction),
+            _ => Ok(()),
+        }
     }
 
     /// Whether `self` and `other` run the same stepper (whatever their settings).

@@ -10,6 +10,7 @@ mod embed;
 mod front_page;
 mod gmsh;
 mod obj;
+mod reliability;
 mod surface;
 mod tetgen;
 mod voxel;

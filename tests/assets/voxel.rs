@@ -306,10 +306,11 @@ fn cells_hanging_by_an_edge_are_removed() {
             .len(),
         10
     );
-    let removed = voxel_mesh(&positions, &triangles, &grid, &VoxelOptions::default()).unwrap();
-    assert!(
-        removed.tets.is_empty(),
-        "both cells hang: neither has a face neighbour"
+    // Both cells hang (neither has a face neighbour), so none is left: an empty mesh is
+    // refused rather than returned (issue #44).
+    assert_eq!(
+        voxel_mesh(&positions, &triangles, &grid, &VoxelOptions::default()),
+        Err(VoxelError::NoCellsInside)
     );
 }
 

@@ -343,24 +343,19 @@ fn running_out_of_fixed_capacity_is_an_error() {
             needed: 60
         }
     );
-    // One tetrahedron and a vertex in none: 5 vertices, whose index scratch (3 * 5 + 1 + 4 = 20
-    // entries) is beyond 17 per tetrahedron. Choosing VBD is refused; the body keeps its solver
-    // and still steps.
+    // One tetrahedron and a vertex in none: refused when built (issue #44). It was accepted,
+    // and then every step failed on the vertex's zero mass (and VBD's index scratch, 3 * 5 + 1
+    // + 4 = 20 entries, did not fit 17 per tetrahedron: with every vertex in a tetrahedron it
+    // always fits now).
     let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE];
+    let unused =
+        Body::<FixedStorage<5, 1>, _>::from_arrays(&rest, &[[0, 1, 2, 3]], DENSITY, jelly());
+    assert_eq!(unused.err(), Some(BodyError::UnusedVertex { vertex: 4 }));
     let mut body =
-        Body::<FixedStorage<5, 1>, _>::from_arrays(&rest, &[[0, 1, 2, 3]], DENSITY, jelly())
+        Body::<FixedStorage<5, 1>, _>::from_arrays(&rest[..4], &[[0, 1, 2, 3]], DENSITY, jelly())
             .unwrap();
-    assert_eq!(
-        body.set_solver(Solver::vbd()),
-        Err(BodyError::Capacity {
-            buffer: BodyBuffer::IndexScratch,
-            needed: 20
-        })
-    );
-    assert_eq!(body.solver(), &Solver::explicit());
-    body.set_solver(Solver::newton()).unwrap();
-    // The fifth vertex has no mass: the step says so, it does not panic.
-    assert_eq!(body.step(0.01), Err(StepError::Mass { vertex: 4 }));
+    body.set_solver(Solver::vbd()).unwrap();
+    body.step(0.01).unwrap();
     // Bad input is named.
     assert_eq!(
         body.set_pinned(5, true),
@@ -486,17 +481,23 @@ fn a_failed_step_restores_positions_velocities_and_targets() {
         assert_eq!(bits(body.positions()), x);
     }
 
-    // A stable fraction that is no fraction: refused before anything runs.
+    // A stable fraction that is no fraction: refused when the solver is set (issue #44: it
+    // was accepted, and refused only by the step, or for infinity not at all), the body
+    // keeping its solver and its state.
     let mut body = small_body();
     body.set_target(0, Vec3::new(-0.1, 0.0, 0.0)).unwrap();
     let (x, v) = (bits(body.positions()), bits(body.velocities()));
-    for fraction in [0.0, -1.0, f32::NAN] {
-        body.set_solver(Solver::Explicit {
+    for fraction in [0.0, -1.0, f32::NAN, f32::INFINITY, 1.5] {
+        let solver = Solver::Explicit {
             settings: ExplicitSettings::new(),
             stable_fraction: Some(fraction),
-        })
-        .unwrap();
-        assert_eq!(body.step(0.01), Err(StepError::Substeps), "{fraction}");
+        };
+        assert_eq!(
+            body.set_solver(solver),
+            Err(BodyError::StableFraction),
+            "{fraction}"
+        );
+        assert_eq!(body.solver(), &Solver::explicit());
         assert_eq!(bits(body.positions()), x);
         assert_eq!(bits(body.velocities()), v);
     }
@@ -836,4 +837,77 @@ fn a_body_steps_with_borrowed_loads_as_the_low_level_calls() {
         );
         assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
     }
+}
+
+/// Issue #44, part A, in both precisions: a body refuses at construction what every step would
+/// refuse later (a vertex in no tetrahedron, which has no mass) and a `stable_fraction` that is
+/// no fraction of the stable step (infinity was accepted).
+mod input_checks {
+    macro_rules! input_tests {
+        ($precision:ident, $($api:ident)::+) => {
+            mod $precision {
+                use $($api)::+::body::{Body, FixedStorage, Solver};
+                use $($api)::+::material::StableNeoHookean;
+                use $($api)::+::step::ExplicitSettings;
+                use $($api)::+::types::{Real, Vec3};
+                use softfem::BodyError;
+
+                fn jelly() -> StableNeoHookean {
+                    StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap()
+                }
+
+                /// Was: Ok, then every step failed with `StepError::Mass { vertex: 4 }`.
+                #[test]
+                fn a_vertex_in_no_tetrahedron_is_refused_by_name() {
+                    let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::splat(2.0)];
+                    let tets = [[0, 1, 2, 3]];
+                    type Storage = FixedStorage<5, 1>;
+                    let built = Body::<Storage, _>::from_arrays(&rest, &tets, 1000.0, jelly());
+                    let error = built.err().unwrap();
+                    assert_eq!(error, BodyError::UnusedVertex { vertex: 4 });
+                    assert_eq!(
+                        error.to_string(),
+                        "vertex 4 is in no tetrahedron (it would have no mass)"
+                    );
+                    // The same through a rebuild, which leaves the body empty.
+                    let mut body =
+                        Body::<Storage, _>::from_arrays(&rest[..4], &tets, 1000.0, jelly()).unwrap();
+                    assert_eq!(
+                        body.rebuild_from_arrays(&rest, &tets, 1000.0),
+                        Err(BodyError::UnusedVertex { vertex: 4 })
+                    );
+                    assert_eq!(body.vertex_count(), 0);
+                }
+
+                /// Was: infinity accepted (every step then one substep, whatever `dt`).
+                #[test]
+                fn a_stable_fraction_outside_zero_to_one_is_refused() {
+                    let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+                    let mut body =
+                        Body::<FixedStorage<4, 1>, _>::from_arrays(&rest, &[[0, 1, 2, 3]], 1000.0, jelly())
+                            .unwrap();
+                    let explicit = |fraction: Real| Solver::Explicit {
+                        settings: ExplicitSettings::new(),
+                        stable_fraction: Some(fraction),
+                    };
+                    for fraction in [Real::INFINITY, Real::NEG_INFINITY, Real::NAN, 0.0, -0.5, 1.0 + Real::EPSILON] {
+                        let error = body.set_solver(explicit(fraction)).unwrap_err();
+                        assert_eq!(error, BodyError::StableFraction, "{fraction}");
+                        assert_eq!(
+                            error.to_string(),
+                            "the explicit solver's stable_fraction must be a finite fraction in \
+                             (0, 1] of the stable time step"
+                        );
+                    }
+                    for fraction in [0.25, 0.5, 1.0] {
+                        body.set_solver(explicit(fraction)).unwrap();
+                        body.step(0.01).unwrap();
+                    }
+                }
+            }
+        };
+    }
+
+    input_tests!(single, softfem);
+    input_tests!(double, softfem::f64);
 }
