@@ -13,7 +13,7 @@ use super::NAME;
 use super::precision;
 use super::sf::body::{Body, Solver, VecStorage};
 use super::sf::material::StableNeoHookean;
-use super::sf::step::{Collider, ExplicitSettings, Ground};
+use super::sf::step::{Collider, ExplicitSettings, HalfSpace};
 use super::sf::types::{Real, Vec3};
 use super::sf::{BodyError, StepError};
 use crate::Draw;
@@ -123,7 +123,7 @@ pub fn check(data: &[u8]) {
     body.set_gravity(Vec3::new(0.0, -9.81, 0.0));
     if draw.chance(128) {
         body.set_ground(Some(
-            Ground::new(Vec3::Y, coordinate(&mut draw)).with_friction(0.5),
+            HalfSpace::new(Vec3::Y, coordinate(&mut draw)).with_friction(0.5),
         ));
     }
     let colliders: Vec<Collider<'static>> = (0..draw.index(2))
