@@ -39,8 +39,9 @@ pub enum BoxSplit {
     /// bouncy example (a 0.2 m cube of 6^3 cells dropped flat from 0.5 m, stable neo-Hookean,
     /// E = 50 kPa, ground friction 0.6, explicit steps): the impact leaves the body spinning
     /// about a horizontal axis even without friction, and with friction the cube walks along
-    /// `(-1, -1)`: by 0.16 m per axis in 3 s at Poisson ratio 0.45 (asserted by the example's
-    /// test), 0.45 m at 0.49, 0.03 m at 0. [`Alternating5`](BoxSplit::Alternating5) does not drift (1e-5 m, rounding). Use
+    /// `(-1, -1)`: by 0.08 m per axis in the first second at Poisson ratio 0.45 (asserted by the
+    /// example's test). [`Alternating5`](BoxSplit::Alternating5) does not drift (1e-5 m,
+    /// rounding). Use
     /// `Kuhn6` where the directional bias does not matter (uniform loads, convergence studies).
     Kuhn6,
     /// Five tetrahedra per cube: a central regular-shaped tetrahedron with a third of the

@@ -136,7 +136,7 @@ pub enum Split {
     Alternating5,
     /// 6 tetrahedra per cell around the diagonal (1, 1, 1) (Kuhn): not mirror-symmetric, and
     /// its nearly incompressible response is anisotropic; a flat drop tips it, and with
-    /// friction it walks along (-1, -1) (0.16 m in the default 3 s, 0.45 m at nu = 0.49).
+    /// friction it walks along (-1, -1) (0.08 m per axis in the first second).
     #[value(name = "kuhn6")]
     Kuhn6,
 }

@@ -698,20 +698,14 @@ mod tests {
     ///
     /// The Kuhn 6-tet split is not mirror-symmetric (every cell leans along (1, 1, 1)): the
     /// same drop tips the cube and friction turns the rocking into a walk along (-1, -1):
-    /// -0.08 m per axis by t = 1 s, and by the default 3 s the 0.16 m per axis that the README,
-    /// `--help` and `BoxSplit::Kuhn6` quote (-0.1615 and -0.1614 m), asserted here to those
-    /// digits.
+    /// -0.08 m per axis by t = 1 s, the figure the README, `--help` and `BoxSplit::Kuhn6` quote,
+    /// asserted here to those digits (by the default 3 s it is -0.1615 and -0.1614 m; a 3 s run
+    /// in a debug test costs minutes, so the quotes name the first second).
     #[test]
     fn symmetric_drop_lands_where_it_fell_and_the_kuhn_split_walks() {
         let (dx, dy) = lateral_drift(&["--duration", "1"]);
         assert!(dx.abs() < 1e-5 && dy.abs() < 1e-5, "({dx}, {dy}) m");
-        let (dx, dy) = lateral_drift(&["--split", "kuhn6"]);
         let centimetres = |d: f64| (d * 100.0).round();
-        assert_eq!(
-            (centimetres(dx), centimetres(dy)),
-            (-16.0, -16.0),
-            "({dx}, {dy}) m"
-        );
         let (dx, dy) = lateral_drift(&["--duration", "1", "--split", "kuhn6"]);
         assert_eq!(
             (centimetres(dx), centimetres(dy)),
