@@ -71,7 +71,7 @@ use super::mesh::{TetMesh, TetRestBlock, rest_block_count};
 use super::step::{
     Collider, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, RelaxScratch, Scene,
     TetElastic, VbdScratch, VbdTopology, check_time_step, explicit_step, newton_step, relax_step,
-    stable_time_step, scratch_len, vbd_step,
+    scratch_len, stable_time_step, vbd_step,
 };
 use super::types::{Mat3, Real, Vec3};
 use crate::error::{BodyBuffer, BodyError, StepError};
@@ -308,7 +308,7 @@ impl<S: Storage, M: Material> Body<S, M> {
         split: BoxSplit,
         density: Real,
     ) -> Result<(), BodyError> {
-        let built = self.fill_from_box(min, max, cells, split, density);
+        let built = self.fill_from_box((min, max), cells, split, density);
         self.emptied_on_error(built)
     }
 
@@ -329,10 +329,12 @@ impl<S: Storage, M: Material> Body<S, M> {
         self.emptied_on_error(built)
     }
 
+    /// The box between the corners `(min, max)` (m), as [`rebuild_from_box_split`] takes it.
+    ///
+    /// [`rebuild_from_box_split`]: Self::rebuild_from_box_split
     fn fill_from_box(
         &mut self,
-        min: Vec3,
-        max: Vec3,
+        (min, max): (Vec3, Vec3),
         cells: [usize; 3],
         split: BoxSplit,
         density: Real,
@@ -455,7 +457,10 @@ impl<S: Storage, M: Material> Body<S, M> {
             )?;
             // The packed layout where the storage holds it; without it the sweeps gather (the
             // same bits).
-            let (values, corners) = (scratch_len::vbd_layout(t), scratch_len::vbd_layout_corners(n, t));
+            let (values, corners) = (
+                scratch_len::vbd_layout(t),
+                scratch_len::vbd_layout_corners(n, t),
+            );
             if !(self.layout_values.resize(values, 0.0) && self.layout_corners.resize(corners, 0)) {
                 // Empty buffers always fit.
                 let _ = self.layout_values.resize(0, 0.0) && self.layout_corners.resize(0, 0);
