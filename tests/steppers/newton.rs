@@ -191,18 +191,25 @@ macro_rules! newton_tests {
             fn implicit_euler_on_a_stiff_block_converges_on_every_step() {
                 let (reports, x, v, masses) = stiff_block_run(1e-4);
                 let at_floor = reports.iter().filter(|r| r.residual > r.target).count();
+                let unconverged = reports.iter().filter(|r| !r.converged).count();
                 let newton: u32 = reports.iter().map(|r| r.iterations).sum();
                 let cg: u32 = reports.iter().map(|r| r.details.cg_iterations).sum();
                 println!(
-                    "{}: {} steps, {newton} Newton and {cg} CG iterations, {at_floor} stopped at the rounding floor; last {:?}",
+                    "{}: {} steps, {newton} Newton and {cg} CG iterations, {at_floor} stopped at the rounding floor, {unconverged} of them with the floor above the initial residual; last {:?}",
                     stringify!($precision), reports.len(), reports.last().unwrap()
                 );
                 for (step, report) in reports.iter().enumerate() {
-                    assert!(report.converged, "step {step}: {report:?}");
                     // A floor-limited solve must be within FLOOR_FACTOR of a measured floor.
                     if report.residual > report.target {
                         assert!(report.stagnated && report.rounding_floor > 0.0, "step {step}: {report:?}");
+                        assert!(report.residual <= NewtonReport::FLOOR_FACTOR * report.rounding_floor, "step {step}: {report:?}");
                     }
+                    // Converged, or (f32, the block resting on the ground) started within its
+                    // rounding floor, where the residual cannot tell the answer (issue #44):
+                    // stagnated, not converged. `stiff_block_in_f32_ends_where_f64_ends`
+                    // checks that those answers are answers.
+                    let floor_above_start = report.rounding_floor >= report.initial_residual;
+                    assert!(report.converged || (report.stagnated && floor_above_start), "step {step}: {report:?}");
                 }
                 // Settled on the ground after 1 s: no vertex below it beyond rounding, at rest.
                 assert!(x.iter().all(|p| p.y >= -1e-6), "{x:?}");

@@ -255,9 +255,10 @@ impl DescentSettings<RelaxOptions> {
 
 /// What a relaxation did: the shared [`DescentReport`], nothing of its own. Total cost =
 /// `energy_evaluations` fused energy-and-force passes. [`converged`](DescentReport::converged)
-/// says only whether the tolerance was reached (a stall at the rounding floor is reported by
-/// [`stagnated`](DescentReport::stagnated), unlike Newton's method, which counts it as
-/// converged).
+/// says only that the tolerance was reached, with a finite residual and target (a stall at the
+/// rounding floor is reported by [`stagnated`](DescentReport::stagnated) and is not
+/// converged; Newton's method counts one as converged where the floor is below the initial
+/// residual).
 pub type RelaxReport = DescentReport<()>;
 
 /// The largest spectral radius [`RelaxOptions::estimate_chebyshev`] uses: `0.9999`.
@@ -276,6 +277,10 @@ pub(crate) const MAX_ESTIMATED_RELAX_RHO: Real = 0.9999;
 ///
 /// Pinned vertices keep position and velocity. Not converging within the budget is not an
 /// error: the best iterate is used and [`DescentReport::converged`] is false.
+/// [`DescentReport::converged`] is true exactly when the residual (`|grad Phi|` at the returned
+/// state, projected on the contacts) is finite and at most a finite target (see
+/// [`DescentSettings::tolerance`]); a stall ([`DescentReport::stagnated`]) or an overflowed
+/// residual or target is never converged.
 ///
 /// ```
 /// use softfem::element::TetRest;

@@ -444,8 +444,12 @@ impl<M: Material> VertexBlockModel for TetElastic<'_, M> {}
 /// x_n) / h` and applies the relaxation's Coulomb friction at the contacts.
 ///
 /// Pinned vertices keep position and velocity. Not converging within the budget is not an
-/// error: the last iterate is used and [`DescentReport::converged`] is false. The result does not
-/// depend on the previous contents of the scratch buffers, and is the same on every target.
+/// error: the last iterate is used and [`DescentReport::converged`] is false.
+/// [`DescentReport::converged`] is true exactly when the residual of the returned state is
+/// finite and at most a finite target (see [Stopping test and cost](#stopping-test-and-cost)); a
+/// stall ([`DescentReport::stagnated`]), a sweep that is not downhill or an overflowed residual
+/// or target is never converged. The result does not depend on the previous contents of the
+/// scratch buffers, and is the same on every target.
 ///
 /// # Initial guess
 /// The relaxation's lower-`Phi` of `y` and `y + h^2 g` by default. Given the velocities
