@@ -416,6 +416,7 @@ fn simulate<M: Material>(
                                 / report.initial_residual.max(weight),
                             converged: report.converged,
                             at_floor: false,
+                            within_floor: false,
                         }),
                     })
                     .map_err(|e| e.to_string())
@@ -462,6 +463,9 @@ fn simulate<M: Material>(
                                 / report.initial_residual.max(weight),
                             converged: report.converged,
                             at_floor: report.stagnated && report.residual > report.target,
+                            within_floor: !report.converged
+                                && report.stagnated
+                                && report.rounding_floor >= report.initial_residual,
                         }),
                     })
                     .map_err(|e| e.to_string())
@@ -518,6 +522,7 @@ fn simulate<M: Material>(
                                 / report.initial_residual.max(weight),
                             converged: report.converged,
                             at_floor: false,
+                            within_floor: false,
                         }),
                     })
                     .map_err(|e| e.to_string())

@@ -186,7 +186,15 @@ impl Summary {
                     s.at_floor
                 ));
             }
-            let converged = s.solves - s.not_converged;
+            if s.within_floor > 0 {
+                lines.push(format!(
+                    "                 {} stopped at a rounding floor at or above their initial \
+                     residual: f32 cannot tell those steps from solved, so they are not counted \
+                     as converged (each starts within rounding of its equilibrium)",
+                    s.within_floor
+                ));
+            }
+            let converged = s.solves - s.not_converged - s.within_floor;
             lines.push(format!(
                 "                 {converged} of {} converged ({:.1} %), {} did not; worst final \
                  relative residual {:.2e}; {:.2} ms of wall time per step",
@@ -288,6 +296,7 @@ mod tests {
             inner_iterations: 600,
             line_search_steps: 3,
             not_converged: 1,
+            within_floor: 0,
             at_floor: 1,
             worst_residual: 0.01,
         };

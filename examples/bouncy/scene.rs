@@ -406,6 +406,10 @@ pub struct SolveInfo {
     /// Whether the solve counted as converged at the rounding floor, above the tolerance
     /// (Newton's `NewtonReport::stagnated`); false for the other steppers.
     pub at_floor: bool,
+    /// Whether the solve stopped at a rounding floor at or above its initial residual (Newton,
+    /// not converged): the precision cannot tell that step's start from its solution, so the
+    /// solve cannot show it converged; false for the other steppers.
+    pub within_floor: bool,
 }
 
 /// Solver statistics over a run.
@@ -421,8 +425,10 @@ pub struct SolveTotals {
     pub inner_iterations: u64,
     /// Line-search reductions over all solves.
     pub line_search_steps: u64,
-    /// Solves that did not converge.
+    /// Solves that did not converge (those in [`within_floor`](Self::within_floor) apart).
     pub not_converged: u64,
+    /// Solves that stopped at a rounding floor at or above their initial residual.
+    pub within_floor: u64,
     /// Solves that converged at the rounding floor, above the tolerance.
     pub at_floor: u64,
     /// The largest final relative residual.
@@ -436,7 +442,8 @@ impl SolveTotals {
         self.max_iterations = self.max_iterations.max(solve.iterations);
         self.inner_iterations += u64::from(solve.inner_iterations);
         self.line_search_steps += u64::from(solve.line_search_steps);
-        self.not_converged += u64::from(!solve.converged);
+        self.not_converged += u64::from(!solve.converged && !solve.within_floor);
+        self.within_floor += u64::from(!solve.converged && solve.within_floor);
         self.at_floor += u64::from(solve.converged && solve.at_floor);
         self.worst_residual = self.worst_residual.max(solve.relative_residual);
     }
@@ -915,8 +922,9 @@ mod tests {
                     inner_iterations: 100 * n,
                     line_search_steps: 1,
                     relative_residual: 1e-3 * n as f32,
-                    converged: n != 2,
+                    converged: n != 2 && n != 4,
                     at_floor: n >= 2,
+                    within_floor: n == 4,
                 }),
             })
         };
@@ -934,7 +942,8 @@ mod tests {
             (4, 100, 40)
         );
         assert_eq!((totals.line_search_steps, totals.not_converged), (4, 1));
-        assert_eq!((totals.inner_iterations, totals.at_floor), (1000, 2));
+        assert_eq!((totals.inner_iterations, totals.at_floor), (1000, 1));
+        assert_eq!(totals.within_floor, 1);
         assert!((totals.worst_residual - 4e-3).abs() < 1e-9);
     }
 }
