@@ -82,6 +82,43 @@ pub(crate) struct Iterate<'a, V> {
     pub target: Real,
 }
 
+/// What [`Direction::search`] is given.
+pub(crate) struct Search<'a, F: ElasticEnergy> {
+    /// `Phi` and its gradient.
+    pub objective: &'a Objective<'a, F>,
+    /// The iterate `x` the direction is computed at.
+    pub at: &'a Iterate<'a, F::Vector>,
+    /// Where the direction `d` goes, plus `momentum` times the last step `x_k - x_{k-1}` when
+    /// [`momentum`](Self::momentum) is given (one entry a vertex).
+    pub direction: &'a mut [F::Vector],
+    /// Heavy-ball momentum (dimensionless), with `x_{k-1}` read from `trial.positions`; `None`
+    /// for none.
+    pub momentum: Option<Real>,
+    /// Where the first trial point `x + step d` goes (projected on the ground, `x` at pinned
+    /// vertices), its gradient zeroed.
+    pub trial: TrialPoint<'a, F::Vector>,
+    /// The first trial step `alpha` along `d` (dimensionless).
+    pub step: Real,
+}
+
+/// What [`Direction::extrapolate`] is given.
+pub(crate) struct Extrapolation<'a, F: ElasticEnergy> {
+    /// `Phi` and its gradient.
+    pub objective: &'a Objective<'a, F>,
+    /// The iterate `x` the trial is extrapolated from.
+    pub at: &'a Iterate<'a, F::Vector>,
+    /// Whether `trial.positions` hold `x_{k-1}` (the last step is zero otherwise).
+    pub stepped: bool,
+    /// Where the Chebyshev trial `x + step d + (omega - 1) (x - x_{k-1})` goes, its gradient
+    /// zeroed.
+    pub trial: TrialPoint<'a, F::Vector>,
+    /// The step along `d`: `omega` times the step the last line search accepted
+    /// (dimensionless).
+    pub step: Real,
+    /// The Chebyshev weight `omega` (dimensionless, in `[1, 2)`).
+    pub omega: Real,
+}
+
 /// The relative change of friction's force factors `mu lambda` from one re-lag to the next
 /// below which the directions that do not accelerate through re-lagging
 /// ([`Direction::accelerates_with_friction`]) run the Chebyshev semi-iteration again. Measured
@@ -97,34 +134,17 @@ pub(crate) trait Direction<F: ElasticEnergy> {
     /// first asked for.
     fn begin(&mut self, objective: &Objective<'_, F>, x: &[F::Vector]);
 
-    /// Writes the direction at `at` (plus `momentum` times the last step `x_k - x_{k-1}`, with
-    /// `x_{k-1}` read from `trial.positions`, when given) into `direction` and the first trial
-    /// point `x + step d` (projected on the ground, `x` at pinned vertices) into `trial`, zeroing
-    /// its gradient. Returns the slope `grad.d` (not negative: no descent, the solve ends).
+    /// Writes the direction at [`Search::at`] into [`Search::direction`] and the first trial
+    /// point into [`Search::trial`] (see the fields). Returns the slope `grad.d` (not negative:
+    /// no descent, the solve ends).
     ///
     /// # Errors
     /// The model's errors (a direction that evaluates the Hessian).
-    fn search(
-        &mut self,
-        objective: &Objective<'_, F>,
-        at: &Iterate<'_, F::Vector>,
-        direction: &mut [F::Vector],
-        momentum: Option<Real>,
-        trial: TrialPoint<'_, F::Vector>,
-        step: Real,
-    ) -> Result<Real, StepError>;
+    fn search(&mut self, search: Search<'_, F>) -> Result<Real, StepError>;
 
-    /// Writes the Chebyshev trial `x + step d + (omega - 1) (x - x_{k-1})` into `trial` (whose
-    /// positions hold `x_{k-1}` if `stepped`; the last step is zero otherwise), zeroing its
-    /// gradient. Only called when the settings ask for acceleration.
-    fn extrapolate(
-        &mut self,
-        objective: &Objective<'_, F>,
-        at: &Iterate<'_, F::Vector>,
-        stepped: bool,
-        trial: TrialPoint<'_, F::Vector>,
-        weights: (Real, Real),
-    );
+    /// Writes the Chebyshev trial of [`Extrapolation::trial`] (see the fields). Only called when
+    /// the settings ask for acceleration.
+    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>);
 
     /// The estimated rounding floor now (N; a direction may refine it as it goes).
     fn rounding_floor(&self) -> Real;
@@ -1209,9 +1229,14 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
             positions: points.other,
             gradient: points.trial_gradient,
         };
-        let weights = (omega * self.alpha, omega);
-        self.rule
-            .extrapolate(objective, &at, self.stepped, point, weights);
+        self.rule.extrapolate(Extrapolation {
+            objective,
+            at: &at,
+            stepped: self.stepped,
+            trial: point,
+            step: omega * self.alpha,
+            omega,
+        });
         objective.loads.restore_fixed(points.current, points.other);
         if self.defers() {
             if self.deferred == 0 {
@@ -1343,29 +1368,23 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
             residual: self.report.residual,
             target: self.report.target,
         };
-        let mut slope = self.rule.search(
-            self.objective,
-            &at,
-            self.direction,
-            momentum,
-            TrialPoint {
-                positions: points.other,
-                gradient: points.trial_gradient,
-            },
-            self.alpha,
-        )?;
-        if !downhill(slope) && momentum.is_some() {
-            slope = self.rule.search(
-                self.objective,
-                &at,
-                self.direction,
-                None,
-                TrialPoint {
-                    positions: points.other,
-                    gradient: points.trial_gradient,
+        let (rule, direction, step) = (&mut *self.rule, &mut *self.direction, self.alpha);
+        let mut search = |momentum| {
+            rule.search(Search {
+                objective: self.objective,
+                at: &at,
+                direction: &mut *direction,
+                momentum,
+                trial: TrialPoint {
+                    positions: &mut *points.other,
+                    gradient: &mut *points.trial_gradient,
                 },
-                self.alpha,
-            )?;
+                step,
+            })
+        };
+        let mut slope = search(momentum)?;
+        if !downhill(slope) && momentum.is_some() {
+            slope = search(None)?;
         }
         self.objective
             .loads

@@ -5,16 +5,20 @@
 //! the [`Scene`](super::super::Scene).
 
 use super::super::super::types::Real;
+use super::newton::NewtonOptions;
+use super::relax::RelaxOptions;
 use super::stopping::FLOOR_FACTOR;
+use super::vbd::VbdOptions;
 
 /// The settings of an implicit solver: the relative tolerance, the iteration budget and the
 /// backtracking line search that every solver here shares, and `options`, what only one
 /// solver has ([`RelaxOptions`](super::relax::RelaxOptions),
 /// [`NewtonOptions`](super::newton::NewtonOptions), [`VbdOptions`](super::vbd::VbdOptions)).
-/// Each solver's defaults come from its `new` ([`RelaxSettings::new`](super::super::RelaxSettings),
+/// Each solver's defaults come from its `new`, which `Default` calls
+/// ([`RelaxSettings::new`](super::super::RelaxSettings),
 /// [`NewtonSettings::new`](super::super::NewtonSettings),
-/// [`VbdSettings::new`](super::super::VbdSettings)) and are documented there. The settings borrow
-/// nothing, so a body keeps them.
+/// [`VbdSettings::new`](super::super::VbdSettings)), and are documented there. The settings
+/// borrow nothing, so a body keeps them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DescentSettings<O> {
     /// Stop when `|grad Phi| <= tolerance * max(|grad Phi(x_0)|, |M g|)` (relative residual, in
@@ -46,6 +50,23 @@ pub struct DescentSettings<O> {
     /// What only this solver has.
     pub options: O,
 }
+
+/// `Default` for each solver's settings (`settings: options` pairs): its `new`, whose doc
+/// states the values.
+macro_rules! default_is_new {
+    ($($settings:ident: $options:ident),+) => {$(
+        impl Default for DescentSettings<$options> {
+            #[doc = concat!("As [`", stringify!($settings), "::new`](DescentSettings::<",
+                stringify!($options), ">::new).")]
+            #[inline]
+            fn default() -> Self {
+                Self::new()
+            }
+        }
+    )+};
+}
+
+default_is_new!(RelaxSettings: RelaxOptions, NewtonSettings: NewtonOptions, VbdSettings: VbdOptions);
 
 impl<O> DescentSettings<O> {
     /// These settings with relative tolerance `tolerance` and budget `max_iterations`.

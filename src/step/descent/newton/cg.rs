@@ -10,11 +10,11 @@ use super::super::super::super::types::{Mat3, Real, Vec3};
 use super::super::super::contact::floor::Floor;
 use super::super::super::model::ElasticHessian;
 use super::super::super::vertex_pass::Blocks;
-use super::super::super::vertex_pass::passes::{TrialPoint, slope_and_trial_pass, split_copy};
+use super::super::super::vertex_pass::passes::{slope_and_trial_pass, split_copy};
 use super::super::super::vertex_pass::point::Grouped;
 use super::super::objective::Objective;
 use super::super::stopping::rounding_floor;
-use super::super::{Direction, Iterate};
+use super::super::{Direction, Extrapolation, Iterate, Search};
 use crate::error::StepError;
 
 /// Newton's direction over its scratch: the Hessian cache, the inverted preconditioner blocks
@@ -107,15 +107,8 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
             .fold(0.0, |a: Real, p| a.max(p.abs().max_element()));
     }
 
-    fn search(
-        &mut self,
-        objective: &Objective<'_, F>,
-        at: &Iterate<'_, Vec3>,
-        direction: &mut [Vec3],
-        _momentum: Option<Real>,
-        trial: TrialPoint<'_, Vec3>,
-        step: Real,
-    ) -> Result<Real, StepError> {
+    fn search(&mut self, search: Search<'_, F>) -> Result<Real, StepError> {
+        let (objective, at, direction) = (search.objective, search.at, search.direction);
         let model = objective.model;
         let (masses, pinned) = (objective.vertices.masses, objective.vertices.pinned);
         model.projected_hessians(at.x, self.hessians)?;
@@ -162,19 +155,12 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
             &objective.frames,
             pinned,
             (at.x, at.gradient, direction),
-            step,
-            trial,
+            search.step,
+            search.trial,
         ))
     }
 
-    fn extrapolate(
-        &mut self,
-        _objective: &Objective<'_, F>,
-        _at: &Iterate<'_, Vec3>,
-        _stepped: bool,
-        _trial: TrialPoint<'_, Vec3>,
-        _weights: (Real, Real),
-    ) {
+    fn extrapolate(&mut self, _: Extrapolation<'_, F>) {
         // Newton's method is not accelerated: its settings never ask for this.
     }
 

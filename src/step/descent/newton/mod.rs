@@ -65,14 +65,6 @@ pub struct NewtonOptions {
 /// iterations (Hessian evaluations).
 pub type NewtonSettings = DescentSettings<NewtonOptions>;
 
-impl Default for NewtonSettings {
-    /// As [`NewtonSettings::new`](DescentSettings::<NewtonOptions>::new).
-    #[inline]
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 impl DescentSettings<NewtonOptions> {
     /// Relative tolerance `1e-4`, 50 Newton and 2000 CG iterations, Armijo `c = 1e-4`,
     /// `beta = 0.5`, 30 backtracks.

@@ -11,11 +11,10 @@ use super::super::super::contact::floor::Floor;
 use super::super::super::model::ElasticEnergy;
 use super::super::super::scene::Scene;
 use super::super::super::state::pinned_flags;
-use super::super::super::vertex_pass::passes::TrialPoint;
 use super::super::super::vertex_pass::point::{Grouped, Point};
 use super::super::objective::Objective;
 use super::super::stopping::{reach, rounding_floor};
-use super::super::{Direction, Iterate};
+use super::super::{Direction, Extrapolation, Search};
 use super::{RelaxReport, RelaxScratch, RelaxSettings, minimise};
 use crate::error::StepError;
 
@@ -45,19 +44,14 @@ impl<F: ElasticEnergy> Direction<F> for Gradient {
         self.floor = rounding_floor(reach(x), 3.0 * free * scale * scale);
     }
 
-    fn search(
-        &mut self,
-        objective: &Objective<'_, F>,
-        at: &Iterate<'_, F::Vector>,
-        direction: &mut [F::Vector],
-        momentum: Option<Real>,
-        trial: TrialPoint<'_, F::Vector>,
-        step: Real,
-    ) -> Result<Real, StepError> {
+    fn search(&mut self, search: Search<'_, F>) -> Result<Real, StepError> {
+        let (objective, at, trial) = (search.objective, search.at, search.trial);
+        let (momentum, step) = (search.momentum, search.step);
         let floor = objective.frames.floor();
         let pinned = objective.vertices.pinned;
         let mut slope = 0.0;
-        let rows = direction
+        let rows = search
+            .direction
             .iter_mut()
             .zip(trial.positions.iter_mut().zip(trial.gradient.iter_mut()))
             .zip(at.x.iter().zip(at.gradient))
@@ -72,14 +66,9 @@ impl<F: ElasticEnergy> Direction<F> for Gradient {
         Ok(slope)
     }
 
-    fn extrapolate(
-        &mut self,
-        objective: &Objective<'_, F>,
-        at: &Iterate<'_, F::Vector>,
-        stepped: bool,
-        trial: TrialPoint<'_, F::Vector>,
-        (step, omega): (Real, Real),
-    ) {
+    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>) {
+        let (objective, at, trial) = (extrapolation.objective, extrapolation.at, extrapolation.trial);
+        let (stepped, step, omega) = (extrapolation.stepped, extrapolation.step, extrapolation.omega);
         let floor = objective.frames.floor();
         let rows = trial
             .positions

@@ -5,10 +5,11 @@
 
 use super::super::super::super::types::Real;
 use super::super::super::model::ElasticEnergy;
-use super::super::super::vertex_pass::passes::{TrialPoint, chebyshev_pass, direction_pass};
+use super::super::super::vertex_pass::passes::{chebyshev_pass, direction_pass};
 use super::super::objective::Objective;
 use super::super::stopping::{reach, rounding_floor};
-use super::super::{Direction, Iterate};
+use super::super::{Direction, Extrapolation, Search};
+use crate::error::StepError;
 
 /// The Jacobi direction, with its rounding floor estimated once at the initial guess.
 #[derive(Default)]
@@ -21,44 +22,31 @@ impl<F: ElasticEnergy> Direction<F> for Jacobi {
         self.floor = diagonal_rounding_floor(objective, x);
     }
 
-    fn search(
-        &mut self,
-        objective: &Objective<'_, F>,
-        at: &Iterate<'_, F::Vector>,
-        direction: &mut [F::Vector],
-        momentum: Option<Real>,
-        trial: TrialPoint<'_, F::Vector>,
-        step: Real,
-    ) -> Result<Real, crate::error::StepError> {
+    fn search(&mut self, search: Search<'_, F>) -> Result<Real, StepError> {
+        let (objective, at) = (search.objective, search.at);
         Ok(direction_pass(
             objective.model,
             &objective.frames,
             &objective.vertices,
             (at.x, at.gradient),
-            direction,
-            momentum,
-            trial,
-            step,
+            search.direction,
+            search.momentum,
+            search.trial,
+            search.step,
         ))
     }
 
-    fn extrapolate(
-        &mut self,
-        objective: &Objective<'_, F>,
-        at: &Iterate<'_, F::Vector>,
-        stepped: bool,
-        trial: TrialPoint<'_, F::Vector>,
-        (step, omega): (Real, Real),
-    ) {
+    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>) {
+        let (objective, at) = (extrapolation.objective, extrapolation.at);
         chebyshev_pass(
             objective.model,
             &objective.frames,
             &objective.vertices,
             (at.x, at.gradient),
-            stepped,
-            trial,
-            step,
-            omega,
+            extrapolation.stepped,
+            extrapolation.trial,
+            extrapolation.step,
+            extrapolation.omega,
         );
     }
 

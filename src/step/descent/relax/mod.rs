@@ -128,14 +128,6 @@ impl RelaxOptions {
 /// descent solvers): the shared [`DescentSettings`] with [`RelaxOptions`].
 pub type RelaxSettings = DescentSettings<RelaxOptions>;
 
-impl Default for RelaxSettings {
-    /// As [`RelaxSettings::new`](DescentSettings::<RelaxOptions>::new).
-    #[inline]
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 impl DescentSettings<RelaxOptions> {
     /// Relative tolerance `2e-3`, 300 iterations,
     /// Chebyshev acceleration with `rho = 0.995` from the first iteration (delay 0) and first

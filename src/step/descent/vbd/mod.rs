@@ -232,14 +232,6 @@ impl VbdOptions {
 /// [`DescentSettings`] with [`VbdOptions`]. The budget counts sweeps.
 pub type VbdSettings = DescentSettings<VbdOptions>;
 
-impl Default for VbdSettings {
-    /// As [`VbdSettings::new`](DescentSettings::<VbdOptions>::new).
-    #[inline]
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 /// See [`VbdOptions::MAX_ESTIMATED_RHO`].
 pub(crate) const MAX_ESTIMATED_RHO: Real = 0.98;
 

@@ -23,7 +23,7 @@ use super::super::super::vertex_pass::point::{Grouped, Point};
 use super::super::line_search::{copy, slope_along};
 use super::super::objective::Objective;
 use super::super::stopping::rounding_floor;
-use super::super::{Direction, Iterate};
+use super::super::{Direction, Extrapolation, Search};
 use super::VertexBlockModel;
 use super::block::{VertexFactor, shape_gradient};
 use super::lanes::LaneUpdate;
@@ -714,15 +714,9 @@ impl<F: VertexBlockModel> Direction<F> for VbdSweep<'_, F::Material> {
         redo
     }
 
-    fn search(
-        &mut self,
-        objective: &Objective<'_, F>,
-        at: &Iterate<'_, Vec3>,
-        direction: &mut [Vec3],
-        _momentum: Option<Real>,
-        trial: TrialPoint<'_, Vec3>,
-        step: Real,
-    ) -> Result<Real, StepError> {
+    fn search(&mut self, search: Search<'_, F>) -> Result<Real, StepError> {
+        let (objective, at, direction) = (search.objective, search.at, search.direction);
+        let (trial, step) = (search.trial, search.step);
         let lag = Lag::new(at.x, at.gradient);
         let sweep = self.at(objective, Some(lag));
         let TrialPoint {
@@ -764,14 +758,15 @@ impl<F: VertexBlockModel> Direction<F> for VbdSweep<'_, F::Material> {
         Ok(slope_along(at.gradient, direction))
     }
 
-    fn extrapolate(
-        &mut self,
-        objective: &Objective<'_, F>,
-        at: &Iterate<'_, Vec3>,
-        stepped: bool,
-        trial: TrialPoint<'_, Vec3>,
-        (step, omega): (Real, Real),
-    ) {
+    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>) {
+        let Extrapolation {
+            objective,
+            at,
+            stepped,
+            trial,
+            step,
+            omega,
+        } = extrapolation;
         let lag = Lag::new(at.x, at.gradient);
         let sweep = self.at(objective, Some(lag));
         let TrialPoint {
