@@ -174,9 +174,10 @@
 //!   written once for one vertex and a lane group (`point.rs`).
 //! * `explicit/`: [`explicit_step`], its [stability bound](stable_time_step) (`stability.rs`)
 //!   and the [frequency estimate](explicit::estimate_max_frequency) (`frequency.rs`).
-//! * `descent/`: the implicit solvers on one loop (`docs/math.md` section 7.0): `mod.rs` the loop
-//!   (initial guess, Chebyshev and momentum trials, line search, velocity update, restore on
-//!   failure) in coordinates shifted next to the body, `objective.rs` the objective `Phi`,
+//! * `descent/`: the implicit solvers on one loop (`docs/math.md` section 7.0): `mod.rs` the
+//!   direction each solver gives, the shared entry checks and the solve (velocity update, restore
+//!   on failure), `descend.rs` the loop's phases (initial guess, Chebyshev and momentum trials,
+//!   line search), `coordinates.rs` the shift next to the body, `objective.rs` the objective `Phi`,
 //!   `line_search.rs` the Armijo test, `stopping.rs` the stopping test with the rounding floor
 //!   and stagnation, `chebyshev.rs` the semi-iteration's weights and estimate; and one folder per
 //!   solver, each with its settings, report and entry points in `mod.rs`: `relax/` (the
