@@ -12,6 +12,7 @@ mod adversarial;
 mod body;
 mod chebyshev_estimate;
 mod colliders;
+mod explicit_colliders;
 mod firmware_body;
 mod frequency;
 mod loads;

@@ -170,6 +170,9 @@ struct History {
     /// Consecutive substeps, up to and including it, that passed the
     /// [`FLIP_GROWTH`](ExplicitSettings::FLIP_GROWTH) test.
     streak: u32,
+    /// The energy (J) its collider contacts may have added to the next substep's indicator
+    /// (see [`contact_work`]); zero without colliders.
+    contact_work: Real,
 }
 
 impl<'a, V: Vector> ExplicitScratch<'a, V> {
@@ -291,7 +294,9 @@ pub struct ExplicitReport {
 ///   [`max_energy_growth`](ExplicitSettings::max_energy_growth) times the previous substep's.
 ///   (`h^2 |f|^2 / (8 m)` bounds the elastic energy from below when `h` is stable, so `E`
 ///   tracks the energy without a second pass over the elements.) It catches a sudden jump, such
-///   as a caller's kick the detector was not told of.
+///   as a caller's kick the detector was not told of. The work of the last substep's collider
+///   contacts is added to the reference (`docs/math.md` section 4.3): a
+///   fast collider's impact is not a blow-up. Without colliders the test is unchanged.
 ///
 /// After the substep, any NaN or infinite position or velocity is a
 /// [`StepError::NonFiniteState`]. On any error, positions and velocities are restored bit for
@@ -470,15 +475,19 @@ fn substep<F: ElasticModel>(
     let inputs = (&*forces, previous_forces, masses, pinned);
     let (sums, contacts, kinetic_energy, non_finite) =
         model.run_vertex_pass(Blocks::new(n, (state, inputs), &update));
-    // sum of the indicator terms, of |f|^2 / m, and of f_n . f_(n-1) / m
-    let (indicator, force_norm, reversal) = sums;
+    // sum of the indicator terms, of |f|^2 / m, of f_n . f_(n-1) / m, and of the collider
+    // contacts' work
+    let (indicator, force_norm, reversal, contact_work) = sums;
     let mut streak = 0;
     if let Some(previous) = *history {
         // A NaN indicator counts as growth. A zero previous indicator (exactly at rest, no
-        // gravity) is no reference: any motion would be an "infinite" jump.
+        // gravity) is no reference: any motion would be an "infinite" jump. The energy the last
+        // substep's collider contacts put in is part of the reference (zero without colliders:
+        // `x + 0` is `x`, the same test as before colliders counted).
         if indicator.is_nan()
             || (previous.indicator > 0.0
-                && indicator > settings.max_energy_growth * previous.indicator)
+                && indicator
+                    > settings.max_energy_growth * (previous.indicator + previous.contact_work))
         {
             return Err(StepError::EnergyBlowUp);
         }
@@ -497,6 +506,7 @@ fn substep<F: ElasticModel>(
         indicator,
         force_norm,
         streak,
+        contact_work,
     });
     Ok((contacts, kinetic_energy))
 }
@@ -519,13 +529,15 @@ struct Update<'s, 'a, V: Vector> {
 }
 
 /// The update pass's results so far, added vertex by vertex in order: the blow-up indicator's
-/// three sums (from the state before the update), the contacts, the kinetic energy (J) after it
-/// and the first vertex left non-finite.
+/// three sums (from the state before the update) and the collider contacts' work
+/// ([`contact_work`]), the contacts, the kinetic energy (J) after it and the first vertex left
+/// non-finite.
 #[derive(Clone, Copy, Default)]
 struct Tally {
     indicator: Real,
     force_norm: Real,
     reversal: Real,
+    contact_work: Real,
     contacts: usize,
     kinetic_energy: Real,
     non_finite: Option<usize>,
@@ -533,8 +545,8 @@ struct Tally {
 
 impl<V: Vector> Update<'_, '_, V> {
     /// The update of the vertices from `first` on: returns the blow-up indicator's three sums
-    /// (from the state before the update), the contacts, the kinetic energy (J) after it and the
-    /// first vertex left non-finite.
+    /// (from the state before the update) and the collider contacts' work, the contacts, the
+    /// kinetic energy (J) after it and the first vertex left non-finite.
     ///
     /// Without colliders and fixed axes, the vertices go in groups of the
     /// width [`dispatch`] picks (then narrower groups, then one at a time), each lane through
@@ -547,7 +559,7 @@ impl<V: Vector> Update<'_, '_, V> {
         first: usize,
         (positions, velocities): (&mut [V], &mut [V]),
         (forces, previous_forces, masses, pinned): (&[V], &[V], &[Real], &[bool]),
-    ) -> ((Real, Real, Real), usize, Real, Option<usize>) {
+    ) -> ((Real, Real, Real, Real), usize, Real, Option<usize>) {
         let scene = self.scene;
         let kernel = UpdatePass {
             update: self,
@@ -562,7 +574,12 @@ impl<V: Vector> Update<'_, '_, V> {
             kernel.scalar()
         };
         (
-            (tally.indicator, tally.force_norm, tally.reversal),
+            (
+                tally.indicator,
+                tally.force_norm,
+                tally.reversal,
+                tally.contact_work,
+            ),
             tally.contacts,
             tally.kinetic_energy,
             tally.non_finite,
@@ -609,9 +626,11 @@ impl<V: Vector> Update<'_, '_, V> {
                 *v = loads.free_part(i, *v);
             }
             if !scene.colliders.is_empty() {
+                let (free_x, free_v) = (*x, *v);
                 tally.contacts += V::resolve_colliders(scene.colliders, x, v, (resting_speed, h));
                 *x = loads.keep_fixed(i, *x, before);
                 *v = loads.free_part(i, *v);
+                tally.contact_work += contact_work(m, h, (*x - free_x, free_v, *v));
             }
         }
         tally.kinetic_energy += 0.5 * m * v.dot(*v);
@@ -730,6 +749,27 @@ impl<V: Vector> Update<'_, '_, V> {
                 .map(|k| i + k);
         }
     }
+}
+
+/// The energy (J) a collider contact may have put into the blow-up indicator of the next
+/// substep at a vertex of mass `m` (kg) in a substep of `h` (s), from the contact's change of
+/// its position `dx` (m) and velocity from `before` to `after` (m/s):
+/// `max(0, m (|after|^2 - |before|^2) / 2) + 2 m |dx|^2 / h^2`.
+///
+/// A moving collider does work on the body: it sets a vertex's velocity to its own surface's
+/// (200 m/s from rest is a jump of the kinetic energy far beyond any growth limit) and pushes
+/// the vertex out by up to its speed times the step, which the forces of the next substep
+/// feel. Neither is the unstable mode the detector looks for, so the indicator is compared
+/// with the last one *plus* this work. The first term is the kinetic energy the contact added;
+/// the second bounds what the push adds to the indicator's force term: a displacement `dx`
+/// changes the forces by `K dx`, and `h^2 |K dx|^2_(M^-1) / 8 <= h^2 omega_max^4 |dx|^2_M / 8
+/// < 2 |dx|^2_M / h^2` while `h omega_max < 2` (`docs/math.md` section 4.3). Energy a contact
+/// takes out (a static collider stopping a vertex) is not subtracted: the reference only grows,
+/// so no contact makes the test stricter than without colliders.
+#[inline(always)]
+fn contact_work<V: Vector>(m: Real, h: Real, (dx, before, after): (V, V, V)) -> Real {
+    let kinetic = 0.5 * m * (after.dot(after) - before.dot(before));
+    kinetic.max(0.0) + 2.0 * m * dx.dot(dx) / (h * h)
 }
 
 /// The gravity of `scene`.
