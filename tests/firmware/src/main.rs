@@ -583,7 +583,7 @@ fn report_ram<Real, Vec3, TetRest>(precision: &str, body_bytes: usize) {
 /// the precision's `Vec3`, `Mat3` and `TetHessian`.
 fn report_descent_ram<Vec3, Mat3, TetHessian>(precision: &str, descent_bytes: usize) {
     use core::mem::size_of;
-    use softfem::step::{scratch_len};
+    use softfem::step::scratch_len;
     let vector = size_of::<Vec3>() as u64;
     let index = size_of::<u32>() as u64;
     let per_vertex = scratch_len::newton(1, 0);
@@ -591,8 +591,8 @@ fn report_descent_ram<Vec3, Mat3, TetHessian>(precision: &str, descent_bytes: us
         per_vertex.vectors as u64 * vector + per_vertex.blocks as u64 * size_of::<Mat3>() as u64;
     let newton_tet = scratch_len::newton(0, 1).hessians as u64 * size_of::<TetHessian>() as u64;
     let base = scratch_len::vbd_indices(0, 0) as u64;
-    let vbd_vertex =
-        scratch_len::vbd(1) as u64 * vector + (scratch_len::vbd_indices(1, 0) as u64 - base) * index;
+    let vbd_vertex = scratch_len::vbd(1) as u64 * vector
+        + (scratch_len::vbd_indices(1, 0) as u64 - base) * index;
     let vbd_tet = (scratch_len::vbd_indices(0, 1) as u64 - base) * index;
     let mut line = Line::new();
     line.str("ram ")
