@@ -61,17 +61,7 @@ pub fn check(data: &[u8]) {
         let n = draw.index(10);
         let positions: Vec<Vec3> = (0..n).map(|_| point(&mut draw)).collect();
         let t = draw.index(6);
-        let index = |draw: &mut Draw<'_>| draw.index(n) as u32;
-        let tets: Vec<[u32; 4]> = (0..t)
-            .map(|_| {
-                [
-                    index(&mut draw),
-                    index(&mut draw),
-                    index(&mut draw),
-                    index(&mut draw),
-                ]
-            })
-            .collect();
+        let tets = draw.tets(t, n);
         let built = Body::<VecStorage, _>::from_arrays(&positions, &tets, density, material);
         if built.is_ok() {
             let unused = (0..n).find(|&v| !tets.iter().flatten().any(|&i| i as usize == v));

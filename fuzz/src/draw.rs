@@ -28,6 +28,17 @@ impl<'a> Draw<'a> {
         self.bytes.int_in_range(0..=max).unwrap_or(0)
     }
 
+    /// `count` tetrahedra, each four indices in `0..=max` drawn corner by corner (in range or
+    /// not: the library must refuse what is out of range).
+    pub fn tets(&mut self, count: usize, max: usize) -> Vec<[u32; 4]> {
+        (0..count)
+            .map(|_| {
+                let mut index = || self.index(max) as u32;
+                [index(), index(), index(), index()]
+            })
+            .collect()
+    }
+
     /// True with probability about `numerator / 256`.
     pub fn chance(&mut self, numerator: u8) -> bool {
         self.byte() < numerator

@@ -164,17 +164,7 @@ pub fn check(data: &[u8]) {
         _ => {
             let n = positions.len();
             let t = draw.index(6);
-            let index = |draw: &mut Draw<'_>| draw.index(n + 1) as u32;
-            let tets = (0..t)
-                .map(|_| {
-                    [
-                        index(&mut draw),
-                        index(&mut draw),
-                        index(&mut draw),
-                        index(&mut draw),
-                    ]
-                })
-                .collect();
+            let tets = draw.tets(t, n + 1);
             (positions, tets)
         }
     };
