@@ -82,8 +82,8 @@ fn check_measure(measure: Real, scale: Real) -> Result<(), ElementError> {
 
 mod sealed {
     /// Implemented by `Vec2` and `Vec3` only; carries the per-vertex lane arithmetic of the
-    /// steppers (`step/vertex_pass/point.rs`).
-    pub trait Sealed: super::super::step::vertex_pass::point::Grouped {}
+    /// steppers (`lanes/point.rs`).
+    pub trait Sealed: super::super::lanes::point::Grouped {}
     impl Sealed for super::Vec2 {}
     impl Sealed for super::Vec3 {}
 }

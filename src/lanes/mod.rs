@@ -21,6 +21,10 @@ pub(crate) mod avx2;
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod avx512;
 
+// The per-vertex arithmetic of one vertex and of a group (`Point`, `Grouped`, `Wide`): the
+// hidden half of the sealed `element::Vector`.
+pub(crate) mod point;
+
 /// Number of values a [`Lanes`] holds: 4 in both precisions (one SSE register of f32, two of f64).
 pub const LANES: usize = math::LANES;
 

@@ -33,6 +33,7 @@ use super::super::super::element::Vector;
 use super::super::super::math;
 use super::super::super::types::{Mat3, Real, Vec3};
 use super::super::vertex_pass::point::Grouped;
+use super::vertex::collider_contact;
 use super::collider::{Collider, Colliders};
 use super::floor::Floor;
 use super::{Contact, HalfSpace};
@@ -235,7 +236,7 @@ impl<'a, V: Grouped + Vector> Friction<'a, V> {
         if colliders.is_empty() {
             return None;
         }
-        V::collider_contact(colliders, x)
+        collider_contact(colliders, x)
             .filter(|contact| in_objective(contact.friction, contact.sticking_speed))
     }
 

@@ -8,6 +8,7 @@ pub(crate) mod collider;
 pub(crate) mod floor;
 pub(crate) mod friction;
 pub(crate) mod half_space;
+pub(crate) mod vertex;
 
 use super::super::types::Real;
 

@@ -57,6 +57,7 @@ use super::contact::HalfSpace;
 use super::contact::collider::{Collider, Colliders};
 use super::contact::floor::Floor;
 use super::contact::friction::{Friction, Lag};
+use super::contact::vertex::shifted_colliders;
 use super::loads::Loads;
 use super::model::{ElasticEnergy, ElasticModel};
 use super::scene::Scene;
@@ -516,7 +517,7 @@ pub(crate) fn solve<F: ElasticEnergy, D: Direction<F>>(
     } = work;
     // The colliders are seen from the shifted coordinates too (`Colliders::shifted`).
     let origin = split_reference_point(problem.model, positions);
-    let colliders = F::Vector::shifted_colliders(problem.colliders, origin);
+    let colliders = shifted_colliders(problem.colliders, origin);
     split_translate(problem.model, positions, -origin, start);
     let start: &[F::Vector] = start;
     let restore = |positions: &mut [F::Vector]| {

@@ -14,6 +14,7 @@ use super::super::super::types::Real;
 use super::super::contact::HalfSpace;
 use super::super::contact::floor::Floor;
 use super::super::contact::friction::{Friction, Lag};
+use super::super::contact::vertex::collider_velocity;
 use super::super::loads::Loads;
 use super::super::model::ElasticEnergy;
 use super::super::state::pinned_flags;
@@ -459,7 +460,7 @@ pub(crate) fn implicit_velocity<V: Vector>(
         v = ground.friction_applied(tangential, normal_change) + ground.normal * normal.max(0.0);
     }
     if !floor.colliders().is_empty() {
-        v = V::collider_velocity(floor.colliders(), x, g, m, h, v);
+        v = collider_velocity(floor.colliders(), (x, g, m, h), v);
     }
     v
 }

@@ -19,6 +19,7 @@ use super::super::lanes::avx512::Avx512Lanes;
 use super::super::lanes::{LaneArray, Lanes};
 use super::super::types::Real;
 use super::contact::HalfSpace;
+use super::contact::vertex::resolve_colliders;
 use super::descent::line_search::copy;
 use super::model::ElasticModel;
 use super::scene::Scene;
@@ -627,7 +628,7 @@ impl<V: Vector> Update<'_, '_, V> {
             }
             if !scene.colliders.is_empty() {
                 let (free_x, free_v) = (*x, *v);
-                tally.contacts += V::resolve_colliders(scene.colliders, x, v, (resting_speed, h));
+                tally.contacts += resolve_colliders(scene.colliders, x, v, (resting_speed, h));
                 *x = loads.keep_fixed(i, *x, before);
                 *v = loads.free_part(i, *v);
                 tally.contact_work += contact_work(m, h, (*x - free_x, free_v, *v));

@@ -17,7 +17,9 @@ use core::marker::PhantomData;
 use super::super::types::Real;
 
 pub(crate) mod passes;
-pub(crate) mod point;
+// Moved below `element` (`lanes/point.rs`, the hidden half of `element::Vector`); the steppers
+// name it here.
+pub(crate) use super::super::lanes::point;
 
 /// The vertices per block of the steppers' passes over the vertices (integration, contact
 /// projection, trial points, residuals). Every sum over the vertices is taken block by block, in

@@ -1,7 +1,7 @@
 //! The relaxation's passes over the vertices: the gradient of `Phi` from the elastic forces, the
 //! preconditioned descent direction and the trial points. On x86_64 (`math::BATCH_VERTICES`)
 //! each runs in groups of the width `simd::dispatch` picks (16 f32 lanes on AVX-512, 8 on AVX2,
-//! 4 on SSE and at the scalar width; [`Grouped::Wide`], see `step/vertex_pass/point.rs`), then
+//! 4 on SSE and at the scalar width; [`Grouped::Wide`], see `lanes/point.rs`), then
 //! narrower groups down to [`LANES`], then the rest one at a time (every vertex one at a time
 //! elsewhere), through the same generic per-vertex code, so that every vertex gets the same bits
 //! either way and every target and width the same sums ([`LaneSum`]).

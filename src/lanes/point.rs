@@ -1,4 +1,9 @@
-//! Per-vertex arithmetic written once for one vertex and for a group of vertices.
+//! Per-vertex arithmetic written once for one vertex and for a group of vertices: the hidden half
+//! of the sealed `element::Vector` (every `V: Vector` is [`Grouped`]), here below `element` and
+//! `step` so that neither imports it from a layer above. The colliders' queries enter through
+//! [`Obstacles`], implemented by `step/contact`'s `Colliders`; the queries of the steppers that
+//! return contact records are generic functions there (`step/contact/vertex.rs`), dispatching on
+//! [`Grouped::SPACE_DIM`].
 //!
 //! The relaxation's vertex passes (gradient, direction, trial points; `step/vertex_pass/passes.rs`)
 //! run on x86_64 in groups of the width `simd::dispatch` picks (16 f32 lanes on AVX-512, 8 on AVX2,
@@ -7,19 +12,28 @@
 //! the same generic code: element-wise IEEE operations and selects instead of branches, so every
 //! vertex gets the same bits either way. Sums over vertices follow one fixed order on every target
 //! (`LaneSum` in `lanes/mod.rs`). `LaneVec2` lives here rather than next to `LaneVec3`: only the
-//! steppers need 2D lanes.
+//! steppers' vertex arithmetic needs 2D lanes.
 
 use core::ops::{Add, Neg, Sub};
 
-use super::super::super::lanes::{
-    LANES, Lane, LaneArray, LaneVec3, Lanes, each_lane, lane_vec3, map_lane_vectors,
-};
-use super::super::super::types::{Real, Vec2, Vec3};
-use super::super::contact::Contact;
-use super::super::contact::collider::{self, Collider, Colliders};
+use super::super::types::{Real, Vec2, Vec3};
+use super::{LANES, Lane, LaneArray, LaneVec3, Lanes, each_lane, lane_vec3, map_lane_vectors};
+
+/// The 3D obstacles a point may be pushed out of or constrained by: the queries of
+/// `step/contact`'s `Colliders`, named here so that [`Point`] can ask them without knowing the
+/// type. Public in a private module, like [`Point`].
+pub trait Obstacles: Copy {
+    /// `x` pushed out of every obstacle, in order (m).
+    fn pushed_out(&self, x: Vec3) -> Vec3;
+    /// `v` without its component into the first obstacle touching `x` where `sign` times that
+    /// component is positive.
+    fn constrained(&self, x: Vec3, v: Vec3, sign: Real) -> Vec3;
+    /// The outward unit normal of the first obstacle touching `x`, if any.
+    fn touching_normal(&self, x: Vec3) -> Option<Vec3>;
+}
 
 /// One vertex vector, or [`LANES`] of them. Public in a private module: the hidden half of the
-/// sealed [`Vector`](super::super::Vector) trait.
+/// sealed `element::Vector` trait.
 pub trait Point: Copy + Add<Output = Self> + Sub<Output = Self> + Neg<Output = Self> {
     /// [`Real`] or [`Lanes`].
     type Scalar: Lane;
@@ -39,15 +53,15 @@ pub trait Point: Copy + Add<Output = Self> + Sub<Output = Self> + Neg<Output = S
     fn select(mask: <Self::Scalar as Lane>::Mask, a: Self, b: Self) -> Self;
     /// `self` pushed out of every collider, in order (colliders act on 3D points only: the
     /// identity in 2D). Lane by lane for groups.
-    fn pushed_out(self, colliders: Colliders<'_>) -> Self;
+    fn pushed_out<O: Obstacles>(self, colliders: O) -> Self;
     /// `v` without its component into the first collider touching `self`, `sign` as in
-    /// [`Floor::constrain`] (the identity in 2D). Lane by lane for groups.
-    fn constrained_by(self, colliders: Colliders<'_>, v: Self, sign: Real) -> Self;
+    /// `Floor::constrain` (the identity in 2D). Lane by lane for groups.
+    fn constrained_by<O: Obstacles>(self, colliders: O, v: Self, sign: Real) -> Self;
     /// The outward normal of the first collider touching `self` (per lane for groups; nothing
-    /// in 2D), for several constraints at one point with one query ([`Floor::touch`]).
+    /// in 2D), for several constraints at one point with one query (`Floor::touch`).
     type Touch: Copy;
     /// [`Touch`](Self::Touch) at `self`.
-    fn touch(self, colliders: Colliders<'_>) -> Self::Touch;
+    fn touch<O: Obstacles>(self, colliders: O) -> Self::Touch;
     /// [`constrained_by`](Self::constrained_by) at the point `touch` was queried at: the same
     /// bits.
     fn constrained_at(touch: Self::Touch, v: Self, sign: Real) -> Self;
@@ -88,30 +102,13 @@ pub trait Grouped: Point<Scalar = Real, Vector = Self> {
     /// `self` with the coordinates whose bit is set in `fixed` (bit 0 x, 1 y, 2 z) taken from
     /// `source`: a select, so they keep `source`'s bits exactly.
     fn axes_from(self, source: Self, fixed: u8) -> Self;
-    /// The explicit stepper's response to the colliders at a vertex at `x` moving at `v` (see
-    /// `collider::resolve`); the number of colliders it was inside (none in 2D).
-    fn resolve_colliders(
-        colliders: &[Collider<'_>],
-        x: &mut Self,
-        v: &mut Self,
-        resting_speed_and_step: (Real, Real),
-    ) -> usize;
-    /// The implicit solvers' velocity `v` at a vertex at `x` with gradient `g`, mass `m` and
-    /// step `h` after the colliders' friction (see `Colliders::implicit_velocity`; `v` in 2D).
-    fn collider_velocity(
-        colliders: Colliders<'_>,
-        x: Self,
-        g: Self,
-        m: Real,
-        h: Real,
-        v: Self,
-    ) -> Self;
-    /// The friction data of the first collider `x` touches (see `Colliders::contact`; none in
-    /// 2D).
-    fn collider_contact(colliders: Colliders<'_>, x: Self) -> Option<Contact<Self>>;
-    /// `colliders` seen from coordinates shifted by `-origin` (see `Colliders::shifted`; 2D
-    /// bodies take no colliders: unshifted).
-    fn shifted_colliders<'a>(colliders: &'a [Collider<'a>], origin: Self) -> Colliders<'a>;
+    /// The number of coordinates: 2 or 3. The colliders act on 3D points only
+    /// (`step/contact/vertex.rs` dispatches on it).
+    const SPACE_DIM: usize;
+    /// `self` as a 3D vector: itself in 3D, `z = 0` in 2D.
+    fn to_vec3(self) -> Vec3;
+    /// The vector of `v`: itself in 3D, its `x` and `y` in 2D.
+    fn from_vec3(v: Vec3) -> Self;
 }
 
 /// A group of `L::WIDTH` vertex vectors ([`Grouped::Wide`]): element-wise IEEE arithmetic in
@@ -410,16 +407,16 @@ macro_rules! wide_point {
 macro_rules! no_colliders_point {
     () => {
         #[inline(always)]
-        fn pushed_out(self, _: Colliders<'_>) -> Self {
+        fn pushed_out<O: Obstacles>(self, _: O) -> Self {
             self
         }
         #[inline(always)]
-        fn constrained_by(self, _: Colliders<'_>, v: Self, _: Real) -> Self {
+        fn constrained_by<O: Obstacles>(self, _: O, v: Self, _: Real) -> Self {
             v
         }
         type Touch = ();
         #[inline(always)]
-        fn touch(self, _: Colliders<'_>) {}
+        fn touch<O: Obstacles>(self, _: O) {}
         #[inline(always)]
         fn constrained_at((): (), v: Self, _: Real) -> Self {
             v
@@ -448,21 +445,14 @@ impl Grouped for Vec2 {
         }
     }
     const ALL_AXES: u8 = 0b11;
+    const SPACE_DIM: usize = 2;
     #[inline(always)]
-    fn resolve_colliders(_: &[Collider<'_>], _: &mut Self, _: &mut Self, _: (Real, Real)) -> usize {
-        0
+    fn to_vec3(self) -> Vec3 {
+        self.extend(0.0)
     }
     #[inline(always)]
-    fn collider_velocity(_: Colliders<'_>, _: Self, _: Self, _: Real, _: Real, v: Self) -> Self {
-        v
-    }
-    #[inline(always)]
-    fn collider_contact(_: Colliders<'_>, _: Self) -> Option<Contact<Self>> {
-        None
-    }
-    #[inline(always)]
-    fn shifted_colliders<'a>(colliders: &'a [Collider<'a>], _: Self) -> Colliders<'a> {
-        Colliders::new(colliders)
+    fn from_vec3(v: Vec3) -> Vec2 {
+        v.truncate()
     }
     #[inline(always)]
     fn axes_from(self, source: Vec2, fixed: u8) -> Vec2 {
@@ -486,17 +476,17 @@ impl Grouped for Vec2 {
 impl Point for Vec3 {
     one_vertex_point!(Vec3: x, y, z);
     #[inline(always)]
-    fn pushed_out(self, colliders: Colliders<'_>) -> Self {
+    fn pushed_out<O: Obstacles>(self, colliders: O) -> Self {
         colliders.pushed_out(self)
     }
     #[inline(always)]
-    fn constrained_by(self, colliders: Colliders<'_>, v: Self, sign: Real) -> Self {
+    fn constrained_by<O: Obstacles>(self, colliders: O, v: Self, sign: Real) -> Self {
         colliders.constrained(self, v, sign)
     }
     type Touch = Option<Vec3>;
     #[inline(always)]
-    fn touch(self, colliders: Colliders<'_>) -> Option<Vec3> {
-        colliders.touching(self).map(|(_, normal)| normal)
+    fn touch<O: Obstacles>(self, colliders: O) -> Option<Vec3> {
+        colliders.touching_normal(self)
     }
     #[inline(always)]
     fn constrained_at(touch: Option<Vec3>, v: Self, sign: Real) -> Self {
@@ -509,11 +499,11 @@ impl Point for Vec3 {
 impl<L: Lane> Point for LaneVec3<L> {
     wide_point!(Vec3: x, y, z);
     #[inline(always)]
-    fn pushed_out(self, colliders: Colliders<'_>) -> Self {
+    fn pushed_out<O: Obstacles>(self, colliders: O) -> Self {
         map_lane_vectors(|lane| colliders.pushed_out(lane_vec3(&self, lane)))
     }
     #[inline(always)]
-    fn constrained_by(self, colliders: Colliders<'_>, v: Self, sign: Real) -> Self {
+    fn constrained_by<O: Obstacles>(self, colliders: O, v: Self, sign: Real) -> Self {
         map_lane_vectors(|lane| {
             colliders.constrained(lane_vec3(&self, lane), lane_vec3(&v, lane), sign)
         })
@@ -521,7 +511,7 @@ impl<L: Lane> Point for LaneVec3<L> {
     /// The normal of the collider each lane touches, zero in the lanes that touch none.
     type Touch = LaneVec3<L>;
     #[inline(always)]
-    fn touch(self, colliders: Colliders<'_>) -> Self::Touch {
+    fn touch<O: Obstacles>(self, colliders: O) -> Self::Touch {
         map_lane_vectors(|lane| {
             lane_vec3(&self, lane)
                 .touch(colliders)
@@ -546,33 +536,14 @@ impl Grouped for Vec3 {
         LaneVec3::from_vectors(v)
     }
     const ALL_AXES: u8 = 0b111;
+    const SPACE_DIM: usize = 3;
     #[inline(always)]
-    fn resolve_colliders(
-        colliders: &[Collider<'_>],
-        x: &mut Self,
-        v: &mut Self,
-        resting_speed_and_step: (Real, Real),
-    ) -> usize {
-        collider::resolve(colliders, x, v, resting_speed_and_step)
+    fn to_vec3(self) -> Vec3 {
+        self
     }
     #[inline(always)]
-    fn collider_velocity(
-        colliders: Colliders<'_>,
-        x: Self,
-        g: Self,
-        m: Real,
-        h: Real,
-        v: Self,
-    ) -> Self {
-        colliders.implicit_velocity((x, g, m, h), v)
-    }
-    #[inline(always)]
-    fn collider_contact(colliders: Colliders<'_>, x: Self) -> Option<Contact<Self>> {
-        colliders.contact(x)
-    }
-    #[inline(always)]
-    fn shifted_colliders<'a>(colliders: &'a [Collider<'a>], origin: Self) -> Colliders<'a> {
-        Colliders::new(colliders).shifted(origin)
+    fn from_vec3(v: Vec3) -> Vec3 {
+        v
     }
     #[inline(always)]
     fn axes_from(self, source: Vec3, fixed: u8) -> Vec3 {
