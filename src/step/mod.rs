@@ -100,8 +100,9 @@
 //! small-strain moduli ([`linearised_moduli`](explicit::linearised_moduli), measured from the
 //! material by central differences and enlarged by 0.1% to cover their error). A body strongly
 //! compressed (a stiffening model) or rotated far from rest with a non-rotation-invariant force
-//! path has higher frequencies: leave a margin (0.5..0.9 of the bound), and rely on the stepper's
-//! blow-up detection for the rest. Damping (mass-proportional, applied as `v / (1 + c dt)`) only
+//! path has higher frequencies: leave a margin (0.5..0.8 of the bound; see
+//! [`FrequencyEstimate::MARGIN`](explicit::FrequencyEstimate::MARGIN) for why not 0.9), and rely
+//! on the stepper's blow-up detection for the rest. Damping (mass-proportional, applied as `v / (1 + c dt)`) only
 //! lowers the amplification and needs no margin.
 //!
 //! # The relaxation
