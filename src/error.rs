@@ -540,8 +540,8 @@ pub enum StepError {
         vertex: usize,
     },
     /// The explicit step is past its stability limit: the elastic forces reversed and grew for
-    /// `step::ExplicitSettings::FLIP_STREAK` substeps in a row (the unstable mode of symplectic
-    /// Euler, caught early), or the energy indicator grew by more than the allowed factor in one
+    /// `step::ExplicitSettings::FLIP_STREAK` substeps in a row, or reversed and grew fourfold
+    /// for two (the unstable mode of symplectic Euler, caught early), or the energy indicator grew by more than the allowed factor in one
     /// substep. The state was restored to what it was before the call.
     EnergyBlowUp,
     /// The force or energy kernel refused the input.
