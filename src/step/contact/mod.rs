@@ -3,8 +3,15 @@
 //! vertices and directions onto the admissible set that every stepper shares (`floor.rs`), Coulomb
 //! friction inside the implicit objective (`step/contact/friction.rs`), and the one record of a
 //! contact at a vertex that they exchange ([`Contact`]).
+//!
+//! Body–body and self contact (Incremental Potential Contact, issue #39):
+//! * [`distance`]: point–triangle and edge–edge squared distances with exact gradients and
+//!   Hessians, their closest-feature kinds, and the edge–edge mollifier (`contact/distance/`).
+//! * [`barrier`]: the log barrier on squared distances and its derivatives (`barrier.rs`).
 
+pub mod barrier;
 pub(crate) mod collider;
+pub mod distance;
 pub(crate) mod floor;
 pub(crate) mod friction;
 pub(crate) mod half_space;
