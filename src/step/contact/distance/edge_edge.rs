@@ -181,7 +181,9 @@ pub struct Mollifier {
 /// use softfem::step::contact::distance::edge_edge_mollifier_threshold;
 ///
 /// // Rest lengths 2 m and 3 m: 1e-3 * 4 * 9.
-/// let eps_x = edge_edge_mollifier_threshold(Vec3::ZERO, 2.0 * Vec3::X, Vec3::Y, Vec3::new(0.0, 4.0, 0.0));
+/// let (ea0, ea1) = (Vec3::ZERO, 2.0 * Vec3::X);
+/// let (eb0, eb1) = (Vec3::Y, Vec3::new(0.0, 4.0, 0.0));
+/// let eps_x = edge_edge_mollifier_threshold(ea0, ea1, eb0, eb1);
 /// assert!((eps_x - 0.036).abs() < 1e-8);
 /// ```
 #[must_use]
@@ -385,7 +387,7 @@ mod tests {
         while seen.iter().any(|&count| count < 4) {
             tries += 1;
             assert!(tries < 50_000, "kinds seen: {seen:?}");
-            let points = [random.point(1.0), random.point(1.0), random.point(1.0), random.point(1.0)];
+            let points = random.points(1.0);
             let (u, v) = (points[1] - points[0], points[3] - points[2]);
             if u.cross(v).length_squared() < 0.1 * u.length_squared() * v.length_squared()
                 || value(points) < 0.04
@@ -420,7 +422,7 @@ mod tests {
         // Rounding of coordinates up to ~5 m: the squared distance errs by eps |x|^2.
         let tolerance = 256.0 * Real::EPSILON * 25.0;
         for _ in 0..300 {
-            let points = [random.point(1.0), random.point(1.0), random.point(1.0), random.point(1.0)];
+            let points = random.points(1.0);
             let [ea0, ea1, eb0, eb1] = points;
             let reference = distance(points);
             let rotation = random.rotation();
@@ -456,7 +458,12 @@ mod tests {
         let (ea0, ea1) = (Vec3::new(-1.0, 0.1, 0.0), Vec3::new(1.0, -0.1, 0.05));
         let mut visited = [false; 9];
         let samples = 20_000;
-        for (direction, height) in [(Vec3::new(0.3, 1.0, 0.0), 0.2), (Vec3::new(1.0, 0.2, 0.1), 0.0), (Vec3::new(-1.0, 0.7, 0.2), 0.5)] {
+        let sweeps = [
+            (Vec3::new(0.3, 1.0, 0.0), 0.2),
+            (Vec3::new(1.0, 0.2, 0.1), 0.0),
+            (Vec3::new(-1.0, 0.7, 0.2), 0.5),
+        ];
+        for (direction, height) in sweeps {
             let mut previous: Option<([Vec3; 4], Real)> = None;
             for step in 0..=samples {
                 // Edge b turns about a moving centre along a spiral: its ends pass a's ends
@@ -465,14 +472,23 @@ mod tests {
                 let angle = fraction * 4.0 * core::f64::consts::TAU as Real;
                 let centre = Vec3::new(2.6 * (fraction - 0.5) * 2.0, 0.4 * angle.sin(), height);
                 let half = direction.normalize() * 0.6;
-                let turn = Vec3::new(angle.cos() * half.x - angle.sin() * half.y, angle.sin() * half.x + angle.cos() * half.y, half.z);
+                let (sin, cos) = (angle.sin(), angle.cos());
+                let (x, y) = (cos * half.x - sin * half.y, sin * half.x + cos * half.y);
+                let turn = Vec3::new(x, y, half.z);
                 let points = [ea0, ea1, centre - turn, centre + turn + Vec3::new(0.0, 0.0, 0.1)];
                 let d2 = value(points);
                 visited[kind(points) as usize] = true;
                 if let Some((before, previous_d2)) = previous {
-                    let moved_by = points.iter().zip(before).map(|(x, y)| (*x - y).length()).fold(0.0, Real::max);
-                    let bound = 2.0 * d2.max(previous_d2).sqrt() * 2.0 * moved_by + 4.0 * moved_by * moved_by;
-                    assert!((d2 - previous_d2).abs() <= bound * 1.01 + 64.0 * Real::EPSILON, "{points:?}");
+                    // Each closest point moves at most `moved_by`, their difference twice that.
+                    let moved_by = points
+                        .iter()
+                        .zip(before)
+                        .map(|(x, y)| (*x - y).length())
+                        .fold(0.0, Real::max);
+                    let change = 2.0 * moved_by;
+                    let bound = 2.0 * d2.max(previous_d2).sqrt() * change + change * change;
+                    let tolerance = 64.0 * Real::EPSILON;
+                    assert!((d2 - previous_d2).abs() <= bound * 1.01 + tolerance, "{points:?}");
                 }
                 previous = Some((points, d2));
             }
@@ -508,7 +524,7 @@ mod tests {
     fn value_only_matches() {
         let mut random = XorShift::new(0x5eed_0013);
         for _ in 0..500 {
-            let points = [random.point(1.0), random.point(1.0), random.point(1.0), random.point(1.0)];
+            let points = random.points(1.0);
             let [ea0, ea1, eb0, eb1] = points;
             assert_eq!(value(points).to_bits(), distance(points).squared.to_bits());
             let threshold = random.uniform(0.0, 0.5);
@@ -520,7 +536,9 @@ mod tests {
     }
 
     fn mollifier_value(threshold: Real) -> impl Fn([Vec3; 4]) -> Real {
-        move |[ea0, ea1, eb0, eb1]: [Vec3; 4]| edge_edge_mollifier_value(ea0, ea1, eb0, eb1, threshold)
+        move |[ea0, ea1, eb0, eb1]: [Vec3; 4]| {
+            edge_edge_mollifier_value(ea0, ea1, eb0, eb1, threshold)
+        }
     }
 
     fn cross_squared([ea0, ea1, eb0, eb1]: [Vec3; 4]) -> Real {
@@ -532,12 +550,13 @@ mod tests {
     /// against central differences below it.
     #[test]
     fn mollifier_values_continuity_and_derivatives() {
-        let threshold = edge_edge_mollifier_threshold(Vec3::ZERO, Vec3::X * 2.0, Vec3::Y, Vec3::Y * 4.0);
+        let rest = [Vec3::ZERO, Vec3::X * 2.0, Vec3::Y, Vec3::Y * 4.0];
+        let threshold = edge_edge_mollifier_threshold(rest[0], rest[1], rest[2], rest[3]);
         assert!((threshold - 1e-3 * 4.0 * 9.0).abs() < 1e-3 * TIGHT);
         let mut random = XorShift::new(0x5eed_0014);
         let (gradient_step, gradient_tolerance, hessian_step, hessian_tolerance) = fd_settings();
         for _ in 0..100 {
-            let points = [random.point(1.0), random.point(1.0), random.point(1.0), random.point(1.0)];
+            let points = random.points(1.0);
             let [ea0, ea1, eb0, eb1] = points;
             let c = cross_squared(points);
             if c < 0.05 {
@@ -571,7 +590,8 @@ mod tests {
             assert!(hessian < hessian_tolerance, "{points:?}: {hessian}");
         }
         // Parallel edges: 0 with zero gradient.
-        let parallel = edge_edge_mollifier(Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(3.0, 1.0, 0.0), 0.1);
+        let far_end = Vec3::new(3.0, 1.0, 0.0);
+        let parallel = edge_edge_mollifier(Vec3::ZERO, Vec3::X, Vec3::Y, far_end, 0.1);
         assert_eq!(parallel.value, 0.0);
         assert!(parallel.gradient.iter().all(|g| g.length() < TIGHT));
         // No threshold (a zero-length rest edge): 1 everywhere.

@@ -15,10 +15,9 @@
 //!
 //! with its gradient and Hessian scattered into four slots (the point and the triangle's
 //! corners, or the two edges' ends) and zeros where a point is not involved. Each kind's
-//! formula is smooth on its own; the classified distance is continuous everywhere, with a
-//! continuous gradient, and its Hessian jumps where the kind changes (the true Hessian of the
-//! distance between the two primitives, which is what a Newton step on a fixed contact set
-//! needs).
+//! formula is smooth on its own; the classified distance is continuous everywhere, its
+//! gradient wherever the closest points are unique, and its Hessian, exact within each kind,
+//! jumps where the kind changes.
 //!
 //! # Conventions
 //! * Lengths in m, squared distances in m^2, gradients in m, Hessians dimensionless.

@@ -37,9 +37,10 @@ pub enum PointTriangleKind {
 /// use softfem::step::contact::distance::{PointTriangleKind, point_triangle_kind};
 ///
 /// let (t0, t1, t2) = (Vec3::ZERO, Vec3::X, Vec3::Y);
-/// assert_eq!(point_triangle_kind(Vec3::new(0.2, 0.2, 1.0), t0, t1, t2), PointTriangleKind::Face);
-/// assert_eq!(point_triangle_kind(Vec3::new(0.5, -1.0, 0.0), t0, t1, t2), PointTriangleKind::Edge01);
-/// assert_eq!(point_triangle_kind(Vec3::new(-1.0, -1.0, 0.0), t0, t1, t2), PointTriangleKind::Vertex0);
+/// let kind = |x, y, z| point_triangle_kind(Vec3::new(x, y, z), t0, t1, t2);
+/// assert_eq!(kind(0.2, 0.2, 1.0), PointTriangleKind::Face);
+/// assert_eq!(kind(0.5, -1.0, 0.0), PointTriangleKind::Edge01);
+/// assert_eq!(kind(-1.0, -1.0, 0.0), PointTriangleKind::Vertex0);
 /// ```
 #[must_use]
 pub fn point_triangle_kind(p: Vec3, t0: Vec3, t1: Vec3, t2: Vec3) -> PointTriangleKind {
@@ -235,7 +236,7 @@ mod tests {
         while seen.iter().any(|&count| count < 4) {
             tries += 1;
             assert!(tries < 20_000, "kinds seen: {seen:?}");
-            let points = [random.point(2.0), random.point(1.0), random.point(1.0), random.point(1.0)];
+            let points = random.points(2.0);
             let [_, t0, t1, t2] = points;
             let (e1, e2) = (t1 - t0, t2 - t0);
             if e1.cross(e2).length_squared() < 0.1 * e1.length_squared() * e2.length_squared()
@@ -269,7 +270,7 @@ mod tests {
     fn rigid_motions_and_translation_identities() {
         let mut random = XorShift::new(0x5eed_0002);
         for _ in 0..200 {
-            let points = [random.point(2.0), random.point(1.0), random.point(1.0), random.point(1.0)];
+            let points = random.points(2.0);
             let rotation = random.rotation();
             let shift = random.point(3.0);
             let [p, t0, t1, t2] = points.map(|x| rotation * x + shift);
@@ -286,8 +287,12 @@ mod tests {
             assert!(sum.length() < tolerance * 10.0, "{sum}");
             for row in distance.hessian {
                 let row_sum = row[0] + row[1] + row[2] + row[3];
-                let largest = row.iter().map(|block| block.abs().to_cols_array().iter().cloned().fold(0.0, Real::max)).fold(1.0, Real::max);
-                assert!(row_sum.abs().to_cols_array().iter().all(|e| *e < tolerance * 10.0 * largest));
+                let largest = row
+                    .iter()
+                    .flat_map(|block| block.to_cols_array())
+                    .fold(1.0, |m: Real, e| m.max(e.abs()));
+                let bound = tolerance * 10.0 * largest;
+                assert!(row_sum.to_cols_array().iter().all(|e| e.abs() < bound));
             }
         }
     }
@@ -296,7 +301,9 @@ mod tests {
     /// Lipschitz bound `|grad d^2| |step| = 2 d |step|` between close samples.
     #[test]
     fn value_is_continuous_across_kinds() {
-        let (t0, t1, t2) = (Vec3::new(0.1, -0.2, 0.05), Vec3::new(1.3, 0.1, -0.2), Vec3::new(0.2, 1.1, 0.3));
+        let t0 = Vec3::new(0.1, -0.2, 0.05);
+        let t1 = Vec3::new(1.3, 0.1, -0.2);
+        let t2 = Vec3::new(0.2, 1.1, 0.3);
         let center = (t0 + t1 + t2) / 3.0;
         let normal = (t1 - t0).cross(t2 - t0).normalize();
         let mut visited = [false; 7];
@@ -310,11 +317,13 @@ mod tests {
                 let fraction = step as Real / samples as Real;
                 let angle = fraction * 3.0 * core::f64::consts::TAU as Real;
                 let radius = 0.1 + 1.9 * fraction;
-                let p = center + (across * angle.cos() + along * angle.sin()) * radius + normal * height;
+                let radial = across * angle.cos() + along * angle.sin();
+                let p = center + radial * radius + normal * height;
                 let d2 = point_triangle_squared_distance(p, t0, t1, t2);
                 visited[point_triangle_kind(p, t0, t1, t2) as usize] = true;
                 if let Some((q, previous_d2)) = previous {
-                    let bound = 2.0 * d2.max(previous_d2).sqrt() * (p - q).length() + (p - q).length_squared();
+                    let step = (p - q).length();
+                    let bound = 2.0 * d2.max(previous_d2).sqrt() * step + step * step;
                     assert!((d2 - previous_d2).abs() <= bound * 1.01 + 64.0 * Real::EPSILON, "{p}");
                 }
                 previous = Some((p, d2));
@@ -339,7 +348,8 @@ mod tests {
             assert_ne!(point_triangle_kind(p, t0, t1, t2), PointTriangleKind::Face);
         }
         // The point on the degenerate triangle: zero distance, finite derivatives.
-        let distance = point_triangle_distance(Vec3::new(1.5, 0.0, 0.0), collinear[0], collinear[1], collinear[2]);
+        let [t0, t1, t2] = collinear;
+        let distance = point_triangle_distance(Vec3::new(1.5, 0.0, 0.0), t0, t1, t2);
         assert_eq!(distance.squared, 0.0);
         assert!(distance.hessian.iter().flatten().all(|h| h.is_finite()));
     }
@@ -349,7 +359,7 @@ mod tests {
     fn value_only_matches() {
         let mut random = XorShift::new(0x5eed_0003);
         for _ in 0..500 {
-            let [p, t0, t1, t2] = [random.point(2.0), random.point(1.0), random.point(1.0), random.point(1.0)];
+            let [p, t0, t1, t2] = random.points(2.0);
             assert_eq!(
                 point_triangle_squared_distance(p, t0, t1, t2).to_bits(),
                 point_triangle_distance(p, t0, t1, t2).squared.to_bits()

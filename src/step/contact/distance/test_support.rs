@@ -28,6 +28,11 @@ impl XorShift {
         )
     }
 
+    /// Four points: the first in a cube of half-width `first`, the others of half-width 1.
+    pub(super) fn points(&mut self, first: Real) -> [Vec3; 4] {
+        [self.point(first), self.point(1.0), self.point(1.0), self.point(1.0)]
+    }
+
     /// A rotation drawn from a random axis and angle.
     pub(super) fn rotation(&mut self) -> Quat {
         let axis = self.point(1.0) + Vec3::new(0.1, 0.2, 0.3);
@@ -41,7 +46,12 @@ pub(super) fn double() -> bool {
 }
 
 /// `points` with coordinate `coordinate` of point `point` moved by `step`.
-pub(super) fn moved(mut points: [Vec3; 4], point: usize, coordinate: usize, step: Real) -> [Vec3; 4] {
+pub(super) fn moved(
+    mut points: [Vec3; 4],
+    point: usize,
+    coordinate: usize,
+    step: Real,
+) -> [Vec3; 4] {
     points[point][coordinate] += step;
     points
 }
