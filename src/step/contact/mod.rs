@@ -3,7 +3,15 @@
 //! vertices and directions onto the admissible set that every stepper shares (`floor.rs`), Coulomb
 //! friction inside the implicit objective (`step/contact/friction.rs`), and the one record of a
 //! contact at a vertex that they exchange ([`Contact`]).
+//!
+//! Body–body and self contact (Incremental Potential Contact, Li et al. 2020):
+//! * [`boundary`]: a contact surface's primitives (vertices, edges, triangles) from its
+//!   boundary triangles.
+//! * [`broad_phase`]: the (vertex, triangle) and (edge, edge) pairs close enough to matter, at
+//!   one configuration or over a motion, from a spatial hash in caller buffers.
 
+pub mod boundary;
+pub mod broad_phase;
 pub(crate) mod collider;
 pub(crate) mod floor;
 pub(crate) mod friction;
