@@ -710,6 +710,151 @@ impl core::error::Error for StepError {
     }
 }
 
+/// A buffer of the body–body contact queries in
+/// [`step::contact`](crate::step::contact), named in [`ContactError`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ContactBuffer {
+    /// The positions (m), one per vertex of every body.
+    Positions,
+    /// The end positions of a motion query (m), one per vertex like the positions.
+    EndPositions,
+    /// The boundary triangles (vertex indices).
+    Triangles,
+    /// The boundary edges (vertex indices): input of the broad phase, output of
+    /// `boundary::boundary_edges`.
+    Edges,
+    /// The boundary vertices (vertex indices): input of the broad phase, output of
+    /// `boundary::boundary_vertices`.
+    Vertices,
+    /// The broad phase's hash-table slots (see `scratch_len::broad_phase`).
+    Slots,
+    /// The broad phase's cell entries (see `scratch_len::broad_phase`).
+    Entries,
+    /// The output (vertex, triangle) candidate pairs.
+    VertexTrianglePairs,
+    /// The output (edge, edge) candidate pairs.
+    EdgeEdgePairs,
+}
+
+impl fmt::Display for ContactBuffer {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            ContactBuffer::Positions => "positions",
+            ContactBuffer::EndPositions => "end positions",
+            ContactBuffer::Triangles => "triangles",
+            ContactBuffer::Edges => "edges",
+            ContactBuffer::Vertices => "vertices",
+            ContactBuffer::Slots => "hash-table slots",
+            ContactBuffer::Entries => "cell entries",
+            ContactBuffer::VertexTrianglePairs => "vertex-triangle pairs",
+            ContactBuffer::EdgeEdgePairs => "edge-edge pairs",
+        })
+    }
+}
+
+/// A body–body contact query ([`step::contact`](crate::step::contact): the boundary primitives,
+/// the broad phase) was refused. Every input error is found before anything is written; a
+/// [`Capacity`](Self::Capacity) error of an output buffer is found at the end, after the query
+/// has counted every pair.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ContactError {
+    /// A buffer does not have the length the query needs.
+    BufferLength {
+        /// The buffer at fault.
+        buffer: ContactBuffer,
+        /// The length it must have.
+        expected: usize,
+        /// The length it has.
+        actual: usize,
+    },
+    /// A buffer is too short for what the query has to write into it.
+    Capacity {
+        /// The buffer at fault.
+        buffer: ContactBuffer,
+        /// The entries it needs (the exact count of pairs for an output pair buffer).
+        needed: usize,
+        /// The entries it has.
+        capacity: usize,
+    },
+    /// An index buffer names a vertex at or beyond the vertex count.
+    IndexOutOfRange {
+        /// The index buffer ([`Triangles`](ContactBuffer::Triangles),
+        /// [`Edges`](ContactBuffer::Edges) or [`Vertices`](ContactBuffer::Vertices)).
+        buffer: ContactBuffer,
+        /// The entry of that buffer.
+        element: usize,
+        /// The vertex index found there.
+        index: u32,
+    },
+    /// A boundary triangle names the same vertex twice.
+    DegenerateTriangle {
+        /// The triangle.
+        triangle: usize,
+    },
+    /// More primitives than the `u32` pair indices can name (`u32::MAX` in one list, or in the
+    /// three lists together for the broad phase's table).
+    TooManyPrimitives {
+        /// The list at fault (for the three together: [`Entries`](ContactBuffer::Entries)).
+        buffer: ContactBuffer,
+    },
+    /// A position is NaN or infinite.
+    NonFinitePosition {
+        /// [`Positions`](ContactBuffer::Positions) or [`EndPositions`](ContactBuffer::EndPositions).
+        buffer: ContactBuffer,
+        /// The first such vertex.
+        vertex: usize,
+    },
+    /// The contact gap `dhat` (m) is NaN, infinite or negative.
+    Gap,
+}
+
+impl fmt::Display for ContactError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            ContactError::BufferLength {
+                buffer,
+                expected,
+                actual,
+            } => write!(
+                f,
+                "the {buffer} buffer has length {actual}, expected {expected}"
+            ),
+            ContactError::Capacity {
+                buffer,
+                needed,
+                capacity,
+            } => write!(
+                f,
+                "the {buffer} buffer holds {capacity} entries, {needed} are needed"
+            ),
+            ContactError::IndexOutOfRange {
+                buffer,
+                element,
+                index,
+            } => write!(
+                f,
+                "entry {element} of the {buffer} names vertex {index}, beyond the vertex count"
+            ),
+            ContactError::DegenerateTriangle { triangle } => {
+                write!(f, "triangle {triangle} names the same vertex twice")
+            }
+            ContactError::TooManyPrimitives { buffer } => {
+                write!(f, "too many primitives in the {buffer} for u32 indices")
+            }
+            ContactError::NonFinitePosition { buffer, vertex } => {
+                write!(f, "vertex {vertex} of the {buffer} is not finite")
+            }
+            ContactError::Gap => f.write_str("the contact gap must be finite and >= 0"),
+        }
+    }
+}
+
+impl core::error::Error for ContactError {}
+
 /// [`svd3_batch`](crate::svd::svd3_batch) (either precision) was given an output slice whose
 /// length differs from the input's.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

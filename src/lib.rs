@@ -192,6 +192,7 @@ mod precision;
 mod single;
 pub use error::ColliderProblem;
 pub use error::{BodyBuffer, BodyError};
+pub use error::{ContactBuffer, ContactError};
 pub use single::{asset, body, element, generate, lanes, material, mesh, polar, step, svd, types};
 // The asset pipeline's errors (also in `asset` and `error`).
 #[cfg(feature = "std")]

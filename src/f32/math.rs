@@ -104,6 +104,13 @@ pub fn atan2(y: Real, x: Real) -> Real {
     libm::atan2f(y, x)
 }
 
+/// The natural logarithm `ln(x)` (`-inf` at 0, NaN below).
+#[inline(always)]
+#[must_use]
+pub fn ln(x: Real) -> Real {
+    libm::logf(x)
+}
+
 /// `ln(1 + x)`, accurate for small `x`.
 #[inline(always)]
 #[must_use]

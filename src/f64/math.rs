@@ -69,6 +69,13 @@ pub fn atan2(y: Real, x: Real) -> Real {
     libm::atan2(y, x)
 }
 
+/// The natural logarithm `ln(x)` (`-inf` at 0, NaN below).
+#[inline(always)]
+#[must_use]
+pub fn ln(x: Real) -> Real {
+    libm::log(x)
+}
+
 /// `ln(1 + x)`, accurate for small `x`.
 #[inline(always)]
 #[must_use]

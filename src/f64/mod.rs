@@ -11,6 +11,7 @@ pub use crate::error::{
     Buffer, ElementError, GenerateBuffer, GenerateError, MaterialError, MeshError, StepBuffer,
     StepError,
 };
+pub use crate::error::{ContactBuffer, ContactError};
 #[cfg(feature = "std")]
 pub use crate::error::{TetgenError, TetgenFile, TetgenFormatError, TetgenProblem};
 

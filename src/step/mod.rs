@@ -218,7 +218,7 @@
 //!   `1e-6` in 20 000 sweeps on the cantilever). Pick it for a fixed per-frame budget, or where
 //!   a parallel, colour-by-colour sweep pays.
 
-mod contact;
+pub mod contact;
 mod descent;
 pub mod explicit;
 mod loads;

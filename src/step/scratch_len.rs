@@ -119,3 +119,54 @@ pub const fn vbd_layout(element_count: usize) -> usize {
 pub const fn vbd_layout_corners(vertex_count: usize, element_count: usize) -> usize {
     layout::corners_len(vertex_count, element_count)
 }
+
+/// The edge buffer of [`boundary_edges`](super::contact::boundary::boundary_edges) for
+/// `triangle_count` triangles: `3 * triangle_count` edges, every triangle's three before the
+/// duplicates are removed (a closed surface keeps half of them).
+#[inline]
+#[must_use]
+pub const fn boundary_edges(triangle_count: usize) -> usize {
+    triangle_count.saturating_mul(3)
+}
+
+/// The vertex buffer of [`boundary_vertices`](super::contact::boundary::boundary_vertices) for
+/// `triangle_count` triangles: `3 * triangle_count` indices, every corner before the duplicates
+/// are removed.
+#[inline]
+#[must_use]
+pub const fn boundary_vertices(triangle_count: usize) -> usize {
+    triangle_count.saturating_mul(3)
+}
+
+/// The buffer lengths of [`BroadPhaseScratch`](super::contact::broad_phase::BroadPhaseScratch)
+/// ([`broad_phase`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BroadPhaseScratchLen {
+    /// Hash-table slots: `2 * primitives + 1` (a table of twice as many cells as primitives,
+    /// and the end of the last cell). Any length of at least 2 works; fewer slots put more
+    /// cells into one slot, which costs time, never correctness.
+    pub slots: usize,
+    /// Cell entries: `8 * primitives`, the most a grid whose cells are twice the largest
+    /// primitive box needs (two cells per axis); the broad phase coarsens its grid until the
+    /// entries fit. This is the least it accepts.
+    pub entries: usize,
+}
+
+/// The buffer lengths of [`BroadPhaseScratch`](super::contact::broad_phase::BroadPhaseScratch)
+/// for a surface of `vertex_count` vertices, `edge_count` edges and `triangle_count` triangles
+/// (the lists' lengths, not the positions').
+#[inline]
+#[must_use]
+pub const fn broad_phase(
+    vertex_count: usize,
+    edge_count: usize,
+    triangle_count: usize,
+) -> BroadPhaseScratchLen {
+    let primitives = vertex_count
+        .saturating_add(edge_count)
+        .saturating_add(triangle_count);
+    BroadPhaseScratchLen {
+        slots: primitives.saturating_mul(2).saturating_add(1),
+        entries: primitives.saturating_mul(8),
+    }
+}

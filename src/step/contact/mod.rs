@@ -1,10 +1,23 @@
 //! What a body touches and how contact acts on it: the [`HalfSpace`] half-space
-//! (`step/contact/ground.rs`), rigid [`Collider`]s (`step/contact/collider.rs`), the projection of
+//! (`step/contact/half_space.rs`), rigid [`Collider`]s (`step/contact/collider.rs`), the projection of
 //! vertices and directions onto the admissible set that every stepper shares (`floor.rs`), Coulomb
 //! friction inside the implicit objective (`step/contact/friction.rs`), and the one record of a
 //! contact at a vertex that they exchange ([`Contact`]).
+//!
+//! Body–body and self contact (Incremental Potential Contact, Li et al. 2020):
+//! * [`boundary`]: a contact surface's primitives (vertices, edges, triangles) from its
+//!   boundary triangles.
+//! * [`broad_phase`]: the (vertex, triangle) and (edge, edge) pairs close enough to matter, at
+//!   one configuration or over a motion, from a spatial hash in caller buffers.
+//! * [`distance`]: point–triangle and edge–edge squared distances with exact gradients and
+//!   Hessians, their closest-feature kinds, and the edge–edge mollifier (`contact/distance/`).
+//! * [`barrier`]: the log barrier on squared distances and its derivatives (`barrier.rs`).
 
+pub mod barrier;
+pub mod boundary;
+pub mod broad_phase;
 pub(crate) mod collider;
+pub mod distance;
 pub(crate) mod floor;
 pub(crate) mod friction;
 pub(crate) mod half_space;
