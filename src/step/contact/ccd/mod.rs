@@ -37,13 +37,15 @@
 //! than `xi` (measured: at most `0.84 EPSILON * scale` in f32 and `0.70 EPSILON * scale` in f64
 //! over random well-shaped pairs at up to 100 m from the origin, against `32 EPSILON * scale`;
 //! the rounding of `x(t)` alone is bounded by about `9 EPSILON * scale`), so every advance is
-//! bounded by the true distance. A pair at most `xi` apart counts as touching. In f32 at
-//! `scale = 10` m, `xi = 38` µm: separations below that are not resolved, and the guarantee
-//! (`d > 0` on `[0, t*]`, at least `0.01 (d(0) - xi)`) holds for pairs that start more than
-//! `xi` apart; at 1 m `xi = 3.8` µm, at 100 m `0.38` mm. In f64 `xi = 7e-14` m at 10 m. A sliver triangle (smallest angle `theta`)
-//! adds up to `EPSILON * size / sin(theta)` to the distance's error, which the floor covers only
-//! for `sin(theta)` above about `size / (ROUNDING_FLOOR * scale)`; keep boundary triangles
-//! well shaped, as the elastic model does.
+//! bounded by the true distance. A pair at most `xi` apart counts as touching.
+//!
+//! In f32 at `scale = 10` m, `xi = 38` µm (3.8 µm at 1 m, 0.38 mm at 100 m): separations
+//! below that are not resolved, and the guarantee (`d > 0` on `[0, t*]`, at least
+//! `0.01 (d(0) - xi)`) holds for pairs that start more than `xi` apart. In f64, `xi = 7e-14` m
+//! at 10 m. A sliver triangle (smallest angle `theta`) adds up to
+//! `EPSILON * size / sin(theta)` to the distance's error, which the floor covers only for
+//! `sin(theta)` above about `size / (ROUNDING_FLOOR * scale)`; keep boundary triangles well
+//! shaped, as the elastic model does.
 //!
 //! # Failure modes
 //! Non-finite positions, or coordinates so large that squared distances overflow: `t* = 0`

@@ -351,15 +351,13 @@ fn one_when_never_close() {
         // One primitive in the slab z in [2, 3], the other in z in [-1, 0] at both ends of
         // the step, so at every time (slabs are convex): distance >= 2, while
         // s d(0) <= 0.1 * |(2, 2, 4)| < 0.5.
-        let high = |random: &mut XorShift| {
-            Vec3::new(random.uniform(-1.0, 1.0), random.uniform(-1.0, 1.0), random.uniform(2.0, 3.0))
-        };
-        let low = |random: &mut XorShift| {
-            Vec3::new(random.uniform(-1.0, 1.0), random.uniform(-1.0, 1.0), random.uniform(-1.0, 0.0))
+        let in_slab = |random: &mut XorShift, low: Real| {
+            let (x, y) = (random.uniform(-1.0, 1.0), random.uniform(-1.0, 1.0));
+            Vec3::new(x, y, random.uniform(low, low + 1.0))
         };
         let split = if edge_edge { 2 } else { 1 };
         let pick = |random: &mut XorShift| -> [Vec3; 4] {
-            core::array::from_fn(|k| if k < split { high(random) } else { low(random) })
+            core::array::from_fn(|k| in_slab(random, if k < split { 2.0 } else { -1.0 }))
         };
         let (start, end) = (pick(&mut random), pick(&mut random));
         let t = if edge_edge {
