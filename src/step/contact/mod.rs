@@ -12,10 +12,13 @@
 //! * [`distance`]: point–triangle and edge–edge squared distances with exact gradients and
 //!   Hessians, their closest-feature kinds, and the edge–edge mollifier (`contact/distance/`).
 //! * [`barrier`]: the log barrier on squared distances and its derivatives (`barrier.rs`).
+//! * [`ccd`]: continuous collision detection (additive CCD, Li et al. 2021): how far along a
+//!   step a pair, or every candidate pair, can move without intersecting (`contact/ccd/`).
 
 pub mod barrier;
 pub mod boundary;
 pub mod broad_phase;
+pub mod ccd;
 pub(crate) mod collider;
 pub mod distance;
 pub(crate) mod floor;
