@@ -12,6 +12,8 @@
 //! * [`distance`]: point–triangle and edge–edge squared distances with exact gradients and
 //!   Hessians, their closest-feature kinds, and the edge–edge mollifier (`contact/distance/`).
 //! * [`barrier`]: the log barrier on squared distances and its derivatives (`barrier.rs`).
+//! * [`potential`]: the contact energy over the candidate pairs, its gradient and projected
+//!   Hessian, per pair and per vertex, and matrix-free Hessian products (`contact/potential/`).
 
 pub mod barrier;
 pub mod boundary;
@@ -21,6 +23,7 @@ pub mod distance;
 pub(crate) mod floor;
 pub(crate) mod friction;
 pub(crate) mod half_space;
+pub mod potential;
 pub(crate) mod vertex;
 
 use super::super::types::Real;
