@@ -406,11 +406,14 @@ impl Pair {
             }
             Pair::EdgeEdge(_, [ea0, ea1, eb0, eb1], threshold) => {
                 let d2 = edge_edge_squared_distance(ea0, ea1, eb0, eb1);
-                if !(d2 > 0.0 && d2 < dhat2) {
-                    (d2, 1.0)
+                // The mollifier only where the barrier acts.
+                let active = d2 > 0.0 && d2 < dhat2;
+                let m = if active {
+                    edge_edge_mollifier_value(ea0, ea1, eb0, eb1, threshold)
                 } else {
-                    (d2, edge_edge_mollifier_value(ea0, ea1, eb0, eb1, threshold))
-                }
+                    1.0
+                };
+                (d2, m)
             }
         };
         if touching(d2) {
