@@ -736,6 +736,18 @@ pub enum ContactBuffer {
     VertexTrianglePairs,
     /// The output (edge, edge) candidate pairs.
     EdgeEdgePairs,
+    /// The rest positions (m), one per vertex like the positions: the edge–edge mollifier's
+    /// thresholds.
+    RestPositions,
+    /// The gradient the contact potential is added into (N), one per vertex.
+    Gradient,
+    /// The per-vertex 3x3 diagonal blocks of the contact Hessian (N/m), one per vertex.
+    HessianDiagonal,
+    /// The per-pair projected contact Hessians, one per candidate pair.
+    PairHessians,
+    /// The output of a contact Hessian product (one per vertex, like the direction it
+    /// multiplies).
+    Product,
 }
 
 impl fmt::Display for ContactBuffer {
@@ -750,6 +762,11 @@ impl fmt::Display for ContactBuffer {
             ContactBuffer::Entries => "cell entries",
             ContactBuffer::VertexTrianglePairs => "vertex-triangle pairs",
             ContactBuffer::EdgeEdgePairs => "edge-edge pairs",
+            ContactBuffer::RestPositions => "rest positions",
+            ContactBuffer::Gradient => "gradient",
+            ContactBuffer::HessianDiagonal => "Hessian diagonal blocks",
+            ContactBuffer::PairHessians => "pair Hessians",
+            ContactBuffer::Product => "product",
         })
     }
 }
@@ -780,14 +797,19 @@ pub enum ContactError {
         /// The entries it has.
         capacity: usize,
     },
-    /// An index buffer names a vertex at or beyond the vertex count.
+    /// An index buffer names a vertex at or beyond the vertex count, or a pair buffer a
+    /// primitive beyond its list.
     IndexOutOfRange {
         /// The index buffer ([`Triangles`](ContactBuffer::Triangles),
-        /// [`Edges`](ContactBuffer::Edges) or [`Vertices`](ContactBuffer::Vertices)).
+        /// [`Edges`](ContactBuffer::Edges), [`Vertices`](ContactBuffer::Vertices) or
+        /// [`PairHessians`](ContactBuffer::PairHessians)), or the pair buffer
+        /// ([`VertexTrianglePairs`](ContactBuffer::VertexTrianglePairs),
+        /// [`EdgeEdgePairs`](ContactBuffer::EdgeEdgePairs)).
         buffer: ContactBuffer,
         /// The entry of that buffer.
         element: usize,
-        /// The vertex index found there.
+        /// The vertex index found there (for a pair buffer: the position in the surface's
+        /// vertex, triangle or edge list).
         index: u32,
     },
     /// A boundary triangle names the same vertex twice.
@@ -810,6 +832,8 @@ pub enum ContactError {
     },
     /// The contact gap `dhat` (m) is NaN, infinite or negative.
     Gap,
+    /// The barrier stiffness `kappa` (J/m^4) is NaN, infinite or negative.
+    Stiffness,
 }
 
 impl fmt::Display for ContactError {
@@ -849,6 +873,7 @@ impl fmt::Display for ContactError {
                 write!(f, "vertex {vertex} of the {buffer} is not finite")
             }
             ContactError::Gap => f.write_str("the contact gap must be finite and >= 0"),
+            ContactError::Stiffness => f.write_str("the barrier stiffness must be finite and >= 0"),
         }
     }
 }

@@ -108,8 +108,18 @@ impl<const N: usize> SymmetricMatrix<N> {
         out
     }
 
-    /// The positive semi-definite part (see the module documentation).
-    fn positive_part(&self) -> SymmetricMatrix<N> {
+    /// The matrix with these rows (row `i`, column `j`: `rows[i][j]`), taken as they are: the
+    /// caller makes them symmetric.
+    #[inline]
+    #[must_use]
+    pub(crate) fn from_rows(rows: [[Real; N]; N]) -> SymmetricMatrix<N> {
+        SymmetricMatrix { entries: rows }
+    }
+
+    /// The eigenvalues (unordered) and the eigenvectors (column `i` of the returned rows, i.e.
+    /// `vectors[row][i]`, belongs to eigenvalue `i`) by ten sweeps of cyclic Jacobi rotations
+    /// (see the module documentation).
+    pub(crate) fn eigen(&self) -> ([Real; N], [[Real; N]; N]) {
         let mut a = self.entries;
         let mut q = [[0.0; N]; N];
         for (i, row) in q.iter_mut().enumerate() {
@@ -126,6 +136,13 @@ impl<const N: usize> SymmetricMatrix<N> {
         }
         let values: [Real; N] =
             core::array::from_fn(|i| a.get(i).and_then(|row| row.get(i)).copied().unwrap_or(0.0));
+        (values, q)
+    }
+
+    /// The positive semi-definite part (see the module documentation): the matrix itself when
+    /// every Jacobi eigenvalue is `>= 0`, else `Q max(Lambda, 0) Q^T`.
+    pub(crate) fn positive_part(&self) -> SymmetricMatrix<N> {
+        let (values, q) = self.eigen();
         if values.iter().all(|&l| l >= 0.0) {
             return *self;
         }

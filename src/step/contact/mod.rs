@@ -14,6 +14,8 @@
 //! * [`barrier`]: the log barrier on squared distances and its derivatives (`barrier.rs`).
 //! * [`ccd`]: continuous collision detection (additive CCD, Li et al. 2021): how far along a
 //!   step a pair, or every candidate pair, can move without intersecting (`contact/ccd/`).
+//! * [`potential`]: the contact energy over the candidate pairs, its gradient and projected
+//!   Hessian, per pair and per vertex, and matrix-free Hessian products (`contact/potential/`).
 
 pub mod barrier;
 pub mod boundary;
@@ -24,6 +26,7 @@ pub mod distance;
 pub(crate) mod floor;
 pub(crate) mod friction;
 pub(crate) mod half_space;
+pub mod potential;
 pub(crate) mod vertex;
 
 use super::super::types::Real;
