@@ -1008,12 +1008,6 @@ fn print_tables(cases: &mut [(MeshInfo, Vec<Variant<'_>>)], plan: &TablePlan) {
     for (info, variants) in cases {
         print_table(info, variants, plan);
     }
-    println!();
-    println!(
-        "For context, from the issue (measured by a colleague, not by this benchmark): \"NVIDIA \
-         Warp 1.19 CPU backend, one thread, same machine: StVK 48 Mtets/s and stable neo-Hookean \
-         46 Mtets/s at 98k tets, 37 Mtets/s at 976k\"."
-    );
 }
 
 fn main() {

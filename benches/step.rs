@@ -103,10 +103,6 @@ const RELAX_BUDGETS: [u32; 2] = [20, 40];
 /// VBD's sweep budgets (tolerance 0: each call runs its whole budget).
 const VBD_BUDGETS: [u32; 2] = [2, 4];
 
-/// Warp's figure from the issue: explicit steps per second and the mesh size it was measured on.
-const WARP_STEPS_PER_SECOND: f64 = 458.0;
-const WARP_TETS: f64 = 98_000.0;
-
 /// The issue's target for the relaxation: cost per iteration over one force evaluation.
 const RELAX_TARGET: f64 = 1.3;
 
@@ -679,21 +675,8 @@ fn print_tables(geometry: &Geometry, cases: &mut [Case<'_>], plan: &TablePlan) {
     );
 
     println!();
-    // Scaling by the tetrahedron count is only fair between meshes of similar size.
-    let scaled = if (tets as f64 / WARP_TETS - 1.0).abs() < 0.25 {
-        format!(
-            " ({:.0} steps/s scaled linearly to the {tets} tets here)",
-            WARP_STEPS_PER_SECOND * WARP_TETS / tets as f64
-        )
-    } else {
-        String::new()
-    };
-    println!();
     println!(
-        "Reference, NOT measured by this benchmark: measured by a colleague on this machine: \
-         Warp 1.19 CPU backend, one thread: {WARP_STEPS_PER_SECOND:.0} explicit steps/s at 98k \
-         tets{scaled}. Issue 4's targets: explicit steps/s at least Warp's now, 2x after the SIMD \
-         issue; relaxation cost per iteration <= {RELAX_TARGET}x one force evaluation."
+        "Issue 4's target: relaxation cost per iteration <= {RELAX_TARGET}x one force evaluation."
     );
 }
 

@@ -20,6 +20,11 @@
 //! one CSV row per table row (`bench,workload,size,lanes,threads,value,unit`, see
 //! `benches/common/mod.rs`). `cargo bench --bench svd -- zzz` runs only the table pass (the
 //! filter matches no criterion benchmark).
+//!
+//! `SOFTFEM_BENCH_FTZ=1` (x86_64) sets the MXCSR's flush-to-zero and denormals-are-zero bits
+//! for the whole run: subnormal results and inputs become zero, which changes some results (the
+//! crate never does this) but shows what subnormal numbers cost on this CPU. On an Intel Xeon
+//! they cost the batched SVD a third of its time; see the README's SVD section.
 
 mod common;
 
@@ -767,7 +772,29 @@ fn print_table(variants: &mut [Variant<'_>], plan: &TablePlan) {
     common::append_csv_rows(&rows);
 }
 
+/// Sets the MXCSR's flush-to-zero (bit 15) and denormals-are-zero (bit 6) bits of this thread
+/// when `SOFTFEM_BENCH_FTZ=1`, and says so; nothing elsewhere.
+fn flush_subnormals_if_asked() {
+    if std::env::var("SOFTFEM_BENCH_FTZ").is_ok_and(|value| value == "1") {
+        #[cfg(target_arch = "x86_64")]
+        {
+            let mut csr: u32 = 0;
+            // SAFETY: `stmxcsr` and `ldmxcsr` read and write this thread's SSE control register
+            // through a valid `u32`; the bits set only change how subnormals are rounded.
+            unsafe {
+                std::arch::asm!("stmxcsr [{}]", in(reg) &mut csr, options(nostack));
+                csr |= 0x8040;
+                std::arch::asm!("ldmxcsr [{}]", in(reg) &csr, options(nostack));
+            }
+            println!("SOFTFEM_BENCH_FTZ=1: subnormals flushed to zero (MXCSR {csr:#06x}).");
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        println!("SOFTFEM_BENCH_FTZ=1 is ignored: not x86_64.");
+    }
+}
+
 fn main() {
+    flush_subnormals_if_asked();
     let inputs = Inputs::new();
     let mut variants = variants(&inputs);
 

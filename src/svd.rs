@@ -55,8 +55,10 @@ pub use batch::{svd3_batch, svd3_batch_sweeps};
 
 /// The most Jacobi sweeps [`svd3`] runs: 4 in both precisions (each sweep is three rotations;
 /// fewer run when the matrix has converged before, see the module documentation). With 3,
-/// f32 reconstruction errors reach 1e-5 on some random matrices; with 4 the worst seen over
-/// 300 000 matrices of six kinds is 5.4e-7 (f32) and 1.3e-15 (f64), and more sweeps change nothing.
+/// the worst error on the 3072 matrices of the README's SVD chart is 8.3e-6 (`cargo run
+/// --release --example tradeoffs -- --only svd`); with 4, f32 reaches its rounding floor (4.0e-7
+/// over the normal-range classes of `cargo test --release --test kernels svd::report --
+/// --nocapture`, 6.5e-16 in f64), and 5 to 8 sweeps give the same bits.
 pub const DEFAULT_SWEEPS: u32 = math::DEFAULT_SVD_SWEEPS;
 
 /// A rotation-variant SVD: `a = u * diag(sigma) * v^T`.
@@ -334,6 +336,18 @@ fn decompose_scaled<L: Lane>(
         // Whether some lane has converged and must keep its values (never for one value).
         let mixed = !L::none(zero.ge(excess));
         let (s_before, v_before) = (s, v);
+        // The rotations of a converged lane are computed and then discarded (the select below).
+        // Its off-diagonal entries are tiny there (quadratic convergence takes them to 1e-20 and
+        // below in f32), and the rotations square them into subnormal numbers, which Intel
+        // cores handle by a microcode assist (about 12 ns per instruction on an Intel Xeon,
+        // where a normal result takes under 1): with some lanes converged, that made the
+        // 16-lane batch 2.1x slower there (README, "The SVD"). Zero entries give rotations
+        // without subnormals; the results are still discarded, so every lane keeps its bits.
+        if mixed {
+            s.s01 = L::select(active, s.s01, zero);
+            s.s02 = L::select(active, s.s02, zero);
+            s.s12 = L::select(active, s.s12, zero);
+        }
         let r = jacobi_rotation(s.s00, s.s11, s.s01);
         r.apply_symmetric(&mut s.s00, &mut s.s11, &mut s.s01, &mut s.s02, &mut s.s12);
         r.rotate_columns(&mut v.c0, &mut v.c1);
