@@ -18,6 +18,10 @@
 
 pub mod draw;
 
+/// The box surface the voxel checks start from, shared with softfem's asset tests.
+#[path = "../../tests/common/cube_triangles.rs"]
+mod cube_triangles;
+
 pub use draw::Draw;
 
 #[path = "single.rs"]

@@ -17,26 +17,11 @@ use super::sf::asset::embed::embed_points_vec_with_budget;
 use super::sf::asset::voxel::{VoxelGrid, VoxelOptions, voxel_mesh_with_budget};
 use super::sf::types::{Mat3, Real, Vec3};
 use crate::Draw;
+use crate::cube_triangles::CUBE_TRIANGLES;
 
 /// The budget (bytes) the helpers run with: small, so that refusals are exercised and the
 /// work of an accepted input stays short.
 const BUDGET: usize = 1 << 20;
-
-/// The 12 outward triangles of the box with corners 0..8 (`x + 2 y + 4 z`).
-const BOX: [[u32; 3]; 12] = [
-    [0, 2, 3],
-    [0, 3, 1],
-    [4, 5, 7],
-    [4, 7, 6],
-    [0, 1, 5],
-    [0, 5, 4],
-    [2, 6, 7],
-    [2, 7, 3],
-    [0, 4, 6],
-    [0, 6, 2],
-    [1, 3, 7],
-    [1, 7, 5],
-];
 
 fn coordinate(draw: &mut Draw<'_>) -> Real {
     match draw.up_to(3) {
@@ -73,7 +58,7 @@ pub fn check(data: &[u8]) {
             positions[corner] = point(&mut draw);
         }
         let flip = draw.chance(30);
-        let triangles = BOX
+        let triangles = CUBE_TRIANGLES
             .iter()
             .map(|&[a, b, c]| if flip { [a, c, b] } else { [a, b, c] });
         (positions, triangles.collect())

@@ -6,26 +6,17 @@ use std::collections::HashMap;
 
 use softfem::glam::Vec3;
 
+#[path = "cube_triangles.rs"]
+mod cube_triangles;
+
+use cube_triangles::CUBE_TRIANGLES;
+
 /// The unit cube `[0, 1]^3` as 12 outward triangles; corner `c` is `(c & 1, c >> 1 & 1, c >> 2 & 1)`.
 pub fn cube() -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let positions = (0..8)
         .map(|c| Vec3::new((c & 1) as f32, ((c >> 1) & 1) as f32, ((c >> 2) & 1) as f32))
         .collect();
-    let triangles = vec![
-        [0, 2, 3],
-        [0, 3, 1],
-        [4, 5, 7],
-        [4, 7, 6],
-        [0, 1, 5],
-        [0, 5, 4],
-        [2, 6, 7],
-        [2, 7, 3],
-        [0, 4, 6],
-        [0, 6, 2],
-        [1, 3, 7],
-        [1, 7, 5],
-    ];
-    (positions, triangles)
+    (positions, CUBE_TRIANGLES.to_vec())
 }
 
 /// An icosahedron subdivided `levels` times (each triangle into four), projected onto the

@@ -82,20 +82,29 @@ macro_rules! stagnation_tests {
 
             /// [`newton_cantilever`] with `colliders`.
             fn newton_cantilever_on(offset: Vec3, tolerance: Real, colliders: &[Collider<'_>]) -> $($api)::+::step::NewtonReport {
-                let (rest, tets) = crate::common::scenes::generated_box!(offset, offset + Vec3::new(0.4, 0.1, 0.1), (4, 1, 1), BoxSplit::Kuhn6);
+                let scene = Scene::new(1.0).with_gravity(GRAVITY).with_colliders(colliders);
+                let settings = NewtonSettings::new().with_tolerance(tolerance, 50);
+                newton_solve(offset, (4, 1, 1), &scene, &settings).0
+            }
+
+            /// Newton's method, quasi-static, on the 0.4 x 0.1 x 0.1 m cantilever of `cells`
+            /// Kuhn-split cubes (E = 1 MPa, 1000 kg/m^3, clamped at its face x = `offset.x`)
+            /// moved by `offset`, under `scene` with `settings`; returns the report, the rest
+            /// positions and the final positions.
+            fn newton_solve(offset: Vec3, cells: (usize, usize, usize), scene: &Scene<'_, Vec3>, settings: &NewtonSettings) -> (NewtonReport, Vec<Vec3>, Vec<Vec3>) {
+                let (rest, tets) = crate::common::scenes::generated_box!(offset, offset + Vec3::new(0.4, 0.1, 0.1), cells, BoxSplit::Kuhn6);
                 let (nv, nt) = (rest.len(), tets.len());
                 crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
                 let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
                 let pinned: Vec<bool> = rest.iter().map(|x| x.x == offset.x).collect();
-                let scene = Scene::new(1.0).with_gravity(GRAVITY).with_colliders(colliders);
-                let settings = NewtonSettings::new().with_tolerance(tolerance, 50);
                 let len = scratch_len::newton(nv, nt);
                 let mut vectors = vec![Vec3::ZERO; len.vectors];
                 let mut blocks = vec![Mat3::ZERO; len.blocks];
                 let mut hessians = vec![TetHessian::default(); len.hessians];
                 let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
                 let mut x = rest.clone();
-                newton_quasi_static(&body, &masses, &pinned, &scene, &settings, &mut x, &mut scratch).unwrap()
+                let report = newton_quasi_static(&body, &masses, &pinned, scene, settings, &mut x, &mut scratch).unwrap();
+                (report, rest, x)
             }
 
             /// Newton's method on the 0.4 x 0.1 x 0.1 m cantilever of `cells` Kuhn-split cubes
@@ -103,18 +112,7 @@ macro_rules! stagnation_tests {
             /// settings; returns the report and the tip's (the vertex at (0.4, 0, 0)) vertical
             /// displacement (m).
             pub(crate) fn newton_cantilever_in(cells: (usize, usize, usize), scene: &Scene<'_, Vec3>) -> (NewtonReport, f64) {
-                let (rest, tets) = crate::common::scenes::generated_box!(Vec3::ZERO, Vec3::new(0.4, 0.1, 0.1), cells, BoxSplit::Kuhn6);
-                let (nv, nt) = (rest.len(), tets.len());
-                crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
-                let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap());
-                let pinned: Vec<bool> = rest.iter().map(|x| x.x == 0.0).collect();
-                let len = scratch_len::newton(nv, nt);
-                let mut vectors = vec![Vec3::ZERO; len.vectors];
-                let mut blocks = vec![Mat3::ZERO; len.blocks];
-                let mut hessians = vec![TetHessian::default(); len.hessians];
-                let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
-                let mut x = rest.clone();
-                let report = newton_quasi_static(&body, &masses, &pinned, scene, &NewtonSettings::new(), &mut x, &mut scratch).unwrap();
+                let (report, rest, x) = newton_solve(Vec3::ZERO, cells, scene, &NewtonSettings::new());
                 let tip = rest.iter().position(|p| *p == Vec3::new(0.4, 0.0, 0.0)).unwrap();
                 (report, f64::from(x[tip].y) - f64::from(rest[tip].y))
             }

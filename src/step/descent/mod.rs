@@ -63,7 +63,9 @@ use super::model::{ElasticEnergy, ElasticModel};
 use super::scene::Scene;
 use super::state::check_length;
 use super::state::{first_non_finite, pinned_flags};
-use super::vertex_pass::passes::{Frames, TrialPoint, Vertices, split_trial_pass};
+use super::vertex_pass::passes::{
+    Frames, TrialPoint, Vertices, split_check_state, split_trial_pass,
+};
 use super::vertex_pass::point::Grouped;
 use super::vertex_pass::{Blocks, Total};
 use crate::error::{StepBuffer, StepError};
@@ -423,6 +425,44 @@ pub(crate) fn checked_solve<'s, V: Vector>(
         previous,
         dynamic,
     })
+}
+
+/// What the entry checks of a solver whose model scans the state in blocks (Newton's method,
+/// the relaxation) read: the body (model, masses in kg, pinned flags), the scene, the positions
+/// (m) and, for a step with inertia, the velocities (m/s; `None`: quasi-static).
+pub(crate) struct SolveInputs<'a, 's, F: ElasticModel> {
+    pub body: (&'a F, &'a [Real], &'a [bool]),
+    pub scene: &'a Scene<'s, F::Vector>,
+    pub positions: &'a [F::Vector],
+    pub velocities: Option<&'a [F::Vector]>,
+}
+
+impl<'s, F: ElasticModel> SolveInputs<'_, 's, F> {
+    /// [`checked_solve`] of these inputs, the state's scans run in blocks by the model
+    /// (`split_check_state`), with the solver's own `settings` check and `scratch` lengths.
+    ///
+    /// # Errors
+    /// The first of the checks' errors, in [`checked_solve`]'s order.
+    pub fn checked(
+        self,
+        settings: Result<(), StepError>,
+        scratch: impl FnOnce() -> Result<(), StepError>,
+    ) -> Result<Checked<'s, F::Vector>, StepError> {
+        let SolveInputs {
+            body: (model, masses, pinned),
+            scene,
+            positions,
+            velocities,
+        } = self;
+        checked_solve(
+            scene,
+            model.vertex_count(),
+            velocities.is_some(),
+            settings,
+            || split_check_state(model, masses, pinned, positions, velocities),
+            scratch,
+        )
+    }
 }
 
 /// The scene's checks for a solve of `vertex_count` vertices, the time step only with inertia

@@ -9,12 +9,11 @@ mod cg;
 
 use super::super::super::element::TetHessian;
 use super::super::super::types::{Mat3, Real, Vec3};
-use super::super::descent::{self, LoopSettings, Work};
+use super::super::descent::{self, LoopSettings, SolveInputs, Work};
 use super::super::model::ElasticHessian;
 use super::super::scene::Scene;
 use super::super::scratch_len;
 use super::super::state::check_length;
-use super::super::vertex_pass::passes::split_check_state;
 use super::settings::{DescentReport, DescentSettings};
 use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
@@ -283,22 +282,21 @@ fn solve<F: ElasticHessian>(
     scratch: &mut NewtonScratch<'_>,
 ) -> Result<NewtonReport, StepError> {
     let n = model.vertex_count();
-    let checked = descent::checked_solve(
+    let inputs = SolveInputs {
+        body: (model, masses, pinned),
         scene,
-        n,
-        velocities.is_some(),
-        settings.check(),
-        || split_check_state(model, masses, pinned, positions, velocities.as_deref()),
-        || {
-            let lengths = scratch_len::newton(n, model.element_count());
-            let vectors = scratch.vectors.len();
-            check_length(StepBuffer::Scratch, lengths.vectors, vectors)?;
-            let blocks = scratch.blocks.len();
-            check_length(StepBuffer::BlockScratch, lengths.blocks, blocks)?;
-            let hessians = scratch.hessians.len();
-            check_length(StepBuffer::HessianScratch, lengths.hessians, hessians)
-        },
-    )?;
+        positions,
+        velocities: velocities.as_deref(),
+    };
+    let checked = inputs.checked(settings.check(), || {
+        let lengths = scratch_len::newton(n, model.element_count());
+        let vectors = scratch.vectors.len();
+        check_length(StepBuffer::Scratch, lengths.vectors, vectors)?;
+        let blocks = scratch.blocks.len();
+        check_length(StepBuffer::BlockScratch, lengths.blocks, blocks)?;
+        let hessians = scratch.hessians.len();
+        check_length(StepBuffer::HessianScratch, lengths.hessians, hessians)
+    })?;
     let problem = checked.problem((model, masses, pinned), &[], scene);
 
     let (work, rest) = Work::split(scratch.vectors, n);

@@ -10,13 +10,12 @@ mod jacobi;
 
 use super::super::super::element::Vector;
 use super::super::super::types::Real;
-use super::super::descent::{self, Direction, LoopSettings, Work};
+use super::super::descent::{self, Direction, LoopSettings, SolveInputs, Work};
 use super::super::explicit::stability::vertex_stiffness;
 use super::super::model::ElasticEnergy;
 use super::super::scene::Scene;
 use super::super::scratch_len;
 use super::super::state::check_length;
-use super::super::vertex_pass::passes::split_check_state;
 use super::chebyshev::AccelerationSettings;
 use super::settings::{DescentReport, DescentSettings};
 use super::stopping::StallRule;
@@ -365,18 +364,17 @@ pub(crate) fn minimise<F: ElasticEnergy, D: Direction<F>>(
     mut direction: D,
 ) -> Result<RelaxReport, StepError> {
     let n = model.vertex_count();
-    let checked = descent::checked_solve(
+    let inputs = SolveInputs {
+        body: (model, masses, pinned),
         scene,
-        n,
-        velocities.is_some(),
-        settings.check(),
-        || split_check_state(model, masses, pinned, positions, velocities.as_deref()),
-        || {
-            let vectors = scratch.vectors.len();
-            check_length(StepBuffer::Scratch, scratch_len::relax(n), vectors)?;
-            check_length(StepBuffer::ScalarScratch, n, scratch.scalars.len())
-        },
-    )?;
+        positions,
+        velocities: velocities.as_deref(),
+    };
+    let checked = inputs.checked(settings.check(), || {
+        let vectors = scratch.vectors.len();
+        check_length(StepBuffer::Scratch, scratch_len::relax(n), vectors)?;
+        check_length(StepBuffer::ScalarScratch, n, scratch.scalars.len())
+    })?;
 
     let (work, _) = Work::split(scratch.vectors, n);
     if !scratch.stiffness_ready {

@@ -25,7 +25,8 @@ pub(crate) enum LaneUpdate {
     /// Left to the one-vertex update (outside the common case, or not visited).
     Single,
     /// The vertex stays: no descent step (`skipped` counts it, as the one-vertex update
-    /// does where the slope is not zero). `residual` is its term of the squared residual.
+    /// does where the slope is not zero). `residual` is its term of the squared residual
+    /// (0 where the residual is not summed).
     Stays { residual: Real, skipped: bool },
     /// The vertex moves to `to`.
     Moves { residual: Real, to: Vec3 },
@@ -63,14 +64,16 @@ fn set_vector<L: LaneArray>(v: &mut [L::Array; 3], j: usize, value: Vec3) {
 }
 
 impl<M: Material> Sweep<'_, M> {
-    /// The updates of `group`'s lanes at `positions`: every lane [`LaneUpdate::Single`] where
-    /// the sweep itself is outside the common case (one lane, the line search, colliders).
+    /// The updates of `group`'s lanes at `positions`, with their residual terms where
+    /// `sum_residual` (else 0): every lane [`LaneUpdate::Single`] where the sweep itself is
+    /// outside the common case (one lane, the line search, colliders).
     #[inline(always)]
     pub(crate) fn lane_updates<L: LaneArray>(
         &self,
         positions: &[Vec3],
         group: &SummedGroup<'_>,
         line_search: bool,
+        sum_residual: bool,
     ) -> [LaneUpdate; MAX_WIDTH] {
         let mut updates = [LaneUpdate::Single; MAX_WIDTH];
         if L::WIDTH == 1 || line_search || !self.colliders.is_empty() {
@@ -89,9 +92,13 @@ impl<M: Material> Sweep<'_, M> {
         let gradient =
             (x - y).scale(weight) - gravity.scale(mass) - vector::<L>(&gathered.external)
                 + vector::<L>(&gathered.gradient);
-        let floor = Floor::<Vec3>::new(self.ground.as_ref()).widened::<LaneVec3<L>>();
-        let projected = floor.constrain(floor.contact(x), x, gradient, 1.0);
-        let residual = projected.inner(projected).to_lane_array();
+        let residual = if sum_residual {
+            let floor = Floor::<Vec3>::new(self.ground.as_ref()).widened::<LaneVec3<L>>();
+            let projected = floor.constrain(floor.contact(x), x, gradient, 1.0);
+            projected.inner(projected).to_lane_array()
+        } else {
+            L::ZEROS
+        };
         // The block m/h^2 I + sum_e V_e K_e as `VertexFactor::new` adds it (zeros added off the
         // diagonal too), its trace, and its factor where definite.
         let zero = L::splat(0.0);

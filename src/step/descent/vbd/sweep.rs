@@ -187,14 +187,16 @@ impl<M: Material> Sweep<'_, M> {
             extras: line_search_extras(line_search),
             visitor: Updates {
                 sweep: self,
-                target: InPlace(positions),
+                target: InPlace {
+                    positions,
+                    residual_squared: 0.0,
+                },
                 counts: *counts,
                 line_search,
-                residual_squared: 0.0,
             },
         });
         *counts = visitor.counts;
-        math::sqrt(visitor.residual_squared)
+        math::sqrt(visitor.target.residual_squared)
     }
 
     /// One sweep colour by colour on the current rayon pool: the updates of a colour, which
@@ -240,7 +242,6 @@ impl<M: Material> Sweep<'_, M> {
                             target: Staged { read, out },
                             counts: SweepCounts::default(),
                             line_search,
-                            residual_squared: 0.0,
                         },
                     });
                     visitor.counts
@@ -285,16 +286,16 @@ impl<M: Material> Sweep<'_, M> {
     /// The local Newton update of vertex `i` (see [`vbd_step`]) given the sums of its elements
     /// at `positions` (with the energy where `line_search`): its new position, or `None` where
     /// it stays (skipped, stationary). Reads the positions of `i` and of the vertices sharing an
-    /// element with it, which have other colours. Adds to `residual_squared` the squared norm
-    /// of the vertex's gradient `g_i` at `positions`, without its fixed components and
-    /// projected on the contacts as the loop's residual is (`Frame::gradient`): the term of
+    /// element with it, which have other colours. Adds to `residual_squared`, where given, the
+    /// squared norm of the vertex's gradient `g_i` at `positions`, without its fixed components
+    /// and projected on the contacts as the loop's residual is (`Frame::gradient`): the term of
     /// `|grad Phi|^2` of vertex `i` at the positions the sweep has reached.
     fn updated(
         &self,
         positions: &[Vec3],
         i: usize,
         sums: &VertexSums,
-        (counts, residual_squared): (&mut SweepCounts, &mut Real),
+        (counts, residual_squared): (&mut SweepCounts, Option<&mut Real>),
         line_search: bool,
     ) -> Option<Vec3> {
         let x = *positions.get(i)?;
@@ -338,9 +339,11 @@ impl<M: Material> Sweep<'_, M> {
                 hessian.z_axis * keep.z + Vec3::Z * unit.z,
             );
         }
-        let floor = Floor::<Vec3>::new(self.ground.as_ref()).with_colliders(self.colliders);
-        let projected_gradient = floor.constrain(floor.contact(x), x, gradient, 1.0);
-        *residual_squared += projected_gradient.dot(projected_gradient);
+        if let Some(residual_squared) = residual_squared {
+            let floor = Floor::<Vec3>::new(self.ground.as_ref()).with_colliders(self.colliders);
+            let projected_gradient = floor.constrain(floor.contact(x), x, gradient, 1.0);
+            *residual_squared += projected_gradient.dot(projected_gradient);
+        }
         let Some(VertexFactor { factor, projected }) = VertexFactor::new(weight, &hessian) else {
             counts.skipped += 1;
             return None;
@@ -466,34 +469,59 @@ impl<M: Material> Sweep<'_, M> {
     }
 }
 
-/// Where a sweep's visitor reads the positions its updates start from and writes each update.
+/// Where a sweep's visitor reads the positions its updates start from, writes each update, and
+/// sums the sweep's Gauss–Seidel residual if it keeps one (a target without one spares the
+/// sweep its terms: the projection of each vertex gradient on the contacts and its norm).
 trait UpdateTarget {
     /// The positions the updates read.
     fn read(&self) -> &[Vec3];
 
+    /// The positions the updates read and the squared residual summed so far (N^2), `None`
+    /// where the target keeps none.
+    fn read_and_residual(&mut self) -> (&[Vec3], Option<&mut Real>);
+
     /// Writes `to`, the new position of `vertex`, the `index`-th vertex of the visited run.
     fn write(&mut self, index: usize, vertex: u32, to: Vec3);
+
+    /// Adds `term` to the squared residual, if the target keeps one.
+    #[inline]
+    fn add_residual(&mut self, term: Real) {
+        if let (_, Some(residual_squared)) = self.read_and_residual() {
+            *residual_squared += term;
+        }
+    }
 }
 
-/// The sequential sweep's target: each update applied in place.
-struct InPlace<'a>(&'a mut [Vec3]);
+/// The sequential sweep's target: each update applied in place, the residual summed in visit
+/// order.
+struct InPlace<'a> {
+    positions: &'a mut [Vec3],
+    /// The Gauss–Seidel residual's square so far (N^2).
+    residual_squared: Real,
+}
 
 impl UpdateTarget for InPlace<'_> {
     #[inline]
     fn read(&self) -> &[Vec3] {
-        self.0
+        self.positions
+    }
+
+    #[inline]
+    fn read_and_residual(&mut self) -> (&[Vec3], Option<&mut Real>) {
+        (self.positions, Some(&mut self.residual_squared))
     }
 
     #[inline]
     fn write(&mut self, _index: usize, vertex: u32, to: Vec3) {
-        if let Some(slot) = self.0.get_mut(vertex as usize) {
+        if let Some(slot) = self.positions.get_mut(vertex as usize) {
             *slot = to;
         }
     }
 }
 
 /// The parallel sweep's target: the positions before the colour are read, each update is
-/// written to the staging entry of its vertex.
+/// written to the staging entry of its vertex. It keeps no residual: nothing reads the
+/// parallel sweep's, whose sum would depend on the tasks.
 #[cfg(feature = "rayon")]
 struct Staged<'a> {
     read: &'a [Vec3],
@@ -508,6 +536,11 @@ impl UpdateTarget for Staged<'_> {
     }
 
     #[inline]
+    fn read_and_residual(&mut self) -> (&[Vec3], Option<&mut Real>) {
+        (self.read, None)
+    }
+
+    #[inline]
     fn write(&mut self, index: usize, _vertex: u32, to: Vec3) {
         if let Some(slot) = self.out.get_mut(index) {
             *slot = to;
@@ -515,15 +548,13 @@ impl UpdateTarget for Staged<'_> {
     }
 }
 
-/// A sweep's visitor: each vertex's update from its sums, read from and written to `target`.
+/// A sweep's visitor: each vertex's update from its sums, read from and written to `target`,
+/// its residual term summed there if the target keeps the residual.
 struct Updates<'a, 's, M: Material, T> {
     sweep: &'a Sweep<'s, M>,
     target: T,
     counts: SweepCounts,
     line_search: bool,
-    /// The Gauss–Seidel residual's square so far (N^2), in visit order (the parallel sweep's
-    /// is not used: its sum would depend on the tasks).
-    residual_squared: Real,
 }
 
 impl<M: Material, T: UpdateTarget> VertexVisitor for Updates<'_, '_, M, T> {
@@ -534,11 +565,12 @@ impl<M: Material, T: UpdateTarget> VertexVisitor for Updates<'_, '_, M, T> {
 
     #[inline]
     fn visit(&mut self, index: usize, vertex: u32, sums: &VertexSums) {
+        let (positions, residual_squared) = self.target.read_and_residual();
         let update = self.sweep.updated(
-            self.target.read(),
+            positions,
             vertex as usize,
             sums,
-            (&mut self.counts, &mut self.residual_squared),
+            (&mut self.counts, residual_squared),
             self.line_search,
         );
         if let Some(x) = update {
@@ -548,18 +580,20 @@ impl<M: Material, T: UpdateTarget> VertexVisitor for Updates<'_, '_, M, T> {
 
     #[inline(always)]
     fn visit_group<L: LaneArray>(&mut self, group: &SummedGroup<'_>) {
+        let (positions, residual_squared) = self.target.read_and_residual();
+        let sum_residual = residual_squared.is_some();
         let updates = self
             .sweep
-            .lane_updates::<L>(self.target.read(), group, self.line_search);
+            .lane_updates::<L>(positions, group, self.line_search, sum_residual);
         // In lane order, as the one-vertex visits: the residual's sum keeps its order.
         for (j, index, vertex, sums) in group.visits() {
             match updates.get(j) {
                 Some(&LaneUpdate::Stays { residual, skipped }) => {
-                    self.residual_squared += residual;
+                    self.target.add_residual(residual);
                     self.counts.skipped += u32::from(skipped);
                 }
                 Some(&LaneUpdate::Moves { residual, to }) => {
-                    self.residual_squared += residual;
+                    self.target.add_residual(residual);
                     self.target.write(index, vertex, to);
                 }
                 _ => self.visit(index, vertex, sums),
