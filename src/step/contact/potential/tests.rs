@@ -168,6 +168,62 @@ fn pair_derivatives_match_finite_differences() {
     }
 }
 
+/// The gradient-only path (what `add_gradient` sums) gives the full path's value, gradient and
+/// activity bit for bit, at random pairs of both kinds: active, inactive, mollified (each kind
+/// counted), and touching.
+#[test]
+fn gradient_terms_match_the_full_terms_bit_for_bit() {
+    let mut rng = Rng(0x5eed_0393);
+    let barrier = ContactBarrier {
+        stiffness: 1.0e3,
+        gap: 0.5,
+    };
+    let bits = |g: [Vec3; 4]| g.map(|v| v.to_array().map(Real::to_bits));
+    let (mut active, mut inactive, mut mollified) = ([0usize; 2], [0usize; 2], 0);
+    for trial in 0..2000 {
+        let points = [rng.vec(1.0), rng.vec(1.0), rng.vec(1.0), rng.vec(1.0)];
+        let edge = trial % 2 == 1;
+        // Thresholds from 0 to past typical c (|u|^2 |v|^2 up to ~10): the mollifier both
+        // fades and is 1.
+        let threshold = 0.5 * rng.unit();
+        let (full, gradient) = if edge {
+            (
+                edge_edge_terms(&barrier, points, threshold),
+                edge_edge_gradient_terms(&barrier, points, threshold),
+            )
+        } else {
+            (point_triangle_terms(&barrier, points), point_triangle_gradient_terms(&barrier, points))
+        };
+        assert_eq!(gradient.value.to_bits(), full.value.to_bits(), "{points:?}");
+        assert_eq!(bits(gradient.gradient), bits(full.gradient), "{points:?}");
+        assert_eq!(gradient.active, full.active, "{points:?}");
+        let kind = usize::from(edge);
+        if full.active {
+            active[kind] += 1;
+            let [a0, a1, b0, b1] = points;
+            if edge && edge_edge_mollifier_value(a0, a1, b0, b1, threshold) < 1.0 {
+                mollified += 1;
+            }
+        } else {
+            inactive[kind] += 1;
+        }
+    }
+    assert!(active.iter().chain(&inactive).all(|&n| n > 20), "{active:?} {inactive:?}");
+    assert!(mollified > 20, "{mollified}");
+    // Touching pairs: +inf and zero gradient on both paths.
+    let v = |x: Real, y: Real, z: Real| Vec3::new(x, y, z);
+    let on = [v(0.2, 0.2, 0.0), v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)];
+    let crossing = [v(-1.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, -1.0, 0.0), v(0.0, 1.0, 0.0)];
+    for gradient in [
+        point_triangle_gradient_terms(&barrier, on),
+        edge_edge_gradient_terms(&barrier, crossing, 1e-3),
+    ] {
+        assert_eq!(gradient.value, Real::INFINITY);
+        assert_eq!(gradient.gradient, [Vec3::ZERO; 4]);
+        assert!(!gradient.active);
+    }
+}
+
 /// `v^T H v` over the twelve coordinates.
 fn quadratic_form(hessian: &[[Mat3; 4]; 4], v: [Vec3; 4]) -> Real {
     let mut sum = 0.0;
