@@ -41,8 +41,9 @@
 //! The value alone ([`ContactPotential::energy`]) costs a squared distance per candidate; the
 //! gradient ([`ContactPotential::add_gradient`]) one closest-feature search per candidate and
 //! the gradients alone (of the distance, the mollifier, the chain rule) of the active pairs;
-//! the projected Hessians one 12x12 Jacobi eigen-decomposition per active pair (3 to 7 sweeps
-//! of 66 rotations of about 150 floating-point operations each), which dominates. Nothing is allocated.
+//! the projected Hessians one Jacobi eigen-decomposition per active pair, of the 9x9 block left
+//! once the translations (its null space) are split off (3 to 7 sweeps of 36 rotations of about
+//! 120 floating-point operations each), which dominates. Nothing is allocated.
 
 use crate::error::{ContactBuffer, ContactError};
 

@@ -1,7 +1,9 @@
 //! The projection of a pair's 12x12 contact Hessian onto the positive semi-definite cone
 //! (`docs/math.md` section 8.9): cyclic Jacobi rotations (G. H. Golub and C. F. Van Loan,
 //! "Matrix Computations", 4th ed., 2013, section 8.5) on a fixed-size array, stopped as soon as
-//! the off-diagonal part is below rounding, then the eigenvalues clamped at zero.
+//! the off-diagonal part is below rounding, then the eigenvalues clamped at zero. A pair's
+//! Hessian has the translations in its null space, so only its 9x9 block of relative motions
+//! (in a Hadamard basis) is diagonalised.
 
 use super::super::super::super::math::sqrt;
 use super::super::super::super::types::{Mat3, Real};
@@ -63,7 +65,7 @@ fn to_blocks(rows: &[[Real; N]; N]) -> [[Mat3; 4]; 4] {
 
 /// The sum of the squares of the strictly upper entries (the off-diagonal part, halved) and of
 /// all entries.
-fn off_and_total(a: &[[Real; N]; N]) -> (Real, Real) {
+fn off_and_total<const M: usize>(a: &[[Real; M]; M]) -> (Real, Real) {
     let (mut off, mut total): (Real, Real) = (0.0, 0.0);
     for (i, row) in a.iter().enumerate() {
         for (j, &x) in row.iter().enumerate() {
@@ -80,8 +82,8 @@ fn off_and_total(a: &[[Real; N]; N]) -> (Real, Real) {
 /// One Jacobi rotation zeroing `a[p][r]` (`p < r < N`) of the symmetric `a`, accumulated into
 /// the rows `p` and `r` of `vectors` (row `i` the eigenvector of `a[i][i]`). The rows `p` and
 /// `r` are rotated, then copied into the columns, so `a` stays exactly symmetric.
-fn rotate(a: &mut [[Real; N]; N], vectors: &mut [[Real; N]; N], p: usize, r: usize) {
-    let entry = |a: &[[Real; N]; N], i: usize, j: usize| {
+fn rotate<const M: usize>(a: &mut [[Real; M]; M], vectors: &mut [[Real; M]; M], p: usize, r: usize) {
+    let entry = |a: &[[Real; M]; M], i: usize, j: usize| {
         a.get(i).and_then(|row| row.get(j)).copied().unwrap_or(0.0)
     };
     let apr = entry(a, p, r);
@@ -100,7 +102,7 @@ fn rotate(a: &mut [[Real; N]; N], vectors: &mut [[Real; N]; N], p: usize, r: usi
     };
     let cos = 1.0 / sqrt(t * t + 1.0);
     let sin = t * cos;
-    let rotate_rows = |rows: &mut [[Real; N]; N]| {
+    let rotate_rows = |rows: &mut [[Real; M]; M]| {
         let (head, tail) = rows.split_at_mut(r);
         if let (Some(row_p), Some(row_r)) = (head.get_mut(p), tail.first_mut()) {
             for (x, y) in row_p.iter_mut().zip(row_r.iter_mut()) {
@@ -114,8 +116,8 @@ fn rotate(a: &mut [[Real; N]; N], vectors: &mut [[Real; N]; N], p: usize, r: usi
     rotate_rows(vectors);
     // The 2x2 block in closed form (exactly diagonal), then the rows mirrored into the columns.
     let (row_p, row_r) = (
-        a.get(p).copied().unwrap_or([0.0; N]),
-        a.get(r).copied().unwrap_or([0.0; N]),
+        a.get(p).copied().unwrap_or([0.0; M]),
+        a.get(r).copied().unwrap_or([0.0; M]),
     );
     for ((row, &xp), &xr) in a.iter_mut().zip(&row_p).zip(&row_r) {
         if let Some(v) = row.get_mut(p) {
@@ -125,7 +127,7 @@ fn rotate(a: &mut [[Real; N]; N], vectors: &mut [[Real; N]; N], p: usize, r: usi
             *v = xr;
         }
     }
-    let set = |a: &mut [[Real; N]; N], i: usize, j: usize, value: Real| {
+    let set = |a: &mut [[Real; M]; M], i: usize, j: usize, value: Real| {
         if let Some(v) = a.get_mut(i).and_then(|row| row.get_mut(j)) {
             *v = value;
         }
@@ -140,8 +142,8 @@ fn rotate(a: &mut [[Real; N]; N], vectors: &mut [[Real; N]; N], p: usize, r: usi
 /// symmetric `a`, by cyclic Jacobi sweeps until the off-diagonal part's squared norm is at
 /// most `EPSILON^2` times the matrix's (then every eigenvalue is within rounding of the
 /// diagonal, by Weyl's inequality), at most [`MAX_SWEEPS`].
-fn eigen(mut a: [[Real; N]; N]) -> ([Real; N], [[Real; N]; N]) {
-    let mut vectors = [[0.0; N]; N];
+fn eigen<const M: usize>(mut a: [[Real; M]; M]) -> ([Real; M], [[Real; M]; M]) {
+    let mut vectors = [[0.0; M]; M];
     for (i, row) in vectors.iter_mut().enumerate() {
         if let Some(x) = row.get_mut(i) {
             *x = 1.0;
@@ -152,28 +154,22 @@ fn eigen(mut a: [[Real; N]; N]) -> ([Real; N], [[Real; N]; N]) {
         if off <= Real::EPSILON * Real::EPSILON * total {
             break;
         }
-        for p in 0..N {
-            for r in (p + 1)..N {
+        for p in 0..M {
+            for r in (p + 1)..M {
                 rotate(&mut a, &mut vectors, p, r);
             }
         }
     }
-    let values: [Real; N] =
+    let values: [Real; M] =
         core::array::from_fn(|i| a.get(i).and_then(|row| row.get(i)).copied().unwrap_or(0.0));
     (values, vectors)
 }
 
-/// The positive semi-definite part of a pair Hessian, as one symmetric 12x12 matrix: the
-/// symmetrised input itself when it has no negative Jacobi eigenvalue, else `sum_{l_i > 0}
-/// l_i q_i q_i^T`, computed once per upper entry and mirrored (exactly symmetric).
-pub(super) fn project(hessian: &[[Mat3; 4]; 4]) -> [[Mat3; 4]; 4] {
-    let exact = to_rows(hessian);
-    let (values, vectors) = eigen(exact);
-    if values.iter().all(|&l| l >= 0.0) {
-        return to_blocks(&exact);
-    }
-    let mut rows = [[0.0; N]; N];
-    for (value, vector) in values.iter().zip(&vectors) {
+/// `sum_{l_i > 0} l_i q_i q_i^T` of the eigenpairs `values[i]`, `vectors[i]` (a row), each upper
+/// entry once, mirrored: exactly symmetric.
+fn positive_sum<const M: usize>(values: &[Real; M], vectors: &[[Real; M]; M]) -> [[Real; M]; M] {
+    let mut rows = [[0.0; M]; M];
+    for (value, vector) in values.iter().zip(vectors) {
         if *value <= 0.0 {
             continue;
         }
@@ -184,13 +180,94 @@ pub(super) fn project(hessian: &[[Mat3; 4]; 4]) -> [[Mat3; 4]; 4] {
             }
         }
     }
-    for i in 0..N {
-        for j in (i + 1)..N {
+    mirror_upper(&mut rows);
+    rows
+}
+
+/// Copies each upper entry onto its mirror below the diagonal.
+fn mirror_upper<const M: usize>(rows: &mut [[Real; M]; M]) {
+    for i in 0..M {
+        for j in (i + 1)..M {
             let upper = rows.get(i).and_then(|r| r.get(j)).copied().unwrap_or(0.0);
             if let Some(slot) = rows.get_mut(j).and_then(|r| r.get_mut(i)) {
                 *slot = upper;
             }
         }
     }
+}
+
+/// The 4x4 Hadamard matrix over 2 (symmetric, orthogonal, its own inverse, entries exact): row 0
+/// the uniform translation of the four points, rows 1 to 3 the motions orthogonal to it.
+const HADAMARD: [[Real; 4]; 4] = [
+    [0.5, 0.5, 0.5, 0.5],
+    [0.5, -0.5, 0.5, -0.5],
+    [0.5, 0.5, -0.5, -0.5],
+    [0.5, -0.5, -0.5, 0.5],
+];
+
+/// `T a T` with `T = HADAMARD (x) I_3` (symmetric and orthogonal): `a` in the basis of the
+/// translations (rows and columns 0 to 2) and the three relative motions (3 to 11).
+fn hadamard_congruence(a: &[[Real; N]; N]) -> [[Real; N]; N] {
+    let h = |x: usize, y: usize| HADAMARD.get(x).and_then(|r| r.get(y)).copied().unwrap_or(0.0);
+    let entry = |m: &[[Real; N]; N], i: usize, j: usize| {
+        m.get(i).and_then(|r| r.get(j)).copied().unwrap_or(0.0)
+    };
+    // Rows first (T a), then columns ((T a) T).
+    let left: [[Real; N]; N] = core::array::from_fn(|row| {
+        let (block, i) = (row / 3, row % 3);
+        core::array::from_fn(|column| {
+            (0..4).fold(0.0, |sum, k| sum + h(block, k) * entry(a, 3 * k + i, column))
+        })
+    });
+    core::array::from_fn(|row| {
+        core::array::from_fn(|column| {
+            let (block, j) = (column / 3, column % 3);
+            (0..4).fold(0.0, |sum, l| sum + entry(&left, row, 3 * l + j) * h(l, block))
+        })
+    })
+}
+
+/// The positive semi-definite part of a pair Hessian, as one symmetric 12x12 matrix: the
+/// symmetrised input itself when it has no negative Jacobi eigenvalue, else `sum_{l_i > 0}
+/// l_i q_i q_i^T` (exactly symmetric).
+///
+/// A pair's Hessian does not change under a translation of its four points, so it has the
+/// three translations in its null space: in the Hadamard basis ([`hadamard_congruence`]) only
+/// its 9x9 block of relative motions is nonzero, and that block is diagonalised instead (36
+/// rotations a sweep of 9-vectors rather than 66 of 12-vectors). Where the translation rows
+/// are not within rounding of zero (a matrix from elsewhere), the whole 12x12 is.
+pub(super) fn project(hessian: &[[Mat3; 4]; 4]) -> [[Mat3; 4]; 4] {
+    let exact = to_rows(hessian);
+    let largest = exact.iter().flatten().fold(0.0, |m: Real, x| m.max(x.abs()));
+    let rotated = hadamard_congruence(&exact);
+    // Rounding of the congruence: sums of 16 entries over 4; anything larger is a real
+    // coupling to translations.
+    let tolerance = 64.0 * Real::EPSILON * largest;
+    let translation = rotated.iter().take(3).flatten().all(|x| x.abs() <= tolerance);
+    if !translation {
+        let (values, vectors) = eigen(exact);
+        if values.iter().all(|&l| l >= 0.0) {
+            return to_blocks(&exact);
+        }
+        return to_blocks(&positive_sum(&values, &vectors));
+    }
+    let relative: [[Real; 9]; 9] = core::array::from_fn(|i| {
+        core::array::from_fn(|j| {
+            rotated.get(i + 3).and_then(|r| r.get(j + 3)).copied().unwrap_or(0.0)
+        })
+    });
+    let (values, vectors) = eigen(relative);
+    if values.iter().all(|&l| l >= 0.0) {
+        return to_blocks(&exact);
+    }
+    let positive = positive_sum(&values, &vectors);
+    let mut embedded = [[0.0; N]; N];
+    for (row, source) in embedded.iter_mut().skip(3).zip(&positive) {
+        for (out, &x) in row.iter_mut().skip(3).zip(source) {
+            *out = x;
+        }
+    }
+    let mut rows = hadamard_congruence(&embedded);
+    mirror_upper(&mut rows);
     to_blocks(&rows)
 }
