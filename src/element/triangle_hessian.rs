@@ -109,7 +109,9 @@ impl<const N: usize> SymmetricMatrix<N> {
     }
 
     /// The matrix with these rows (row `i`, column `j`: `rows[i][j]`), taken as they are: the
-    /// caller makes them symmetric.
+    /// caller makes them symmetric. Only tests use it now (the contact potential's projection
+    /// checks its spectra against this solver).
+    #[cfg(test)]
     #[inline]
     #[must_use]
     pub(crate) fn from_rows(rows: [[Real; N]; N]) -> SymmetricMatrix<N> {

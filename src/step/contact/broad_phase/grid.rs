@@ -12,6 +12,9 @@ pub(super) const AXIS_CELLS: u32 = 1 << 20;
 pub(super) const MAX_COARSENINGS: u32 = 64;
 /// The multipliers of the cell hash (Teschner et al. 2003).
 pub(super) const HASH: [u64; 3] = [73_856_093, 19_349_663, 83_492_791];
+/// `2^64` over the golden ratio, odd: the multiplier of Fibonacci hashing (D. E. Knuth, "The Art
+/// of Computer Programming", vol. 3, section 6.4).
+const FIBONACCI: u64 = 0x9E37_79B9_7F4A_7C15;
 
 /// An axis-aligned box (m), closed.
 #[derive(Clone, Copy, Debug)]
@@ -49,10 +52,17 @@ impl Boxes<'_> {
     pub(super) fn of_corners(&self, corners: &[u32]) -> Aabb {
         let mut lo = Vec3::splat(Real::INFINITY);
         let mut hi = Vec3::splat(Real::NEG_INFINITY);
+        // Indices were checked on entry; a missing one cannot occur.
         for &corner in corners {
-            for positions in [self.start, self.end] {
-                // Indices were checked on entry; a missing one cannot occur.
-                let x = positions.get(corner as usize).copied().unwrap_or_default();
+            let x = self.start.get(corner as usize).copied().unwrap_or_default();
+            lo = lo.min(x);
+            hi = hi.max(x);
+        }
+        // A proximity query passes one array as both ends: its corners once (the box of every
+        // primitive is built again for each pair tested, the broad phase's inner loop).
+        if !core::ptr::eq(self.start, self.end) {
+            for &corner in corners {
+                let x = self.end.get(corner as usize).copied().unwrap_or_default();
                 lo = lo.min(x);
                 hi = hi.max(x);
             }
@@ -106,6 +116,9 @@ impl Boxes<'_> {
 pub(super) struct Grid {
     pub(super) origin: Vec3,
     pub(super) cell: Real,
+    /// `1 / cell` (1/m): a cell coordinate is a product, not a quotient (a division in each
+    /// of the three axes of every box corner and every pair's report test).
+    pub(super) inverse_cell: Real,
     pub(super) axis_cells: u32,
     pub(super) slot_count: u64,
 }
@@ -115,14 +128,14 @@ pub(super) type Cell = [u32; 3];
 
 impl Grid {
     /// The cell holding `point`: monotone in each coordinate (a rounded difference, a rounded
-    /// quotient, a saturating cast, a clamp), so a box's cells are those from its low corner's
-    /// to its high corner's.
+    /// product with the positive `inverse_cell`, a saturating cast, a clamp), so a box's cells
+    /// are those from its low corner's to its high corner's.
     #[inline]
     pub(super) fn cell_of(&self, point: Vec3) -> Cell {
         let last = self.axis_cells - 1;
         // Non-negative for points in the scene's box (`origin` is its low corner); the cast
         // truncates, saturates, and sends NaN to 0.
-        let coordinate = |x: Real, o: Real| (((x - o) / self.cell) as u32).min(last);
+        let coordinate = |x: Real, o: Real| (((x - o) * self.inverse_cell) as u32).min(last);
         [
             coordinate(point.x, self.origin.x),
             coordinate(point.y, self.origin.y),
@@ -153,8 +166,13 @@ impl Grid {
         let hash = u64::from(i).wrapping_mul(a)
             ^ u64::from(j).wrapping_mul(b)
             ^ u64::from(k).wrapping_mul(c);
-        // Below `slot_count`, itself a slice length: fits usize.
-        (hash % self.slot_count) as usize
+        // Onto `0..slot_count` by a multiplication instead of a 64-bit division (dozens of
+        // cycles, and this runs once per covered cell in every pass): Fibonacci hashing spreads
+        // the hash over all 64 bits, then the high word of the product with `slot_count` is
+        // below it (D. Lemire, "Fast Random Integer Generation in an Interval", ACM TOMACS 29(1),
+        // 2019). Below `slot_count`, itself a slice length: fits usize.
+        let spread = hash.wrapping_mul(FIBONACCI);
+        ((u128::from(spread) * u128::from(self.slot_count)) >> 64) as usize
     }
 }
 
@@ -211,6 +229,7 @@ pub(super) fn choose_grid(boxes: &Boxes<'_>, primitives: usize, slot_count: usiz
     let mut grid = Grid {
         origin: lo,
         cell,
+        inverse_cell: 1.0 / cell,
         axis_cells: AXIS_CELLS,
         slot_count: slot_count as u64,
     };
@@ -228,19 +247,22 @@ pub(super) fn choose_grid(boxes: &Boxes<'_>, primitives: usize, slot_count: usiz
         } else {
             Real::MAX
         };
+        grid.inverse_cell = 1.0 / grid.cell;
     }
     // One cell: one entry per primitive, within the capacity checked on entry.
     grid.axis_cells = 1;
     grid
 }
 
-/// Counting sort of the primitives' (primitive, cell) entries by slot: afterwards the entries
-/// of slot `s` are `entries[slots[s]..slots[s + 1]]`, in increasing primitive id (so that a
-/// primitive entered in several cells of one slot appears in one run).
+/// Counting sort of the edges' and triangles' (primitive, cell) entries by slot: afterwards the
+/// entries of slot `s` are `entries[slots[s]..slots[s + 1]]`, in increasing primitive id (so
+/// that a primitive entered in several cells of one slot appears in one run). Vertices are
+/// left out: the queries look up edges and triangles only.
 pub(super) fn fill_table(boxes: &Boxes<'_>, primitives: usize, grid: &Grid, scratch: &mut BroadPhaseScratch<'_>) {
     let BroadPhaseScratch { slots, entries } = scratch;
+    let first_edge = boxes.surface.vertices.len();
     slots.fill(0);
-    for id in 0..primitives {
+    for id in first_edge..primitives {
         for_each_cell(grid.range(&boxes.primitive(id)), false, |cell| {
             if let Some(count) = slots.get_mut(grid.slot(cell)) {
                 *count += 1;
@@ -255,7 +277,7 @@ pub(super) fn fill_table(boxes: &Boxes<'_>, primitives: usize, grid: &Grid, scra
         *count = total;
     }
     // Filled backwards, each slot's end moving down to its start.
-    for id in (0..primitives).rev() {
+    for id in (first_edge..primitives).rev() {
         for_each_cell(grid.range(&boxes.primitive(id)), true, |cell| {
             if let Some(end) = slots.get_mut(grid.slot(cell)) {
                 *end = end.saturating_sub(1);

@@ -22,8 +22,8 @@
 //! # How
 //! A uniform grid hashed into a table the caller sizes (Teschner et al., "Optimized Spatial
 //! Hashing for Collision Detection of Deformable Objects", VMV 2003), filled by a counting sort:
-//! every primitive is entered in each cell its box covers, then each vertex looks for triangles,
-//! and each edge for later edges, in its cells' slots. A pair is reported only from the cell
+//! every edge and triangle is entered in each cell its box covers, then each vertex looks for
+//! triangles, and each edge for later edges, in its cells' slots. A pair is reported only from the cell
 //! holding the lower corner of the two boxes' intersection, which both boxes cover, so it is
 //! reported once however many cells the boxes share.
 //!
@@ -239,8 +239,8 @@ fn candidate_pairs<'a>(
     let vertex_triangle = vertex_triangle.get_mut(..found_vt).unwrap_or_default();
     let edge_edge = edge_edge.get_mut(..found_ee).unwrap_or_default();
     // The pairs are unique, so any sort gives the one sorted order.
-    vertex_triangle.sort_unstable();
-    edge_edge.sort_unstable();
+    vertex_triangle.sort_unstable_by_key(|&[a, b]| (u64::from(a) << 32) | u64::from(b));
+    edge_edge.sort_unstable_by_key(|&[a, b]| (u64::from(a) << 32) | u64::from(b));
     Ok(CandidatePairs {
         vertex_triangle,
         edge_edge,

@@ -3,7 +3,7 @@
 
 use super::super::super::super::types::{Mat3, Real, Vec3};
 use super::point_edge::{EdgeFeature, point_edge};
-use super::{PairDistance, Slot, Stationary, negligible, outer, placed};
+use super::{PairDistance, PairDistanceGradient, Slot, Stationary, negligible, outer, placed};
 
 /// Which features of two edges `ea0 ea1` and `eb0 eb1` are closest, and so which smooth
 /// formula gives their distance: line–line when both closest points lie inside the edges,
@@ -84,6 +84,31 @@ pub fn edge_edge_squared_distance(ea0: Vec3, ea1: Vec3, eb0: Vec3, eb1: Vec3) ->
 #[must_use]
 pub fn edge_edge_distance(ea0: Vec3, ea1: Vec3, eb0: Vec3, eb1: Vec3) -> PairDistance {
     closest(ea0, ea1, eb0, eb1).1.derivatives()
+}
+
+/// The squared distance between the edges `ea0 ea1` and `eb0 eb1` with its gradient alone
+/// (slots `[ea0, ea1, eb0, eb1]`, m): the same bits as [`edge_edge_distance`]'s `squared` and
+/// `gradient`, from one closest-feature search and without the Hessian, for an energy and
+/// gradient evaluation.
+///
+/// ```
+/// use softfem::glam::Vec3;
+/// use softfem::step::contact::distance::{edge_edge_distance, edge_edge_distance_gradient};
+///
+/// let (ea0, ea1) = (Vec3::new(-1.0, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.0));
+/// let (eb0, eb1) = (Vec3::new(0.0, -1.0, 2.0), Vec3::new(0.0, 1.0, 2.0));
+/// let gradient = edge_edge_distance_gradient(ea0, ea1, eb0, eb1);
+/// let full = edge_edge_distance(ea0, ea1, eb0, eb1);
+/// assert_eq!((gradient.squared, gradient.gradient), (full.squared, full.gradient));
+/// ```
+#[must_use]
+pub fn edge_edge_distance_gradient(
+    ea0: Vec3,
+    ea1: Vec3,
+    eb0: Vec3,
+    eb1: Vec3,
+) -> PairDistanceGradient {
+    closest(ea0, ea1, eb0, eb1).1.gradient()
 }
 
 /// The closest features and their smooth case.
@@ -247,37 +272,35 @@ pub fn edge_edge_mollifier(
     eb1: Vec3,
     threshold: Real,
 ) -> Mollifier {
-    let u = ea1 - ea0;
-    let v = eb1 - eb0;
-    let normal = u.cross(v);
-    let c = normal.dot(normal);
-    let fading = c < threshold;
-    if !fading {
+    let Some(fade) = Fade::new(ea0, ea1, eb0, eb1, threshold) else {
         return Mollifier {
             value: 1.0,
             gradient: [Vec3::ZERO; 4],
             hessian: [[Mat3::ZERO; 4]; 4],
         };
-    }
-    let ratio = c / threshold;
-    let value = (2.0 - ratio) * ratio;
-    // m'(c) = 2 (eps_x - c) / eps_x^2, m''(c) = -2 / eps_x^2.
-    let slope = 2.0 * (1.0 - ratio) / threshold;
+    };
+    let Fade {
+        u,
+        v,
+        uu,
+        uv,
+        vv,
+        value,
+        slope,
+        gradient_c,
+    } = fade;
+    // m''(c) = -2 / eps_x^2.
     let curvature = -2.0 / (threshold * threshold);
-    // c = |u|^2 |v|^2 - (u.v)^2: its derivatives in u and v (docs/math.md section 8.5).
-    let (uu, uv, vv) = (u.dot(u), u.dot(v), v.dot(v));
-    let grad_u = (u * vv - v * uv) * 2.0;
-    let grad_v = (v * uu - u * uv) * 2.0;
+    // The second derivatives of c = |u|^2 |v|^2 - (u.v)^2 (docs/math.md section 8.5).
     let identity = Mat3::IDENTITY;
     let hess_uu = (identity * vv - outer(v, v)) * 2.0;
     let hess_vv = (identity * uu - outer(u, u)) * 2.0;
     let hess_uv = outer(u, v) * 4.0 - outer(v, u) * 2.0 - identity * (2.0 * uv);
-    // The points enter as u = ea1 - ea0, v = eb1 - eb0: slot signs (-, +, -, +).
-    let gradient_c = [-grad_u, grad_u, -grad_v, grad_v];
     let blocks_c = [
         [hess_uu, hess_uv],
         [hess_uv.transpose(), hess_vv],
     ];
+    // The points enter as u = ea1 - ea0, v = eb1 - eb0: slot signs (-, +, -, +).
     let side = [(0, -1.0), (0, 1.0), (1, -1.0), (1, 1.0)];
     let rows = side.map(|(edge_k, sign_k): (usize, Real)| {
         side.map(|(edge_l, sign_l): (usize, Real)| {
@@ -302,6 +325,105 @@ pub fn edge_edge_mollifier(
     }
 }
 
+/// The edge–edge mollifier's value and gradient alone (see [`edge_edge_mollifier`], of which
+/// these are the first two fields, the same bits).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MollifierGradient {
+    /// `m(c)`: 0 for parallel edges, 1 from the threshold on.
+    pub value: Real,
+    /// `dm/dx_k` (1/m).
+    pub gradient: [Vec3; 4],
+}
+
+/// The edge–edge mollifier's value and gradient without its Hessian, the same bits as
+/// [`edge_edge_mollifier`]'s (see there for the arguments): for an energy and gradient
+/// evaluation.
+///
+/// ```
+/// use softfem::glam::Vec3;
+/// use softfem::step::contact::distance::{edge_edge_mollifier, edge_edge_mollifier_gradient};
+///
+/// // Edges 0.05 rad from parallel: c = sin^2(0.05) ~ 2.5e-3 below the threshold 1e-2.
+/// let (ea0, ea1) = (Vec3::ZERO, Vec3::X);
+/// let (eb0, eb1) = (Vec3::new(0.0, 0.0, 0.1), Vec3::new(1.0, 0.05, 0.1));
+/// let gradient = edge_edge_mollifier_gradient(ea0, ea1, eb0, eb1, 1e-2);
+/// let full = edge_edge_mollifier(ea0, ea1, eb0, eb1, 1e-2);
+/// assert!(gradient.value > 0.0 && gradient.value < 1.0);
+/// assert_eq!((gradient.value, gradient.gradient), (full.value, full.gradient));
+/// ```
+#[must_use]
+pub fn edge_edge_mollifier_gradient(
+    ea0: Vec3,
+    ea1: Vec3,
+    eb0: Vec3,
+    eb1: Vec3,
+    threshold: Real,
+) -> MollifierGradient {
+    match Fade::new(ea0, ea1, eb0, eb1, threshold) {
+        Some(fade) => MollifierGradient {
+            value: fade.value,
+            gradient: fade.gradient_c.map(|g| g * fade.slope),
+        },
+        None => MollifierGradient {
+            value: 1.0,
+            gradient: [Vec3::ZERO; 4],
+        },
+    }
+}
+
+/// What the mollifier's value, gradient and Hessian share below the threshold.
+#[derive(Clone, Copy, Debug)]
+struct Fade {
+    /// `u = ea1 - ea0` (m).
+    u: Vec3,
+    /// `v = eb1 - eb0` (m).
+    v: Vec3,
+    /// `u . u` (m^2).
+    uu: Real,
+    /// `u . v` (m^2).
+    uv: Real,
+    /// `v . v` (m^2).
+    vv: Real,
+    /// `m(c)`.
+    value: Real,
+    /// `m'(c) = 2 (eps_x - c) / eps_x^2` (1/m^4).
+    slope: Real,
+    /// `dc/dx_k` (m^3).
+    gradient_c: [Vec3; 4],
+}
+
+impl Fade {
+    /// The shared terms where `c < threshold` (the mollifier fading); `None` where it is 1.
+    fn new(ea0: Vec3, ea1: Vec3, eb0: Vec3, eb1: Vec3, threshold: Real) -> Option<Fade> {
+        let u = ea1 - ea0;
+        let v = eb1 - eb0;
+        let normal = u.cross(v);
+        let c = normal.dot(normal);
+        let fading = c < threshold;
+        if !fading {
+            return None;
+        }
+        let ratio = c / threshold;
+        let value = (2.0 - ratio) * ratio;
+        let slope = 2.0 * (1.0 - ratio) / threshold;
+        // c = |u|^2 |v|^2 - (u.v)^2: its gradient in u and v (docs/math.md section 8.5).
+        let (uu, uv, vv) = (u.dot(u), u.dot(v), v.dot(v));
+        let grad_u = (u * vv - v * uv) * 2.0;
+        let grad_v = (v * uu - u * uv) * 2.0;
+        // The points enter as u = ea1 - ea0, v = eb1 - eb0: slot signs (-, +, -, +).
+        Some(Fade {
+            u,
+            v,
+            uu,
+            uv,
+            vv,
+            value,
+            slope,
+            gradient_c: [-grad_u, grad_u, -grad_v, grad_v],
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::super::super::super::types::{Real, Vec3};
@@ -309,8 +431,9 @@ mod tests {
         XorShift, fd_settings, gradient_error, hessian_error, moved,
     };
     use super::{
-        EdgeEdgeKind, edge_edge_distance, edge_edge_kind, edge_edge_mollifier,
-        edge_edge_mollifier_threshold, edge_edge_mollifier_value, edge_edge_squared_distance,
+        EdgeEdgeKind, edge_edge_distance, edge_edge_distance_gradient, edge_edge_kind,
+        edge_edge_mollifier, edge_edge_mollifier_gradient, edge_edge_mollifier_threshold,
+        edge_edge_mollifier_value, edge_edge_squared_distance,
     };
 
     /// Rounding of O(1) values: a few ulp of the largest input's square.
@@ -519,20 +642,36 @@ mod tests {
         }
     }
 
-    /// The value-only function is the full one's value, bit for bit; so is the mollifier's.
+    /// The value-only and gradient-only functions are the full one's value and gradient, bit
+    /// for bit, for every kind (counted: each is reached); so are the mollifier's, fading or
+    /// not (both counted).
     #[test]
     fn value_only_matches() {
         let mut random = XorShift::new(0x5eed_0013);
-        for _ in 0..500 {
+        let bits = |g: [Vec3; 4]| g.map(|v| v.to_array().map(Real::to_bits));
+        let (mut seen, mut fading) = ([0usize; 9], [0usize; 2]);
+        for _ in 0..2000 {
             let points = random.points(1.0);
             let [ea0, ea1, eb0, eb1] = points;
-            assert_eq!(value(points).to_bits(), distance(points).squared.to_bits());
+            let full = distance(points);
+            assert_eq!(value(points).to_bits(), full.squared.to_bits());
+            let gradient = edge_edge_distance_gradient(ea0, ea1, eb0, eb1);
+            assert_eq!(gradient.squared.to_bits(), full.squared.to_bits());
+            assert_eq!(bits(gradient.gradient), bits(full.gradient));
+            seen[kind(points) as usize] += 1;
             let threshold = random.uniform(0.0, 0.5);
+            let mollifier = edge_edge_mollifier(ea0, ea1, eb0, eb1, threshold);
             assert_eq!(
                 edge_edge_mollifier_value(ea0, ea1, eb0, eb1, threshold).to_bits(),
-                edge_edge_mollifier(ea0, ea1, eb0, eb1, threshold).value.to_bits()
+                mollifier.value.to_bits()
             );
+            let mollifier_gradient = edge_edge_mollifier_gradient(ea0, ea1, eb0, eb1, threshold);
+            assert_eq!(mollifier_gradient.value.to_bits(), mollifier.value.to_bits());
+            assert_eq!(bits(mollifier_gradient.gradient), bits(mollifier.gradient));
+            fading[usize::from(mollifier.value < 1.0)] += 1;
         }
+        assert!(seen.iter().all(|&count| count > 0), "{seen:?}");
+        assert!(fading.iter().all(|&count| count > 0), "{fading:?}");
     }
 
     fn mollifier_value(threshold: Real) -> impl Fn([Vec3; 4]) -> Real {

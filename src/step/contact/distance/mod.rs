@@ -43,12 +43,13 @@ mod point_edge;
 mod point_triangle;
 
 pub use edge_edge::{
-    EdgeEdgeKind, Mollifier, edge_edge_distance, edge_edge_kind, edge_edge_mollifier,
+    EdgeEdgeKind, Mollifier, MollifierGradient, edge_edge_distance, edge_edge_distance_gradient,
+    edge_edge_kind, edge_edge_mollifier, edge_edge_mollifier_gradient,
     edge_edge_mollifier_threshold, edge_edge_mollifier_value, edge_edge_squared_distance,
 };
 pub use point_triangle::{
-    PointTriangleKind, point_triangle_distance, point_triangle_kind,
-    point_triangle_squared_distance,
+    PointTriangleKind, point_triangle_distance, point_triangle_distance_gradient,
+    point_triangle_kind, point_triangle_squared_distance,
 };
 
 use super::super::super::types::{Mat3, Real, Vec3};
@@ -64,6 +65,17 @@ pub struct PairDistance {
     pub gradient: [Vec3; 4],
     /// `d^2(d^2)/(dx_k dx_l)`, 3x3 blocks (dimensionless), exact: not projected.
     pub hessian: [[Mat3; 4]; 4],
+}
+
+/// A squared distance with its gradient alone (see [`PairDistance`], of which these are the
+/// first two fields, the same bits): what an energy and gradient evaluation needs, without the
+/// Hessian's 16 blocks.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PairDistanceGradient {
+    /// The squared distance `d^2` (m^2).
+    pub squared: Real,
+    /// `d(d^2)/dx_k` for each of the four points (m); they sum to zero.
+    pub gradient: [Vec3; 4],
 }
 
 /// One point's share in the residual of a closest-point problem (see [`Stationary`]).
@@ -118,6 +130,16 @@ impl Stationary {
         }
     }
 
+    /// The squared distance and its gradient `g_k = 2 w_k r` (`docs/math.md` section 8.1),
+    /// the same bits as [`derivatives`](Self::derivatives)' (which calls this).
+    fn gradient(&self) -> PairDistanceGradient {
+        let r = self.residual;
+        PairDistanceGradient {
+            squared: self.squared,
+            gradient: self.slots.map(|slot| r * (2.0 * slot.weight)),
+        }
+    }
+
     /// The squared distance's gradient and Hessian (`docs/math.md` section 8.1):
     /// `g_k = 2 w_k r` and `H_kl = 2 w_k w_l I - 2 sum_ij (G^-1)_ij q_ki q_lj^T` with
     /// `q_ki = (dw_k/ds_i) r + w_k u_i`.
@@ -125,7 +147,7 @@ impl Stationary {
         let r = self.residual;
         let [u0, u1] = self.directions;
         let [[g00, g01], [g10, g11]] = self.gram_inverse;
-        let gradient = self.slots.map(|slot| r * (2.0 * slot.weight));
+        let gradient = self.gradient().gradient;
         let mixed = self.slots.map(|slot| {
             let q0 = r * slot.rates[0] + u0 * slot.weight;
             let q1 = r * slot.rates[1] + u1 * slot.weight;

@@ -2,7 +2,7 @@
 
 use super::super::super::super::types::{Real, Vec3};
 use super::point_edge::{EdgeFeature, point_edge};
-use super::{PairDistance, Slot, Stationary, negligible, placed};
+use super::{PairDistance, PairDistanceGradient, Slot, Stationary, negligible, placed};
 
 /// Which feature of a triangle `t0 t1 t2` is closest to a point, and so which smooth formula
 /// gives the distance: point–point for a corner, point–line for an edge, point–plane for the
@@ -78,6 +78,32 @@ pub fn point_triangle_squared_distance(p: Vec3, t0: Vec3, t1: Vec3, t2: Vec3) ->
 #[must_use]
 pub fn point_triangle_distance(p: Vec3, t0: Vec3, t1: Vec3, t2: Vec3) -> PairDistance {
     closest(p, t0, t1, t2).1.derivatives()
+}
+
+/// The squared distance between the point `p` and the triangle `t0 t1 t2` with its gradient
+/// alone (slots `[p, t0, t1, t2]`, m): the same bits as [`point_triangle_distance`]'s
+/// `squared` and `gradient`, from one closest-feature search and without the Hessian, for an
+/// energy and gradient evaluation.
+///
+/// ```
+/// use softfem::glam::Vec3;
+/// use softfem::step::contact::distance::{
+///     point_triangle_distance, point_triangle_distance_gradient,
+/// };
+///
+/// let (p, t0, t1, t2) = (Vec3::new(0.2, 0.3, 0.5), Vec3::ZERO, Vec3::X, Vec3::Y);
+/// let gradient = point_triangle_distance_gradient(p, t0, t1, t2);
+/// let full = point_triangle_distance(p, t0, t1, t2);
+/// assert_eq!((gradient.squared, gradient.gradient), (full.squared, full.gradient));
+/// ```
+#[must_use]
+pub fn point_triangle_distance_gradient(
+    p: Vec3,
+    t0: Vec3,
+    t1: Vec3,
+    t2: Vec3,
+) -> PairDistanceGradient {
+    closest(p, t0, t1, t2).1.gradient()
 }
 
 /// The closest feature and its smooth case.
@@ -167,8 +193,8 @@ mod tests {
         XorShift, double, fd_settings, gradient_error, hessian_error, moved,
     };
     use super::{
-        PointTriangleKind, point_triangle_distance, point_triangle_kind,
-        point_triangle_squared_distance,
+        PointTriangleKind, point_triangle_distance, point_triangle_distance_gradient,
+        point_triangle_kind, point_triangle_squared_distance,
     };
 
     /// Rounding of O(1) values: a few ulp of the largest input's square.
@@ -354,17 +380,26 @@ mod tests {
         assert!(distance.hessian.iter().flatten().all(|h| h.is_finite()));
     }
 
-    /// The value-only function is the full one's value, bit for bit.
+    /// The value-only and gradient-only functions are the full one's value and gradient, bit
+    /// for bit, for every kind (counted: each is reached).
     #[test]
     fn value_only_matches() {
         let mut random = XorShift::new(0x5eed_0003);
+        let mut seen = [0usize; 7];
         for _ in 0..500 {
             let [p, t0, t1, t2] = random.points(2.0);
+            let full = point_triangle_distance(p, t0, t1, t2);
             assert_eq!(
                 point_triangle_squared_distance(p, t0, t1, t2).to_bits(),
-                point_triangle_distance(p, t0, t1, t2).squared.to_bits()
+                full.squared.to_bits()
             );
+            let gradient = point_triangle_distance_gradient(p, t0, t1, t2);
+            assert_eq!(gradient.squared.to_bits(), full.squared.to_bits());
+            let bits = |g: [Vec3; 4]| g.map(|v| v.to_array().map(Real::to_bits));
+            assert_eq!(bits(gradient.gradient), bits(full.gradient));
+            seen[point_triangle_kind(p, t0, t1, t2) as usize] += 1;
         }
+        assert!(seen.iter().all(|&count| count > 0), "{seen:?}");
         let _ = double;
     }
 }

@@ -25,21 +25,25 @@
 //!   (touching or through) makes the energy `+inf`, with zero gradient and Hessian: the
 //!   configuration is not admissible and a line search must refuse it. Where the chain rule
 //!   overflows (a pair closer than about `1e-10 dhat` in f32, or a huge `kappa`), the pair's
-//!   value is reported `+inf` the same way. Nothing is ever NaN for finite input.
+//!   value is reported `+inf` the same way: by [`ContactPotential::add_gradient`] where the
+//!   value or gradient overflows, by the functions that return Hessians where any of the three
+//!   does. Nothing is ever NaN for finite input.
 //! * The Hessian is the chain rule `kappa (m (b'' g g^T + b' H) + b' (g_m g^T + g g_m^T) + b
 //!   H_m)` (`g`, `H` the squared distance's derivatives, `g_m`, `H_m` the mollifier's),
 //!   projected as a whole 12x12 matrix onto the positive semi-definite cone, as IPC does: its
-//!   negative eigenvalues, from ten sweeps of cyclic Jacobi rotations (Golub and Van Loan,
-//!   "Matrix Computations", section 8.5), are set to zero. A Hessian that is already positive
-//!   semi-definite is kept as it is.
+//!   negative eigenvalues, from cyclic Jacobi sweeps (Golub and Van Loan, "Matrix
+//!   Computations", section 8.5) until the off-diagonal part is below rounding (at most ten),
+//!   are set to zero. A Hessian that is already positive semi-definite is kept as it is.
 //! * Deterministic: the pairs in a fixed order (every point–triangle pair in list order, then
 //!   every edge–edge pair), a fixed order of operations, no fused multiply-add.
 //!
 //! # Cost
 //! The value alone ([`ContactPotential::energy`]) costs a squared distance per candidate; the
-//! gradient the exact derivatives of the active pairs; the projected Hessians one 12x12 Jacobi
-//! eigen-decomposition per active pair (660 rotations of about 220 floating-point operations
-//! each), which dominates. Nothing is allocated.
+//! gradient ([`ContactPotential::add_gradient`]) one closest-feature search per candidate and
+//! the gradients alone (of the distance, the mollifier, the chain rule) of the active pairs;
+//! the projected Hessians one Jacobi eigen-decomposition per active pair, of the 9x9 block left
+//! once the translations (its null space) are split off (3 to 7 sweeps of 36 rotations of about
+//! 120 floating-point operations each), which dominates. Nothing is allocated.
 
 use crate::error::{ContactBuffer, ContactError};
 
@@ -48,9 +52,10 @@ use super::barrier::{self as log_barrier, BarrierDerivatives, barrier_derivative
 use super::boundary::ContactSurface;
 use super::broad_phase::CandidatePairs;
 use super::distance::{
-    Mollifier, PairDistance, edge_edge_distance, edge_edge_mollifier,
+    Mollifier, MollifierGradient, PairDistance, PairDistanceGradient, edge_edge_distance,
+    edge_edge_distance_gradient, edge_edge_mollifier, edge_edge_mollifier_gradient,
     edge_edge_mollifier_threshold, edge_edge_mollifier_value, edge_edge_squared_distance,
-    point_triangle_distance, point_triangle_squared_distance,
+    point_triangle_distance, point_triangle_distance_gradient, point_triangle_squared_distance,
 };
 
 /// The barrier's stiffness and reach.
@@ -218,6 +223,103 @@ fn chain(
     } else {
         PairTerms::BLOCKED
     }
+}
+
+/// The value and gradient of one pair (the first two of [`PairTerms`], the same bits), for
+/// the energy and gradient evaluation.
+#[derive(Clone, Copy, Debug)]
+struct PairGradientTerms {
+    value: Real,
+    gradient: [Vec3; 4],
+    /// Whether `0 < d^2 < dhat^2` and the value and gradient came out finite.
+    active: bool,
+}
+
+impl PairGradientTerms {
+    /// An inactive pair: exactly zero.
+    const INACTIVE: PairGradientTerms = PairGradientTerms {
+        value: 0.0,
+        gradient: [Vec3::ZERO; 4],
+        active: false,
+    };
+
+    /// A pair touching or through, or whose gradient overflows: `+inf`, zero gradient.
+    const BLOCKED: PairGradientTerms = PairGradientTerms {
+        value: Real::INFINITY,
+        gradient: [Vec3::ZERO; 4],
+        active: false,
+    };
+}
+
+/// The value and gradient of the chain rule of [`chain`], the same operations (so the same
+/// bits) without the Hessian.
+fn chain_gradient(
+    stiffness: Real,
+    distance: &PairDistanceGradient,
+    b: BarrierDerivatives,
+    mollifier: &MollifierGradient,
+) -> PairGradientTerms {
+    let m = mollifier.value;
+    let value = stiffness * (m * b.value);
+    let mut gradient = [Vec3::ZERO; 4];
+    let inputs = distance.gradient.iter().zip(&mollifier.gradient);
+    for (out, (&g_k, &gm_k)) in gradient.iter_mut().zip(inputs) {
+        *out = (g_k * (m * b.first) + gm_k * b.value) * stiffness;
+    }
+    if value.is_finite() && gradient.iter().all(|g| g.is_finite()) {
+        PairGradientTerms {
+            value,
+            gradient,
+            active: true,
+        }
+    } else {
+        PairGradientTerms::BLOCKED
+    }
+}
+
+/// The mollifier of a point–triangle pair, value and gradient: 1, flat.
+const NO_MOLLIFIER_GRADIENT: MollifierGradient = MollifierGradient {
+    value: 1.0,
+    gradient: [Vec3::ZERO; 4],
+};
+
+/// The value and gradient of a point–triangle pair at `[p, t0, t1, t2]` (one closest-feature
+/// search: the squared distance that decides activity is the gradient's own).
+fn point_triangle_gradient_terms(barrier: &ContactBarrier, points: [Vec3; 4]) -> PairGradientTerms {
+    let [p, t0, t1, t2] = points;
+    let dhat2 = barrier.squared_gap();
+    let distance = point_triangle_distance_gradient(p, t0, t1, t2);
+    let d2 = distance.squared;
+    if touching(d2) {
+        return PairGradientTerms::BLOCKED;
+    }
+    if d2 >= dhat2 {
+        return PairGradientTerms::INACTIVE;
+    }
+    let b = barrier_derivatives(d2, dhat2);
+    chain_gradient(barrier.stiffness, &distance, b, &NO_MOLLIFIER_GRADIENT)
+}
+
+/// The value and gradient of an edge–edge pair at `[ea0, ea1, eb0, eb1]` with the mollifier's
+/// threshold `eps_x` (m^4).
+fn edge_edge_gradient_terms(
+    barrier: &ContactBarrier,
+    points: [Vec3; 4],
+    threshold: Real,
+) -> PairGradientTerms {
+    let [ea0, ea1, eb0, eb1] = points;
+    let dhat2 = barrier.squared_gap();
+    let distance = edge_edge_distance_gradient(ea0, ea1, eb0, eb1);
+    let d2 = distance.squared;
+    if touching(d2) {
+        return PairGradientTerms::BLOCKED;
+    }
+    if d2 >= dhat2 {
+        return PairGradientTerms::INACTIVE;
+    }
+    let mollifier = edge_edge_mollifier_gradient(ea0, ea1, eb0, eb1, threshold);
+    let b = barrier_derivatives(d2, dhat2);
+    chain_gradient(barrier.stiffness, &distance, b, &mollifier)
 }
 
 /// The mollifier of a point–triangle pair: 1, flat.
@@ -396,6 +498,19 @@ impl Pair {
         }
     }
 
+    /// The value and gradient alone and the vertices: the same bits as
+    /// [`terms`](Self::terms)' (except where that reports an overflowing Hessian as `+inf`).
+    fn gradient_terms(&self, barrier: &ContactBarrier) -> (PairGradientTerms, [u32; 4]) {
+        match *self {
+            Pair::PointTriangle(vertices, points) => {
+                (point_triangle_gradient_terms(barrier, points), vertices)
+            }
+            Pair::EdgeEdge(vertices, points, threshold) => {
+                (edge_edge_gradient_terms(barrier, points, threshold), vertices)
+            }
+        }
+    }
+
     /// The value alone, the same bits as [`terms`](Self::terms)' (except where that reports
     /// an overflowing derivative as `+inf`).
     fn value(&self, barrier: &ContactBarrier) -> Real {
@@ -539,8 +654,10 @@ impl ContactPotential<'_> {
     }
 
     /// Adds the gradient `dB/dx` (N) at `positions` into `gradient` (one per vertex) and
-    /// returns the energy (J, as [`energy`](Self::energy), up to a pair whose derivatives
-    /// overflow, which counts as `+inf`). A touching pair adds nothing to the gradient.
+    /// returns the energy (J, as [`energy`](Self::energy), up to a pair whose value or gradient
+    /// overflows, which counts as `+inf`). A touching pair adds nothing to the gradient. Each
+    /// pair's value and gradient are those of [`point_triangle_potential`] and
+    /// [`edge_edge_potential`] to the bit, computed without the Hessian.
     ///
     /// # Errors
     /// Those of [`energy`](Self::energy), then [`ContactError::BufferLength`] naming
@@ -555,7 +672,7 @@ impl ContactPotential<'_> {
         per_vertex_length(ContactBuffer::Gradient, gradient.len(), positions.len())?;
         let mut total: Real = 0.0;
         self.for_each_pair(positions, |pair| {
-            let (terms, vertices) = pair.terms(&self.barrier);
+            let (terms, vertices) = pair.gradient_terms(&self.barrier);
             total += terms.value;
             if !terms.active {
                 return;

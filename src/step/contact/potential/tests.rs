@@ -168,6 +168,62 @@ fn pair_derivatives_match_finite_differences() {
     }
 }
 
+/// The gradient-only path (what `add_gradient` sums) gives the full path's value, gradient and
+/// activity bit for bit, at random pairs of both kinds: active, inactive, mollified (each kind
+/// counted), and touching.
+#[test]
+fn gradient_terms_match_the_full_terms_bit_for_bit() {
+    let mut rng = Rng(0x5eed_0393);
+    let barrier = ContactBarrier {
+        stiffness: 1.0e3,
+        gap: 0.5,
+    };
+    let bits = |g: [Vec3; 4]| g.map(|v| v.to_array().map(Real::to_bits));
+    let (mut active, mut inactive, mut mollified) = ([0usize; 2], [0usize; 2], 0);
+    for trial in 0..2000 {
+        let points = [rng.vec(1.0), rng.vec(1.0), rng.vec(1.0), rng.vec(1.0)];
+        let edge = trial % 2 == 1;
+        // Thresholds from 0 to past typical c (|u|^2 |v|^2 up to ~10): the mollifier both
+        // fades and is 1.
+        let threshold = 0.5 * rng.unit();
+        let (full, gradient) = if edge {
+            (
+                edge_edge_terms(&barrier, points, threshold),
+                edge_edge_gradient_terms(&barrier, points, threshold),
+            )
+        } else {
+            (point_triangle_terms(&barrier, points), point_triangle_gradient_terms(&barrier, points))
+        };
+        assert_eq!(gradient.value.to_bits(), full.value.to_bits(), "{points:?}");
+        assert_eq!(bits(gradient.gradient), bits(full.gradient), "{points:?}");
+        assert_eq!(gradient.active, full.active, "{points:?}");
+        let kind = usize::from(edge);
+        if full.active {
+            active[kind] += 1;
+            let [a0, a1, b0, b1] = points;
+            if edge && edge_edge_mollifier_value(a0, a1, b0, b1, threshold) < 1.0 {
+                mollified += 1;
+            }
+        } else {
+            inactive[kind] += 1;
+        }
+    }
+    assert!(active.iter().chain(&inactive).all(|&n| n > 20), "{active:?} {inactive:?}");
+    assert!(mollified > 20, "{mollified}");
+    // Touching pairs: +inf and zero gradient on both paths.
+    let v = |x: Real, y: Real, z: Real| Vec3::new(x, y, z);
+    let on = [v(0.2, 0.2, 0.0), v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)];
+    let crossing = [v(-1.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, -1.0, 0.0), v(0.0, 1.0, 0.0)];
+    for gradient in [
+        point_triangle_gradient_terms(&barrier, on),
+        edge_edge_gradient_terms(&barrier, crossing, 1e-3),
+    ] {
+        assert_eq!(gradient.value, Real::INFINITY);
+        assert_eq!(gradient.gradient, [Vec3::ZERO; 4]);
+        assert!(!gradient.active);
+    }
+}
+
 /// `v^T H v` over the twelve coordinates.
 fn quadratic_form(hessian: &[[Mat3; 4]; 4], v: [Vec3; 4]) -> Real {
     let mut sum = 0.0;
@@ -236,6 +292,46 @@ fn projection_is_symmetric_semi_definite_and_removes_only_the_negative_part() {
     // The chain rule's Hessian is indefinite in general (b' < 0 times the distance's Hessian),
     // so the projection was exercised.
     assert!(indefinite > 100, "{indefinite}");
+}
+
+/// The projection's spectrum is the exact Hessian's with the negative eigenvalues set to zero,
+/// both spectra from the independent ten-sweep Jacobi of `SymmetricMatrix`, sorted, at random
+/// active pairs of both kinds (with the mollifier fading at some). Tolerance: `64 eps` times
+/// the largest eigenvalue (Jacobi's backward error on 12x12, a few eps per sweep).
+#[test]
+fn projection_spectrum_is_the_clamped_exact_spectrum() {
+    let mut rng = Rng(0x5eed_0394);
+    let barrier = ContactBarrier {
+        stiffness: 1.0,
+        gap: 0.5,
+    };
+    let sorted = |hessian: &[[Mat3; 4]; 4]| {
+        let (mut values, _) = SymmetricMatrix::from_rows(to_rows(hessian)).eigen();
+        values.sort_by(|a, b| a.total_cmp(b));
+        values
+    };
+    let (mut tested, mut clamped) = (0, 0);
+    while tested < 200 {
+        let points = [rng.vec(1.0), rng.vec(1.0), rng.vec(1.0), rng.vec(1.0)];
+        let exact = if tested % 2 == 1 {
+            edge_edge_terms(&barrier, points, 0.5 * rng.unit())
+        } else {
+            point_triangle_terms(&barrier, points)
+        };
+        if !exact.active {
+            continue;
+        }
+        tested += 1;
+        let expected = sorted(&exact.hessian).map(|l| l.max(0.0));
+        let projected = sorted(&project(&exact.hessian));
+        let largest = expected.iter().fold(0.0, |m: Real, l| m.max(l.abs()));
+        let tolerance = 64.0 * Real::EPSILON * largest;
+        for (got, want) in projected.iter().zip(&expected) {
+            assert!((got - want).abs() <= tolerance, "{projected:?} {expected:?}");
+        }
+        clamped += usize::from(sorted(&exact.hessian)[0] < -tolerance);
+    }
+    assert!(clamped > 100, "{clamped}");
 }
 
 /// A Hessian that is already positive definite comes back bit for bit (a random `A A^T + I`,
