@@ -168,7 +168,11 @@
 //!   `loads.rs`: how external forces and fixed axes enter a step.
 //! * `contact/`: the [`HalfSpace`] and [`Collider`]s, the one contact record (`contact::Contact`),
 //!   the projection onto the admissible set every stepper shares (`floor.rs`) and friction in
-//!   the implicit objective (`friction.rs`).
+//!   the implicit objective (`friction.rs`); and, public in [`contact`], the kernels of
+//!   body–body and self contact (`docs/math.md` chapter 8): a surface's primitives
+//!   (`boundary.rs`), the candidate pairs (`broad_phase/`), their distances (`distance/`), the
+//!   barrier (`barrier.rs`), continuous collision detection (`ccd/`) and the contact energy
+//!   with its derivatives (`potential/`). No stepper calls these yet (issue #39).
 //! * `vertex_pass/`: the passes over the vertices (integration, projection, trial points,
 //!   residuals) in blocks of [`VERTEX_BLOCK`](vertex_pass::VERTEX_BLOCK) (`mod.rs`), their bodies
 //!   four to sixteen vertices at a time on x86_64 (`passes.rs`), on the per-vertex arithmetic
