@@ -24,6 +24,7 @@
 //! `-(h_1 + h_2)` for corner 0. Per element: 16 numbers for a 2D triangle (64 bytes in f32,
 //! 128 in f64), 36 for a membrane (144 / 288 bytes).
 
+use super::super::material::hessian::JacobiAngle;
 use super::super::types::{Mat2, Mat3, Real, Vec2, Vec3};
 use super::{TriRest, TriangleStVK, Vector};
 
@@ -176,16 +177,7 @@ fn rotate<const N: usize>(a: &mut [[Real; N]; N], q: &mut [[Real; N]; N], p: usi
     if apr == 0.0 {
         return;
     }
-    let theta = (get(a, r, r) - get(a, p, p)) / (2.0 * apr);
-    const HUGE: Real = 1.0e15;
-    let t = if theta.abs() > HUGE {
-        0.5 / theta
-    } else {
-        let sign = if theta < 0.0 { -1.0 } else { 1.0 };
-        sign / (theta.abs() + super::super::math::sqrt(theta * theta + 1.0))
-    };
-    let cos = 1.0 / super::super::math::sqrt(t * t + 1.0);
-    let sin = t * cos;
+    let JacobiAngle { cos, sin, .. } = JacobiAngle::zeroing(get(a, p, p), get(a, r, r), apr);
     // a <- J^T a J with J the rotation in the (p, r) plane: columns, then rows.
     for row in a.iter_mut() {
         let (x, y) = (

@@ -531,6 +531,44 @@ pub(super) fn symmetric_eigen3(m: Mat3) -> (Vec3, Mat3) {
     )
 }
 
+/// The plane rotation of a symmetric Jacobi step that zeroes the off-diagonal entry `apr` of
+/// the 2x2 block `[[app, apr], [apr, arr]]` (Golub and Van Loan, algorithm 8.4.2): the smaller of
+/// the two angles. Shared by every symmetric Jacobi eigen-solver of the crate (the 3x3 stress
+/// derivatives here, the triangle and membrane blocks of `element`, the contact pairs of
+/// `step::contact::potential`), so they rotate with the same bits.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct JacobiAngle {
+    /// `tan` of the angle: the smaller root of `t^2 + 2 theta t - 1 = 0`, `theta = (arr - app)
+    /// / (2 apr)`.
+    pub t: Real,
+    /// `cos` of the angle.
+    pub cos: Real,
+    /// `sin` of the angle.
+    pub sin: Real,
+}
+
+impl JacobiAngle {
+    /// The rotation zeroing `apr` (which must not be 0; the callers skip a zero entry).
+    #[inline(always)]
+    pub fn zeroing(app: Real, arr: Real, apr: Real) -> JacobiAngle {
+        let theta = (arr - app) / (2.0 * apr);
+        // For a huge theta, theta^2 would overflow and t = 1 / (2 theta) to rounding.
+        const HUGE: Real = 1.0e15;
+        let t = if theta.abs() > HUGE {
+            0.5 / theta
+        } else {
+            let sign = if theta < 0.0 { -1.0 } else { 1.0 };
+            sign / (theta.abs() + math::sqrt(theta * theta + 1.0))
+        };
+        let cos = 1.0 / math::sqrt(t * t + 1.0);
+        JacobiAngle {
+            t,
+            cos,
+            sin: t * cos,
+        }
+    }
+}
+
 /// One Jacobi rotation zeroing `a[p][r]` (`p < r`), accumulated into the columns of `q`.
 #[inline(always)]
 fn jacobi_rotation(a: &mut [[Real; 3]; 3], q: &mut [[Real; 3]; 3], p: usize, r: usize) {
@@ -542,18 +580,7 @@ fn jacobi_rotation(a: &mut [[Real; 3]; 3], q: &mut [[Real; 3]; 3], p: usize, r: 
         return;
     }
     let (app, arr) = (get(a, p, p), get(a, r, r));
-    let theta = (arr - app) / (2.0 * apr);
-    // t = tan of the rotation angle, the smaller root of t^2 + 2 theta t - 1 = 0; for a huge
-    // theta, theta^2 would overflow and t = 1 / (2 theta) to rounding.
-    const HUGE: Real = 1.0e15;
-    let t = if theta.abs() > HUGE {
-        0.5 / theta
-    } else {
-        let sign = if theta < 0.0 { -1.0 } else { 1.0 };
-        sign / (theta.abs() + math::sqrt(theta * theta + 1.0))
-    };
-    let cos = 1.0 / math::sqrt(t * t + 1.0);
-    let sin = t * cos;
+    let JacobiAngle { t, cos, sin } = JacobiAngle::zeroing(app, arr, apr);
     let other = 3 - p - r;
     let (aop, aor) = (get(a, other, p), get(a, other, r));
     let new_op = cos * aop - sin * aor;

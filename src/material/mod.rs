@@ -268,7 +268,7 @@ macro_rules! invariant_hessian_methods {
     };
 }
 
-mod hessian;
+pub(crate) mod hessian;
 mod lame;
 mod neo_hookean;
 mod stable_neo_hookean;

@@ -5,7 +5,7 @@
 //! Hessian has the translations in its null space, so only its 9x9 block of relative motions
 //! (in a Hadamard basis) is diagonalised.
 
-use super::super::super::super::math::sqrt;
+use super::super::super::super::material::hessian::JacobiAngle;
 use super::super::super::super::types::{Mat3, Real};
 
 /// The dimension: four points of three coordinates.
@@ -91,17 +91,7 @@ fn rotate<const M: usize>(a: &mut [[Real; M]; M], vectors: &mut [[Real; M]; M], 
         return;
     }
     let (app, arr) = (entry(a, p, p), entry(a, r, r));
-    // The rotation of Golub and Van Loan (algorithm 8.5.1), the smaller of the two angles.
-    let theta = (arr - app) / (2.0 * apr);
-    const HUGE: Real = 1.0e15;
-    let t = if theta.abs() > HUGE {
-        0.5 / theta
-    } else {
-        let sign = if theta < 0.0 { -1.0 } else { 1.0 };
-        sign / (theta.abs() + sqrt(theta * theta + 1.0))
-    };
-    let cos = 1.0 / sqrt(t * t + 1.0);
-    let sin = t * cos;
+    let JacobiAngle { t, cos, sin } = JacobiAngle::zeroing(app, arr, apr);
     let rotate_rows = |rows: &mut [[Real; M]; M]| {
         let (head, tail) = rows.split_at_mut(r);
         if let (Some(row_p), Some(row_r)) = (head.get_mut(p), tail.first_mut()) {
