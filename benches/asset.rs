@@ -9,9 +9,10 @@
 //! with 10 cells along the diameter (centre sampling), the render vertices bound within a margin
 //! of one cell diagonal.
 //!
-//! `cargo bench --bench asset` runs criterion for the two per-frame operations and then prints a
-//! table from a plain `Instant` pass (minimum over rounds). `SOFTFEM_BENCH_QUICK=1` skips
-//! criterion and prints the table from a few repetitions: a smoke test.
+//! `cargo bench -p softfem-benches --bench asset` runs criterion for the two per-frame operations
+//! and then prints a table from a plain `Instant` pass (minimum over rounds).
+//! `SOFTFEM_BENCH_QUICK=1` skips criterion and prints the table from a few repetitions: a smoke
+//! test.
 
 mod common;
 // The tests' icosphere, so that the surface is written once.

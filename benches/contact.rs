@@ -22,7 +22,7 @@
 //!
 //! Every operation is timed round-robin (blocks of about 20 ms, the least of 5 rounds; with
 //! `SOFTFEM_BENCH_QUICK=1` 2 ms blocks and 3 rounds), and the table names the CPU it ran on.
-//! `cargo bench --bench contact` (a few seconds).
+//! `cargo bench -p softfem-benches --bench contact` (a few seconds).
 
 mod common;
 

@@ -18,7 +18,7 @@
 //! `F` differs from element to element and is never trivial, and `J > 0` everywhere (checked at
 //! start-up; the tables print the range of `J`).
 //!
-//! `cargo bench --bench forces` runs two passes:
+//! `cargo bench -p softfem-benches --bench forces` runs two passes:
 //! 1. criterion, one group per mesh size with `Throughput::Elements(tets)`, one benchmark per
 //!    variant, each iteration one pass over the whole mesh, 10 samples each. The 1M group uses
 //!    flat sampling and a longer measurement time (an iteration takes 25 to 200 ms there). With

@@ -18,9 +18,9 @@
 //! Criterion times the three passes (ns per tetrahedron in the table pass below); the table
 //! pass then times every operation round-robin (each block repeated for about 50 ms, the least
 //! of 5 rounds; the solves are run 3 times, least kept) and prints the ratios: product over
-//! force pass, and relaxation time over Newton time, from the same run. `cargo bench --bench
-//! hessian` (about a minute; `SOFTFEM_BENCH_QUICK=1` skips criterion, times 5 ms blocks and runs one
-//! solve each).
+//! force pass, and relaxation time over Newton time, from the same run. `cargo bench -p
+//! softfem-benches --bench hessian` (about a minute; `SOFTFEM_BENCH_QUICK=1` skips criterion, times
+//! 5 ms blocks and runs one solve each).
 
 mod common;
 

@@ -53,7 +53,8 @@
 //! `SOFTFEM_BENCH_THREADS=1,2,4,8,16` picks other pool sizes (default: 1, 2 and all cores).
 //! `SOFTFEM_BENCH_QUICK=1` is a smoke test (the small box only, few repetitions).
 //!
-//! `cargo bench --features rayon --bench parallel` takes about a minute and a half on two cores.
+//! `cargo bench -p softfem-benches --features rayon --bench parallel` takes about a minute and a
+//! half on two cores.
 
 mod common;
 

@@ -44,10 +44,10 @@
 //! The force evaluations run at the positions the 20-iteration relaxation reaches (the box sagged
 //! under gravity for 1/60 s), so every element is deformed.
 //!
-//! `cargo bench --bench step` runs criterion (one group per model, flat sampling, 10 samples)
-//! and then a plain `Instant` pass that times every operation of both models round-robin, each
-//! timed block repeating one operation for about 50 ms, keeps the minimum per operation and
-//! prints the markdown tables (ratios from one run). About a minute in all.
+//! `cargo bench -p softfem-benches --bench step` runs criterion (one group per model, flat
+//! sampling, 10 samples) and then a plain `Instant` pass that times every operation of both models
+//! round-robin, each timed block repeating one operation for about 50 ms, keeps the minimum per
+//! operation and prints the markdown tables (ratios from one run). About a minute in all.
 //!
 //! `SOFTFEM_BENCH_QUICK=1` skips criterion and runs the table pass on a 12^3-cube box (10 368
 //! tetrahedra) with short blocks: a smoke test that finishes in seconds.

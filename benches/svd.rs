@@ -7,7 +7,7 @@
 //! also gives each routine's largest reconstruction error `||u diag(s) v^T - a||_F / ||a||_F`
 //! over the batch (in f64, from the outputs widened exactly).
 //!
-//! `cargo bench --bench svd` runs two passes:
+//! `cargo bench -p softfem-benches --bench svd` runs two passes:
 //! 1. criterion, one benchmark per variant, each iteration decomposing the whole batch (criterion
 //!    reports elements/s);
 //! 2. a plain `Instant` pass that times every variant round-robin several times, keeps the minimum
@@ -18,8 +18,8 @@
 //! `SOFTFEM_BENCH_QUICK=1` skips criterion and runs the table pass with few repetitions: a smoke
 //! test that finishes in about a second (used by `.ci/run`). `SOFTFEM_BENCH_CSV=<path>` appends
 //! one CSV row per table row (`bench,workload,size,lanes,threads,value,unit`, see
-//! `benches/common/mod.rs`). `cargo bench --bench svd -- zzz` runs only the table pass (the
-//! filter matches no criterion benchmark).
+//! `benches/common/mod.rs`). `cargo bench -p softfem-benches --bench svd -- zzz` runs only the
+//! table pass (the filter matches no criterion benchmark).
 //!
 //! `SOFTFEM_BENCH_FTZ=1` (x86_64) sets the MXCSR's flush-to-zero and denormals-are-zero bits
 //! for the whole run: subnormal results and inputs become zero, which changes some results (the

@@ -25,11 +25,11 @@
 //!   and the fused passes are parallel), and the model's fused pass alone
 //!   (**energy + forces, parallel**), which its row's sweep is measured against.
 //!
-//! `cargo bench --bench vbd [--features rayon]` runs criterion (one group per mesh, flat
-//! sampling, 10 samples) and then a plain `Instant` pass that times every operation round-robin,
-//! each timed block repeating one operation for about 50 ms, keeps the minimum per operation
-//! and prints the markdown table (ratios from one run). `SOFTFEM_BENCH_QUICK=1` skips criterion
-//! and the 100k mesh: a smoke test of seconds.
+//! `cargo bench -p softfem-benches --bench vbd [--features rayon]` runs criterion (one group per
+//! mesh, flat sampling, 10 samples) and then a plain `Instant` pass that times every operation
+//! round-robin, each timed block repeating one operation for about 50 ms, keeps the minimum per
+//! operation and prints the markdown table (ratios from one run). `SOFTFEM_BENCH_QUICK=1` skips
+//! criterion and the 100k mesh: a smoke test of seconds.
 
 mod common;
 

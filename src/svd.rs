@@ -56,9 +56,9 @@ pub use batch::{svd3_batch, svd3_batch_sweeps};
 /// The most Jacobi sweeps [`svd3`] runs: 4 in both precisions (each sweep is three rotations;
 /// fewer run when the matrix has converged before, see the module documentation). With 3,
 /// the worst error on the 3072 matrices of the README's SVD chart is 8.3e-6 (`cargo run
-/// --release --example tradeoffs -- --only svd`); with 4, f32 reaches its rounding floor (4.0e-7
-/// over the normal-range classes of `cargo test --release --test kernels svd::report --
-/// --nocapture`, 6.5e-16 in f64), and 5 to 8 sweeps give the same bits.
+/// --release -p softfem-examples --features charts --bin tradeoffs -- --only svd`); with 4, f32
+/// reaches its rounding floor (4.0e-7 over the normal-range classes of `cargo test --release --test
+/// kernels svd::report -- --nocapture`, 6.5e-16 in f64), and 5 to 8 sweeps give the same bits.
 pub const DEFAULT_SWEEPS: u32 = math::DEFAULT_SVD_SWEEPS;
 
 /// A rotation-variant SVD: `a = u * diag(sigma) * v^T`.

@@ -14,7 +14,7 @@
 //! of six interleaved runs, 2026-12-03); four registers at a time ran slower (23.5 against
 //! 21.5 ns: their values no longer fit the 32 registers). The chain, not the divider, is the
 //! limit: 24 fewer divisions or 12 fewer square roots per group of 16 changed nothing
-//! measurable. `cargo bench --bench svd` gives the times per width.
+//! measurable. `cargo bench -p softfem-benches --bench svd` gives the times per width.
 
 #[cfg(not(debug_assertions))]
 use super::super::lanes::LanePair;

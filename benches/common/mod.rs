@@ -40,7 +40,8 @@ pub fn quick() -> bool {
 pub enum TablePass {
     /// `--list` or `--profile-time`: not a measurement, so no table.
     Skip,
-    /// `--test` (`cargo bench -- --test`): only checks that everything runs, so one short pass.
+    /// `--test` (`cargo bench -p softfem-benches -- --test`): only checks that everything runs, so
+    /// one short pass.
     Test,
     /// A real measurement.
     Full,
@@ -159,14 +160,19 @@ fn csv_field(field: &str) -> String {
 }
 
 /// Appends `rows` to the file named by `SOFTFEM_BENCH_CSV`, writing the header first when the
-/// file is new or empty; does nothing when the variable is unset. Several benches can append
-/// to one file, so the README tables and the charts come from one run. Panics (failing the
-/// bench) if the file cannot be written: a run asked to record must not silently lose rows.
+/// file is new or empty; does nothing when the variable is unset. A relative path is taken from
+/// the repository root (cargo runs a bench in its package's folder, `benches/`), so
+/// `SOFTFEM_BENCH_CSV=target/parallel.csv` typed at the root writes `target/parallel.csv`.
+/// Several benches can append to one file, so the README tables and the charts come from one
+/// run. Panics (failing the bench) if the file cannot be written: a run asked to record must not
+/// silently lose rows.
 pub fn append_csv_rows(rows: &[CsvRow]) {
     use std::io::Write;
     let Some(path) = std::env::var_os("SOFTFEM_BENCH_CSV") else {
         return;
     };
+    let repository_root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let path = repository_root.join(path);
     let mut file = std::fs::OpenOptions::new()
         .create(true)
         .append(true)

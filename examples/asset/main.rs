@@ -1,4 +1,5 @@
-//! `cargo run --release --example asset`: from a game asset to a soft body and back.
+//! `cargo run --release -p softfem-examples --bin asset`: from a game asset to a soft body and
+//! back.
 //!
 //! Takes a closed triangle surface (a procedural long-eared creature, or any OBJ with
 //! `--surface`), voxel-meshes it into tetrahedra (`softfem::asset::voxel`), embeds the surface's

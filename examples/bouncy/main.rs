@@ -1,5 +1,5 @@
-//! `cargo run --release --example bouncy`: a soft jelly cube (or any TetGen mesh, `--mesh`)
-//! dropped onto the ground, bouncing and settling.
+//! `cargo run --release -p softfem-examples --bin bouncy`: a soft jelly cube (or any TetGen mesh,
+//! `--mesh`) dropped onto the ground, bouncing and settling.
 //!
 //! Builds the scene from the flags, validates the mesh and material, steps it with
 //! `softfem::step` (explicit symplectic Euler at half the computed stable time step, or implicit

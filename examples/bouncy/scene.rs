@@ -737,7 +737,7 @@ mod tests {
 
     #[test]
     fn tetgen_mesh_is_read_oriented_and_placed() {
-        let node = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/meshes/cube.node");
+        let node = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/meshes/cube.node");
         let geometry = Geometry::from_tetgen(&node)
             .unwrap()
             .placed_above_ground(1.0);

@@ -1,8 +1,8 @@
 //! Many cores, same bits: a game loop that steps several small soft bodies and one large one in
 //! parallel, and checks every frame against the sequential run, bit for bit.
 //!
-//! `cargo run --release --features rayon --example parallel [-- --frames 30 --cells 20
-//! --bodies 8 --threads 2]`
+//! `cargo run --release -p softfem-examples --features rayon --bin parallel [-- --frames 30 --cells
+//! 20 --bodies 8 --threads 2]`
 //!
 //! Every frame (1/60 s, implicit Euler by the Chebyshev relaxation) runs twice:
 //! * in parallel: the small bodies spread over the pool's threads (`par_iter_mut`, one body per

@@ -1,7 +1,8 @@
 //! The colliders' playground: a soft ball and a soft box (and a second, stiffer ball) fall onto
 //! a kinematic paddle that rocks back and forth, a sphere and a capsule, all on the ground.
 //!
-//! `cargo run --release --example playground -- [--duration S] [--out DIR] [--stepper NAME]`
+//! `cargo run --release -p softfem-examples --bin playground -- [--duration S] [--out DIR]
+//! [--stepper NAME]`
 //!
 //! Writes one legacy VTK file of all bodies per frame (`frame_0000.vtk` ...; open them in
 //! ParaView; the `body` cell field tells the bodies apart) and `filmstrip.svg`, a side view of

@@ -1,4 +1,5 @@
-//! `cargo run --release --example tradeoffs`: speed against accuracy, measured.
+//! `cargo run --release -p softfem-examples --features charts --bin tradeoffs`: speed against
+//! accuracy, measured.
 //!
 //! Each chart measures one trade-off and writes an SVG chart and the CSV of the numbers behind it
 //! into the output directory: `target/tradeoffs/` by default (a scratch folder), or, with
@@ -154,9 +155,15 @@ fn main() -> ExitCode {
     }
 }
 
+/// The repository's root: the folder above this program's package, `examples/`.
+fn repository_root() -> &'static Path {
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR"));
+    examples.parent().unwrap_or(examples)
+}
+
 /// The repository's `docs/` directory, which holds the committed charts.
 fn docs_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("docs")
+    repository_root().join("docs")
 }
 
 /// `path` made absolute (against `cwd`) with `.` and `..` resolved by name, so that
@@ -182,7 +189,7 @@ impl Args {
         let out = match (&self.out, self.update_docs) {
             (_, true) => docs_dir().join("charts"),
             (Some(out), false) => absolute(out, cwd),
-            (None, false) => Path::new(env!("CARGO_MANIFEST_DIR")).join(DEFAULT_OUT),
+            (None, false) => repository_root().join(DEFAULT_OUT),
         };
         if self.quick && out.starts_with(absolute(&docs_dir(), cwd)) {
             return Err(format!(
@@ -275,7 +282,7 @@ mod tests {
 
     #[test]
     fn by_default_nothing_is_written_into_docs() {
-        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let root = repository_root();
         let docs = root.join("docs");
         // From the repository root (where `cargo run` is usually typed) and from docs/ itself.
         for cwd in [root.to_path_buf(), docs.clone()] {
@@ -299,7 +306,7 @@ mod tests {
 
     #[test]
     fn only_an_explicit_full_run_regenerates_the_committed_charts() {
-        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let root = repository_root();
         let charts = root.join("docs/charts");
         let update = Args::try_parse_from(["tradeoffs", "--update-docs"]).unwrap();
         assert_eq!(update.output_dir(Path::new("/")).unwrap(), charts);

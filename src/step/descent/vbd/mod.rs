@@ -559,20 +559,20 @@ impl<M: Material> VertexBlockModel for TetElastic<'_, M> {}
 /// energies are evaluated one vertex at a time); the scalar sweep before the lanes cost 14.0
 /// and 39 on the same machine. Each element is still visited once per corner, and a visit
 /// gathers its corners' positions and rest data lane by lane, which is now most of its time,
-/// where a force pass gathers once per element. `cargo bench --features rayon --bench vbd`
-/// (load 3) gave 6.3 force passes at 10 368 tetrahedra and 7.9 at 105 456, where the gather
-/// runs from the last-level cache (the scalar sweep, built and run right after: 15.5 and
+/// where a force pass gathers once per element. `cargo bench -p softfem-benches --features rayon
+/// --bench vbd` (load 3) gave 6.3 force passes at 10 368 tetrahedra and 7.9 at 105 456, where the
+/// gather runs from the last-level cache (the scalar sweep, built and run right after: 15.5 and
 /// 17.0). With the packed layout of [`VbdScratch::with_layout`] a visit loads its rest data
 /// instead of gathering it: `measure_sweep_cost` (load 5-8) gave 5.9-6.4 force passes on the
 /// bouncy cube where the gathered sweep gave 6.7-7.5 in the same run, and the criterion medians
-/// of `cargo bench --features rayon --bench vbd` (load 5-7, one run) 4.7 force passes at
-/// 10 368 tetrahedra (gathered: 6.2) and 6.7 at 105 456 (gathered: 11.7), the same bits. With
-/// the vertex block factored as `L D L^T` without square roots, one run of `cargo bench
-/// --features rayon --bench vbd -- zzz` on a quiet machine (Intel Xeon with AVX-512, load
-/// below 1) gave 2.86 force passes per sweep at 10 368 tetrahedra and 2.91 at 105 456 with the
-/// packed layout (gathered: 4.65 and 5.75). The packed sweep gathers its corners' positions
-/// four lanes at a time through the force passes' SSE transposes (it set them lane by lane
-/// before): in three interleaved runs of that bench on an AMD EPYC with AVX2 (2026-12-03,
+/// of `cargo bench -p softfem-benches --features rayon --bench vbd` (load 5-7, one run) 4.7 force
+/// passes at 10 368 tetrahedra (gathered: 6.2) and 6.7 at 105 456 (gathered: 11.7), the same bits.
+/// With the vertex block factored as `L D L^T` without square roots, one run of `cargo bench -p
+/// softfem-benches --features rayon --bench vbd -- zzz` on a quiet machine (Intel Xeon with
+/// AVX-512, load below 1) gave 2.86 force passes per sweep at 10 368 tetrahedra and 2.91 at 105 456
+/// with the packed layout (gathered: 4.65 and 5.75). The packed sweep gathers its corners'
+/// positions four lanes at a time through the force passes' SSE transposes (it set them lane by
+/// lane before): in three interleaved runs of that bench on an AMD EPYC with AVX2 (2026-12-03,
 /// 22:00 UTC) its sweep took 0.81-0.91 of the time it took before, 3.44-3.68 force passes
 /// at 10 368 tetrahedra (4.05-4.27 before) and 4.33-4.49 at 105 456 (4.90-5.26), the same
 /// bits. A sweep computes `F`, `P g` and the 3x3 block once per element and corner, where a
@@ -602,21 +602,22 @@ impl<M: Material> VertexBlockModel for TetElastic<'_, M> {}
 /// best on the bouncy cube, the estimate
 /// [`VbdSettings::with_estimated_chebyshev`](DescentSettings::<VbdOptions>::with_estimated_chebyshev)
 /// on the 30 steps of the clamped stiff block). On the single solves of the descent chart (`cargo
-/// run --release --example tradeoffs -- --only descent`, f64, no line search) `(0.95, 2)` took 41
-/// sweeps on the bouncy cube's landing and 31 on the stiff block's first step, where the estimate
-/// from 4 plain sweeps took 111 and 81 (0.9: 65 and 42; 0.98: 40 and 41); in wall time, back to
-/// back at a load of 4 to 6, 0.5 to 0.9 of GD + Chebyshev's on the landing (the estimate: 1.6 to
-/// 2.3) and 2.1 to 3.3 of it on the stiff block (the estimate: 3.4 to 5.5); after the `L D L^T`
-/// solve, one quiet run: 40 and 31 sweeps, 0.62 and 2.0 times GD + Chebyshev's time. With the
-/// deferred evaluations of accelerated sweeps (see [the stopping test](#stopping-test-and-cost)),
-/// one run of the chart at a load of 4 to 5: the same 40 and 31 sweeps and final residuals with 18
-/// and 20 evaluations (44 and 35 before), 2.7 and 5.2 force passes an iteration (3.3 and 5.6
-/// before), 0.47 and 1.9 times GD + Chebyshev's time. On the stiff block's 96 tetrahedra a sweep
-/// alone costs about 4.4 force passes (8 colours of at most 6 vertices, so the 8 f64 lanes of a
-/// group are partly idle, and every element is visited once per corner), against GD + Chebyshev's
-/// 1.3 an iteration for 64 iterations (85 force passes in all): half its time, after VBD's start of
-/// about 7 force passes (the initial guesses and the block norms of the rounding floor), would
-/// leave 31 sweeps about 1.15 force passes each, or far fewer sweeps.
+/// run --release -p softfem-examples --features charts --bin tradeoffs -- --only descent`, f64, no
+/// line search) `(0.95, 2)` took 41 sweeps on the bouncy cube's landing and 31 on the stiff block's
+/// first step, where the estimate from 4 plain sweeps took 111 and 81 (0.9: 65 and 42; 0.98: 40 and
+/// 41); in wall time, back to back at a load of 4 to 6, 0.5 to 0.9 of GD + Chebyshev's on the
+/// landing (the estimate: 1.6 to 2.3) and 2.1 to 3.3 of it on the stiff block (the estimate: 3.4 to
+/// 5.5); after the `L D L^T` solve, one quiet run: 40 and 31 sweeps, 0.62 and 2.0 times GD +
+/// Chebyshev's time. With the deferred evaluations of accelerated sweeps (see [the stopping
+/// test](#stopping-test-and-cost)), one run of the chart at a load of 4 to 5: the same 40 and 31
+/// sweeps and final residuals with 18 and 20 evaluations (44 and 35 before), 2.7 and 5.2 force
+/// passes an iteration (3.3 and 5.6 before), 0.47 and 1.9 times GD + Chebyshev's time. On the stiff
+/// block's 96 tetrahedra a sweep alone costs about 4.4 force passes (8 colours of at most 6
+/// vertices, so the 8 f64 lanes of a group are partly idle, and every element is visited once per
+/// corner), against GD + Chebyshev's 1.3 an iteration for 64 iterations (85 force passes in all):
+/// half its time, after VBD's start of about 7 force passes (the initial guesses and the block
+/// norms of the rounding floor), would leave 31 sweeps about 1.15 force passes each, or far fewer
+/// sweeps.
 ///
 /// ```
 /// use softfem::element::TetRest;
