@@ -7,6 +7,8 @@
 
 #[path = "../common/mod.rs"]
 mod common;
+#[path = "../common/intersection.rs"]
+mod intersection;
 
 mod adversarial;
 mod body;
