@@ -312,6 +312,10 @@ pub enum MeshError {
         /// The number of pieces of that kind.
         pieces: usize,
     },
+    /// The body–body contact of a model with contact
+    /// ([`step::contact::ContactModel`](crate::step::contact::ContactModel)) refused the input or
+    /// ran out of a caller buffer (the error names the buffer and the count needed).
+    Contact(ContactError),
 }
 
 impl MeshError {
@@ -392,11 +396,26 @@ impl fmt::Display for MeshError {
             MeshError::PieceIndex { piece, pieces } => {
                 write!(f, "piece {piece} asked for, the partition has {pieces}")
             }
+            MeshError::Contact(error) => write!(f, "contact: {error}"),
         }
     }
 }
 
-impl core::error::Error for MeshError {}
+impl core::error::Error for MeshError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            MeshError::Contact(error) => Some(error),
+            _ => None,
+        }
+    }
+}
+
+impl From<ContactError> for MeshError {
+    #[inline]
+    fn from(error: ContactError) -> Self {
+        MeshError::Contact(error)
+    }
+}
 
 /// A caller-owned buffer passed to a time stepper in [`step`](crate::step), named in
 /// [`StepError::LengthMismatch`].

@@ -62,6 +62,25 @@ pub trait ElasticEnergy: ElasticModel {
         positions: &[Self::Vector],
         forces: &mut [Self::Vector],
     ) -> Result<Real, MeshError>;
+
+    /// The largest fraction `t` in `[0, 1]` of the straight motion from `from` to `to` (m, one
+    /// position per vertex) that the model admits: every point `from + s (to - from)` with
+    /// `s <= t` keeps its surfaces apart. 1 (the default) for a model without contact; a
+    /// [`ContactModel`](super::contact::model::ContactModel) answers by continuous collision
+    /// detection. The descent solvers take no trial point or initial guess beyond it, so that no
+    /// iterate is reached through an intersection.
+    ///
+    /// # Errors
+    /// The model's (a contact model's buffers and inputs).
+    #[inline]
+    fn admissible_step(
+        &self,
+        from: &[Self::Vector],
+        to: &[Self::Vector],
+    ) -> Result<Real, MeshError> {
+        let _ = (from, to);
+        Ok(1.0)
+    }
 }
 
 /// An [`ElasticEnergy`] with second derivatives, as Newton's method

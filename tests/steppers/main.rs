@@ -14,6 +14,7 @@ mod adversarial;
 mod body;
 mod chebyshev_estimate;
 mod colliders;
+mod contact;
 mod explicit_colliders;
 mod firmware_body;
 mod frequency;

@@ -16,6 +16,9 @@
 //!   step a pair, or every candidate pair, can move without intersecting (`contact/ccd/`).
 //! * [`potential`]: the contact energy over the candidate pairs, its gradient and projected
 //!   Hessian, per pair and per vertex, and matrix-free Hessian products (`contact/potential/`).
+//! * [`model`]: [`ContactModel`], an elastic model with that potential in its energy and
+//!   continuous collision detection in its admissible steps, which the implicit solvers take
+//!   as any model (`model.rs`).
 
 pub mod barrier;
 pub mod boundary;
@@ -26,6 +29,7 @@ pub mod distance;
 pub(crate) mod floor;
 pub(crate) mod friction;
 pub(crate) mod half_space;
+pub mod model;
 pub mod potential;
 pub(crate) mod vertex;
 
@@ -34,6 +38,7 @@ use super::super::types::Real;
 pub use collider::{Collider, Shape, SignedDistance};
 pub use friction::SUGGESTED_STICKING_SPEED;
 pub use half_space::HalfSpace;
+pub use model::{ContactBuffers, ContactModel};
 
 /// What friction needs of one contact at a vertex.
 #[derive(Clone, Copy, Debug)]

@@ -266,9 +266,11 @@ impl Start {
             },
             drop,
         );
+        let pulled_back = admit_guess(objective, points.current)?;
         let mut evaluation = objective.evaluate(points.current, points.gradient, None)?;
         let mut energy_evaluations = 1;
         let translated = drop != F::Vector::ZERO
+            && !pulled_back
             && evaluation.phi.is_finite()
             && objective.previous_velocities.is_none()
             && objective.translation_invariant()
@@ -284,6 +286,7 @@ impl Start {
                 Some(previous) => objective.adaptive_guess(second, previous),
                 None => objective.initial_guess(second, F::Vector::ZERO),
             }
+            admit_guess(objective, points.other)?;
             let inertial = objective.evaluate(points.other, points.trial_gradient, None)?;
             energy_evaluations += 1;
             // y also wins when y + h^2 g is not finite (NaN compares false).
@@ -341,6 +344,7 @@ impl Start {
             gradient: points.trial_gradient,
         };
         objective.rigid_guess(second);
+        admit_guess(objective, points.other)?;
         let rigid = objective.evaluate(points.other, points.trial_gradient, None)?;
         self.energy_evaluations += 1;
         if rule.rigid_scale() {
@@ -376,6 +380,43 @@ impl Start {
         }
         Ok(())
     }
+}
+
+/// How many times [`admit_guess`] pulls a guess back before it falls back to the start.
+const GUESS_PULLS: u32 = 4;
+
+/// Pulls the initial guess in `positions` back toward the start positions `x_n` along the
+/// straight line between them, to the fraction of it the model admits
+/// ([`ElasticEnergy::admissible_step`]), so that the guess is reached from `x_n` without passing
+/// a surface through another; after [`GUESS_PULLS`] pulls that leave it inadmissible (rounding
+/// of the pulled positions), `x_n` itself. Pinned vertices and fixed coordinates hold `x_n`'s
+/// values in both, and keep them. Returns whether the guess moved. A model without contact
+/// admits every guess: one call, nothing written.
+///
+/// # Errors
+/// The model's.
+fn admit_guess<F: ElasticEnergy>(
+    objective: &Objective<'_, F>,
+    positions: &mut [F::Vector],
+) -> Result<bool, StepError> {
+    let start = objective.vertices.start;
+    let mut admitted = objective.model.admissible_step(start, positions)?;
+    if admitted >= 1.0 {
+        return Ok(false);
+    }
+    for _ in 0..GUESS_PULLS {
+        for (x, &x0) in positions.iter_mut().zip(start) {
+            if *x != x0 {
+                *x = x0 + (*x - x0) * admitted;
+            }
+        }
+        admitted = objective.model.admissible_step(start, positions)?;
+        if admitted >= 1.0 {
+            return Ok(true);
+        }
+    }
+    copy(positions, start);
+    Ok(true)
 }
 
 /// What the loop does after a phase of an iteration.
@@ -565,7 +606,10 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
             omega,
         });
         objective.loads.restore_fixed(points.current, points.other);
-        if self.defers() {
+        // A trial the model does not admit (it would pass a surface through another) is
+        // rejected as one that raised Phi.
+        let admitted = objective.model.admissible_step(points.current, points.other)? >= 1.0;
+        if admitted && self.defers() {
             if self.deferred == 0 {
                 copy(self.direction, self.points.current);
             }
@@ -575,25 +619,29 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
             self.report.iterations += 1;
             return Ok(true);
         }
-        let points = &mut self.points;
-        let lag = Lag::new(points.current, points.gradient);
-        let extrapolated = objective.evaluate(points.other, points.trial_gradient, Some(lag))?;
-        self.report.energy_evaluations += 1;
-        let Evaluation {
-            phi: trial_phi,
-            elastic: trial_elastic,
-            ..
-        } = extrapolated;
-        // The semi-iteration is not monotone in Phi in general, but an increase (beyond
-        // rounding) means the nonlinearity or the contacts broke the linear model it
-        // relies on: restart from a plain, line-searched step (Wang and Yang's fallback).
-        let noise = ROUNDING * (self.report.phi.abs() + trial_phi.abs() + trial_elastic.abs())
-            + self.rule.phi_resolution();
-        if trial_phi <= self.report.phi + noise {
-            self.deferred = 0;
-            self.accepted_in_row = self.accepted_in_row.saturating_add(1);
-            self.take(extrapolated);
-            return Ok(true);
+        if admitted {
+            let points = &mut self.points;
+            let lag = Lag::new(points.current, points.gradient);
+            let extrapolated =
+                objective.evaluate(points.other, points.trial_gradient, Some(lag))?;
+            self.report.energy_evaluations += 1;
+            let Evaluation {
+                phi: trial_phi,
+                elastic: trial_elastic,
+                ..
+            } = extrapolated;
+            // The semi-iteration is not monotone in Phi in general, but an increase (beyond
+            // rounding) means the nonlinearity or the contacts broke the linear model it
+            // relies on: restart from a plain, line-searched step (Wang and Yang's fallback).
+            let noise = ROUNDING
+                * (self.report.phi.abs() + trial_phi.abs() + trial_elastic.abs())
+                + self.rule.phi_resolution();
+            if trial_phi <= self.report.phi + noise {
+                self.deferred = 0;
+                self.accepted_in_row = self.accepted_in_row.saturating_add(1);
+                self.take(extrapolated);
+                return Ok(true);
+            }
         }
         self.report.restarts += 1;
         self.restart_weights();
@@ -741,6 +789,17 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
                     },
                 );
                 objective.loads.restore_fixed(points.current, points.other);
+            }
+            // A trial the model does not admit (contact: a surface would pass through another
+            // on the way) is not evaluated: the step shrinks to the admitted fraction, and the
+            // trial is formed again there.
+            let admitted = objective
+                .model
+                .admissible_step(points.current, points.other)?;
+            if admitted < 1.0 {
+                self.alpha *= admitted;
+                self.report.backtracks += 1;
+                continue;
             }
             let lag = Lag::new(points.current, points.gradient);
             let evaluation = objective.evaluate(points.other, points.trial_gradient, Some(lag))?;

@@ -80,6 +80,48 @@ impl ContactBarrier {
         }
     }
 
+    /// The barrier of gap `gap` (m) whose stiffness makes a point–triangle pair at half the gap
+    /// push with `force` (N): `kappa = force / (|b'(dhat^2 / 4)| dhat)`, `b'` the barrier's
+    /// derivative in the squared distance ([`barrier_derivatives`]), since the pair's force is
+    /// `kappa |b'(d^2)| 2 d`. A scale to reason in: the weight one contact vertex carries at
+    /// rest. The force is 0 at the gap and grows without bound as the distance goes to 0, so a
+    /// resting contact settles where it carries its load, nearer than `dhat / 2` for a larger
+    /// load.
+    ///
+    /// ```
+    /// use softfem::step::contact::potential::{ContactBarrier, point_triangle_potential};
+    /// use softfem::glam::Vec3;
+    ///
+    /// let barrier = ContactBarrier::holding(1e-3, 2.0)?;
+    /// // A point 0.5 mm above a triangle in the plane z = 0.
+    /// let points = [Vec3::new(0.2, 0.2, 5e-4), Vec3::ZERO, Vec3::X, Vec3::Y];
+    /// let pair = point_triangle_potential(&barrier, points, [0, 1, 2, 3]);
+    /// // The gradient points down: the force, minus it, pushes the point up with 2 N.
+    /// assert!((pair.gradient[0].z + 2.0).abs() < 1e-4);
+    /// # Ok::<(), softfem::ContactError>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`ContactError::Gap`] for a gap that is not finite and positive;
+    /// [`ContactError::Stiffness`] for a force that is not finite and `>= 0`, or one whose
+    /// stiffness overflows.
+    pub fn holding(gap: Real, force: Real) -> Result<ContactBarrier, ContactError> {
+        if !(gap.is_finite() && gap > 0.0) {
+            return Err(ContactError::Gap);
+        }
+        if !(force.is_finite() && force >= 0.0) {
+            return Err(ContactError::Stiffness);
+        }
+        let squared_gap = gap * gap;
+        let slope = barrier_derivatives(0.25 * squared_gap, squared_gap).first.abs();
+        let barrier = ContactBarrier {
+            stiffness: force / (slope * gap),
+            gap,
+        };
+        barrier.check()?;
+        Ok(barrier)
+    }
+
     /// [`ContactError::Gap`] or [`ContactError::Stiffness`] unless both are finite and `>= 0`.
     fn check(&self) -> Result<(), ContactError> {
         if !(self.gap.is_finite() && self.gap >= 0.0) {

@@ -1,0 +1,516 @@
+//! Body–body and self contact inside the implicit solvers: [`ContactModel`] wraps an elastic
+//! model so that its energy gains the contact potential of Incremental Potential Contact and its
+//! admissible steps end before any two surface primitives meet (`docs/math.md` section 8.10).
+//!
+//! The descent solvers minimise the wrapped model's energy as they minimise any other: the
+//! relaxation and gradient descent through [`ElasticEnergy`], Newton's method through
+//! [`ElasticHessian`], whose pair Hessians ride along with the elements'. What the wrapper adds
+//! beyond an energy is [`ElasticEnergy::admissible_step`]: continuous collision detection over
+//! the straight motion from an iterate to a trial point, which the descent loop consults before
+//! it evaluates any trial point or initial guess (`step/descent/descend.rs`).
+//!
+//! # The guarantee
+//! If the start positions of a step are free of intersections, no point the solver accepts is
+//! reached through an intersection: every iterate, initial guesses included, is joined to the
+//! one before by a straight motion that [`ccd::step_bound`] found free of contact, for the pairs
+//! [`motion_pairs`] finds (every pair whose boxes over the motion overlap). The result of a step
+//! is one of those iterates, so surfaces that started apart end apart, with every distance
+//! positive. The conditions are those of [`ccd`](super::ccd#the-guarantee): pairs must start
+//! more than the rounding floor `xi` apart (about `4e-6 m` at 1 m from the origin in f32), and
+//! the boundary triangles must be well shaped. Where no admissible step can be found (a pair
+//! touching at the start), the line search fails and the report says the step did not converge;
+//! a contact buffer that is too small fails the step with [`MeshError::Contact`] naming the
+//! buffer and the count it needs, and the caller's state is restored.
+//!
+//! # Cost
+//! Every evaluation of the energy runs the proximity broad phase and the barrier's gradient;
+//! every trial point the motion broad phase and the CCD; every Newton iteration the pairs'
+//! projected Hessians. `benches/contact.rs` measures them against a force pass.
+
+use core::cell::{Cell, RefCell};
+
+use crate::error::{ContactBuffer, ContactError, MeshError};
+
+use super::super::super::element::TetHessian;
+use super::super::super::math::sqrt;
+use super::super::super::types::{Mat3, Real, Vec3};
+use super::super::model::{ElasticEnergy, ElasticHessian, ElasticModel};
+use super::super::vertex_pass::VertexPass;
+use super::boundary::ContactSurface;
+use super::broad_phase::{BroadPhaseScratch, CandidatePairs, motion_pairs, proximity_pairs};
+use super::ccd::{self, Separation};
+use super::distance::{edge_edge_squared_distance, point_triangle_squared_distance};
+use super::potential::{ContactBarrier, ContactPotential, PairHessian, add_hessian_product};
+
+/// The caller-owned buffers of a [`ContactModel`]: the broad phase's hash table, the candidate
+/// pairs it finds and the active pairs' projected Hessians.
+///
+/// Sizes: `slots` and `entries` as [`scratch_len::broad_phase`] gives them for the surface;
+/// `vertex_triangle` and `edge_edge` hold the candidate pairs of one query (a few per surface
+/// vertex and edge for a resting contact; a query that finds more fails with
+/// [`ContactError::Capacity`] naming the list and the exact count); `hessians` one entry per
+/// candidate pair at an iterate (Newton's method only; empty for the other solvers).
+///
+/// [`scratch_len::broad_phase`]: super::super::scratch_len::broad_phase
+#[derive(Debug)]
+pub struct ContactBuffers<'a> {
+    /// The hash table's slots.
+    pub slots: &'a mut [u32],
+    /// The hash table's entries.
+    pub entries: &'a mut [u32],
+    /// The (vertex, triangle) candidate pairs.
+    pub vertex_triangle: &'a mut [[u32; 2]],
+    /// The (edge, edge) candidate pairs.
+    pub edge_edge: &'a mut [[u32; 2]],
+    /// The projected Hessians of the active pairs.
+    pub hessians: &'a mut [PairHessian],
+}
+
+/// What the contact of the last evaluation found.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ContactCounts {
+    /// Candidate (vertex, triangle) pairs of the last energy evaluation.
+    pub vertex_triangle: usize,
+    /// Candidate (edge, edge) pairs of the last energy evaluation.
+    pub edge_edge: usize,
+    /// Pair Hessians stored by the last [`ElasticHessian::projected_hessians`] call.
+    pub hessians: usize,
+}
+
+/// An elastic model with body–body and self contact between the primitives of `surface`: the
+/// energy `E(x) + B(x)`, `B` the barrier potential of [`ContactPotential`] over the pairs
+/// within the gap, and the steps admitted by continuous collision detection (see the
+/// [module docs](self)).
+///
+/// `M` is any model over all bodies' vertices (one position array); the surface names their
+/// boundary triangles, edges and vertices by the same indices. Several bodies in one model are
+/// one mesh of several disconnected parts; a body folding onto itself is self contact, found
+/// the same way (primitives sharing a vertex are never paired).
+///
+/// The buffers are borrowed for the model's life and used through a [`RefCell`]: the model is
+/// not `Sync` (the solvers that need a `Sync` model, VBD's parallel sweep, do not take it) and
+/// its methods must not be called from within one another.
+///
+/// ```
+/// use softfem::glam::Vec3;
+/// use softfem::generate::{BoxSplit, box_counts, fill_box};
+/// use softfem::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
+/// use softfem::element::TetRest;
+/// use softfem::material::NeoHookean;
+/// use softfem::mesh::TetMesh;
+/// use softfem::step::contact::boundary::ContactSurface;
+/// use softfem::step::contact::model::{ContactBuffers, ContactModel};
+/// use softfem::step::contact::potential::{ContactBarrier, PairHessian};
+/// use softfem::step::{ElasticEnergy, TetElastic, scratch_len};
+///
+/// // Two 1 cm cubes, the second 1 mm above the first.
+/// let (nv, nt) = box_counts(1, 1, 1, BoxSplit::Kuhn6)?;
+/// let mut positions = vec![Vec3::ZERO; 2 * nv];
+/// let mut tets = vec![[0u32; 4]; 2 * nt];
+/// for (k, z) in [0.0, 0.011].into_iter().enumerate() {
+///     let min = Vec3::new(0.0, 0.0, z);
+///     let (x, t) = (&mut positions[k * nv..][..nv], &mut tets[k * nt..][..nt]);
+///     fill_box(min, min + Vec3::splat(0.01), 1, 1, 1, BoxSplit::Kuhn6, x, t)?;
+///     t.iter_mut().for_each(|tet| tet.iter_mut().for_each(|v| *v += (k * nv) as u32));
+/// }
+/// let mut faces = vec![BoundaryFace::default(); boundary_scratch_len(tets.len())];
+/// let triangles: Vec<[u32; 3]> = boundary_faces(&tets, positions.len(), &mut faces)?
+///     .iter()
+///     .map(|face| face.triangle)
+///     .collect();
+/// let (mut vertices, mut edges) = (
+///     vec![0; scratch_len::boundary_vertices(triangles.len())],
+///     vec![[0; 2]; scratch_len::boundary_edges(triangles.len())],
+/// );
+/// let surface =
+///     ContactSurface::from_triangles(&triangles, positions.len(), &mut vertices, &mut edges)?;
+/// let lengths =
+///     scratch_len::broad_phase(surface.vertices.len(), surface.edges.len(), triangles.len());
+/// let (mut slots, mut entries) = (vec![0; lengths.slots], vec![0; lengths.entries]);
+/// let (mut vt, mut ee) = (vec![[0; 2]; 256], vec![[0; 2]; 256]);
+/// let mut hessians = vec![PairHessian::default(); 512];
+///
+/// let mut rest_data = vec![TetRest::default(); tets.len()];
+/// let mesh = TetMesh::new(&positions, &tets, &mut rest_data)?;
+/// let elastic = TetElastic::new(mesh, NeoHookean::from_young_poisson(1e5, 0.3)?);
+/// let barrier = ContactBarrier { stiffness: 1e6, gap: 2e-3 };
+/// let buffers = ContactBuffers {
+///     slots: &mut slots,
+///     entries: &mut entries,
+///     vertex_triangle: &mut vt,
+///     edge_edge: &mut ee,
+///     hessians: &mut hessians,
+/// };
+/// let model = ContactModel::new(elastic, surface, &positions, barrier, buffers)?;
+///
+/// // The faces 1 mm apart are within the 2 mm gap: the barrier pushes them apart.
+/// let mut forces = vec![Vec3::ZERO; positions.len()];
+/// let energy = model.energy_and_add_forces(&positions, &mut forces)?;
+/// assert!(energy > 0.0);
+/// assert!(forces[nv].z > 0.0 && forces[nv - 1].z < 0.0);
+/// // Moving the upper cube 2 mm down would pass through: the step is cut before contact.
+/// let moved: Vec<Vec3> = positions
+///     .iter()
+///     .enumerate()
+///     .map(|(i, &p)| if i >= nv { p - Vec3::Z * 0.002 } else { p })
+///     .collect();
+/// let t = model.admissible_step(&positions, &moved)?;
+/// assert!(t > 0.0 && t < 0.5);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug)]
+pub struct ContactModel<'a, M> {
+    model: M,
+    surface: ContactSurface<'a>,
+    rest_positions: &'a [Vec3],
+    barrier: ContactBarrier,
+    separation: Separation,
+    buffers: RefCell<ContactBuffers<'a>>,
+    counts: Cell<ContactCounts>,
+}
+
+impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
+    /// `model` with contact between the primitives of `surface` (global vertex indices into
+    /// `model`'s vertices), the edge–edge mollifier measured at `rest_positions` (m, one per
+    /// vertex), the barrier `barrier` and the caller's `buffers`. The CCD keeps
+    /// [`Separation::DEFAULT`].
+    ///
+    /// # Errors
+    /// [`ContactError::Gap`] or [`ContactError::Stiffness`] for a barrier that is not finite
+    /// and `>= 0`; [`ContactError::BufferLength`] naming [`ContactBuffer::RestPositions`] if
+    /// `rest_positions` does not have one entry per vertex of `model`;
+    /// [`ContactError::IndexOutOfRange`] for the first surface primitive naming a vertex beyond
+    /// them; [`ContactError::NonFinitePosition`] for a rest position that is not finite.
+    pub fn new(
+        model: M,
+        surface: ContactSurface<'a>,
+        rest_positions: &'a [Vec3],
+        barrier: ContactBarrier,
+        buffers: ContactBuffers<'a>,
+    ) -> Result<Self, ContactError> {
+        let vertex_count = model.vertex_count();
+        if rest_positions.len() != vertex_count {
+            return Err(ContactError::BufferLength {
+                buffer: ContactBuffer::RestPositions,
+                expected: vertex_count,
+                actual: rest_positions.len(),
+            });
+        }
+        // Every check of the potential (barrier, indices, finite rest positions), on no pairs.
+        ContactPotential {
+            barrier,
+            surface,
+            pairs: CandidatePairs::default(),
+            rest_positions,
+        }
+        .energy(rest_positions)?;
+        Ok(ContactModel {
+            model,
+            surface,
+            rest_positions,
+            barrier,
+            separation: Separation::DEFAULT,
+            buffers: RefCell::new(buffers),
+            counts: Cell::new(ContactCounts::default()),
+        })
+    }
+
+    /// The wrapped elastic model.
+    #[inline]
+    pub fn model(&self) -> &M {
+        &self.model
+    }
+
+    /// The contact surface.
+    #[inline]
+    pub fn surface(&self) -> &ContactSurface<'a> {
+        &self.surface
+    }
+
+    /// The barrier's stiffness and gap.
+    #[inline]
+    pub fn barrier(&self) -> ContactBarrier {
+        self.barrier
+    }
+
+    /// Sets the barrier between steps (for example a stiffer `kappa` where pairs came closer
+    /// than wanted).
+    ///
+    /// # Errors
+    /// [`ContactError::Gap`] or [`ContactError::Stiffness`] for a barrier that is not finite and
+    /// `>= 0`; the barrier is then unchanged.
+    pub fn set_barrier(&mut self, barrier: ContactBarrier) -> Result<(), ContactError> {
+        ContactPotential {
+            barrier,
+            surface: ContactSurface::default(),
+            pairs: CandidatePairs::default(),
+            rest_positions: &[],
+        }
+        .energy(&[])?;
+        self.barrier = barrier;
+        Ok(())
+    }
+
+    /// The pair counts of the last evaluation (see [`ContactCounts`]).
+    #[inline]
+    pub fn counts(&self) -> ContactCounts {
+        self.counts.get()
+    }
+
+    /// Gives the caller's buffers back.
+    #[inline]
+    pub fn into_buffers(self) -> ContactBuffers<'a> {
+        self.buffers.into_inner()
+    }
+
+    /// The smallest distance (m) between two primitives of the surface at `positions` among the
+    /// pairs within `reach` (m) of each other (point–triangle and edge–edge distances, exact
+    /// closest features), or `None` if no pair is that close. What a test or a summary reports
+    /// as the smallest gap; 0 means touching.
+    ///
+    /// # Errors
+    /// Those of [`proximity_pairs`] (with `reach` as the gap).
+    pub fn smallest_distance(
+        &self,
+        positions: &[Vec3],
+        reach: Real,
+    ) -> Result<Option<Real>, ContactError> {
+        let mut guard = self.buffers.borrow_mut();
+        let buffers = &mut *guard;
+        let mut scratch = BroadPhaseScratch::new(buffers.slots, buffers.entries);
+        let pairs = proximity_pairs(
+            positions,
+            reach,
+            &self.surface,
+            &mut scratch,
+            buffers.vertex_triangle,
+            buffers.edge_edge,
+        )?;
+        let point = |index: u32| positions.get(index as usize).copied().unwrap_or(Vec3::NAN);
+        let surface = &self.surface;
+        let mut smallest: Option<Real> = None;
+        let mut keep = |squared: Real| {
+            let distance = sqrt(squared.max(0.0));
+            if distance <= reach && smallest.is_none_or(|s| distance < s) {
+                smallest = Some(distance);
+            }
+        };
+        for &[vertex, triangle] in pairs.vertex_triangle {
+            let (Some(&p), Some(&[a, b, c])) = (
+                surface.vertices.get(vertex as usize),
+                surface.triangles.get(triangle as usize),
+            ) else {
+                continue;
+            };
+            keep(point_triangle_squared_distance(
+                point(p),
+                point(a),
+                point(b),
+                point(c),
+            ));
+        }
+        for &[first, second] in pairs.edge_edge {
+            let (Some(&[a0, a1]), Some(&[b0, b1])) = (
+                surface.edges.get(first as usize),
+                surface.edges.get(second as usize),
+            ) else {
+                continue;
+            };
+            keep(edge_edge_squared_distance(
+                point(a0),
+                point(a1),
+                point(b0),
+                point(b1),
+            ));
+        }
+        Ok(smallest)
+    }
+
+    /// Runs the proximity broad phase at `positions` and calls `with` on the potential over the
+    /// pairs found; records the counts.
+    fn with_potential<R>(
+        &self,
+        positions: &[Vec3],
+        with: impl FnOnce(&ContactPotential<'_>, &mut [PairHessian]) -> Result<R, ContactError>,
+    ) -> Result<R, ContactError> {
+        let mut guard = self.buffers.borrow_mut();
+        let ContactBuffers {
+            slots,
+            entries,
+            vertex_triangle,
+            edge_edge,
+            hessians,
+        } = &mut *guard;
+        let mut scratch = BroadPhaseScratch::new(slots, entries);
+        let pairs = proximity_pairs(
+            positions,
+            self.barrier.gap,
+            &self.surface,
+            &mut scratch,
+            vertex_triangle,
+            edge_edge,
+        )?;
+        let mut counts = self.counts.get();
+        counts.vertex_triangle = pairs.vertex_triangle.len();
+        counts.edge_edge = pairs.edge_edge.len();
+        self.counts.set(counts);
+        let potential = ContactPotential {
+            barrier: self.barrier,
+            surface: self.surface,
+            pairs,
+            rest_positions: self.rest_positions,
+        };
+        with(&potential, hessians)
+    }
+
+    /// Adds the contact forces `-grad B` (N) at `positions` into `forces` and returns `B` (J).
+    fn add_contact_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<Real, MeshError> {
+        if self.barrier.gap <= 0.0 || self.barrier.stiffness <= 0.0 {
+            return Ok(0.0);
+        }
+        // `-(-f + g)` is `f - g` to the bit (negation is exact and rounding symmetric).
+        let negate = |forces: &mut [Vec3]| forces.iter_mut().for_each(|f| *f = -*f);
+        negate(forces);
+        let energy = self.with_potential(positions, |potential, _| {
+            potential.add_gradient(positions, forces)
+        });
+        negate(forces);
+        Ok(energy?)
+    }
+
+    /// The pair Hessians stored by the last [`ElasticHessian::projected_hessians`] call.
+    fn stored_hessians<R>(&self, with: impl FnOnce(&[PairHessian]) -> R) -> R {
+        let guard = self.buffers.borrow();
+        let stored = self.counts.get().hessians;
+        with(guard.hessians.get(..stored).unwrap_or_default())
+    }
+}
+
+impl<M: ElasticModel<Vector = Vec3>> ElasticModel for ContactModel<'_, M> {
+    type Vector = Vec3;
+
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.model.vertex_count()
+    }
+
+    /// The model's forces and the contact forces (no step bound: the explicit stepper does not
+    /// yet stop surfaces from passing through each other).
+    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
+        self.model.add_forces(positions, forces)?;
+        self.add_contact_forces(positions, forces).map(|_| ())
+    }
+
+    fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
+        self.model.for_each_element_stiffness(visit);
+    }
+
+    #[inline]
+    fn run_vertex_pass<P: VertexPass>(&self, pass: P) -> P::Output {
+        self.model.run_vertex_pass(pass)
+    }
+}
+
+impl<M: ElasticEnergy<Vector = Vec3>> ElasticEnergy for ContactModel<'_, M> {
+    /// `E(x) + B(x)`; `+inf` where two primitives touch.
+    fn energy_and_add_forces(
+        &self,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<Real, MeshError> {
+        let elastic = self.model.energy_and_add_forces(positions, forces)?;
+        let contact = self.add_contact_forces(positions, forces)?;
+        Ok(elastic + contact)
+    }
+
+    /// The model's bound, then [`ccd::step_bound`] over the pairs [`motion_pairs`] finds for
+    /// the motion (gap 0).
+    fn admissible_step(&self, from: &[Vec3], to: &[Vec3]) -> Result<Real, MeshError> {
+        let elastic = self.model.admissible_step(from, to)?;
+        if elastic <= 0.0 || self.surface.triangles.is_empty() {
+            return Ok(elastic);
+        }
+        let mut guard = self.buffers.borrow_mut();
+        let ContactBuffers {
+            slots,
+            entries,
+            vertex_triangle,
+            edge_edge,
+            ..
+        } = &mut *guard;
+        let mut scratch = BroadPhaseScratch::new(slots, entries);
+        let pairs = motion_pairs(from, to, 0.0, &self.surface, &mut scratch, vertex_triangle, edge_edge)?;
+        let bound = ccd::step_bound(from, to, &self.surface, &pairs, self.separation)?;
+        Ok(elastic.min(bound.alpha))
+    }
+}
+
+impl<M: ElasticHessian> ElasticHessian for ContactModel<'_, M> {
+    #[inline]
+    fn element_count(&self) -> usize {
+        self.model.element_count()
+    }
+
+    /// The elements' Hessians into `cache`, and the active pairs' projected Hessians into the
+    /// contact buffers (which [`add_hessian_product`](Self::add_hessian_product) and
+    /// [`add_vertex_hessian_blocks`](Self::add_vertex_hessian_blocks) add, whatever `cache`
+    /// they are given).
+    fn projected_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError> {
+        self.model.projected_hessians(positions, cache)?;
+        let mut counts = self.counts.get();
+        counts.hessians = 0;
+        self.counts.set(counts);
+        if self.barrier.gap <= 0.0 || self.barrier.stiffness <= 0.0 {
+            return Ok(());
+        }
+        let stored = self.with_potential(positions, |potential, hessians| {
+            potential
+                .pair_hessians(positions, hessians)
+                .map(|stored| stored.len())
+        })?;
+        let mut counts = self.counts.get();
+        counts.hessians = stored;
+        self.counts.set(counts);
+        Ok(())
+    }
+
+    fn add_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        self.model.add_hessian_product(cache, direction, out)?;
+        self.stored_hessians(|hessians| add_hessian_product(hessians, direction, out))?;
+        Ok(())
+    }
+
+    fn add_vertex_hessian_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &mut [Mat3],
+    ) -> Result<(), MeshError> {
+        self.model.add_vertex_hessian_blocks(cache, blocks)?;
+        self.stored_hessians(|hessians| {
+            for pair in hessians {
+                for (row, &vertex) in pair.hessian.iter().zip(&pair.vertices) {
+                    // Every slot's block on the diagonal, and the off-diagonal blocks of slots
+                    // naming the same vertex (none for a pair of four distinct vertices).
+                    for (block, &other) in row.iter().zip(&pair.vertices) {
+                        if other == vertex
+                            && let Some(slot) = blocks.get_mut(vertex as usize)
+                        {
+                            *slot += *block;
+                        }
+                    }
+                }
+            }
+        });
+        Ok(())
+    }
+}

@@ -1,0 +1,412 @@
+//! Body–body contact in the implicit solvers (`src/step/contact/model.rs`, issue #39), in both
+//! precisions: two cubes stacked on the ground come to rest with the gap between their faces in
+//! `(0, dhat]`; a one-cell-thick plate at 20 m/s against a block does not pass through it (one
+//! step would carry it 20 cell thicknesses); an isolated two-body collision without gravity
+//! conserves linear momentum (f64: 1e-6 relative); a contact buffer that is too small fails the
+//! step naming the buffer, with the state as it was.
+
+macro_rules! contact_tests {
+    ($precision:ident, $($api:ident)::+) => {
+        mod $precision {
+            use softfem::{ContactBuffer, ContactError, MeshError, StepError};
+            use $($api)::+::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
+            use $($api)::+::element::{TetHessian, TetRest};
+            use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
+            use $($api)::+::material::StableNeoHookean;
+            use $($api)::+::mesh::TetMesh;
+            use $($api)::+::step::contact::boundary::ContactSurface;
+            use $($api)::+::step::contact::potential::{ContactBarrier, PairHessian};
+            use $($api)::+::step::contact::{ContactBuffers, ContactModel};
+            use $($api)::+::step::{
+                HalfSpace, NewtonReport, NewtonScratch, NewtonSettings, Scene, TetElastic,
+                newton_step, scratch_len,
+            };
+            use $($api)::+::types::{Mat3, Real, Vec3};
+
+            const GRAVITY: Vec3 = Vec3::new(0.0, -9.81, 0.0);
+
+            /// Several boxes in one mesh: their rest positions and tetrahedra, the boundary
+            /// triangles, the first vertex of each box (and the total at the end).
+            pub(super) struct Boxes {
+                pub(super) rest: Vec<Vec3>,
+                tets: Vec<[u32; 4]>,
+                triangles: Vec<[u32; 3]>,
+                starts: Vec<usize>,
+            }
+
+            impl Boxes {
+                /// Boxes `[min, max]` of `cells` Kuhn-split cubes each.
+                pub(super) fn new(boxes: &[(Vec3, Vec3, (usize, usize, usize))]) -> Boxes {
+                    Boxes::split(boxes, BoxSplit::Kuhn6)
+                }
+
+                /// Boxes `[min, max]` of `cells` cubes each, split by `split`.
+                fn split(boxes: &[(Vec3, Vec3, (usize, usize, usize))], split: BoxSplit) -> Boxes {
+                    let (mut rest, mut tets, mut starts) = (Vec::new(), Vec::new(), Vec::new());
+                    for &(min, max, (nx, ny, nz)) in boxes {
+                        let (nv, nt) = box_counts(nx, ny, nz, split).unwrap();
+                        let (mut x, mut t) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
+                        fill_box(min, max, nx, ny, nz, split, &mut x, &mut t).unwrap();
+                        let offset = rest.len() as u32;
+                        starts.push(rest.len());
+                        rest.extend(x);
+                        tets.extend(t.iter().map(|tet| tet.map(|v| v + offset)));
+                    }
+                    starts.push(rest.len());
+                    let mut scratch = vec![BoundaryFace::default(); boundary_scratch_len(tets.len())];
+                    let triangles = boundary_faces(&tets, rest.len(), &mut scratch)
+                        .unwrap()
+                        .iter()
+                        .map(|face| face.triangle)
+                        .collect();
+                    Boxes { rest, tets, triangles, starts }
+                }
+
+                /// The vertices of box `k`.
+                pub(super) fn range(&self, k: usize) -> core::ops::Range<usize> {
+                    self.starts[k]..self.starts[k + 1]
+                }
+            }
+
+            /// The owned buffers of a contact model and of Newton's method.
+            struct Buffers {
+                vertices: Vec<u32>,
+                edges: Vec<[u32; 2]>,
+                slots: Vec<u32>,
+                entries: Vec<u32>,
+                vertex_triangle: Vec<[u32; 2]>,
+                edge_edge: Vec<[u32; 2]>,
+                pair_hessians: Vec<PairHessian>,
+                rest_data: Vec<TetRest>,
+                vectors: Vec<Vec3>,
+                blocks: Vec<Mat3>,
+                hessians: Vec<TetHessian>,
+            }
+
+            impl Buffers {
+                /// Sized for `boxes`, with `pairs` candidate pairs per surface vertex and edge and
+                /// `pair_hessians` pair Hessians.
+                fn new(boxes: &Boxes, pairs: usize, pair_hessians: usize) -> Buffers {
+                    let (n, f) = (boxes.rest.len(), boxes.triangles.len());
+                    let mut vertices = vec![0; scratch_len::boundary_vertices(f)];
+                    let mut edges = vec![[0; 2]; scratch_len::boundary_edges(f)];
+                    let (v, e) = {
+                        let surface =
+                            ContactSurface::from_triangles(&boxes.triangles, n, &mut vertices, &mut edges)
+                                .unwrap();
+                        (surface.vertices.len(), surface.edges.len())
+                    };
+                    vertices.truncate(v);
+                    edges.truncate(e);
+                    let lengths = scratch_len::broad_phase(v, e, f);
+                    let newton = scratch_len::newton(n, boxes.tets.len());
+                    Buffers {
+                        vertices,
+                        edges,
+                        slots: vec![0; lengths.slots],
+                        entries: vec![0; lengths.entries],
+                        vertex_triangle: vec![[0; 2]; pairs * v],
+                        edge_edge: vec![[0; 2]; pairs * e],
+                        pair_hessians: vec![PairHessian::default(); pair_hessians],
+                        rest_data: vec![TetRest::default(); boxes.tets.len()],
+                        vectors: vec![Vec3::ZERO; newton.vectors],
+                        blocks: vec![Mat3::ZERO; newton.blocks],
+                        hessians: vec![TetHessian::default(); newton.hessians],
+                    }
+                }
+            }
+
+            /// A run of Newton steps with contact: the reports, the positions and velocities
+            /// after each step, the masses.
+            pub(super) struct Run {
+                reports: Vec<NewtonReport>,
+                positions: Vec<Vec<Vec3>>,
+                pub(super) velocities: Vec<Vec<Vec3>>,
+                #[allow(dead_code)] // read by the f64 momentum test only
+                pub(super) masses: Vec<Real>,
+                /// The smallest distance between surface primitives after each step (within
+                /// ten gaps; `None` beyond).
+                pub(super) smallest: Vec<Option<Real>>,
+                /// The pairs of boundary triangles (sharing no vertex) that intersect after each
+                /// step, by the exact test of `tests/common/intersection.rs`.
+                intersections: Vec<usize>,
+            }
+
+            /// `steps` Newton steps of `boxes` from `start` positions and `velocities`, with
+            /// `pinned`, the barrier `barrier`, Young's modulus `young` (Pa), density 1000.
+            #[allow(clippy::too_many_arguments)]
+            pub(super) fn run(
+                boxes: &Boxes,
+                (mut x, mut v): (Vec<Vec3>, Vec<Vec3>),
+                pinned: &[bool],
+                scene: &Scene<'_, Vec3>,
+                barrier: ContactBarrier,
+                young: Real,
+                steps: usize,
+                tolerance: Real,
+            ) -> Run {
+                let mut b = Buffers::new(boxes, 32, 4096);
+                let mesh = TetMesh::new(&boxes.rest, &boxes.tets, &mut b.rest_data).unwrap();
+                let mut masses = vec![0.0; boxes.rest.len()];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let elastic = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(young, 0.3).unwrap());
+                let surface = ContactSurface {
+                    vertices: &b.vertices,
+                    edges: &b.edges,
+                    triangles: &boxes.triangles,
+                };
+                let buffers = ContactBuffers {
+                    slots: &mut b.slots,
+                    entries: &mut b.entries,
+                    vertex_triangle: &mut b.vertex_triangle,
+                    edge_edge: &mut b.edge_edge,
+                    hessians: &mut b.pair_hessians,
+                };
+                let model = ContactModel::new(elastic, surface, &boxes.rest, barrier, buffers).unwrap();
+                let settings = NewtonSettings::new().with_tolerance(tolerance, 100);
+                let mut scratch = NewtonScratch::new(&mut b.vectors, &mut b.blocks, &mut b.hessians);
+                let mut out = Run {
+                    reports: Vec::new(),
+                    positions: Vec::new(),
+                    velocities: Vec::new(),
+                    masses: masses.clone(),
+                    smallest: Vec::new(),
+                    intersections: Vec::new(),
+                };
+                for step in 0..steps {
+                    let report = newton_step(&model, &masses, pinned, scene, &settings, &mut x, &mut v, &mut scratch)
+                        .unwrap_or_else(|e| panic!("step {step}: {e}"));
+                    out.smallest.push(model.smallest_distance(&x, 10.0 * barrier.gap).unwrap());
+                    let exact: Vec<[f64; 3]> = x.iter().map(|p| [p.x as f64, p.y as f64, p.z as f64]).collect();
+                    out.intersections.push(crate::intersection::intersecting_pairs(&exact, &boxes.triangles).len());
+                    out.reports.push(report);
+                    out.positions.push(x.clone());
+                    out.velocities.push(v.clone());
+                }
+                out
+            }
+
+            /// No two boundary triangles intersected after any step (exact test); every solve
+            /// converged (or stopped at a rounding floor above its target, which the report
+            /// says: stagnated, not converged, in f32 only); the counts printed.
+            pub(super) fn assert_solves(run: &Run, name: &str) {
+                let crossing: usize = run.intersections.iter().sum();
+                assert_eq!(crossing, 0, "{name}: intersecting triangle pairs after the steps {:?}", run.intersections);
+                let newton: u32 = run.reports.iter().map(|r| r.iterations).sum();
+                let converged = run.reports.iter().filter(|r| r.converged).count();
+                println!(
+                    "{} {name}: {} steps, {converged} converged, {newton} Newton iterations",
+                    stringify!($precision),
+                    run.reports.len()
+                );
+                for (step, report) in run.reports.iter().enumerate() {
+                    let at_floor = report.stagnated && Real::EPSILON > 1e-10;
+                    assert!(report.converged || at_floor, "{name} step {step}: {report:?}");
+                }
+            }
+
+            #[test]
+            fn stacked_cubes_rest_with_the_gap_between_their_faces_within_dhat() {
+                // A 6 cm cube 5 mm above the middle of a 10 cm one standing on the ground, 2^3
+                // cells each, the upper one's vertices off the lower's grid lines; dhat = 1 mm,
+                // a pair at half of it holding 1 N (the upper cube's 2.1 N weight rests on its 9
+                // bottom vertices).
+                //
+                // The contact between the cubes is frictionless (friction between bodies is not
+                // in yet), and a stack without friction is not stable sideways: measured without
+                // the hold below, the impact left the upper cube drifting at about 1 cm/s, the
+                // weight off the middle tilted the soft lower cube's top face, and the upper one
+                // slid downhill, faster and faster, off the edge in 1.8 s. Its top-centre vertex
+                // is held in x and z (fixed axes), free in y: the vertical contact is what this
+                // test measures. The ground has friction, so the lower cube stays.
+                let side = 0.1;
+                let dhat = 1e-3;
+                let (low, high) = (Vec3::new(0.023, side + 5e-3, 0.017), Vec3::new(0.083, side + 0.065, 0.077));
+                let boxes = Boxes::split(
+                    &[(Vec3::ZERO, Vec3::splat(side), (2, 2, 2)), (low, high, (2, 2, 2))],
+                    BoxSplit::Alternating5,
+                );
+                let n = boxes.rest.len();
+                let top_centre = Vec3::new(0.5 * (low.x + high.x), high.y, 0.5 * (low.z + high.z));
+                let fixed: Vec<u8> = boxes.rest.iter().enumerate()
+                    .map(|(i, p)| if i >= boxes.starts[1] && (*p - top_centre).length() < 1e-6 { 0b101 } else { 0 })
+                    .collect();
+                assert_eq!(fixed.iter().filter(|&&f| f != 0).count(), 1);
+                let scene = Scene::new(0.01)
+                    .with_gravity(GRAVITY)
+                    .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5))
+                    .with_fixed_axes(&fixed);
+                let barrier = ContactBarrier::holding(dhat, 1.0).unwrap();
+                let run = run(
+                    &boxes,
+                    (boxes.rest.clone(), vec![Vec3::ZERO; n]),
+                    &[],
+                    &scene,
+                    barrier,
+                    1e5,
+                    200,
+                    1e-5,
+                );
+                assert_solves(&run, "stacked cubes");
+                // After 2 s: the faces apart by a positive gap within dhat, the top cube at rest.
+                let gap = run.smallest.last().copied().flatten().expect("no pair within 10 dhat");
+                let x = run.positions.last().unwrap();
+                let lower_top = boxes.range(0).map(|i| x[i].y).fold(Real::MIN, Real::max);
+                let upper_bottom = boxes.range(1).map(|i| x[i].y).fold(Real::MAX, Real::min);
+                println!(
+                    "{}: smallest distance {gap:.3e} m (dhat {dhat:.0e}), faces {:.3e} m apart",
+                    stringify!($precision),
+                    upper_bottom - lower_top
+                );
+                assert!(gap > 0.0 && gap <= dhat, "{gap}");
+                assert!(upper_bottom - lower_top > 0.0 && upper_bottom - lower_top <= dhat);
+                // Every step kept the surfaces apart.
+                assert!(run.smallest.iter().flatten().all(|&d| d > 0.0));
+                let speed = run.velocities.last().unwrap().iter().map(|v| v.length()).fold(0.0, Real::max);
+                assert!(speed < 1e-2, "{speed}");
+            }
+
+            #[test]
+            fn a_thin_plate_at_20_m_per_s_does_not_pass_through_a_block() {
+                // A plate 1 cm thick (one cell) 5 cm above a 10 cm block pinned at its base,
+                // moving down at 20 m/s: one 10 ms step carries it 20 cm, through the block.
+                let dhat = 1e-3;
+                let boxes = Boxes::new(&[
+                    (Vec3::ZERO, Vec3::splat(0.1), (2, 2, 2)),
+                    (Vec3::new(-0.02, 0.15, -0.02), Vec3::new(0.12, 0.16, 0.12), (4, 1, 4)),
+                ]);
+                let n = boxes.rest.len();
+                let pinned: Vec<bool> = (0..n).map(|i| boxes.range(0).contains(&i) && boxes.rest[i].y == 0.0).collect();
+                let mut v = vec![Vec3::ZERO; n];
+                for i in boxes.range(1) {
+                    v[i] = Vec3::new(0.0, -20.0, 0.0);
+                }
+                let scene = Scene::new(0.01);
+                let barrier = ContactBarrier::holding(dhat, 50.0).unwrap();
+                let run = run(&boxes, (boxes.rest.clone(), v), &pinned, &scene, barrier, 1e6, 10, 1e-5);
+                assert_solves(&run, "plate at 20 m/s");
+                for (step, x) in run.positions.iter().enumerate() {
+                    // Not through: every plate vertex above the block's top face (in x and z)
+                    // is above the lowest vertex of that face. The plate's rim, beyond the
+                    // block, may bend down past it.
+                    let block_top = boxes.range(0)
+                        .filter(|&i| boxes.rest[i].y == 0.1)
+                        .map(|i| x[i].y)
+                        .fold(Real::MAX, Real::min);
+                    let over = |p: Vec3| p.x > 0.0 && p.x < 0.1 && p.z > 0.0 && p.z < 0.1;
+                    let plate_bottom = boxes.range(1)
+                        .filter(|&i| over(x[i]))
+                        .map(|i| x[i].y)
+                        .fold(Real::MAX, Real::min);
+                    assert!(plate_bottom > block_top, "step {step}: plate {plate_bottom}, block {block_top}");
+                }
+                assert!(run.smallest.iter().flatten().all(|&d| d > 0.0));
+                // It hit: the plate was stopped (and bounced or stays) within the gap's reach.
+                let touched = run.smallest.iter().flatten().any(|&d| d <= dhat);
+                assert!(touched, "{:?}", run.smallest);
+            }
+
+            #[test]
+            fn a_contact_buffer_too_small_fails_the_step_and_keeps_the_state() {
+                let boxes = Boxes::new(&[
+                    (Vec3::ZERO, Vec3::splat(0.1), (2, 2, 2)),
+                    (Vec3::new(0.0, 0.1005, 0.0), Vec3::new(0.1, 0.2005, 0.1), (2, 2, 2)),
+                ]);
+                let n = boxes.rest.len();
+                // Room for one pair Hessian: the faces 0.5 mm apart have more active pairs.
+                let mut b = Buffers::new(&boxes, 32, 1);
+                let mesh = TetMesh::new(&boxes.rest, &boxes.tets, &mut b.rest_data).unwrap();
+                let mut masses = vec![0.0; n];
+                mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                let elastic = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1e5, 0.3).unwrap());
+                let surface = ContactSurface { vertices: &b.vertices, edges: &b.edges, triangles: &boxes.triangles };
+                let buffers = ContactBuffers {
+                    slots: &mut b.slots,
+                    entries: &mut b.entries,
+                    vertex_triangle: &mut b.vertex_triangle,
+                    edge_edge: &mut b.edge_edge,
+                    hessians: &mut b.pair_hessians,
+                };
+                let barrier = ContactBarrier::holding(1e-3, 2.0).unwrap();
+                let model = ContactModel::new(elastic, surface, &boxes.rest, barrier, buffers).unwrap();
+                let mut scratch = NewtonScratch::new(&mut b.vectors, &mut b.blocks, &mut b.hessians);
+                let scene = Scene::new(0.01).with_gravity(GRAVITY).with_ground(HalfSpace::new(Vec3::Y, 0.0));
+                let (mut x, mut v) = (boxes.rest.clone(), vec![Vec3::new(0.0, -0.1, 0.0); n]);
+                let (x0, v0) = (x.clone(), v.clone());
+                let error = newton_step(&model, &masses, &[], &scene, &NewtonSettings::new(), &mut x, &mut v, &mut scratch)
+                    .unwrap_err();
+                match error {
+                    StepError::Mesh(MeshError::Contact(ContactError::Capacity { buffer, needed, capacity })) => {
+                        assert_eq!(buffer, ContactBuffer::PairHessians);
+                        assert_eq!(capacity, 1);
+                        assert!(needed > 1, "{needed}");
+                    }
+                    other => panic!("{other:?}"),
+                }
+                println!("{error}");
+                assert_eq!(x, x0);
+                assert_eq!(v, v0);
+            }
+        }
+    };
+}
+
+contact_tests!(single, softfem);
+contact_tests!(double, softfem::f64);
+
+/// An isolated collision of two cubes without gravity (f64): linear momentum is conserved to
+/// 1e-6 of the momenta's magnitude, every contact and elastic force coming in equal and
+/// opposite pairs (implicit Euler's momentum change is `h` times the residual the solve
+/// leaves). In f32 the solves after the cubes part (vibrating, 0.1 m from the origin) stop
+/// above a 1e-5 relative tolerance without contact being involved, so the figure is f64's.
+#[test]
+fn an_isolated_two_body_collision_conserves_linear_momentum() {
+    use softfem::f64::step::Scene;
+    use softfem::f64::step::contact::potential::ContactBarrier;
+    use softfem::glam::DVec3;
+    let boxes = double::Boxes::new(&[
+        (DVec3::ZERO, DVec3::splat(0.1), (2, 2, 2)),
+        (
+            DVec3::new(0.03, 0.104, 0.02),
+            DVec3::new(0.13, 0.204, 0.12),
+            (2, 2, 2),
+        ),
+    ]);
+    let n = boxes.rest.len();
+    let mut v = vec![DVec3::new(0.0, 0.5, 0.0); n];
+    for i in boxes.range(1) {
+        v[i] = DVec3::new(0.1, -1.0, 0.0);
+    }
+    let run = double::run(
+        &boxes,
+        (boxes.rest.clone(), v.clone()),
+        &[],
+        &Scene::new(0.005),
+        ContactBarrier::holding(1e-3, 5.0).unwrap(),
+        1e5,
+        40,
+        1e-10,
+    );
+    double::assert_solves(&run, "two-body collision");
+    let momentum = |v: &[DVec3]| {
+        v.iter()
+            .zip(&run.masses)
+            .fold(DVec3::ZERO, |p, (v, m)| p + *v * *m)
+    };
+    let scale: f64 = v.iter().zip(&run.masses).map(|(v, m)| v.length() * m).sum();
+    let p0 = momentum(&v);
+    let worst = run
+        .velocities
+        .iter()
+        .map(|v| (momentum(v) - p0).length() / scale)
+        .fold(0.0, f64::max);
+    let touched = run
+        .smallest
+        .iter()
+        .flatten()
+        .filter(|&&d| d <= 1e-3)
+        .count();
+    println!("momentum error {worst:.3e} of {scale:.3e} kg m/s; {touched} steps within dhat");
+    assert!(touched > 0, "{:?}", run.smallest);
+    assert!(worst <= 1e-6, "{worst}");
+}
