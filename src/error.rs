@@ -764,6 +764,8 @@ pub enum ContactBuffer {
     HessianDiagonal,
     /// The per-pair projected contact Hessians, one per candidate pair.
     PairHessians,
+    /// The frictional pairs a contact model lags at the start of a step.
+    FrictionPairs,
     /// The output of a contact Hessian product (one per vertex, like the direction it
     /// multiplies).
     Product,
@@ -785,6 +787,7 @@ impl fmt::Display for ContactBuffer {
             ContactBuffer::Gradient => "gradient",
             ContactBuffer::HessianDiagonal => "Hessian diagonal blocks",
             ContactBuffer::PairHessians => "pair Hessians",
+            ContactBuffer::FrictionPairs => "friction pairs",
             ContactBuffer::Product => "product",
         })
     }
@@ -853,6 +856,9 @@ pub enum ContactError {
     Gap,
     /// The barrier stiffness `kappa` (J/m^4) is NaN, infinite or negative.
     Stiffness,
+    /// The friction coefficient is NaN, infinite or negative, or the sticking speed is not
+    /// finite and positive.
+    Friction,
 }
 
 impl fmt::Display for ContactError {
@@ -893,6 +899,9 @@ impl fmt::Display for ContactError {
             }
             ContactError::Gap => f.write_str("the contact gap must be finite and >= 0"),
             ContactError::Stiffness => f.write_str("the barrier stiffness must be finite and >= 0"),
+            ContactError::Friction => f.write_str(
+                "the friction coefficient must be finite and >= 0, the sticking speed finite and > 0",
+            ),
         }
     }
 }

@@ -81,6 +81,22 @@ pub trait ElasticEnergy: ElasticModel {
         let _ = (from, to);
         Ok(1.0)
     }
+
+    /// Called once at the start of every implicit solve with the start positions `x_n` (m, in
+    /// the solve's coordinates, which may be shifted by a constant from the caller's: see
+    /// `step/descent/mod.rs`) and the step `h` (s; 0 for a quasi-static solve): where a model
+    /// lags what it holds fixed over a step. Nothing by default; a
+    /// [`ContactModel`](super::contact::model::ContactModel) with friction finds its
+    /// frictional pairs and their normal forces there.
+    ///
+    /// # Errors
+    /// The model's (a contact model's friction buffer too small); the step fails with it and
+    /// the state is restored.
+    #[inline]
+    fn begin_solve(&self, start: &[Self::Vector], h: Real) -> Result<(), MeshError> {
+        let _ = (start, h);
+        Ok(())
+    }
 }
 
 /// An [`ElasticEnergy`] with second derivatives, as Newton's method

@@ -39,7 +39,14 @@ use super::super::vertex_pass::VertexPass;
 use super::boundary::ContactSurface;
 use super::broad_phase::{BroadPhaseScratch, CandidatePairs, motion_pairs, proximity_pairs};
 use super::ccd::{self, Separation};
-use super::distance::{edge_edge_squared_distance, point_triangle_squared_distance};
+use super::Contact;
+use super::barrier::barrier_derivatives;
+use super::distance::{
+    PairDistanceGradient, edge_edge_distance_gradient, edge_edge_mollifier_threshold,
+    edge_edge_mollifier_value, edge_edge_squared_distance, point_triangle_distance_gradient,
+    point_triangle_squared_distance,
+};
+use super::friction::Slip;
 use super::potential::{ContactBarrier, ContactPotential, PairHessian, add_hessian_product};
 
 /// The caller-owned buffers of a [`ContactModel`]: the broad phase's hash table, the candidate
@@ -64,6 +71,53 @@ pub struct ContactBuffers<'a> {
     pub edge_edge: &'a mut [[u32; 2]],
     /// The projected Hessians of the active pairs.
     pub hessians: &'a mut [PairHessian],
+    /// The frictional pairs lagged at the start of a step (one per active pair then; empty
+    /// without friction).
+    pub friction: &'a mut [FrictionPair],
+}
+
+/// One frictional pair of a [`ContactModel`], lagged at the start of a step (`docs/math.md`
+/// section 8.11): the pair's four vertices and the weights `w_k` of its closest points
+/// (`r = sum_k w_k x_k` is the vector between them: `[1, -b0, -b1, -b2]` for a point and a
+/// triangle with barycentric `b`, `[1 - s, s, -(1 - t), -t]` for two edges), the unit normal
+/// `r / |r|`, `r` itself at the start and the friction force factor `mu lambda` (N). `Default`
+/// is an empty pair (for sizing buffers).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrictionPair {
+    vertices: [u32; 4],
+    weights: [Real; 4],
+    normal: Vec3,
+    anchor: Vec3,
+    force: Real,
+    /// The tangent block `mu lambda H` (N/m) Newton's method takes at the last Hessian
+    /// evaluation (see [`friction_block`]).
+    block: Mat3,
+}
+
+impl FrictionPair {
+    /// The four vertices.
+    #[inline]
+    pub fn vertices(&self) -> [u32; 4] {
+        self.vertices
+    }
+
+    /// The friction force factor `mu lambda` (N): the force the pair resists sliding with.
+    #[inline]
+    pub fn force(&self) -> Real {
+        self.force
+    }
+
+    /// The relative position `r = sum_k w_k x_k` (m) of the pair's closest points at `x`.
+    #[inline]
+    fn relative(&self, positions: &[Vec3]) -> Vec3 {
+        let mut r = Vec3::ZERO;
+        for (&vertex, &weight) in self.vertices.iter().zip(&self.weights) {
+            if let Some(&x) = positions.get(vertex as usize) {
+                r += x * weight;
+            }
+        }
+        r
+    }
 }
 
 /// What the contact of the last evaluation found.
@@ -76,6 +130,8 @@ pub struct ContactCounts {
     pub edge_edge: usize,
     /// Pair Hessians stored by the last [`ElasticHessian::projected_hessians`] call.
     pub hessians: usize,
+    /// Frictional pairs lagged at the start of the last step.
+    pub friction: usize,
 }
 
 /// An elastic model with body–body and self contact between the primitives of `surface`: the
@@ -141,6 +197,7 @@ pub struct ContactCounts {
 ///     vertex_triangle: &mut vt,
 ///     edge_edge: &mut ee,
 ///     hessians: &mut hessians,
+///     friction: &mut [],
 /// };
 /// let model = ContactModel::new(elastic, surface, &positions, barrier, buffers)?;
 ///
@@ -168,6 +225,12 @@ pub struct ContactModel<'a, M> {
     separation: Separation,
     buffers: RefCell<ContactBuffers<'a>>,
     counts: Cell<ContactCounts>,
+    /// The Coulomb coefficient between surfaces (0: frictionless).
+    friction: Real,
+    /// `eps_v` (m/s).
+    sticking_speed: Real,
+    /// The step `h` (s) of the solve under way (0 quasi-static).
+    h: Cell<Real>,
 }
 
 impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
@@ -213,7 +276,37 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
             separation: Separation::DEFAULT,
             buffers: RefCell::new(buffers),
             counts: Cell::new(ContactCounts::default()),
+            friction: 0.0,
+            sticking_speed: 0.0,
+            h: Cell::new(0.0),
         })
+    }
+
+    /// With Coulomb friction of coefficient `coefficient` between the surfaces, smoothed below
+    /// the sticking speed `sticking_speed` (m/s; a stuck pair creeps at most this fast,
+    /// [`SUGGESTED_STICKING_SPEED`](super::SUGGESTED_STICKING_SPEED) to start from): IPC's
+    /// lagged friction, its pairs and normal forces found at the start of every implicit step
+    /// (`docs/math.md` section 8.11). The friction buffer needs one entry per pair active then.
+    /// Without it (the default) the contact is frictionless. The explicit stepper ignores it.
+    ///
+    /// # Errors
+    /// [`ContactError::Friction`] if `coefficient` is not finite and `>= 0` or
+    /// `sticking_speed` not finite and `> 0`.
+    pub fn with_friction(
+        mut self,
+        coefficient: Real,
+        sticking_speed: Real,
+    ) -> Result<Self, ContactError> {
+        if !(coefficient.is_finite()
+            && coefficient >= 0.0
+            && sticking_speed.is_finite()
+            && sticking_speed > 0.0)
+        {
+            return Err(ContactError::Friction);
+        }
+        self.friction = coefficient;
+        self.sticking_speed = sticking_speed;
+        Ok(self)
     }
 
     /// The wrapped elastic model.
@@ -341,6 +434,7 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
             vertex_triangle,
             edge_edge,
             hessians,
+            ..
         } = &mut *guard;
         let mut scratch = BroadPhaseScratch::new(slots, entries);
         let pairs = proximity_pairs(
@@ -379,6 +473,164 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
         Ok(energy?)
     }
 
+    /// Finds the frictional pairs at the start positions `start` (the active pairs of the
+    /// barrier there) and writes them to the friction buffer; returns their number.
+    fn lag_friction(&self, start: &[Vec3]) -> Result<usize, ContactError> {
+        let mut guard = self.buffers.borrow_mut();
+        let ContactBuffers {
+            slots,
+            entries,
+            vertex_triangle,
+            edge_edge,
+            friction,
+            ..
+        } = &mut *guard;
+        let mut scratch = BroadPhaseScratch::new(slots, entries);
+        let pairs = proximity_pairs(
+            start,
+            self.barrier.gap,
+            &self.surface,
+            &mut scratch,
+            vertex_triangle,
+            edge_edge,
+        )?;
+        let point = |index: u32| start.get(index as usize).copied();
+        let rest = |index: u32| self.rest_positions.get(index as usize).copied();
+        let surface = &self.surface;
+        let mut needed = 0;
+        let mut keep = |pair: Option<FrictionPair>| {
+            if let Some(pair) = pair {
+                if let Some(slot) = friction.get_mut(needed) {
+                    *slot = pair;
+                }
+                needed += 1;
+            }
+        };
+        for &[vertex, triangle] in pairs.vertex_triangle {
+            let (Some(&p), Some(&[a, b, c])) = (
+                surface.vertices.get(vertex as usize),
+                surface.triangles.get(triangle as usize),
+            ) else {
+                continue;
+            };
+            let vertices = [p, a, b, c];
+            if let [Some(x0), Some(x1), Some(x2), Some(x3)] = vertices.map(point) {
+                let distance = point_triangle_distance_gradient(x0, x1, x2, x3);
+                keep(self.friction_pair(vertices, [x0, x1, x2, x3], &distance, 1.0, 1));
+            }
+        }
+        for &[first, second] in pairs.edge_edge {
+            let (Some(&[a0, a1]), Some(&[b0, b1])) = (
+                surface.edges.get(first as usize),
+                surface.edges.get(second as usize),
+            ) else {
+                continue;
+            };
+            let vertices = [a0, a1, b0, b1];
+            let (
+                [Some(x0), Some(x1), Some(x2), Some(x3)],
+                [Some(r0), Some(r1), Some(r2), Some(r3)],
+            ) = (vertices.map(point), vertices.map(rest))
+            else {
+                continue;
+            };
+            let distance = edge_edge_distance_gradient(x0, x1, x2, x3);
+            let threshold = edge_edge_mollifier_threshold(r0, r1, r2, r3);
+            let mollifier = edge_edge_mollifier_value(x0, x1, x2, x3, threshold);
+            keep(self.friction_pair(vertices, [x0, x1, x2, x3], &distance, mollifier, 2));
+        }
+        if needed > friction.len() {
+            return Err(ContactError::Capacity {
+                buffer: ContactBuffer::FrictionPairs,
+                needed,
+                capacity: friction.len(),
+            });
+        }
+        Ok(needed)
+    }
+
+    /// The frictional pair of the primitives `vertices` at `points` with the squared distance
+    /// and gradient `distance`, the mollifier `mollifier` (1 for a point and a triangle) and
+    /// `first` slots on the first side; `None` if the barrier does not act on it.
+    fn friction_pair(
+        &self,
+        vertices: [u32; 4],
+        points: [Vec3; 4],
+        distance: &PairDistanceGradient,
+        mollifier: Real,
+        first: usize,
+    ) -> Option<FrictionPair> {
+        let dhat2 = self.barrier.gap * self.barrier.gap;
+        let d2 = distance.squared;
+        if !(d2 > 0.0 && d2 < dhat2) {
+            return None;
+        }
+        // lambda = |dB/dd| = kappa m |b'(d^2)| 2 d, the pair's normal force.
+        let slope = barrier_derivatives(d2, dhat2).first.abs();
+        let lambda = self.barrier.stiffness * (mollifier * slope) * (2.0 * sqrt(d2));
+        // d(d^2)/dx_k = 2 w_k r: the first side's weights sum to 1, so r is half the sum of
+        // its gradients.
+        let r = distance
+            .gradient
+            .iter()
+            .take(first)
+            .fold(Vec3::ZERO, |sum, &g| sum + g)
+            * 0.5;
+        let rr = r.dot(r);
+        let force = self.friction * lambda;
+        if !(rr > 0.0 && force.is_finite() && force > 0.0) {
+            return None;
+        }
+        let weights = distance.gradient.map(|g| g.dot(r) / (2.0 * rr));
+        let mut anchor = Vec3::ZERO;
+        for (&x, &w) in points.iter().zip(&weights) {
+            anchor += x * w;
+        }
+        Some(FrictionPair {
+            vertices,
+            weights,
+            normal: r * (1.0 / sqrt(rr)),
+            anchor,
+            force,
+            block: Mat3::ZERO,
+        })
+    }
+
+    /// The slip of `pair` at `positions` over the step under way.
+    fn slip(&self, pair: &FrictionPair, positions: &[Vec3]) -> Option<Slip<Vec3>> {
+        let contact = Contact {
+            normal: pair.normal,
+            surface_velocity: Vec3::ZERO,
+            friction: self.friction,
+            sticking_speed: self.sticking_speed,
+        };
+        Slip::new(&contact, pair.relative(positions), pair.anchor, self.h.get())
+    }
+
+    /// Adds the friction forces `-grad D` (N) at `positions` into `forces` and returns `D` (J),
+    /// `D = sum_k mu lambda_k f0(|u_k|)` over the lagged pairs.
+    fn add_friction_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Real {
+        let count = self.counts.get().friction;
+        if count == 0 {
+            return 0.0;
+        }
+        let guard = self.buffers.borrow();
+        let mut energy = 0.0;
+        for pair in guard.friction.get(..count).unwrap_or_default() {
+            let Some(slip) = self.slip(pair, positions) else {
+                continue;
+            };
+            energy += pair.force * slip.potential();
+            let along = slip.gradient() * pair.force;
+            for (&vertex, &weight) in pair.vertices.iter().zip(&pair.weights) {
+                if let Some(f) = forces.get_mut(vertex as usize) {
+                    *f -= along * weight;
+                }
+            }
+        }
+        energy
+    }
+
     /// The pair Hessians stored by the last [`ElasticHessian::projected_hessians`] call.
     fn stored_hessians<R>(&self, with: impl FnOnce(&[PairHessian]) -> R) -> R {
         let guard = self.buffers.borrow();
@@ -413,7 +665,9 @@ impl<M: ElasticModel<Vector = Vec3>> ElasticModel for ContactModel<'_, M> {
 }
 
 impl<M: ElasticEnergy<Vector = Vec3>> ElasticEnergy for ContactModel<'_, M> {
-    /// `E(x) + B(x)`; `+inf` where two primitives touch.
+    /// `E(x) + B(x) + D(x)`, `D` the friction potential of the pairs lagged at the start of
+    /// the last solve ([`begin_solve`](Self::begin_solve); none without friction); `+inf`
+    /// where two primitives touch.
     fn energy_and_add_forces(
         &self,
         positions: &[Vec3],
@@ -421,7 +675,27 @@ impl<M: ElasticEnergy<Vector = Vec3>> ElasticEnergy for ContactModel<'_, M> {
     ) -> Result<Real, MeshError> {
         let elastic = self.model.energy_and_add_forces(positions, forces)?;
         let contact = self.add_contact_forces(positions, forces)?;
-        Ok(elastic + contact)
+        let friction = self.add_friction_forces(positions, forces);
+        Ok(elastic + contact + friction)
+    }
+
+    /// The model's, then the frictional pairs at `start` where the contact has friction and
+    /// `h > 0` (none otherwise).
+    fn begin_solve(&self, start: &[Vec3], h: Real) -> Result<(), MeshError> {
+        self.model.begin_solve(start, h)?;
+        self.h.set(h);
+        let mut counts = self.counts.get();
+        counts.friction = 0;
+        self.counts.set(counts);
+        let active = self.barrier.gap > 0.0 && self.barrier.stiffness > 0.0;
+        if !(self.friction > 0.0 && h > 0.0 && active) {
+            return Ok(());
+        }
+        let found = self.lag_friction(start)?;
+        let mut counts = self.counts.get();
+        counts.friction = found;
+        self.counts.set(counts);
+        Ok(())
     }
 
     /// The model's bound, then [`ccd::step_bound`] over the pairs [`motion_pairs`] finds for
@@ -476,6 +750,12 @@ impl<M: ElasticHessian> ElasticHessian for ContactModel<'_, M> {
         let mut counts = self.counts.get();
         counts.hessians = stored;
         self.counts.set(counts);
+        let mut guard = self.buffers.borrow_mut();
+        for pair in guard.friction.get_mut(..counts.friction).unwrap_or_default() {
+            pair.block = self
+                .slip(pair, positions)
+                .map_or(Mat3::ZERO, |slip| friction_block(&slip) * pair.force);
+        }
         Ok(())
     }
 
@@ -487,6 +767,15 @@ impl<M: ElasticHessian> ElasticHessian for ContactModel<'_, M> {
     ) -> Result<(), MeshError> {
         self.model.add_hessian_product(cache, direction, out)?;
         self.stored_hessians(|hessians| add_hessian_product(hessians, direction, out))?;
+        let guard = self.buffers.borrow();
+        for pair in guard.friction.get(..self.counts.get().friction).unwrap_or_default() {
+            let along = pair.block * pair.relative(direction);
+            for (&vertex, &weight) in pair.vertices.iter().zip(&pair.weights) {
+                if let Some(slot) = out.get_mut(vertex as usize) {
+                    *slot += along * weight;
+                }
+            }
+        }
         Ok(())
     }
 
@@ -511,6 +800,25 @@ impl<M: ElasticHessian> ElasticHessian for ContactModel<'_, M> {
                 }
             }
         });
+        let guard = self.buffers.borrow();
+        for pair in guard.friction.get(..self.counts.get().friction).unwrap_or_default() {
+            for (&vertex, &weight) in pair.vertices.iter().zip(&pair.weights) {
+                if let Some(slot) = blocks.get_mut(vertex as usize) {
+                    *slot += pair.block * (weight * weight);
+                }
+            }
+        }
         Ok(())
     }
+}
+
+/// The curvature of a pair's friction potential per unit of `mu lambda` (1/m) that Newton's
+/// method takes: the exact Hessian of `f0(|u|)` in the tangent plane, positive semi-definite
+/// (`step/contact/friction.rs`). Measured on the blocks of `tests/steppers/contact.rs` (f64, 30
+/// degrees): sticking (mu 0.8), its 25 steps converged in 100 Newton iterations in all; with
+/// the isotropic majoriser `(f1/y) T` that the vertex friction takes where a step shortens the
+/// slip, the third step ran 100 iterations to 2.0e-3 N against a target of 8.5e-6 N, zigzagging.
+/// Sliding (mu 0.2): 173 iterations exact, 195 isotropic.
+fn friction_block(slip: &Slip<Vec3>) -> Mat3 {
+    slip.hessian()
 }

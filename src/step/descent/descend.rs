@@ -837,6 +837,7 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
     /// The evaluated trial point becomes the iterate: friction re-lagged to it, the points
     /// swapped, its `Phi` and residual taken.
     fn take(&mut self, mut evaluation: Evaluation) {
+
         let points = &mut self.points;
         self.lag_moved = self.objective.relag(
             points.other,

@@ -571,6 +571,10 @@ pub(crate) fn solve<F: ElasticEnergy, D: Direction<F>>(
     let velocities_at_start = velocities.as_deref().unwrap_or(&[]);
     let objective = problem.objective(start, velocities_at_start, ground.as_ref(), colliders);
     let h = objective.h;
+    if let Err(error) = problem.model.begin_solve(start, h) {
+        restore(positions);
+        return Err(error.into());
+    }
     let buffers = Buffers {
         gradient,
         trial_gradient,
