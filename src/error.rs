@@ -859,6 +859,9 @@ pub enum ContactError {
     /// The friction coefficient is NaN, infinite or negative, or the sticking speed is not
     /// finite and positive.
     Friction,
+    /// A contact model's buffers were in use by another of its calls (one of its methods
+    /// called from within another; the solvers never do).
+    BuffersInUse,
 }
 
 impl fmt::Display for ContactError {
@@ -899,6 +902,9 @@ impl fmt::Display for ContactError {
             }
             ContactError::Gap => f.write_str("the contact gap must be finite and >= 0"),
             ContactError::Stiffness => f.write_str("the barrier stiffness must be finite and >= 0"),
+            ContactError::BuffersInUse => {
+                f.write_str("the contact model's buffers are in use by another of its calls")
+            }
             ContactError::Friction => f.write_str(
                 "the friction coefficient must be finite and >= 0, the sticking speed finite and > 0",
             ),

@@ -188,6 +188,9 @@ pub mod simd;
 
 mod precision;
 
+// One panic-free sort for both precisions (`sort.rs`).
+mod sort;
+
 #[path = "f32/mod.rs"]
 mod single;
 pub use error::ColliderProblem;

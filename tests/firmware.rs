@@ -384,7 +384,7 @@ impl<'a> Elf<'a> {
 
 /// The pieces whose code size the test reports: the functions of `scenario::<precision>::pieces`
 /// (never inlined, not generic: one symbol each), with a label.
-const PIECES: [(&str, &str); 21] = [
+const PIECES: [(&str, &str); 22] = [
     ("svd3", "svd3"),
     ("svd3_lanes", "svd3_lanes"),
     ("forces_stvk_direct", "StVK forces, direct"),
@@ -415,6 +415,10 @@ const PIECES: [(&str, &str); 21] = [
     ("explicit_step", "explicit_step (stable NH)"),
     ("relax_step", "relax_step (stable NH)"),
     ("newton_step", "newton_step (stable NH)"),
+    (
+        "contact_newton_step",
+        "newton_step, 2 bodies in contact (ContactModel)",
+    ),
     ("vbd_step", "vbd_step (stable NH)"),
     ("body_new", "Body::rebuild_from_box (fixed storage)"),
     ("body_step", "Body::step_with_colliders"),

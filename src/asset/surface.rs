@@ -98,7 +98,7 @@ pub fn boundary_faces<'a>(
             }
         }
     }
-    scratch.sort_unstable_by_key(|face| (sorted(face.triangle), face.tet));
+    crate::sort::sort_by_key(scratch, |face| (sorted(face.triangle), face.tet));
     // Keep the faces whose sorted vertices appear once, compacting them to the front.
     let mut kept = 0;
     let mut start = 0;
@@ -119,7 +119,7 @@ pub fn boundary_faces<'a>(
         start = end;
     }
     let boundary = scratch.get_mut(..kept).unwrap_or_default();
-    boundary.sort_unstable_by_key(|face| (face.tet, face.triangle));
+    crate::sort::sort_by_key(boundary, |face| (face.tet, face.triangle));
     Ok(boundary)
 }
 
@@ -212,7 +212,10 @@ pub fn surface_area(positions: &[Vec3], triangles: &[[u32; 3]]) -> Real {
 }
 
 #[inline]
-fn sorted(mut face: [u32; 3]) -> [u32; 3] {
-    face.sort_unstable();
-    face
+fn sorted([a, b, c]: [u32; 3]) -> [u32; 3] {
+    // A three-element sorting network (no panic path, unlike `sort_unstable`).
+    let (a, b) = (a.min(b), a.max(b));
+    let (b, c) = (b.min(c), b.max(c));
+    let (a, b) = (a.min(b), a.max(b));
+    [a, b, c]
 }

@@ -107,8 +107,9 @@ pub fn boundary_edges<'a>(
             }
         }
     }
-    // Sorting puts the two copies of an interior edge of a closed surface next to each other.
-    scratch.sort_unstable();
+    // Sorting puts the two copies of an interior edge of a closed surface next to each other
+    // (`crate::sort`: no panic path).
+    crate::sort::sort_by_key(scratch, |&edge| edge);
     let kept = dedup_sorted(scratch);
     Ok(scratch.get(..kept).unwrap_or_default())
 }
@@ -137,7 +138,7 @@ pub fn boundary_vertices<'a>(
     for (slot, &corner) in scratch.iter_mut().zip(triangles.iter().flatten()) {
         *slot = corner;
     }
-    scratch.sort_unstable();
+    crate::sort::sort_by_key(scratch, |&vertex| vertex);
     let kept = dedup_sorted(scratch);
     Ok(scratch.get(..kept).unwrap_or_default())
 }

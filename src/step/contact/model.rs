@@ -27,7 +27,7 @@
 //! every trial point the motion broad phase and the CCD; every Newton iteration the pairs'
 //! projected Hessians. `benches/contact.rs` measures them against a force pass.
 
-use core::cell::{Cell, RefCell};
+use core::cell::{Cell, Ref, RefCell, RefMut};
 
 use crate::error::{ContactBuffer, ContactError, MeshError};
 
@@ -56,7 +56,8 @@ use super::potential::{ContactBarrier, ContactPotential, PairHessian, add_hessia
 /// `vertex_triangle` and `edge_edge` hold the candidate pairs of one query (a few per surface
 /// vertex and edge for a resting contact; a query that finds more fails with
 /// [`ContactError::Capacity`] naming the list and the exact count); `hessians` one entry per
-/// candidate pair at an iterate (Newton's method only; empty for the other solvers).
+/// active pair (closer than the gap) at an iterate (Newton's method only; empty for the other
+/// solvers); `friction` one per active pair at the start of a step (with friction only).
 ///
 /// [`scratch_len::broad_phase`]: super::super::scratch_len::broad_phase
 #[derive(Debug)]
@@ -145,8 +146,9 @@ pub struct ContactCounts {
 /// the same way (primitives sharing a vertex are never paired).
 ///
 /// The buffers are borrowed for the model's life and used through a [`RefCell`]: the model is
-/// not `Sync` (the solvers that need a `Sync` model, VBD's parallel sweep, do not take it) and
-/// its methods must not be called from within one another.
+/// not `Sync` (the solvers that need a `Sync` model, VBD's parallel sweep, do not take it), and
+/// a method called from within another (never by the solvers) fails with
+/// [`ContactError::BuffersInUse`].
 ///
 /// ```
 /// use softfem::glam::Vec3;
@@ -369,7 +371,7 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
         positions: &[Vec3],
         reach: Real,
     ) -> Result<Option<Real>, ContactError> {
-        let mut guard = self.buffers.borrow_mut();
+        let mut guard = self.buffers_mut()?;
         let buffers = &mut *guard;
         let mut scratch = BroadPhaseScratch::new(buffers.slots, buffers.entries);
         let pairs = proximity_pairs(
@@ -427,7 +429,7 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
         positions: &[Vec3],
         with: impl FnOnce(&ContactPotential<'_>, &mut [PairHessian]) -> Result<R, ContactError>,
     ) -> Result<R, ContactError> {
-        let mut guard = self.buffers.borrow_mut();
+        let mut guard = self.buffers_mut()?;
         let ContactBuffers {
             slots,
             entries,
@@ -476,7 +478,7 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
     /// Finds the frictional pairs at the start positions `start` (the active pairs of the
     /// barrier there) and writes them to the friction buffer; returns their number.
     fn lag_friction(&self, start: &[Vec3]) -> Result<usize, ContactError> {
-        let mut guard = self.buffers.borrow_mut();
+        let mut guard = self.buffers_mut()?;
         let ContactBuffers {
             slots,
             entries,
@@ -609,12 +611,16 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
 
     /// Adds the friction forces `-grad D` (N) at `positions` into `forces` and returns `D` (J),
     /// `D = sum_k mu lambda_k f0(|u_k|)` over the lagged pairs.
-    fn add_friction_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Real {
+    fn add_friction_forces(
+        &self,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<Real, ContactError> {
         let count = self.counts.get().friction;
         if count == 0 {
-            return 0.0;
+            return Ok(0.0);
         }
-        let guard = self.buffers.borrow();
+        let guard = self.buffers_ref()?;
         let mut energy = 0.0;
         for pair in guard.friction.get(..count).unwrap_or_default() {
             let Some(slip) = self.slip(pair, positions) else {
@@ -628,14 +634,33 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
                 }
             }
         }
-        energy
+        Ok(energy)
     }
 
     /// The pair Hessians stored by the last [`ElasticHessian::projected_hessians`] call.
-    fn stored_hessians<R>(&self, with: impl FnOnce(&[PairHessian]) -> R) -> R {
-        let guard = self.buffers.borrow();
+    fn stored_hessians<R>(
+        &self,
+        with: impl FnOnce(&[PairHessian]) -> R,
+    ) -> Result<R, ContactError> {
+        let guard = self.buffers_ref()?;
         let stored = self.counts.get().hessians;
-        with(guard.hessians.get(..stored).unwrap_or_default())
+        Ok(with(guard.hessians.get(..stored).unwrap_or_default()))
+    }
+
+    /// The buffers, mutably, or [`ContactError::BuffersInUse`] if a call of this model is
+    /// using them already (one of its methods called from within another: never by the
+    /// solvers). No panic path, as `RefCell::borrow_mut` would have.
+    fn buffers_mut(&self) -> Result<RefMut<'_, ContactBuffers<'a>>, ContactError> {
+        self.buffers
+            .try_borrow_mut()
+            .map_err(|_| ContactError::BuffersInUse)
+    }
+
+    /// The buffers, shared (see [`buffers_mut`](Self::buffers_mut)).
+    fn buffers_ref(&self) -> Result<Ref<'_, ContactBuffers<'a>>, ContactError> {
+        self.buffers
+            .try_borrow()
+            .map_err(|_| ContactError::BuffersInUse)
     }
 }
 
@@ -675,7 +700,7 @@ impl<M: ElasticEnergy<Vector = Vec3>> ElasticEnergy for ContactModel<'_, M> {
     ) -> Result<Real, MeshError> {
         let elastic = self.model.energy_and_add_forces(positions, forces)?;
         let contact = self.add_contact_forces(positions, forces)?;
-        let friction = self.add_friction_forces(positions, forces);
+        let friction = self.add_friction_forces(positions, forces)?;
         Ok(elastic + contact + friction)
     }
 
@@ -705,7 +730,7 @@ impl<M: ElasticEnergy<Vector = Vec3>> ElasticEnergy for ContactModel<'_, M> {
         if elastic <= 0.0 || self.surface.triangles.is_empty() {
             return Ok(elastic);
         }
-        let mut guard = self.buffers.borrow_mut();
+        let mut guard = self.buffers_mut()?;
         let ContactBuffers {
             slots,
             entries,
@@ -750,7 +775,7 @@ impl<M: ElasticHessian> ElasticHessian for ContactModel<'_, M> {
         let mut counts = self.counts.get();
         counts.hessians = stored;
         self.counts.set(counts);
-        let mut guard = self.buffers.borrow_mut();
+        let mut guard = self.buffers_mut()?;
         for pair in guard.friction.get_mut(..counts.friction).unwrap_or_default() {
             pair.block = self
                 .slip(pair, positions)
@@ -766,8 +791,8 @@ impl<M: ElasticHessian> ElasticHessian for ContactModel<'_, M> {
         out: &mut [Vec3],
     ) -> Result<(), MeshError> {
         self.model.add_hessian_product(cache, direction, out)?;
-        self.stored_hessians(|hessians| add_hessian_product(hessians, direction, out))?;
-        let guard = self.buffers.borrow();
+        self.stored_hessians(|hessians| add_hessian_product(hessians, direction, out))??;
+        let guard = self.buffers_ref()?;
         for pair in guard.friction.get(..self.counts.get().friction).unwrap_or_default() {
             let along = pair.block * pair.relative(direction);
             for (&vertex, &weight) in pair.vertices.iter().zip(&pair.weights) {
@@ -799,8 +824,8 @@ impl<M: ElasticHessian> ElasticHessian for ContactModel<'_, M> {
                     }
                 }
             }
-        });
-        let guard = self.buffers.borrow();
+        })?;
+        let guard = self.buffers_ref()?;
         for pair in guard.friction.get(..self.counts.get().friction).unwrap_or_default() {
             for (&vertex, &weight) in pair.vertices.iter().zip(&pair.weights) {
                 if let Some(slot) = blocks.get_mut(vertex as usize) {

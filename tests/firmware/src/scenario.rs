@@ -229,6 +229,11 @@ macro_rules! precision {
             };
             use $($softfem)::+::svd::Svd3;
             use $($softfem)::+::types::{Mat3, Real, Vec3};
+            use $($softfem)::+::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
+            use $($softfem)::+::step::contact::boundary::ContactSurface;
+            use $($softfem)::+::step::contact::model::FrictionPair;
+            use $($softfem)::+::step::contact::potential::{ContactBarrier, PairHessian};
+            use $($softfem)::+::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
 
             use super::{Digest, Meter, Record, Records, jitter};
 
@@ -251,6 +256,7 @@ macro_rules! precision {
                 use $($softfem)::+::{BodyError, MeshError, StepError};
                 use $($softfem)::+::body::StepReport;
                 use $($softfem)::+::step::Collider;
+                use $($softfem)::+::step::contact::ContactModel;
 
                 use super::ColliderBody;
 
@@ -315,6 +321,21 @@ macro_rules! precision {
                 #[inline(never)]
                 pub fn newton_step(
                     model: &TetElastic<'_, StableNeoHookean>,
+                    masses: &[Real],
+                    scene: &Scene<'_, Vec3>,
+                    settings: &NewtonSettings,
+                    positions: &mut [Vec3],
+                    velocities: &mut [Vec3],
+                    scratch: &mut NewtonScratch<'_>,
+                ) -> Result<NewtonReport, StepError> {
+                    $($softfem)::+::step::newton_step(model, masses, &[], scene, settings, positions, velocities, scratch)
+                }
+
+                /// [`newton_step`](fn@$($softfem)::+::step::newton_step) of two stable
+                /// neo-Hookean bodies in contact ([`ContactModel`] with friction).
+                #[inline(never)]
+                pub fn contact_newton_step(
+                    model: &ContactModel<'_, TetElastic<'_, StableNeoHookean>>,
                     masses: &[Real],
                     scene: &Scene<'_, Vec3>,
                     settings: &NewtonSettings,
@@ -1130,12 +1151,149 @@ macro_rules! precision {
                 }
             }
 
+            /// Vertices of the contact scene: two cubes of one Kuhn-split cell.
+            const PAIR_VERTICES: usize = 16;
+            /// Tetrahedra of the contact scene.
+            const PAIR_TETS: usize = 12;
+            /// Boundary triangles of the contact scene (12 per cube).
+            const PAIR_TRIANGLES: usize = 24;
+            /// Candidate pairs per list the contact scene's buffers hold.
+            const PAIR_CANDIDATES: usize = 512;
+            /// Active pairs the contact scene's Hessian and friction buffers hold.
+            const PAIR_ACTIVE: usize = 48;
+            /// Newton steps of the contact scene.
+            const PAIR_STEPS: u32 = 10;
+            /// The contact scene's broad-phase lengths.
+            const PAIR_BROAD: scratch_len::BroadPhaseScratchLen = scratch_len::broad_phase(
+                PAIR_VERTICES,
+                scratch_len::boundary_edges(PAIR_TRIANGLES),
+                PAIR_TRIANGLES,
+            );
+            /// Newton's lengths for the contact scene.
+            const PAIR_NEWTON: scratch_len::NewtonScratchLen = scratch_len::newton(PAIR_VERTICES, PAIR_TETS);
+
+            /// Body–body contact: a 1 cm cube dropped from 1 mm onto another standing on the
+            /// ground (both of one Kuhn-split cell, stable neo-Hookean, E = 1e5 Pa), the
+            /// barrier of `ContactModel` with dhat = 0.5 mm and friction 0.5 between them,
+            /// [`PAIR_STEPS`] Newton steps at 100 Hz. Every buffer is a fixed array on the stack
+            /// (about 55 KB of pair Hessians in f64); never inlined, so that they leave the stack
+            /// with it.
+            #[inline(never)]
+            fn contact_pair(meter: &mut impl Meter, records: &mut Records) {
+                let mut rest = [Vec3::ZERO; PAIR_VERTICES];
+                let mut tets = [[0u32; 4]; PAIR_TETS];
+                for (k, base) in [0.0, 0.011].into_iter().enumerate() {
+                    let min = Vec3::new(0.0, base, 0.0);
+                    let (Some(x), Some(t)) = (rest.get_mut(8 * k..8 * k + 8), tets.get_mut(6 * k..6 * k + 6)) else {
+                        return;
+                    };
+                    if fill_box(min, min + Vec3::splat(0.01), 1, 1, 1, BoxSplit::Kuhn6, x, t).is_err() {
+                        return;
+                    }
+                    for tet in t.iter_mut() {
+                        for v in tet.iter_mut() {
+                            *v += 8 * k as u32;
+                        }
+                    }
+                }
+                let mut faces = [BoundaryFace::default(); boundary_scratch_len(PAIR_TETS)];
+                let mut triangles = [[0u32; 3]; PAIR_TRIANGLES];
+                match boundary_faces(&tets, PAIR_VERTICES, &mut faces) {
+                    Ok(found) if found.len() == PAIR_TRIANGLES => {
+                        for (slot, face) in triangles.iter_mut().zip(found) {
+                            *slot = face.triangle;
+                        }
+                    }
+                    _ => return,
+                }
+                let mut surface_vertices = [0u32; scratch_len::boundary_vertices(PAIR_TRIANGLES)];
+                let mut surface_edges = [[0u32; 2]; scratch_len::boundary_edges(PAIR_TRIANGLES)];
+                let Ok(surface) = ContactSurface::from_triangles(&triangles, PAIR_VERTICES, &mut surface_vertices, &mut surface_edges) else {
+                    return;
+                };
+                let mut rest_data = [TetRest::default(); PAIR_TETS];
+                let Ok(mesh) = TetMesh::new(&rest, &tets, &mut rest_data) else {
+                    return;
+                };
+                let mut masses = [0.0; PAIR_VERTICES];
+                if mesh.lumped_masses(1000.0, &mut masses).is_err() {
+                    return;
+                }
+                let Ok(material) = StableNeoHookean::from_young_poisson(1.0e5, 0.3) else {
+                    return;
+                };
+                let mut slots = [0u32; PAIR_BROAD.slots];
+                let mut entries = [0u32; PAIR_BROAD.entries];
+                let mut vertex_triangle = [[0u32; 2]; PAIR_CANDIDATES];
+                let mut edge_edge = [[0u32; 2]; PAIR_CANDIDATES];
+                let mut pair_hessians = [PairHessian::default(); PAIR_ACTIVE];
+                let mut friction = [FrictionPair::default(); PAIR_ACTIVE];
+                let buffers = ContactBuffers {
+                    slots: &mut slots,
+                    entries: &mut entries,
+                    vertex_triangle: &mut vertex_triangle,
+                    edge_edge: &mut edge_edge,
+                    hessians: &mut pair_hessians,
+                    friction: &mut friction,
+                };
+                // The upper cube's 0.13 N weight on its 4 bottom vertices: 0.05 N a pair at
+                // half the gap.
+                let Ok(barrier) = ContactBarrier::holding(5e-4, 0.05) else {
+                    return;
+                };
+                let model = match ContactModel::new(TetElastic::new(mesh, material), surface, &rest, barrier, buffers) {
+                    Ok(model) => match model.with_friction(0.5, SUGGESTED_STICKING_SPEED) {
+                        Ok(model) => model,
+                        Err(_) => return,
+                    },
+                    Err(_) => return,
+                };
+                let scene = Scene::new(0.01)
+                    .with_gravity(Vec3::new(0.0, -9.81, 0.0))
+                    .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5));
+                let settings = NewtonSettings::new().with_tolerance(1e-3, 30);
+                let mut vectors = [Vec3::ZERO; PAIR_NEWTON.vectors];
+                let mut blocks = [Mat3::ZERO; PAIR_NEWTON.blocks];
+                let mut hessians = [TetHessian::default(); PAIR_NEWTON.hessians];
+                let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
+                let (mut positions, mut velocities) = (rest, [Vec3::ZERO; PAIR_VERTICES]);
+                let mut digest = Digest::new();
+                let mut newton = 0u64;
+                for _ in 0..PAIR_STEPS {
+                    let report = meter.measure(concat!($prefix, " contact_newton_step"), || {
+                        pieces::contact_newton_step(&model, &masses, &scene, &settings, &mut positions, &mut velocities, &mut scratch)
+                    });
+                    match report {
+                        Ok(report) => {
+                            newton += u64::from(report.iterations);
+                            meter.units(concat!($prefix, " contact_newton_step"), "vertex Newton iteration", PAIR_VERTICES as u64 * u64::from(report.iterations));
+                            newton_report(&mut digest, &report);
+                        }
+                        Err(_) => digest.u64(u64::MAX),
+                    }
+                    let counts = model.counts();
+                    for count in [counts.vertex_triangle, counts.edge_edge, counts.hessians, counts.friction] {
+                        digest.u64(count as u64);
+                    }
+                    digest.u64(state_digest(&positions, &velocities).finish());
+                }
+                // The gap left between the cubes: the upper one's lowest vertex over the lower
+                // one's highest.
+                let upper = positions.get(8..).unwrap_or(&[]).iter().fold(Real::INFINITY, |low, p| low.min(p.y));
+                let lower = positions.get(..8).unwrap_or(&[]).iter().fold(Real::NEG_INFINITY, |high, p| high.max(p.y));
+                push(records, concat!($prefix, " contact pair, step 10 (gap)"), digest, upper - lower);
+                let mut count = Digest::new();
+                count.u64(newton);
+                push(records, concat!($prefix, " contact pair, Newton iterations"), count, newton as Real);
+            }
+
             /// The whole workload in this precision.
             pub fn run(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody, descent: &mut DescentScratch, owned: &mut ColliderBody) {
                 svds(meter, records);
                 forces(meter, records);
                 drop(meter, records, body, descent);
                 on_colliders(meter, records, owned);
+                contact_pair(meter, records);
             }
         }
     };

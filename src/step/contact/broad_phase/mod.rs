@@ -239,8 +239,9 @@ fn candidate_pairs<'a>(
     let vertex_triangle = vertex_triangle.get_mut(..found_vt).unwrap_or_default();
     let edge_edge = edge_edge.get_mut(..found_ee).unwrap_or_default();
     // The pairs are unique, so any sort gives the one sorted order.
-    vertex_triangle.sort_unstable_by_key(|&[a, b]| (u64::from(a) << 32) | u64::from(b));
-    edge_edge.sort_unstable_by_key(|&[a, b]| (u64::from(a) << 32) | u64::from(b));
+    // `crate::sort`: no panic path, as the firmware check requires.
+    crate::sort::sort_by_key(vertex_triangle, |&[a, b]| (u64::from(a) << 32) | u64::from(b));
+    crate::sort::sort_by_key(edge_edge, |&[a, b]| (u64::from(a) << 32) | u64::from(b));
     Ok(CandidatePairs {
         vertex_triangle,
         edge_edge,

@@ -757,42 +757,44 @@ impl ContactPotential<'_> {
     /// `positions` to the front of `hessians`, in pair order, and returns that prefix: what
     /// [`add_hessian_product`] multiplies matrix-free. Inactive and touching pairs are left out.
     ///
-    /// `hessians` needs one entry per candidate pair (`vertex_triangle.len() +
-    /// edge_edge.len()`), the most that can be active; entries past the prefix are left as they
+    /// `hessians` needs one entry per active pair (at most one per candidate pair,
+    /// `vertex_triangle.len() + edge_edge.len()`, and in a resting contact far fewer: a fixed
+    /// capacity can be sized to the contact expected); entries past the prefix are left as they
     /// were.
     ///
     /// # Errors
-    /// Those of [`energy`](Self::energy), then [`ContactError::Capacity`] naming
-    /// [`ContactBuffer::PairHessians`] with the number of candidate pairs if `hessians` is
-    /// shorter. Nothing is written then.
+    /// Those of [`energy`](Self::energy), with nothing written; then [`ContactError::Capacity`]
+    /// naming [`ContactBuffer::PairHessians`] with the number of active pairs if `hessians` is
+    /// shorter, when its entries hold unspecified values.
     pub fn pair_hessians<'h>(
         &self,
         positions: &[Vec3],
         hessians: &'h mut [PairHessian],
     ) -> Result<&'h [PairHessian], ContactError> {
         self.check(positions)?;
-        let needed = self.pairs.vertex_triangle.len() + self.pairs.edge_edge.len();
-        if hessians.len() < needed {
-            return Err(ContactError::Capacity {
-                buffer: ContactBuffer::PairHessians,
-                needed,
-                capacity: hessians.len(),
-            });
-        }
-        let mut written = 0;
+        let mut active = 0;
         self.for_each_pair(positions, |pair| {
             let (terms, vertices) = pair.terms(&self.barrier);
             if !terms.active {
                 return;
             }
-            if let Some(slot) = hessians.get_mut(written) {
+            // Once the buffer is full the pairs are only counted (no projection).
+            if let Some(slot) = hessians.get_mut(active) {
                 *slot = PairHessian {
                     vertices,
                     hessian: project(&terms.hessian),
                 };
-                written += 1;
             }
+            active += 1;
         });
+        if active > hessians.len() {
+            return Err(ContactError::Capacity {
+                buffer: ContactBuffer::PairHessians,
+                needed: active,
+                capacity: hessians.len(),
+            });
+        }
+        let written = active;
         Ok(hessians.get(..written).unwrap_or_default())
     }
 }

@@ -713,13 +713,19 @@ fn refusals_name_the_buffer_and_write_nothing() {
     let expected = length(ContactBuffer::HessianDiagonal, 8, 9);
     assert_eq!(good.add_hessian_diagonal(x, &mut short), Err(expected));
     let candidates = scene.vertex_triangle.len() + scene.edge_edge.len();
-    let mut stored = vec![PairHessian::default(); candidates - 1];
+    let mut stored = vec![PairHessian::default(); candidates];
+    let active = good.pair_hessians(x, &mut stored).unwrap().len();
+    assert!(active > 1 && active < candidates, "{active} of {candidates}");
+    let mut short = vec![PairHessian::default(); active - 1];
     let expected = ContactError::Capacity {
         buffer: ContactBuffer::PairHessians,
-        needed: candidates,
-        capacity: candidates - 1,
+        needed: active,
+        capacity: active - 1,
     };
-    assert_eq!(good.pair_hessians(x, &mut stored), Err(expected));
+    assert_eq!(good.pair_hessians(x, &mut short), Err(expected));
+    // Exactly the active pairs fit.
+    let mut exact = vec![PairHessian::default(); active];
+    assert_eq!(good.pair_hessians(x, &mut exact).unwrap(), &stored[..active]);
     // The product: lengths, then the stored vertices.
     let mut stored = vec![PairHessian::default(); candidates];
     let hessians = good.pair_hessians(x, &mut stored).unwrap().to_vec();
