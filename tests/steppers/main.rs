@@ -22,6 +22,7 @@ mod loads;
 mod newton;
 mod parallel;
 mod relax;
+mod self_contact;
 mod stability;
 mod stagnation;
 mod step;
