@@ -21,6 +21,7 @@ mod frequency;
 mod loads;
 mod newton;
 mod parallel;
+mod pile;
 mod relax;
 mod self_contact;
 mod stability;

@@ -1,0 +1,526 @@
+//! `cargo run --release -p softfem-examples --bin pile`: eight soft balls dropped into a box
+//! (issue #39).
+//!
+//! Eight balls (radius 4 cm, stable neo-Hookean, E = 100 kPa, nu = 0.3, 1000 kg/m^3) start in
+//! a spiral above a box (the ground and four wall colliders, 18 cm apart) and fall into it, onto
+//! each other. One contact model over all their vertices (`softfem::step::contact::ContactModel`:
+//! the barrier of Incremental Potential Contact, dhat = 1 mm, and friction 0.3 between the
+//! balls) and Newton steps of 1/100 s, every trial step cut by continuous collision detection.
+//! After every step an exact triangle–triangle test (`exact.rs`, not the barrier) counts the
+//! pairs of boundary triangles that intersect. Writes VTK frames (`frame_0000.vtk`, ..., with
+//! `frames.vtk.series` for ParaView) and `filmstrip.svg` into `target/pile/`, and prints a
+//! summary: intersecting pairs, the smallest gap, the share of converged solves, the balls'
+//! volume range and the wall time. Exits with failure if any pair intersected.
+//!
+//! The same scene, shorter and coarser, is the test `tests/steppers/pile.rs`.
+
+mod exact;
+// The bouncy scene's VTK writer and filmstrip drawing, shared as they are; this program uses
+// part of each (no triangle cells, a fixed frame interval).
+#[path = "../bouncy/filmstrip.rs"]
+#[allow(dead_code)]
+mod filmstrip;
+#[path = "../bouncy/vtk.rs"]
+#[allow(dead_code)]
+mod vtk;
+
+use std::ops::Range;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use clap::Parser;
+
+use filmstrip::{Camera, Filmstrip, Recorder};
+use softfem::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
+use softfem::element::{TetHessian, TetRest};
+use softfem::generate::{BoxSplit, box_counts, fill_box};
+use softfem::glam::{Mat3, Quat, Vec3};
+use softfem::material::StableNeoHookean;
+use softfem::mesh::TetMesh;
+use softfem::step::contact::boundary::ContactSurface;
+use softfem::step::contact::model::FrictionPair;
+use softfem::step::contact::potential::{ContactBarrier, PairHessian};
+use softfem::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
+use softfem::step::{
+    Collider, HalfSpace, NewtonScratch, NewtonSettings, Scene, TetElastic, newton_step, scratch_len,
+};
+
+/// Gravity (m/s^2) along -z.
+const GRAVITY: Vec3 = Vec3::new(0.0, 0.0, -9.81);
+/// Ball radius (m).
+const RADIUS: f32 = 0.04;
+/// Half the inner width of the box (m): a 2 x 2 layer of balls (16 cm) just fits.
+const HALF_WIDTH: f32 = 0.09;
+/// The balls' material and the friction everywhere (between balls, on the ground and walls).
+const YOUNG_MODULUS: f32 = 1e5;
+const POISSON_RATIO: f32 = 0.3;
+const DENSITY: f32 = 1000.0;
+const FRICTION: f32 = 0.3;
+/// The barrier's gap (m) and the force (N) a pair at half of it holds.
+const DHAT: f32 = 1e-3;
+const HOLDING: f32 = 1.0;
+/// Newton's relative tolerance and iteration budget.
+const TOLERANCE: f32 = 1e-5;
+const MAX_ITERATIONS: u32 = 100;
+
+/// Drop eight soft balls into a box and check that their surfaces never intersect.
+#[derive(Parser, Debug)]
+#[command(version, about)]
+struct Args {
+    /// Simulated time (s).
+    #[arg(long, default_value_t = 2.0)]
+    duration: f32,
+
+    /// Time step (s).
+    #[arg(long, default_value_t = 0.01)]
+    step: f32,
+
+    /// Cells along the side of the cube each ball is mapped from (cells^3 x 5 tetrahedra).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(2..=12))]
+    cells: u32,
+
+    /// Output frames per simulated second.
+    #[arg(long, default_value_t = 30.0)]
+    frame_rate: f32,
+
+    /// Panels of the filmstrip.
+    #[arg(long, default_value_t = 6)]
+    panels: u32,
+
+    /// Output directory (created if missing).
+    #[arg(long, default_value = "target/pile")]
+    out: PathBuf,
+}
+
+fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(message) => {
+            eprintln!("error: {message}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The signed volume of a tetrahedron (m^3; positive for the library's orientation).
+fn volume(x: &[Vec3], [a, b, c, d]: [u32; 4]) -> f32 {
+    let [a, b, c, d] = [a, b, c, d].map(|i| x[i as usize]);
+    (b - a).cross(c - a).dot(d - a) / 6.0
+}
+
+/// A ball of `radius` around `centre`: the cube `[-1, 1]^3` of `cells^3` cells split into five
+/// tetrahedra each, every vertex mapped onto the unit ball by the map that takes each face of
+/// the cube onto a sixth of the sphere (P. Nowell, "Mapping a Cube to a Sphere", 2005:
+/// `x' = x sqrt(1 - y^2/2 - z^2/2 + y^2 z^2/3)` and cyclically), then scaled and moved.
+fn ball(centre: Vec3, radius: f32, cells: usize) -> Result<(Vec<Vec3>, Vec<[u32; 4]>), String> {
+    let split = BoxSplit::Alternating5;
+    let (nv, nt) = box_counts(cells, cells, cells, split).map_err(|e| e.to_string())?;
+    let (mut x, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
+    fill_box(
+        Vec3::splat(-1.0),
+        Vec3::ONE,
+        cells,
+        cells,
+        cells,
+        split,
+        &mut x,
+        &mut tets,
+    )
+    .map_err(|e| e.to_string())?;
+    for p in &mut x {
+        let s = *p * *p;
+        let mapped = Vec3::new(
+            p.x * (1.0 - s.y / 2.0 - s.z / 2.0 + s.y * s.z / 3.0).sqrt(),
+            p.y * (1.0 - s.z / 2.0 - s.x / 2.0 + s.z * s.x / 3.0).sqrt(),
+            p.z * (1.0 - s.x / 2.0 - s.y / 2.0 + s.x * s.y / 3.0).sqrt(),
+        );
+        *p = centre + mapped * radius;
+    }
+    if let Some(tet) = tets.iter().find(|&&tet| volume(&x, tet) <= 0.0) {
+        return Err(format!("the ball map inverted tetrahedron {tet:?}"));
+    }
+    Ok((x, tets))
+}
+
+/// The balls' centres: a spiral (135 degrees and 6 cm up from one to the next, 3.5 cm from the
+/// box's axis), the lowest 5 mm above the ground; every pair starts at least 8 mm apart.
+fn centres() -> Vec<Vec3> {
+    (0..8)
+        .map(|k| {
+            let angle = (135.0 * k as f32).to_radians();
+            Vec3::new(
+                0.035 * angle.cos(),
+                0.035 * angle.sin(),
+                RADIUS + 0.005 + 0.06 * k as f32,
+            )
+        })
+        .collect()
+}
+
+/// The four walls: boxes 10 cm thick and 1 m high whose inner faces are at
+/// `|x|, |y| = HALF_WIDTH`.
+fn walls() -> Vec<Collider<'static>> {
+    let (thick, high) = (0.05, 0.5);
+    [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y]
+        .into_iter()
+        .map(|n| {
+            let along = HALF_WIDTH + 2.0 * thick;
+            let half = Vec3::new(
+                if n.x != 0.0 { thick } else { along },
+                if n.y != 0.0 { thick } else { along },
+                high,
+            );
+            Collider::cuboid(
+                n * (HALF_WIDTH + thick) + Vec3::Z * high,
+                half,
+                Quat::IDENTITY,
+            )
+            .with_friction(FRICTION)
+        })
+        .collect()
+}
+
+/// The eight balls as one mesh: positions, tetrahedra, each ball's range of tetrahedra, the
+/// boundary triangles.
+struct Balls {
+    rest: Vec<Vec3>,
+    tets: Vec<[u32; 4]>,
+    ranges: Vec<Range<usize>>,
+    triangles: Vec<[u32; 3]>,
+}
+
+impl Balls {
+    fn new(cells: usize) -> Result<Balls, String> {
+        let (mut rest, mut tets, mut ranges) = (Vec::new(), Vec::new(), Vec::new());
+        for centre in centres() {
+            let (x, t) = ball(centre, RADIUS, cells)?;
+            let offset = rest.len() as u32;
+            ranges.push(tets.len()..tets.len() + t.len());
+            rest.extend(x);
+            tets.extend(t.iter().map(|tet| tet.map(|v| v + offset)));
+        }
+        let mut faces = vec![BoundaryFace::default(); boundary_scratch_len(tets.len())];
+        let triangles = boundary_faces(&tets, rest.len(), &mut faces)
+            .map_err(|e| e.to_string())?
+            .iter()
+            .map(|face| face.triangle)
+            .collect();
+        Ok(Balls {
+            rest,
+            tets,
+            ranges,
+            triangles,
+        })
+    }
+
+    /// The pairs of boundary triangles (sharing no vertex) that intersect at `x`, decided
+    /// exactly.
+    fn intersecting_pairs(&self, x: &[Vec3]) -> usize {
+        let x: Vec<[f64; 3]> = x.iter().map(|p| p.to_array().map(f64::from)).collect();
+        exact::intersecting_pairs(&x, &self.triangles).len()
+    }
+
+    /// Each ball's volume (m^3) at `x`.
+    fn volumes(&self, x: &[Vec3]) -> Vec<f32> {
+        self.ranges
+            .iter()
+            .map(|range| self.tets[range.clone()].iter().map(|&t| volume(x, t)).sum())
+            .collect()
+    }
+}
+
+/// What the run counts, for the summary.
+#[derive(Debug, Default)]
+struct Totals {
+    steps: usize,
+    converged: usize,
+    /// Not converged, stopped at the f32 rounding floor (the report's `stagnated`).
+    stagnated: usize,
+    iterations: u32,
+    /// The steps that neither converged nor stopped at the rounding floor: (step, residual N,
+    /// target N).
+    unconverged: Vec<(usize, f32, f32)>,
+    /// Intersecting triangle pairs summed over the steps, and the steps with any.
+    intersecting: usize,
+    intersecting_steps: usize,
+    smallest_gap: Option<f32>,
+    volume_range: (f32, f32),
+}
+
+fn run(args: &Args) -> Result<(), String> {
+    if !(args.duration > 0.0 && args.step > 0.0 && args.frame_rate > 0.0) {
+        return Err("--duration, --step and --frame-rate must be positive".into());
+    }
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
+    let balls = Balls::new(args.cells as usize)?;
+    let n = balls.rest.len();
+    let rest_volumes = balls.volumes(&balls.rest);
+    let rest_tet_volumes: Vec<f32> = balls.tets.iter().map(|&t| volume(&balls.rest, t)).collect();
+    println!(
+        "balls     8 of radius {RADIUS} m, {} cells^3 each: {n} vertices, {} tetrahedra, {} boundary triangles",
+        args.cells,
+        balls.tets.len(),
+        balls.triangles.len()
+    );
+    if balls.intersecting_pairs(&balls.rest) != 0 {
+        return Err("the balls intersect at the start".into());
+    }
+
+    // The contact model over all balls and its buffers.
+    let triangles = &balls.triangles;
+    let (mut vertices, mut edges) = (
+        vec![0; scratch_len::boundary_vertices(triangles.len())],
+        vec![[0; 2]; scratch_len::boundary_edges(triangles.len())],
+    );
+    let (v, e) = {
+        let surface = ContactSurface::from_triangles(triangles, n, &mut vertices, &mut edges)
+            .map_err(|e| e.to_string())?;
+        (surface.vertices.len(), surface.edges.len())
+    };
+    vertices.truncate(v);
+    edges.truncate(e);
+    let lengths = scratch_len::broad_phase(v, e, triangles.len());
+    let (mut slots, mut entries) = (vec![0; lengths.slots], vec![0; lengths.entries]);
+    let (mut vertex_triangle, mut edge_edge) = (vec![[0; 2]; 32 * v], vec![[0; 2]; 32 * e]);
+    let mut pair_hessians = vec![PairHessian::default(); 16 * (v + e)];
+    let mut friction = vec![FrictionPair::default(); 16 * (v + e)];
+    let mut rest_data = vec![TetRest::default(); balls.tets.len()];
+    let mesh = TetMesh::new(&balls.rest, &balls.tets, &mut rest_data).map_err(|e| e.to_string())?;
+    let mut masses = vec![0.0; n];
+    mesh.lumped_masses(DENSITY, &mut masses)
+        .map_err(|e| e.to_string())?;
+    let material = StableNeoHookean::from_young_poisson(YOUNG_MODULUS, POISSON_RATIO)
+        .map_err(|e| e.to_string())?;
+    let surface = ContactSurface {
+        vertices: &vertices,
+        edges: &edges,
+        triangles,
+    };
+    let buffers = ContactBuffers {
+        slots: &mut slots,
+        entries: &mut entries,
+        vertex_triangle: &mut vertex_triangle,
+        edge_edge: &mut edge_edge,
+        hessians: &mut pair_hessians,
+        friction: &mut friction,
+    };
+    let barrier = ContactBarrier::holding(DHAT, HOLDING).map_err(|e| e.to_string())?;
+    let model = ContactModel::new(
+        TetElastic::new(mesh, material),
+        surface,
+        &balls.rest,
+        barrier,
+        buffers,
+    )
+    .and_then(|model| model.with_friction(FRICTION, SUGGESTED_STICKING_SPEED))
+    .map_err(|e| e.to_string())?;
+    println!(
+        "material  stable neo-Hookean, E = {YOUNG_MODULUS} Pa, nu = {POISSON_RATIO}, {DENSITY} kg/m^3, {:.3} kg in all",
+        masses.iter().sum::<f32>()
+    );
+    println!(
+        "contact   barrier dhat = {DHAT} m holding {HOLDING} N at half of it, friction {FRICTION} between the balls, on the ground and the walls"
+    );
+    println!(
+        "stepper   Newton, h = {} s, tolerance {TOLERANCE}, at most {MAX_ITERATIONS} iterations",
+        args.step
+    );
+
+    let newton = scratch_len::newton(n, balls.tets.len());
+    let (mut vectors, mut blocks, mut hessians) = (
+        vec![Vec3::ZERO; newton.vectors],
+        vec![Mat3::ZERO; newton.blocks],
+        vec![TetHessian::default(); newton.hessians],
+    );
+    let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
+    let walls = walls();
+    let scene = Scene::new(args.step)
+        .with_gravity(GRAVITY)
+        .with_ground(HalfSpace::new(Vec3::Z, 0.0).with_friction(FRICTION))
+        .with_colliders(&walls);
+    let settings = NewtonSettings::new().with_tolerance(TOLERANCE, MAX_ITERATIONS);
+
+    let frame_interval = 1.0 / f64::from(args.frame_rate);
+    let mut recorder = Recorder::new(
+        args.panels as usize,
+        f64::from(args.duration),
+        frame_interval,
+    );
+    let steps = (f64::from(args.duration) / f64::from(args.step))
+        .round()
+        .max(1.0) as usize;
+    let (mut x, mut velocities) = (balls.rest.clone(), vec![Vec3::ZERO; n]);
+    let mut totals = Totals {
+        volume_range: (1.0, 1.0),
+        ..Totals::default()
+    };
+    let mut written: Vec<(String, f64)> = Vec::new();
+    let mut next_frame = 0.0f64;
+    let mut next_progress = 0.0f64;
+    let started = Instant::now();
+    for step in 0..=steps {
+        let time = step as f64 * f64::from(args.step);
+        // A microsecond of slack: the frame times accumulate rounding (60 x 1/30 > 2).
+        if time + 1e-6 >= next_frame {
+            let ratios: Vec<f32> = balls
+                .tets
+                .iter()
+                .zip(&rest_tet_volumes)
+                .map(|(&tet, rest)| volume(&x, tet) / rest)
+                .collect();
+            let name = vtk::frame_file_name(written.len());
+            let path = args.out.join(&name);
+            let title = format!("softfem pile, step {step}, t = {time} s");
+            vtk::write_frame_file(
+                &path,
+                &vtk::Frame {
+                    title: &title,
+                    time,
+                    positions: &x,
+                    velocities: &velocities,
+                    cells: vtk::Cells::Tets(&balls.tets),
+                    volume_ratios: &ratios,
+                },
+            )
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            written.push((name, time));
+            recorder.offer(time, &x);
+            next_frame += frame_interval;
+        }
+        if time + 1e-6 >= next_progress {
+            println!(
+                "t = {time:5.2} s  step {step:4}  {} Newton iterations, {} of {} converged, smallest gap {}",
+                totals.iterations,
+                totals.converged,
+                totals.steps,
+                gap_text(totals.smallest_gap)
+            );
+            next_progress += 0.25;
+        }
+        if step == steps {
+            break;
+        }
+        let report = newton_step(
+            &model,
+            &masses,
+            &[],
+            &scene,
+            &settings,
+            &mut x,
+            &mut velocities,
+            &mut scratch,
+        )
+        .map_err(|e| format!("step {step}: {e}"))?;
+        totals.steps += 1;
+        totals.iterations += report.iterations;
+        totals.converged += usize::from(report.converged);
+        totals.stagnated += usize::from(!report.converged && report.stagnated);
+        if !report.converged && !report.stagnated {
+            totals
+                .unconverged
+                .push((step, report.residual, report.target));
+        }
+        let crossing = balls.intersecting_pairs(&x);
+        totals.intersecting += crossing;
+        totals.intersecting_steps += usize::from(crossing > 0);
+        let gap = model
+            .smallest_distance(&x, 10.0 * DHAT)
+            .map_err(|e| format!("step {step}: {e}"))?;
+        if let Some(gap) = gap {
+            totals.smallest_gap = Some(totals.smallest_gap.map_or(gap, |g| g.min(gap)));
+        }
+        for (volume, rest) in balls.volumes(&x).iter().zip(&rest_volumes) {
+            let ratio = volume / rest;
+            totals.volume_range = (
+                totals.volume_range.0.min(ratio),
+                totals.volume_range.1.max(ratio),
+            );
+        }
+    }
+    let wall = started.elapsed().as_secs_f64();
+
+    let series = args.out.join("frames.vtk.series");
+    vtk::write_series_file(&series, &written)
+        .map_err(|e| format!("cannot write {}: {e}", series.display()))?;
+    let keep: Vec<&str> = written.iter().map(|(name, _)| name.as_str()).collect();
+    vtk::remove_stale_frames(&args.out, &keep)
+        .map_err(|e| format!("cannot remove stale frames in {}: {e}", args.out.display()))?;
+    let snapshots = recorder.snapshots();
+    let title = format!(
+        "softfem pile: eight soft balls in a box, E = {} kPa, friction {FRICTION}, Newton h = {} s",
+        YOUNG_MODULUS / 1000.0,
+        args.step
+    );
+    let subtitle = format!(
+        "{} tets, {} boundary triangles; {} intersecting triangle pairs (exact test), smallest gap {}",
+        balls.tets.len(),
+        balls.triangles.len(),
+        totals.intersecting,
+        gap_text(totals.smallest_gap)
+    );
+    let svg = Filmstrip {
+        title: &title,
+        subtitle: &subtitle,
+        triangles,
+        snapshots: &snapshots,
+        camera: Camera::default(),
+    }
+    .to_svg();
+    let path = args.out.join("filmstrip.svg");
+    std::fs::write(&path, svg).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+
+    println!(
+        "simulated {} s in {steps} steps, {wall:.2} s wall ({:.1} ms per step)",
+        args.duration,
+        wall * 1e3 / steps as f64
+    );
+    println!(
+        "solves    {} of {} converged ({:.1} %), {} stopped at the f32 rounding floor, {} Newton iterations ({:.1} per step)",
+        totals.converged,
+        totals.steps,
+        100.0 * totals.converged as f64 / totals.steps as f64,
+        totals.stagnated,
+        totals.iterations,
+        f64::from(totals.iterations) / totals.steps as f64
+    );
+    for &(step, residual, target) in &totals.unconverged {
+        println!(
+            "          step {step} did not converge: residual {residual:.3e} N, target {target:.3e} N"
+        );
+    }
+    println!(
+        "contact   {} intersecting triangle pairs after the steps (exact test; {} steps with any), smallest gap {} (dhat {DHAT} m)",
+        totals.intersecting,
+        totals.intersecting_steps,
+        gap_text(totals.smallest_gap)
+    );
+    println!(
+        "volumes   each ball between {:.4} and {:.4} of its rest volume",
+        totals.volume_range.0, totals.volume_range.1
+    );
+    println!(
+        "wrote     {} VTK frames ({}, {}) and {}",
+        written.len(),
+        args.out.join("frame_0000.vtk").display(),
+        series.display(),
+        path.display()
+    );
+    if totals.intersecting > 0 {
+        return Err(format!(
+            "{} intersecting triangle pairs in {} steps",
+            totals.intersecting, totals.intersecting_steps
+        ));
+    }
+    Ok(())
+}
+
+/// The smallest gap in millimetres, or a note that no pair came within 10 dhat.
+fn gap_text(gap: Option<f32>) -> String {
+    gap.map_or_else(
+        || format!("none within {:.0} mm", 10.0 * DHAT * 1e3),
+        |g| format!("{:.3} mm", g * 1e3),
+    )
+}
