@@ -779,3 +779,32 @@ fn the_collider_scene_lands_on_its_colliders_and_stays_there() {
         }
     }
 }
+
+/// The contact scene's rows measure a contact that works: every one of its Newton steps
+/// converged (none failed, none ran out of a buffer), and after 10 steps the dropped cube rests
+/// on the other with a gap between their faces in `(0, dhat]` (dhat 0.5 mm), in both precisions.
+#[test]
+fn the_contact_scene_rests_one_cube_on_the_other() {
+    let records = host_records();
+    let value = |name: &str| {
+        records
+            .as_slice()
+            .iter()
+            .find(|r| r.name == name)
+            .unwrap_or_else(|| panic!("no record {name:?}"))
+            .value
+    };
+    for precision in ["f32", "f64"] {
+        let failed = value(&format!(
+            "{precision} contact pair, steps failed or not converged"
+        ));
+        let newton = value(&format!("{precision} contact pair, Newton iterations"));
+        let gap = value(&format!("{precision} contact pair, step 10 (gap)"));
+        println!(
+            "{precision}: {failed} steps failed or not converged, {newton} Newton iterations, gap {gap:.3e} m"
+        );
+        assert_eq!(failed, 0.0, "{precision}");
+        assert!(newton >= 10.0, "{precision}: {newton}");
+        assert!(gap > 0.0 && gap <= 5e-4, "{precision}: {gap}");
+    }
+}

@@ -1159,8 +1159,9 @@ macro_rules! precision {
             const PAIR_TRIANGLES: usize = 24;
             /// Candidate pairs per list the contact scene's buffers hold.
             const PAIR_CANDIDATES: usize = 512;
-            /// Active pairs the contact scene's Hessian and friction buffers hold.
-            const PAIR_ACTIVE: usize = 48;
+            /// Active pairs the contact scene's Hessian and friction buffers hold (it has 6 at
+            /// rest; cubes with aligned corners, 10 um apart, have 111).
+            const PAIR_ACTIVE: usize = 32;
             /// Newton steps of the contact scene.
             const PAIR_STEPS: u32 = 10;
             /// The contact scene's broad-phase lengths.
@@ -1173,7 +1174,8 @@ macro_rules! precision {
             const PAIR_NEWTON: scratch_len::NewtonScratchLen = scratch_len::newton(PAIR_VERTICES, PAIR_TETS);
 
             /// Body–body contact: a 1 cm cube dropped from 1 mm onto another standing on the
-            /// ground (both of one Kuhn-split cell, stable neo-Hookean, E = 1e5 Pa), the
+            /// ground, shifted by (3, 2) mm sideways so that no corner meets a corner (both of
+            /// one Kuhn-split cell, stable neo-Hookean, E = 1e5 Pa), the
             /// barrier of `ContactModel` with dhat = 0.5 mm and friction 0.5 between them,
             /// [`PAIR_STEPS`] Newton steps at 100 Hz. Every buffer is a fixed array on the stack
             /// (about 55 KB of pair Hessians in f64); never inlined, so that they leave the stack
@@ -1183,7 +1185,8 @@ macro_rules! precision {
                 let mut rest = [Vec3::ZERO; PAIR_VERTICES];
                 let mut tets = [[0u32; 4]; PAIR_TETS];
                 for (k, base) in [0.0, 0.011].into_iter().enumerate() {
-                    let min = Vec3::new(0.0, base, 0.0);
+                    let shift = k as Real;
+                    let min = Vec3::new(0.003 * shift, base, 0.002 * shift);
                     let (Some(x), Some(t)) = (rest.get_mut(8 * k..8 * k + 8), tets.get_mut(6 * k..6 * k + 6)) else {
                         return;
                     };
@@ -1258,7 +1261,7 @@ macro_rules! precision {
                 let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
                 let (mut positions, mut velocities) = (rest, [Vec3::ZERO; PAIR_VERTICES]);
                 let mut digest = Digest::new();
-                let mut newton = 0u64;
+                let (mut newton, mut failed) = (0u64, 0u64);
                 for _ in 0..PAIR_STEPS {
                     let report = meter.measure(concat!($prefix, " contact_newton_step"), || {
                         pieces::contact_newton_step(&model, &masses, &scene, &settings, &mut positions, &mut velocities, &mut scratch)
@@ -1268,8 +1271,12 @@ macro_rules! precision {
                             newton += u64::from(report.iterations);
                             meter.units(concat!($prefix, " contact_newton_step"), "vertex Newton iteration", PAIR_VERTICES as u64 * u64::from(report.iterations));
                             newton_report(&mut digest, &report);
+                            failed += u64::from(!report.converged);
                         }
-                        Err(_) => digest.u64(u64::MAX),
+                        Err(_) => {
+                            digest.u64(u64::MAX);
+                            failed += 1;
+                        }
                     }
                     let counts = model.counts();
                     for count in [counts.vertex_triangle, counts.edge_edge, counts.hessians, counts.friction] {
@@ -1285,6 +1292,9 @@ macro_rules! precision {
                 let mut count = Digest::new();
                 count.u64(newton);
                 push(records, concat!($prefix, " contact pair, Newton iterations"), count, newton as Real);
+                let mut count = Digest::new();
+                count.u64(failed);
+                push(records, concat!($prefix, " contact pair, steps failed or not converged"), count, failed as Real);
             }
 
             /// The whole workload in this precision.
