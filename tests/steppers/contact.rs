@@ -509,6 +509,15 @@ macro_rules! contact_tests {
                 println!("{}: largest force error {worst:.3e} N of {scale:.3e} N", stringify!($precision));
                 let tolerance = if Real::EPSILON > 1e-10 { 5e-2 } else { 1e-6 };
                 assert!(worst <= tolerance * scale, "{worst} of {scale}");
+                // A NaN position: a non-finite energy, not an error (as every model's), and no
+                // motion for the CCD to check (the line search rejects such a point by its
+                // energy).
+                let mut bad = x.clone();
+                bad[5].y = Real::NAN;
+                let mut scratch_forces = vec![Vec3::ZERO; 8];
+                let energy = model.energy_and_add_forces(&bad, &mut scratch_forces).unwrap();
+                assert!(!energy.is_finite(), "{energy}");
+                assert_eq!(model.admissible_step(&x, &bad).unwrap(), 1.0);
             }
         }
     };

@@ -167,13 +167,11 @@ fn front<T>(
     name: ContactBuffer,
 ) -> Result<&mut [T], ContactError> {
     let capacity = buffer.len();
-    buffer
-        .get_mut(..needed)
-        .ok_or(ContactError::Capacity {
-            buffer: name,
-            needed,
-            capacity,
-        })
+    buffer.get_mut(..needed).ok_or(ContactError::Capacity {
+        buffer: name,
+        needed,
+        capacity,
+    })
 }
 
 /// Moves the distinct values of the sorted `values` to its front, returning how many there are.
@@ -292,7 +290,11 @@ mod tests {
         assert_eq!(surface.vertices, [0, 1, 2, 3, 5, 6, 7, 8]);
         assert_eq!(surface.edges.len(), 12);
         // Two spheres: V - E + F = 2 * 2.
-        let (v, e, f) = (surface.vertices.len(), surface.edges.len(), surface.triangles.len());
+        let (v, e, f) = (
+            surface.vertices.len(),
+            surface.edges.len(),
+            surface.triangles.len(),
+        );
         assert_eq!(v as i64 - e as i64 + f as i64, 4);
         assert!(
             surface

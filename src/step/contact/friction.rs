@@ -33,9 +33,9 @@ use super::super::super::element::Vector;
 use super::super::super::math;
 use super::super::super::types::{Mat3, Real, Vec3};
 use super::super::vertex_pass::point::Grouped;
-use super::vertex::collider_contact;
 use super::collider::{Collider, Colliders};
 use super::floor::Floor;
+use super::vertex::collider_contact;
 use super::{Contact, HalfSpace};
 
 /// A [`sticking_speed`](super::super::HalfSpace::sticking_speed) `eps_v` to start from (m/s): a stuck

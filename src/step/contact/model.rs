@@ -36,11 +36,11 @@ use super::super::super::math::sqrt;
 use super::super::super::types::{Mat3, Real, Vec3};
 use super::super::model::{ElasticEnergy, ElasticHessian, ElasticModel};
 use super::super::vertex_pass::VertexPass;
+use super::Contact;
+use super::barrier::barrier_derivatives;
 use super::boundary::ContactSurface;
 use super::broad_phase::{BroadPhaseScratch, CandidatePairs, motion_pairs, proximity_pairs};
 use super::ccd::{self, Separation};
-use super::Contact;
-use super::barrier::barrier_derivatives;
 use super::distance::{
     PairDistanceGradient, edge_edge_distance_gradient, edge_edge_mollifier_threshold,
     edge_edge_mollifier_value, edge_edge_squared_distance, point_triangle_distance_gradient,
@@ -461,9 +461,18 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
     }
 
     /// Adds the contact forces `-grad B` (N) at `positions` into `forces` and returns `B` (J).
-    fn add_contact_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<Real, MeshError> {
+    fn add_contact_forces(
+        &self,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<Real, MeshError> {
         if self.barrier.gap <= 0.0 || self.barrier.stiffness <= 0.0 {
             return Ok(0.0);
+        }
+        // As every energy: NaN or infinite positions give a non-finite energy, not an error (a
+        // line search rejects such a trial point and backtracks).
+        if positions.iter().any(|x| !x.is_finite()) {
+            return Ok(Real::NAN);
         }
         // `-(-f + g)` is `f - g` to the bit (negation is exact and rounding symmetric).
         let negate = |forces: &mut [Vec3]| forces.iter_mut().for_each(|f| *f = -*f);
@@ -606,7 +615,12 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
             friction: self.friction,
             sticking_speed: self.sticking_speed,
         };
-        Slip::new(&contact, pair.relative(positions), pair.anchor, self.h.get())
+        Slip::new(
+            &contact,
+            pair.relative(positions),
+            pair.anchor,
+            self.h.get(),
+        )
     }
 
     /// Adds the friction forces `-grad D` (N) at `positions` into `forces` and returns `D` (J),
@@ -692,7 +706,7 @@ impl<M: ElasticModel<Vector = Vec3>> ElasticModel for ContactModel<'_, M> {
 impl<M: ElasticEnergy<Vector = Vec3>> ElasticEnergy for ContactModel<'_, M> {
     /// `E(x) + B(x) + D(x)`, `D` the friction potential of the pairs lagged at the start of
     /// the last solve ([`begin_solve`](Self::begin_solve); none without friction); `+inf`
-    /// where two primitives touch.
+    /// where two primitives touch; not finite (not an error) where a position is not.
     fn energy_and_add_forces(
         &self,
         positions: &[Vec3],
@@ -724,10 +738,17 @@ impl<M: ElasticEnergy<Vector = Vec3>> ElasticEnergy for ContactModel<'_, M> {
     }
 
     /// The model's bound, then [`ccd::step_bound`] over the pairs [`motion_pairs`] finds for
-    /// the motion (gap 0).
+    /// the motion (gap 0); the model's bound alone where `to` has a NaN or infinite position
+    /// (whose energy is not finite, see
+    /// [`energy_and_add_forces`](Self::energy_and_add_forces)).
     fn admissible_step(&self, from: &[Vec3], to: &[Vec3]) -> Result<Real, MeshError> {
         let elastic = self.model.admissible_step(from, to)?;
         if elastic <= 0.0 || self.surface.triangles.is_empty() {
+            return Ok(elastic);
+        }
+        // A trial point with a NaN or infinite position is no motion to check: its energy is
+        // not finite, and the line search rejects it there.
+        if to.iter().any(|x| !x.is_finite()) {
             return Ok(elastic);
         }
         let mut guard = self.buffers_mut()?;
@@ -739,7 +760,15 @@ impl<M: ElasticEnergy<Vector = Vec3>> ElasticEnergy for ContactModel<'_, M> {
             ..
         } = &mut *guard;
         let mut scratch = BroadPhaseScratch::new(slots, entries);
-        let pairs = motion_pairs(from, to, 0.0, &self.surface, &mut scratch, vertex_triangle, edge_edge)?;
+        let pairs = motion_pairs(
+            from,
+            to,
+            0.0,
+            &self.surface,
+            &mut scratch,
+            vertex_triangle,
+            edge_edge,
+        )?;
         let bound = ccd::step_bound(from, to, &self.surface, &pairs, self.separation)?;
         Ok(elastic.min(bound.alpha))
     }
@@ -776,7 +805,11 @@ impl<M: ElasticHessian> ElasticHessian for ContactModel<'_, M> {
         counts.hessians = stored;
         self.counts.set(counts);
         let mut guard = self.buffers_mut()?;
-        for pair in guard.friction.get_mut(..counts.friction).unwrap_or_default() {
+        for pair in guard
+            .friction
+            .get_mut(..counts.friction)
+            .unwrap_or_default()
+        {
             pair.block = self
                 .slip(pair, positions)
                 .map_or(Mat3::ZERO, |slip| friction_block(&slip) * pair.force);
@@ -793,7 +826,11 @@ impl<M: ElasticHessian> ElasticHessian for ContactModel<'_, M> {
         self.model.add_hessian_product(cache, direction, out)?;
         self.stored_hessians(|hessians| add_hessian_product(hessians, direction, out))??;
         let guard = self.buffers_ref()?;
-        for pair in guard.friction.get(..self.counts.get().friction).unwrap_or_default() {
+        for pair in guard
+            .friction
+            .get(..self.counts.get().friction)
+            .unwrap_or_default()
+        {
             let along = pair.block * pair.relative(direction);
             for (&vertex, &weight) in pair.vertices.iter().zip(&pair.weights) {
                 if let Some(slot) = out.get_mut(vertex as usize) {
@@ -826,7 +863,11 @@ impl<M: ElasticHessian> ElasticHessian for ContactModel<'_, M> {
             }
         })?;
         let guard = self.buffers_ref()?;
-        for pair in guard.friction.get(..self.counts.get().friction).unwrap_or_default() {
+        for pair in guard
+            .friction
+            .get(..self.counts.get().friction)
+            .unwrap_or_default()
+        {
             for (&vertex, &weight) in pair.vertices.iter().zip(&pair.weights) {
                 if let Some(slot) = blocks.get_mut(vertex as usize) {
                     *slot += pair.block * (weight * weight);

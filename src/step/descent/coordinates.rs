@@ -23,7 +23,10 @@ pub(crate) fn reference_point<V: Vector>(positions: &[V]) -> V {
 
 /// [`reference_point`] with the extents taken in blocks run by `model`: the same point (a
 /// minimum and a maximum do not depend on how the vertices are grouped).
-pub(super) fn split_reference_point<V: Vector + Send + Sync>(model: &impl ElasticModel, positions: &[V]) -> V {
+pub(super) fn split_reference_point<V: Vector + Send + Sync>(
+    model: &impl ElasticModel,
+    positions: &[V],
+) -> V {
     let Some(&first) = positions.first() else {
         return V::ZERO;
     };
@@ -269,4 +272,3 @@ mod tests {
         assert_eq!(reference_point(&points), Vec3::new(first.x, first.y, 0.0));
     }
 }
-

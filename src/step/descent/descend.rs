@@ -114,7 +114,10 @@ impl<V: Vector + Send + Sync> Finish<'_, V> {
 
 /// Whether the ground or a collider applies Coulomb friction to the velocity after the solve
 /// (friction with a zero sticking speed, see `implicit_velocities`).
-pub(super) fn velocity_friction<V: Vector>(ground: Option<&HalfSpace<V>>, colliders: Colliders<'_>) -> bool {
+pub(super) fn velocity_friction<V: Vector>(
+    ground: Option<&HalfSpace<V>>,
+    colliders: Colliders<'_>,
+) -> bool {
     let at_velocity =
         |friction: Real, sticking_speed: Real| friction > 0.0 && sticking_speed <= 0.0;
     ground.is_some_and(|g| at_velocity(g.friction, g.sticking_speed))
@@ -608,7 +611,10 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
         objective.loads.restore_fixed(points.current, points.other);
         // A trial the model does not admit (it would pass a surface through another) is
         // rejected as one that raised Phi.
-        let admitted = objective.model.admissible_step(points.current, points.other)? >= 1.0;
+        let admitted = objective
+            .model
+            .admissible_step(points.current, points.other)?
+            >= 1.0;
         if admitted && self.defers() {
             if self.deferred == 0 {
                 copy(self.direction, self.points.current);
@@ -633,8 +639,7 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
             // The semi-iteration is not monotone in Phi in general, but an increase (beyond
             // rounding) means the nonlinearity or the contacts broke the linear model it
             // relies on: restart from a plain, line-searched step (Wang and Yang's fallback).
-            let noise = ROUNDING
-                * (self.report.phi.abs() + trial_phi.abs() + trial_elastic.abs())
+            let noise = ROUNDING * (self.report.phi.abs() + trial_phi.abs() + trial_elastic.abs())
                 + self.rule.phi_resolution();
             if trial_phi <= self.report.phi + noise {
                 self.deferred = 0;
@@ -837,7 +842,6 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
     /// The evaluated trial point becomes the iterate: friction re-lagged to it, the points
     /// swapped, its `Phi` and residual taken.
     fn take(&mut self, mut evaluation: Evaluation) {
-
         let points = &mut self.points;
         self.lag_moved = self.objective.relag(
             points.other,

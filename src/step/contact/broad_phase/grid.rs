@@ -75,7 +75,12 @@ impl Boxes<'_> {
 
     #[inline]
     pub(super) fn vertex(&self, index: usize) -> Aabb {
-        let vertex = self.surface.vertices.get(index).copied().unwrap_or_default();
+        let vertex = self
+            .surface
+            .vertices
+            .get(index)
+            .copied()
+            .unwrap_or_default();
         self.of_corners(&[vertex])
     }
 
@@ -202,7 +207,12 @@ pub(super) fn for_each_cell((lo, hi): (Cell, Cell), reverse: bool, mut visit: im
 
 /// The grid: the scene's box, the mean box extent for the cell, doubled until the entries fit
 /// `capacity` (at least `8 * primitives`, see the module documentation).
-pub(super) fn choose_grid(boxes: &Boxes<'_>, primitives: usize, slot_count: usize, capacity: usize) -> Grid {
+pub(super) fn choose_grid(
+    boxes: &Boxes<'_>,
+    primitives: usize,
+    slot_count: usize,
+    capacity: usize,
+) -> Grid {
     let mut lo = Vec3::splat(Real::INFINITY);
     let mut hi = Vec3::splat(Real::NEG_INFINITY);
     let mut extent_sum: Real = 0.0;
@@ -258,7 +268,12 @@ pub(super) fn choose_grid(boxes: &Boxes<'_>, primitives: usize, slot_count: usiz
 /// entries of slot `s` are `entries[slots[s]..slots[s + 1]]`, in increasing primitive id (so
 /// that a primitive entered in several cells of one slot appears in one run). Vertices are
 /// left out: the queries look up edges and triangles only.
-pub(super) fn fill_table(boxes: &Boxes<'_>, primitives: usize, grid: &Grid, scratch: &mut BroadPhaseScratch<'_>) {
+pub(super) fn fill_table(
+    boxes: &Boxes<'_>,
+    primitives: usize,
+    grid: &Grid,
+    scratch: &mut BroadPhaseScratch<'_>,
+) {
     let BroadPhaseScratch { slots, entries } = scratch;
     let first_edge = boxes.surface.vertices.len();
     slots.fill(0);

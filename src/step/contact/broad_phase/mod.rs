@@ -63,7 +63,6 @@ mod grid;
 #[cfg(test)]
 mod tests;
 
-
 /// The caller-owned scratch of the broad phase: a hash table of cell slots and the entries it
 /// indexes, of [`scratch_len::broad_phase`] lengths at least.
 ///
@@ -225,7 +224,11 @@ fn candidate_pairs<'a>(
     let found_vt = vertex_triangle_pairs(&boxes, &grid, scratch, vertex_triangle);
     let found_ee = edge_edge_pairs(&boxes, &grid, scratch, edge_edge);
     for (found, buffer, name) in [
-        (found_vt, vertex_triangle.len(), ContactBuffer::VertexTrianglePairs),
+        (
+            found_vt,
+            vertex_triangle.len(),
+            ContactBuffer::VertexTrianglePairs,
+        ),
         (found_ee, edge_edge.len(), ContactBuffer::EdgeEdgePairs),
     ] {
         if found > buffer {
@@ -240,7 +243,9 @@ fn candidate_pairs<'a>(
     let edge_edge = edge_edge.get_mut(..found_ee).unwrap_or_default();
     // The pairs are unique, so any sort gives the one sorted order.
     // `crate::sort`: no panic path, as the firmware check requires.
-    crate::sort::sort_by_key(vertex_triangle, |&[a, b]| (u64::from(a) << 32) | u64::from(b));
+    crate::sort::sort_by_key(vertex_triangle, |&[a, b]| {
+        (u64::from(a) << 32) | u64::from(b)
+    });
     crate::sort::sort_by_key(edge_edge, |&[a, b]| (u64::from(a) << 32) | u64::from(b));
     Ok(CandidatePairs {
         vertex_triangle,
@@ -290,13 +295,19 @@ fn check_inputs(
             index,
         })
     };
-    let vertices = surface.vertices.iter().enumerate().flat_map(|(element, &v)| {
-        out_of_range(ContactBuffer::Vertices, element, v)
-    });
-    let edges = surface.edges.iter().enumerate().flat_map(|(element, edge)| {
-        edge.iter()
-            .find_map(|&v| out_of_range(ContactBuffer::Edges, element, v))
-    });
+    let vertices = surface
+        .vertices
+        .iter()
+        .enumerate()
+        .flat_map(|(element, &v)| out_of_range(ContactBuffer::Vertices, element, v));
+    let edges = surface
+        .edges
+        .iter()
+        .enumerate()
+        .flat_map(|(element, edge)| {
+            edge.iter()
+                .find_map(|&v| out_of_range(ContactBuffer::Edges, element, v))
+        });
     let triangles = surface
         .triangles
         .iter()
@@ -327,7 +338,11 @@ fn check_inputs(
     );
     for (len, needed, buffer) in [
         (scratch.slots.len(), 2, ContactBuffer::Slots),
-        (scratch.entries.len(), needed.entries, ContactBuffer::Entries),
+        (
+            scratch.entries.len(),
+            needed.entries,
+            ContactBuffer::Entries,
+        ),
     ] {
         if len < needed {
             return Err(ContactError::Capacity {

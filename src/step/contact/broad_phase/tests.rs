@@ -158,7 +158,10 @@ fn query(
 }
 
 fn assert_sorted_unique(pairs: &[[u32; 2]]) {
-    assert!(pairs.windows(2).all(|w| w[0] < w[1]), "sorted, no duplicates");
+    assert!(
+        pairs.windows(2).all(|w| w[0] < w[1]),
+        "sorted, no duplicates"
+    );
 }
 
 #[test]
@@ -169,7 +172,11 @@ fn proximity_matches_brute_force_on_random_scenes() {
         let tets = 1 + (rng.next() % 60) as u32;
         let size = 0.05 + rng.unit();
         let spread = 0.5 + 4.0 * rng.unit();
-        let dhat = if round % 5 == 0 { 0.0 } else { 0.2 * rng.unit() };
+        let dhat = if round % 5 == 0 {
+            0.0
+        } else {
+            0.2 * rng.unit()
+        };
         let (positions, lists) = scattered_tets(&mut rng, tets, size, spread);
         let (vt, ee) = query(&positions, None, dhat, &lists, 100_000).unwrap();
         let (ref_vt, ref_ee) = brute_force(&positions, &positions, dhat, &lists);
@@ -317,7 +324,11 @@ fn a_huge_primitive_and_far_apart_points_coarsen_the_grid() {
     }
     // Coordinates whose differences overflow: the one-cell fallback, still exact.
     let big = Real::MAX * 0.75;
-    let far = [Vec3::new(-big, 0.0, 0.0), Vec3::new(big, 0.0, 0.0), Vec3::new(0.0, big, -big)];
+    let far = [
+        Vec3::new(-big, 0.0, 0.0),
+        Vec3::new(big, 0.0, 0.0),
+        Vec3::new(0.0, big, -big),
+    ];
     positions.extend(far);
     let n = positions.len() as u32;
     lists.triangles.push([n - 3, n - 2, n - 1]);
@@ -388,8 +399,14 @@ fn a_table_of_one_slot_is_slow_but_exact() {
 fn refusals_name_the_vertex_the_buffer_and_the_entry() {
     let (mut positions, lists) = just_apart(0.5);
     let end = positions.clone();
-    assert_eq!(query(&positions, None, -1.0, &lists, 4), Err(ContactError::Gap));
-    assert_eq!(query(&positions, None, Real::NAN, &lists, 4), Err(ContactError::Gap));
+    assert_eq!(
+        query(&positions, None, -1.0, &lists, 4),
+        Err(ContactError::Gap)
+    );
+    assert_eq!(
+        query(&positions, None, Real::NAN, &lists, 4),
+        Err(ContactError::Gap)
+    );
     assert_eq!(
         query(&positions, Some(&end[..7]), 0.0, &lists, 4),
         Err(ContactError::BufferLength {
@@ -431,5 +448,8 @@ fn refusals_name_the_vertex_the_buffer_and_the_entry() {
         edges: vec![],
         triangles: vec![],
     };
-    assert_eq!(query(&positions, None, 0.0, &empty, 0), Ok((vec![], vec![])));
+    assert_eq!(
+        query(&positions, None, 0.0, &empty, 0),
+        Ok((vec![], vec![]))
+    );
 }

@@ -113,7 +113,9 @@ impl ContactBarrier {
             return Err(ContactError::Stiffness);
         }
         let squared_gap = gap * gap;
-        let slope = barrier_derivatives(0.25 * squared_gap, squared_gap).first.abs();
+        let slope = barrier_derivatives(0.25 * squared_gap, squared_gap)
+            .first
+            .abs();
         let barrier = ContactBarrier {
             stiffness: force / (slope * gap),
             gap,
@@ -547,9 +549,10 @@ impl Pair {
             Pair::PointTriangle(vertices, points) => {
                 (point_triangle_gradient_terms(barrier, points), vertices)
             }
-            Pair::EdgeEdge(vertices, points, threshold) => {
-                (edge_edge_gradient_terms(barrier, points, threshold), vertices)
-            }
+            Pair::EdgeEdge(vertices, points, threshold) => (
+                edge_edge_gradient_terms(barrier, points, threshold),
+                vertices,
+            ),
         }
     }
 
@@ -617,7 +620,11 @@ impl ContactPotential<'_> {
         for (element, pair) in self.pairs.vertex_triangle.iter().enumerate() {
             for (&index, &len) in pair.iter().zip(&lists) {
                 if index as usize >= len {
-                    return Err(out_of_range(ContactBuffer::VertexTrianglePairs, element, index));
+                    return Err(out_of_range(
+                        ContactBuffer::VertexTrianglePairs,
+                        element,
+                        index,
+                    ));
                 }
             }
         }
@@ -657,9 +664,10 @@ impl ContactPotential<'_> {
             }
         }
         for &[first, second] in self.pairs.edge_edge {
-            let (Some(&[a0, a1]), Some(&[b0, b1])) =
-                (surface.edges.get(first as usize), surface.edges.get(second as usize))
-            else {
+            let (Some(&[a0, a1]), Some(&[b0, b1])) = (
+                surface.edges.get(first as usize),
+                surface.edges.get(second as usize),
+            ) else {
                 continue;
             };
             let vertices = [a0, a1, b0, b1];
@@ -742,7 +750,11 @@ impl ContactPotential<'_> {
         diagonal: &mut [Mat3],
     ) -> Result<(), ContactError> {
         self.check(positions)?;
-        per_vertex_length(ContactBuffer::HessianDiagonal, diagonal.len(), positions.len())?;
+        per_vertex_length(
+            ContactBuffer::HessianDiagonal,
+            diagonal.len(),
+            positions.len(),
+        )?;
         self.for_each_pair(positions, |pair| {
             let (terms, vertices) = pair.terms(&self.barrier);
             if !terms.active {
@@ -840,9 +852,12 @@ pub fn add_hessian_product(
         }
     }
     for pair in hessians {
-        let local = pair
-            .vertices
-            .map(|vertex| direction.get(vertex as usize).copied().unwrap_or(Vec3::ZERO));
+        let local = pair.vertices.map(|vertex| {
+            direction
+                .get(vertex as usize)
+                .copied()
+                .unwrap_or(Vec3::ZERO)
+        });
         for (row, &vertex) in pair.hessian.iter().zip(&pair.vertices) {
             let mut sum = Vec3::ZERO;
             for (block, &v) in row.iter().zip(&local) {

@@ -82,7 +82,12 @@ fn off_and_total<const M: usize>(a: &[[Real; M]; M]) -> (Real, Real) {
 /// One Jacobi rotation zeroing `a[p][r]` (`p < r < N`) of the symmetric `a`, accumulated into
 /// the rows `p` and `r` of `vectors` (row `i` the eigenvector of `a[i][i]`). The rows `p` and
 /// `r` are rotated, then copied into the columns, so `a` stays exactly symmetric.
-fn rotate<const M: usize>(a: &mut [[Real; M]; M], vectors: &mut [[Real; M]; M], p: usize, r: usize) {
+fn rotate<const M: usize>(
+    a: &mut [[Real; M]; M],
+    vectors: &mut [[Real; M]; M],
+    p: usize,
+    r: usize,
+) {
     let entry = |a: &[[Real; M]; M], i: usize, j: usize| {
         a.get(i).and_then(|row| row.get(j)).copied().unwrap_or(0.0)
     };
@@ -198,7 +203,13 @@ const HADAMARD: [[Real; 4]; 4] = [
 /// `T a T` with `T = HADAMARD (x) I_3` (symmetric and orthogonal): `a` in the basis of the
 /// translations (rows and columns 0 to 2) and the three relative motions (3 to 11).
 fn hadamard_congruence(a: &[[Real; N]; N]) -> [[Real; N]; N] {
-    let h = |x: usize, y: usize| HADAMARD.get(x).and_then(|r| r.get(y)).copied().unwrap_or(0.0);
+    let h = |x: usize, y: usize| {
+        HADAMARD
+            .get(x)
+            .and_then(|r| r.get(y))
+            .copied()
+            .unwrap_or(0.0)
+    };
     let entry = |m: &[[Real; N]; N], i: usize, j: usize| {
         m.get(i).and_then(|r| r.get(j)).copied().unwrap_or(0.0)
     };
@@ -206,13 +217,17 @@ fn hadamard_congruence(a: &[[Real; N]; N]) -> [[Real; N]; N] {
     let left: [[Real; N]; N] = core::array::from_fn(|row| {
         let (block, i) = (row / 3, row % 3);
         core::array::from_fn(|column| {
-            (0..4).fold(0.0, |sum, k| sum + h(block, k) * entry(a, 3 * k + i, column))
+            (0..4).fold(0.0, |sum, k| {
+                sum + h(block, k) * entry(a, 3 * k + i, column)
+            })
         })
     });
     core::array::from_fn(|row| {
         core::array::from_fn(|column| {
             let (block, j) = (column / 3, column % 3);
-            (0..4).fold(0.0, |sum, l| sum + entry(&left, row, 3 * l + j) * h(l, block))
+            (0..4).fold(0.0, |sum, l| {
+                sum + entry(&left, row, 3 * l + j) * h(l, block)
+            })
         })
     })
 }
@@ -228,12 +243,19 @@ fn hadamard_congruence(a: &[[Real; N]; N]) -> [[Real; N]; N] {
 /// are not within rounding of zero (a matrix from elsewhere), the whole 12x12 is.
 pub(super) fn project(hessian: &[[Mat3; 4]; 4]) -> [[Mat3; 4]; 4] {
     let exact = to_rows(hessian);
-    let largest = exact.iter().flatten().fold(0.0, |m: Real, x| m.max(x.abs()));
+    let largest = exact
+        .iter()
+        .flatten()
+        .fold(0.0, |m: Real, x| m.max(x.abs()));
     let rotated = hadamard_congruence(&exact);
     // Rounding of the congruence: sums of 16 entries over 4; anything larger is a real
     // coupling to translations.
     let tolerance = 64.0 * Real::EPSILON * largest;
-    let translation = rotated.iter().take(3).flatten().all(|x| x.abs() <= tolerance);
+    let translation = rotated
+        .iter()
+        .take(3)
+        .flatten()
+        .all(|x| x.abs() <= tolerance);
     if !translation {
         let (values, vectors) = eigen(exact);
         if values.iter().all(|&l| l >= 0.0) {
@@ -243,7 +265,11 @@ pub(super) fn project(hessian: &[[Mat3; 4]; 4]) -> [[Mat3; 4]; 4] {
     }
     let relative: [[Real; 9]; 9] = core::array::from_fn(|i| {
         core::array::from_fn(|j| {
-            rotated.get(i + 3).and_then(|r| r.get(j + 3)).copied().unwrap_or(0.0)
+            rotated
+                .get(i + 3)
+                .and_then(|r| r.get(j + 3))
+                .copied()
+                .unwrap_or(0.0)
         })
     });
     let (values, vectors) = eigen(relative);

@@ -10,7 +10,7 @@ use std::{vec, vec::Vec};
 use super::super::super::super::element::SymmetricMatrix;
 use super::super::boundary::boundary_edges;
 use super::super::broad_phase::{BroadPhaseScratch, proximity_pairs};
-use super::super::distance::{edge_edge_kind, edge_edge_mollifier_value, EdgeEdgeKind};
+use super::super::distance::{EdgeEdgeKind, edge_edge_kind, edge_edge_mollifier_value};
 use super::project::{project, to_rows};
 use super::*;
 
@@ -108,7 +108,15 @@ fn configurations() -> Vec<([Vec3; 4], Option<Real>)> {
         (with(v(0.5, -0.3, 0.3)), None),
         (with(v(-0.3, -0.2, 0.25)), None),
         // Crossing edges, the mollifier 1 (eps_x = 1e-3 |u|^2 |v|^2 far below c).
-        ([v(-0.5, 0.0, 0.0), v(0.6, 0.1, 0.0), v(0.1, -0.6, 0.45), v(-0.1, 0.5, 0.35)], Some(1e-3)),
+        (
+            [
+                v(-0.5, 0.0, 0.0),
+                v(0.6, 0.1, 0.0),
+                v(0.1, -0.6, 0.45),
+                v(-0.1, 0.5, 0.35),
+            ],
+            Some(1e-3),
+        ),
         // Nearly parallel edges crossing 0.3 apart at 0.03 rad: c = |u|^2 |v|^2 sin^2 = 9e-4
         // |u|^2 |v|^2, the threshold from a rest shape 3 times that: m about 0.55.
         (
@@ -192,7 +200,10 @@ fn gradient_terms_match_the_full_terms_bit_for_bit() {
                 edge_edge_gradient_terms(&barrier, points, threshold),
             )
         } else {
-            (point_triangle_terms(&barrier, points), point_triangle_gradient_terms(&barrier, points))
+            (
+                point_triangle_terms(&barrier, points),
+                point_triangle_gradient_terms(&barrier, points),
+            )
         };
         assert_eq!(gradient.value.to_bits(), full.value.to_bits(), "{points:?}");
         assert_eq!(bits(gradient.gradient), bits(full.gradient), "{points:?}");
@@ -208,12 +219,25 @@ fn gradient_terms_match_the_full_terms_bit_for_bit() {
             inactive[kind] += 1;
         }
     }
-    assert!(active.iter().chain(&inactive).all(|&n| n > 20), "{active:?} {inactive:?}");
+    assert!(
+        active.iter().chain(&inactive).all(|&n| n > 20),
+        "{active:?} {inactive:?}"
+    );
     assert!(mollified > 20, "{mollified}");
     // Touching pairs: +inf and zero gradient on both paths.
     let v = |x: Real, y: Real, z: Real| Vec3::new(x, y, z);
-    let on = [v(0.2, 0.2, 0.0), v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)];
-    let crossing = [v(-1.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, -1.0, 0.0), v(0.0, 1.0, 0.0)];
+    let on = [
+        v(0.2, 0.2, 0.0),
+        v(0.0, 0.0, 0.0),
+        v(1.0, 0.0, 0.0),
+        v(0.0, 1.0, 0.0),
+    ];
+    let crossing = [
+        v(-1.0, 0.0, 0.0),
+        v(1.0, 0.0, 0.0),
+        v(0.0, -1.0, 0.0),
+        v(0.0, 1.0, 0.0),
+    ];
     for gradient in [
         point_triangle_gradient_terms(&barrier, on),
         edge_edge_gradient_terms(&barrier, crossing, 1e-3),
@@ -268,7 +292,10 @@ fn projection_is_symmetric_semi_definite_and_removes_only_the_negative_part() {
         }
         let (values, _) = SymmetricMatrix::from_rows(to_rows(&projected)).eigen();
         let largest = values.iter().fold(0.0, |m: Real, l| m.max(l.abs()));
-        assert!(values.iter().all(|&l| l >= -16.0 * Real::EPSILON * largest), "{values:?}");
+        assert!(
+            values.iter().all(|&l| l >= -16.0 * Real::EPSILON * largest),
+            "{values:?}"
+        );
         let (exact_values, _) = SymmetricMatrix::from_rows(to_rows(&exact.hessian)).eigen();
         if exact_values.iter().any(|&l| l < 0.0) {
             indefinite += 1;
@@ -327,7 +354,10 @@ fn projection_spectrum_is_the_clamped_exact_spectrum() {
         let largest = expected.iter().fold(0.0, |m: Real, l| m.max(l.abs()));
         let tolerance = 64.0 * Real::EPSILON * largest;
         for (got, want) in projected.iter().zip(&expected) {
-            assert!((got - want).abs() <= tolerance, "{projected:?} {expected:?}");
+            assert!(
+                (got - want).abs() <= tolerance,
+                "{projected:?} {expected:?}"
+            );
         }
         clamped += usize::from(sorted(&exact.hessian)[0] < -tolerance);
     }
@@ -392,13 +422,26 @@ fn zero_beyond_the_gap_and_infinite_at_contact() {
             && pair.hessian == [[Mat3::ZERO; 4]; 4]
     };
     for stiffness in [0.0, 1.0] {
-        let barrier = ContactBarrier { stiffness, gap: 0.25 };
+        let barrier = ContactBarrier {
+            stiffness,
+            gap: 0.25,
+        };
         let on = v(0.2, 0.2, 0.0);
         let pair = point_triangle_potential(&barrier, with(on), [0; 4]);
         assert!(blocked(&pair), "{pair:?}");
         // Crossing edges, and parallel overlapping ones (mollifier 0): touching either way.
-        let crossing = [v(-1.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, -1.0, 0.0), v(0.0, 1.0, 0.0)];
-        let parallel = [v(-1.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 0.0, 0.0), v(2.0, 0.0, 0.0)];
+        let crossing = [
+            v(-1.0, 0.0, 0.0),
+            v(1.0, 0.0, 0.0),
+            v(0.0, -1.0, 0.0),
+            v(0.0, 1.0, 0.0),
+        ];
+        let parallel = [
+            v(-1.0, 0.0, 0.0),
+            v(1.0, 0.0, 0.0),
+            v(0.0, 0.0, 0.0),
+            v(2.0, 0.0, 0.0),
+        ];
         for edges in [crossing, parallel] {
             assert!(blocked(&edge_edge_potential(&barrier, edges, 1e-3, [0; 4])));
         }
@@ -445,7 +488,10 @@ fn scene() -> Scene {
         v(0.1, -0.1, -0.7),
         v(0.6, 0.2, -0.6),
     ];
-    let rest: Vec<Vec3> = positions.iter().map(|&x| x * 1.01 + Vec3::Z * 0.1).collect();
+    let rest: Vec<Vec3> = positions
+        .iter()
+        .map(|&x| x * 1.01 + Vec3::Z * 0.1)
+        .collect();
     const FACES: [[u32; 3]; 4] = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]];
     let triangles: Vec<[u32; 3]> = FACES
         .iter()
@@ -454,7 +500,9 @@ fn scene() -> Scene {
         .map(|(i, f)| f.map(|x| x + 4 * (i as u32 / 4)))
         .collect();
     let mut edge_buffer = vec![[0; 2]; 3 * triangles.len()];
-    let edges = boundary_edges(&triangles, 8, &mut edge_buffer).unwrap().to_vec();
+    let edges = boundary_edges(&triangles, 8, &mut edge_buffer)
+        .unwrap()
+        .to_vec();
     let vertices: Vec<u32> = (0..8).collect();
     let surface = ContactSurface {
         vertices: &vertices,
@@ -530,12 +578,18 @@ fn energy_is_the_sum_of_the_pairs() {
         }
         sum += pair.value;
     }
-    assert!(active_vt >= 2 && active_ee >= 2 && mollified >= 1, "{active_vt} {active_ee}");
+    assert!(
+        active_vt >= 2 && active_ee >= 2 && mollified >= 1,
+        "{active_vt} {active_ee}"
+    );
     let energy = potential.energy(x).unwrap();
     assert!(energy > 0.0);
     assert_eq!(energy.to_bits(), sum.to_bits());
     let mut gradient = vec![Vec3::ZERO; 8];
-    assert_eq!(potential.add_gradient(x, &mut gradient).unwrap().to_bits(), sum.to_bits());
+    assert_eq!(
+        potential.add_gradient(x, &mut gradient).unwrap().to_bits(),
+        sum.to_bits()
+    );
 }
 
 /// The gradient buffer against central differences of the total energy in every coordinate of
@@ -547,8 +601,12 @@ fn gradient_matches_finite_differences_of_the_energy() {
     let scene = scene();
     let potential = scene.potential();
     let mut gradient = vec![Vec3::ZERO; 8];
-    potential.add_gradient(&scene.positions, &mut gradient).unwrap();
-    let largest = gradient.iter().fold(0.0, |m: Real, g| m.max(g.abs().max_element()));
+    potential
+        .add_gradient(&scene.positions, &mut gradient)
+        .unwrap();
+    let largest = gradient
+        .iter()
+        .fold(0.0, |m: Real, g| m.max(g.abs().max_element()));
     assert!(largest > 0.0);
     let sum: Vec3 = gradient.iter().sum();
     assert!(sum.length() < 64.0 * Real::EPSILON * largest, "{sum}");
@@ -565,7 +623,11 @@ fn gradient_matches_finite_differences_of_the_energy() {
             };
             let fd = (at(h) - at(-h)) / (2.0 * h);
             let error = (fd - gradient[vertex][i]).abs();
-            assert!(error < 1e-8 * largest, "{vertex} {i}: {fd} {}", gradient[vertex][i]);
+            assert!(
+                error < 1e-8 * largest,
+                "{vertex} {i}: {fd} {}",
+                gradient[vertex][i]
+            );
         }
     }
 }
@@ -593,7 +655,10 @@ fn stored_hessians_products_and_diagonal_match_the_dense_matrix() {
     });
     assert_eq!(reference.len(), hessians.len());
     for (pair, stored) in reference.iter().zip(&hessians) {
-        assert_eq!((pair.vertices, pair.hessian), (stored.vertices, stored.hessian));
+        assert_eq!(
+            (pair.vertices, pair.hessian),
+            (stored.vertices, stored.hessian)
+        );
     }
     let mut dense = vec![vec![0.0 as Real; 3 * n]; 3 * n];
     for pair in &hessians {
@@ -609,7 +674,10 @@ fn stored_hessians_products_and_diagonal_match_the_dense_matrix() {
             }
         }
     }
-    let largest = dense.iter().flatten().fold(0.0, |m: Real, e| m.max(e.abs()));
+    let largest = dense
+        .iter()
+        .flatten()
+        .fold(0.0, |m: Real, e| m.max(e.abs()));
     let mut rng = Rng(0x5eed_0393);
     for _ in 0..10 {
         let v: Vec<Vec3> = (0..n).map(|_| rng.vec(1.0)).collect();
@@ -618,7 +686,10 @@ fn stored_hessians_products_and_diagonal_match_the_dense_matrix() {
         for r in 0..3 * n {
             let expected: Real = (0..3 * n).map(|c| dense[r][c] * v[c / 3][c % 3]).sum();
             let got = product[r / 3][r % 3];
-            assert!((got - expected).abs() < 256.0 * Real::EPSILON * largest, "{r}");
+            assert!(
+                (got - expected).abs() < 256.0 * Real::EPSILON * largest,
+                "{r}"
+            );
         }
     }
     let mut diagonal = vec![Mat3::ZERO; n];
@@ -628,7 +699,10 @@ fn stored_hessians_products_and_diagonal_match_the_dense_matrix() {
             for j in 0..3 {
                 let expected = dense[3 * vertex + i][3 * vertex + j];
                 let got = block.col(j)[i];
-                assert!((got - expected).abs() < 64.0 * Real::EPSILON * largest, "{vertex}");
+                assert!(
+                    (got - expected).abs() < 64.0 * Real::EPSILON * largest,
+                    "{vertex}"
+                );
             }
         }
     }
@@ -640,7 +714,10 @@ fn stored_hessians_products_and_diagonal_match_the_dense_matrix() {
         let mut product = vec![Vec3::ZERO; n];
         add_hessian_product(&hessians, &v, &mut product).unwrap();
         let worst = product.iter().fold(0.0, |m: Real, p| m.max(p.length()));
-        assert!(worst < 1024.0 * Real::EPSILON * largest, "{worst} of {largest}");
+        assert!(
+            worst < 1024.0 * Real::EPSILON * largest,
+            "{worst} of {largest}"
+        );
     }
 }
 
@@ -654,13 +731,22 @@ fn refusals_name_the_buffer_and_write_nothing() {
     let check = |potential: ContactPotential<'_>, positions: &[Vec3], expected: ContactError| {
         assert_eq!(potential.energy(positions), Err(expected));
         let mut gradient = vec![marker; positions.len()];
-        assert_eq!(potential.add_gradient(positions, &mut gradient), Err(expected));
+        assert_eq!(
+            potential.add_gradient(positions, &mut gradient),
+            Err(expected)
+        );
         assert!(gradient.iter().all(|&g| g == marker));
         let mut diagonal = vec![Mat3::IDENTITY; positions.len()];
-        assert_eq!(potential.add_hessian_diagonal(positions, &mut diagonal), Err(expected));
+        assert_eq!(
+            potential.add_hessian_diagonal(positions, &mut diagonal),
+            Err(expected)
+        );
         assert!(diagonal.iter().all(|&d| d == Mat3::IDENTITY));
         let mut stored = vec![PairHessian::default(); 64];
-        assert_eq!(potential.pair_hessians(positions, &mut stored), Err(expected));
+        assert_eq!(
+            potential.pair_hessians(positions, &mut stored),
+            Err(expected)
+        );
         assert!(stored.iter().all(|s| *s == PairHessian::default()));
     };
     let mut bad = good;
@@ -704,10 +790,20 @@ fn refusals_name_the_buffer_and_write_nothing() {
     let mut nan = x.clone();
     nan[3].y = Real::NAN;
     let positions = ContactBuffer::Positions;
-    check(good, &nan, ContactError::NonFinitePosition { buffer: positions, vertex: 3 });
+    check(
+        good,
+        &nan,
+        ContactError::NonFinitePosition {
+            buffer: positions,
+            vertex: 3,
+        },
+    );
     // Output lengths.
     let mut short = vec![marker; 7];
-    assert_eq!(good.add_gradient(x, &mut short), Err(length(ContactBuffer::Gradient, 8, 7)));
+    assert_eq!(
+        good.add_gradient(x, &mut short),
+        Err(length(ContactBuffer::Gradient, 8, 7))
+    );
     assert!(short.iter().all(|&g| g == marker));
     let mut short = vec![Mat3::IDENTITY; 9];
     let expected = length(ContactBuffer::HessianDiagonal, 8, 9);
@@ -715,7 +811,10 @@ fn refusals_name_the_buffer_and_write_nothing() {
     let candidates = scene.vertex_triangle.len() + scene.edge_edge.len();
     let mut stored = vec![PairHessian::default(); candidates];
     let active = good.pair_hessians(x, &mut stored).unwrap().len();
-    assert!(active > 1 && active < candidates, "{active} of {candidates}");
+    assert!(
+        active > 1 && active < candidates,
+        "{active} of {candidates}"
+    );
     let mut short = vec![PairHessian::default(); active - 1];
     let expected = ContactError::Capacity {
         buffer: ContactBuffer::PairHessians,
@@ -725,18 +824,27 @@ fn refusals_name_the_buffer_and_write_nothing() {
     assert_eq!(good.pair_hessians(x, &mut short), Err(expected));
     // Exactly the active pairs fit.
     let mut exact = vec![PairHessian::default(); active];
-    assert_eq!(good.pair_hessians(x, &mut exact).unwrap(), &stored[..active]);
+    assert_eq!(
+        good.pair_hessians(x, &mut exact).unwrap(),
+        &stored[..active]
+    );
     // The product: lengths, then the stored vertices.
     let mut stored = vec![PairHessian::default(); candidates];
     let hessians = good.pair_hessians(x, &mut stored).unwrap().to_vec();
     let direction = vec![Vec3::X; 8];
     let mut product = vec![marker; 7];
     let expected = length(ContactBuffer::Product, 8, 7);
-    assert_eq!(add_hessian_product(&hessians, &direction, &mut product), Err(expected));
+    assert_eq!(
+        add_hessian_product(&hessians, &direction, &mut product),
+        Err(expected)
+    );
     let mut wrong = hessians.clone();
     wrong[1].vertices[2] = 8;
     let mut product = vec![marker; 8];
     let expected = range(ContactBuffer::PairHessians, 1, 8);
-    assert_eq!(add_hessian_product(&wrong, &direction, &mut product), Err(expected));
+    assert_eq!(
+        add_hessian_product(&wrong, &direction, &mut product),
+        Err(expected)
+    );
     assert!(product.iter().all(|&p| p == marker));
 }

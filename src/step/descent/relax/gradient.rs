@@ -67,8 +67,16 @@ impl<F: ElasticEnergy> Direction<F> for Gradient {
     }
 
     fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>) {
-        let (objective, at, trial) = (extrapolation.objective, extrapolation.at, extrapolation.trial);
-        let (stepped, step, omega) = (extrapolation.stepped, extrapolation.step, extrapolation.omega);
+        let (objective, at, trial) = (
+            extrapolation.objective,
+            extrapolation.at,
+            extrapolation.trial,
+        );
+        let (stepped, step, omega) = (
+            extrapolation.stepped,
+            extrapolation.step,
+            extrapolation.omega,
+        );
         let floor = objective.frames.floor();
         let rows = trial
             .positions

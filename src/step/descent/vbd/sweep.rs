@@ -582,9 +582,9 @@ impl<M: Material, T: UpdateTarget> VertexVisitor for Updates<'_, '_, M, T> {
     fn visit_group<L: LaneArray>(&mut self, group: &SummedGroup<'_>) {
         let (positions, residual_squared) = self.target.read_and_residual();
         let sum_residual = residual_squared.is_some();
-        let updates = self
-            .sweep
-            .lane_updates::<L>(positions, group, self.line_search, sum_residual);
+        let updates =
+            self.sweep
+                .lane_updates::<L>(positions, group, self.line_search, sum_residual);
         // In lane order, as the one-vertex visits: the residual's sum keeps its order.
         for (j, index, vertex, sums) in group.visits() {
             match updates.get(j) {
