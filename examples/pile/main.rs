@@ -60,6 +60,9 @@ const FRICTION: f32 = 0.3;
 /// The barrier's gap (m) and the force (N) a pair at half of it holds.
 const DHAT: f32 = 1e-3;
 const HOLDING: f32 = 1.0;
+/// The most time steps and VTK frames a run may take.
+const MAX_STEPS: usize = 100_000;
+const MAX_FRAMES: usize = 10_000;
 /// Newton's relative tolerance and iteration budget.
 const TOLERANCE: f32 = 1e-5;
 const MAX_ITERATIONS: u32 = 100;
@@ -85,7 +88,7 @@ struct Args {
     frame_rate: f32,
 
     /// Panels of the filmstrip.
-    #[arg(long, default_value_t = 6)]
+    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=24))]
     panels: u32,
 
     /// Output directory (created if missing).
@@ -252,6 +255,19 @@ struct Totals {
 fn run(args: &Args) -> Result<(), String> {
     if !(args.duration > 0.0 && args.step > 0.0 && args.frame_rate > 0.0) {
         return Err("--duration, --step and --frame-rate must be positive".into());
+    }
+    // A bound on the work and the files a typo can ask for (the default run is 200 steps and
+    // 61 frames).
+    let (step_count, frame_count) = (
+        f64::from(args.duration) / f64::from(args.step),
+        f64::from(args.duration) * f64::from(args.frame_rate),
+    );
+    if !(step_count <= MAX_STEPS as f64 && frame_count <= MAX_FRAMES as f64) {
+        return Err(format!(
+            "--duration {} asks for {step_count:.3e} steps of {} s and {frame_count:.3e} frames; \
+             at most {MAX_STEPS} steps and {MAX_FRAMES} frames",
+            args.duration, args.step
+        ));
     }
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
