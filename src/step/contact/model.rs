@@ -42,12 +42,11 @@ use super::boundary::ContactSurface;
 use super::broad_phase::{BroadPhaseScratch, CandidatePairs, motion_pairs, proximity_pairs};
 use super::ccd::{self, Separation};
 use super::distance::{
-    PairDistanceGradient, edge_edge_distance_gradient, edge_edge_mollifier_threshold,
-    edge_edge_mollifier_value, edge_edge_squared_distance, point_triangle_distance_gradient,
-    point_triangle_squared_distance,
+    PairDistanceGradient, edge_edge_distance_gradient, edge_edge_mollifier_value,
+    edge_edge_squared_distance, point_triangle_distance_gradient, point_triangle_squared_distance,
 };
 use super::friction::Slip;
-use super::potential::{ContactBarrier, ContactPotential, PairHessian, add_hessian_product};
+use super::potential::{ContactBarrier, ContactPotential, Pair, PairHessian, add_hessian_product};
 
 /// The caller-owned buffers of a [`ContactModel`]: the broad phase's hash table, the candidate
 /// pairs it finds and the active pairs' projected Hessians.
@@ -382,43 +381,19 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
             buffers.vertex_triangle,
             buffers.edge_edge,
         )?;
-        let point = |index: u32| positions.get(index as usize).copied().unwrap_or(Vec3::NAN);
-        let surface = &self.surface;
         let mut smallest: Option<Real> = None;
-        let mut keep = |squared: Real| {
+        self.potential(pairs).for_each_pair(positions, |pair| {
+            let squared = match pair {
+                Pair::PointTriangle(_, [p, a, b, c]) => point_triangle_squared_distance(p, a, b, c),
+                Pair::EdgeEdge(_, [a0, a1, b0, b1], _) => {
+                    edge_edge_squared_distance(a0, a1, b0, b1)
+                }
+            };
             let distance = sqrt(squared.max(0.0));
             if distance <= reach && smallest.is_none_or(|s| distance < s) {
                 smallest = Some(distance);
             }
-        };
-        for &[vertex, triangle] in pairs.vertex_triangle {
-            let (Some(&p), Some(&[a, b, c])) = (
-                surface.vertices.get(vertex as usize),
-                surface.triangles.get(triangle as usize),
-            ) else {
-                continue;
-            };
-            keep(point_triangle_squared_distance(
-                point(p),
-                point(a),
-                point(b),
-                point(c),
-            ));
-        }
-        for &[first, second] in pairs.edge_edge {
-            let (Some(&[a0, a1]), Some(&[b0, b1])) = (
-                surface.edges.get(first as usize),
-                surface.edges.get(second as usize),
-            ) else {
-                continue;
-            };
-            keep(edge_edge_squared_distance(
-                point(a0),
-                point(a1),
-                point(b0),
-                point(b1),
-            ));
-        }
+        });
         Ok(smallest)
     }
 
@@ -451,13 +426,17 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
         counts.vertex_triangle = pairs.vertex_triangle.len();
         counts.edge_edge = pairs.edge_edge.len();
         self.counts.set(counts);
-        let potential = ContactPotential {
+        with(&self.potential(pairs), hessians)
+    }
+
+    /// The barrier potential over the candidate `pairs` of this model's surface.
+    fn potential<'p>(&'p self, pairs: CandidatePairs<'p>) -> ContactPotential<'p> {
+        ContactPotential {
             barrier: self.barrier,
             surface: self.surface,
             pairs,
             rest_positions: self.rest_positions,
-        };
-        with(&potential, hessians)
+        }
     }
 
     /// Adds the contact forces `-grad B` (N) at `positions` into `forces` and returns `B` (J).
@@ -505,51 +484,26 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
             vertex_triangle,
             edge_edge,
         )?;
-        let point = |index: u32| start.get(index as usize).copied();
-        let rest = |index: u32| self.rest_positions.get(index as usize).copied();
-        let surface = &self.surface;
         let mut needed = 0;
-        let mut keep = |pair: Option<FrictionPair>| {
-            if let Some(pair) = pair {
+        self.potential(pairs).for_each_pair(start, |pair| {
+            let found = match pair {
+                Pair::PointTriangle(vertices, [x0, x1, x2, x3]) => {
+                    let distance = point_triangle_distance_gradient(x0, x1, x2, x3);
+                    self.friction_pair(vertices, [x0, x1, x2, x3], &distance, 1.0, 1)
+                }
+                Pair::EdgeEdge(vertices, [x0, x1, x2, x3], threshold) => {
+                    let distance = edge_edge_distance_gradient(x0, x1, x2, x3);
+                    let mollifier = edge_edge_mollifier_value(x0, x1, x2, x3, threshold);
+                    self.friction_pair(vertices, [x0, x1, x2, x3], &distance, mollifier, 2)
+                }
+            };
+            if let Some(pair) = found {
                 if let Some(slot) = friction.get_mut(needed) {
                     *slot = pair;
                 }
                 needed += 1;
             }
-        };
-        for &[vertex, triangle] in pairs.vertex_triangle {
-            let (Some(&p), Some(&[a, b, c])) = (
-                surface.vertices.get(vertex as usize),
-                surface.triangles.get(triangle as usize),
-            ) else {
-                continue;
-            };
-            let vertices = [p, a, b, c];
-            if let [Some(x0), Some(x1), Some(x2), Some(x3)] = vertices.map(point) {
-                let distance = point_triangle_distance_gradient(x0, x1, x2, x3);
-                keep(self.friction_pair(vertices, [x0, x1, x2, x3], &distance, 1.0, 1));
-            }
-        }
-        for &[first, second] in pairs.edge_edge {
-            let (Some(&[a0, a1]), Some(&[b0, b1])) = (
-                surface.edges.get(first as usize),
-                surface.edges.get(second as usize),
-            ) else {
-                continue;
-            };
-            let vertices = [a0, a1, b0, b1];
-            let (
-                [Some(x0), Some(x1), Some(x2), Some(x3)],
-                [Some(r0), Some(r1), Some(r2), Some(r3)],
-            ) = (vertices.map(point), vertices.map(rest))
-            else {
-                continue;
-            };
-            let distance = edge_edge_distance_gradient(x0, x1, x2, x3);
-            let threshold = edge_edge_mollifier_threshold(r0, r1, r2, r3);
-            let mollifier = edge_edge_mollifier_value(x0, x1, x2, x3, threshold);
-            keep(self.friction_pair(vertices, [x0, x1, x2, x3], &distance, mollifier, 2));
-        }
+        });
         if needed > friction.len() {
             return Err(ContactError::Capacity {
                 buffer: ContactBuffer::FrictionPairs,

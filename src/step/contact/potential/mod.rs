@@ -524,7 +524,7 @@ pub struct ContactPotential<'a> {
 /// One candidate pair, looked up: its slots' vertices and points, and for an edge pair the
 /// mollifier's threshold.
 #[derive(Clone, Copy, Debug)]
-enum Pair {
+pub(crate) enum Pair {
     PointTriangle([u32; 4], [Vec3; 4]),
     EdgeEdge([u32; 4], [Vec3; 4], Real),
 }
@@ -647,7 +647,7 @@ impl ContactPotential<'_> {
 
     /// Calls `visit` on every candidate pair, point–triangle pairs first, each list in order
     /// (the indices checked by [`check`](Self::check); a pair that fails a look-up is skipped).
-    fn for_each_pair(&self, positions: &[Vec3], mut visit: impl FnMut(Pair)) {
+    pub(crate) fn for_each_pair(&self, positions: &[Vec3], mut visit: impl FnMut(Pair)) {
         let surface = &self.surface;
         let point = |index: u32| positions.get(index as usize).copied();
         let rest = |index: u32| self.rest_positions.get(index as usize).copied();
