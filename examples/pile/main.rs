@@ -6,14 +6,17 @@
 //! each other. One contact model over all their vertices (`softfem::step::contact::ContactModel`:
 //! the barrier of Incremental Potential Contact, dhat = 1 mm, and friction 0.3 between the
 //! balls) and Newton steps of 1/100 s, every trial step cut by continuous collision detection.
-//! After every step an exact triangle–triangle test (`exact.rs`, not the barrier) counts the
-//! pairs of boundary triangles that intersect. Writes VTK frames (`frame_0000.vtk`, ..., with
+//! After every step an exact triangle–triangle test (`tests/common/exact_intersection.rs`, shared
+//! with the contact tests; not the barrier) counts the pairs of boundary triangles that intersect. Writes VTK frames (`frame_0000.vtk`, ..., with
 //! `frames.vtk.series` for ParaView) and `filmstrip.svg` into `target/pile/`, and prints a
 //! summary: intersecting pairs, the smallest gap, the share of converged solves, the balls'
 //! volume range and the wall time. Exits with failure if any pair intersected.
 //!
 //! The same scene, shorter and coarser, is the test `tests/steppers/pile.rs`.
 
+#[path = "../../tests/common/ball_pile.rs"]
+mod ball_pile;
+#[path = "../../tests/common/exact_intersection.rs"]
 mod exact;
 // The bouncy scene's VTK writer and filmstrip drawing, shared as they are; this program uses
 // part of each (no triangle cells, a fixed frame interval).
@@ -34,7 +37,6 @@ use clap::Parser;
 use filmstrip::{Camera, Filmstrip, Recorder};
 use softfem::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
 use softfem::element::{TetHessian, TetRest};
-use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::{Mat3, Quat, Vec3};
 use softfem::material::StableNeoHookean;
 use softfem::mesh::TetMesh;
@@ -113,74 +115,14 @@ fn volume(x: &[Vec3], [a, b, c, d]: [u32; 4]) -> f32 {
     (b - a).cross(c - a).dot(d - a) / 6.0
 }
 
-/// A ball of `radius` around `centre`: the cube `[-1, 1]^3` of `cells^3` cells split into five
-/// tetrahedra each, every vertex mapped onto the unit ball by the map that takes each face of
-/// the cube onto a sixth of the sphere (P. Nowell, "Mapping a Cube to a Sphere", 2005:
-/// `x' = x sqrt(1 - y^2/2 - z^2/2 + y^2 z^2/3)` and cyclically), then scaled and moved.
-fn ball(centre: Vec3, radius: f32, cells: usize) -> Result<(Vec<Vec3>, Vec<[u32; 4]>), String> {
-    let split = BoxSplit::Alternating5;
-    let (nv, nt) = box_counts(cells, cells, cells, split).map_err(|e| e.to_string())?;
-    let (mut x, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
-    fill_box(
-        Vec3::splat(-1.0),
-        Vec3::ONE,
-        cells,
-        cells,
-        cells,
-        split,
-        &mut x,
-        &mut tets,
-    )
-    .map_err(|e| e.to_string())?;
-    for p in &mut x {
-        let s = *p * *p;
-        let mapped = Vec3::new(
-            p.x * (1.0 - s.y / 2.0 - s.z / 2.0 + s.y * s.z / 3.0).sqrt(),
-            p.y * (1.0 - s.z / 2.0 - s.x / 2.0 + s.z * s.x / 3.0).sqrt(),
-            p.z * (1.0 - s.x / 2.0 - s.y / 2.0 + s.x * s.y / 3.0).sqrt(),
-        );
-        *p = centre + mapped * radius;
-    }
-    if let Some(tet) = tets.iter().find(|&&tet| volume(&x, tet) <= 0.0) {
-        return Err(format!("the ball map inverted tetrahedron {tet:?}"));
-    }
-    Ok((x, tets))
-}
-
-/// The balls' centres: a spiral (135 degrees and 6 cm up from one to the next, 3.5 cm from the
-/// box's axis), the lowest 5 mm above the ground; every pair starts at least 8 mm apart.
-fn centres() -> Vec<Vec3> {
-    (0..8)
-        .map(|k| {
-            let angle = (135.0 * k as f32).to_radians();
-            Vec3::new(
-                0.035 * angle.cos(),
-                0.035 * angle.sin(),
-                RADIUS + 0.005 + 0.06 * k as f32,
-            )
-        })
-        .collect()
-}
-
-/// The four walls: boxes 10 cm thick and 1 m high whose inner faces are at
-/// `|x|, |y| = HALF_WIDTH`.
+/// The four walls: the shared scene's boxes (`tests/common/ball_pile.rs`), inner faces at
+/// `|x|, |y| = HALF_WIDTH`, with the pile's friction.
 fn walls() -> Vec<Collider<'static>> {
-    let (thick, high) = (0.05, 0.5);
-    [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y]
+    let vec3 = |p: [f64; 3]| Vec3::from_array(p.map(|c| c as f32));
+    ball_pile::walls(f64::from(HALF_WIDTH))
         .into_iter()
-        .map(|n| {
-            let along = HALF_WIDTH + 2.0 * thick;
-            let half = Vec3::new(
-                if n.x != 0.0 { thick } else { along },
-                if n.y != 0.0 { thick } else { along },
-                high,
-            );
-            Collider::cuboid(
-                n * (HALF_WIDTH + thick) + Vec3::Z * high,
-                half,
-                Quat::IDENTITY,
-            )
-            .with_friction(FRICTION)
+        .map(|(centre, half)| {
+            Collider::cuboid(vec3(centre), vec3(half), Quat::IDENTITY).with_friction(FRICTION)
         })
         .collect()
 }
@@ -197,11 +139,12 @@ struct Balls {
 impl Balls {
     fn new(cells: usize) -> Result<Balls, String> {
         let (mut rest, mut tets, mut ranges) = (Vec::new(), Vec::new(), Vec::new());
-        for centre in centres() {
-            let (x, t) = ball(centre, RADIUS, cells)?;
+        let vec3 = |p: &[f64; 3]| Vec3::from_array(p.map(|c| c as f32));
+        for centre in ball_pile::centres(f64::from(RADIUS)) {
+            let (x, t) = ball_pile::ball(centre, f64::from(RADIUS), cells)?;
             let offset = rest.len() as u32;
             ranges.push(tets.len()..tets.len() + t.len());
-            rest.extend(x);
+            rest.extend(x.iter().map(vec3));
             tets.extend(t.iter().map(|tet| tet.map(|v| v + offset)));
         }
         let mut faces = vec![BoundaryFace::default(); boundary_scratch_len(tets.len())];

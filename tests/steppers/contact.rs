@@ -121,6 +121,35 @@ macro_rules! contact_tests {
                         hessians: vec![TetHessian::default(); newton.hessians],
                     }
                 }
+
+                /// The contact model of `boxes` over these buffers (stable neo-Hookean with
+                /// Young's modulus `young` (Pa) and Poisson ratio 0.3, the barrier `barrier`),
+                /// the lumped masses at density 1000 kg/m^3 and Newton's scratch.
+                fn model<'b>(
+                    &'b mut self,
+                    boxes: &'b Boxes,
+                    young: Real,
+                    barrier: ContactBarrier,
+                ) -> (ContactModel<'b, TetElastic<'b, StableNeoHookean>>, Vec<Real>, NewtonScratch<'b>) {
+                    let mesh = TetMesh::new(&boxes.rest, &boxes.tets, &mut self.rest_data).unwrap();
+                    let mut masses = vec![0.0; boxes.rest.len()];
+                    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+                    let elastic =
+                        TetElastic::new(mesh, StableNeoHookean::from_young_poisson(young, 0.3).unwrap());
+                    let surface =
+                        ContactSurface { vertices: &self.vertices, edges: &self.edges, triangles: &boxes.triangles };
+                    let buffers = ContactBuffers {
+                        slots: &mut self.slots,
+                        entries: &mut self.entries,
+                        vertex_triangle: &mut self.vertex_triangle,
+                        edge_edge: &mut self.edge_edge,
+                        hessians: &mut self.pair_hessians,
+                        friction: &mut self.friction,
+                    };
+                    let model = ContactModel::new(elastic, surface, &boxes.rest, barrier, buffers).unwrap();
+                    let scratch = NewtonScratch::new(&mut self.vectors, &mut self.blocks, &mut self.hessians);
+                    (model, masses, scratch)
+                }
             }
 
             /// A run of Newton steps with contact: the reports, the positions and velocities
@@ -154,29 +183,11 @@ macro_rules! contact_tests {
                 friction: Real,
             ) -> Run {
                 let mut b = Buffers::new(boxes, 32, 4096);
-                let mesh = TetMesh::new(&boxes.rest, &boxes.tets, &mut b.rest_data).unwrap();
-                let mut masses = vec![0.0; boxes.rest.len()];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
-                let elastic = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(young, 0.3).unwrap());
-                let surface = ContactSurface {
-                    vertices: &b.vertices,
-                    edges: &b.edges,
-                    triangles: &boxes.triangles,
-                };
-                let buffers = ContactBuffers {
-                    slots: &mut b.slots,
-                    entries: &mut b.entries,
-                    vertex_triangle: &mut b.vertex_triangle,
-                    edge_edge: &mut b.edge_edge,
-                    hessians: &mut b.pair_hessians,
-                    friction: &mut b.friction,
-                };
-                let mut model = ContactModel::new(elastic, surface, &boxes.rest, barrier, buffers).unwrap();
+                let (mut model, masses, mut scratch) = b.model(boxes, young, barrier);
                 if friction > 0.0 {
                     model = model.with_friction(friction, SUGGESTED_STICKING_SPEED).unwrap();
                 }
                 let settings = NewtonSettings::new().with_tolerance(tolerance, 100);
-                let mut scratch = NewtonScratch::new(&mut b.vectors, &mut b.blocks, &mut b.hessians);
                 let mut out = Run {
                     reports: Vec::new(),
                     positions: Vec::new(),
@@ -328,22 +339,8 @@ macro_rules! contact_tests {
                 let n = boxes.rest.len();
                 // Room for one pair Hessian: the faces 0.5 mm apart have more active pairs.
                 let mut b = Buffers::new(&boxes, 32, 1);
-                let mesh = TetMesh::new(&boxes.rest, &boxes.tets, &mut b.rest_data).unwrap();
-                let mut masses = vec![0.0; n];
-                mesh.lumped_masses(1000.0, &mut masses).unwrap();
-                let elastic = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1e5, 0.3).unwrap());
-                let surface = ContactSurface { vertices: &b.vertices, edges: &b.edges, triangles: &boxes.triangles };
-                let buffers = ContactBuffers {
-                    slots: &mut b.slots,
-                    entries: &mut b.entries,
-                    vertex_triangle: &mut b.vertex_triangle,
-                    edge_edge: &mut b.edge_edge,
-                    hessians: &mut b.pair_hessians,
-                    friction: &mut b.friction,
-                };
                 let barrier = ContactBarrier::holding(1e-3, 2.0).unwrap();
-                let model = ContactModel::new(elastic, surface, &boxes.rest, barrier, buffers).unwrap();
-                let mut scratch = NewtonScratch::new(&mut b.vectors, &mut b.blocks, &mut b.hessians);
+                let (model, masses, mut scratch) = b.model(&boxes, 1e5, barrier);
                 let scene = Scene::new(0.01).with_gravity(GRAVITY).with_ground(HalfSpace::new(Vec3::Y, 0.0));
                 let (mut x, mut v) = (boxes.rest.clone(), vec![Vec3::new(0.0, -0.1, 0.0); n]);
                 let (x0, v0) = (x.clone(), v.clone());
@@ -461,22 +458,9 @@ macro_rules! contact_tests {
                     starts: vec![0, 4, 8],
                 };
                 let mut b = Buffers::new(&boxes, 32, 64);
-                let mesh = TetMesh::new(&boxes.rest, &boxes.tets, &mut b.rest_data).unwrap();
-                let elastic = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1e5, 0.3).unwrap());
-                let surface = ContactSurface { vertices: &b.vertices, edges: &b.edges, triangles: &boxes.triangles };
-                let buffers = ContactBuffers {
-                    slots: &mut b.slots,
-                    entries: &mut b.entries,
-                    vertex_triangle: &mut b.vertex_triangle,
-                    edge_edge: &mut b.edge_edge,
-                    hessians: &mut b.pair_hessians,
-                    friction: &mut b.friction,
-                };
                 let barrier = ContactBarrier::holding(1e-3, 1.0).unwrap();
-                let model = ContactModel::new(elastic, surface, &boxes.rest, barrier, buffers)
-                    .unwrap()
-                    .with_friction(0.5, SUGGESTED_STICKING_SPEED)
-                    .unwrap();
+                let (model, _, _) = b.model(&boxes, 1e5, barrier);
+                let model = model.with_friction(0.5, SUGGESTED_STICKING_SPEED).unwrap();
                 let h = 0.01;
                 model.begin_solve(&positions, h).unwrap();
                 assert!(model.counts().friction >= 1, "{:?}", model.counts());

@@ -5,6 +5,8 @@
 //! each module is one of them, its docs say what it proves. `cargo test --test steppers relax::`
 //! runs one of them.
 
+#[path = "../common/ball_pile.rs"]
+mod ball_pile;
 #[path = "../common/mod.rs"]
 mod common;
 #[path = "../common/intersection.rs"]

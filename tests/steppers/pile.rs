@@ -4,13 +4,14 @@
 //! pair of boundary triangles intersects, by the exact triangle–triangle test of
 //! `tests/common/intersection.rs` (not by the barrier that is meant to ensure it); every solve
 //! converged (f32: or stopped at its rounding floor, which the report says); every ball's volume
-//! stays within `[0.95, 1.01]` of its rest volume (measured 0.964 to 1.001 in both). The
-//! smallest gap, the Newton iterations and the converged share are printed.
+//! stays within `[0.95, 1.01]` of its rest volume (measured 0.964 (f64), 0.966 (f32) to 1.001).
+//! The smallest gap, the Newton iterations and the converged share are printed.
 //!
 //! Coarse balls (2^3 cells, 27 vertices each) and 0.3 s (30 steps), for the debug build CI
 //! runs: 520 to 580 Newton iterations, 35 to 40 s of CPU per precision there
 //! (measured: f64 30 of 30 converged, 519 iterations; f32 28 converged, 2 at the rounding floor,
-//! 579 iterations; smallest gap 30 um, dhat 1 mm).
+//! 538 iterations; smallest gap 30 um, dhat 1 mm). The balls come from
+//! `tests/common/ball_pile.rs`, shared with the example.
 //!
 //! The `pile` example (`examples/pile/`) runs the same scene longer and finer, f32.
 
@@ -19,7 +20,6 @@ macro_rules! pile_tests {
         mod $precision {
             use $($api)::+::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
             use $($api)::+::element::{TetHessian, TetRest};
-            use $($api)::+::generate::{BoxSplit, box_counts, fill_box};
             use $($api)::+::material::StableNeoHookean;
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::contact::boundary::ContactSurface;
@@ -57,67 +57,29 @@ macro_rules! pile_tests {
                 (b - a).cross(c - a).dot(d - a) / 6.0
             }
 
-            /// A ball of `radius` around `centre`: the cube `[-1, 1]^3` of `cells^3` cells split
-            /// into five tetrahedra each, every vertex mapped onto the unit ball by the map that
-            /// takes each face of the cube onto a sixth of the sphere (P. Nowell, "Mapping a Cube
-            /// to a Sphere", 2005: `x' = x sqrt(1 - y^2/2 - z^2/2 + y^2 z^2/3)` and cyclically),
-            /// then scaled and moved. The corner cells' tetrahedra are the flattest; every volume
-            /// is checked positive.
-            fn ball(centre: Vec3, radius: Real, cells: usize) -> (Vec<Vec3>, Vec<[u32; 4]>) {
-                let (nv, nt) = box_counts(cells, cells, cells, BoxSplit::Alternating5).unwrap();
-                let (mut x, mut tets) = (vec![Vec3::ZERO; nv], vec![[0; 4]; nt]);
-                fill_box(Vec3::splat(-1.0), Vec3::ONE, cells, cells, cells, BoxSplit::Alternating5, &mut x, &mut tets)
-                    .unwrap();
-                for p in &mut x {
-                    let s = *p * *p;
-                    let mapped = Vec3::new(
-                        p.x * (1.0 - s.y / 2.0 - s.z / 2.0 + s.y * s.z / 3.0).sqrt(),
-                        p.y * (1.0 - s.z / 2.0 - s.x / 2.0 + s.z * s.x / 3.0).sqrt(),
-                        p.z * (1.0 - s.x / 2.0 - s.y / 2.0 + s.x * s.y / 3.0).sqrt(),
-                    );
-                    *p = centre + mapped * radius;
-                }
-                for &tet in &tets {
-                    assert!(volume(&x, tet) > 0.0, "ball tetrahedron {tet:?} inverted by the map");
-                }
-                (x, tets)
-            }
-
-            /// The balls' centres: a spiral (135 degrees and 6 cm up from one to the next, 3.5 cm
-            /// from the box's axis), the lowest 5 mm above the ground. Every pair starts at least
-            /// 8 mm apart, each ball lands on those below it off their tops.
-            fn centres() -> Vec<Vec3> {
-                (0..8)
-                    .map(|k| {
-                        let angle = (135.0 * k as Real).to_radians();
-                        Vec3::new(0.035 * angle.cos(), 0.035 * angle.sin(), RADIUS + 0.005 + 0.06 * k as Real)
-                    })
-                    .collect()
-            }
-
-            /// The four walls: boxes 10 cm thick whose inner faces are at `|x|, |y| = HALF_WIDTH`.
+            /// The four walls: the shared scene's boxes (`tests/common/ball_pile.rs`), inner
+            /// faces at `|x|, |y| = HALF_WIDTH`, with the pile's friction.
             fn walls() -> Vec<Collider<'static>> {
-                let (thick, high) = (0.05, 0.5);
-                [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y]
+                crate::ball_pile::walls(HALF_WIDTH as f64)
                     .into_iter()
-                    .map(|n| {
-                        let half = Vec3::new(
-                            if n.x != 0.0 { thick } else { HALF_WIDTH + 2.0 * thick },
-                            if n.y != 0.0 { thick } else { HALF_WIDTH + 2.0 * thick },
-                            high,
-                        );
-                        Collider::cuboid(n * (HALF_WIDTH + thick) + Vec3::Z * high, half, Quat::IDENTITY)
-                            .with_friction(FRICTION)
+                    .map(|(centre, half)| {
+                        Collider::cuboid(vec3(centre), vec3(half), Quat::IDENTITY).with_friction(FRICTION)
                     })
                     .collect()
+            }
+
+            /// A point of the shared scene in this precision.
+            fn vec3(p: [f64; 3]) -> Vec3 {
+                Vec3::new(p[0] as Real, p[1] as Real, p[2] as Real)
             }
 
             #[test]
             fn eight_soft_balls_dropped_into_a_box_never_intersect() {
                 // The balls, one mesh of eight parts.
                 let (mut rest, mut tets, mut ranges) = (Vec::new(), Vec::new(), Vec::new());
-                for centre in centres() {
-                    let (x, t) = ball(centre, RADIUS, CELLS);
+                for centre in crate::ball_pile::centres(RADIUS as f64) {
+                    let (x, t) = crate::ball_pile::ball(centre, RADIUS as f64, CELLS).unwrap();
+                    let x: Vec<Vec3> = x.into_iter().map(vec3).collect();
                     let offset = rest.len() as u32;
                     ranges.push(tets.len()..tets.len() + t.len());
                     rest.extend(x);

@@ -1,17 +1,19 @@
-//! The exact triangle–triangle intersection check of the contact tests, copied from
-//! `tests/common/intersection.rs` (its module docs give the proofs; its tests run in the steppers
-//! binary, `cargo test --all-features --test steppers intersection`): [`triangles_intersect`],
-//! [`intersecting_pairs`] and the orientation helpers they use. Copied rather than included
-//! because that file's tests need the test suite's `common` module. Keep the two in step.
+//! The exact triangle–triangle intersection check shared by the contact tests
+//! (`tests/common/intersection.rs`, whose module docs give the method and its tests) and the pile
+//! example (`examples/pile`, which includes this file by `#[path]`): [`triangles_intersect`],
+//! [`intersecting_pairs`] and its f32 and f64 forms. No tests and no use of the test suite's
+//! `common` module here, so that a program outside the test suite can include it.
 //!
-//! Every decision is the sign of an orientation determinant computed exactly by the adaptive
-//! expansion arithmetic of J. R. Shewchuk, "Adaptive Precision Floating-Point Arithmetic and Fast
-//! Robust Geometric Predicates" (Discrete & Computational Geometry 18, 1997), as ported by the
-//! `robust` crate; the method is that of P. Guigue and O. Devillers, "Fast and Robust
-//! Triangle–Triangle Overlap Test Using Orientation Predicates" (Journal of Graphics Tools 8(1),
-//! 2003). f32 positions convert to f64 exactly, so the answers are exact for them.
+//! Every decision is the sign of an orientation determinant, `orient3d` or `orient2d`, computed
+//! exactly by the adaptive expansion arithmetic of J. R. Shewchuk, "Adaptive Precision
+//! Floating-Point Arithmetic and Fast Robust Geometric Predicates" (Discrete & Computational
+//! Geometry 18, 1997), as ported by the `robust` crate; the method is that of P. Guigue and
+//! O. Devillers, "Fast and Robust Triangle–Triangle Overlap Test Using Orientation Predicates"
+//! (Journal of Graphics Tools 8(1), 2003). Non-finite coordinates panic.
+#![allow(dead_code)]
 
 use robust::{Coord, Coord3D, orient2d, orient3d};
+use softfem::glam::{DVec3, Vec3};
 
 /// A point as three f64 coordinates `[x, y, z]`.
 pub type Point = [f64; 3];
@@ -275,4 +277,20 @@ pub fn intersecting_pairs(positions: &[[f64; 3]], triangles: &[[u32; 3]]) -> Vec
     }
     pairs.sort_unstable();
     pairs
+}
+
+/// [`intersecting_pairs`] for f32 positions (converted to f64 exactly, so the answer is exact for
+/// the f32 positions themselves).
+pub fn intersecting_pairs_f32(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<[usize; 2]> {
+    let positions: Vec<Point> = positions
+        .iter()
+        .map(|p| p.to_array().map(f64::from))
+        .collect();
+    intersecting_pairs(&positions, triangles)
+}
+
+/// [`intersecting_pairs`] for glam's f64 vectors.
+pub fn intersecting_pairs_f64(positions: &[DVec3], triangles: &[[u32; 3]]) -> Vec<[usize; 2]> {
+    let positions: Vec<Point> = positions.iter().map(|p| p.to_array()).collect();
+    intersecting_pairs(&positions, triangles)
 }
