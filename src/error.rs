@@ -964,6 +964,11 @@ pub enum BodyBuffer {
     Scratch,
     /// Vertex Block Descent's index scratch (adjacency, colours, order).
     IndexScratch,
+    /// A world's list of bodies.
+    Bodies,
+    /// A world's contact surface: boundary triangles, their extraction's scratch, the surface's
+    /// vertices and edges, the broad phase's hash slots and cell entries.
+    Surface,
 }
 
 impl fmt::Display for BodyBuffer {
@@ -973,6 +978,8 @@ impl fmt::Display for BodyBuffer {
             BodyBuffer::Tetrahedra => "per-tetrahedron",
             BodyBuffer::Scratch => "solver scratch",
             BodyBuffer::IndexScratch => "index scratch",
+            BodyBuffer::Bodies => "body list",
+            BodyBuffer::Surface => "contact surface",
         })
     }
 }
@@ -1020,6 +1027,18 @@ pub enum BodyError {
     /// The explicit solver's `stable_fraction` is NaN, infinite, or outside `(0, 1]` (a fraction
     /// of the stable time step: above 1 the steps are not proven stable).
     StableFraction,
+    /// A [`World`](crate::world::World) has no body of this index.
+    NoSuchBody {
+        /// The index asked for.
+        body: usize,
+        /// The number of bodies.
+        count: usize,
+    },
+    /// A [`World`](crate::world::World)'s contact settings or surface were refused.
+    Contact(ContactError),
+    /// A [`World`](crate::world::World) steps with Newton's method or the relaxation only: the
+    /// explicit stepper and Vertex Block Descent do not take body–body contact yet.
+    Solver,
 }
 
 impl From<GenerateError> for BodyError {
@@ -1070,6 +1089,14 @@ impl fmt::Display for BodyError {
                 "the explicit solver's stable_fraction must be a finite fraction in (0, 1] of the \
                  stable time step",
             ),
+            BodyError::NoSuchBody { body, count } => {
+                write!(f, "there is no body {body}: the world has {count}")
+            }
+            BodyError::Contact(error) => write!(f, "{error}"),
+            BodyError::Solver => f.write_str(
+                "a world steps with Newton's method or the relaxation (the explicit stepper and \
+                 VBD do not take body-body contact yet)",
+            ),
         }
     }
 }
@@ -1080,6 +1107,7 @@ impl core::error::Error for BodyError {
             BodyError::Generate(error) => Some(error),
             BodyError::Mesh(error) => Some(error),
             BodyError::Step(error) => Some(error),
+            BodyError::Contact(error) => Some(error),
             _ => None,
         }
     }

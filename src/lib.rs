@@ -196,7 +196,9 @@ mod single;
 pub use error::ColliderProblem;
 pub use error::{BodyBuffer, BodyError};
 pub use error::{ContactBuffer, ContactError};
-pub use single::{asset, body, element, generate, lanes, material, mesh, polar, step, svd, types};
+pub use single::{
+    asset, body, element, generate, lanes, material, mesh, polar, step, svd, types, world,
+};
 // The asset pipeline's errors (also in `asset` and `error`).
 #[cfg(feature = "std")]
 pub use error::{

@@ -37,6 +37,9 @@ macro_rules! numeric_modules {
         #[path = "../body/mod.rs"]
         pub mod body;
 
+        #[path = "../world/mod.rs"]
+        pub mod world;
+
         #[cfg(feature = "rayon")]
         #[cfg_attr(docsrs, doc(cfg(feature = "rayon")))]
         #[path = "../parallel.rs"]

@@ -151,6 +151,33 @@ impl<const V: usize, const T: usize> Storage for FixedStorage<V, T> {
     type LayoutCorners = Fixed<u32, 0, 1>;
 }
 
+/// A `heapless::Vec` as a fixed-capacity buffer (the world's contact lists,
+/// [`FixedWorld`](crate::world::FixedWorld)).
+impl<X: Copy, const N: usize> Slots<X> for heapless::Vec<X, N> {
+    #[inline]
+    fn empty() -> Self {
+        heapless::Vec::new()
+    }
+
+    fn resize(&mut self, len: usize, fill: X) -> bool {
+        if len > N {
+            return false;
+        }
+        self.clear();
+        heapless::Vec::resize(self, len, fill).is_ok()
+    }
+
+    #[inline]
+    fn slice(&self) -> &[X] {
+        self.as_slice()
+    }
+
+    #[inline]
+    fn slice_mut(&mut self) -> &mut [X] {
+        self.as_mut_slice()
+    }
+}
+
 #[cfg(feature = "alloc")]
 impl<X: Copy> Slots<X> for alloc::vec::Vec<X> {
     #[inline]

@@ -30,3 +30,4 @@ mod stability;
 mod stagnation;
 mod step;
 mod vbd;
+mod world;

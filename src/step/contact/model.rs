@@ -95,6 +95,16 @@ pub struct FrictionPair {
 }
 
 impl FrictionPair {
+    /// An empty pair (for filling buffers, also in a `const`): as `Default`.
+    pub const ZERO: FrictionPair = FrictionPair {
+        vertices: [0; 4],
+        weights: [0.0; 4],
+        normal: Vec3::ZERO,
+        anchor: Vec3::ZERO,
+        force: 0.0,
+        block: Mat3::ZERO,
+    };
+
     /// The four vertices.
     #[inline]
     pub fn vertices(&self) -> [u32; 4] {

@@ -162,13 +162,18 @@ pub struct PairHessian {
     pub hessian: [[Mat3; 4]; 4],
 }
 
+impl PairHessian {
+    /// No vertices and a zero Hessian (for filling buffers, also in a `const`).
+    pub const ZERO: PairHessian = PairHessian {
+        vertices: [0; 4],
+        hessian: [[Mat3::ZERO; 4]; 4],
+    };
+}
+
 impl Default for PairHessian {
     #[inline]
     fn default() -> Self {
-        PairHessian {
-            vertices: [0; 4],
-            hessian: [[Mat3::ZERO; 4]; 4],
-        }
+        PairHessian::ZERO
     }
 }
 

@@ -1,0 +1,1161 @@
+//! A world of soft bodies that touch each other and themselves: several bodies (each with its
+//! own mesh, material and pins) and the colliders, stepped together by one implicit solve over
+//! all their vertices with intersection-free contact between every pair of boundary primitives
+//! (issue #39). The storage is chosen at the type level: [`FixedWorld`] (fixed capacity, no
+//! heap; its lists are `heapless` vectors) or `VecStorage` (feature `alloc`, growable; a
+//! contact list that fills up is grown and the step retried).
+//!
+//! One step is one solve of implicit Euler over every vertex of every body: the bodies'
+//! elastic energies (each with its own material, summed in body order), gravity, the ground and
+//! the colliders, and the barrier of Incremental Potential Contact between the boundary
+//! triangles, edges and vertices of all bodies, within one body as between two, with lagged
+//! Coulomb friction between surfaces ([`set_friction`](World::set_friction)). Every trial point
+//! of the solve is cut by continuous collision detection, so a step that starts with no two
+//! surfaces crossing ends with none crossing (`docs/math.md` sections 8.10 and 8.11 give the
+//! conditions: the start free of intersections, the gap `dhat`, the distance floor in f32).
+//! Newton's method ([`Solver::Newton`], the default) and the relaxation ([`Solver::Relax`])
+//! run it; Vertex Block Descent and the explicit stepper do not yet take body–body contact,
+//! and the world refuses them ([`BodyError::Solver`]).
+//!
+//! Bodies are added ([`add_box`](World::add_box), [`add_body`](World::add_body)), removed
+//! ([`remove_body`](World::remove_body)) and moved
+//! ([`body_positions_mut`](World::body_positions_mut)) between steps. A body is named by its
+//! index, in the order of addition; removing one moves the later ones down by one (as
+//! `Vec::remove`). Placing a body so that its surface crosses
+//! another's is the caller's to avoid: the guarantee starts from a state free of intersections.
+//!
+//! A soft cube dropped onto a stiffer one resting on the ground (z up), growable storage:
+//! ```
+//! # #[cfg(feature = "alloc")] {
+//! use softfem::body::VecStorage;
+//! use softfem::world::World;
+//! use softfem::{glam::Vec3, material::StableNeoHookean, step::HalfSpace};
+//!
+//! let stiff = StableNeoHookean::from_young_poisson(1.0e6, 0.3)?; // Pa
+//! let soft = StableNeoHookean::from_young_poisson(5.0e4, 0.3)?;
+//! let mut world = World::<VecStorage, _>::new();
+//! let below = world.add_box(Vec3::ZERO, Vec3::splat(0.1), [2; 3], 1000.0, stiff)?;
+//! let (low, high) = (Vec3::new(0.02, 0.02, 0.12), Vec3::new(0.08, 0.08, 0.18));
+//! let above = world.add_box(low, high, [2; 3], 1000.0, soft)?;
+//! world.set_gravity(Vec3::new(0.0, 0.0, -9.81)); // m/s^2
+//! world.set_ground(Some(HalfSpace::new(Vec3::Z, 0.0)));
+//! for _ in 0..40 {
+//!     assert!(world.step(0.01)?.converged()); // 0.4 s
+//! }
+//! let heights = |body| world.body_positions(body).unwrap().iter().map(|x| x.z);
+//! let top_of_below = heights(below).fold(0.0, f32::max);
+//! let bottom_of_above = heights(above).fold(1.0, f32::min);
+//! let gap = bottom_of_above - top_of_below;
+//! assert!(gap > 0.0 && gap < 1e-3, "{gap}"); // resting on it, within the contact gap of 1 mm
+//! # }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+
+mod model;
+mod storage;
+
+pub use storage::{FixedWorld, List, WorldStorage};
+
+use core::ops::Range;
+
+use super::asset::surface::{BoundaryFace, boundary_faces};
+use super::body::{Fixed, Slots, Solver, StepReport};
+use super::element::{TetHessian, TetRest};
+use super::generate::{BoxSplit, box_counts, fill_box};
+use super::material::Material;
+use super::mesh::TetMesh;
+use super::step::contact::boundary::ContactSurface;
+use super::step::contact::model::{ContactCounts, FrictionPair};
+use super::step::contact::potential::{ContactBarrier, PairHessian};
+use super::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
+use super::step::{
+    Collider, HalfSpace, NewtonScratch, NewtonSettings, RelaxScratch, Scene, check_time_step,
+    newton_step, relax_step, scratch_len,
+};
+use super::types::{Mat3, Real, Vec3};
+use crate::error::{BodyBuffer, BodyError, ContactBuffer, ContactError, MeshError, StepError};
+use model::WorldElastic;
+use storage::remove_range;
+
+/// Where one body of a [`World`] lies in the world's lists, and its material.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Part<M> {
+    first_vertex: u32,
+    vertex_count: u32,
+    first_tet: u32,
+    tet_count: u32,
+    first_triangle: u32,
+    triangle_count: u32,
+    /// From the validating [`TetMesh::new`], for the views rebuilt every step.
+    gradient_gain: Real,
+    material: M,
+}
+
+impl<M> Part<M> {
+    /// The body's vertices: a range of the world's vertex indices.
+    #[inline]
+    #[must_use]
+    pub fn vertices(&self) -> Range<usize> {
+        range(self.first_vertex, self.vertex_count)
+    }
+
+    /// The body's tetrahedra: a range of the world's tetrahedra.
+    #[inline]
+    #[must_use]
+    pub fn tets(&self) -> Range<usize> {
+        self.tet_range()
+    }
+
+    /// The body's boundary triangles: a range of [`World::triangles`].
+    #[inline]
+    #[must_use]
+    pub fn triangles(&self) -> Range<usize> {
+        range(self.first_triangle, self.triangle_count)
+    }
+
+    /// The body's material.
+    #[inline]
+    #[must_use]
+    pub fn material(&self) -> &M {
+        &self.material
+    }
+
+    #[inline]
+    fn tet_range(&self) -> Range<usize> {
+        range(self.first_tet, self.tet_count)
+    }
+}
+
+/// `first..first + count` as indices.
+#[inline]
+fn range(first: u32, count: u32) -> Range<usize> {
+    let first = first as usize;
+    first..first.saturating_add(count as usize)
+}
+
+/// A world of soft bodies in contact; see the [module documentation](self).
+///
+/// `S` is the [`WorldStorage`] ([`FixedWorld`] or `VecStorage`), `M` the [`Material`] type
+/// of every body (each body has its own value: a stiff body and a soft one of the same model
+/// share a solve).
+///
+/// * Pinned vertices ([`set_pinned`](Self::set_pinned)) keep their position and velocity.
+/// * A failed step returns the [`StepError`] with every position and velocity as it was before
+///   the call, bit for bit; a failed change (adding a body that does not fit, say) leaves the
+///   world as it was.
+pub struct World<S: WorldStorage, M: Material> {
+    parts: S::Parts<M>,
+    rest_positions: S::Vectors,
+    positions: S::Vectors,
+    velocities: S::Vectors,
+    masses: S::Reals,
+    pinned: S::Flags,
+    tets: S::Tets,
+    rest_data: S::Rests,
+    /// Every body's boundary triangles (global vertex indices), body after body.
+    triangles: S::Triangles,
+    faces: S::Faces,
+    /// The contact surface: its unique vertices and edges (the first `surface_vertices` and
+    /// `surface_edges` entries).
+    surface_vertex_list: S::Indices,
+    surface_edge_list: S::Pairs,
+    surface_vertices: usize,
+    surface_edges: usize,
+    slots: S::Indices,
+    entries: S::Indices,
+    vertex_triangle: S::Pairs,
+    edge_edge: S::Pairs,
+    pair_hessians: S::PairHessians,
+    friction_pairs: S::FrictionPairs,
+    vectors: S::Scratch,
+    scalars: S::Scalars,
+    blocks: S::Blocks,
+    hessians: S::Hessians,
+    solver: Solver,
+    gravity: Vec3,
+    ground: Option<HalfSpace<Vec3>>,
+    /// `None`: the default, [`ContactBarrier::holding`]`(DEFAULT_GAP, DEFAULT_HOLDING_FORCE)`.
+    barrier: Option<ContactBarrier>,
+    friction: Real,
+    preconditioner_ready: bool,
+    counts: ContactCounts,
+}
+
+/// The barrier of a world that was given none.
+fn default_barrier() -> ContactBarrier {
+    ContactBarrier::holding(DEFAULT_GAP, DEFAULT_HOLDING_FORCE).unwrap_or(ContactBarrier {
+        stiffness: 0.0,
+        gap: DEFAULT_GAP,
+    })
+}
+
+/// The contact gap `dhat` (m) of a new world.
+pub const DEFAULT_GAP: Real = 1e-3;
+
+/// The force (N) with which a pair at half the gap pushes in a new world
+/// ([`ContactBarrier::holding`]).
+pub const DEFAULT_HOLDING_FORCE: Real = 1.0;
+
+/// The literal of a [`World`] with no bodies: the body list `$parts`, every kept list
+/// `$list(zero)`, every contact list `$contact(zero)` and every other buffer `$slots(zero)` for
+/// the zero of its entries (`heapless::Vec::new` and `Fixed::filled` in the `const`
+/// [`World::empty`], the storage's own empty buffers in [`World::new`]).
+macro_rules! unbuilt_world {
+    ($parts:expr, $list:path, $slots:path, $contact:path) => {
+        World {
+            parts: $parts,
+            rest_positions: $list(Vec3::ZERO),
+            positions: $list(Vec3::ZERO),
+            velocities: $list(Vec3::ZERO),
+            masses: $list(0.0),
+            pinned: $list(false),
+            tets: $list([0; 4]),
+            rest_data: $list(TetRest::ZERO),
+            triangles: $slots([0; 3]),
+            faces: $slots(BoundaryFace {
+                triangle: [0; 3],
+                tet: 0,
+            }),
+            surface_vertex_list: $contact(0),
+            surface_edge_list: $contact([0; 2]),
+            surface_vertices: 0,
+            surface_edges: 0,
+            slots: $contact(0),
+            entries: $contact(0),
+            vertex_triangle: $contact([0; 2]),
+            edge_edge: $contact([0; 2]),
+            pair_hessians: $contact(PairHessian::ZERO),
+            friction_pairs: $contact(FrictionPair::ZERO),
+            vectors: $slots(Vec3::ZERO),
+            scalars: $slots(0.0),
+            blocks: $slots(Mat3::ZERO),
+            hessians: $slots(TetHessian::ZERO),
+            solver: Solver::Newton(NewtonSettings::new()),
+            gravity: Vec3::ZERO,
+            ground: None,
+            barrier: None,
+            friction: 0.0,
+            preconditioner_ready: false,
+            counts: ContactCounts {
+                vertex_triangle: 0,
+                edge_edge: 0,
+                hessians: 0,
+                friction: 0,
+            },
+        }
+    };
+}
+
+/// An empty kept list of any storage (`_zero` names the entry type only).
+fn empty_list<X: Copy, L: List<X>>(_zero: X) -> L {
+    L::empty()
+}
+
+/// An empty buffer of any storage (`_zero` names the entry type only).
+fn empty_slots<X: Copy, B: Slots<X>>(_zero: X) -> B {
+    B::empty()
+}
+
+/// A `heapless::Vec` of no entries, for the `const` [`World::empty`] (`_zero` names the entry
+/// type only).
+const fn heapless_empty<X: Copy, const N: usize>(_zero: X) -> heapless::Vec<X, N> {
+    heapless::Vec::new()
+}
+
+impl<S: WorldStorage, M: Material> Default for World<S, M> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<S: WorldStorage, M: Material> World<S, M> {
+    /// An empty world: no bodies, Newton's method ([`Solver::newton`]), no gravity or ground,
+    /// the barrier [`ContactBarrier::holding`]`(`[`DEFAULT_GAP`]`, `[`DEFAULT_HOLDING_FORCE`]`)`,
+    /// no friction between surfaces.
+    #[must_use]
+    pub fn new() -> Self {
+        unbuilt_world!(List::empty(), empty_list, empty_slots, empty_slots)
+    }
+
+    /// Adds a box `[min, max]` (m) of `cells[0] x cells[1] x cells[2]` cubes, five tetrahedra
+    /// each ([`BoxSplit::Alternating5`]), of `material` with `density` (kg/m^3), at rest, and
+    /// returns its index.
+    ///
+    /// # Errors
+    /// As [`add_body`](Self::add_body), and [`BodyError::Generate`] for a box the generator
+    /// refuses; the world is unchanged then.
+    pub fn add_box(
+        &mut self,
+        min: Vec3,
+        max: Vec3,
+        cells: [usize; 3],
+        density: Real,
+        material: M,
+    ) -> Result<usize, BodyError> {
+        let [nx, ny, nz] = cells;
+        let split = BoxSplit::Alternating5;
+        let (vertices, tets) = box_counts(nx, ny, nz, split)?;
+        self.admit(vertices, tets, density, material, |x, t| {
+            fill_box(min, max, nx, ny, nz, split, x, t).map_err(BodyError::from)
+        })
+    }
+
+    /// Adds a body of `rest_positions` (m) and `tets` (indices into them, positively oriented
+    /// as [`TetMesh::new`] requires) of `material` with `density` (kg/m^3), at rest at its rest
+    /// shape, nothing pinned, and returns its index. Its boundary triangles join the contact
+    /// surface.
+    ///
+    /// # Errors
+    /// [`BodyError::Mesh`] for a mesh [`TetMesh::new`] refuses (or a density
+    /// [`TetMesh::lumped_masses`] refuses), [`BodyError::UnusedVertex`] for a vertex in no
+    /// tetrahedron, [`BodyError::Capacity`] naming the buffer that cannot hold the world with
+    /// the body ([`BodyBuffer::Bodies`], [`BodyBuffer::Vertices`], [`BodyBuffer::Tetrahedra`],
+    /// [`BodyBuffer::Surface`], [`BodyBuffer::Scratch`]) and [`BodyError::Contact`] for a
+    /// surface the contact model refuses; the world is unchanged then.
+    pub fn add_body(
+        &mut self,
+        rest_positions: &[Vec3],
+        tets: &[[u32; 4]],
+        density: Real,
+        material: M,
+    ) -> Result<usize, BodyError> {
+        self.admit(
+            rest_positions.len(),
+            tets.len(),
+            density,
+            material,
+            |x, t| {
+                copy_into(x, rest_positions);
+                copy_into(t, tets);
+                Ok(())
+            },
+        )
+    }
+
+    /// Appends a body of `vertices` and `tets` whose rest positions and (body-local)
+    /// tetrahedra `fill` writes, validates it, joins its surface to the contact surface; on
+    /// any error the world is put back as it was.
+    fn admit(
+        &mut self,
+        vertices: usize,
+        tets: usize,
+        density: Real,
+        material: M,
+        fill: impl FnOnce(&mut [Vec3], &mut [[u32; 4]]) -> Result<(), BodyError>,
+    ) -> Result<usize, BodyError> {
+        let lengths = self.lengths();
+        let added = self.append(vertices, tets, density, material, fill);
+        let added = added.and_then(|body| self.rebuild_surface().map(|()| body));
+        if added.is_err() {
+            self.truncate_to(lengths);
+            // The world as it was fitted before; its surface fits again.
+            let _ = self.rebuild_surface();
+        }
+        added
+    }
+
+    /// The lengths of the kept lists: bodies, vertices, tetrahedra.
+    fn lengths(&self) -> [usize; 3] {
+        [
+            self.parts.slice().len(),
+            self.positions.slice().len(),
+            self.tets.slice().len(),
+        ]
+    }
+
+    /// Shortens the kept lists to `lengths` (from [`lengths`](Self::lengths)).
+    fn truncate_to(&mut self, [parts, vertices, tets]: [usize; 3]) {
+        self.parts.truncate(parts);
+        self.rest_positions.truncate(vertices);
+        self.positions.truncate(vertices);
+        self.velocities.truncate(vertices);
+        self.masses.truncate(vertices);
+        self.pinned.truncate(vertices);
+        self.tets.truncate(tets);
+        self.rest_data.truncate(tets);
+    }
+
+    /// The appending half of [`admit`](Self::admit): the lists grown, the body validated
+    /// (body-local indices, then shifted to global ones), its record pushed.
+    fn append(
+        &mut self,
+        vertices: usize,
+        tets: usize,
+        density: Real,
+        material: M,
+        fill: impl FnOnce(&mut [Vec3], &mut [[u32; 4]]) -> Result<(), BodyError>,
+    ) -> Result<usize, BodyError> {
+        let [body, first_vertex, first_tet] = self.lengths();
+        let too_many = |buffer, needed| BodyError::Capacity { buffer, needed };
+        let vertex_total = first_vertex.saturating_add(vertices);
+        let tet_total = first_tet.saturating_add(tets);
+        // Indices are u32 throughout the kernels.
+        if u32::try_from(vertex_total).is_err() {
+            return Err(too_many(BodyBuffer::Vertices, vertex_total));
+        }
+        if u32::try_from(tet_total.saturating_mul(4)).is_err() {
+            return Err(too_many(BodyBuffer::Tetrahedra, tet_total));
+        }
+        let grown = extend_by(&mut self.rest_positions, vertices, Vec3::ZERO)
+            && extend_by(&mut self.positions, vertices, Vec3::ZERO)
+            && extend_by(&mut self.velocities, vertices, Vec3::ZERO)
+            && extend_by(&mut self.masses, vertices, 0.0)
+            && extend_by(&mut self.pinned, vertices, false);
+        if !grown {
+            return Err(too_many(BodyBuffer::Vertices, vertex_total));
+        }
+        let grown = extend_by(&mut self.tets, tets, [0; 4])
+            && extend_by(&mut self.rest_data, tets, TetRest::ZERO);
+        if !grown {
+            return Err(too_many(BodyBuffer::Tetrahedra, tet_total));
+        }
+        let rest = self
+            .rest_positions
+            .slice_mut()
+            .get_mut(first_vertex..)
+            .unwrap_or(&mut []);
+        let local_tets = self
+            .tets
+            .slice_mut()
+            .get_mut(first_tet..)
+            .unwrap_or(&mut []);
+        fill(rest, local_tets)?;
+        let rest = self
+            .rest_positions
+            .slice()
+            .get(first_vertex..)
+            .unwrap_or(&[]);
+        let local_tets = self.tets.slice().get(first_tet..).unwrap_or(&[]);
+        let rest_data = self
+            .rest_data
+            .slice_mut()
+            .get_mut(first_tet..)
+            .unwrap_or(&mut []);
+        let mesh = TetMesh::new(rest, local_tets, rest_data)?;
+        let masses = self
+            .masses
+            .slice_mut()
+            .get_mut(first_vertex..)
+            .unwrap_or(&mut []);
+        mesh.lumped_masses(density, masses)?;
+        // Every tetrahedron's share of the mass is a positive normal number, so a vertex has
+        // mass zero exactly when no tetrahedron uses it.
+        if let Some(vertex) = masses.iter().position(|&mass| mass <= 0.0) {
+            return Err(BodyError::UnusedVertex { vertex });
+        }
+        let gradient_gain = mesh.gradient_gain();
+        // The body's boundary, in body-local indices, then everything shifted to global ones.
+        let faces_needed = tets.saturating_mul(4);
+        if !self.faces.resize(faces_needed, Default::default()) {
+            return Err(too_many(BodyBuffer::Surface, faces_needed));
+        }
+        let faces = boundary_faces(local_tets, vertices, self.faces.slice_mut())
+            .map_err(|_| too_many(BodyBuffer::Surface, faces_needed))?;
+        let triangle_count = faces.len();
+        let first_triangle = self.parts.slice().last().map_or(0, |part| {
+            part.first_triangle.saturating_add(part.triangle_count)
+        });
+        let offset = first_vertex as u32;
+        for tet in self
+            .tets
+            .slice_mut()
+            .get_mut(first_tet..)
+            .unwrap_or(&mut [])
+        {
+            *tet = tet.map(|v| v + offset);
+        }
+        copy_into(
+            self.positions
+                .slice_mut()
+                .get_mut(first_vertex..)
+                .unwrap_or(&mut []),
+            self.rest_positions
+                .slice()
+                .get(first_vertex..)
+                .unwrap_or(&[]),
+        );
+        let part = Part {
+            first_vertex: offset,
+            vertex_count: vertices as u32,
+            first_tet: first_tet as u32,
+            tet_count: tets as u32,
+            first_triangle,
+            triangle_count: triangle_count as u32,
+            gradient_gain,
+            material,
+        };
+        if !self.parts.extend(&[part]) {
+            return Err(too_many(BodyBuffer::Bodies, body.saturating_add(1)));
+        }
+        Ok(body)
+    }
+
+    /// Removes body `body`; the later bodies move down by one index, their vertices and
+    /// tetrahedra close up the gap.
+    ///
+    /// # Errors
+    /// [`BodyError::NoSuchBody`] if there is no body `body`; the world is unchanged then.
+    pub fn remove_body(&mut self, body: usize) -> Result<(), BodyError> {
+        let part = self.part(body)?;
+        let (vertices, tets) = (part.vertices(), part.tet_range());
+        for list in [
+            &mut self.rest_positions,
+            &mut self.positions,
+            &mut self.velocities,
+        ] {
+            remove_range(list, vertices.start, vertices.len());
+        }
+        remove_range(&mut self.masses, vertices.start, vertices.len());
+        remove_range(&mut self.pinned, vertices.start, vertices.len());
+        remove_range(&mut self.tets, tets.start, tets.len());
+        remove_range(&mut self.rest_data, tets.start, tets.len());
+        remove_range(&mut self.parts, body, 1);
+        let later_tets = self
+            .tets
+            .slice_mut()
+            .get_mut(tets.start..)
+            .unwrap_or(&mut []);
+        for tet in later_tets {
+            *tet = tet.map(|v| v - part.vertex_count);
+        }
+        for later in self.parts.slice_mut().get_mut(body..).unwrap_or(&mut []) {
+            later.first_vertex -= part.vertex_count;
+            later.first_tet -= part.tet_count;
+            later.first_triangle -= part.triangle_count;
+        }
+        // A smaller world's surface always fits where the larger one did.
+        let _ = self.rebuild_surface();
+        self.preconditioner_ready = false;
+        Ok(())
+    }
+
+    /// Rebuilds the boundary triangles of every body (global indices), the contact surface's
+    /// vertices and edges, and sizes the broad phase, the contact lists and the solver's
+    /// scratch for them.
+    fn rebuild_surface(&mut self) -> Result<(), BodyError> {
+        self.preconditioner_ready = false;
+        let too_many = |buffer, needed| BodyError::Capacity { buffer, needed };
+        let n = self.positions.slice().len();
+        let triangle_total = self.parts.slice().last().map_or(0, |part| {
+            (part.first_triangle as usize).saturating_add(part.triangle_count as usize)
+        });
+        if !self.triangles.resize(triangle_total, [0; 3]) {
+            return Err(too_many(BodyBuffer::Surface, triangle_total));
+        }
+        for part in self.parts.slice() {
+            let faces = part.tet_range().len().saturating_mul(4);
+            if !self.faces.resize(faces, Default::default()) {
+                return Err(too_many(BodyBuffer::Surface, faces));
+            }
+            let tets = self.tets.slice().get(part.tet_range()).unwrap_or(&[]);
+            let written = boundary_faces(tets, n, self.faces.slice_mut())
+                .map_err(|_| too_many(BodyBuffer::Surface, faces))?;
+            let triangles = self
+                .triangles
+                .slice_mut()
+                .get_mut(part.triangles())
+                .unwrap_or(&mut []);
+            for (slot, face) in triangles.iter_mut().zip(written) {
+                *slot = face.triangle;
+            }
+        }
+        let f = triangle_total;
+        let (vertex_slots, edge_slots) = (
+            scratch_len::boundary_vertices(f),
+            scratch_len::boundary_edges(f),
+        );
+        if !(self.surface_vertex_list.resize(vertex_slots, 0)
+            && self.surface_edge_list.resize(edge_slots, [0; 2]))
+        {
+            return Err(too_many(BodyBuffer::Surface, vertex_slots));
+        }
+        let surface = ContactSurface::from_triangles(
+            self.triangles.slice(),
+            n,
+            self.surface_vertex_list.slice_mut(),
+            self.surface_edge_list.slice_mut(),
+        )
+        .map_err(BodyError::Contact)?;
+        let (v, e) = (surface.vertices.len(), surface.edges.len());
+        self.surface_vertices = v;
+        self.surface_edges = e;
+        let lengths = scratch_len::broad_phase(v, e, f);
+        if !(self.slots.resize(lengths.slots, 0) && self.entries.resize(lengths.entries, 0)) {
+            return Err(too_many(BodyBuffer::Surface, lengths.entries));
+        }
+        // Room for 32 candidates per surface vertex and edge and a pair Hessian per triangle
+        // to start with; a growable world grows them when a step needs more.
+        resize_up_to(&mut self.vertex_triangle, v.saturating_mul(32), [0; 2]);
+        resize_up_to(&mut self.edge_edge, e.saturating_mul(32), [0; 2]);
+        resize_up_to(&mut self.pair_hessians, f.max(64), PairHessian::ZERO);
+        resize_up_to(&mut self.friction_pairs, f.max(64), FrictionPair::ZERO);
+        self.size_scratch(&self.solver.clone())
+    }
+
+    /// Sizes the scratch `solver` needs for the world's vertices and tetrahedra.
+    fn size_scratch(&mut self, solver: &Solver) -> Result<(), BodyError> {
+        let (n, t) = (self.vertex_count(), self.tet_count());
+        let too_many = |buffer, needed| BodyError::Capacity { buffer, needed };
+        let vectors = match solver {
+            Solver::Newton(_) => 9,
+            Solver::Relax(_) => 5,
+            _ => return Err(BodyError::Solver),
+        };
+        if let Solver::Newton(_) = solver
+            && !(self.blocks.resize(n, Mat3::ZERO) && self.hessians.resize(t, TetHessian::ZERO))
+        {
+            return Err(too_many(BodyBuffer::Tetrahedra, t));
+        }
+        if !self.scalars.resize(n, 0.0) {
+            return Err(too_many(BodyBuffer::Vertices, n));
+        }
+        let needed = n.saturating_mul(vectors);
+        if !self.vectors.resize(needed, Vec3::ZERO) {
+            return Err(too_many(BodyBuffer::Scratch, needed));
+        }
+        Ok(())
+    }
+
+    /// The record of body `body`.
+    fn part(&self, body: usize) -> Result<Part<M>, BodyError> {
+        self.parts
+            .slice()
+            .get(body)
+            .copied()
+            .ok_or(BodyError::NoSuchBody {
+                body,
+                count: self.body_count(),
+            })
+    }
+
+    /// The number of bodies.
+    #[inline]
+    #[must_use]
+    pub fn body_count(&self) -> usize {
+        self.parts.slice().len()
+    }
+
+    /// The bodies' records, in index order: where each lies in the world's lists, and its
+    /// material.
+    #[inline]
+    #[must_use]
+    pub fn bodies(&self) -> &[Part<M>] {
+        self.parts.slice()
+    }
+
+    /// The number of vertices of all bodies.
+    #[inline]
+    #[must_use]
+    pub fn vertex_count(&self) -> usize {
+        self.positions.slice().len()
+    }
+
+    /// The number of tetrahedra of all bodies.
+    #[inline]
+    #[must_use]
+    pub fn tet_count(&self) -> usize {
+        self.tets.slice().len()
+    }
+
+    /// Every body's vertices' positions (m), body after body ([`Part::vertices`] gives each
+    /// body's range).
+    #[inline]
+    #[must_use]
+    pub fn positions(&self) -> &[Vec3] {
+        self.positions.slice()
+    }
+
+    /// Every body's vertices' velocities (m/s), body after body.
+    #[inline]
+    #[must_use]
+    pub fn velocities(&self) -> &[Vec3] {
+        self.velocities.slice()
+    }
+
+    /// Every body's vertices' rest positions (m), body after body.
+    #[inline]
+    #[must_use]
+    pub fn rest_positions(&self) -> &[Vec3] {
+        self.rest_positions.slice()
+    }
+
+    /// Every body's tetrahedra (global vertex indices), body after body.
+    #[inline]
+    #[must_use]
+    pub fn tets(&self) -> &[[u32; 4]] {
+        self.tets.slice()
+    }
+
+    /// Every body's boundary triangles (global vertex indices, counter-clockwise seen from
+    /// outside), body after body: the contact surface, and what a renderer draws.
+    #[inline]
+    #[must_use]
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        self.triangles.slice()
+    }
+
+    /// The lumped masses (kg), one per vertex.
+    #[inline]
+    #[must_use]
+    pub fn masses(&self) -> &[Real] {
+        self.masses.slice()
+    }
+
+    /// Body `body`'s positions (m), or `None` if there is no such body.
+    #[must_use]
+    pub fn body_positions(&self, body: usize) -> Option<&[Vec3]> {
+        let part = self.parts.slice().get(body)?;
+        self.positions.slice().get(part.vertices())
+    }
+
+    /// Body `body`'s positions, writable (to move it between steps), or `None`. The step
+    /// assumes no two surfaces cross at its start: a body moved into another is not pushed
+    /// out.
+    #[must_use]
+    pub fn body_positions_mut(&mut self, body: usize) -> Option<&mut [Vec3]> {
+        let part = *self.parts.slice().get(body)?;
+        self.positions.slice_mut().get_mut(part.vertices())
+    }
+
+    /// Body `body`'s velocities (m/s), or `None`.
+    #[must_use]
+    pub fn body_velocities(&self, body: usize) -> Option<&[Vec3]> {
+        let part = self.parts.slice().get(body)?;
+        self.velocities.slice().get(part.vertices())
+    }
+
+    /// Body `body`'s velocities, writable, or `None`.
+    #[must_use]
+    pub fn body_velocities_mut(&mut self, body: usize) -> Option<&mut [Vec3]> {
+        let part = *self.parts.slice().get(body)?;
+        self.velocities.slice_mut().get_mut(part.vertices())
+    }
+
+    /// Pins (or frees) vertex `vertex` of body `body` (a body-local index): a pinned vertex
+    /// keeps its position and velocity.
+    ///
+    /// # Errors
+    /// [`BodyError::NoSuchBody`], or [`BodyError::Vertex`] if the body has no such vertex.
+    pub fn set_pinned(
+        &mut self,
+        body: usize,
+        vertex: usize,
+        pinned: bool,
+    ) -> Result<(), BodyError> {
+        let part = self.part(body)?;
+        let slot = part
+            .vertices()
+            .nth(vertex)
+            .and_then(|global| self.pinned.slice_mut().get_mut(global))
+            .ok_or(BodyError::Vertex { vertex })?;
+        *slot = pinned;
+        self.preconditioner_ready = false;
+        Ok(())
+    }
+
+    /// Whether each vertex is pinned, body after body.
+    #[inline]
+    #[must_use]
+    pub fn pinned(&self) -> &[bool] {
+        self.pinned.slice()
+    }
+
+    /// Sets body `body`'s material (the next step uses it).
+    ///
+    /// # Errors
+    /// [`BodyError::NoSuchBody`].
+    pub fn set_material(&mut self, body: usize, material: M) -> Result<(), BodyError> {
+        self.part(body)?;
+        if let Some(part) = self.parts.slice_mut().get_mut(body) {
+            part.material = material;
+        }
+        self.preconditioner_ready = false;
+        Ok(())
+    }
+
+    /// The gravity (m/s^2) of [`step`](Self::step).
+    #[inline]
+    #[must_use]
+    pub fn gravity(&self) -> Vec3 {
+        self.gravity
+    }
+
+    /// Sets the gravity (m/s^2) of [`step`](Self::step).
+    #[inline]
+    pub fn set_gravity(&mut self, gravity: Vec3) {
+        self.gravity = gravity;
+    }
+
+    /// Sets the ground of [`step`](Self::step) (or none).
+    #[inline]
+    pub fn set_ground(&mut self, ground: Option<HalfSpace<Vec3>>) {
+        self.ground = ground;
+    }
+
+    /// The solver.
+    #[inline]
+    #[must_use]
+    pub fn solver(&self) -> &Solver {
+        &self.solver
+    }
+
+    /// Sets the solver: [`Solver::Newton`] or [`Solver::Relax`].
+    ///
+    /// # Errors
+    /// [`BodyError::Solver`] for the explicit stepper or Vertex Block Descent (no body–body
+    /// contact there yet), [`BodyError::Capacity`] if its scratch does not fit; the solver is
+    /// unchanged then.
+    pub fn set_solver(&mut self, solver: Solver) -> Result<(), BodyError> {
+        self.size_scratch(&solver)?;
+        self.solver = solver;
+        self.preconditioner_ready = false;
+        Ok(())
+    }
+
+    /// The contact barrier: its gap `dhat` (m) and stiffness `kappa`.
+    #[inline]
+    #[must_use]
+    pub fn barrier(&self) -> ContactBarrier {
+        self.barrier.unwrap_or_else(default_barrier)
+    }
+
+    /// Sets the contact barrier (see [`ContactBarrier::holding`] to choose the stiffness by
+    /// the force a pair at half the gap holds).
+    ///
+    /// # Errors
+    /// [`BodyError::Contact`] with [`ContactError::Gap`] or [`ContactError::Stiffness`] for a
+    /// gap that is not finite and positive or a stiffness that is not finite and `>= 0`.
+    pub fn set_barrier(&mut self, barrier: ContactBarrier) -> Result<(), BodyError> {
+        if !(barrier.gap.is_finite() && barrier.gap > 0.0) {
+            return Err(BodyError::Contact(ContactError::Gap));
+        }
+        if !(barrier.stiffness.is_finite() && barrier.stiffness >= 0.0) {
+            return Err(BodyError::Contact(ContactError::Stiffness));
+        }
+        self.barrier = Some(barrier);
+        Ok(())
+    }
+
+    /// The Coulomb coefficient between the bodies' surfaces (0: frictionless, the default).
+    #[inline]
+    #[must_use]
+    pub fn friction(&self) -> Real {
+        self.friction
+    }
+
+    /// Sets the Coulomb coefficient between the bodies' surfaces (within one body too),
+    /// smoothed below [`SUGGESTED_STICKING_SPEED`]: IPC's lagged friction
+    /// ([`ContactModel::with_friction`]).
+    ///
+    /// # Errors
+    /// [`BodyError::Contact`] with [`ContactError::Friction`] for a coefficient that is not
+    /// finite and `>= 0`.
+    pub fn set_friction(&mut self, coefficient: Real) -> Result<(), BodyError> {
+        if !(coefficient.is_finite() && coefficient >= 0.0) {
+            return Err(BodyError::Contact(ContactError::Friction));
+        }
+        self.friction = coefficient;
+        Ok(())
+    }
+
+    /// What the contact model counted in the last step: candidate pairs, pair Hessians and
+    /// frictional pairs.
+    #[inline]
+    #[must_use]
+    pub fn contact_counts(&self) -> ContactCounts {
+        self.counts
+    }
+
+    /// The smallest distance (m) between two primitives of the contact surface within
+    /// `reach` (m) of each other now, or `None` if no pair is that close (0: touching).
+    ///
+    /// # Errors
+    /// Those of [`ContactModel::smallest_distance`].
+    pub fn smallest_gap(&mut self, reach: Real) -> Result<Option<Real>, ContactError> {
+        let (model, parts) = self.contact_parts();
+        model?.smallest_distance(parts.positions, reach)
+    }
+
+    /// The scene of a step of `dt` (s) under the world's gravity and ground.
+    #[inline]
+    #[must_use]
+    pub fn scene(&self, dt: Real) -> Scene<'static, Vec3> {
+        let scene = Scene::new(dt).with_gravity(self.gravity);
+        match self.ground {
+            Some(ground) => scene.with_ground(ground),
+            None => scene,
+        }
+    }
+
+    /// Advances every body by `dt` (s) under the world's gravity and ground, in contact with
+    /// each other: [`step_with`](Self::step_with) of [`scene`](Self::scene)`(dt)`.
+    ///
+    /// # Errors
+    /// As [`step_with`](Self::step_with).
+    pub fn step(&mut self, dt: Real) -> Result<StepReport, StepError> {
+        self.step_with(&self.scene(dt))
+    }
+
+    /// [`step`](Self::step) with rigid `colliders` besides the ground (see [`Collider`]).
+    ///
+    /// # Errors
+    /// As [`step_with`](Self::step_with).
+    pub fn step_with_colliders(
+        &mut self,
+        dt: Real,
+        colliders: &[Collider<'_>],
+    ) -> Result<StepReport, StepError> {
+        self.step_with(&self.scene(dt).with_colliders(colliders))
+    }
+
+    /// Advances every body by the scene's `dt` with the world's solver in `scene` (which
+    /// replaces the world's gravity and ground for this step: colliders, external forces,
+    /// fixed axes), one solve over every vertex with contact between all surfaces. A
+    /// growable world whose contact lists fill up grows them and solves again from the same
+    /// start.
+    ///
+    /// # Errors
+    /// [`StepError::TimeStep`] or [`StepError::TimeStepTooSmall`] for a `dt` the steppers
+    /// refuse, [`StepError::EmptyBody`] for a world without bodies, or the stepper's error (a
+    /// contact list too small for a fixed-capacity world is
+    /// [`MeshError::Contact`] with [`ContactError::Capacity`]), with every position and
+    /// velocity restored bit for bit.
+    pub fn step_with(&mut self, scene: &Scene<'_, Vec3>) -> Result<StepReport, StepError> {
+        check_time_step(scene.dt)?;
+        if self.vertex_count() == 0 {
+            return Err(StepError::EmptyBody);
+        }
+        loop {
+            let outcome = self.solve(scene);
+            if let Err(StepError::Mesh(MeshError::Contact(ContactError::Capacity {
+                buffer,
+                needed,
+                ..
+            }))) = outcome
+                && self.grow(buffer, needed)
+            {
+                continue;
+            }
+            return outcome;
+        }
+    }
+
+    /// Grows the contact list `buffer` to hold `needed` entries with room to spare; `false`
+    /// if it cannot (a fixed capacity, an allocation refused, a buffer that is not a list).
+    fn grow(&mut self, buffer: ContactBuffer, needed: usize) -> bool {
+        // Half again as many, or exactly as many where a fixed capacity has no more room.
+        let room = needed.saturating_add(needed / 2);
+        match buffer {
+            ContactBuffer::VertexTrianglePairs => {
+                grow_to(&mut self.vertex_triangle, room, needed, [0; 2])
+            }
+            ContactBuffer::EdgeEdgePairs => grow_to(&mut self.edge_edge, room, needed, [0; 2]),
+            ContactBuffer::PairHessians => {
+                grow_to(&mut self.pair_hessians, room, needed, PairHessian::ZERO)
+            }
+            ContactBuffer::FrictionPairs => {
+                grow_to(&mut self.friction_pairs, room, needed, FrictionPair::ZERO)
+            }
+            _ => false,
+        }
+    }
+
+    /// The contact model over the world's bodies and buffers (or the contact surface's
+    /// complaint) and what the solvers take beside it.
+    #[allow(clippy::type_complexity)]
+    fn contact_parts(
+        &mut self,
+    ) -> (
+        Result<ContactModel<'_, WorldElastic<'_, M>>, ContactError>,
+        SolverParts<'_>,
+    ) {
+        let n = self.positions.slice().len();
+        let barrier = self.barrier();
+        let elastic = WorldElastic {
+            tets: self.tets.slice(),
+            rest: self.rest_data.slice(),
+            parts: self.parts.slice(),
+            vertex_count: n,
+        };
+        let surface = ContactSurface {
+            vertices: self
+                .surface_vertex_list
+                .slice()
+                .get(..self.surface_vertices)
+                .unwrap_or(&[]),
+            edges: self
+                .surface_edge_list
+                .slice()
+                .get(..self.surface_edges)
+                .unwrap_or(&[]),
+            triangles: self.triangles.slice(),
+        };
+        let buffers = ContactBuffers {
+            slots: self.slots.slice_mut(),
+            entries: self.entries.slice_mut(),
+            vertex_triangle: self.vertex_triangle.slice_mut(),
+            edge_edge: self.edge_edge.slice_mut(),
+            hessians: self.pair_hessians.slice_mut(),
+            friction: self.friction_pairs.slice_mut(),
+        };
+        let mut model = ContactModel::new(
+            elastic,
+            surface,
+            self.rest_positions.slice(),
+            barrier,
+            buffers,
+        );
+        if self.friction > 0.0 {
+            model = model.and_then(|m| m.with_friction(self.friction, SUGGESTED_STICKING_SPEED));
+        }
+        let parts = SolverParts {
+            masses: self.masses.slice(),
+            pinned: self.pinned.slice(),
+            positions: self.positions.slice_mut(),
+            velocities: self.velocities.slice_mut(),
+            vectors: self.vectors.slice_mut(),
+            scalars: self.scalars.slice_mut(),
+            blocks: self.blocks.slice_mut(),
+            hessians: self.hessians.slice_mut(),
+        };
+        (model, parts)
+    }
+
+    /// One solve of the world's solver in `scene`.
+    fn solve(&mut self, scene: &Scene<'_, Vec3>) -> Result<StepReport, StepError> {
+        let solver = self.solver;
+        let ready = self.preconditioner_ready;
+        let (model, parts) = self.contact_parts();
+        let model = model.map_err(|error| StepError::Mesh(MeshError::Contact(error)))?;
+        let SolverParts {
+            masses,
+            pinned,
+            positions: x,
+            velocities: v,
+            vectors,
+            scalars,
+            blocks,
+            hessians,
+        } = parts;
+        let (outcome, ready) = match solver {
+            Solver::Newton(settings) => {
+                let mut scratch = NewtonScratch::new(vectors, blocks, hessians);
+                let outcome =
+                    newton_step(&model, masses, pinned, scene, &settings, x, v, &mut scratch);
+                (outcome.map(StepReport::Newton), ready)
+            }
+            Solver::Relax(settings) => {
+                let mut scratch = RelaxScratch::resume(vectors, scalars, ready);
+                let outcome =
+                    relax_step(&model, masses, pinned, scene, &settings, x, v, &mut scratch);
+                let ready = scratch.stiffness_ready();
+                (outcome.map(StepReport::Relax), ready)
+            }
+            _ => {
+                return Err(StepError::Mesh(MeshError::Contact(
+                    ContactError::BuffersInUse,
+                )));
+            }
+        };
+        let counts = model.counts();
+        self.counts = counts;
+        self.preconditioner_ready = ready;
+        outcome
+    }
+}
+
+impl<const B: usize, const V: usize, const T: usize, const C: usize, const P: usize, M: Material>
+    World<FixedWorld<B, V, T, C, P>, M>
+{
+    /// A fixed-capacity world with no bodies, as [`new`](World::new): a `const` value, so the
+    /// world can be a `static` (in `.bss`, never on the stack) and built in place with
+    /// [`add_box`](World::add_box) and [`add_body`](World::add_body). This is the firmware way,
+    /// and the way to hold a large fixed world anywhere: [`new`](World::new) returns the world
+    /// by value, through the stack.
+    ///
+    /// ```
+    /// use softfem::world::{FixedWorld, World};
+    /// use softfem::{glam::Vec3, material::NeoHookean};
+    ///
+    /// // At most 2 bodies, 64 vertices, 100 tetrahedra, 4224 surface entries, 64 active pairs.
+    /// type Small = World<FixedWorld<2, 64, 100, 4224, 64>, NeoHookean>;
+    /// static WORLD: std::sync::Mutex<Small> = std::sync::Mutex::new(Small::empty());
+    ///
+    /// let mut world = WORLD.lock().unwrap();
+    /// let rubber = NeoHookean::from_young_poisson(1e6, 0.4)?;
+    /// world.add_box(Vec3::ZERO, Vec3::splat(0.1), [2; 3], 1000.0, rubber)?;
+    /// let (low, high) = (Vec3::new(0.0, 0.0, 0.11), Vec3::new(0.1, 0.1, 0.21));
+    /// world.add_box(low, high, [1; 3], 1000.0, rubber)?;
+    /// world.set_gravity(Vec3::new(0.0, 0.0, -9.81));
+    /// world.step(0.01)?;
+    /// assert_eq!((world.body_count(), world.vertex_count()), (2, 35));
+    /// assert!(world.velocities().iter().all(|v| v.z < 0.0)); // both falling
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    #[must_use]
+    pub const fn empty() -> Self {
+        unbuilt_world!(
+            heapless::Vec::new(),
+            heapless_empty,
+            Fixed::filled,
+            heapless_empty
+        )
+    }
+}
+
+/// The per-vertex arrays and scratch a solve takes beside the model.
+struct SolverParts<'a> {
+    masses: &'a [Real],
+    pinned: &'a [bool],
+    positions: &'a mut [Vec3],
+    velocities: &'a mut [Vec3],
+    vectors: &'a mut [Vec3],
+    scalars: &'a mut [Real],
+    blocks: &'a mut [Mat3],
+    hessians: &'a mut [TetHessian],
+}
+
+/// Grows `list` by `count` entries of `fill`; `false` (the list unchanged) if they do not fit.
+fn extend_by<X: Copy, L: List<X>>(list: &mut L, count: usize, fill: X) -> bool {
+    let start = list.slice().len();
+    for _ in 0..count {
+        if !list.extend(&[fill]) {
+            list.truncate(start);
+            return false;
+        }
+    }
+    true
+}
+
+/// Sizes `buffer` to `room` entries of `fill`, or else to `needed`; `false` if neither fits.
+fn grow_to<X: Copy, B: Slots<X>>(buffer: &mut B, room: usize, needed: usize, fill: X) -> bool {
+    buffer.resize(room, fill) || buffer.resize(needed, fill)
+}
+
+/// Sizes `buffer` to `wanted` entries of `fill`, or to the most a fixed capacity below that
+/// holds (found by bisection); returns the length.
+fn resize_up_to<X: Copy, B: Slots<X>>(buffer: &mut B, wanted: usize, fill: X) -> usize {
+    if buffer.resize(wanted, fill) {
+        return wanted;
+    }
+    // `fits` fits (length zero always does), `fails` does not.
+    let (mut fits, mut fails) = (0, wanted);
+    while fails - fits > 1 {
+        let middle = fits + (fails - fits) / 2;
+        if buffer.resize(middle, fill) {
+            fits = middle;
+        } else {
+            fails = middle;
+        }
+    }
+    let _ = buffer.resize(fits, fill);
+    fits
+}
+
+/// `source` into `target`, entry by entry (no panic path for lengths the optimiser cannot
+/// prove equal).
+fn copy_into<X: Copy>(target: &mut [X], source: &[X]) {
+    for (slot, &value) in target.iter_mut().zip(source) {
+        *slot = value;
+    }
+}

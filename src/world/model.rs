@@ -1,0 +1,139 @@
+//! The elastic model of a whole world: every body's tetrahedra over one vertex array, each body
+//! with its own material, summed in body order (so the same bits on every target and thread
+//! count). What the world's one solve advances, wrapped in the contact model.
+
+use super::super::element::{TetHessian, TetRest};
+use super::super::material::Material;
+use super::super::mesh::TetMesh;
+use super::super::step::{ElasticEnergy, ElasticHessian, ElasticModel, TetElastic};
+use super::super::types::{Mat3, Real, Vec3};
+use super::Part;
+use crate::error::{Buffer, MeshError};
+
+/// Every body of a world as one [`ElasticHessian`]: body `k`'s tetrahedra are
+/// `tets[part.first_tet..][..part.tet_count]` (global vertex indices), its rest data the same
+/// range of `rest`, its material `part.material`. Forces, energies and Hessian products are
+/// each body's, added in body order; the Hessian cache holds the bodies' elements in the same
+/// order as `tets`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct WorldElastic<'a, M: Material> {
+    pub(crate) tets: &'a [[u32; 4]],
+    pub(crate) rest: &'a [TetRest],
+    pub(crate) parts: &'a [Part<M>],
+    pub(crate) vertex_count: usize,
+}
+
+impl<'a, M: Material> WorldElastic<'a, M> {
+    /// Body `part`'s tetrahedra as a model over all vertices, and their range in `tets`
+    /// (empty views for a part beyond the lists, which the world never builds).
+    fn body(&self, part: &Part<M>) -> (TetElastic<'a, M>, core::ops::Range<usize>) {
+        let range = part.tet_range();
+        let tets = self.tets.get(range.clone()).unwrap_or(&[]);
+        let rest = self.rest.get(range.clone()).unwrap_or(&[]);
+        let mesh = TetMesh::from_validated(tets, rest, self.vertex_count, part.gradient_gain);
+        (TetElastic::new(mesh, part.material), range)
+    }
+
+    /// `each(model, range)` of every body in order; the first error stops it.
+    fn each_body(
+        &self,
+        mut each: impl FnMut(TetElastic<'a, M>, core::ops::Range<usize>) -> Result<(), MeshError>,
+    ) -> Result<(), MeshError> {
+        for part in self.parts {
+            let (model, range) = self.body(part);
+            each(model, range)?;
+        }
+        Ok(())
+    }
+}
+
+impl<M: Material> ElasticModel for WorldElastic<'_, M> {
+    type Vector = Vec3;
+
+    #[inline]
+    fn vertex_count(&self) -> usize {
+        self.vertex_count
+    }
+
+    fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
+        self.each_body(|model, _| model.add_forces(positions, forces))
+    }
+
+    fn for_each_element_stiffness(&self, mut visit: impl FnMut(&[u32], Real, Real)) {
+        for part in self.parts {
+            self.body(part).0.for_each_element_stiffness(&mut visit);
+        }
+    }
+}
+
+impl<M: Material> ElasticEnergy for WorldElastic<'_, M> {
+    fn energy_and_add_forces(
+        &self,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<Real, MeshError> {
+        let mut total: Real = 0.0;
+        self.each_body(|model, _| {
+            total += model.energy_and_add_forces(positions, forces)?;
+            Ok(())
+        })?;
+        Ok(total)
+    }
+}
+
+impl<M: Material> ElasticHessian for WorldElastic<'_, M> {
+    #[inline]
+    fn element_count(&self) -> usize {
+        self.tets.len()
+    }
+
+    fn projected_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError> {
+        check_cache(cache.len(), self.tets.len())?;
+        self.each_body(|model, range| {
+            let cache = cache.get_mut(range).unwrap_or(&mut []);
+            model.projected_hessians(positions, cache)
+        })
+    }
+
+    fn add_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        check_cache(cache.len(), self.tets.len())?;
+        self.each_body(|model, range| {
+            let cache = cache.get(range).unwrap_or(&[]);
+            model.add_hessian_product(cache, direction, out)
+        })
+    }
+
+    fn add_vertex_hessian_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &mut [Mat3],
+    ) -> Result<(), MeshError> {
+        check_cache(cache.len(), self.tets.len())?;
+        self.each_body(|model, range| {
+            let cache = cache.get(range).unwrap_or(&[]);
+            model.add_vertex_hessian_blocks(cache, blocks)
+        })
+    }
+}
+
+/// The Hessian cache must hold one entry per tetrahedron of the world.
+fn check_cache(actual: usize, expected: usize) -> Result<(), MeshError> {
+    if actual == expected {
+        Ok(())
+    } else {
+        Err(MeshError::LengthMismatch {
+            buffer: Buffer::Hessians,
+            expected,
+            actual,
+        })
+    }
+}

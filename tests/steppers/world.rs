@@ -1,0 +1,474 @@
+//! Issue #39, deliverable 1: the world of bodies (`src/world/`). Each test checks the world
+//! against something it does not share code with: the single `Body` stepping the same mesh
+//! (the same bits, one body and no pair within the gap), the conservation of momentum, two
+//! separate bodies (per-body materials), the exact triangle–triangle test (no intersection),
+//! and the bookkeeping of adding, removing and refusing bodies by hand.
+
+use softfem::f64::body::{Body, Solver, VecStorage};
+use softfem::f64::material::StableNeoHookean;
+use softfem::f64::step::contact::potential::ContactBarrier;
+use softfem::f64::step::{HalfSpace, NewtonSettings};
+use softfem::f64::world::{FixedWorld, World};
+use softfem::glam::DVec3;
+use softfem::{BodyBuffer, BodyError, ContactBuffer, ContactError, MeshError, StepError};
+
+type Material = StableNeoHookean;
+
+fn material(young: f64) -> Material {
+    StableNeoHookean::from_young_poisson(young, 0.3).unwrap()
+}
+
+/// The intersecting pairs of boundary triangles (sharing no vertex) of `world`, exactly.
+fn intersections<S: softfem::f64::world::WorldStorage>(world: &World<S, Material>) -> usize {
+    crate::intersection::intersecting_pairs_f64(world.positions(), world.triangles()).len()
+}
+
+#[test]
+fn one_body_in_a_world_steps_as_the_body_to_the_bit() {
+    // A 10 cm cube of 2^3 cells falling onto the ground: no pair of its own surface comes
+    // within the gap, so the world's contact adds exactly nothing and its Newton solve is the
+    // body's.
+    let (low, high) = (DVec3::new(0.0, 0.0, 0.01), DVec3::new(0.1, 0.1, 0.11));
+    let mut body =
+        Body::<VecStorage, _>::from_box(low, high, [2; 3], 1000.0, material(1e5)).unwrap();
+    let mut world = World::<VecStorage, _>::new();
+    world
+        .add_box(low, high, [2; 3], 1000.0, material(1e5))
+        .unwrap();
+    body.set_solver(Solver::newton()).unwrap();
+    let gravity = DVec3::new(0.0, 0.0, -9.81);
+    let ground = Some(HalfSpace::new(DVec3::Z, 0.0).with_friction(0.4));
+    body.set_gravity(gravity);
+    body.set_ground(ground);
+    world.set_gravity(gravity);
+    world.set_ground(ground);
+    for step in 0..30 {
+        let a = body.step(0.01).unwrap();
+        let b = world.step(0.01).unwrap();
+        assert_eq!(a.converged(), b.converged(), "step {step}");
+        assert_eq!(body.positions(), world.positions(), "step {step}");
+        assert_eq!(body.velocities(), world.velocities(), "step {step}");
+    }
+    assert_eq!(world.contact_counts().hessians, 0);
+    // Landed on the ground, not through it.
+    assert!(world.positions().iter().all(|x| x.z > -1e-3 && x.z < 0.1));
+}
+
+#[test]
+fn each_body_keeps_its_own_material() {
+    // A stiff and a soft cantilever, 1 m apart, pinned at x = 0, sagging under gravity for
+    // 0.2 s: in one world (one Newton solve over both) each moves as it does alone.
+    let (low, high) = (DVec3::ZERO, DVec3::new(0.4, 0.1, 0.1));
+    let away = DVec3::new(0.0, 1.0, 0.0);
+    let materials = [material(2e6), material(2e5)];
+    let gravity = DVec3::new(0.0, 0.0, -9.81);
+    let tolerance = 1e-9;
+    let settings = NewtonSettings::new().with_tolerance(tolerance, 100);
+    let mut world = World::<VecStorage, _>::new();
+    world.set_solver(Solver::Newton(settings)).unwrap();
+    world.set_gravity(gravity);
+    let mut alone = Vec::new();
+    for (k, &m) in materials.iter().enumerate() {
+        let shift = away * k as f64;
+        let index = world
+            .add_box(low + shift, high + shift, [4, 1, 1], 1000.0, m)
+            .unwrap();
+        assert_eq!(index, k);
+        let mut body =
+            Body::<VecStorage, _>::from_box(low + shift, high + shift, [4, 1, 1], 1000.0, m)
+                .unwrap();
+        body.set_solver(Solver::Newton(settings)).unwrap();
+        body.set_gravity(gravity);
+        for i in 0..body.vertex_count() {
+            let clamped = body.rest_positions()[i].x == 0.0;
+            body.set_pinned(i, clamped).unwrap();
+            world.set_pinned(k, i, clamped).unwrap();
+        }
+        alone.push(body);
+    }
+    for _ in 0..20 {
+        assert!(world.step(0.01).unwrap().converged());
+        for body in &mut alone {
+            assert!(body.step(0.01).unwrap().converged());
+        }
+    }
+    let sag = |x: &[DVec3]| x.iter().map(|p| p.z).fold(f64::INFINITY, f64::min);
+    let mut sags = Vec::new();
+    for (k, body) in alone.iter().enumerate() {
+        let in_world = world.body_positions(k).unwrap();
+        let worst = in_world
+            .iter()
+            .zip(body.positions())
+            .map(|(a, b)| (*a - *b).length())
+            .fold(0.0, f64::max);
+        println!(
+            "body {k}: tip {:.4e} m in the world, {:.4e} m alone; largest difference {worst:.2e} m",
+            sag(in_world),
+            sag(body.positions())
+        );
+        // Both solves stop at a residual of `tolerance` (N) on a stiffness of at least
+        // 1e4 N/m: positions agree to well under a micrometre.
+        assert!(worst < 1e-6, "body {k}: {worst}");
+        sags.push(sag(in_world));
+    }
+    // The soft one sags more (an independent sanity check that the materials differ).
+    assert!(sags[1] < 2.0 * sags[0], "{sags:?}");
+}
+
+#[test]
+fn a_soft_box_dropped_on_a_stiff_one_rests_on_it_without_intersecting() {
+    let mut world = World::<VecStorage, _>::new();
+    let stiff = world
+        .add_box(
+            DVec3::ZERO,
+            DVec3::splat(0.1),
+            [2; 3],
+            1000.0,
+            material(1e6),
+        )
+        .unwrap();
+    let soft = world
+        .add_box(
+            DVec3::new(0.02, 0.03, 0.13),
+            DVec3::new(0.08, 0.09, 0.19),
+            [2; 3],
+            1000.0,
+            material(5e4),
+        )
+        .unwrap();
+    world.set_gravity(DVec3::new(0.0, 0.0, -9.81));
+    world.set_ground(Some(HalfSpace::new(DVec3::Z, 0.0)));
+    world.set_friction(0.5).unwrap();
+    let dhat = world.barrier().gap;
+    for step in 0..100 {
+        let report = world.step(0.01).unwrap();
+        assert!(report.converged(), "step {step}: {report:?}");
+        assert_eq!(intersections(&world), 0, "step {step}");
+    }
+    let top = world
+        .body_positions(stiff)
+        .unwrap()
+        .iter()
+        .map(|x| x.z)
+        .fold(0.0, f64::max);
+    let bottom = world
+        .body_positions(soft)
+        .unwrap()
+        .iter()
+        .map(|x| x.z)
+        .fold(1.0, f64::min);
+    let gap = world.smallest_gap(dhat).unwrap().unwrap();
+    println!(
+        "after 1 s: gap {:.3e} m between the faces, smallest primitive distance {gap:.3e} m",
+        bottom - top
+    );
+    assert!(bottom - top > 0.0 && bottom - top < dhat);
+    assert!(gap > 0.0 && gap < dhat);
+    // At rest: the upper box's velocities have decayed.
+    let speed = world
+        .body_velocities(soft)
+        .unwrap()
+        .iter()
+        .map(|v| v.length())
+        .fold(0.0, f64::max);
+    assert!(speed < 1e-2, "{speed}");
+    assert!(world.contact_counts().friction > 0);
+}
+
+#[test]
+fn a_collision_without_gravity_conserves_momentum() {
+    let mut world = World::<VecStorage, _>::new();
+    world
+        .set_solver(Solver::Newton(
+            NewtonSettings::new().with_tolerance(1e-10, 100),
+        ))
+        .unwrap();
+    world
+        .set_barrier(ContactBarrier::holding(1e-3, 5.0).unwrap())
+        .unwrap();
+    let a = world
+        .add_box(
+            DVec3::ZERO,
+            DVec3::splat(0.1),
+            [2; 3],
+            1000.0,
+            material(1e5),
+        )
+        .unwrap();
+    let b = world
+        .add_box(
+            DVec3::new(0.03, 0.104, 0.02),
+            DVec3::new(0.13, 0.204, 0.12),
+            [2; 3],
+            500.0,
+            material(3e5),
+        )
+        .unwrap();
+    world
+        .body_velocities_mut(a)
+        .unwrap()
+        .fill(DVec3::new(0.0, 0.5, 0.0));
+    world
+        .body_velocities_mut(b)
+        .unwrap()
+        .fill(DVec3::new(0.1, -1.0, 0.0));
+    let momentum = |world: &World<VecStorage, Material>| {
+        world
+            .velocities()
+            .iter()
+            .zip(world.masses())
+            .fold(DVec3::ZERO, |p, (v, m)| p + *v * *m)
+    };
+    let scale: f64 = world
+        .velocities()
+        .iter()
+        .zip(world.masses())
+        .map(|(v, m)| v.length() * m)
+        .sum();
+    let p0 = momentum(&world);
+    let mut worst: f64 = 0.0;
+    let mut touched = 0;
+    for _ in 0..40 {
+        assert!(world.step(0.005).unwrap().converged());
+        worst = worst.max((momentum(&world) - p0).length() / scale);
+        touched += usize::from(world.smallest_gap(1e-3).unwrap().is_some());
+        assert_eq!(intersections(&world), 0);
+    }
+    println!("momentum error {worst:.3e} of {scale:.3e} kg m/s; {touched} steps within dhat");
+    assert!(touched > 0);
+    assert!(worst <= 1e-6, "{worst}");
+}
+
+#[test]
+fn bodies_are_added_removed_and_refused_with_the_world_unchanged() {
+    let mut world = World::<VecStorage, _>::new();
+    let boxes = [0.0, 0.2, 0.4].map(|x| DVec3::new(x, 0.0, 0.0));
+    for (k, &low) in boxes.iter().enumerate() {
+        let cells = [1 + k, 1, 1];
+        assert_eq!(
+            world
+                .add_box(low, low + DVec3::splat(0.1), cells, 1000.0, material(1e5))
+                .unwrap(),
+            k
+        );
+    }
+    // Box k has 2(k+2)*2 = 4(k+2) vertices and 5(k+1) tetrahedra, 4(k+1)+... triangles.
+    assert_eq!(world.body_count(), 3);
+    assert_eq!(world.vertex_count(), 8 + 12 + 16);
+    assert_eq!(world.tet_count(), 5 + 10 + 15);
+    let triangles: Vec<usize> = world.bodies().iter().map(|p| p.triangles().len()).collect();
+    assert_eq!(triangles, [12, 20, 28]); // 2 (2 + 4 k) + 4 ... each face of the box split in two
+    let last_before = world.body_positions(2).unwrap().to_vec();
+    world.remove_body(1).unwrap();
+    assert_eq!(world.body_count(), 2);
+    assert_eq!(world.vertex_count(), 8 + 16);
+    assert_eq!(world.tet_count(), 5 + 15);
+    assert_eq!(world.triangles().len(), 12 + 28);
+    assert_eq!(world.body_positions(1).unwrap(), &last_before[..]);
+    // Every index of the closed-up lists lies in its own body's range.
+    for part in world.bodies() {
+        for tet in &world.tets()[part.tets()] {
+            assert!(
+                tet.iter().all(|&v| part.vertices().contains(&(v as usize))),
+                "{tet:?}"
+            );
+        }
+        for t in &world.triangles()[part.triangles()] {
+            assert!(
+                t.iter().all(|&v| part.vertices().contains(&(v as usize))),
+                "{t:?}"
+            );
+        }
+    }
+    assert_eq!(
+        world.remove_body(2),
+        Err(BodyError::NoSuchBody { body: 2, count: 2 })
+    );
+    // Refused additions leave everything as it was.
+    let before = (
+        world.positions().to_vec(),
+        world.tets().to_vec(),
+        world.triangles().to_vec(),
+    );
+    let inverted = [DVec3::ZERO, DVec3::Y, DVec3::X, DVec3::Z];
+    assert!(matches!(
+        world.add_body(&inverted, &[[0, 1, 2, 3]], 1000.0, material(1e5)),
+        Err(BodyError::Mesh(_))
+    ));
+    let unused = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z, DVec3::ONE];
+    assert_eq!(
+        world.add_body(&unused, &[[0, 1, 2, 3]], 1000.0, material(1e5)),
+        Err(BodyError::UnusedVertex { vertex: 4 })
+    );
+    assert_eq!(
+        before,
+        (
+            world.positions().to_vec(),
+            world.tets().to_vec(),
+            world.triangles().to_vec()
+        )
+    );
+    // Settings refused.
+    assert_eq!(world.set_solver(Solver::vbd()), Err(BodyError::Solver));
+    assert_eq!(world.set_solver(Solver::explicit()), Err(BodyError::Solver));
+    assert_eq!(
+        world.set_friction(-1.0),
+        Err(BodyError::Contact(ContactError::Friction))
+    );
+    assert!(
+        world
+            .set_barrier(ContactBarrier {
+                stiffness: 1.0,
+                gap: 0.0
+            })
+            .is_err()
+    );
+    assert_eq!(
+        world.set_pinned(0, 8, true),
+        Err(BodyError::Vertex { vertex: 8 })
+    );
+    // An empty world refuses to step.
+    let mut empty = World::<VecStorage, Material>::new();
+    assert_eq!(empty.step(0.01).unwrap_err(), StepError::EmptyBody);
+}
+
+/// Two boxes, the upper 0.5 mm above the lower, settling for `steps` steps.
+fn settle<S: softfem::f64::world::WorldStorage>(
+    world: &mut World<S, Material>,
+    steps: usize,
+) -> Result<(), StepError> {
+    world.set_gravity(DVec3::new(0.0, 0.0, -9.81));
+    world.set_ground(Some(HalfSpace::new(DVec3::Z, 0.0)));
+    for _ in 0..steps {
+        world.step(0.01)?;
+    }
+    Ok(())
+}
+
+fn two_boxes<S: softfem::f64::world::WorldStorage>(
+    world: &mut World<S, Material>,
+) -> Result<(), BodyError> {
+    world.add_box(
+        DVec3::ZERO,
+        DVec3::splat(0.1),
+        [2; 3],
+        1000.0,
+        material(1e6),
+    )?;
+    world.add_box(
+        DVec3::new(0.0, 0.0, 0.1005),
+        DVec3::new(0.1, 0.1, 0.2005),
+        [2; 3],
+        1000.0,
+        material(1e5),
+    )?;
+    Ok(())
+}
+
+#[test]
+fn a_fixed_capacity_world_gives_the_bits_of_a_growable_one_and_names_what_does_not_fit() {
+    // Two boxes of 27 vertices, 40 tetrahedra and 48 triangles each.
+    type Roomy = FixedWorld<2, 54, 80, { FixedWorld::<0, 0, 0, 0, 0>::contact_capacity(96) }, 512>;
+    // Built in place (`empty` is const): `new` would return it through a debug build's stack.
+    static FIXED: std::sync::Mutex<World<Roomy, Material>> = std::sync::Mutex::new(World::empty());
+    let mut fixed = FIXED.lock().unwrap();
+    let mut growing = World::<VecStorage, Material>::new();
+    two_boxes(&mut *fixed).unwrap();
+    two_boxes(&mut growing).unwrap();
+    settle(&mut *fixed, 10).unwrap();
+    settle(&mut growing, 10).unwrap();
+    assert_eq!(fixed.positions(), growing.positions());
+    assert_eq!(fixed.velocities(), growing.velocities());
+    assert!(
+        fixed.contact_counts().hessians > 8,
+        "{:?}",
+        fixed.contact_counts()
+    );
+
+    // One body too many, one vertex too few: refused, nothing changed.
+    static ONE: std::sync::Mutex<World<FixedWorld<1, 54, 80, 4224, 512>, Material>> =
+        std::sync::Mutex::new(World::empty());
+    let mut one = ONE.lock().unwrap();
+    one.add_box(
+        DVec3::ZERO,
+        DVec3::splat(0.1),
+        [2; 3],
+        1000.0,
+        material(1e6),
+    )
+    .unwrap();
+    let error = one.add_box(
+        DVec3::splat(0.2),
+        DVec3::splat(0.3),
+        [1; 3],
+        1000.0,
+        material(1e6),
+    );
+    assert_eq!(
+        error,
+        Err(BodyError::Capacity {
+            buffer: BodyBuffer::Bodies,
+            needed: 2
+        })
+    );
+    assert_eq!(
+        (one.body_count(), one.vertex_count(), one.tet_count()),
+        (1, 27, 40)
+    );
+    static SMALL: std::sync::Mutex<World<FixedWorld<2, 30, 80, 4224, 512>, Material>> =
+        std::sync::Mutex::new(World::empty());
+    let mut small = SMALL.lock().unwrap();
+    small
+        .add_box(
+            DVec3::ZERO,
+            DVec3::splat(0.1),
+            [2; 3],
+            1000.0,
+            material(1e6),
+        )
+        .unwrap();
+    let error = small.add_box(
+        DVec3::splat(0.2),
+        DVec3::splat(0.3),
+        [1; 3],
+        1000.0,
+        material(1e6),
+    );
+    assert_eq!(
+        error,
+        Err(BodyError::Capacity {
+            buffer: BodyBuffer::Vertices,
+            needed: 35
+        })
+    );
+    assert_eq!(
+        (
+            small.body_count(),
+            small.vertex_count(),
+            small.triangles().len()
+        ),
+        (1, 27, 48)
+    );
+
+    // Room for 4 pair Hessians: the resting faces need more; the step fails and keeps the state.
+    static TIGHT: std::sync::Mutex<World<FixedWorld<2, 54, 80, 4224, 4>, Material>> =
+        std::sync::Mutex::new(World::empty());
+    let mut tight = TIGHT.lock().unwrap();
+    two_boxes(&mut *tight).unwrap();
+    let (x, v) = (tight.positions().to_vec(), tight.velocities().to_vec());
+    let error = settle(&mut *tight, 1).unwrap_err();
+    match error {
+        StepError::Mesh(MeshError::Contact(ContactError::Capacity {
+            buffer,
+            capacity,
+            needed,
+        })) => {
+            assert_eq!(buffer, ContactBuffer::PairHessians);
+            assert_eq!(capacity, 4);
+            assert!(needed > 4, "{needed}");
+        }
+        other => panic!("{other:?}"),
+    }
+    println!("{error}");
+    assert_eq!((tight.positions(), tight.velocities()), (&x[..], &v[..]));
+}
