@@ -1036,8 +1036,8 @@ pub enum BodyError {
     },
     /// A [`World`](crate::world::World)'s contact settings or surface were refused.
     Contact(ContactError),
-    /// A [`World`](crate::world::World) steps with Newton's method or the relaxation only: the
-    /// explicit stepper and Vertex Block Descent do not take body–body contact yet.
+    /// A [`World`](crate::world::World) steps with Newton's method, the relaxation or the
+    /// explicit stepper: Vertex Block Descent does not take body–body contact yet.
     Solver,
 }
 
@@ -1094,8 +1094,8 @@ impl fmt::Display for BodyError {
             }
             BodyError::Contact(error) => write!(f, "{error}"),
             BodyError::Solver => f.write_str(
-                "a world steps with Newton's method or the relaxation (the explicit stepper and \
-                 VBD do not take body-body contact yet)",
+                "a world steps with Newton's method, the relaxation or the explicit stepper (VBD \
+                 does not take body-body contact yet)",
             ),
         }
     }

@@ -1061,7 +1061,7 @@ fn capacity(fits: bool, buffer: BodyBuffer, needed: usize) -> Result<(), BodyErr
 /// The fewest substeps, at least `minimum` (and 1), that split `dt` into steps of at most
 /// `limit` (s); above [`MAX_SUBSTEPS`](super::step::ExplicitSettings::MAX_SUBSTEPS) (the stepper
 /// then refuses it) when `limit` is too small (zero or NaN included).
-fn substeps(dt: Real, limit: Real, minimum: u32) -> u32 {
+pub(crate) fn substeps(dt: Real, limit: Real, minimum: u32) -> u32 {
     // `as` saturates: a zero or NaN limit gives u32::MAX or 0, both refused or raised below.
     if limit.is_nan() || limit <= 0.0 {
         return u32::MAX;

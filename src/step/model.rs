@@ -46,6 +46,39 @@ pub trait ElasticModel {
     fn run_vertex_pass<P: VertexPass>(&self, pass: P) -> P::Output {
         pass.run_with(&InOrder)
     }
+
+    /// Whether [`limit_motion`](Self::limit_motion) acts: the explicit stepper then keeps each
+    /// substep's start positions, in a fifth vector per vertex of its scratch
+    /// ([`scratch_len::explicit_contact`](super::scratch_len::explicit_contact)). `false` by
+    /// default.
+    #[inline]
+    fn limits_motion(&self) -> bool {
+        false
+    }
+
+    /// The explicit stepper's contact between surfaces, after each substep's update: the
+    /// vertices moved from `from` to `to` (m) and have the `velocities` (m/s), with `masses`
+    /// (kg) and `pinned` (empty: none) over the substep `h` (s). A model whose surfaces must not
+    /// pass through each other (the contact model of
+    /// [`ContactModel`](super::contact::ContactModel)) changes `to` and `velocities` so that
+    /// they do not, and returns whether it had to shorten the whole substep's motion (its
+    /// failsafe). Called only where [`limits_motion`](Self::limits_motion); the default does
+    /// nothing.
+    ///
+    /// # Errors
+    /// The model's own (a contact buffer too small, say); the stepper then restores the state.
+    #[inline]
+    fn limit_motion(
+        &self,
+        from: &[Self::Vector],
+        to: &mut [Self::Vector],
+        velocities: &mut [Self::Vector],
+        (masses, pinned): (&[Real], &[bool]),
+        h: Real,
+    ) -> Result<bool, MeshError> {
+        let _ = (from, to, velocities, masses, pinned, h);
+        Ok(false)
+    }
 }
 
 /// An [`ElasticModel`] whose forces are minus the gradient of an energy, as the relaxation

@@ -31,6 +31,15 @@ pub const fn explicit(vertex_count: usize) -> usize {
     vertex_count.saturating_mul(4)
 }
 
+/// The scratch buffer of [`explicit_step`](super::explicit_step) for `vertex_count` vertices of
+/// a model that [limits the motion](super::ElasticModel::limits_motion) (contact between
+/// surfaces): `5 * vertex_count` vectors, [`explicit`]'s and each substep's start positions.
+#[inline]
+#[must_use]
+pub const fn explicit_contact(vertex_count: usize) -> usize {
+    vertex_count.saturating_mul(5)
+}
+
 /// The vector scratch of [`estimate_max_frequency`](super::explicit::estimate_max_frequency):
 /// `2 * vertex_count` vectors (the iterate and its product).
 #[inline]

@@ -14,8 +14,12 @@
 //! surfaces crossing ends with none crossing (`docs/math.md` sections 8.10 and 8.11 give the
 //! conditions: the start free of intersections, the gap `dhat`, the distance floor in f32).
 //! Newton's method ([`Solver::Newton`], the default) and the relaxation ([`Solver::Relax`])
-//! run it; Vertex Block Descent and the explicit stepper do not yet take body–body contact,
-//! and the world refuses them ([`BodyError::Solver`]).
+//! run it. The explicit stepper ([`Solver::Explicit`], substeps of a fraction of the world's
+//! [stable step](World::stable_time_step)) takes the barrier's forces, inelastic impulses where
+//! a substep's motion would carry surfaces into each other, and a failsafe that shortens the
+//! whole substep where they do not suffice: no substep ends with surfaces crossing
+//! (`docs/math.md` section 8.12). Vertex Block Descent does not take body–body contact yet, and
+//! the world refuses it ([`BodyError::Solver`]).
 //!
 //! Bodies are added ([`add_box`](World::add_box), [`add_body`](World::add_body)), removed
 //! ([`remove_body`](World::remove_body)) and moved
@@ -59,7 +63,7 @@ pub use storage::{FixedWorld, List, WorldStorage};
 use core::ops::Range;
 
 use super::asset::surface::{BoundaryFace, boundary_faces};
-use super::body::{Fixed, Slots, Solver, StepReport};
+use super::body::{Fixed, Slots, Solver, StepReport, substeps};
 use super::element::{TetHessian, TetRest};
 use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
@@ -69,8 +73,9 @@ use super::step::contact::model::{ContactCounts, FrictionPair};
 use super::step::contact::potential::{ContactBarrier, PairHessian};
 use super::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
 use super::step::{
-    Collider, HalfSpace, NewtonScratch, NewtonSettings, RelaxScratch, Scene, check_time_step,
-    newton_step, relax_step, scratch_len,
+    Collider, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, NewtonSettings,
+    RelaxScratch, Scene, check_time_step, explicit_step, newton_step, relax_step, scratch_len,
+    stable_time_step,
 };
 use super::types::{Mat3, Real, Vec3};
 use crate::error::{BodyBuffer, BodyError, ContactBuffer, ContactError, MeshError, StepError};
@@ -178,6 +183,9 @@ pub struct World<S: WorldStorage, M: Material> {
     barrier: Option<ContactBarrier>,
     friction: Real,
     preconditioner_ready: bool,
+    /// The explicit stepper's stable time step, once computed.
+    stable_step: Option<Real>,
+    explicit_memory: ExplicitMemory,
     counts: ContactCounts,
 }
 
@@ -236,6 +244,8 @@ macro_rules! unbuilt_world {
             barrier: None,
             friction: 0.0,
             preconditioner_ready: false,
+            stable_step: None,
+            explicit_memory: ExplicitMemory::FRESH,
             counts: ContactCounts {
                 vertex_triangle: 0,
                 edge_edge: 0,
@@ -525,7 +535,7 @@ impl<S: WorldStorage, M: Material> World<S, M> {
         }
         // A smaller world's surface always fits where the larger one did.
         let _ = self.rebuild_surface();
-        self.preconditioner_ready = false;
+        self.forget_history();
         Ok(())
     }
 
@@ -533,7 +543,7 @@ impl<S: WorldStorage, M: Material> World<S, M> {
     /// vertices and edges, and sizes the broad phase, the contact lists and the solver's
     /// scratch for them.
     fn rebuild_surface(&mut self) -> Result<(), BodyError> {
-        self.preconditioner_ready = false;
+        self.forget_history();
         let too_many = |buffer, needed| BodyError::Capacity { buffer, needed };
         let n = self.positions.slice().len();
         let triangle_total = self.parts.slice().last().map_or(0, |part| {
@@ -598,9 +608,17 @@ impl<S: WorldStorage, M: Material> World<S, M> {
         let too_many = |buffer, needed| BodyError::Capacity { buffer, needed };
         let vectors = match solver {
             Solver::Newton(_) => 9,
-            Solver::Relax(_) => 5,
+            Solver::Relax(_) | Solver::Explicit { .. } => 5,
             _ => return Err(BodyError::Solver),
         };
+        if let Solver::Explicit {
+            stable_fraction: Some(fraction),
+            ..
+        } = *solver
+            && !(fraction.is_finite() && fraction > 0.0 && fraction <= 1.0)
+        {
+            return Err(BodyError::StableFraction);
+        }
         if let Solver::Newton(_) = solver
             && !(self.blocks.resize(n, Mat3::ZERO) && self.hessians.resize(t, TetHessian::ZERO))
         {
@@ -614,6 +632,47 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             return Err(too_many(BodyBuffer::Scratch, needed));
         }
         Ok(())
+    }
+
+    /// Forgets what the solvers remember between steps (the relaxation's preconditioner, the
+    /// stable time step, the explicit stepper's blow-up history): the bodies, pins or
+    /// materials changed.
+    fn forget_history(&mut self) {
+        self.preconditioner_ready = false;
+        self.stable_step = None;
+        self.explicit_memory = ExplicitMemory::FRESH;
+    }
+
+    /// The explicit stepper's proven stable time step (s) of the world's elastic model (the
+    /// bodies' elements and masses; the contact barrier's stiffness is not in it), computed
+    /// once and kept until the bodies, pins or materials change.
+    ///
+    /// # Errors
+    /// [`StepError::EmptyBody`] for a world without bodies, or those of
+    /// [`stable_time_step`].
+    pub fn stable_time_step(&mut self) -> Result<Real, StepError> {
+        if let Some(dt) = self.stable_step {
+            return Ok(dt);
+        }
+        if self.vertex_count() == 0 {
+            return Err(StepError::EmptyBody);
+        }
+        let elastic = WorldElastic {
+            tets: self.tets.slice(),
+            rest: self.rest_data.slice(),
+            parts: self.parts.slice(),
+            vertex_count: self.positions.slice().len(),
+        };
+        let dt = stable_time_step(
+            &elastic,
+            self.masses.slice(),
+            self.pinned.slice(),
+            self.scalars.slice_mut(),
+        )?;
+        // The buffer it used holds the relaxation's preconditioner otherwise.
+        self.preconditioner_ready = false;
+        self.stable_step = Some(dt);
+        Ok(dt)
     }
 
     /// The record of body `body`.
@@ -749,7 +808,7 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             .and_then(|global| self.pinned.slice_mut().get_mut(global))
             .ok_or(BodyError::Vertex { vertex })?;
         *slot = pinned;
-        self.preconditioner_ready = false;
+        self.forget_history();
         Ok(())
     }
 
@@ -769,7 +828,7 @@ impl<S: WorldStorage, M: Material> World<S, M> {
         if let Some(part) = self.parts.slice_mut().get_mut(body) {
             part.material = material;
         }
-        self.preconditioner_ready = false;
+        self.forget_history();
         Ok(())
     }
 
@@ -799,16 +858,16 @@ impl<S: WorldStorage, M: Material> World<S, M> {
         &self.solver
     }
 
-    /// Sets the solver: [`Solver::Newton`] or [`Solver::Relax`].
+    /// Sets the solver: [`Solver::Newton`], [`Solver::Relax`] or [`Solver::Explicit`].
     ///
     /// # Errors
-    /// [`BodyError::Solver`] for the explicit stepper or Vertex Block Descent (no body–body
-    /// contact there yet), [`BodyError::Capacity`] if its scratch does not fit; the solver is
-    /// unchanged then.
+    /// [`BodyError::Solver`] for Vertex Block Descent (no body–body contact there yet),
+    /// [`BodyError::StableFraction`] for an explicit `stable_fraction` outside `(0, 1]`,
+    /// [`BodyError::Capacity`] if its scratch does not fit; the solver is unchanged then.
     pub fn set_solver(&mut self, solver: Solver) -> Result<(), BodyError> {
         self.size_scratch(&solver)?;
         self.solver = solver;
-        self.preconditioner_ready = false;
+        self.forget_history();
         Ok(())
     }
 
@@ -921,12 +980,21 @@ impl<S: WorldStorage, M: Material> World<S, M> {
     /// [`MeshError::Contact`] with [`ContactError::Capacity`]), with every position and
     /// velocity restored bit for bit.
     pub fn step_with(&mut self, scene: &Scene<'_, Vec3>) -> Result<StepReport, StepError> {
-        check_time_step(scene.dt)?;
+        let dt = scene.dt;
+        check_time_step(dt)?;
         if self.vertex_count() == 0 {
             return Err(StepError::EmptyBody);
         }
+        let substeps = match self.solver {
+            Solver::Explicit {
+                settings,
+                stable_fraction: Some(fraction),
+            } => substeps(dt, fraction * self.stable_time_step()?, settings.substeps),
+            Solver::Explicit { settings, .. } => settings.substeps,
+            _ => 1,
+        };
         loop {
-            let outcome = self.solve(scene);
+            let outcome = self.solve(scene, substeps);
             if let Err(StepError::Mesh(MeshError::Contact(ContactError::Capacity {
                 buffer,
                 needed,
@@ -1022,9 +1090,10 @@ impl<S: WorldStorage, M: Material> World<S, M> {
     }
 
     /// One solve of the world's solver in `scene`.
-    fn solve(&mut self, scene: &Scene<'_, Vec3>) -> Result<StepReport, StepError> {
+    fn solve(&mut self, scene: &Scene<'_, Vec3>, substeps: u32) -> Result<StepReport, StepError> {
         let solver = self.solver;
         let ready = self.preconditioner_ready;
+        let memory = self.explicit_memory;
         let (model, parts) = self.contact_parts();
         let model = model.map_err(|error| StepError::Mesh(MeshError::Contact(error)))?;
         let SolverParts {
@@ -1037,19 +1106,26 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             blocks,
             hessians,
         } = parts;
-        let (outcome, ready) = match solver {
+        let (outcome, ready, memory) = match solver {
             Solver::Newton(settings) => {
                 let mut scratch = NewtonScratch::new(vectors, blocks, hessians);
                 let outcome =
                     newton_step(&model, masses, pinned, scene, &settings, x, v, &mut scratch);
-                (outcome.map(StepReport::Newton), ready)
+                (outcome.map(StepReport::Newton), ready, memory)
+            }
+            Solver::Explicit { settings, .. } => {
+                let settings = settings.with_substeps(substeps);
+                let mut scratch = ExplicitScratch::resume(vectors, memory);
+                let outcome =
+                    explicit_step(&model, masses, pinned, scene, &settings, x, v, &mut scratch);
+                (outcome.map(StepReport::Explicit), ready, scratch.memory())
             }
             Solver::Relax(settings) => {
                 let mut scratch = RelaxScratch::resume(vectors, scalars, ready);
                 let outcome =
                     relax_step(&model, masses, pinned, scene, &settings, x, v, &mut scratch);
                 let ready = scratch.stiffness_ready();
-                (outcome.map(StepReport::Relax), ready)
+                (outcome.map(StepReport::Relax), ready, memory)
             }
             _ => {
                 return Err(StepError::Mesh(MeshError::Contact(
@@ -1060,6 +1136,7 @@ impl<S: WorldStorage, M: Material> World<S, M> {
         let counts = model.counts();
         self.counts = counts;
         self.preconditioner_ready = ready;
+        self.explicit_memory = memory;
         outcome
     }
 }

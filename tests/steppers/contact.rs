@@ -23,8 +23,8 @@ macro_rules! contact_tests {
             use $($api)::+::step::contact::model::FrictionPair;
             use $($api)::+::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
             use $($api)::+::step::{
-                ElasticEnergy, HalfSpace, NewtonReport, NewtonScratch, NewtonSettings, Scene,
-                TetElastic, newton_step, scratch_len,
+                ElasticEnergy, ElasticModel, HalfSpace, NewtonReport, NewtonScratch, NewtonSettings,
+                Scene, TetElastic, newton_step, scratch_len,
             };
             use $($api)::+::types::{Mat3, Real, Vec3};
 
@@ -434,6 +434,50 @@ macro_rules! contact_tests {
                     // first 10 steps; 3.6e-2 N while it settled).
                     assert!(worst <= 1e-2 * 0.54, "{worst}");
                 }
+            }
+
+            #[test]
+            fn the_explicit_contact_cuts_a_crossing_motion_its_impulses_cannot_stop() {
+                // Two cubes 2 cm apart; the upper one's end positions are 3 cm lower (through
+                // the lower one) while its velocities are zero: no approaching velocity for an
+                // impulse to take out, so only the failsafe can keep the surfaces apart. It
+                // shortens every vertex's motion to the same fraction, below the contact.
+                let boxes = Boxes::new(&[
+                    (Vec3::ZERO, Vec3::splat(0.1), (1, 1, 1)),
+                    (Vec3::new(0.0, 0.12, 0.0), Vec3::new(0.1, 0.22, 0.1), (1, 1, 1)),
+                ]);
+                let mut b = Buffers::new(&boxes, 32, 64);
+                let (model, masses, _) = b.model(&boxes, 1e5, ContactBarrier::holding(1e-3, 1.0).unwrap());
+                assert!(model.limits_motion());
+                let from = boxes.rest.clone();
+                let moved: Vec<Vec3> = from
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &x)| if boxes.range(1).contains(&i) { x - Vec3::new(0.0, 0.05, 0.0) } else { x })
+                    .collect();
+                let mut to = moved.clone();
+                let mut v = vec![Vec3::ZERO; from.len()];
+                let cut = model.limit_motion(&from, &mut to, &mut v, (&masses, &[]), 0.01).unwrap();
+                assert!(cut);
+                assert!(v.iter().all(|v| *v == Vec3::ZERO));
+                let exact = |x: &[Vec3]| {
+                    let x: Vec<[f64; 3]> = x.iter().map(|p| [p.x as f64, p.y as f64, p.z as f64]).collect();
+                    crate::intersection::intersecting_pairs(&x, &boxes.triangles).len()
+                };
+                assert!(exact(&moved) > 0, "the uncut motion ends inside");
+                assert_eq!(exact(&to), 0);
+                // One fraction for all: the lower cube did not move, the upper one by less than
+                // the 2 cm gap, and by at least 90 % of it (the CCD's separation).
+                let fall = from[boxes.range(1).start].y - to[boxes.range(1).start].y;
+                println!("{}: the failsafe let the upper cube fall {fall:.5} m of 0.05", stringify!($precision));
+                assert!(fall < 0.02 && fall > 0.9 * 0.02 * 0.9, "{fall}");
+                assert_eq!(&to[boxes.range(0)], &from[boxes.range(0)]);
+                // With the velocities of the motion, the impulses stop it instead: no cut.
+                let mut to = moved.clone();
+                let mut v: Vec<Vec3> = from.iter().zip(&moved).map(|(a, b)| (*b - *a) / 0.01).collect();
+                let cut = model.limit_motion(&from, &mut to, &mut v, (&masses, &[]), 0.01).unwrap();
+                assert!(!cut);
+                assert_eq!(exact(&to), 0);
             }
 
             #[test]

@@ -310,7 +310,11 @@ fn bodies_are_added_removed_and_refused_with_the_world_unchanged() {
     );
     // Settings refused.
     assert_eq!(world.set_solver(Solver::vbd()), Err(BodyError::Solver));
-    assert_eq!(world.set_solver(Solver::explicit()), Err(BodyError::Solver));
+    let too_large = Solver::Explicit {
+        settings: softfem::f64::step::ExplicitSettings::new(),
+        stable_fraction: Some(2.0),
+    };
+    assert_eq!(world.set_solver(too_large), Err(BodyError::StableFraction));
     assert_eq!(
         world.set_friction(-1.0),
         Err(BodyError::Contact(ContactError::Friction))
@@ -471,4 +475,245 @@ fn a_fixed_capacity_world_gives_the_bits_of_a_growable_one_and_names_what_does_n
     }
     println!("{error}");
     assert_eq!((tight.positions(), tight.velocities()), (&x[..], &v[..]));
+}
+
+/// The lowest and highest `z` of body `body`.
+fn z_range<S: softfem::f64::world::WorldStorage>(
+    world: &World<S, Material>,
+    body: usize,
+) -> (f64, f64) {
+    let z = world.body_positions(body).unwrap().iter().map(|x| x.z);
+    (
+        z.clone().fold(f64::INFINITY, f64::min),
+        z.fold(f64::NEG_INFINITY, f64::max),
+    )
+}
+
+#[test]
+fn the_explicit_stepper_stops_a_plate_at_20_m_per_s_without_tunnelling() {
+    // A plate one cell (1 cm) thick falls at 20 m/s onto a block resting on the ground, no
+    // gravity; frames of 1/240 s, each in substeps of half the stable step (about 50 of
+    // them, the plate moving 1.7 mm, more than the 1 mm gap, per substep). The exact test
+    // finds no intersecting pair after any frame, and the plate ends above the block.
+    let mut world = World::<VecStorage, _>::new();
+    world.set_solver(Solver::explicit()).unwrap();
+    world.set_ground(Some(HalfSpace::new(DVec3::Z, 0.0)));
+    let block = world
+        .add_box(
+            DVec3::ZERO,
+            DVec3::splat(0.1),
+            [2; 3],
+            1000.0,
+            material(1e6),
+        )
+        .unwrap();
+    let plate = world
+        .add_box(
+            DVec3::new(0.01, 0.01, 0.13),
+            DVec3::new(0.09, 0.09, 0.14),
+            [2, 2, 1],
+            1000.0,
+            material(1e6),
+        )
+        .unwrap();
+    world
+        .body_velocities_mut(plate)
+        .unwrap()
+        .fill(DVec3::new(0.0, 0.0, -20.0));
+    let dt = 1.0 / 240.0;
+    println!(
+        "stable step {:.3e} s, {:.0} substeps a frame",
+        world.stable_time_step().unwrap(),
+        dt / (0.5 * world.stable_time_step().unwrap())
+    );
+    let mut cuts = 0;
+    for frame in 0..24 {
+        let report = world
+            .step(dt)
+            .unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        if let softfem::f64::body::StepReport::Explicit(report) = report {
+            cuts += report.motion_cuts;
+        }
+        assert_eq!(intersections(&world), 0, "frame {frame}");
+        let (plate_low, _) = z_range(&world, plate);
+        let (_, block_high) = z_range(&world, block);
+        assert!(
+            plate_low > block_high,
+            "frame {frame}: plate at {plate_low}, block top {block_high}"
+        );
+    }
+    let speed = world
+        .body_velocities(plate)
+        .unwrap()
+        .iter()
+        .map(|v| v.z)
+        .sum::<f64>()
+        / 18.0;
+    println!(
+        "after 0.1 s: plate's mean vertical speed {speed:.3} m/s, {cuts} substeps cut by the failsafe"
+    );
+    // The impact stopped it (inelastic: it does not bounce back at 20 m/s).
+    assert!(speed > -1.0 && speed < 5.0, "{speed}");
+}
+
+#[test]
+fn explicitly_stepped_boxes_come_to_rest_on_each_other() {
+    // A soft box dropped 5 mm onto a stiffer one under gravity, explicit substeps with
+    // damping: after 1 s no pair intersects and the upper box rests within the gap.
+    let mut world = World::<VecStorage, _>::new();
+    let settings = softfem::f64::step::ExplicitSettings::new().with_damping(5.0);
+    world
+        .set_solver(Solver::Explicit {
+            settings,
+            stable_fraction: Some(0.5),
+        })
+        .unwrap();
+    world.set_gravity(DVec3::new(0.0, 0.0, -9.81));
+    world.set_ground(Some(HalfSpace::new(DVec3::Z, 0.0)));
+    let lower = world
+        .add_box(
+            DVec3::ZERO,
+            DVec3::splat(0.1),
+            [2; 3],
+            1000.0,
+            material(1e6),
+        )
+        .unwrap();
+    let upper = world
+        .add_box(
+            DVec3::new(0.02, 0.02, 0.105),
+            DVec3::new(0.08, 0.08, 0.165),
+            [2; 3],
+            1000.0,
+            material(2e5),
+        )
+        .unwrap();
+    for frame in 0..60 {
+        world
+            .step(1.0 / 60.0)
+            .unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        assert_eq!(intersections(&world), 0, "frame {frame}");
+    }
+    let (upper_low, _) = z_range(&world, upper);
+    let (_, lower_high) = z_range(&world, lower);
+    let gap = world.smallest_gap(1e-2).unwrap();
+    println!(
+        "after 1 s: {:.3e} m between the faces, smallest distance {gap:?}",
+        upper_low - lower_high
+    );
+    assert!(
+        gap.is_some_and(|d| d > 0.0 && d <= world.barrier().gap),
+        "{gap:?}"
+    );
+}
+
+#[test]
+fn in_f32_too_the_plate_at_20_m_per_s_stops_without_tunnelling() {
+    use softfem::glam::Vec3;
+    let mut world = softfem::world::World::<softfem::body::VecStorage, _>::new();
+    world.set_solver(softfem::body::Solver::explicit()).unwrap();
+    world.set_ground(Some(softfem::step::HalfSpace::new(Vec3::Z, 0.0)));
+    let stiff = softfem::material::StableNeoHookean::from_young_poisson(1e6, 0.3).unwrap();
+    world
+        .add_box(Vec3::ZERO, Vec3::splat(0.1), [2; 3], 1000.0, stiff)
+        .unwrap();
+    let plate = world
+        .add_box(
+            Vec3::new(0.01, 0.01, 0.13),
+            Vec3::new(0.09, 0.09, 0.14),
+            [2, 2, 1],
+            1000.0,
+            stiff,
+        )
+        .unwrap();
+    world
+        .body_velocities_mut(plate)
+        .unwrap()
+        .fill(Vec3::new(0.0, 0.0, -20.0));
+    for frame in 0..24 {
+        world
+            .step(1.0 / 240.0)
+            .unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+        let crossing =
+            crate::intersection::intersecting_pairs_f32(world.positions(), world.triangles());
+        assert_eq!(crossing.len(), 0, "frame {frame}");
+    }
+    let speed = world
+        .body_velocities(plate)
+        .unwrap()
+        .iter()
+        .map(|v| v.z)
+        .sum::<f32>()
+        / 18.0;
+    println!("f32: after 0.1 s the plate's mean vertical speed is {speed:.3} m/s");
+    assert!(speed > -1.0 && speed < 5.0, "{speed}");
+}
+
+#[test]
+fn hostile_input_is_refused_and_the_world_keeps_its_state() {
+    let mut world = World::<VecStorage, _>::new();
+    world
+        .add_box(
+            DVec3::ZERO,
+            DVec3::splat(0.1),
+            [1; 3],
+            1000.0,
+            material(1e5),
+        )
+        .unwrap();
+    // Bodies the mesh check refuses: a NaN rest position, an index out of range, a density
+    // that is not positive, an absurd box.
+    let nan = [
+        DVec3::ZERO,
+        DVec3::X,
+        DVec3::Y,
+        DVec3::new(0.0, 0.0, f64::NAN),
+    ];
+    let tet = [[0, 1, 2, 3]];
+    assert!(matches!(
+        world.add_body(&nan, &tet, 1000.0, material(1e5)),
+        Err(BodyError::Mesh(_))
+    ));
+    let corners = [DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
+    assert!(matches!(
+        world.add_body(&corners, &[[0, 1, 2, 9]], 1000.0, material(1e5)),
+        Err(BodyError::Mesh(_))
+    ));
+    assert!(matches!(
+        world.add_body(&corners, &tet, -1.0, material(1e5)),
+        Err(BodyError::Mesh(_))
+    ));
+    assert!(
+        world
+            .add_box(
+                DVec3::ZERO,
+                DVec3::ONE,
+                [usize::MAX, 1, 1],
+                1000.0,
+                material(1e5)
+            )
+            .is_err()
+    );
+    assert_eq!(
+        (
+            world.body_count(),
+            world.vertex_count(),
+            world.triangles().len()
+        ),
+        (1, 8, 12)
+    );
+    // A NaN position moved in by hand: the step refuses it and restores the state; a
+    // non-positive step too.
+    world.body_positions_mut(0).unwrap()[3].x = f64::NAN;
+    let (x, v) = (world.positions().to_vec(), world.velocities().to_vec());
+    assert!(world.step(0.01).is_err());
+    assert!(world.step(0.0).is_err());
+    assert!(world.step(-1.0).is_err());
+    let same = |a: &[DVec3], b: &[DVec3]| {
+        a.iter()
+            .zip(b)
+            .all(|(p, q)| p.to_array().map(f64::to_bits) == q.to_array().map(f64::to_bits))
+    };
+    assert!(same(world.positions(), &x) && same(world.velocities(), &v));
+    assert!(world.body_positions(1).is_none() && world.body_velocities_mut(7).is_none());
 }

@@ -144,6 +144,10 @@ pub struct ContactCounts {
     pub friction: usize,
 }
 
+/// The most passes of impulses the explicit stepper's contact makes in one substep before its
+/// failsafe ([`ContactModel`]'s `limit_motion`).
+pub const IMPACT_PASSES: usize = 4;
+
 /// An elastic model with body–body and self contact between the primitives of `surface`: the
 /// energy `E(x) + B(x)`, `B` the barrier potential of [`ContactPotential`] over the pairs
 /// within the gap, and the steps admitted by continuous collision detection (see the
@@ -524,6 +528,155 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
         Ok(needed)
     }
 
+    /// The contact's part of [`admissible_step`](ElasticEnergy::admissible_step):
+    /// [`ccd::step_bound`] over the pairs [`motion_pairs`] finds for the motion (gap 0); 1
+    /// without a surface or where `to` has a NaN or infinite position (whose energy is not
+    /// finite: the line search rejects such a point there).
+    fn contact_step_bound(&self, from: &[Vec3], to: &[Vec3]) -> Result<Real, ContactError> {
+        if self.surface.triangles.is_empty() || to.iter().any(|x| !x.is_finite()) {
+            return Ok(1.0);
+        }
+        let mut guard = self.buffers_mut()?;
+        let ContactBuffers {
+            slots,
+            entries,
+            vertex_triangle,
+            edge_edge,
+            ..
+        } = &mut *guard;
+        let mut scratch = BroadPhaseScratch::new(slots, entries);
+        let pairs = motion_pairs(
+            from,
+            to,
+            0.0,
+            &self.surface,
+            &mut scratch,
+            vertex_triangle,
+            edge_edge,
+        )?;
+        let bound = ccd::step_bound(from, to, &self.surface, &pairs, self.separation)?;
+        Ok(bound.alpha)
+    }
+
+    /// One pass of the explicit stepper's impacts (see
+    /// [`limit_motion`](ElasticModel::limit_motion)): every candidate pair of the motion
+    /// `from -> to` whose time of impact is below 1 takes its impulse, in the broad phase's
+    /// order; returns how many did.
+    fn impacts(
+        &self,
+        from: &[Vec3],
+        to: &mut [Vec3],
+        velocities: &mut [Vec3],
+        (masses, pinned): (&[Real], &[bool]),
+        h: Real,
+    ) -> Result<usize, ContactError> {
+        let mut guard = self.buffers_mut()?;
+        let ContactBuffers {
+            slots,
+            entries,
+            vertex_triangle,
+            edge_edge,
+            ..
+        } = &mut *guard;
+        let mut scratch = BroadPhaseScratch::new(slots, entries);
+        let pairs = motion_pairs(
+            from,
+            to,
+            0.0,
+            &self.surface,
+            &mut scratch,
+            vertex_triangle,
+            edge_edge,
+        )?;
+        let surface = &self.surface;
+        let inverse_mass = |vertex: u32| {
+            let i = vertex as usize;
+            let mass = masses.get(i).copied().unwrap_or(0.0);
+            if mass > 0.0 && !pinned.get(i).copied().unwrap_or(false) {
+                1.0 / mass
+            } else {
+                0.0
+            }
+        };
+        let mut impacts = 0;
+        let mut impact = |vertices: [u32; 4], first: usize, to: &mut [Vec3], v: &mut [Vec3]| {
+            let gather = |list: &[Vec3]| {
+                vertices.map(|i| list.get(i as usize).copied().unwrap_or(Vec3::NAN))
+            };
+            let (start, end) = (gather(from), gather(to));
+            let toi = if first == 1 {
+                ccd::point_triangle_ccd(start, end, self.separation)
+            } else {
+                ccd::edge_edge_ccd(start, end, self.separation)
+            };
+            if toi.is_nan() || toi >= 1.0 {
+                return;
+            }
+            let [a, b, c, d] = [0, 1, 2, 3].map(|k| {
+                let (Some(&x0), Some(&x1)) = (start.get(k), end.get(k)) else {
+                    return Vec3::NAN;
+                };
+                ccd::lerp(x0, x1, toi)
+            });
+            let distance = if first == 1 {
+                point_triangle_distance_gradient(a, b, c, d)
+            } else {
+                edge_edge_distance_gradient(a, b, c, d)
+            };
+            // d(d^2)/dx_k = 2 w_k r, r = sum_k w_k x_k from the second side to the first.
+            let r = distance
+                .gradient
+                .iter()
+                .take(first)
+                .fold(Vec3::ZERO, |sum, &g| sum + g)
+                * 0.5;
+            let rr = r.dot(r);
+            if !(rr > 0.0 && rr.is_finite()) {
+                return;
+            }
+            let normal = r * (1.0 / sqrt(rr));
+            let weights = distance.gradient.map(|g| g.dot(r) / (2.0 * rr));
+            let speeds = gather(v);
+            let mut approach: Real = 0.0;
+            let mut resistance: Real = 0.0;
+            for ((&weight, speed), &vertex) in weights.iter().zip(speeds).zip(&vertices) {
+                approach += weight * speed.dot(normal);
+                resistance += weight * weight * inverse_mass(vertex);
+            }
+            if !(approach < 0.0 && resistance > 0.0) {
+                return;
+            }
+            let impulse = -approach / resistance;
+            for (&weight, &vertex) in weights.iter().zip(&vertices) {
+                let change = normal * (weight * impulse * inverse_mass(vertex));
+                if let (Some(x), Some(speed)) =
+                    (to.get_mut(vertex as usize), v.get_mut(vertex as usize))
+                {
+                    *speed += change;
+                    *x += change * h;
+                }
+            }
+            impacts += 1;
+        };
+        for &[vertex, triangle] in pairs.vertex_triangle.iter() {
+            if let (Some(&p), Some(&[a, b, c])) = (
+                surface.vertices.get(vertex as usize),
+                surface.triangles.get(triangle as usize),
+            ) {
+                impact([p, a, b, c], 1, to, velocities);
+            }
+        }
+        for &[first, second] in pairs.edge_edge.iter() {
+            if let (Some(&[a0, a1]), Some(&[b0, b1])) = (
+                surface.edges.get(first as usize),
+                surface.edges.get(second as usize),
+            ) {
+                impact([a0, a1, b0, b1], 2, to, velocities);
+            }
+        }
+        Ok(impacts)
+    }
+
     /// The frictional pair of the primitives `vertices` at `points` with the squared distance
     /// and gradient `distance`, the mollifier `mollifier` (1 for a point and a triangle) and
     /// `first` slots on the first side; `None` if the barrier does not act on it.
@@ -650,11 +803,61 @@ impl<M: ElasticModel<Vector = Vec3>> ElasticModel for ContactModel<'_, M> {
         self.model.vertex_count()
     }
 
-    /// The model's forces and the contact forces (no step bound: the explicit stepper does not
-    /// yet stop surfaces from passing through each other).
+    /// The model's forces and the contact forces: the barrier's, which the explicit stepper
+    /// takes as any force ([`limit_motion`](Self::limit_motion) keeps its surfaces apart).
     fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
         self.model.add_forces(positions, forces)?;
         self.add_contact_forces(positions, forces).map(|_| ())
+    }
+
+    #[inline]
+    fn limits_motion(&self) -> bool {
+        self.model.limits_motion() || !self.surface.triangles.is_empty()
+    }
+
+    /// The explicit stepper's contact (`docs/math.md` section 8.12): the model's own limit,
+    /// then up to [`IMPACT_PASSES`] passes over the pairs whose straight motion from `from` to
+    /// `to` meets ([`ccd`]: each pair's conservative time of impact below 1), each taking an
+    /// inelastic impulse at its time of impact that removes the primitives' approaching
+    /// velocity along the pair's normal (no friction, no bounce; shared by the four vertices by
+    /// their closest-point weights and inverse masses, a pinned vertex taking none) and moving
+    /// its vertices' end positions by `h` times their velocity change. Then the failsafe: if
+    /// the motion still meets, every vertex's motion is shortened to the fraction `alpha` that
+    /// continuous collision detection admits (`to = from + alpha (to - from)`, velocities
+    /// kept), and `true` is returned.
+    ///
+    /// The guarantee: a substep that starts with no two primitives of the surface closer than
+    /// the CCD's rounding floor ends that way, whatever the velocities. What it costs: the
+    /// failsafe slows the whole substep (every body, not only the pair), and the impulses
+    /// take out kinetic energy where surfaces meet at speed.
+    fn limit_motion(
+        &self,
+        from: &[Vec3],
+        to: &mut [Vec3],
+        velocities: &mut [Vec3],
+        (masses, pinned): (&[Real], &[bool]),
+        h: Real,
+    ) -> Result<bool, MeshError> {
+        let inner = self
+            .model
+            .limit_motion(from, to, velocities, (masses, pinned), h)?;
+        if self.surface.triangles.is_empty() || to.iter().any(|x| !x.is_finite()) {
+            return Ok(inner);
+        }
+        for _ in 0..IMPACT_PASSES {
+            let impacts = self.impacts(from, to, velocities, (masses, pinned), h)?;
+            if impacts == 0 {
+                break;
+            }
+        }
+        let alpha = self.contact_step_bound(from, to)?;
+        if alpha >= 1.0 {
+            return Ok(inner);
+        }
+        for (x, &start) in to.iter_mut().zip(from) {
+            *x = ccd::lerp(start, *x, alpha);
+        }
+        Ok(true)
     }
 
     fn for_each_element_stiffness(&self, visit: impl FnMut(&[u32], Real, Real)) {
@@ -707,34 +910,10 @@ impl<M: ElasticEnergy<Vector = Vec3>> ElasticEnergy for ContactModel<'_, M> {
     /// [`energy_and_add_forces`](Self::energy_and_add_forces)).
     fn admissible_step(&self, from: &[Vec3], to: &[Vec3]) -> Result<Real, MeshError> {
         let elastic = self.model.admissible_step(from, to)?;
-        if elastic <= 0.0 || self.surface.triangles.is_empty() {
+        if elastic <= 0.0 {
             return Ok(elastic);
         }
-        // A trial point with a NaN or infinite position is no motion to check: its energy is
-        // not finite, and the line search rejects it there.
-        if to.iter().any(|x| !x.is_finite()) {
-            return Ok(elastic);
-        }
-        let mut guard = self.buffers_mut()?;
-        let ContactBuffers {
-            slots,
-            entries,
-            vertex_triangle,
-            edge_edge,
-            ..
-        } = &mut *guard;
-        let mut scratch = BroadPhaseScratch::new(slots, entries);
-        let pairs = motion_pairs(
-            from,
-            to,
-            0.0,
-            &self.surface,
-            &mut scratch,
-            vertex_triangle,
-            edge_edge,
-        )?;
-        let bound = ccd::step_bound(from, to, &self.surface, &pairs, self.separation)?;
-        Ok(elastic.min(bound.alpha))
+        Ok(elastic.min(self.contact_step_bound(from, to)?))
     }
 }
 

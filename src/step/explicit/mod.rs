@@ -167,6 +167,8 @@ pub struct ExplicitScratch<'a, V> {
     /// Whether the first quarter of `buffer` (rather than the second) holds the forces of the
     /// last substep; the other holds those of the substep before.
     latest_first: bool,
+    /// The vertices of the last step (four or five vectors each in `buffer`).
+    vertex_count: usize,
 }
 
 /// What the blow-up detector keeps of the last accepted substep.
@@ -194,6 +196,7 @@ impl<'a, V: Vector> ExplicitScratch<'a, V> {
     #[must_use]
     pub fn new(buffer: &'a mut [V]) -> Self {
         ExplicitScratch {
+            vertex_count: buffer.len() / 4,
             buffer,
             history: None,
             latest_first: true,
@@ -212,7 +215,7 @@ impl<'a, V: Vector> ExplicitScratch<'a, V> {
     #[inline]
     #[must_use]
     pub fn forces(&self) -> &[V] {
-        let n = self.buffer.len() / 4;
+        let n = self.vertex_count;
         let start = if self.latest_first { 0 } else { n };
         self.buffer.get(start..start + n).unwrap_or(&[])
     }
@@ -240,6 +243,7 @@ impl<'a, V: Vector> ExplicitScratch<'a, V> {
     #[must_use]
     pub(crate) fn resume(buffer: &'a mut [V], memory: ExplicitMemory) -> Self {
         ExplicitScratch {
+            vertex_count: buffer.len() / 4,
             buffer,
             history: memory.history,
             latest_first: memory.latest_first,
@@ -267,6 +271,11 @@ pub struct ExplicitReport {
     pub kinetic_energy: Real,
     /// The vertices projected out of the ground in the last substep.
     pub ground_contacts: usize,
+    /// The substeps whose whole motion a model that
+    /// [limits the motion](super::ElasticModel::limits_motion) (contact between surfaces) had to
+    /// shorten: in those substeps every vertex moved less than its velocity says (time ran
+    /// slower for them). 0 for other models.
+    pub motion_cuts: u32,
 }
 
 /// Advances `positions` (m) and `velocities` (m/s) by the scene's `dt` with symplectic Euler
@@ -390,14 +399,19 @@ pub fn explicit_step<F: ElasticModel>(
     settings.check()?;
     split_check_state(model, masses, pinned, positions, Some(velocities))?;
     scene.loads().check(n)?;
-    check_length(
-        StepBuffer::Scratch,
-        scratch_len::explicit(n),
-        scratch.buffer.len(),
-    )?;
+    let limits_motion = model.limits_motion();
+    let scratch_needed = if limits_motion {
+        scratch_len::explicit_contact(n)
+    } else {
+        scratch_len::explicit(n)
+    };
+    check_length(StepBuffer::Scratch, scratch_needed, scratch.buffer.len())?;
+    scratch.vertex_count = n;
     let (first_forces, rest) = scratch.buffer.split_at_mut_checked(n).unwrap_or_default();
     let (second_forces, backup) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (backup_positions, backup_velocities) = backup.split_at_mut_checked(n).unwrap_or_default();
+    let (backup_positions, rest) = backup.split_at_mut_checked(n).unwrap_or_default();
+    let (backup_velocities, substep_start) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let mut substep_start = limits_motion.then_some(substep_start);
     // Entry by entry: the lengths were checked, but an out-of-line call (the body calls this
     // stepper too) hides them from the optimiser, and `copy_from_slice` would keep a panic path.
     let save = |_, ((backup_x, backup_v), (x, v)): (State<'_, F::Vector>, _)| {
@@ -414,7 +428,7 @@ pub fn explicit_step<F: ElasticModel>(
     if scratch.history.is_some_and(|history| history.h != h) {
         scratch.history = None;
     }
-    let (mut ground_contacts, mut kinetic_energy) = (0, 0.0);
+    let (mut ground_contacts, mut kinetic_energy, mut motion_cuts) = (0, 0.0, 0u32);
     for _ in 0..settings.substeps {
         // The new forces go where the older of the two force buffers is.
         let (forces, previous_forces) = if scratch.latest_first {
@@ -432,11 +446,15 @@ pub fn explicit_step<F: ElasticModel>(
             positions,
             velocities,
             (forces, previous_forces),
+            substep_start.as_deref_mut(),
             &mut scratch.history,
         );
         scratch.latest_first = !scratch.latest_first;
         match outcome {
-            Ok((contacts, kinetic)) => (ground_contacts, kinetic_energy) = (contacts, kinetic),
+            Ok((contacts, kinetic, cut)) => {
+                (ground_contacts, kinetic_energy) = (contacts, kinetic);
+                motion_cuts += u32::from(cut);
+            }
             Err(error) => {
                 copy(positions, backup_positions);
                 copy(velocities, backup_velocities);
@@ -449,12 +467,15 @@ pub fn explicit_step<F: ElasticModel>(
         substeps: settings.substeps,
         kinetic_energy,
         ground_contacts,
+        motion_cuts,
     })
 }
 
-/// One substep; returns the number of ground contacts and the kinetic energy (J) after it.
-/// `forces` receives the new forces; `previous_forces` holds those of the last accepted substep
-/// when `history` is `Some`. On an error the state may be half updated: the caller restores it.
+/// One substep; returns the number of ground contacts, the kinetic energy (J) after it and
+/// whether the model cut its whole motion short. `forces` receives the new forces;
+/// `previous_forces` holds those of the last accepted substep when `history` is `Some`;
+/// `substep_start` (where the model limits the motion) receives the positions before the
+/// update. On an error the state may be half updated: the caller restores it.
 #[allow(clippy::too_many_arguments)]
 fn substep<F: ElasticModel>(
     model: &F,
@@ -466,8 +487,9 @@ fn substep<F: ElasticModel>(
     positions: &mut [F::Vector],
     velocities: &mut [F::Vector],
     (forces, previous_forces): (&mut [F::Vector], &[F::Vector]),
+    mut substep_start: Option<&mut [F::Vector]>,
     history: &mut Option<History>,
-) -> Result<(usize, Real), StepError> {
+) -> Result<(usize, Real, bool), StepError> {
     let n = forces.len();
     let clear = |_, forces: &mut [F::Vector]| forces.fill(F::Vector::ZERO);
     model.run_vertex_pass(Blocks::new(n, &mut *forces, &clear));
@@ -495,6 +517,9 @@ fn substep<F: ElasticModel>(
     let update = |first, ((x, v), (f, previous, m, pinned)): Rows<'_, F::Vector>| {
         frame.block(first, (x, v), (f, previous, m, pinned))
     };
+    if let Some(start) = substep_start.as_deref_mut() {
+        copy(start, positions);
+    }
     let state = (&mut *positions, &mut *velocities);
     let inputs = (&*forces, previous_forces, masses, pinned);
     let (sums, contacts, kinetic_energy, non_finite) =
@@ -531,6 +556,12 @@ fn substep<F: ElasticModel>(
     if let Some(vertex) = non_finite {
         return Err(StepError::NonFiniteState { vertex });
     }
+    let cut = match substep_start {
+        Some(start) => model
+            .limit_motion(start, positions, velocities, (masses, pinned), h)
+            .map_err(StepError::Mesh)?,
+        None => false,
+    };
     *history = Some(History {
         h,
         indicator,
@@ -539,7 +570,7 @@ fn substep<F: ElasticModel>(
         fast: fast_flag,
         contact_work,
     });
-    Ok((contacts, kinetic_energy))
+    Ok((contacts, kinetic_energy, cut))
 }
 
 /// A block's share of the positions and velocities.
