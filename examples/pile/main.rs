@@ -3,11 +3,12 @@
 //!
 //! Eight balls (radius 4 cm, stable neo-Hookean, E = 100 kPa, nu = 0.3, 1000 kg/m^3) start in
 //! a spiral above a box (the ground and four wall colliders, 18 cm apart) and fall into it, onto
-//! each other. One contact model over all their vertices (`softfem::step::contact::ContactModel`:
-//! the barrier of Incremental Potential Contact, dhat = 1 mm, and friction 0.3 between the
-//! balls) and Newton steps of 1/100 s, every trial step cut by continuous collision detection.
-//! After every step an exact triangle–triangle test (`tests/common/exact_intersection.rs`, shared
-//! with the contact tests; not the barrier) counts the pairs of boundary triangles that intersect. Writes VTK frames (`frame_0000.vtk`, ..., with
+//! each other. The balls are the bodies of one `softfem::world::World`: one Newton solve of
+//! 1/100 s over all their vertices per step, with the barrier of Incremental Potential Contact
+//! (dhat = 1 mm) and friction 0.3 between their surfaces, every trial step cut by continuous
+//! collision detection. After every step an exact triangle–triangle test
+//! (`tests/common/exact_intersection.rs`, shared with the contact tests; not the barrier) counts
+//! the pairs of boundary triangles that intersect. Writes VTK frames (`frame_0000.vtk`, ..., with
 //! `frames.vtk.series` for ParaView) and `filmstrip.svg` into `target/pile/`, and prints a
 //! summary: intersecting pairs, the smallest gap, the share of converged solves, the balls'
 //! volume range and the wall time. Exits with failure if any pair intersected.
@@ -27,7 +28,6 @@ mod filmstrip;
 #[allow(dead_code)]
 mod vtk;
 
-use std::ops::Range;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -35,18 +35,12 @@ use std::time::Instant;
 use clap::Parser;
 
 use filmstrip::{Camera, Filmstrip, Recorder};
-use softfem::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
-use softfem::element::{TetHessian, TetRest};
-use softfem::glam::{Mat3, Quat, Vec3};
+use softfem::body::{Solver, StepReport, VecStorage};
+use softfem::glam::{Quat, Vec3};
 use softfem::material::StableNeoHookean;
-use softfem::mesh::TetMesh;
-use softfem::step::contact::boundary::ContactSurface;
-use softfem::step::contact::model::FrictionPair;
-use softfem::step::contact::potential::{ContactBarrier, PairHessian};
-use softfem::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
-use softfem::step::{
-    Collider, HalfSpace, NewtonScratch, NewtonSettings, Scene, TetElastic, newton_step, scratch_len,
-};
+use softfem::step::contact::potential::ContactBarrier;
+use softfem::step::{Collider, HalfSpace, NewtonSettings};
+use softfem::world::World;
 
 /// Gravity (m/s^2) along -z.
 const GRAVITY: Vec3 = Vec3::new(0.0, 0.0, -9.81);
@@ -127,54 +121,51 @@ fn walls() -> Vec<Collider<'static>> {
         .collect()
 }
 
-/// The eight balls as one mesh: positions, tetrahedra, each ball's range of tetrahedra, the
-/// boundary triangles.
-struct Balls {
-    rest: Vec<Vec3>,
-    tets: Vec<[u32; 4]>,
-    ranges: Vec<Range<usize>>,
-    triangles: Vec<[u32; 3]>,
+/// The eight balls as the bodies of a world, with the pile's material, contact, solver, gravity
+/// and ground (the walls are colliders given to each step).
+fn pile(cells: usize) -> Result<World<VecStorage, StableNeoHookean>, String> {
+    let material = StableNeoHookean::from_young_poisson(YOUNG_MODULUS, POISSON_RATIO)
+        .map_err(|e| e.to_string())?;
+    let mut world = World::new();
+    let vec3 = |p: &[f64; 3]| Vec3::from_array(p.map(|c| c as f32));
+    for centre in ball_pile::centres(f64::from(RADIUS)) {
+        let (x, tets) = ball_pile::ball(centre, f64::from(RADIUS), cells)?;
+        let x: Vec<Vec3> = x.iter().map(vec3).collect();
+        world
+            .add_body(&x, &tets, DENSITY, material)
+            .map_err(|e| e.to_string())?;
+    }
+    let barrier = ContactBarrier::holding(DHAT, HOLDING).map_err(|e| e.to_string())?;
+    let settings = NewtonSettings::new().with_tolerance(TOLERANCE, MAX_ITERATIONS);
+    world.set_barrier(barrier).map_err(|e| e.to_string())?;
+    world.set_friction(FRICTION).map_err(|e| e.to_string())?;
+    world
+        .set_solver(Solver::Newton(settings))
+        .map_err(|e| e.to_string())?;
+    world.set_gravity(GRAVITY);
+    world.set_ground(Some(HalfSpace::new(Vec3::Z, 0.0).with_friction(FRICTION)));
+    Ok(world)
 }
 
-impl Balls {
-    fn new(cells: usize) -> Result<Balls, String> {
-        let (mut rest, mut tets, mut ranges) = (Vec::new(), Vec::new(), Vec::new());
-        let vec3 = |p: &[f64; 3]| Vec3::from_array(p.map(|c| c as f32));
-        for centre in ball_pile::centres(f64::from(RADIUS)) {
-            let (x, t) = ball_pile::ball(centre, f64::from(RADIUS), cells)?;
-            let offset = rest.len() as u32;
-            ranges.push(tets.len()..tets.len() + t.len());
-            rest.extend(x.iter().map(vec3));
-            tets.extend(t.iter().map(|tet| tet.map(|v| v + offset)));
-        }
-        let mut faces = vec![BoundaryFace::default(); boundary_scratch_len(tets.len())];
-        let triangles = boundary_faces(&tets, rest.len(), &mut faces)
-            .map_err(|e| e.to_string())?
-            .iter()
-            .map(|face| face.triangle)
-            .collect();
-        Ok(Balls {
-            rest,
-            tets,
-            ranges,
-            triangles,
-        })
-    }
+/// The pairs of boundary triangles (sharing no vertex) of `world` that intersect, decided
+/// exactly.
+fn intersecting_pairs(world: &World<VecStorage, StableNeoHookean>) -> usize {
+    let x: Vec<[f64; 3]> = world
+        .positions()
+        .iter()
+        .map(|p| p.to_array().map(f64::from))
+        .collect();
+    exact::intersecting_pairs(&x, world.triangles()).len()
+}
 
-    /// The pairs of boundary triangles (sharing no vertex) that intersect at `x`, decided
-    /// exactly.
-    fn intersecting_pairs(&self, x: &[Vec3]) -> usize {
-        let x: Vec<[f64; 3]> = x.iter().map(|p| p.to_array().map(f64::from)).collect();
-        exact::intersecting_pairs(&x, &self.triangles).len()
-    }
-
-    /// Each ball's volume (m^3) at `x`.
-    fn volumes(&self, x: &[Vec3]) -> Vec<f32> {
-        self.ranges
-            .iter()
-            .map(|range| self.tets[range.clone()].iter().map(|&t| volume(x, t)).sum())
-            .collect()
-    }
+/// Each ball's volume (m^3) now.
+fn volumes(world: &World<VecStorage, StableNeoHookean>) -> Vec<f32> {
+    let (x, tets) = (world.positions(), world.tets());
+    world
+        .bodies()
+        .iter()
+        .map(|ball| tets[ball.tets()].iter().map(|&t| volume(x, t)).sum())
+        .collect()
 }
 
 /// What the run counts, for the summary.
@@ -214,93 +205,35 @@ fn run(args: &Args) -> Result<(), String> {
     }
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot create {}: {e}", args.out.display()))?;
-    let balls = Balls::new(args.cells as usize)?;
-    let n = balls.rest.len();
-    let rest_volumes = balls.volumes(&balls.rest);
-    let rest_tet_volumes: Vec<f32> = balls.tets.iter().map(|&t| volume(&balls.rest, t)).collect();
+    let mut world = pile(args.cells as usize)?;
+    let n = world.vertex_count();
+    let rest_volumes = volumes(&world);
+    let rest_tet_volumes: Vec<f32> = world
+        .tets()
+        .iter()
+        .map(|&t| volume(world.rest_positions(), t))
+        .collect();
     println!(
         "balls     8 of radius {RADIUS} m, {} cells^3 each: {n} vertices, {} tetrahedra, {} boundary triangles",
         args.cells,
-        balls.tets.len(),
-        balls.triangles.len()
+        world.tet_count(),
+        world.triangles().len()
     );
-    if balls.intersecting_pairs(&balls.rest) != 0 {
+    if intersecting_pairs(&world) != 0 {
         return Err("the balls intersect at the start".into());
     }
-
-    // The contact model over all balls and its buffers.
-    let triangles = &balls.triangles;
-    let (mut vertices, mut edges) = (
-        vec![0; scratch_len::boundary_vertices(triangles.len())],
-        vec![[0; 2]; scratch_len::boundary_edges(triangles.len())],
-    );
-    let (v, e) = {
-        let surface = ContactSurface::from_triangles(triangles, n, &mut vertices, &mut edges)
-            .map_err(|e| e.to_string())?;
-        (surface.vertices.len(), surface.edges.len())
-    };
-    vertices.truncate(v);
-    edges.truncate(e);
-    let lengths = scratch_len::broad_phase(v, e, triangles.len());
-    let (mut slots, mut entries) = (vec![0; lengths.slots], vec![0; lengths.entries]);
-    let (mut vertex_triangle, mut edge_edge) = (vec![[0; 2]; 32 * v], vec![[0; 2]; 32 * e]);
-    let mut pair_hessians = vec![PairHessian::default(); 16 * (v + e)];
-    let mut friction = vec![FrictionPair::default(); 16 * (v + e)];
-    let mut rest_data = vec![TetRest::default(); balls.tets.len()];
-    let mesh = TetMesh::new(&balls.rest, &balls.tets, &mut rest_data).map_err(|e| e.to_string())?;
-    let mut masses = vec![0.0; n];
-    mesh.lumped_masses(DENSITY, &mut masses)
-        .map_err(|e| e.to_string())?;
-    let material = StableNeoHookean::from_young_poisson(YOUNG_MODULUS, POISSON_RATIO)
-        .map_err(|e| e.to_string())?;
-    let surface = ContactSurface {
-        vertices: &vertices,
-        edges: &edges,
-        triangles,
-    };
-    let buffers = ContactBuffers {
-        slots: &mut slots,
-        entries: &mut entries,
-        vertex_triangle: &mut vertex_triangle,
-        edge_edge: &mut edge_edge,
-        hessians: &mut pair_hessians,
-        friction: &mut friction,
-    };
-    let barrier = ContactBarrier::holding(DHAT, HOLDING).map_err(|e| e.to_string())?;
-    let model = ContactModel::new(
-        TetElastic::new(mesh, material),
-        surface,
-        &balls.rest,
-        barrier,
-        buffers,
-    )
-    .and_then(|model| model.with_friction(FRICTION, SUGGESTED_STICKING_SPEED))
-    .map_err(|e| e.to_string())?;
     println!(
         "material  stable neo-Hookean, E = {YOUNG_MODULUS} Pa, nu = {POISSON_RATIO}, {DENSITY} kg/m^3, {:.3} kg in all",
-        masses.iter().sum::<f32>()
+        world.masses().iter().sum::<f32>()
     );
     println!(
         "contact   barrier dhat = {DHAT} m holding {HOLDING} N at half of it, friction {FRICTION} between the balls, on the ground and the walls"
     );
     println!(
-        "stepper   Newton, h = {} s, tolerance {TOLERANCE}, at most {MAX_ITERATIONS} iterations",
+        "stepper   World, Newton, h = {} s, tolerance {TOLERANCE}, at most {MAX_ITERATIONS} iterations",
         args.step
     );
-
-    let newton = scratch_len::newton(n, balls.tets.len());
-    let (mut vectors, mut blocks, mut hessians) = (
-        vec![Vec3::ZERO; newton.vectors],
-        vec![Mat3::ZERO; newton.blocks],
-        vec![TetHessian::default(); newton.hessians],
-    );
-    let mut scratch = NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians);
     let walls = walls();
-    let scene = Scene::new(args.step)
-        .with_gravity(GRAVITY)
-        .with_ground(HalfSpace::new(Vec3::Z, 0.0).with_friction(FRICTION))
-        .with_colliders(&walls);
-    let settings = NewtonSettings::new().with_tolerance(TOLERANCE, MAX_ITERATIONS);
 
     let frame_interval = 1.0 / f64::from(args.frame_rate);
     let mut recorder = Recorder::new(
@@ -311,7 +244,6 @@ fn run(args: &Args) -> Result<(), String> {
     let steps = (f64::from(args.duration) / f64::from(args.step))
         .round()
         .max(1.0) as usize;
-    let (mut x, mut velocities) = (balls.rest.clone(), vec![Vec3::ZERO; n]);
     let mut totals = Totals {
         volume_range: (1.0, 1.0),
         ..Totals::default()
@@ -324,11 +256,12 @@ fn run(args: &Args) -> Result<(), String> {
         let time = step as f64 * f64::from(args.step);
         // A microsecond of slack: the frame times accumulate rounding (60 x 1/30 > 2).
         if time + 1e-6 >= next_frame {
-            let ratios: Vec<f32> = balls
-                .tets
+            let x = world.positions();
+            let ratios: Vec<f32> = world
+                .tets()
                 .iter()
                 .zip(&rest_tet_volumes)
-                .map(|(&tet, rest)| volume(&x, tet) / rest)
+                .map(|(&tet, rest)| volume(x, tet) / rest)
                 .collect();
             let name = vtk::frame_file_name(written.len());
             let path = args.out.join(&name);
@@ -338,15 +271,15 @@ fn run(args: &Args) -> Result<(), String> {
                 &vtk::Frame {
                     title: &title,
                     time,
-                    positions: &x,
-                    velocities: &velocities,
-                    cells: vtk::Cells::Tets(&balls.tets),
+                    positions: x,
+                    velocities: world.velocities(),
+                    cells: vtk::Cells::Tets(world.tets()),
                     volume_ratios: &ratios,
                 },
             )
             .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
             written.push((name, time));
-            recorder.offer(time, &x);
+            recorder.offer(time, x);
             next_frame += frame_interval;
         }
         if time + 1e-6 >= next_progress {
@@ -362,17 +295,11 @@ fn run(args: &Args) -> Result<(), String> {
         if step == steps {
             break;
         }
-        let report = newton_step(
-            &model,
-            &masses,
-            &[],
-            &scene,
-            &settings,
-            &mut x,
-            &mut velocities,
-            &mut scratch,
-        )
-        .map_err(|e| format!("step {step}: {e}"))?;
+        let report = match world.step_with_colliders(args.step, &walls) {
+            Ok(StepReport::Newton(report)) => report,
+            Ok(other) => return Err(format!("step {step}: not a Newton report: {other:?}")),
+            Err(e) => return Err(format!("step {step}: {e}")),
+        };
         totals.steps += 1;
         totals.iterations += report.iterations;
         totals.converged += usize::from(report.converged);
@@ -382,16 +309,16 @@ fn run(args: &Args) -> Result<(), String> {
                 .unconverged
                 .push((step, report.residual, report.target));
         }
-        let crossing = balls.intersecting_pairs(&x);
+        let crossing = intersecting_pairs(&world);
         totals.intersecting += crossing;
         totals.intersecting_steps += usize::from(crossing > 0);
-        let gap = model
-            .smallest_distance(&x, 10.0 * DHAT)
+        let gap = world
+            .smallest_gap(10.0 * DHAT)
             .map_err(|e| format!("step {step}: {e}"))?;
         if let Some(gap) = gap {
             totals.smallest_gap = Some(totals.smallest_gap.map_or(gap, |g| g.min(gap)));
         }
-        for (volume, rest) in balls.volumes(&x).iter().zip(&rest_volumes) {
+        for (volume, rest) in volumes(&world).iter().zip(&rest_volumes) {
             let ratio = volume / rest;
             totals.volume_range = (
                 totals.volume_range.0.min(ratio),
@@ -415,15 +342,15 @@ fn run(args: &Args) -> Result<(), String> {
     );
     let subtitle = format!(
         "{} tets, {} boundary triangles; {} intersecting triangle pairs (exact test), smallest gap {}",
-        balls.tets.len(),
-        balls.triangles.len(),
+        world.tet_count(),
+        world.triangles().len(),
         totals.intersecting,
         gap_text(totals.smallest_gap)
     );
     let svg = Filmstrip {
         title: &title,
         subtitle: &subtitle,
-        triangles,
+        triangles: world.triangles(),
         snapshots: &snapshots,
         camera: Camera::default(),
     }
