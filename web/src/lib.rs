@@ -1,0 +1,20 @@
+//! The softfem playground in a web browser (issue #43): the scene of `examples/playground`
+//! ([`scene`]), stepped by softfem's `no_std` API (f32, growable body storage), and its plain
+//! `extern "C"` face for the page ([`exports`]), compiled to `wasm32-unknown-unknown` as a
+//! cdylib that `web/main.js` instantiates without wasm-bindgen. The native program
+//! `web-timing` steps the same [`scene`] for the page's wasm/native ratio.
+//!
+//! ```text
+//! cargo build --release -p softfem-web --target wasm32-unknown-unknown
+//! cp target/wasm32-unknown-unknown/release/softfem_web.wasm web/
+//! python3 -m http.server -b 127.0.0.1 -d web 8000
+//! ```
+#![deny(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::panic,
+    clippy::indexing_slicing
+)]
+
+pub mod exports;
+pub mod scene;
