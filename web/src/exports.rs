@@ -254,33 +254,37 @@ pub extern "C" fn sf_release() {
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_stats() -> *const f64 {
     with_state(core::ptr::null(), |state| {
-        let mut stats = [0.0; STATS.len()];
-        if let Some(p) = state.playground.as_ref() {
-            let energy = p.energy();
-            let [gx, gy, gz] = state.grabbed;
-            stats = [
-                p.steps() as f64,
-                p.time(),
-                p.tet_count() as f64,
-                p.vertex_count() as f64,
-                p.converged_share(),
-                energy.kinetic,
-                energy.gravity,
-                energy.elastic,
-                f64::from(u8::from(p.finite())),
-                f64::from(u8::from(p.grabbing())),
-                f64::from(state.code),
-                gx,
-                gy,
-                gz,
-                p.layout().len() as f64,
-            ];
-        } else if let Some(code) = stats.get_mut(10) {
-            *code = f64::from(state.code);
-        }
-        state.stats = stats;
+        fill_stats(state);
         state.stats.as_ptr()
     })
+}
+
+fn fill_stats(state: &mut State) {
+    let mut stats = [0.0; STATS.len()];
+    if let Some(p) = state.playground.as_ref() {
+        let energy = p.energy();
+        let [gx, gy, gz] = state.grabbed;
+        stats = [
+            p.steps() as f64,
+            p.time(),
+            p.tet_count() as f64,
+            p.vertex_count() as f64,
+            p.converged_share(),
+            energy.kinetic,
+            energy.gravity,
+            energy.elastic,
+            f64::from(u8::from(p.finite())),
+            f64::from(u8::from(p.grabbing())),
+            f64::from(state.code),
+            gx,
+            gy,
+            gz,
+            p.layout().len() as f64,
+        ];
+    } else if let Some(code) = stats.get_mut(10) {
+        *code = f64::from(state.code);
+    }
+    state.stats = stats;
 }
 
 /// Where the render buffer starts: per vertex of every body, position (m) and unit normal,
@@ -377,4 +381,41 @@ pub extern "C" fn sf_error_ptr() -> *const u8 {
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_error_len() -> u32 {
     with_state(0, |state| state.error.len() as u32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn error_text() -> String {
+        with_state(String::new(), |state| state.error.clone())
+    }
+
+    /// The exports' status codes and error texts; each test thread has its own state.
+    #[test]
+    fn exports_report_errors_as_codes_and_text() {
+        assert_eq!(sf_step(), 6);
+        assert!(error_text().contains("no scene"));
+        assert!(sf_render_ptr().is_null() && sf_render_len() == 0);
+        assert_eq!(sf_restart(1), 0);
+        assert_eq!(sf_configure(9, 0, 5e4, 0.4, 0.01), 5);
+        assert!(error_text().contains('9'), "{}", error_text());
+        assert_eq!(sf_configure(2, 0, 5e4, 0.5, 0.01), 1);
+        assert_eq!(sf_configure(2, 0, 5e4, 0.4, f32::NAN), 4);
+        assert_eq!(sf_configure(2, 3, 5e4, 0.4, 0.01), 0);
+        assert_eq!(sf_error_len(), 0);
+        assert_eq!(sf_step(), 0);
+        let stats = with_state([0.0; STATS.len()], |state| {
+            fill_stats(state);
+            state.stats
+        });
+        assert_eq!(stats[0], 1.0); // steps
+        assert_eq!(stats[2], 2520.0); // tets: 1080 + 360 + 1080
+        assert_eq!(stats[3], 826.0); // vertices: 343 + 140 + 343
+        assert_eq!(stats[8], 1.0); // finite
+        assert_eq!(stats[10], 0.0); // no error
+        assert_eq!(sf_render_len(), 826);
+        assert_eq!(sf_collider_count(), 4);
+        assert_eq!(sf_grab(9.0, 9.0, 9.0, 0.0, 0.0, 1.0), 0);
+    }
 }

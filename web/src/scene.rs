@@ -801,3 +801,183 @@ pub fn collider_record(collider: &Collider<'_>) -> [f32; 11] {
     let [a, b, c] = sizes;
     [kind, x, y, z, qx, qy, qz, qw, a, b, c]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::HashMap;
+
+    fn playground() -> Playground {
+        Playground::new(Settings::default()).unwrap()
+    }
+
+    /// The volume of the positively oriented tetrahedron `[a, b, c, d]`.
+    fn tet_volume(x: &[Vec3], tet: [u32; 4]) -> f32 {
+        let [a, b, c, d] = tet.map(|v| x[v as usize]);
+        (b - a).dot((c - a).cross(d - a)) / 6.0
+    }
+
+    /// Each body's render surface is closed and outward: every directed edge once and its
+    /// reverse once, and the divergence theorem over its triangles gives the summed volume of
+    /// its tetrahedra (an identity independent of how the boundary was found).
+    #[test]
+    fn every_body_surface_is_closed_and_encloses_its_tets() {
+        let p = playground();
+        assert_eq!(p.layout().len(), 3);
+        for (k, &[first_vertex, vertex_count, first_index, index_count]) in
+            p.layout().iter().enumerate()
+        {
+            let x = p.positions(k).unwrap();
+            assert_eq!(x.len(), vertex_count as usize);
+            let indices = &p.indices()[first_index as usize..][..index_count as usize];
+            let triangles: Vec<[u32; 3]> = indices
+                .chunks(3)
+                .map(|t| [t[0], t[1], t[2]].map(|v| v - first_vertex))
+                .collect();
+            let mut edges = HashMap::new();
+            for &[a, b, c] in &triangles {
+                for edge in [[a, b], [b, c], [c, a]] {
+                    *edges.entry(edge).or_insert(0) += 1;
+                }
+            }
+            for (&[a, b], &count) in &edges {
+                assert_eq!((count, edges.get(&[b, a])), (1, Some(&1)), "body {k}");
+            }
+            let enclosed: f32 = triangles
+                .iter()
+                .map(|t| t.map(|v| x[v as usize]))
+                .map(|[a, b, c]| a.dot(b.cross(c)) / 6.0)
+                .sum();
+            let tets: f32 = p.bodies[k].tets().iter().map(|&t| tet_volume(x, t)).sum();
+            // f32 sums of ~1000 terms of size ~1e-6 m^3 at coordinates ~1 m.
+            assert!(
+                (enclosed - tets).abs() < 1e-4 * tets,
+                "body {k}: {enclosed} {tets}"
+            );
+        }
+    }
+
+    /// The box (body 1): 0.3 x 0.16 x 0.2 m at 800 kg/m^3 is 7.68 kg; lumped masses keep the
+    /// first moment exact, so its gravitational energy is `M g z_centre` with the centre at
+    /// z = 0.9 m (it is turned about it), and it starts at rest.
+    #[test]
+    fn the_box_starts_at_rest_with_the_closed_form_gravitational_energy() {
+        let p = playground();
+        let body = &p.bodies[1];
+        let mass: f32 = body.masses().iter().sum();
+        assert!((mass - 7.68).abs() < 1e-4, "{mass}");
+        let gravity: f64 = body
+            .positions()
+            .iter()
+            .zip(body.masses())
+            .map(|(x, &m)| f64::from(m) * 9.81 * f64::from(x.z))
+            .sum();
+        assert!((gravity - 7.68 * 9.81 * 0.9).abs() < 1e-3, "{gravity}");
+        assert_eq!(p.energy().kinetic, 0.0);
+        // Rest: the turn is rigid, so no strain energy beyond rounding.
+        assert!(p.energy().elastic.abs() < 1e-6, "{}", p.energy().elastic);
+    }
+
+    /// Render normals are unit vectors on the surface and point away from the body's centre
+    /// (the balls are convex); positions are the bodies' positions.
+    #[test]
+    fn render_buffer_holds_positions_and_outward_unit_normals() {
+        let p = playground();
+        for (k, &[first, count, ..]) in p.layout().iter().enumerate() {
+            let x = p.positions(k).unwrap();
+            let centre = x.iter().sum::<Vec3>() / x.len() as f32;
+            let part = &p.render()[first as usize..][..count as usize];
+            let mut on_surface = 0;
+            for (vertex, &position) in part.iter().zip(x) {
+                assert_eq!(vertex.position, position);
+                if vertex.normal != Vec3::ZERO {
+                    on_surface += 1;
+                    assert!((vertex.normal.length() - 1.0).abs() < 1e-5);
+                    assert!(vertex.normal.dot(position - centre) > 0.0, "body {k}");
+                }
+            }
+            // The grid vertices on the boundary of a 7 x 7 x 7 (balls) or 7 x 5 x 4 (box) grid
+            // are the grid's less its interior.
+            let boundary = if k == 1 {
+                7 * 5 * 4 - 5 * 3 * 2
+            } else {
+                7 * 7 * 7 - 5 * 5 * 5
+            };
+            assert_eq!(on_surface, boundary, "body {k}");
+        }
+    }
+
+    /// A grab from straight above the box's highest vertex holds the vertices within the grab
+    /// radius; each step moves them toward the pointer by `DRAG_SPEED dt` exactly (a kinematic
+    /// vertex lands on its target), and a release frees them.
+    #[test]
+    fn a_grab_follows_the_pointer_at_the_drag_speed() {
+        let mut p = playground();
+        let x = p.positions(1).unwrap().to_vec();
+        let (top, &point) = x
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.z.total_cmp(&b.1.z))
+            .unwrap();
+        let expected = x.iter().filter(|y| y.distance(point) < GRAB_RADIUS).count();
+        let grabbed = p.grab(point + Vec3::Z * 2.0, -Vec3::Z * 3.0).unwrap();
+        assert_eq!(grabbed, point);
+        assert_eq!(p.grab.as_ref().unwrap().held.len(), expected);
+        p.drag(point + Vec3::Z);
+        p.step().unwrap();
+        let dt = p.settings().frame_time;
+        let moved = p.positions(1).unwrap()[top];
+        let lift = DRAG_SPEED * dt;
+        assert!(
+            (moved - (point + Vec3::Z * lift)).length() < 1e-6,
+            "{moved} {point}"
+        );
+        p.release();
+        assert!(!p.grabbing());
+        // A ray that passes nowhere near a body grabs nothing.
+        assert_eq!(p.grab(Vec3::new(5.0, 5.0, 5.0), Vec3::Z), None);
+        assert_eq!(p.grab(Vec3::ZERO, Vec3::ZERO), None);
+    }
+
+    /// A new model keeps the state; a refused Poisson's ratio or frame time changes nothing.
+    #[test]
+    fn configure_keeps_the_state_and_refuses_out_of_range_settings() {
+        let mut p = playground();
+        p.step().unwrap();
+        let before: Vec<Vec3> = p.positions(0).unwrap().to_vec();
+        let neo = Settings {
+            model: Model::NeoHookean,
+            stepper: Stepper::Vbd,
+            ..Settings::default()
+        };
+        p.configure(neo).unwrap();
+        assert_eq!(p.positions(0).unwrap(), &before[..]);
+        assert_eq!(p.settings(), neo);
+        let bad = Settings {
+            poisson: 0.5,
+            ..neo
+        };
+        assert!(matches!(p.configure(bad), Err(SceneError::Material(_))));
+        let bad = Settings {
+            frame_time: 0.0,
+            ..neo
+        };
+        assert_eq!(p.configure(bad), Err(SceneError::FrameTime(0.0)));
+        assert_eq!(p.settings(), neo);
+        assert_eq!(Model::from_code(3), None);
+        assert_eq!(Stepper::from_code(4), None);
+    }
+
+    /// The capsule's record: its rotation takes the frame's z axis to the segment's direction
+    /// and its half length is half the segment (0.6 to 1.0 m along x).
+    #[test]
+    fn collider_records_describe_the_shapes() {
+        let records = colliders().map(|c| collider_record(&c));
+        assert_eq!(records.map(|r| r[0]), [0.0, 3.0, 1.0, 2.0]);
+        let [_, x, y, z, qx, qy, qz, qw, half_length, radius, _] = records[3];
+        assert_eq!([x, y, z], [0.8, 0.0, 0.15]);
+        let axis = Quat::from_xyzw(qx, qy, qz, qw) * Vec3::Z;
+        assert!((axis - Vec3::X).length() < 1e-6, "{axis}");
+        assert!((half_length - 0.2).abs() < 1e-6 && radius == 0.15);
+    }
+}
