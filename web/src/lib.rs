@@ -4,10 +4,13 @@
 //! cdylib that `web/main.js` instantiates without wasm-bindgen. The native program
 //! `web-timing` steps the same [`scene`] for the page's wasm/native ratio.
 //!
+//! Build the module, serve the repository root and open <http://127.0.0.1:8000/web/> (the page
+//! loads `../target/wasm32-unknown-unknown/release/softfem_web.wasm`, or the URL in its `wasm`
+//! query parameter):
+//!
 //! ```text
-//! cargo build --release -p softfem-web --target wasm32-unknown-unknown
-//! cp target/wasm32-unknown-unknown/release/softfem_web.wasm web/
-//! python3 -m http.server -b 127.0.0.1 -d web 8000
+//! cargo build --release -p softfem-web --lib --target wasm32-unknown-unknown
+//! python3 -m http.server -b 127.0.0.1 8000
 //! ```
 // No panic path in what the page calls; the tests may index and unwrap.
 #![cfg_attr(
