@@ -537,6 +537,18 @@ const api = {
     const n = width * height;
     return { width, height, mean: sum / n, variance: squares / n - (sum / n) ** 2 };
   },
+  // The positions' digest (16 hex digits, as web-timing prints it) after `steps` steps of the
+  // default scene with the stepper numbered `stepper`. Leaves the default scene restarted.
+  digest(steps, stepper) {
+    restart(1);
+    const s = settings();
+    if (!check(wasm.sf_configure(s.model, stepper, s.young, s.poisson, s.frameTime),
+      'settings')) return null;
+    for (let k = 0; k < steps; k++) if (!check(wasm.sf_step(), 'step')) return null;
+    const digest = BigInt.asUintN(64, wasm.sf_digest()).toString(16).padStart(16, '0');
+    restart(1);
+    return digest;
+  },
   // `steps` steps of the default scene from t = 0 with the stepper numbered `stepper` (default
   // the default one), timed around each `sf_step` call; returns the milliseconds per step.
   // Leaves the default scene restarted.

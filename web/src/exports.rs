@@ -371,6 +371,17 @@ pub extern "C" fn sf_collider_count() -> u32 {
     })
 }
 
+/// [`Playground::position_digest`] of the scene (0 without one).
+#[unsafe(no_mangle)]
+pub extern "C" fn sf_digest() -> u64 {
+    with_state(0, |state| {
+        state
+            .playground
+            .as_ref()
+            .map_or(0, Playground::position_digest)
+    })
+}
+
 /// The SIMD width softfem's batched kernels run at (`softfem::simd::Width` as a number): 0 one
 /// value at a time, which is what wasm32 gets (`softfem::simd::detected_width`), 1 groups of
 /// four.

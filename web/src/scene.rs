@@ -762,6 +762,24 @@ impl Playground {
         energy
     }
 
+    /// FNV-1a (64 bits) of every body's positions, their f32 bits in little-endian bytes in body
+    /// and vertex order: equal digests from two builds (wasm with and without SIMD128, native)
+    /// mean the same positions bit for bit.
+    #[must_use]
+    pub fn position_digest(&self) -> u64 {
+        let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+        let bytes = self
+            .bodies
+            .iter()
+            .flat_map(|b| b.positions().iter())
+            .flat_map(|x| x.to_array())
+            .flat_map(|c| c.to_bits().to_le_bytes());
+        for byte in bytes {
+            hash = (hash ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        hash
+    }
+
     /// The rest positions of body `k` (m), for tests.
     #[must_use]
     pub fn rest_positions(&self, k: usize) -> Option<&[Vec3]> {

@@ -2,11 +2,13 @@
 // loads web/index.html from a local server on 127.0.0.1, steps a fixed number of frames with a
 // scripted drag through real pointer events, and checks what the page reports.
 //
-//   node web/test/browser.mjs [--screenshot PATH]
+//   node web/test/browser.mjs [--screenshot PATH] [--reference URL]
 //
-// Needs the release wasm build (cargo build --release -p softfem-web --lib --target
-// wasm32-unknown-unknown) and `npm ci` in web/. Writes the screenshot to PATH (default
-// target/web-test/playground.png). Exits non-zero if any check fails.
+// Needs the release wasm build (see the README's "In a web browser") and `npm ci` in web/.
+// Writes the screenshot to PATH (default target/web-test/playground.png). With `--reference`,
+// also loads the module at URL (relative to web/; CI gives a scalar debug build) and checks that
+// both reach the same positions, bit for bit (FNV-1a digests), after REFERENCE_STEPS steps with
+// each stepper: the SIMD128 lanes give the scalar bits. Exits non-zero if any check fails.
 
 import { mkdir } from 'node:fs/promises';
 import { dirname, resolve } from 'node:path';
@@ -21,9 +23,12 @@ const SETTLE = 180;
 const LIFT_PX = 100; // how far the pointer moves up while dragging (CSS pixels)
 const PIXEL_VARIANCE_FLOOR = 100; // luminance^2 (0..255); a blank or flat picture is ~0
 
+const REFERENCE_STEPS = 10;
+
 const argv = process.argv.slice(2);
-const at = argv.indexOf('--screenshot');
-const screenshot = resolve(ROOT, at >= 0 ? argv[at + 1] : 'target/web-test/playground.png');
+const option = (name) => (argv.includes(name) ? argv[argv.indexOf(name) + 1] : undefined);
+const screenshot = resolve(ROOT, option('--screenshot') ?? 'target/web-test/playground.png');
+const reference = option('--reference');
 
 const started = Date.now();
 const results = [];
@@ -89,7 +94,20 @@ try {
   check('the picture is not blank', pixels.variance > PIXEL_VARIANCE_FLOOR,
     `luminance variance ${pixels.variance.toFixed(0)} (floor ${PIXEL_VARIANCE_FLOOR}), mean ` +
     `${pixels.mean.toFixed(0)}, ${pixels.width}x${pixels.height}; screenshot ${screenshot}`);
-  console.log(`converged share ${(100 * last.convergedShare).toFixed(1)} %, ` +
+  const simd = await page.evaluate(() => window.playground.simd());
+  if (reference) {
+    const digests = (p) => p.evaluate((n) => [0, 1, 2, 3].map((s) => window.playground.digest(n, s)),
+      REFERENCE_STEPS);
+    const ours = await digests(page);
+    const { page: other } = await open(browser.context, server.url,
+      `?manual&wasm=${encodeURIComponent(reference)}`);
+    const theirs = await digests(other);
+    const otherSimd = await other.evaluate(() => window.playground.simd());
+    check('the same positions as the reference module', ours.every((d, k) => d !== null &&
+      d === theirs[k]), `${simd} against ${otherSimd} (${reference}), ${REFERENCE_STEPS} steps ` +
+      `each of explicit, relaxation, Newton, VBD: ${ours.join(' ')} against ${theirs.join(' ')}`);
+  }
+  console.log(`converged share ${(100 * last.convergedShare).toFixed(1)} %, module ${simd}, ` +
     `${((Date.now() - started) / 1000).toFixed(1)} s in all`);
 } finally {
   await browser.close();

@@ -6,7 +6,8 @@
 //! Each run builds the scene at `t = 0` with the page's default settings (Stable Neo-Hookean,
 //! 1/60 s) but the stepper `STEPPER` (0 explicit, 1 relaxation, 2 Newton, 3 Vertex Block
 //! Descent; default 3, the page's) and takes `STEPS` steps (default 120); the building is not
-//! timed. Prints one line per run, `run K: T ms per step`, then the minimum and the median.
+//! timed. Prints one line per run, `run K: T ms per step`, with the FNV-1a digest of the
+//! positions reached (`Playground::position_digest`), then the minimum and the median.
 //! `SOFTFEM_MAX_WIDTH=scalar` (or `sse`, `avx2`) caps the SIMD width
 //! (`softfem::simd::set_max_width`), to see what the lanes give natively.
 
@@ -15,7 +16,7 @@ use std::time::Instant;
 
 use softfem_web::scene::{Playground, Settings, Stepper};
 
-fn run(steps: usize, stepper: Stepper) -> Result<f64, String> {
+fn run(steps: usize, stepper: Stepper) -> Result<(f64, u64), String> {
     let settings = Settings {
         stepper,
         ..Settings::default()
@@ -29,7 +30,7 @@ fn run(steps: usize, stepper: Stepper) -> Result<f64, String> {
     if !playground.finite() {
         return Err("a position or velocity is not finite".into());
     }
-    Ok(elapsed * 1e3 / steps as f64)
+    Ok((elapsed * 1e3 / steps as f64, playground.position_digest()))
 }
 
 fn main() -> ExitCode {
@@ -71,8 +72,11 @@ fn main() -> ExitCode {
     let mut times = Vec::with_capacity(runs);
     for k in 1..=runs {
         match run(steps, stepper) {
-            Ok(ms) => {
-                println!("run {k}: {ms:.3} ms per step ({steps} steps, {stepper:?})");
+            Ok((ms, digest)) => {
+                println!(
+                    "run {k}: {ms:.3} ms per step ({steps} steps, {stepper:?}), positions \
+                     {digest:016x}"
+                );
                 times.push(ms);
             }
             Err(message) => {
