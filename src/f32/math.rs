@@ -84,7 +84,10 @@ pub fn sqrt(x: Real) -> Real {
 }
 
 /// The unsigned integer with the bit width of `Real` (the portable lanes' masks).
-#[cfg(not(target_arch = "x86_64"))]
+#[cfg(not(any(
+    target_arch = "x86_64",
+    all(target_arch = "wasm32", target_feature = "simd128")
+)))]
 pub type Bits = u32;
 
 /// Values per [`Lanes`](super::lanes::Lanes) group: one SSE register of f32.

@@ -10,11 +10,18 @@ pub(crate) mod math;
 #[cfg(target_arch = "x86_64")]
 mod wide_ops;
 
-/// How a group of [`lanes::Lanes`] is held: one SSE register on x86_64, an array elsewhere.
+/// How a group of [`lanes::Lanes`] is held: one SSE register on x86_64, one `v128` on wasm32
+/// built with SIMD128, an array elsewhere.
 #[cfg(target_arch = "x86_64")]
 #[path = "../lanes/sse.rs"]
 mod lane_repr;
-#[cfg(not(target_arch = "x86_64"))]
+#[cfg(all(target_arch = "wasm32", target_feature = "simd128"))]
+#[path = "../lanes/simd128.rs"]
+mod lane_repr;
+#[cfg(not(any(
+    target_arch = "x86_64",
+    all(target_arch = "wasm32", target_feature = "simd128")
+)))]
 #[path = "../lanes/portable.rs"]
 mod lane_repr;
 

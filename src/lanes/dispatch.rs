@@ -9,7 +9,9 @@
 //! measuring and testing, never needed for correctness.
 //!
 //! Elsewhere the 4-lane groups are plain arrays the compiler vectorises: [`Width::Sse`] on
-//! aarch64 (NEON), [`Width::Scalar`] on targets without SIMD registers (a Cortex-M4F).
+//! aarch64 (NEON), [`Width::Scalar`] on targets without SIMD registers (a Cortex-M4F) and on
+//! wasm32 built without SIMD128. Built with it (`-C target-feature=+simd128`), wasm32 runs at
+//! [`Width::Sse`] with the f32 groups in one `v128` (`src/lanes/simd128.rs`).
 //!
 //! ```
 //! use softfem::simd::{self, Width};
@@ -45,7 +47,7 @@ pub enum Width {
     /// One value at a time: the scalar code, as a Cortex-M runs it.
     Scalar,
     /// Groups of 4 ([`Lanes`](crate::lanes::Lanes)): SSE/SSE2 registers on x86_64 (always
-    /// there), arrays for NEON on aarch64.
+    /// there), arrays for NEON on aarch64, one `v128` (f32) on wasm32 built with SIMD128.
     Sse,
     /// AVX2 registers: 8 f32 or 4 f64 (x86_64 with AVX2 and OS support of the YMM state).
     Avx2,
@@ -193,7 +195,13 @@ fn detect() -> Width {
 
 #[cfg(not(target_arch = "x86_64"))]
 fn detect() -> Width {
-    if cfg!(target_arch = "aarch64") {
+    // wasm32's SIMD128 is chosen when the module is built (`-C target-feature=+simd128`, which
+    // puts the f32 lanes in `v128` registers, `src/lanes/simd128.rs`); such a module runs only
+    // where the engine has it.
+    if cfg!(any(
+        target_arch = "aarch64",
+        all(target_arch = "wasm32", target_feature = "simd128")
+    )) {
         Width::Sse
     } else {
         Width::Scalar
