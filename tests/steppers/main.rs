@@ -30,4 +30,6 @@ mod stability;
 mod stagnation;
 mod step;
 mod vbd;
+// The growable world (`VecStorage`) needs the package's `alloc` feature, as body.rs's tests.
+#[cfg(feature = "alloc")]
 mod world;
