@@ -9,7 +9,7 @@
 //! query parameter):
 //!
 //! ```text
-//! cargo build --release -p softfem-web --lib --target wasm32-unknown-unknown
+//! cargo rustc --release -p softfem-web --lib --target wasm32-unknown-unknown --crate-type cdylib
 //! python3 -m http.server -b 127.0.0.1 8000
 //! ```
 // No panic path in what the page calls; the tests may index and unwrap.
