@@ -69,6 +69,7 @@ use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
 use super::mesh::TetMesh;
 use super::step::contact::boundary::ContactSurface;
+use super::step::contact::model::CandidateReuse;
 use super::step::contact::model::{ContactCounts, FrictionPair};
 use super::step::contact::potential::{ContactBarrier, PairHessian};
 use super::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
@@ -172,6 +173,10 @@ pub struct World<S: WorldStorage, M: Material> {
     edge_edge: S::Pairs,
     pair_hessians: S::PairHessians,
     friction_pairs: S::FrictionPairs,
+    /// Candidate reuse: the kept motion's boxes and pairs ([`CandidateReuse`]).
+    reuse_bounds: S::Bounds,
+    reuse_vertex_triangle: S::Pairs,
+    reuse_edge_edge: S::Pairs,
     vectors: S::Scratch,
     scalars: S::Scalars,
     blocks: S::Blocks,
@@ -234,6 +239,9 @@ macro_rules! unbuilt_world {
             edge_edge: $contact([0; 2]),
             pair_hessians: $contact(PairHessian::ZERO),
             friction_pairs: $contact(FrictionPair::ZERO),
+            reuse_bounds: $slots(Vec3::ZERO),
+            reuse_vertex_triangle: $contact([0; 2]),
+            reuse_edge_edge: $contact([0; 2]),
             vectors: $slots(Vec3::ZERO),
             scalars: $slots(0.0),
             blocks: $slots(Mat3::ZERO),
@@ -251,6 +259,8 @@ macro_rules! unbuilt_world {
                 edge_edge: 0,
                 hessians: 0,
                 friction: 0,
+                grid_queries: 0,
+                reused_queries: 0,
             },
         }
     };
@@ -599,6 +609,16 @@ impl<S: WorldStorage, M: Material> World<S, M> {
         resize_up_to(&mut self.edge_edge, e.saturating_mul(32), [0; 2]);
         resize_up_to(&mut self.pair_hessians, f.max(64), PairHessian::ZERO);
         resize_up_to(&mut self.friction_pairs, f.max(64), FrictionPair::ZERO);
+        // Candidate reuse keeps a motion's pairs (more than a configuration's): twice the room.
+        if !self.reuse_bounds.resize(2 * v, Vec3::ZERO) {
+            return Err(too_many(BodyBuffer::Surface, 2 * v));
+        }
+        resize_up_to(
+            &mut self.reuse_vertex_triangle,
+            v.saturating_mul(64),
+            [0; 2],
+        );
+        resize_up_to(&mut self.reuse_edge_edge, e.saturating_mul(64), [0; 2]);
         self.size_scratch(&self.solver.clone())
     }
 
@@ -1065,6 +1085,11 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             edge_edge: self.edge_edge.slice_mut(),
             hessians: self.pair_hessians.slice_mut(),
             friction: self.friction_pairs.slice_mut(),
+            reuse: CandidateReuse {
+                bounds: self.reuse_bounds.slice_mut(),
+                vertex_triangle: self.reuse_vertex_triangle.slice_mut(),
+                edge_edge: self.reuse_edge_edge.slice_mut(),
+            },
         };
         let mut model = ContactModel::new(
             elastic,
@@ -1134,7 +1159,21 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             }
         };
         let counts = model.counts();
+        let reuse_needed = model.reuse_needed();
         self.counts = counts;
+        // A reuse list too short for a motion's pairs made that step run the grid for every
+        // query (the same results, slower): grown for the next step where the storage can.
+        match reuse_needed {
+            Some((ContactBuffer::VertexTrianglePairs, needed)) => {
+                let room = needed.saturating_add(needed / 2);
+                let _ = grow_to(&mut self.reuse_vertex_triangle, room, needed, [0; 2]);
+            }
+            Some((ContactBuffer::EdgeEdgePairs, needed)) => {
+                let room = needed.saturating_add(needed / 2);
+                let _ = grow_to(&mut self.reuse_edge_edge, room, needed, [0; 2]);
+            }
+            _ => {}
+        }
         self.preconditioner_ready = ready;
         self.explicit_memory = memory;
         outcome

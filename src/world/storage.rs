@@ -149,6 +149,8 @@ pub trait WorldStorage {
     type PairHessians: Slots<PairHessian>;
     /// The frictional pairs.
     type FrictionPairs: Slots<FrictionPair>;
+    /// Two vectors per surface vertex (the boxes of candidate reuse).
+    type Bounds: Slots<Vec3>;
 }
 
 /// Fixed capacity, no heap: at most `B` bodies, `V` vertices and `T` tetrahedra in all, `C`
@@ -209,6 +211,7 @@ impl<const B: usize, const V: usize, const T: usize, const C: usize, const P: us
     type Pairs = heapless::Vec<[u32; 2], C>;
     type PairHessians = heapless::Vec<PairHessian, P>;
     type FrictionPairs = heapless::Vec<FrictionPair, P>;
+    type Bounds = Fixed<Vec3, 2, V>;
 }
 
 #[cfg(feature = "alloc")]
@@ -229,4 +232,5 @@ impl WorldStorage for VecStorage {
     type Pairs = alloc::vec::Vec<[u32; 2]>;
     type PairHessians = alloc::vec::Vec<PairHessian>;
     type FrictionPairs = alloc::vec::Vec<FrictionPair>;
+    type Bounds = alloc::vec::Vec<Vec3>;
 }

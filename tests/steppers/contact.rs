@@ -20,7 +20,7 @@ macro_rules! contact_tests {
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::contact::boundary::ContactSurface;
             use $($api)::+::step::contact::potential::{ContactBarrier, PairHessian};
-            use $($api)::+::step::contact::model::FrictionPair;
+            use $($api)::+::step::contact::model::{CandidateReuse, ContactCounts, FrictionPair};
             use $($api)::+::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
             use $($api)::+::step::{
                 ElasticEnergy, ElasticModel, HalfSpace, NewtonReport, NewtonScratch, NewtonSettings,
@@ -83,6 +83,9 @@ macro_rules! contact_tests {
                 edge_edge: Vec<[u32; 2]>,
                 pair_hessians: Vec<PairHessian>,
                 friction: Vec<FrictionPair>,
+                reuse_bounds: Vec<Vec3>,
+                reuse_vertex_triangle: Vec<[u32; 2]>,
+                reuse_edge_edge: Vec<[u32; 2]>,
                 rest_data: Vec<TetRest>,
                 vectors: Vec<Vec3>,
                 blocks: Vec<Mat3>,
@@ -115,6 +118,9 @@ macro_rules! contact_tests {
                         edge_edge: vec![[0; 2]; pairs * e],
                         pair_hessians: vec![PairHessian::default(); pair_hessians],
                         friction: vec![FrictionPair::default(); pair_hessians],
+                        reuse_bounds: vec![Vec3::ZERO; 2 * v],
+                        reuse_vertex_triangle: vec![[0; 2]; 2 * pairs * v],
+                        reuse_edge_edge: vec![[0; 2]; 2 * pairs * e],
                         rest_data: vec![TetRest::default(); boxes.tets.len()],
                         vectors: vec![Vec3::ZERO; newton.vectors],
                         blocks: vec![Mat3::ZERO; newton.blocks],
@@ -145,6 +151,11 @@ macro_rules! contact_tests {
                         edge_edge: &mut self.edge_edge,
                         hessians: &mut self.pair_hessians,
                         friction: &mut self.friction,
+                        reuse: CandidateReuse {
+                            bounds: &mut self.reuse_bounds,
+                            vertex_triangle: &mut self.reuse_vertex_triangle,
+                            edge_edge: &mut self.reuse_edge_edge,
+                        },
                     };
                     let model = ContactModel::new(elastic, surface, &boxes.rest, barrier, buffers).unwrap();
                     let scratch = NewtonScratch::new(&mut self.vectors, &mut self.blocks, &mut self.hessians);
@@ -166,12 +177,31 @@ macro_rules! contact_tests {
                 /// The pairs of boundary triangles (sharing no vertex) that intersect after each
                 /// step, by the exact test of `tests/common/intersection.rs`.
                 intersections: Vec<usize>,
+                /// The model's counts after the last step (its queries over the run).
+                counts: ContactCounts,
             }
 
             /// `steps` Newton steps of `boxes` from `start` positions and `velocities`, with
             /// `pinned`, the barrier `barrier`, Young's modulus `young` (Pa), density 1000.
             #[allow(clippy::too_many_arguments)]
             pub(super) fn run(
+                boxes: &Boxes,
+                (x, v): (Vec<Vec3>, Vec<Vec3>),
+                pinned: &[bool],
+                scene: &Scene<'_, Vec3>,
+                barrier: ContactBarrier,
+                young: Real,
+                steps: usize,
+                tolerance: Real,
+                friction: Real,
+            ) -> Run {
+                run_reusing(true, boxes, (x, v), pinned, scene, barrier, young, steps, tolerance, friction)
+            }
+
+            /// [`run`] with candidate reuse (`reuse`) or with its buffers empty.
+            #[allow(clippy::too_many_arguments)]
+            fn run_reusing(
+                reuse: bool,
                 boxes: &Boxes,
                 (mut x, mut v): (Vec<Vec3>, Vec<Vec3>),
                 pinned: &[bool],
@@ -183,6 +213,9 @@ macro_rules! contact_tests {
                 friction: Real,
             ) -> Run {
                 let mut b = Buffers::new(boxes, 32, 4096);
+                if !reuse {
+                    b.reuse_bounds.clear();
+                }
                 let (mut model, masses, mut scratch) = b.model(boxes, young, barrier);
                 if friction > 0.0 {
                     model = model.with_friction(friction, SUGGESTED_STICKING_SPEED).unwrap();
@@ -195,6 +228,7 @@ macro_rules! contact_tests {
                     masses: masses.clone(),
                     smallest: Vec::new(),
                     intersections: Vec::new(),
+                    counts: ContactCounts::default(),
                 };
                 for step in 0..steps {
                     let report = newton_step(&model, &masses, pinned, scene, &settings, &mut x, &mut v, &mut scratch)
@@ -206,6 +240,7 @@ macro_rules! contact_tests {
                     out.positions.push(x.clone());
                     out.velocities.push(v.clone());
                 }
+                out.counts = model.counts();
                 out
             }
 
@@ -226,6 +261,43 @@ macro_rules! contact_tests {
                     let at_floor = report.stagnated && Real::EPSILON > 1e-10;
                     assert!(report.converged || at_floor, "{name} step {step}: {report:?}");
                 }
+            }
+
+            /// Candidate reuse answers most broad-phase queries of a line search from the pairs
+            /// of its motion, and every step has the same bits as with the grid run for every
+            /// query (a falling cube landing on another, with friction: resting contact, the
+            /// impact and sliding).
+            #[test]
+            fn candidate_reuse_gives_the_bits_of_a_grid_query_per_evaluation() {
+                let side = 0.1;
+                let (low, high) = (Vec3::new(0.023, side + 5e-3, 0.017), Vec3::new(0.083, side + 0.065, 0.077));
+                let boxes = Boxes::split(
+                    &[(Vec3::ZERO, Vec3::splat(side), (2, 2, 2)), (low, high, (2, 2, 2))],
+                    BoxSplit::Alternating5,
+                );
+                let n = boxes.rest.len();
+                let scene = Scene::new(0.01)
+                    .with_gravity(GRAVITY)
+                    .with_ground(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5));
+                let barrier = ContactBarrier::holding(1e-3, 1.0).unwrap();
+                let start = (boxes.rest.clone(), vec![Vec3::ZERO; n]);
+                let [reusing, gridded] = [true, false].map(|reuse| {
+                    run_reusing(reuse, &boxes, start.clone(), &[], &scene, barrier, 1e5, 30, 1e-5, 0.5)
+                });
+                assert_eq!(gridded.counts.reused_queries, 0);
+                let (grid, reused) = (reusing.counts.grid_queries, reusing.counts.reused_queries);
+                println!(
+                    "{}: {grid} grid queries and {reused} reused with reuse, {} grid queries without",
+                    stringify!($precision),
+                    gridded.counts.grid_queries
+                );
+                assert!(reused > 2 * grid, "{grid} grid queries, {reused} reused");
+                assert!(gridded.counts.grid_queries > 2 * grid);
+                for (step, (a, b)) in reusing.positions.iter().zip(&gridded.positions).enumerate() {
+                    let same = a.iter().zip(b).all(|(p, q)| p.to_array().map(Real::to_bits) == q.to_array().map(Real::to_bits));
+                    assert!(same, "step {step}: the positions differ");
+                }
+                assert_eq!(reusing.reports, gridded.reports);
             }
 
             #[test]

@@ -23,7 +23,7 @@ macro_rules! pile_tests {
             use $($api)::+::material::StableNeoHookean;
             use $($api)::+::mesh::TetMesh;
             use $($api)::+::step::contact::boundary::ContactSurface;
-            use $($api)::+::step::contact::model::FrictionPair;
+            use $($api)::+::step::contact::model::{CandidateReuse, FrictionPair};
             use $($api)::+::step::contact::potential::{ContactBarrier, PairHessian};
             use $($api)::+::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
             use $($api)::+::step::{
@@ -113,6 +113,8 @@ macro_rules! pile_tests {
                 let (mut vertex_triangle, mut edge_edge) = (vec![[0; 2]; 32 * v], vec![[0; 2]; 32 * e]);
                 let mut pair_hessians = vec![PairHessian::default(); 8192];
                 let mut friction = vec![FrictionPair::default(); 8192];
+                let mut reuse_bounds = vec![Vec3::ZERO; 2 * v];
+                let (mut reuse_vertex_triangle, mut reuse_edge_edge) = (vec![[0; 2]; 64 * v], vec![[0; 2]; 64 * e]);
                 let mut rest_data = vec![TetRest::default(); tets.len()];
                 let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
                 let mut masses = vec![0.0; n];
@@ -127,6 +129,11 @@ macro_rules! pile_tests {
                     edge_edge: &mut edge_edge,
                     hessians: &mut pair_hessians,
                     friction: &mut friction,
+                    reuse: CandidateReuse {
+                        bounds: &mut reuse_bounds,
+                        vertex_triangle: &mut reuse_vertex_triangle,
+                        edge_edge: &mut reuse_edge_edge,
+                    },
                 };
                 let barrier = ContactBarrier::holding(DHAT, HOLDING).unwrap();
                 let model = ContactModel::new(elastic, surface, &rest, barrier, buffers)

@@ -28,6 +28,7 @@ macro_rules! self_contact_tests {
                 edge_edge_squared_distance, point_triangle_squared_distance,
             };
             use $($api)::+::step::contact::potential::{ContactBarrier, PairHessian};
+            use $($api)::+::step::contact::model::CandidateReuse;
             use $($api)::+::step::contact::{ContactBuffers, ContactModel};
             use $($api)::+::step::{
                 NewtonScratch, NewtonSettings, Scene, TetElastic, newton_step, scratch_len,
@@ -109,6 +110,8 @@ macro_rules! self_contact_tests {
                 let mut vertex_triangle = vec![[0; 2]; 64 * sv];
                 let mut edge_edge = vec![[0; 2]; 64 * se];
                 let mut pair_hessians = vec![PairHessian::default(); 16384];
+                let mut reuse_bounds = vec![Vec3::ZERO; 2 * sv];
+                let (mut reuse_vertex_triangle, mut reuse_edge_edge) = (vec![[0; 2]; 128 * sv], vec![[0; 2]; 128 * se]);
                 let mut rest_data = vec![TetRest::default(); nt];
                 let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
                 let mut masses = vec![0.0; nv];
@@ -121,6 +124,11 @@ macro_rules! self_contact_tests {
                     edge_edge: &mut edge_edge,
                     hessians: &mut pair_hessians,
                     friction: &mut [],
+                    reuse: CandidateReuse {
+                        bounds: &mut reuse_bounds,
+                        vertex_triangle: &mut reuse_vertex_triangle,
+                        edge_edge: &mut reuse_edge_edge,
+                    },
                 };
                 let barrier = ContactBarrier::holding(dhat, 1.0).unwrap();
                 let elastic = TetElastic::new(mesh, material);

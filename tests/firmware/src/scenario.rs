@@ -231,7 +231,7 @@ macro_rules! precision {
             use $($softfem)::+::types::{Mat3, Real, Vec3};
             use $($softfem)::+::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
             use $($softfem)::+::step::contact::boundary::ContactSurface;
-            use $($softfem)::+::step::contact::model::FrictionPair;
+            use $($softfem)::+::step::contact::model::{CandidateReuse, FrictionPair};
             use $($softfem)::+::step::contact::potential::{ContactBarrier, PairHessian};
             use $($softfem)::+::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
 
@@ -1231,6 +1231,10 @@ macro_rules! precision {
                 let mut edge_edge = [[0u32; 2]; PAIR_CANDIDATES];
                 let mut pair_hessians = [PairHessian::default(); PAIR_ACTIVE];
                 let mut friction = [FrictionPair::default(); PAIR_ACTIVE];
+                // Candidate reuse (the motion's pairs kept for its line search).
+                let mut reuse_bounds = [Vec3::ZERO; 2 * PAIR_VERTICES];
+                let mut reuse_vertex_triangle = [[0u32; 2]; 2 * PAIR_CANDIDATES];
+                let mut reuse_edge_edge = [[0u32; 2]; 2 * PAIR_CANDIDATES];
                 let buffers = ContactBuffers {
                     slots: &mut slots,
                     entries: &mut entries,
@@ -1238,6 +1242,11 @@ macro_rules! precision {
                     edge_edge: &mut edge_edge,
                     hessians: &mut pair_hessians,
                     friction: &mut friction,
+                    reuse: CandidateReuse {
+                        bounds: &mut reuse_bounds,
+                        vertex_triangle: &mut reuse_vertex_triangle,
+                        edge_edge: &mut reuse_edge_edge,
+                    },
                 };
                 // The upper cube's 0.13 N weight on its 4 bottom vertices: 0.05 N a pair at
                 // half the gap.

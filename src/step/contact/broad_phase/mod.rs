@@ -196,6 +196,95 @@ pub fn motion_pairs<'a>(
     )
 }
 
+/// The pairs of `superset` that are candidates of the motion `start -> end` (one array as both
+/// for a configuration) for the gap `dhat` (m): those whose grown boxes overlap, in `superset`'s
+/// order, written to the front of the output buffers.
+///
+/// Where `superset` holds every candidate of this query (it was found by [`motion_pairs`] for
+/// a motion with a gap of at least `dhat`, and every surface vertex of `start` and `end` lies in
+/// the box of its own start and end in that motion), the result is exactly the list
+/// [`motion_pairs`] (or [`proximity_pairs`]) returns for this query: the same pairs (a box of
+/// corners inside those boxes lies inside the motion's box, rounding included, as both are the
+/// corners' extremes minus and plus the same half gap), in the same sorted order. That is how a
+/// line search finds its pairs with one grid query (`ContactModel`'s candidate reuse).
+///
+/// The caller checks the positions (indices and finite values: the boxes' containment does
+/// both). Errors: [`ContactError::Capacity`] naming [`ContactBuffer::VertexTrianglePairs`]
+/// (checked first) or [`ContactBuffer::EdgeEdgePairs`] with the exact number of pairs found,
+/// as the queries give it.
+pub(crate) fn filter_pairs<'a>(
+    (start, end): (&[Vec3], &[Vec3]),
+    dhat: Real,
+    surface: &ContactSurface<'_>,
+    superset: CandidatePairs<'_>,
+    vertex_triangle: &'a mut [[u32; 2]],
+    edge_edge: &'a mut [[u32; 2]],
+) -> Result<CandidatePairs<'a>, ContactError> {
+    let boxes = Boxes {
+        start,
+        end,
+        half_gap: dhat * 0.5,
+        surface,
+    };
+    let mut found_vt = 0;
+    for &[vertex, triangle] in superset.vertex_triangle {
+        if boxes
+            .vertex(vertex as usize)
+            .overlaps(&boxes.triangle(triangle as usize))
+        {
+            record(vertex_triangle, &mut found_vt, [vertex, triangle]);
+        }
+    }
+    let mut found_ee = 0;
+    for &[first, second] in superset.edge_edge {
+        if boxes
+            .edge(first as usize)
+            .overlaps(&boxes.edge(second as usize))
+        {
+            record(edge_edge, &mut found_ee, [first, second]);
+        }
+    }
+    let (vertex_triangle, edge_edge) =
+        finish_pairs(found_vt, found_ee, vertex_triangle, edge_edge)?;
+    Ok(CandidatePairs {
+        vertex_triangle,
+        edge_edge,
+    })
+}
+
+/// The (vertex, triangle) and (edge, edge) pairs found, writable.
+type PairLists<'a> = (&'a mut [[u32; 2]], &'a mut [[u32; 2]]);
+
+/// The first `found_vt` and `found_ee` entries of the output buffers as the pairs found, or
+/// the capacity error of the first buffer too short for them.
+fn finish_pairs<'a>(
+    found_vt: usize,
+    found_ee: usize,
+    vertex_triangle: &'a mut [[u32; 2]],
+    edge_edge: &'a mut [[u32; 2]],
+) -> Result<PairLists<'a>, ContactError> {
+    for (found, buffer, name) in [
+        (
+            found_vt,
+            vertex_triangle.len(),
+            ContactBuffer::VertexTrianglePairs,
+        ),
+        (found_ee, edge_edge.len(), ContactBuffer::EdgeEdgePairs),
+    ] {
+        if found > buffer {
+            return Err(ContactError::Capacity {
+                buffer: name,
+                needed: found,
+                capacity: buffer,
+            });
+        }
+    }
+    Ok((
+        vertex_triangle.get_mut(..found_vt).unwrap_or_default(),
+        edge_edge.get_mut(..found_ee).unwrap_or_default(),
+    ))
+}
+
 /// Both queries: `start == end` for the proximity query.
 fn candidate_pairs<'a>(
     start: &[Vec3],
@@ -223,24 +312,8 @@ fn candidate_pairs<'a>(
 
     let found_vt = vertex_triangle_pairs(&boxes, &grid, scratch, vertex_triangle);
     let found_ee = edge_edge_pairs(&boxes, &grid, scratch, edge_edge);
-    for (found, buffer, name) in [
-        (
-            found_vt,
-            vertex_triangle.len(),
-            ContactBuffer::VertexTrianglePairs,
-        ),
-        (found_ee, edge_edge.len(), ContactBuffer::EdgeEdgePairs),
-    ] {
-        if found > buffer {
-            return Err(ContactError::Capacity {
-                buffer: name,
-                needed: found,
-                capacity: buffer,
-            });
-        }
-    }
-    let vertex_triangle = vertex_triangle.get_mut(..found_vt).unwrap_or_default();
-    let edge_edge = edge_edge.get_mut(..found_ee).unwrap_or_default();
+    let (vertex_triangle, edge_edge) =
+        finish_pairs(found_vt, found_ee, vertex_triangle, edge_edge)?;
     // The pairs are unique, so any sort gives the one sorted order.
     // `crate::sort`: no panic path, as the firmware check requires.
     crate::sort::sort_by_key(vertex_triangle, |&[a, b]| {
