@@ -3,6 +3,51 @@
 //! Elastic soft bodies for firmware and game engines: linear FEM/FVM kernels on tetrahedra and
 //! triangles, `#![no_std]` and allocation-free, on buffers the caller owns.
 //!
+//! ## Stepping a body
+//!
+//! A body an engine can hold ([`Body`](body::Body)): a jelly cube dropped onto a ball resting
+//! on the ground, stepped for a second at 60 Hz, once explicitly (substeps of half the stable
+//! step, chosen by the body) and once by implicit Euler (Newton's method). The body owns its
+//! mesh, masses, state and scratch in fixed-capacity arrays: no heap (y up here; see
+//! [Axes](#axes)).
+//!
+//! ```
+//! use softfem::body::{Body, FixedStorage, Solver};
+//! use softfem::{glam::Vec3, material::StableNeoHookean, step::Collider};
+//!
+//! let jelly = StableNeoHookean::from_young_poisson(5.0e4, 0.45)?; // Pa
+//! let ground = Collider::half_space(Vec3::ZERO, Vec3::Y).with_friction(0.5); // the plane y = 0
+//! let colliders = [ground, Collider::sphere(Vec3::new(0.0, 0.15, 0.0), 0.15)]; // m
+//! let (low, high) = (Vec3::new(-0.1, 0.35, -0.1), Vec3::new(0.1, 0.55, 0.1)); // a 0.2 m cube
+//! for solver in [Solver::explicit(), Solver::newton()] {
+//!     // 2 x 2 x 2 cells of 5 tetrahedra: 27 vertices, 40 tets, 1000 kg/m^3.
+//!     let mut body = Body::<FixedStorage<27, 40>, _>::from_box(low, high, [2; 3], 1000.0, jelly)?;
+//!     body.set_solver(solver)?;
+//!     body.set_gravity(Vec3::new(0.0, -9.81, 0.0)); // m/s^2
+//!     for _ in 0..60 {
+//!         body.step_with_colliders(1.0 / 60.0, &colliders)?; // a failed step restores the state
+//!     }
+//!     assert!(body.positions().iter().all(|&x| colliders.iter().all(|c| c.distance(x) > -1e-4)));
+//! }
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
+//! A failed step ([`StepError`], e.g. `EnergyBlowUp` above the stable step) leaves the body's
+//! state as it was. The explicit solver is stable below a computed bound; the implicit ones
+//! ([`Solver::relax`](body::Solver::relax), [`Solver::newton`](body::Solver::newton),
+//! [`Solver::vbd`](body::Solver::vbd)) at any step, at the price of numerical damping.
+//!
+//! ## The user guide
+//!
+//! The guide is in the repository under `docs/guide/` (its table of contents is
+//! `docs/guide/README.md`), in chapters to read in order: bodies and meshes; materials and which
+//! one a scene needs; solvers and time steps; colliders and contact; assets and rendering; many
+//! cores and SIMD; firmware; the web page; reliability and errors; performance beside the peers;
+//! the mathematics (`docs/math.md`, which the code cites by section). Every example in it runs
+//! as a doc test.
+//!
+//! ## What is in it
+//!
 //! * `f32` at the crate root, the same API in `f64` under [`softfem::f64`](mod@f64) (default
 //!   feature `f64`), compiled from one source.
 //! * [`svd`]: a rotation-variant 3x3 Jacobi SVD (`det u = det v = +1`, inversion carried by the
@@ -42,11 +87,20 @@
 //! `DMat3` in f64); the crate re-exports it as `softfem::glam`, so that callers use the exact
 //! version the kernels are built against.
 //!
-//! ## Stepping a body
+//! ## Axes
 //!
-//! A jelly cube from the box generator, stable neo-Hookean, dropped 0.1 m onto the ground and
-//! stepped explicitly for a second (y up here; see [Axes](#axes)). Every buffer is the caller's:
-//! nothing is allocated.
+//! The library has no preferred "up": gravity is a vector in the step's [`Scene`](step::Scene)
+//! and the ground a plane given by its normal
+//! ([`HalfSpace::new(normal, offset)`](step::HalfSpace::new)), so any axis convention works. The
+//! examples in these docs and the README use **y up** (gravity `(0, -9.81, 0)`, ground normal
+//! `Vec3::Y`); the `bouncy` scene and the `tradeoffs` charts use **z up** (gravity
+//! `(0, 0, -9.81)`, ground normal `Vec3::Z`), as ParaView shows it.
+//!
+//! ## The kernels on their own
+//!
+//! The same drop with the low-level kernels: a jelly cube from the box generator, stable
+//! neo-Hookean, dropped 0.1 m onto the ground and stepped explicitly for a second. Every buffer
+//! is the caller's: nothing is allocated.
 //!
 //! ```
 //! use softfem::{element::TetRest, generate::{BoxSplit, fill_box}, glam::Vec3, mesh::TetMesh};
@@ -86,23 +140,9 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 //!
-//! A failed step ([`StepError`], e.g. `EnergyBlowUp` above the stable step) leaves `x` and `v`
-//! as they were. For steps far above the explicit bound (1/60 s on a stiff body),
-//! [`relax_step`](step::relax_step) takes implicit Euler steps by minimising an energy
-//! ([`RelaxSettings`](step::RelaxSettings), scratch sized by
-//! [`scratch_len::relax`](step::scratch_len::relax)): stable at any step, at the price of
-//! numerical damping.
-//!
-//! ## Axes
-//!
-//! The library has no preferred "up": gravity is a vector in the step's [`Scene`](step::Scene)
-//! and the ground a plane given by its normal
-//! ([`HalfSpace::new(normal, offset)`](step::HalfSpace::new)), so any axis convention works. The
-//! examples in these docs and the README use **y up** (gravity `(0, -9.81, 0)`, ground normal
-//! `Vec3::Y`); the `bouncy` scene and the `tradeoffs` charts use **z up** (gravity
-//! `(0, 0, -9.81)`, ground normal `Vec3::Z`), as ParaView shows it.
-//!
-//! ## The kernels on their own
+//! For steps far above the explicit bound (1/60 s on a stiff body),
+//! [`relax_step`](step::relax_step), [`newton_step`](step::newton_step) and
+//! [`vbd_step`](step::vbd_step) take implicit Euler steps by minimising an energy.
 //!
 //! A unit cube in five tetrahedra, squashed by 10%, pushes back:
 //! ```
@@ -219,3 +259,39 @@ pub mod f64;
 #[cfg(doctest)]
 #[doc = include_str!("../README.md")]
 struct ReadmeDoctests;
+
+// Every chapter of the user guide (`docs/guide/`) runs its Rust examples as doc tests the same
+// way, one hidden item per chapter (`tests/assets/front_page.rs` checks that none is missing).
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide/01-bodies-and-meshes.md")]
+struct GuideBodiesAndMeshes;
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide/02-materials.md")]
+struct GuideMaterials;
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide/03-solvers-and-time-steps.md")]
+struct GuideSolversAndTimeSteps;
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide/04-colliders-and-contact.md")]
+struct GuideCollidersAndContact;
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide/05-assets-and-rendering.md")]
+struct GuideAssetsAndRendering;
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide/06-many-cores-and-simd.md")]
+struct GuideManyCoresAndSimd;
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide/07-firmware.md")]
+struct GuideFirmware;
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide/08-web-browser.md")]
+struct GuideWebBrowser;
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide/09-reliability-and-errors.md")]
+struct GuideReliabilityAndErrors;
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide/10-performance.md")]
+struct GuidePerformance;
+#[cfg(doctest)]
+#[doc = include_str!("../docs/guide/11-mathematics.md")]
+struct GuideMathematics;
