@@ -24,7 +24,7 @@
 //!   the whole call divided by the reported iterations (which spreads the call's fixed cost: the
 //!   first evaluations and the final velocity pass), and the marginal cost `(T_40 - T_20) / (iterations_40 -
 //!   iterations_20)`, which is the loop alone. Timed twice: with plain descent and first trial
-//!   step 1 (the settings of the first README table) and with the defaults
+//!   step 1 (the settings of the first table of docs/guide/10-performance.md) and with the defaults
 //!   (`RelaxSettings::new`: Chebyshev acceleration, step 2), whose iterations are mostly
 //!   accelerated trials (one fused pass and two vertex passes each). A second table gives the
 //!   iterations and energy evaluations each call reported.
@@ -218,7 +218,7 @@ fn case<'a, M: Material + 'a>(
 
     // The relaxation from rest, state reset before each call.
     // `accelerated`: the defaults (Chebyshev, first trial step 2); otherwise plain descent,
-    // first trial step 1: the settings the first table in the README was measured with.
+    // first trial step 1: the settings the first table of docs/guide/10-performance.md was measured with.
     let relax_settings = |budget: u32, accelerated: bool| {
         let settings = RelaxSettings::new().with_tolerance(0.0, budget);
         if accelerated {

@@ -12,7 +12,7 @@
 //!    reports elements/s);
 //! 2. a plain `Instant` pass that times every variant round-robin several times, keeps the minimum
 //!    per variant and prints a markdown table (ns per decomposition, speed-up over nalgebra) ready
-//!    to paste into the README. Interleaving the variants and taking minima means the ratios come
+//!    to paste into the guide (docs/guide/10-performance.md). Interleaving the variants and taking minima means the ratios come
 //!    from the same machine state, which criterion's separate runs do not guarantee.
 //!
 //! `SOFTFEM_BENCH_QUICK=1` skips criterion and runs the table pass with few repetitions: a smoke
@@ -24,7 +24,7 @@
 //! `SOFTFEM_BENCH_FTZ=1` (x86_64) sets the MXCSR's flush-to-zero and denormals-are-zero bits
 //! for the whole run: subnormal results and inputs become zero, which changes some results (the
 //! crate never does this) but shows what subnormal numbers cost on this CPU. On an Intel Xeon
-//! they cost the batched SVD a third of its time; see the README's SVD section.
+//! they cost the batched SVD a third of its time; see the SVD section of docs/guide/10-performance.md.
 
 mod common;
 

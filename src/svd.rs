@@ -31,7 +31,7 @@
 //! # Accuracy
 //! For every finite input whose singular values stay below `Real::MAX`: no NaN or inf, `u` and `v`
 //! orthonormal to a few `eps`, reconstruction error a small multiple of `eps * ||a||` (see the
-//! README for the measured maxima per class of matrix). Singular values in the subnormal range
+//! docs/guide/10-performance.md for the measured maxima per class of matrix). Singular values in the subnormal range
 //! are rounded to that range's grid, which adds up to one smallest subnormal of absolute error
 //! (no format can do better). The number of sweeps trades accuracy for speed: see
 //! [`svd3_sweeps`].
@@ -55,7 +55,7 @@ pub use batch::{svd3_batch, svd3_batch_sweeps};
 
 /// The most Jacobi sweeps [`svd3`] runs: 4 in both precisions (each sweep is three rotations;
 /// fewer run when the matrix has converged before, see the module documentation). With 3,
-/// the worst error on the 3072 matrices of the README's SVD chart is 8.3e-6 (`cargo run
+/// the worst error on the 3072 matrices of the guide's SVD chart (docs/guide/10-performance.md) is 8.3e-6 (`cargo run
 /// --release -p softfem-examples --features charts --bin tradeoffs -- --only svd`); with 4, f32
 /// reaches its rounding floor (4.0e-7 over the normal-range classes of `cargo test --release --test
 /// kernels svd::report -- --nocapture`, 6.5e-16 in f64), and 5 to 8 sweeps give the same bits.
@@ -341,7 +341,7 @@ fn decompose_scaled<L: Lane>(
         // below in f32), and the rotations square them into subnormal numbers, which Intel
         // cores handle by a microcode assist (about 12 ns per instruction on an Intel Xeon,
         // where a normal result takes under 1): with some lanes converged, that made the
-        // 16-lane batch 2.1x slower there (README, "The SVD"). Zero entries give rotations
+        // 16-lane batch 2.1x slower there (docs/guide/10-performance.md, "The SVD"). Zero entries give rotations
         // without subnormals; the results are still discarded, so every lane keeps its bits.
         if mixed {
             s.s01 = L::select(active, s.s01, zero);

@@ -163,7 +163,7 @@ fn csv_field(field: &str) -> String {
 /// file is new or empty; does nothing when the variable is unset. A relative path is taken from
 /// the repository root (cargo runs a bench in its package's folder, `benches/`), so
 /// `SOFTFEM_BENCH_CSV=target/parallel.csv` typed at the root writes `target/parallel.csv`.
-/// Several benches can append to one file, so the README tables and the charts come from one
+/// Several benches can append to one file, so the guide's tables and the charts come from one
 /// run. Panics (failing the bench) if the file cannot be written: a run asked to record must not
 /// silently lose rows.
 pub fn append_csv_rows(rows: &[CsvRow]) {

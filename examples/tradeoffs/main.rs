@@ -3,7 +3,7 @@
 //!
 //! Each chart measures one trade-off and writes an SVG chart and the CSV of the numbers behind it
 //! into the output directory: `target/tradeoffs/` by default (a scratch folder), or, with
-//! `--update-docs`, the committed `docs/charts/` that the README embeds:
+//! `--update-docs`, the committed `docs/charts/` that the guide embeds:
 //!
 //! | chart | what it measures |
 //! |---|---|
@@ -60,7 +60,7 @@ pub struct Args {
     #[arg(long)]
     pub out: Option<PathBuf>,
 
-    /// Write into the repository's docs/charts/, the charts the README embeds (a full run only).
+    /// Write into the repository's docs/charts/, the charts the guide embeds (a full run only).
     #[arg(long, conflicts_with_all = ["out", "quick"])]
     pub update_docs: bool,
 
@@ -124,7 +124,7 @@ pub enum Size {
     Full,
 }
 
-/// What a chart found, in numbers, for the closing summary (and the README).
+/// What a chart found, in numbers, for the closing summary (and the guide).
 #[derive(Clone, Debug)]
 pub struct Findings {
     chart: &'static str,

@@ -115,7 +115,7 @@ impl<'a> TetMesh<'a> {
     /// field by field, which the wide SIMD lanes load without transposing (1.00x to 1.23x the
     /// direct force pass at 105k tetrahedra with AVX-512 in eight runs, 1.18x and 1.44x at 1M
     /// in two, where the pass prefetches the blocks ahead; see [`TetRestBlock`] and the
-    /// README). The results
+    /// docs/guide/10-performance.md). The results
     /// of every kernel are bit for bit those without blocks; only the passes that form
     /// deformation gradients a group at a time use them. Costs 40 bytes per element in f32
     /// (80 in f64), in [`rest_block_count`](super::rest_block_count) blocks.

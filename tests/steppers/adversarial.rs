@@ -1,5 +1,5 @@
 //! Hostile inputs and the behaviour each must get, in both precisions: one table row per probe
-//! (the defects of issue 16, D1 and D3 to D9, and the general promises of the README: NaN and
+//! (the defects of issue 16, D1 and D3 to D9, and the general promises of docs/guide/09-reliability-and-errors.md: NaN and
 //! infinite positions, out-of-range indices, mismatched buffers, non-positive masses and steps,
 //! absurd sizes). Every row that expects an error also checks that the caller's buffers are
 //! bit for bit what they were. D2 (early blow-up detection) is measured in

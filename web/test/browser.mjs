@@ -4,7 +4,7 @@
 //
 //   node web/test/browser.mjs [--screenshot PATH] [--reference URL]
 //
-// Needs the release wasm build (see the README's "In a web browser") and `npm ci` in web/.
+// Needs the release wasm build (see docs/guide/08-web-browser.md) and `npm ci` in web/.
 // Writes the screenshot to PATH (default target/web-test/playground.png). With `--reference`,
 // also loads the module at URL (relative to web/; CI gives a scalar debug build) and checks that
 // both reach the same positions, bit for bit (FNV-1a digests), after REFERENCE_STEPS steps with
