@@ -44,10 +44,12 @@ pub const DENSITY: f32 = 1000.0;
 pub const STIFFNESS: f32 = 2.0;
 /// Half the inner width of the box (m): a 2 x 2 layer of balls (16 cm) just fits.
 pub const HALF_WIDTH: f32 = 0.09;
-/// The walls' height (m): four ball radii, low enough to look over from the page's camera.
-pub const WALL_HEIGHT: f32 = 0.16;
-/// Half the walls' thickness (m).
-pub const WALL_HALF_THICKNESS: f32 = 0.05;
+/// The walls' height (m): two and a half ball radii, above the first layer's top and low
+/// enough for the page's camera to look over.
+pub const WALL_HEIGHT: f32 = 0.1;
+/// Half the walls' thickness (m): 5 cm walls, thicker than a frame's motion (a vertex is pushed
+/// out of a collider through its nearest face).
+pub const WALL_HALF_THICKNESS: f32 = 0.025;
 /// The Coulomb coefficient between the balls, on the ground and on the walls.
 pub const FRICTION: f32 = 0.3;
 /// The barrier's gap `dhat` (m) and the force (N) a pair at half of it holds.
@@ -56,9 +58,10 @@ pub const DHAT: f32 = 1e-3;
 pub const HOLDING: f32 = 1.0;
 /// Newton's relative tolerance and budget in the pile. The playground's `1e-4` is below the
 /// f32 rounding floor of a resting pile (the solves stop there as stagnated after five
-/// iterations or more); `1e-2` of the load is met in one to three iterations at rest, and a
-/// frame of the settled pile costs about 5 ms natively instead of 16.
-pub const NEWTON_TOLERANCE: f32 = 1e-2;
+/// iterations or more, 16 ms a frame of the settled pile natively here against 5 ms at
+/// `1e-2`); `3e-2` of the load (the larger of the first residual and the weight) takes the
+/// first second, the landing, from 18.5 to 12.6 ms a frame natively (load 4).
+pub const NEWTON_TOLERANCE: f32 = 3e-2;
 /// See [`NEWTON_TOLERANCE`].
 pub const NEWTON_ITERATIONS: u32 = 50;
 /// The relaxation's tolerance and budget in the pile: its default 300 iterations take about
@@ -118,16 +121,18 @@ fn drawn_colliders() -> [Collider<'static>; 5] {
     ]
 }
 
-/// Ball `k`'s centre (m): a spiral, 135 degrees and 6 cm up from one ball to the next, 3.5 cm
-/// from the box's axis, the lowest 5 mm above the ground (`tests/common/ball_pile.rs`): every
-/// pair starts at least 8 mm apart.
+/// Ball `k`'s centre (m): a spiral, 135 degrees and 3 cm up from one ball to the next, 4.5 cm
+/// from the box's axis, the lowest 5 mm above the ground: every pair starts at least 7.4 mm
+/// apart, each ball 5 mm from the walls. `tests/common/ball_pile.rs` climbs 6 cm a ball at
+/// 3.5 cm; half that height halves the fall, and the landing's first second costs 17 ms a frame
+/// natively here instead of 26 (Newton iterates longer after a harder impact).
 #[must_use]
 pub fn centre(k: usize) -> Vec3 {
     let angle = (135.0 * k as f32).to_radians();
     Vec3::new(
-        0.035 * angle.cos(),
-        0.035 * angle.sin(),
-        RADIUS + 0.005 + 0.06 * k as f32,
+        0.045 * angle.cos(),
+        0.045 * angle.sin(),
+        RADIUS + 0.005 + 0.03 * k as f32,
     )
 }
 
@@ -768,14 +773,14 @@ mod tests {
             peak
         };
 
-        // Landing: the fall turns about 1.7 J of gravitational energy into motion (0.8 J of it
-        // kinetic at the peak), and implicit Euler with friction takes it out: 2/3 s later a
-        // seven-thousandth is left (1.1e-4 J), a tenth of a second later a hundred-thousandth.
+        // Landing: the fall turns 0.8 J of gravitational energy into motion (0.30 J kinetic at
+        // the peak) and strain, and implicit Euler with friction takes it out: 2/3 s later
+        // 7e-5 J of kinetic energy is left.
         let fall = check(&mut pile, 40);
         let landed = pile.energy();
-        assert!(fall > 0.3, "{fall}");
+        assert!(fall > 0.1, "{fall}");
         assert!(landed.kinetic < 1e-3 * fall, "{} {fall}", landed.kinetic);
-        assert!(landed.total() < start.total() - 1.0, "{landed:?} {start:?}");
+        assert!(landed.total() < start.total() - 0.5, "{landed:?} {start:?}");
         assert!(pile.contact_pairs() > 0);
         // A pile, not a row: a 2 x 2 layer fills the floor, so at most four balls lie on it
         // (centre below one radius plus the gap), the others on them, every centre below the
@@ -809,7 +814,8 @@ mod tests {
         pile.release();
         assert!(!pile.grabbing());
 
-        // Dropped back onto the pile, it comes to rest again.
+        // Dropped back onto the pile, it comes to rest again (the peak 0.13 J, the last
+        // 8e-7 J).
         let drop = check(&mut pile, 25);
         assert!(
             pile.energy().kinetic < 1e-3 * drop,
