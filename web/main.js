@@ -3,25 +3,35 @@
 // bodies' boundary surfaces (positions and normals read straight from the module's memory) and
 // the colliders with WebGL2. z is up, lengths in metres.
 //
+// Two scenes: the playground (separate bodies on the colliders, the default) and the pile (balls
+// in one World, in contact with each other, in a box of walls); the Scene control switches.
+//
 // Query parameters: `wasm=URL` loads the module from elsewhere (default: the release build in
 // the repository's target/ folder, for a server started at the repository root); `manual` runs
-// no animation loop, for the browser test, which steps and draws with `playground.advance(n)`.
+// no animation loop, for the browser test, which steps and draws with `playground.advance(n)`;
+// `scene=pile` starts with the pile.
 
 const params = new URLSearchParams(location.search);
 const WASM_URL = params.get('wasm') ?? '../target/wasm32-unknown-unknown/release/softfem_web.wasm';
 const MANUAL = params.has('manual');
+const START_SCENE = params.get('scene') === 'pile' ? 1 : 0;
 
 // The order of web/src/exports.rs's STATS.
 const STATS = ['steps', 'time', 'tets', 'vertices', 'convergedShare', 'kinetic', 'gravity',
-  'elastic', 'finite', 'grabbing', 'errorCode', 'grabX', 'grabY', 'grabZ', 'bodies'];
+  'elastic', 'finite', 'grabbing', 'errorCode', 'grabX', 'grabY', 'grabZ', 'bodies',
+  'contactPairs', 'scene'];
 const COLLIDER_LEN = 11;
-const BODY_COLOURS = [[0.93, 0.55, 0.25], [0.25, 0.7, 0.72], [0.62, 0.45, 0.85]];
+const BODY_COLOURS = [[0.93, 0.55, 0.25], [0.25, 0.7, 0.72], [0.62, 0.45, 0.85],
+  [0.85, 0.35, 0.45], [0.45, 0.75, 0.35], [0.9, 0.8, 0.3]];
+const PLAYGROUND = 0;
+const PILE = 1;
 
 const canvas = document.getElementById('view');
 const readout = document.getElementById('readout');
 const errorBox = document.getElementById('error');
-const controls = Object.fromEntries(['model', 'young', 'poisson', 'stepper', 'frame', 'pause',
-  'restart'].map((id) => [id, document.getElementById(id)]));
+const note = document.getElementById('note');
+const controls = Object.fromEntries(['scene', 'model', 'young', 'poisson', 'stepper', 'frame',
+  'pause', 'restart'].map((id) => [id, document.getElementById(id)]));
 
 let wasm; // the module's exports
 const pageErrors = [];
@@ -110,7 +120,16 @@ function pose(p, q, s = [1, 1, 1]) {
 
 // ---- the camera ------------------------------------------------------------------------------
 
-const camera = { azimuth: -1.75, elevation: 0.38, distance: 2.8, target: [-0.3, 0, 0.35] };
+// Each scene's view (the playground's colliders 1.6 m across, the pile's box 28 cm) and the
+// radius of the ball that marks where the pointer holds a body (m); the wheel zooms between
+// `nearest` and 8 m.
+const VIEWS = [
+  { azimuth: -1.75, elevation: 0.38, distance: 2.8, target: [-0.3, 0, 0.35], marker: 0.015,
+    nearest: 0.8 },
+  { azimuth: -1.75, elevation: 0.85, distance: 0.62, target: [0, 0.02, 0.04], marker: 0.006,
+    nearest: 0.3 },
+];
+const camera = { ...VIEWS[PLAYGROUND] };
 
 function eye() {
   const c = Math.cos(camera.elevation);
@@ -353,7 +372,8 @@ function draw() {
     }
   }
   if (dragTarget) {
-    drawMesh(unitSphere, pose(dragTarget, [0, 0, 0, 1], [0.015, 0.015, 0.015]), [1, 0.9, 0.3]);
+    const r = camera.marker;
+    drawMesh(unitSphere, pose(dragTarget, [0, 0, 0, 1], [r, r, r]), [1, 0.9, 0.3]);
   }
 }
 
@@ -387,6 +407,7 @@ function updateReadout() {
     `ms per step   ${msPerStep().toFixed(1)}`,
     `tetrahedra    ${s.tets}`,
     `converged     ${(100 * s.convergedShare).toFixed(1)} %`,
+    `contact pairs ${s.scene === PILE ? s.contactPairs : '- (bodies apart)'}`,
     `steps         ${s.steps}  (t = ${s.time.toFixed(2)} s)`,
     `wasm          ${api.simd()}`,
   ].join('\n');
@@ -401,8 +422,25 @@ function restart(defaults = 0) {
   showSettings();
 }
 
+// Switches to the scene numbered `kind` (PLAYGROUND or PILE) at t = 0 with the settings in
+// force (the pile takes Newton for VBD), and to its view.
+function switchScene(kind) {
+  failed = false;
+  errorBox.textContent = '';
+  recent.length = 0;
+  dragTarget = null;
+  if (check(wasm.sf_scene(kind), 'scene')) buildBodies();
+  Object.assign(camera, VIEWS[kind]);
+  showSettings();
+}
+
 function showSettings() {
   const s = settings();
+  const pile = stats().scene === PILE;
+  controls.scene.value = String(pile ? PILE : PLAYGROUND);
+  // The pile's World refuses Vertex Block Descent: its option is off there, with the note.
+  controls.stepper.querySelector('option[value="3"]').disabled = pile;
+  note.hidden = !pile;
   controls.model.value = String(s.model);
   controls.stepper.value = String(s.stepper);
   controls.young.value = String(Math.log10(s.young));
@@ -481,7 +519,8 @@ canvas.addEventListener('pointerup', letGo);
 canvas.addEventListener('pointercancel', letGo);
 canvas.addEventListener('wheel', (event) => {
   event.preventDefault();
-  camera.distance = Math.min(8, Math.max(0.8, camera.distance * Math.exp(event.deltaY * 0.001)));
+  camera.distance = Math.min(8, Math.max(camera.nearest,
+    camera.distance * Math.exp(event.deltaY * 0.001)));
 }, { passive: false });
 
 // ---- start -----------------------------------------------------------------------------------
@@ -538,9 +577,10 @@ const api = {
     return { width, height, mean: sum / n, variance: squares / n - (sum / n) ** 2 };
   },
   // The positions' digest (16 hex digits, as web-timing prints it) after `steps` steps of the
-  // default scene with the stepper numbered `stepper`. Leaves the default scene restarted.
-  digest(steps, stepper) {
-    restart(1);
+  // scene numbered `scene` (default the playground) at the default settings with the stepper
+  // numbered `stepper`. Leaves that scene restarted with the default settings.
+  digest(steps, stepper, scene = PLAYGROUND) {
+    if (!start(scene)) return null;
     const s = settings();
     if (!check(wasm.sf_configure(s.model, stepper, s.young, s.poisson, s.frameTime),
       'settings')) return null;
@@ -549,11 +589,11 @@ const api = {
     restart(1);
     return digest;
   },
-  // `steps` steps of the default scene from t = 0 with the stepper numbered `stepper` (default
-  // the default one), timed around each `sf_step` call; returns the milliseconds per step.
-  // Leaves the default scene restarted.
-  bench(steps, stepper) {
-    restart(1);
+  // `steps` steps of the scene numbered `scene` (default the playground) from t = 0 with the
+  // stepper numbered `stepper` (default the scene's default one), timed around each `sf_step`
+  // call; returns the milliseconds per step. Leaves that scene restarted with the defaults.
+  bench(steps, stepper, scene = PLAYGROUND) {
+    if (!start(scene)) return NaN;
     const s = settings();
     if (!check(wasm.sf_configure(s.model, stepper ?? s.stepper, s.young, s.poisson,
       s.frameTime), 'settings')) return NaN;
@@ -568,7 +608,16 @@ const api = {
     return total / steps;
   },
   restart,
+  // Switches to the scene numbered `kind` (0 the playground, 1 the pile), as the control does.
+  scene: switchScene,
 };
+
+// The scene numbered `kind` at t = 0 with the default settings (as the scene admits them).
+function start(kind) {
+  if (stats().scene !== kind) switchScene(kind);
+  restart(1);
+  return stats().scene === kind && stats().errorCode === 0;
+}
 window.playground = api;
 
 api.ready = (async () => {
@@ -577,9 +626,11 @@ api.ready = (async () => {
   const { instance } = await WebAssembly.instantiateStreaming(response, {});
   wasm = instance.exports;
   restart(1);
+  if (START_SCENE !== PLAYGROUND) switchScene(START_SCENE);
   for (const id of ['model', 'young', 'poisson', 'stepper', 'frame']) {
     controls[id].addEventListener('change', configure);
   }
+  controls.scene.addEventListener('change', () => switchScene(Number(controls.scene.value)));
   controls.restart.addEventListener('click', () => restart(0));
   // In manual mode nothing runs between the test's calls: `advance` steps and draws, and an
   // idle page rendering with SwiftShader would take a core from the native timing beside it.

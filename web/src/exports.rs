@@ -1,14 +1,15 @@
 //! The module's face for the page: plain `extern "C"` functions over one scene held by the
-//! module. Numbers go in as arguments; what the page draws or reads (the render buffer, the
-//! indices, the statistics, the colliders, the last error's text) stays in the module's memory,
-//! and a function returns where it starts, for the page to view through typed arrays (views to
-//! take again after every call: the memory may grow).
+//! module, the playground or the pile ([`sf_scene`]; the playground until told otherwise).
+//! Numbers go in as arguments; what the page draws or reads (the render buffer, the indices, the
+//! statistics, the colliders, the last error's text) stays in the module's memory, and a
+//! function returns where it starts, for the page to view through typed arrays (views to take
+//! again after every call: the memory may grow).
 //!
 //! No export panics: every failure is a status code, with the text of the last one at
 //! [`sf_error_ptr`] ([`sf_error_len`] bytes of UTF-8). Status codes: 0 success, 1 a material
 //! parameter refused, 2 a body refused its mesh, solver or a vertex, 3 a step failed (the scene
 //! stays as before that body's step; restart or change a setting), 4 a frame time not finite
-//! and positive, 5 a model or stepper code out of range, 6 no scene (the first
+//! and positive, 5 a model, stepper or scene code out of range, 6 no scene (the first
 //! [`sf_restart`] failed), 7 a call made while another was running (not possible from one
 //! JavaScript thread).
 
@@ -17,10 +18,11 @@ use core::fmt::Write;
 
 use softfem::glam::Vec3;
 
-use crate::scene::{Model, Playground, SceneError, Settings, Stepper, collider_record};
+use crate::scene::{Model, SceneError, Settings, Stepper, collider_record};
+use crate::stage::{Kind, Stage};
 
 /// The numbers [`sf_stats`] writes, in this order.
-pub const STATS: [&str; 15] = [
+pub const STATS: [&str; 17] = [
     "steps",
     "time",
     "tets",
@@ -36,6 +38,8 @@ pub const STATS: [&str; 15] = [
     "grab y",
     "grab z",
     "bodies",
+    "contact pairs",
+    "scene",
 ];
 
 /// Numbers per collider in [`sf_colliders`] (see [`collider_record`]).
@@ -43,7 +47,9 @@ pub const COLLIDER_LEN: usize = 11;
 
 #[derive(Default)]
 struct State {
-    playground: Option<Playground>,
+    stage: Option<Stage>,
+    /// The scene [`sf_restart`] builds.
+    kind: Kind,
     settings: Settings,
     error: String,
     code: i32,
@@ -96,36 +102,58 @@ impl State {
         code
     }
 
+    /// Builds a scene of `kind` with `settings` (as the kind admits them).
+    fn restart(&mut self) -> i32 {
+        self.code = 0;
+        self.error.clear();
+        self.settings = self.kind.admitted(self.settings);
+        match Stage::new(self.kind, self.settings) {
+            Ok(stage) => {
+                self.stage = Some(stage);
+                0
+            }
+            Err(error) => self.outcome(Err(error)),
+        }
+    }
+
     fn no_scene(&mut self) -> i32 {
         self.fail(6, format_args!("no scene: restart it"))
     }
 }
 
 /// Builds the scene at `t = 0` with the settings last given to [`sf_configure`], or, if
-/// `defaults` is not 0, with [`Settings::default`] (also before any [`sf_configure`]). Returns the
-/// status (0 or 1, 2, 4 with the error's text).
+/// `defaults` is not 0, with [`Settings::default`] (also before any [`sf_configure`]); the pile
+/// takes Newton's method where the settings say Vertex Block Descent ([`Kind::admitted`]).
+/// Returns the status (0 or 1, 2, 4 with the error's text).
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_restart(defaults: u32) -> i32 {
     with_state(7, |state| {
         if defaults != 0 {
             state.settings = Settings::default();
         }
-        state.code = 0;
-        state.error.clear();
-        match Playground::new(state.settings) {
-            Ok(playground) => {
-                state.playground = Some(playground);
-                0
-            }
-            Err(error) => state.outcome(Err(error)),
+        state.restart()
+    })
+}
+
+/// Switches to the scene numbered `kind` (0 the playground, 1 the pile) and builds it at `t = 0`
+/// as [`sf_restart`]`(0)` does. Returns the status (5 for a number out of range: nothing
+/// changes then).
+#[unsafe(no_mangle)]
+pub extern "C" fn sf_scene(kind: u32) -> i32 {
+    with_state(7, |state| match Kind::from_code(kind) {
+        Some(kind) => {
+            state.kind = kind;
+            state.restart()
         }
+        None => state.outcome(Err(SceneError::Code(kind))),
     })
 }
 
 /// Sets the model (0 StVK, 1 Neo-Hookean, 2 Stable Neo-Hookean), the stepper (0 explicit,
-/// 1 relaxation, 2 Newton, 3 Vertex Block Descent), Young's modulus of the box (Pa; the balls
-/// 0.6 and 3 times it), Poisson's ratio and the frame time (s), on the running scene (see
-/// [`Playground::configure`]). Returns the status; on error nothing changes.
+/// 1 relaxation, 2 Newton, 3 Vertex Block Descent), Young's modulus of the box (Pa; the
+/// playground's balls 0.6 and 3 times it, the pile's balls twice it), Poisson's ratio and the
+/// frame time (s), on the running scene (see [`Stage::configure`]; the pile refuses Vertex Block
+/// Descent with status 2). Returns the status; on error nothing changes.
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_configure(
     model: u32,
@@ -151,9 +179,9 @@ pub extern "C" fn sf_configure(
             stepper,
             frame_time,
         };
-        let result = match state.playground.as_mut() {
-            Some(playground) => playground.configure(settings),
-            None => Playground::new(settings).map(|p| state.playground = Some(p)),
+        let result = match state.stage.as_mut() {
+            Some(stage) => stage.configure(settings),
+            None => Stage::new(state.kind, settings).map(|p| state.stage = Some(p)),
         };
         if result.is_ok() {
             state.settings = settings;
@@ -186,37 +214,36 @@ pub extern "C" fn sf_settings() -> *const f32 {
     })
 }
 
-/// One step of the frame time (see [`Playground::step`]). Returns the status.
+/// One step of the frame time (see [`Stage::step`]). Returns the status.
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_step() -> i32 {
-    with_state(7, |state| match state.playground.as_mut() {
-        Some(playground) => {
-            let result = playground.step();
+    with_state(7, |state| match state.stage.as_mut() {
+        Some(stage) => {
+            let result = stage.step();
             state.outcome(result)
         }
         None => state.no_scene(),
     })
 }
 
-/// Recomputes the render buffer from the bodies' positions (see
-/// [`Playground::update_render`]).
+/// Recomputes the render buffer from the bodies' positions (see [`Stage::update_render`]).
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_update_render() {
     with_state((), |state| {
-        if let Some(playground) = state.playground.as_mut() {
-            playground.update_render();
+        if let Some(stage) = state.stage.as_mut() {
+            stage.update_render();
         }
     });
 }
 
 /// Grabs the body vertex nearest the camera within reach of the ray from `o` along `d` (m; see
-/// [`Playground::grab`]). Returns 1 if a body was grabbed (its point is in the statistics),
+/// [`Stage::grab`]). Returns 1 if a body was grabbed (its point is in the statistics),
 /// 0 if not.
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_grab(ox: f32, oy: f32, oz: f32, dx: f32, dy: f32, dz: f32) -> i32 {
     with_state(0, |state| {
         let picked = state
-            .playground
+            .stage
             .as_mut()
             .and_then(|p| p.grab(Vec3::new(ox, oy, oz), Vec3::new(dx, dy, dz)));
         match picked {
@@ -233,8 +260,8 @@ pub extern "C" fn sf_grab(ox: f32, oy: f32, oz: f32, dx: f32, dy: f32, dz: f32) 
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_drag(x: f32, y: f32, z: f32) {
     with_state((), |state| {
-        if let Some(playground) = state.playground.as_mut() {
-            playground.drag(Vec3::new(x, y, z));
+        if let Some(stage) = state.stage.as_mut() {
+            stage.drag(Vec3::new(x, y, z));
         }
     });
 }
@@ -243,8 +270,8 @@ pub extern "C" fn sf_drag(x: f32, y: f32, z: f32) {
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_release() {
     with_state((), |state| {
-        if let Some(playground) = state.playground.as_mut() {
-            playground.release();
+        if let Some(stage) = state.stage.as_mut() {
+            stage.release();
         }
     });
 }
@@ -261,7 +288,7 @@ pub extern "C" fn sf_stats() -> *const f64 {
 
 fn fill_stats(state: &mut State) {
     let mut stats = [0.0; STATS.len()];
-    if let Some(p) = state.playground.as_ref() {
+    if let Some(p) = state.stage.as_ref() {
         let energy = p.energy();
         let [gx, gy, gz] = state.grabbed;
         stats = [
@@ -280,6 +307,11 @@ fn fill_stats(state: &mut State) {
             gy,
             gz,
             p.layout().len() as f64,
+            p.contact_pairs() as f64,
+            match p.kind() {
+                Kind::Playground => 0.0,
+                Kind::Pile => 1.0,
+            },
         ];
     } else if let Some(code) = stats.get_mut(10) {
         *code = f64::from(state.code);
@@ -293,7 +325,7 @@ fn fill_stats(state: &mut State) {
 pub extern "C" fn sf_render_ptr() -> *const f32 {
     with_state(core::ptr::null(), |state| {
         state
-            .playground
+            .stage
             .as_ref()
             .map_or(core::ptr::null(), |p| p.render().as_ptr().cast())
     })
@@ -303,10 +335,7 @@ pub extern "C" fn sf_render_ptr() -> *const f32 {
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_render_len() -> u32 {
     with_state(0, |state| {
-        state
-            .playground
-            .as_ref()
-            .map_or(0, |p| p.render().len() as u32)
+        state.stage.as_ref().map_or(0, |p| p.render().len() as u32)
     })
 }
 
@@ -316,7 +345,7 @@ pub extern "C" fn sf_render_len() -> u32 {
 pub extern "C" fn sf_index_ptr() -> *const u32 {
     with_state(core::ptr::null(), |state| {
         state
-            .playground
+            .stage
             .as_ref()
             .map_or(core::ptr::null(), |p| p.indices().as_ptr())
     })
@@ -326,10 +355,7 @@ pub extern "C" fn sf_index_ptr() -> *const u32 {
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_index_len() -> u32 {
     with_state(0, |state| {
-        state
-            .playground
-            .as_ref()
-            .map_or(0, |p| p.indices().len() as u32)
+        state.stage.as_ref().map_or(0, |p| p.indices().len() as u32)
     })
 }
 
@@ -339,7 +365,7 @@ pub extern "C" fn sf_index_len() -> u32 {
 pub extern "C" fn sf_layout_ptr() -> *const u32 {
     with_state(core::ptr::null(), |state| {
         state
-            .playground
+            .stage
             .as_ref()
             .map_or(core::ptr::null(), |p| p.layout().as_ptr().cast())
     })
@@ -351,7 +377,7 @@ pub extern "C" fn sf_layout_ptr() -> *const u32 {
 pub extern "C" fn sf_colliders() -> *const f32 {
     with_state(core::ptr::null(), |state| {
         state.colliders.clear();
-        if let Some(p) = state.playground.as_ref() {
+        if let Some(p) = state.stage.as_ref() {
             state
                 .colliders
                 .extend(p.colliders().iter().flat_map(collider_record));
@@ -365,20 +391,17 @@ pub extern "C" fn sf_colliders() -> *const f32 {
 pub extern "C" fn sf_collider_count() -> u32 {
     with_state(0, |state| {
         state
-            .playground
+            .stage
             .as_ref()
             .map_or(0, |p| p.colliders().len() as u32)
     })
 }
 
-/// [`Playground::position_digest`] of the scene (0 without one).
+/// [`Stage::position_digest`] of the scene (0 without one).
 #[unsafe(no_mangle)]
 pub extern "C" fn sf_digest() -> u64 {
     with_state(0, |state| {
-        state
-            .playground
-            .as_ref()
-            .map_or(0, Playground::position_digest)
+        state.stage.as_ref().map_or(0, Stage::position_digest)
     })
 }
 
@@ -436,5 +459,39 @@ mod tests {
         assert_eq!(sf_render_len(), 826);
         assert_eq!(sf_collider_count(), 4);
         assert_eq!(sf_grab(9.0, 9.0, 9.0, 0.0, 0.0, 1.0), 0);
+    }
+
+    fn stats() -> [f64; STATS.len()] {
+        with_state([0.0; STATS.len()], |state| {
+            fill_stats(state);
+            state.stats
+        })
+    }
+
+    /// Switching scenes: the pile takes Newton for the default VBD, refuses VBD while it runs,
+    /// and the playground comes back with the settings in force.
+    #[test]
+    fn the_scene_switches_between_the_playground_and_the_pile() {
+        assert_eq!(sf_restart(1), 0);
+        assert_eq!(stats()[16], 0.0); // the playground
+        assert_eq!(sf_scene(2), 5);
+        assert!(error_text().contains('2'), "{}", error_text());
+        assert_eq!(stats()[16], 0.0);
+        assert_eq!(sf_scene(1), 0);
+        let s = stats();
+        assert_eq!((s[16], s[14], s[2], s[3]), (1.0, 6.0, 240.0, 162.0));
+        let stepper = with_state(Stepper::Vbd, |state| state.settings.stepper);
+        assert_eq!(stepper, Stepper::Newton);
+        assert_eq!(sf_collider_count(), 5); // the ground and four walls
+        assert_eq!(sf_configure(2, 3, 5e4, 0.4, 0.01), 2);
+        assert!(error_text().contains("VBD"), "{}", error_text());
+        assert_eq!(sf_configure(2, 2, 5e4, 0.4, 1.0 / 60.0), 0);
+        assert_eq!(sf_step(), 0);
+        assert_eq!(stats()[0], 1.0);
+        assert_eq!(sf_restart(1), 0);
+        assert_eq!((stats()[0], stats()[16]), (0.0, 1.0));
+        assert_eq!(sf_scene(0), 0);
+        let s = stats();
+        assert_eq!((s[16], s[2], s[15]), (0.0, 2520.0, 0.0));
     }
 }

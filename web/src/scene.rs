@@ -153,7 +153,7 @@ impl core::fmt::Display for SceneError {
             SceneError::Body(error) => write!(f, "body: {error}"),
             SceneError::Step { body, error } => write!(f, "body {body}: {error}"),
             SceneError::FrameTime(dt) => write!(f, "frame time {dt} s is not finite and positive"),
-            SceneError::Code(code) => write!(f, "no model or stepper numbered {code}"),
+            SceneError::Code(code) => write!(f, "no model, stepper or scene numbered {code}"),
         }
     }
 }
@@ -767,17 +767,7 @@ impl Playground {
     /// mean the same positions bit for bit.
     #[must_use]
     pub fn position_digest(&self) -> u64 {
-        let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
-        let bytes = self
-            .bodies
-            .iter()
-            .flat_map(|b| b.positions().iter())
-            .flat_map(|x| x.to_array())
-            .flat_map(|c| c.to_bits().to_le_bytes());
-        for byte in bytes {
-            hash = (hash ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3);
-        }
-        hash
+        fnv1a(self.bodies.iter().flat_map(|b| b.positions().iter()))
     }
 
     /// The rest positions of body `k` (m), for tests.
@@ -793,7 +783,21 @@ impl Playground {
     }
 }
 
-fn check_frame_time(dt: f32) -> Result<(), SceneError> {
+/// FNV-1a (64 bits) of `positions`, their f32 bits in little-endian bytes in order.
+pub(crate) fn fnv1a<'a>(positions: impl IntoIterator<Item = &'a Vec3>) -> u64 {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    let bytes = positions
+        .into_iter()
+        .flat_map(|x| x.to_array())
+        .flat_map(|c| c.to_bits().to_le_bytes());
+    for byte in bytes {
+        hash = (hash ^ u64::from(byte)).wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    hash
+}
+
+/// Refuses a frame time that is not finite and positive (s).
+pub(crate) fn check_frame_time(dt: f32) -> Result<(), SceneError> {
     if dt > 0.0 && dt.is_finite() {
         Ok(())
     } else {
