@@ -164,12 +164,12 @@ fn draw_panel(
         .iter()
         .filter(|r| r.outcome == Outcome::Stable)
         .count();
-    let sound = results
+    let resolved = results
         .iter()
         .filter(|r| r.outcome == Outcome::Stable && r.resolved())
         .count();
     let caption = format!(
-        "{name}: {stable} of {} stable, {sound} resolved every frame",
+        "{name}: {stable} of {} stable, {resolved} resolved every frame",
         results.len()
     );
     let x_max = rates.len() as f64 - 0.5;

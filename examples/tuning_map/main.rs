@@ -122,15 +122,16 @@ impl Grid {
 /// (`--ground`); `status` is `stable`, `unstable` or `too_costly`; `stop_frame` and `reason`
 /// say where and why an unstable cell stopped (the step error's name, or `EnergyGrew` /
 /// `Escaped` for a blow-up the stepper did not report) or how many substeps a frame too costly
-/// a cell needed; `converged_share` is the share of frames run whose report says converged,
-/// `floor_share` of those that stopped at their rounding floor instead (see
-/// `measure::CellResult`); `cost_per_frame_s` is measured with the clock named in `clock`
-/// (`thread_cpu` or `wall`); `work_per_frame` is substeps a frame (explicit) or mean solver
+/// a cell needed; `frames_converged` counts the frames run whose report says converged,
+/// `frames_at_floor` those that stopped at their rounding floor instead (see
+/// `measure::CellResult`), `converged_share` and `floor_share` are the same over `frames_run`
+/// (a cell is resolved where `status` is `stable` and the two counts add up to `frames_run`);
+/// `cost_per_frame_s` is measured with the clock named in `clock` (`thread_cpu` or `wall`); `work_per_frame` is substeps a frame (explicit) or mean solver
 /// iterations a frame (implicit); `energy_lost_j_per_s` is the total energy (kinetic, elastic,
 /// gravity above the ground) at the start minus at the last frame run over the time run, and
 /// `energy_lost_share_per_s` the same over the starting energy (1/s); `volume_error` is the
 /// largest `|V / V0 - 1|` over the frames run. Measurements of a cell not run are empty.
-pub const COLUMNS: [&str; 20] = [
+pub const COLUMNS: [&str; 22] = [
     "solver",
     "young_pa",
     "poisson",
@@ -143,6 +144,8 @@ pub const COLUMNS: [&str; 20] = [
     "reason",
     "frames",
     "frames_run",
+    "frames_converged",
+    "frames_at_floor",
     "converged_share",
     "floor_share",
     "cost_per_frame_s",
@@ -187,8 +190,10 @@ pub fn to_csv(results: &[CellResult]) -> String {
             reason,
             r.frames.to_string(),
             r.frames_run.to_string(),
-            measured(r.converged_share),
-            measured(r.floor_share),
+            r.frames_converged.to_string(),
+            r.frames_at_floor.to_string(),
+            measured(r.converged_share()),
+            measured(r.floor_share()),
             measured(r.cost_per_frame),
             CLOCK.to_owned(),
             measured(r.work_per_frame),
@@ -282,8 +287,8 @@ fn describe(r: &CellResult) -> String {
             };
             format!(
                 "{head}: {status}, {:.0} % converged, {:.0} % at the floor, {:.3} ms a frame, {:.1} work a frame, energy lost {:.3}/s, volume error {:.2e}",
-                100.0 * r.converged_share,
-                100.0 * r.floor_share,
+                100.0 * r.converged_share(),
+                100.0 * r.floor_share(),
                 1e3 * r.cost_per_frame,
                 r.work_per_frame,
                 r.energy_lost_share_per_second(),
@@ -365,9 +370,9 @@ pub fn summary(grid: &Grid, results: &[CellResult]) -> Vec<String> {
     }
     for &poisson in &grid.poissons {
         for &rate in &grid.frame_rates {
-            let mut line = format!("nu = {poisson}, dt = 1/{rate}: cheapest sound solver by E:");
+            let mut line = format!("nu = {poisson}, dt = 1/{rate}: cheapest resolved solver by E:");
             for &young in &grid.youngs {
-                let best = cheapest_sound(results, young, poisson, rate);
+                let best = cheapest_resolved(results, young, poisson, rate);
                 let _ = write!(
                     line,
                     " {young:.0e} {}",
@@ -382,7 +387,7 @@ pub fn summary(grid: &Grid, results: &[CellResult]) -> Vec<String> {
 
 /// The cell of least cost per frame among the stable and resolved ones at this material and
 /// frame rate.
-pub fn cheapest_sound(
+pub fn cheapest_resolved(
     results: &[CellResult],
     young: f32,
     poisson: f32,
@@ -425,7 +430,7 @@ mod tests {
         assert_eq!(r.outcome, Outcome::Stable, "{r:?}");
         assert_eq!(r.frames, 18);
         assert_eq!(r.frames_run, 18);
-        assert_eq!(r.converged_share, 1.0, "{r:?}");
+        assert_eq!(r.frames_converged, 18, "{r:?}");
         assert!(r.resolved());
         assert!(r.cost_per_frame > 0.0 && r.cost_per_frame < 1.0, "{r:?}");
         assert!(r.work_per_frame >= 1.0, "{r:?}");
@@ -451,7 +456,7 @@ mod tests {
         let stiff = measure::run_cell(&cell(SolverKind::Explicit, 1e7, 60, 0.05)).unwrap();
         for r in [&soft, &stiff] {
             assert_eq!(r.outcome, Outcome::Stable, "{r:?}");
-            assert_eq!(r.converged_share, 1.0);
+            assert_eq!(r.frames_converged, r.frames_run);
         }
         let substeps = stiff.work_per_frame / soft.work_per_frame;
         assert!((9.0..=11.0).contains(&substeps), "{substeps}");
@@ -494,9 +499,11 @@ mod tests {
         assert_eq!(column("status"), "stable");
         assert_eq!(column("frames"), "6");
         assert_eq!(column("clock"), CLOCK);
-        let shares = column("converged_share").parse::<f64>().unwrap()
-            + column("floor_share").parse::<f64>().unwrap();
-        assert!((0.0..=1.0 + 1e-9).contains(&shares), "{}", lines[1]);
+        let count = |name: &str| column(name).parse::<usize>().unwrap();
+        assert!(count("frames_converged") + count("frames_at_floor") <= count("frames_run"));
+        let share = column("converged_share").parse::<f64>().unwrap();
+        let expected = count("frames_converged") as f64 / 6.0;
+        assert!((share - expected).abs() < 1e-6, "{}", lines[1]); // 6 significant digits
         assert!(column("cost_per_frame_s").parse::<f64>().unwrap() > 0.0);
     }
 

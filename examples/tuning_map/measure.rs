@@ -137,14 +137,14 @@ pub struct CellResult {
     /// Frames the simulated time asks for, and frames stepped (with success).
     pub frames: usize,
     pub frames_run: usize,
-    /// Share of the frames run whose report says converged (explicit: 1 when any ran).
-    pub converged_share: f64,
-    /// Share of the frames run whose solve did not converge but stopped with its residual at
-    /// the rounding floor (`stagnated`, residual within `FLOOR_FACTOR` times `rounding_floor`):
-    /// the state is as close as the precision resolves, though the report cannot say it
-    /// converged (in f32, a body at rest starts within its floor; issue #44). The rest,
-    /// `1 - converged_share - floor_share`, spent the budget or stalled above the floor.
-    pub floor_share: f64,
+    /// Frames run whose report says converged (explicit: every frame run).
+    pub frames_converged: usize,
+    /// Frames run whose solve did not converge but stopped with its residual at the rounding
+    /// floor (`stagnated`, residual within `FLOOR_FACTOR` times `rounding_floor`): the state is
+    /// as close as the precision resolves, though the report cannot say it converged (in f32,
+    /// a body at rest starts within its floor; issue #44). The other frames run spent the
+    /// budget or stalled above the floor.
+    pub frames_at_floor: usize,
     /// Thread CPU time (or wall time, see [`CLOCK`]) of the step calls per frame run (s).
     pub cost_per_frame: f64,
     /// The body's stable explicit step (s), for every solver (the scale of the stiffness).
@@ -163,7 +163,17 @@ impl CellResult {
     /// Whether every frame run converged or stopped at its rounding floor (explicit: every
     /// frame), and at least one ran.
     pub fn resolved(&self) -> bool {
-        self.frames_run > 0 && self.converged_share + self.floor_share >= 1.0 - 1e-12
+        self.frames_run > 0 && self.frames_converged + self.frames_at_floor == self.frames_run
+    }
+
+    /// [`frames_converged`](Self::frames_converged) over the frames run (NaN if none ran).
+    pub fn converged_share(&self) -> f64 {
+        self.frames_converged as f64 / self.frames_run as f64
+    }
+
+    /// [`frames_at_floor`](Self::frames_at_floor) over the frames run (NaN if none ran).
+    pub fn floor_share(&self) -> f64 {
+        self.frames_at_floor as f64 / self.frames_run as f64
     }
 
     /// [`energy_lost_per_second`](Self::energy_lost_per_second) over the starting energy (1/s).
@@ -284,8 +294,8 @@ pub fn run_cell(input: &CellInput) -> Result<CellResult, String> {
         outcome: Outcome::Stable,
         frames,
         frames_run: 0,
-        converged_share: 0.0,
-        floor_share: 0.0,
+        frames_converged: 0,
+        frames_at_floor: 0,
         cost_per_frame: f64::NAN,
         stable_step,
         work_per_frame: f64::NAN,
@@ -358,10 +368,10 @@ pub fn run_cell(input: &CellInput) -> Result<CellResult, String> {
         result.volume_error = result.volume_error.max(error);
         result.frames_run += 1;
     }
+    result.frames_converged = converged;
+    result.frames_at_floor = at_floor;
     if result.frames_run > 0 {
         let run = result.frames_run as f64;
-        result.converged_share = converged as f64 / run;
-        result.floor_share = at_floor as f64 / run;
         result.cost_per_frame = seconds / run;
         result.work_per_frame = work as f64 / run;
         result.energy_lost_per_second =
