@@ -120,8 +120,8 @@ impl Grid {
 
 /// The CSV's columns, one row per cell. Units: Pa, s, J/s. `ground` is `body` or `collider`
 /// (`--ground`); `status` is `stable`, `unstable` or `too_costly`; `stop_frame` and `reason`
-/// say where and why an unstable cell stopped (the step error's name, or `EnergyGrew` /
-/// `Escaped` for a blow-up the stepper did not report) or how many substeps a frame too costly
+/// say where and why an unstable cell stopped (the step error's name, or `EnergyGrew`,
+/// `EnergyNotFinite`, `Escaped` for a blow-up the stepper did not report) or how many substeps a frame too costly
 /// a cell needed; `frames_converged` counts the frames run whose report says converged,
 /// `frames_at_floor` those that stopped at their rounding floor instead (see
 /// `measure::CellResult`), `converged_share` and `floor_share` are the same over `frames_run`

@@ -346,11 +346,21 @@ pub fn run_cell(input: &CellInput) -> Result<CellResult, String> {
             .positions()
             .iter()
             .any(|x| !x.is_finite() || x.abs().max_element() > ESCAPE);
+        // An energy that cannot be evaluated (a non-finite state) is a blow-up too.
         let now = total_energy(&body).unwrap_or(f64::NAN);
-        if escaped || now.is_nan() || now > ENERGY_GROWTH * initial_energy {
+        let blown_up = if escaped {
+            Some("Escaped")
+        } else if !now.is_finite() {
+            Some("EnergyNotFinite")
+        } else if now > ENERGY_GROWTH * initial_energy {
+            Some("EnergyGrew")
+        } else {
+            None
+        };
+        if let Some(reason) = blown_up {
             result.outcome = Outcome::Unstable {
                 frame,
-                reason: if escaped { "Escaped" } else { "EnergyGrew" }.to_owned(),
+                reason: reason.to_owned(),
             };
             break;
         }
