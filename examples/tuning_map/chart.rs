@@ -396,6 +396,87 @@ fn draw_legend(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::measure::{CellInput, Ground, SolverKind};
+
+    /// A cell of one solver at 1e6 Pa, nu = 0.3, 1/60 s with `outcome`, 60 frames, costing 1 ms
+    /// a frame.
+    fn cell(outcome: Outcome, frames_converged: usize) -> CellResult {
+        let ran = !matches!(outcome, Outcome::TooCostly { .. });
+        CellResult {
+            input: CellInput {
+                solver: SolverKind::Newton,
+                young: 1e6,
+                poisson: 0.3,
+                frame_time: 1.0 / 60.0,
+                duration: 1.0,
+                ground: Ground::Body,
+            },
+            outcome,
+            frames: 60,
+            frames_run: if ran { 60 } else { 0 },
+            frames_converged: if ran { frames_converged } else { 0 },
+            frames_at_floor: 0,
+            cost_per_frame: if ran { 1e-3 } else { f64::NAN },
+            stable_step: 1e-4,
+            work_per_frame: 3.0,
+            initial_energy: 15.7,
+            energy_lost_per_second: 7.8,
+            volume_error: 1e-3,
+        }
+    }
+
+    fn count(svg: &str, element: &str) -> usize {
+        svg.matches(&format!("<{element} ")).count()
+    }
+
+    /// Each mark adds exactly its elements to the chart of a resolved cell: the ring two
+    /// circles (white under black), the cross four lines (two strokes, white under black),
+    /// the too-costly dot one circle and the grey fill; the caption counts what is stable and
+    /// resolved.
+    #[test]
+    fn each_outcome_gets_its_mark() {
+        let grid = Grid {
+            youngs: vec![1e6],
+            poissons: vec![0.3],
+            frame_rates: vec![60],
+            solvers: vec![SolverKind::Newton],
+            duration: 1.0,
+            ground: Ground::Body,
+        };
+        let svg = |r: CellResult| to_svg(&grid, &[r]).unwrap();
+        let resolved = svg(cell(Outcome::Stable, 60));
+        let unresolved = svg(cell(Outcome::Stable, 59));
+        let unstable = svg(cell(
+            Outcome::Unstable {
+                frame: 10,
+                reason: "EnergyGrew".into(),
+            },
+            60,
+        ));
+        let costly = svg(cell(Outcome::TooCostly { substeps: 30_000 }, 0));
+        assert!(resolved.contains("newton: 1 of 1 stable, 1 resolved every frame"));
+        assert!(unresolved.contains("newton: 1 of 1 stable, 0 resolved every frame"));
+        assert!(unstable.contains("newton: 0 of 1 stable, 0 resolved every frame"));
+        assert_eq!(count(&unresolved, "circle"), count(&resolved, "circle") + 2);
+        assert_eq!(count(&unresolved, "polyline"), count(&resolved, "polyline"));
+        assert_eq!(
+            count(&unstable, "polyline"),
+            count(&resolved, "polyline") + 4
+        );
+        assert_eq!(count(&unstable, "circle"), count(&resolved, "circle"));
+        assert_eq!(count(&costly, "circle"), count(&resolved, "circle") + 1);
+        // The grey of a cell not run appears once more than in the legend alone.
+        let grey = "#D7D7D7";
+        assert_eq!(
+            costly.matches(grey).count(),
+            resolved.matches(grey).count() + 1
+        );
+        // One cost: the scale is the decade around it, 1 ms to 10 ms.
+        assert_eq!(
+            CostScale::of(&[cell(Outcome::Stable, 60)]),
+            CostScale { lo: -3.0, hi: -2.0 }
+        );
+    }
 
     #[test]
     fn the_colour_scale_runs_from_viridis_first_to_last() {
