@@ -114,6 +114,13 @@ impl<X: Copy> List<X> for alloc::vec::Vec<X> {
 
 /// The buffer types of a world. Implemented by [`FixedWorld`] and `VecStorage`; implement it to
 /// place the buffers elsewhere.
+///
+/// Why not the body's [`Storage`](crate::body::Storage): a world's buffers differ in kind, not
+/// only in size. Its vertex and tetrahedron lists are kept lists that bodies are appended to and
+/// removed from ([`List`]), where a body's are sized once; it adds the body list, the contact
+/// surface, the broad phase and the pair lists; and a fixed world sizes the contact lists by
+/// their own capacity `C`, which no per-vertex or per-tetrahedron count gives. Sharing one trait
+/// would give every fixed body contact buffers it never uses.
 pub trait WorldStorage {
     /// One record per body (its ranges and material).
     type Parts<M: Material>: List<Part<M>>;
