@@ -446,8 +446,8 @@ mod tests {
     }
 
     /// The explicit cost follows the stable step: 100 times the stiffness is 10 times the wave
-    /// speed, so 10 times the substeps a frame (within the rounding up of the substep count)
-    /// and several times the CPU cost. 1e9 Pa at nu = 0.49, the map's stiffest cell, needs
+    /// speed, so 10 times the substeps a frame (within the rounding up of the substep count).
+    /// 1e9 Pa at nu = 0.49, the map's stiffest cell, needs
     /// 18 866 substeps a frame of 1/30 s (measured); ten times the stiffness, sqrt(10) times
     /// that, is over the 20 000 bound and is not run.
     #[test]
@@ -461,10 +461,8 @@ mod tests {
         let substeps = stiff.work_per_frame / soft.work_per_frame;
         assert!((9.0..=11.0).contains(&substeps), "{substeps}");
         assert!((soft.stable_step / stiff.stable_step - 10.0).abs() < 0.1);
-        assert!(
-            stiff.cost_per_frame > 3.0 * soft.cost_per_frame,
-            "{soft:?} {stiff:?}"
-        );
+        // The CPU cost is not asserted: a timed assertion fails on a loaded machine (speed
+        // belongs in benchmarks and the map itself); the substeps above are the work.
         let mut hardest = cell(SolverKind::Explicit, 1e10, 30, 1.0);
         hardest.poisson = 0.49;
         let r = measure::run_cell(&hardest).unwrap();
