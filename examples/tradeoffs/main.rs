@@ -40,7 +40,11 @@ mod stability_map;
 mod static_scale;
 mod svd;
 
-use std::path::{Component, Path, PathBuf};
+#[path = "../common/paths.rs"]
+mod paths;
+
+use paths::{absolute, docs_dir, repository_root};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -153,33 +157,6 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
-}
-
-/// The repository's root: the folder above this program's package, `examples/`.
-fn repository_root() -> &'static Path {
-    let examples = Path::new(env!("CARGO_MANIFEST_DIR"));
-    examples.parent().unwrap_or(examples)
-}
-
-/// The repository's `docs/` directory, which holds the committed charts.
-fn docs_dir() -> PathBuf {
-    repository_root().join("docs")
-}
-
-/// `path` made absolute (against `cwd`) with `.` and `..` resolved by name, so that
-/// `docs/../docs/charts` and `./docs/charts` compare equal to `docs/charts`.
-fn absolute(path: &Path, cwd: &Path) -> PathBuf {
-    let mut resolved = PathBuf::new();
-    for component in cwd.join(path).components() {
-        match component {
-            Component::CurDir => {}
-            Component::ParentDir => {
-                resolved.pop();
-            }
-            other => resolved.push(other),
-        }
-    }
-    resolved
 }
 
 impl Args {

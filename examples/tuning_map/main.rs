@@ -19,8 +19,12 @@
 mod chart;
 mod measure;
 
+#[path = "../common/paths.rs"]
+mod paths;
+
+use paths::{absolute, docs_dir, repository_root};
 use std::fmt::Write as _;
-use std::path::{Component, Path, PathBuf};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -215,32 +219,6 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
-}
-
-/// The repository's root: the folder above this program's package, `examples/`.
-fn repository_root() -> &'static Path {
-    let examples = Path::new(env!("CARGO_MANIFEST_DIR"));
-    examples.parent().unwrap_or(examples)
-}
-
-/// The repository's `docs/` directory, which holds the committed map.
-fn docs_dir() -> PathBuf {
-    repository_root().join("docs")
-}
-
-/// `path` made absolute (against `cwd`) with `.` and `..` resolved by name.
-fn absolute(path: &Path, cwd: &Path) -> PathBuf {
-    let mut resolved = PathBuf::new();
-    for component in cwd.join(path).components() {
-        match component {
-            Component::CurDir => {}
-            Component::ParentDir => {
-                resolved.pop();
-            }
-            other => resolved.push(other),
-        }
-    }
-    resolved
 }
 
 impl Args {
