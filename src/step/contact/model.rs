@@ -506,7 +506,7 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
         self.with_pairs(
             (positions, positions),
             self.barrier.gap,
-            |pairs, hessians| {
+            |pairs, hessians, _| {
                 let mut counts = self.counts.get();
                 counts.vertex_triangle = pairs.vertex_triangle.len();
                 counts.edge_edge = pairs.edge_edge.len();
@@ -526,7 +526,11 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
         &self,
         (start, end): (&[Vec3], &[Vec3]),
         dhat: Real,
-        with: impl FnOnce(CandidatePairs<'_>, &mut [PairHessian]) -> Result<R, ContactError>,
+        with: impl FnOnce(
+            CandidatePairs<'_>,
+            &mut [PairHessian],
+            &mut [FrictionPair],
+        ) -> Result<R, ContactError>,
     ) -> Result<R, ContactError> {
         let mut guard = self.buffers_mut()?;
         let ContactBuffers {
@@ -535,8 +539,8 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
             vertex_triangle,
             edge_edge,
             hessians,
+            friction,
             reuse,
-            ..
         } = &mut *guard;
         let surface = &self.surface;
         let mut state = self.reuse.get();
@@ -545,7 +549,10 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
             within_bounds(surface, bounds, start)
                 && (core::ptr::eq(start, end) || within_bounds(surface, bounds, end))
         };
-        let mut kept = state.kept.filter(|_| inside(reuse.bounds));
+        // The kept pairs hold every pair within the barrier's gap of each other, none farther.
+        let mut kept = state
+            .kept
+            .filter(|_| dhat <= self.barrier.gap && inside(reuse.bounds));
         let motion = !core::ptr::eq(start, end);
         if kept.is_none()
             && motion
@@ -620,7 +627,7 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
                 edge_edge,
             )?
         };
-        with(pairs, hessians)
+        with(pairs, hessians, friction)
     }
 
     /// The barrier potential over the candidate `pairs` of this model's surface.
@@ -660,24 +667,19 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
     /// Finds the frictional pairs at the start positions `start` (the active pairs of the
     /// barrier there) and writes them to the friction buffer; returns their number.
     fn lag_friction(&self, start: &[Vec3]) -> Result<usize, ContactError> {
-        let mut guard = self.buffers_mut()?;
-        let ContactBuffers {
-            slots,
-            entries,
-            vertex_triangle,
-            edge_edge,
-            friction,
-            ..
-        } = &mut *guard;
-        let mut scratch = BroadPhaseScratch::new(slots, entries);
-        let pairs = proximity_pairs(
-            start,
-            self.barrier.gap,
-            &self.surface,
-            &mut scratch,
-            vertex_triangle,
-            edge_edge,
-        )?;
+        self.with_pairs((start, start), self.barrier.gap, |pairs, _, friction| {
+            self.lag_pairs(start, pairs, friction)
+        })
+    }
+
+    /// The frictional pairs among the candidate `pairs` at `start`, written to `friction`
+    /// while room lasts; their number, or the capacity error naming the friction buffer.
+    fn lag_pairs(
+        &self,
+        start: &[Vec3],
+        pairs: CandidatePairs<'_>,
+        friction: &mut [FrictionPair],
+    ) -> Result<usize, ContactError> {
         let mut needed = 0;
         self.potential(pairs).for_each_pair(start, |pair| {
             let found = match pair {
@@ -716,7 +718,7 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
         if self.surface.triangles.is_empty() || to.iter().any(|x| !x.is_finite()) {
             return Ok(1.0);
         }
-        self.with_pairs((from, to), 0.0, |pairs, _| {
+        self.with_pairs((from, to), 0.0, |pairs, _, _| {
             let bound = ccd::step_bound(from, to, &self.surface, &pairs, self.separation)?;
             Ok(bound.alpha)
         })
