@@ -70,7 +70,7 @@ use super::material::Material;
 use super::mesh::{ElementForces, TetMesh, TetPartition, element_forces_len};
 use super::step::vertex_pass::{Join, VertexPass};
 use super::step::{ElasticEnergy, ElasticHessian, ElasticModel, TetClamped, TetElastic};
-use super::step::{SweepRun, SweepSchedule, VertexBlockModel};
+use super::step::{SweepMesh, SweepRun, SweepSchedule, VertexBlockModel};
 use super::types::{Mat3, Real, Vec3};
 use crate::error::MeshError;
 
@@ -634,8 +634,8 @@ impl<'a, M: Material + Sync> SweepSchedule for ParallelTetElastic<'a, M> {
     type Material = M;
 
     #[inline]
-    fn tet_body(&self) -> &TetElastic<'_, M> {
-        &self.body
+    fn sweep_mesh(&self) -> SweepMesh<'_, M> {
+        SweepMesh::of(&self.body)
     }
 
     fn run_sweep(&self, run: SweepRun<'_, '_, M>) {

@@ -242,8 +242,7 @@ pub use descent::relax::{
     gradient_descent_step, relax_quasi_static, relax_step,
 };
 pub use descent::settings::{DescentReport, DescentSettings};
-#[cfg(feature = "rayon")]
-pub(crate) use descent::vbd::{SweepRun, SweepSchedule};
+pub(crate) use descent::vbd::{Bodies, ContactBuffersVbd, SweepMesh, SweepRun, SweepSchedule};
 pub use descent::vbd::{
     VbdDetails, VbdOptions, VbdReport, VbdScratch, VbdSettings, VertexBlockModel, vbd_quasi_static,
     vbd_step,

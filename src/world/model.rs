@@ -5,10 +5,14 @@
 use super::super::element::{TetHessian, TetRest};
 use super::super::material::Material;
 use super::super::mesh::TetMesh;
-use super::super::step::{ElasticEnergy, ElasticHessian, ElasticModel, TetElastic};
+use super::super::step::contact::ContactModel;
+use super::super::step::{
+    Bodies, ContactBuffersVbd, ElasticEnergy, ElasticHessian, ElasticModel, SweepMesh, SweepRun,
+    SweepSchedule, TetElastic, VertexBlockModel,
+};
 use super::super::types::{Mat3, Real, Vec3};
 use super::Part;
-use crate::error::{Buffer, MeshError};
+use crate::error::{Buffer, MeshError, StepError};
 
 /// Every body of a world as one [`ElasticHessian`]: body `k`'s tetrahedra are
 /// `tets[part.first_tet..][..part.tet_count]` (global vertex indices), its rest data the same
@@ -137,3 +141,38 @@ fn check_cache(actual: usize, expected: usize) -> Result<(), MeshError> {
         })
     }
 }
+
+/// Vertex Block Descent over a world's bodies in contact: each sweep visits the bodies one
+/// after the other, each with its own material, and takes the contact's terms at its start
+/// ([`ContactModel::vertex_terms`]); the updates run in order on the calling thread.
+impl<M: Material> SweepSchedule for ContactModel<'_, WorldElastic<'_, M>> {
+    type Material = M;
+
+    fn sweep_mesh(&self) -> SweepMesh<'_, M> {
+        let world = self.model();
+        SweepMesh {
+            tets: world.tets,
+            rest: world.rest,
+            vertex_count: world.vertex_count,
+            material: world.parts.first().map(|part| &part.material),
+            bodies: Bodies::World(world.parts),
+        }
+    }
+
+    fn vertex_contact(
+        &self,
+        positions: &[Vec3],
+        buffers: &mut ContactBuffersVbd<'_>,
+    ) -> Result<bool, StepError> {
+        self.vertex_terms(positions, buffers.gradient, buffers.blocks, buffers.nearest)
+            .map_err(|error| StepError::Mesh(MeshError::Contact(error)))?;
+        Ok(true)
+    }
+
+    #[inline]
+    fn run_sweep(&self, run: SweepRun<'_, '_, M>) {
+        run.in_order();
+    }
+}
+
+impl<M: Material> VertexBlockModel for ContactModel<'_, WorldElastic<'_, M>> {}

@@ -158,6 +158,11 @@ pub trait WorldStorage {
     type FrictionPairs: Slots<FrictionPair>;
     /// Two vectors per surface vertex (the boxes of candidate reuse).
     type Bounds: Slots<Vec3>;
+    /// Vertex Block Descent's vertex adjacency offsets, colours and order: `3 n + 1` indices
+    /// for `n` vertices.
+    type VertexIndices: Slots<u32>;
+    /// Vertex Block Descent's incident elements: four indices per tetrahedron.
+    type TetIndices: Slots<u32>;
 }
 
 /// Fixed capacity, no heap: at most `B` bodies, `V` vertices and `T` tetrahedra in all, `C`
@@ -219,6 +224,8 @@ impl<const B: usize, const V: usize, const T: usize, const C: usize, const P: us
     type PairHessians = heapless::Vec<PairHessian, P>;
     type FrictionPairs = heapless::Vec<FrictionPair, P>;
     type Bounds = Fixed<Vec3, 2, V>;
+    type VertexIndices = Fixed<u32, 4, V>;
+    type TetIndices = Fixed<u32, 4, T>;
 }
 
 #[cfg(feature = "alloc")]
@@ -240,4 +247,6 @@ impl WorldStorage for VecStorage {
     type PairHessians = alloc::vec::Vec<PairHessian>;
     type FrictionPairs = alloc::vec::Vec<FrictionPair>;
     type Bounds = alloc::vec::Vec<Vec3>;
+    type VertexIndices = alloc::vec::Vec<u32>;
+    type TetIndices = alloc::vec::Vec<u32>;
 }

@@ -33,3 +33,5 @@ mod vbd;
 // The growable world (`VecStorage`) needs the package's `alloc` feature, as body.rs's tests.
 #[cfg(feature = "alloc")]
 mod world;
+#[cfg(feature = "alloc")]
+mod world_vbd;

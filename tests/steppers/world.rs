@@ -309,7 +309,6 @@ fn bodies_are_added_removed_and_refused_with_the_world_unchanged() {
         )
     );
     // Settings refused.
-    assert_eq!(world.set_solver(Solver::vbd()), Err(BodyError::Solver));
     let too_large = Solver::Explicit {
         settings: softfem::f64::step::ExplicitSettings::new(),
         stable_fraction: Some(2.0),

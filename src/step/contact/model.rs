@@ -664,6 +664,55 @@ impl<'a, M: ElasticModel<Vector = Vec3>> ContactModel<'a, M> {
         Ok(energy?)
     }
 
+    /// The contact's terms for Vertex Block Descent's vertex updates at `positions`: writes
+    /// each vertex's gradient of the barrier and of the lagged friction (N) into `gradient`,
+    /// the diagonal blocks of their projected Hessians (N/m) into `blocks`, and into `nearest`
+    /// the smallest distance (m) of a candidate pair within the barrier's gap the vertex
+    /// belongs to (`+inf` for none). Every entry is overwritten.
+    ///
+    /// # Errors
+    /// The broad phase's and the potential's (a buffer too short, a position not finite).
+    pub(crate) fn vertex_terms(
+        &self,
+        positions: &[Vec3],
+        gradient: &mut [Vec3],
+        blocks: &mut [Mat3],
+        nearest: &mut [Real],
+    ) -> Result<(), ContactError> {
+        gradient.fill(Vec3::ZERO);
+        blocks.fill(Mat3::ZERO);
+        nearest.fill(Real::INFINITY);
+        let active = self.barrier.gap > 0.0 && self.barrier.stiffness > 0.0;
+        if !active || self.surface.triangles.is_empty() {
+            return Ok(());
+        }
+        self.with_potential(positions, |potential, _| {
+            potential.add_vertex_terms(positions, gradient, blocks, nearest)
+        })?;
+        let count = self.counts.get().friction;
+        if count == 0 {
+            return Ok(());
+        }
+        let guard = self.buffers_ref()?;
+        for pair in guard.friction.get(..count).unwrap_or_default() {
+            let Some(slip) = self.slip(pair, positions) else {
+                continue;
+            };
+            let along = slip.gradient() * pair.force;
+            let block = friction_block(&slip) * pair.force;
+            for (&vertex, &weight) in pair.vertices.iter().zip(&pair.weights) {
+                if let (Some(g), Some(b)) = (
+                    gradient.get_mut(vertex as usize),
+                    blocks.get_mut(vertex as usize),
+                ) {
+                    *g += along * weight;
+                    *b += block * (weight * weight);
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Finds the frictional pairs at the start positions `start` (the active pairs of the
     /// barrier there) and writes them to the friction buffer; returns their number.
     fn lag_friction(&self, start: &[Vec3]) -> Result<usize, ContactError> {

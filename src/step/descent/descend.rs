@@ -607,7 +607,7 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
             trial: point,
             step: omega * self.alpha,
             omega,
-        });
+        })?;
         objective.loads.restore_fixed(points.current, points.other);
         // A trial the model does not admit (it would pass a surface through another) is
         // rejected as one that raised Phi.

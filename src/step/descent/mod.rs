@@ -153,7 +153,10 @@ pub(crate) trait Direction<F: ElasticEnergy> {
 
     /// Writes the Chebyshev trial of [`Extrapolation::trial`] (see the fields). Only called when
     /// the settings ask for acceleration.
-    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>);
+    ///
+    /// # Errors
+    /// The model's errors (a direction that evaluates the contact).
+    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>) -> Result<(), StepError>;
 
     /// The estimated rounding floor now (N; a direction may refine it as it goes).
     fn rounding_floor(&self) -> Real;

@@ -47,6 +47,7 @@
 
 use crate::error::{ContactBuffer, ContactError};
 
+use super::super::super::math;
 use super::super::super::types::{Mat3, Real, Vec3};
 use super::barrier::{self as log_barrier, BarrierDerivatives, barrier_derivatives};
 use super::boundary::ContactSurface;
@@ -764,6 +765,59 @@ impl ContactPotential<'_> {
             let (terms, vertices) = pair.terms(&self.barrier);
             if !terms.active {
                 return;
+            }
+            add_diagonal_blocks(&project(&terms.hessian), vertices, diagonal);
+        });
+        Ok(())
+    }
+
+    /// What a vertex of Vertex Block Descent takes of the contact at `positions`, in one pass
+    /// over the pairs: adds each active pair's gradient (N) into `gradient` and the 3x3
+    /// diagonal blocks of its projected Hessian (N/m) into `diagonal`, as
+    /// [`add_gradient`](Self::add_gradient) and
+    /// [`add_hessian_diagonal`](Self::add_hessian_diagonal) do, and lowers each vertex's entry
+    /// of `nearest` to the distance (m) of every candidate pair it belongs to (active or not).
+    ///
+    /// # Errors
+    /// Those of [`energy`](Self::energy); the three buffers must have one entry per position
+    /// ([`ContactError::BufferLength`] naming [`ContactBuffer::Gradient`],
+    /// [`ContactBuffer::HessianDiagonal`] or [`ContactBuffer::Positions`] otherwise). Nothing is
+    /// written then.
+    pub(crate) fn add_vertex_terms(
+        &self,
+        positions: &[Vec3],
+        gradient: &mut [Vec3],
+        diagonal: &mut [Mat3],
+        nearest: &mut [Real],
+    ) -> Result<(), ContactError> {
+        self.check(positions)?;
+        let count = positions.len();
+        per_vertex_length(ContactBuffer::Gradient, gradient.len(), count)?;
+        per_vertex_length(ContactBuffer::HessianDiagonal, diagonal.len(), count)?;
+        per_vertex_length(ContactBuffer::Positions, nearest.len(), count)?;
+        self.for_each_pair(positions, |pair| {
+            let (squared, vertices) = match pair {
+                Pair::PointTriangle(vertices, [p, a, b, c]) => {
+                    (point_triangle_squared_distance(p, a, b, c), vertices)
+                }
+                Pair::EdgeEdge(vertices, [a0, a1, b0, b1], _) => {
+                    (edge_edge_squared_distance(a0, a1, b0, b1), vertices)
+                }
+            };
+            let distance = math::sqrt(squared.max(0.0));
+            for &vertex in &vertices {
+                if let Some(slot) = nearest.get_mut(vertex as usize) {
+                    *slot = slot.min(distance);
+                }
+            }
+            let (terms, vertices) = pair.terms(&self.barrier);
+            if !terms.active {
+                return;
+            }
+            for (&vertex, g) in vertices.iter().zip(terms.gradient) {
+                if let Some(slot) = gradient.get_mut(vertex as usize) {
+                    *slot += g;
+                }
             }
             add_diagonal_blocks(&project(&terms.hessian), vertices, diagonal);
         });

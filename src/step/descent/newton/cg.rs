@@ -160,8 +160,9 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
         ))
     }
 
-    fn extrapolate(&mut self, _: Extrapolation<'_, F>) {
+    fn extrapolate(&mut self, _: Extrapolation<'_, F>) -> Result<(), StepError> {
         // Newton's method is not accelerated: its settings never ask for this.
+        Ok(())
     }
 
     fn rounding_floor(&self) -> Real {

@@ -66,7 +66,7 @@ impl<F: ElasticEnergy> Direction<F> for Gradient {
         Ok(slope)
     }
 
-    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>) {
+    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>) -> Result<(), StepError> {
         let (objective, at, trial) = (
             extrapolation.objective,
             extrapolation.at,
@@ -92,6 +92,7 @@ impl<F: ElasticEnergy> Direction<F> for Gradient {
             *t_slot = moved(floor, pinned, x, target);
             *g_slot = zero;
         }
+        Ok(())
     }
 
     fn rounding_floor(&self) -> Real {

@@ -36,7 +36,7 @@ impl<F: ElasticEnergy> Direction<F> for Jacobi {
         ))
     }
 
-    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>) {
+    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>) -> Result<(), StepError> {
         let (objective, at) = (extrapolation.objective, extrapolation.at);
         chebyshev_pass(
             objective.model,
@@ -48,6 +48,7 @@ impl<F: ElasticEnergy> Direction<F> for Jacobi {
             extrapolation.step,
             extrapolation.omega,
         );
+        Ok(())
     }
 
     fn rounding_floor(&self) -> Real {

@@ -188,6 +188,9 @@ impl<M: Material> Sweep<'_, M> {
             if self.loads.fixed(i) != 0 {
                 continue;
             }
+            if self.contact.is_some_and(|terms| terms.touches(i)) {
+                continue;
+            }
             let m = self.masses.get(i).copied().unwrap_or(0.0);
             let x0 = self.start.get(i).copied().unwrap_or(x);
             if self.rough(i, x, x0).is_some() {

@@ -30,8 +30,8 @@ use super::settings::{DescentReport, DescentSettings};
 use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
 use layout::{Layout, LayoutSource, build_layout};
+pub(crate) use sweep::{Bodies, ContactBuffersVbd, SweepMesh, SweepRun, SweepSchedule};
 use sweep::{Sweep, VbdSweep};
-pub(crate) use sweep::{SweepRun, SweepSchedule};
 
 /// Scratch space of [`vbd_step`] and [`vbd_quasi_static`]: `vectors` of
 /// [`scratch_len::vbd`]`(vertex_count)` entries and `indices` of
@@ -49,6 +49,11 @@ pub(crate) use sweep::{SweepRun, SweepSchedule};
 pub struct VbdScratch<'a> {
     vectors: &'a mut [Vec3],
     indices: &'a mut [u32],
+    /// Where given, the incident elements of the adjacency, which `indices` then leaves out
+    /// (see [`split`](Self::split)).
+    incident: Option<&'a mut [u32]>,
+    /// Where given, the buffers of the contact's terms (see [`with_contact`](Self::with_contact)).
+    contact: Option<ContactBuffersVbd<'a>>,
     /// The vertex count, element count and colour count of the topology in `indices`.
     topology: Option<(usize, usize, u32)>,
     layout: Option<LayoutBuffers<'a>>,
@@ -72,6 +77,8 @@ impl<'a> VbdScratch<'a> {
         VbdScratch {
             vectors,
             indices,
+            incident: None,
+            contact: None,
             topology: None,
             layout: None,
         }
@@ -142,6 +149,30 @@ impl<'a> VbdScratch<'a> {
         VbdScratch {
             vectors,
             indices,
+            incident: None,
+            contact: None,
+            topology,
+            layout: None,
+        }
+    }
+
+    /// Scratch whose index buffer comes in two parts, as a world's fixed storage holds it:
+    /// `indices` the per-vertex part (`3 n + 1` entries: the adjacency's offsets, the colours
+    /// and the order) and `incident` the adjacency's incident elements (`4 t`), holding
+    /// `topology`. With the contact's buffers (one entry per vertex each).
+    #[inline]
+    #[must_use]
+    pub(crate) fn split(
+        vectors: &'a mut [Vec3],
+        (indices, incident): (&'a mut [u32], &'a mut [u32]),
+        contact: ContactBuffersVbd<'a>,
+        topology: VbdTopology,
+    ) -> Self {
+        VbdScratch {
+            vectors,
+            indices,
+            incident: Some(incident),
+            contact: Some(contact),
             topology,
             layout: None,
         }
@@ -415,8 +446,8 @@ impl<M: Material> SweepSchedule for TetElastic<'_, M> {
     type Material = M;
 
     #[inline]
-    fn tet_body(&self) -> &TetElastic<'_, M> {
-        self
+    fn sweep_mesh(&self) -> SweepMesh<'_, M> {
+        SweepMesh::of(self)
     }
 
     #[inline]
@@ -715,10 +746,11 @@ pub fn vbd_quasi_static<F: VertexBlockModel>(
 
 /// Builds the adjacency, colouring and order into `indices` unless they are there for this
 /// mesh's counts; returns the colour count.
-fn ensure_topology(
+fn ensure_topology<M>(
     scratch: &mut VbdScratch<'_>,
     tets: &[[u32; 4]],
     vertex_count: usize,
+    bodies: Bodies<'_, M>,
 ) -> Result<u32, StepError> {
     if let Some((vertices, elements, colours)) = scratch.topology
         && vertices == vertex_count
@@ -726,22 +758,63 @@ fn ensure_topology(
     {
         return Ok(colours);
     }
-    let (offsets, rest) = scratch
-        .indices
-        .split_at_mut_checked(adjacency_offsets_len(vertex_count))
-        .unwrap_or_default();
-    let (incident, rest) = rest
-        .split_at_mut_checked(adjacency_incident_len(tets.len()))
-        .unwrap_or_default();
-    let (colours, order) = rest.split_at_mut_checked(vertex_count).unwrap_or_default();
+    let [offsets, incident, colours, order] = index_parts(
+        scratch.indices,
+        scratch.incident.as_deref_mut(),
+        vertex_count,
+        tets.len(),
+    );
     build_vertex_adjacency(tets, vertex_count, offsets, incident)?;
     let count = colour_vertices(tets, offsets, incident, colours)?;
-    vertex_order_by_degree(colours, count, offsets, order)?;
+    match bodies {
+        Bodies::One => vertex_order_by_degree(colours, count, offsets, order)?,
+        Bodies::World(parts) => {
+            // Body by body, each body's vertices by colour and degree: the offsets' windows
+            // of a range are its vertices' degrees, its order written in local indices first.
+            for part in parts {
+                let range = part.vertices();
+                let (first, end) = (range.start, range.end);
+                let (Some(colours), Some(offsets), Some(order)) = (
+                    colours.get(first..end),
+                    offsets.get(first..=end),
+                    order.get_mut(first..end),
+                ) else {
+                    continue;
+                };
+                vertex_order_by_degree(colours, count, offsets, order)?;
+                for slot in order {
+                    *slot = slot.saturating_add(first as u32);
+                }
+            }
+        }
+    }
     scratch.topology = Some((vertex_count, tets.len(), count));
     if let Some(layout) = &mut scratch.layout {
         layout.built = None;
     }
     Ok(count)
+}
+
+/// The adjacency's offsets, incident elements, the colours and the order in the scratch's
+/// index buffer (or its two parts), for `n` vertices and `t` tetrahedra; empty where short
+/// (the solvers check the lengths first).
+fn index_parts<'b>(
+    indices: &'b mut [u32],
+    incident: Option<&'b mut [u32]>,
+    n: usize,
+    t: usize,
+) -> [&'b mut [u32]; 4] {
+    let (offsets, rest) = indices
+        .split_at_mut_checked(adjacency_offsets_len(n))
+        .unwrap_or_default();
+    let (incident, rest) = match incident {
+        Some(incident) => (incident, rest),
+        None => rest
+            .split_at_mut_checked(adjacency_incident_len(t))
+            .unwrap_or_default(),
+    };
+    let (colours, order) = rest.split_at_mut_checked(n).unwrap_or_default();
+    [offsets, incident, colours, order]
 }
 
 /// Whole-sweep steps the descent loop's Armijo search may shorten before the solve stops.
@@ -758,9 +831,9 @@ fn minimise<F: VertexBlockModel>(
     velocities: Option<&mut [Vec3]>,
     scratch: &mut VbdScratch<'_>,
 ) -> Result<VbdReport, StepError> {
-    let body = model.tet_body();
-    let n = body.mesh.vertex_count();
-    let tets = body.mesh.tets();
+    let mesh = model.sweep_mesh();
+    let (n, tets) = (mesh.vertex_count, mesh.tets);
+    let material = mesh.material.ok_or(StepError::EmptyBody)?;
     let checked = descent::checked_solve(
         scene,
         n,
@@ -771,26 +844,48 @@ fn minimise<F: VertexBlockModel>(
             let vectors = scratch.vectors.len();
             check_length(StepBuffer::Scratch, scratch_len::vbd(n), vectors)?;
             let indices = scratch.indices.len();
-            let index_len = scratch_len::vbd_indices(n, tets.len());
-            check_length(StepBuffer::IndexScratch, index_len, indices)
+            match &scratch.incident {
+                None => {
+                    let index_len = scratch_len::vbd_indices(n, tets.len());
+                    check_length(StepBuffer::IndexScratch, index_len, indices)
+                }
+                Some(incident) => {
+                    let vertex_len = scratch_len::vbd_indices(n, 0);
+                    check_length(StepBuffer::IndexScratch, vertex_len, indices)?;
+                    let incident_len = adjacency_incident_len(tets.len());
+                    check_length(StepBuffer::IndexScratch, incident_len, incident.len())
+                }
+            }?;
+            match &scratch.contact {
+                Some(contact) => {
+                    check_length(StepBuffer::Scratch, n, contact.gradient.len())?;
+                    check_length(StepBuffer::Scratch, n, contact.blocks.len())?;
+                    check_length(StepBuffer::Scratch, n, contact.nearest.len())
+                }
+                None => Ok(()),
+            }
         },
     )?;
     let loads = scene.loads();
-    let colours = ensure_topology(scratch, tets, n)?;
-    let indices: &[u32] = scratch.indices;
-    let (offsets, rest) = indices
-        .split_at_checked(adjacency_offsets_len(n))
-        .unwrap_or_default();
-    let (incident, rest) = rest
-        .split_at_checked(adjacency_incident_len(tets.len()))
-        .unwrap_or_default();
-    let (colours_of, order) = rest.split_at_checked(n).unwrap_or_default();
-    if let Some(buffers) = &mut scratch.layout
+    let colours = ensure_topology(scratch, tets, n, mesh.bodies)?;
+    let VbdScratch {
+        vectors,
+        indices,
+        incident,
+        contact,
+        layout: layout_buffers,
+        ..
+    } = scratch;
+    let [offsets, incident, colours_of, order] =
+        index_parts(indices, incident.as_deref_mut(), n, tets.len());
+    let (offsets, incident, colours_of, order) = (&*offsets, &*incident, &*colours_of, &*order);
+    if let Some(buffers) = layout_buffers
         && buffers.built.is_none()
+        && matches!(mesh.bodies, Bodies::One)
     {
         let source = LayoutSource {
             tets,
-            rest: body.mesh.rest(),
+            rest: mesh.rest,
             offsets,
             incident,
             colours: colours_of,
@@ -798,7 +893,7 @@ fn minimise<F: VertexBlockModel>(
         };
         buffers.built = Some(build_layout(&source, buffers.corners, buffers.values).is_some());
     }
-    let layout = scratch.layout.as_ref().and_then(|buffers| {
+    let layout = layout_buffers.as_ref().and_then(|buffers| {
         if buffers.built != Some(true) {
             return None;
         }
@@ -810,15 +905,15 @@ fn minimise<F: VertexBlockModel>(
         })
     });
 
-    let (work, _) = Work::split(scratch.vectors, n);
+    let (work, _) = Work::split(vectors, n);
 
     // The sweeps see the ground and the colliders in the loop's coordinates, shifted as the
     // loop shifts them.
     let origin = descent::reference_point(positions);
     let sweep = Sweep {
         tets,
-        rest: body.mesh.rest(),
-        material: &body.material,
+        rest: mesh.rest,
+        material,
         offsets,
         incident,
         colours: colours_of,
@@ -838,12 +933,19 @@ fn minimise<F: VertexBlockModel>(
         }),
         colliders: Colliders::new(scene.colliders).shifted(origin),
         friction: None,
+        bodies: mesh.bodies,
+        contact: None,
         armijo: settings.armijo,
         backtrack: settings.backtrack,
         max_backtracks: settings.max_backtracks,
     };
     let lazy = settings.options.line_search_on_increase && settings.max_backtracks > 0;
-    let mut direction = VbdSweep::new(sweep, !lazy);
+    let contact = contact.as_mut().map(|buffers| ContactBuffersVbd {
+        gradient: &mut *buffers.gradient,
+        blocks: &mut *buffers.blocks,
+        nearest: &mut *buffers.nearest,
+    });
+    let mut direction = VbdSweep::new(sweep, !lazy, contact);
     let problem = checked.problem((model, masses, pinned), &[], scene);
     let loop_settings = LoopSettings {
         max_backtracks: SWEEP_BACKTRACKS,

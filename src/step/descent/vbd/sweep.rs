@@ -12,6 +12,7 @@ use super::super::super::super::material::Material;
 use super::super::super::super::math;
 use super::super::super::super::mesh::adjacency::incident_elements;
 use super::super::super::super::types::{Mat3, Real, Vec3};
+use super::super::super::super::world::Part;
 use super::super::super::contact::HalfSpace;
 use super::super::super::contact::collider::Colliders;
 use super::super::super::contact::floor::Floor;
@@ -80,9 +81,67 @@ pub(crate) struct Sweep<'s, M: Material> {
     pub colliders: Colliders<'s>,
     /// Friction and the iterate it is lagged to (`None` for none: set per sweep).
     pub friction: Option<(Friction<'s, Vec3>, Lag<'s, Vec3>)>,
+    /// The bodies the sweep visits one after the other.
+    pub bodies: Bodies<'s, M>,
+    /// Contact between surfaces: each vertex's terms at the sweep's start (`None` for none: set
+    /// per sweep).
+    pub contact: Option<ContactTerms<'s>>,
     pub armijo: Real,
     pub backtrack: Real,
     pub max_backtracks: u32,
+}
+
+/// The bodies a sweep visits: the whole mesh with the sweep's material, or the bodies of a
+/// world one after the other, each with its own material over its range of vertices (which
+/// is its range of the vertex order: the order sorts the vertices body by body, then by colour).
+pub(crate) enum Bodies<'s, M> {
+    One,
+    World(&'s [Part<M>]),
+}
+
+impl<M> Clone for Bodies<'_, M> {
+    #[inline]
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<M> Copy for Bodies<'_, M> {}
+
+/// How far a vertex in a contact pair may move in one sweep: this fraction of its nearest
+/// pair's distance. Every vertex of a pair then moves less than half the pair's distance, so
+/// the pair cannot close, whatever the others do in the same sweep.
+const CONTACT_REACH: Real = 0.4;
+
+/// The contact's terms of a sweep's vertex updates, computed at the sweep's start positions
+/// ([`SweepSchedule::vertex_contact`]): the barrier's and the lagged friction's gradient and
+/// diagonal Hessian blocks, and how far each vertex may move in this sweep.
+#[derive(Clone, Copy)]
+pub(crate) struct ContactTerms<'s> {
+    /// N, one per vertex.
+    pub gradient: &'s [Vec3],
+    /// N/m, one per vertex.
+    pub blocks: &'s [Mat3],
+    /// The smallest distance (m) of a contact pair of each vertex (`+inf` for none).
+    pub nearest: &'s [Real],
+}
+
+impl ContactTerms<'_> {
+    /// Whether vertex `i` is in a contact pair or takes friction between surfaces.
+    #[inline(always)]
+    pub(crate) fn touches(&self, i: usize) -> bool {
+        self.nearest.get(i).is_some_and(|d| d.is_finite())
+            || self.gradient.get(i).is_some_and(|g| *g != Vec3::ZERO)
+    }
+}
+
+/// The caller's buffers of the contact terms ([`ContactTerms`]), one entry per vertex each.
+/// Public in name only, for the sealed trait's signature.
+#[derive(Debug)]
+pub struct ContactBuffersVbd<'a> {
+    pub(crate) gradient: &'a mut [Vec3],
+    pub(crate) blocks: &'a mut [Mat3],
+    pub(crate) nearest: &'a mut [Real],
 }
 
 /// What a sweep counts.
@@ -148,13 +207,54 @@ pub trait SweepSchedule {
     /// The material of the body.
     type Material: Material;
 
-    /// The tetrahedral body the sweeps visit: its energy is the model's
-    /// ([`ElasticEnergy::energy_and_add_forces`]), which the descent loop evaluates.
-    fn tet_body(&self) -> &TetElastic<'_, Self::Material>;
+    /// The tetrahedra the sweeps visit, their materials and the vertex count: their energy is
+    /// the model's ([`ElasticEnergy::energy_and_add_forces`]), which the descent loop
+    /// evaluates.
+    fn sweep_mesh(&self) -> SweepMesh<'_, Self::Material>;
+
+    /// Writes the contact's terms of the vertex updates at `positions` into `buffers` and
+    /// returns `true`, or `false` for a model without contact between surfaces (the default).
+    ///
+    /// # Errors
+    /// The model's (a contact buffer too small).
+    #[inline]
+    fn vertex_contact(
+        &self,
+        positions: &[Vec3],
+        buffers: &mut ContactBuffersVbd<'_>,
+    ) -> Result<bool, StepError> {
+        let _ = (positions, buffers);
+        Ok(false)
+    }
 
     /// Runs one sweep: [`SweepRun::in_order`], or [`SweepRun::on_pool`] on the model's pool
     /// (the same bits).
     fn run_sweep(&self, run: SweepRun<'_, '_, Self::Material>);
+}
+
+/// The tetrahedra a sweep visits: those of one body and its material, or a world's bodies
+/// (tetrahedra and rest data over all of them, `material` the first body's, unused; `None`
+/// without bodies). Public in name only, for the sealed trait's signature.
+pub struct SweepMesh<'a, M> {
+    pub(crate) tets: &'a [[u32; 4]],
+    pub(crate) rest: &'a [TetRest],
+    pub(crate) vertex_count: usize,
+    pub(crate) material: Option<&'a M>,
+    pub(crate) bodies: Bodies<'a, M>,
+}
+
+impl<'a, M: Material> SweepMesh<'a, M> {
+    /// The sweep mesh of one body.
+    #[inline]
+    pub(crate) fn of(body: &'a TetElastic<'a, M>) -> Self {
+        SweepMesh {
+            tets: body.mesh.tets(),
+            rest: body.mesh.rest(),
+            vertex_count: body.mesh.vertex_count(),
+            material: Some(&body.material),
+            bodies: Bodies::One,
+        }
+    }
 }
 
 /// The vertices a task of a parallel sweep updates: small enough to split the colours of
@@ -172,13 +272,64 @@ fn gather(positions: &[Vec3], corners: [u32; 4]) -> [Vec3; 4] {
     corners.map(|i| positions.get(i as usize).copied().unwrap_or(Vec3::ZERO))
 }
 
-impl<M: Material> Sweep<'_, M> {
+impl<'s, M: Material> Sweep<'s, M> {
     /// One Gauss–Seidel sweep over the free vertices in colour order, in place: each colour's
     /// vertices summed a lane group at a time (`step/descent/vbd/sums.rs`), each group's updates
     /// applied after its sums. Returns the sweep's Gauss–Seidel residual (N): the norm of the
     /// vertex gradients `g_i` each update started from (projected as the loop's residual is, see
     /// [`updated`](Self::updated)), summed in the sweep's order.
     fn run(&self, positions: &mut [Vec3], counts: &mut SweepCounts, line_search: bool) -> Real {
+        let mut residual_squared = 0.0;
+        self.for_each_body(|body| {
+            residual_squared += body.run_body(positions, counts, line_search);
+        });
+        math::sqrt(residual_squared)
+    }
+
+    /// Calls `visit` with the sweep of every body in order (the sweep itself for one body).
+    #[inline]
+    fn for_each_body(&self, mut visit: impl FnMut(&Sweep<'s, M>)) {
+        for k in 0..self.body_count() {
+            if let Some(body) = self.body(k) {
+                visit(&body);
+            }
+        }
+    }
+
+    /// The number of bodies the sweep visits.
+    #[inline]
+    fn body_count(&self) -> usize {
+        match self.bodies {
+            Bodies::One => 1,
+            Bodies::World(parts) => parts.len(),
+        }
+    }
+
+    /// The sweep of body `k` alone: its material and its vertices' order.
+    #[inline]
+    fn body(&self, k: usize) -> Option<Sweep<'s, M>> {
+        match self.bodies {
+            Bodies::One => (k == 0).then_some(*self),
+            Bodies::World(parts) => {
+                let part = parts.get(k)?;
+                Some(Sweep {
+                    material: part.material(),
+                    order: self.order.get(part.vertices()).unwrap_or_default(),
+                    bodies: Bodies::One,
+                    layout: None,
+                    ..*self
+                })
+            }
+        }
+    }
+
+    /// [`run`](Self::run) over one body's vertices: the squared residual of its vertices.
+    fn run_body(
+        &self,
+        positions: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) -> Real {
         let line_search = line_search && self.max_backtracks > 0;
         let visitor = sum_vertices(SumsPass {
             elements: &self.mesh(),
@@ -196,7 +347,7 @@ impl<M: Material> Sweep<'_, M> {
             },
         });
         *counts = visitor.counts;
-        math::sqrt(visitor.target.residual_squared)
+        visitor.target.residual_squared
     }
 
     /// One sweep colour by colour on the current rayon pool: the updates of a colour, which
@@ -204,6 +355,20 @@ impl<M: Material> Sweep<'_, M> {
     /// [`VERTEX_CHUNK`] vertices, then written back; the same bits as [`run`](Self::run).
     #[cfg(feature = "rayon")]
     fn run_on_pool(
+        &self,
+        positions: &mut [Vec3],
+        staging: &mut [Vec3],
+        counts: &mut SweepCounts,
+        line_search: bool,
+    ) where
+        M: Sync,
+    {
+        self.for_each_body(|body| body.run_body_on_pool(positions, staging, counts, line_search));
+    }
+
+    /// [`run_on_pool`](Self::run_on_pool) over one body's vertices.
+    #[cfg(feature = "rayon")]
+    fn run_body_on_pool(
         &self,
         positions: &mut [Vec3],
         staging: &mut [Vec3],
@@ -321,6 +486,13 @@ impl<M: Material> Sweep<'_, M> {
             gradient += slip.gradient() * *force;
             hessian += slip.hessian() * *force;
         }
+        // Contact between surfaces, at the sweep's start: its vertex takes a whole Newton step
+        // (the vertex line search's energy has no barrier) cut to its reach.
+        let contact = self.contact.filter(|terms| terms.touches(i));
+        if let Some(terms) = &contact {
+            gradient += terms.gradient.get(i).copied().unwrap_or(Vec3::ZERO);
+            hessian += terms.blocks.get(i).copied().unwrap_or(Mat3::ZERO);
+        }
         if fixed != 0 {
             // The step on the free subspace exactly: the reduced system, its fixed rows and
             // columns replaced by the identity and its fixed gradient components by zero.
@@ -370,7 +542,14 @@ impl<M: Material> Sweep<'_, M> {
                 step -= towards * ((normal.dot(step) + height) / curvature);
             }
         }
-        let step = step.axes_from(Vec3::ZERO, fixed);
+        let mut step = step.axes_from(Vec3::ZERO, fixed);
+        if let Some(terms) = &contact {
+            let reach = CONTACT_REACH * terms.nearest.get(i).copied().unwrap_or(0.0);
+            let length = math::sqrt(step.dot(step));
+            if length > reach {
+                step *= reach / length;
+            }
+        }
         let slope = gradient.dot(step);
         if !(slope < 0.0 && step.is_finite()) {
             // Stationary (g = 0) or no descent: nothing to gain here this sweep.
@@ -388,7 +567,7 @@ impl<M: Material> Sweep<'_, M> {
             }
             p.axes_from(x, fixed)
         };
-        if !line_search {
+        if !line_search || contact.is_some() {
             return Some(project(x + step));
         }
         let resolution = RESOLUTION * resolution;
@@ -662,13 +841,22 @@ pub(crate) struct VbdSweep<'s, M: Material> {
     /// The Gauss–Seidel residual (N) of the last accelerated trial's sweep: an estimate of
     /// `|grad Phi|` at the iterate it started from (see [`Direction::residual_estimate`]).
     estimate: Real,
+    /// Where the contact's terms are written before each sweep (`None`: the sweeps take no
+    /// contact between surfaces).
+    contact: Option<ContactBuffersVbd<'s>>,
 }
 
 impl<'s, M: Material> VbdSweep<'s, M> {
     /// The direction of the sweeps of `sweep` (its `start`, `velocities`, `h` and `inertia`
-    /// are ignored), each vertex update line-searched where `line_search`.
-    pub fn new(sweep: Sweep<'s, M>, line_search: bool) -> Self {
+    /// are ignored), each vertex update line-searched where `line_search`, the contact's terms
+    /// written to `contact` before each sweep where the model has contact.
+    pub fn new(
+        sweep: Sweep<'s, M>,
+        line_search: bool,
+        contact: Option<ContactBuffersVbd<'s>>,
+    ) -> Self {
         VbdSweep {
+            contact,
             sweep,
             line_search,
             redo: false,
@@ -695,8 +883,30 @@ impl<'s, M: Material> VbdSweep<'s, M> {
             h,
             inertia: if h > 0.0 { 1.0 / (h * h) } else { 0.0 },
             friction: lag.map(|lag| (objective.friction, lag)),
+            contact: None,
             ..self.sweep
         }
+    }
+
+    /// Writes the contact's terms at `x` where the model has contact; whether it has.
+    fn fill_contact<F: VertexBlockModel<Material = M>>(
+        &mut self,
+        model: &F,
+        x: &[Vec3],
+    ) -> Result<bool, StepError> {
+        match &mut self.contact {
+            Some(buffers) => model.vertex_contact(x, buffers),
+            None => Ok(false),
+        }
+    }
+
+    /// The contact's terms last written (see [`fill_contact`](Self::fill_contact)).
+    fn contact_terms(&self) -> Option<ContactTerms<'_>> {
+        self.contact.as_ref().map(|buffers| ContactTerms {
+            gradient: buffers.gradient,
+            blocks: buffers.blocks,
+            nearest: buffers.nearest,
+        })
     }
 }
 
@@ -708,21 +918,34 @@ impl<F: VertexBlockModel> Direction<F> for VbdSweep<'_, F::Material> {
         let reach = x
             .iter()
             .fold(0.0, |a: Real, p| a.max(p.abs().max_element()));
-        let blocks = sum_vertices(SumsPass {
-            elements: &sweep.mesh(),
-            skip: sweep.pinned,
-            runs: sweep.colour_runs(),
-            // The scale, not the energy: the norms and the resolution read no energy.
-            extras: Extras::Scale,
-            visitor: BlockNorms {
-                masses: sweep.masses,
-                inertia: sweep.inertia,
-                positions: x,
-                stiffness_squared: 0.0,
-                resolution: 0.0,
-            },
+        let (mut stiffness_squared, mut resolution) = (0.0, 0.0);
+        sweep.for_each_body(|body| {
+            let blocks = sum_vertices(SumsPass {
+                elements: &body.mesh(),
+                skip: body.pinned,
+                runs: body.colour_runs(),
+                // The scale, not the energy: the norms and the resolution read no energy.
+                extras: Extras::Scale,
+                visitor: BlockNorms {
+                    masses: body.masses,
+                    inertia: body.inertia,
+                    positions: x,
+                    stiffness_squared,
+                    resolution,
+                },
+            });
+            (stiffness_squared, resolution) = (blocks.stiffness_squared, blocks.resolution);
         });
-        let (stiffness_squared, resolution) = (blocks.stiffness_squared, blocks.resolution);
+        // The contact's blocks stiffen the vertices they act on as the elements' do (an error
+        // here recurs in the first sweep, which reports it).
+        if let Ok(true) = self.fill_contact(objective.model, x)
+            && let Some(terms) = self.contact_terms()
+        {
+            for block in terms.blocks {
+                let columns = [block.x_axis, block.y_axis, block.z_axis];
+                stiffness_squared += columns.iter().map(|c| c.dot(*c)).sum::<Real>();
+            }
+        }
         self.floor = rounding_floor(reach, stiffness_squared);
         // The energy of a nearly undeformed element is a difference of `O(mu V)` terms: its
         // rounding, which the relative `sqrt(eps) |Phi|` of the loop misses when `Phi` is
@@ -752,7 +975,6 @@ impl<F: VertexBlockModel> Direction<F> for VbdSweep<'_, F::Material> {
         let (objective, at, direction) = (search.objective, search.at, search.direction);
         let (trial, step) = (search.trial, search.step);
         let lag = Lag::new(at.x, at.gradient);
-        let sweep = self.at(objective, Some(lag));
         let TrialPoint {
             positions: swept,
             gradient,
@@ -761,13 +983,25 @@ impl<F: VertexBlockModel> Direction<F> for VbdSweep<'_, F::Material> {
         // `direction` is free until the sweep is done: the parallel schedule stages there.
         let mut counts = self.counts;
         let line_search = self.line_search || self.redo;
-        objective.model.run_sweep(SweepRun {
-            sweep: &sweep,
-            positions: swept,
-            staging: direction,
-            counts: &mut counts,
-            line_search,
-        });
+        // Body by body, each with the contact's terms where the bodies before it left the
+        // positions (block Gauss–Seidel over the bodies).
+        for k in 0..self.sweep.body_count() {
+            let touching = self.fill_contact(objective.model, swept)?;
+            let Some(body) = self.at(objective, Some(lag)).body(k) else {
+                continue;
+            };
+            let sweep = Sweep {
+                contact: self.contact_terms().filter(|_| touching),
+                ..body
+            };
+            objective.model.run_sweep(SweepRun {
+                sweep: &sweep,
+                positions: swept,
+                staging: direction,
+                counts: &mut counts,
+                line_search,
+            });
+        }
         self.counts = counts;
         self.redo = false;
         self.searched_safely = line_search;
@@ -792,7 +1026,7 @@ impl<F: VertexBlockModel> Direction<F> for VbdSweep<'_, F::Material> {
         Ok(slope_along(at.gradient, direction))
     }
 
-    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>) {
+    fn extrapolate(&mut self, extrapolation: Extrapolation<'_, F>) -> Result<(), StepError> {
         let Extrapolation {
             objective,
             at,
@@ -802,16 +1036,28 @@ impl<F: VertexBlockModel> Direction<F> for VbdSweep<'_, F::Material> {
             omega,
         } = extrapolation;
         let lag = Lag::new(at.x, at.gradient);
-        let sweep = self.at(objective, Some(lag));
         let TrialPoint {
             positions: older,
             gradient: swept,
         } = trial;
         copy(swept, at.x);
         // No buffer is free for the parallel schedule's staging here: the sequential sweep,
-        // which gives the same bits.
+        // which gives the same bits; body by body as in `search`.
         let mut counts = self.counts;
-        let estimate = sweep.run(swept, &mut counts, self.line_search);
+        let mut residual_squared = 0.0;
+        for k in 0..self.sweep.body_count() {
+            let touching = self.fill_contact(objective.model, swept)?;
+            let Some(body) = self.at(objective, Some(lag)).body(k) else {
+                continue;
+            };
+            let sweep = Sweep {
+                contact: self.contact_terms().filter(|_| touching),
+                ..body
+            };
+            residual_squared += sweep.run_body(swept, &mut counts, self.line_search);
+        }
+        let estimate = math::sqrt(residual_squared);
+        let sweep = self.at(objective, Some(lag));
         let floor = objective.frames.floor();
         let rows = older.iter_mut().zip(swept.iter()).zip(at.x);
         for (i, ((older, &s), &x)) in rows.enumerate() {
@@ -827,6 +1073,7 @@ impl<F: VertexBlockModel> Direction<F> for VbdSweep<'_, F::Material> {
         swept.fill(Vec3::ZERO);
         self.counts = counts;
         self.estimate = estimate;
+        Ok(())
     }
 
     fn rounding_floor(&self) -> Real {
