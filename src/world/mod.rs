@@ -881,7 +881,9 @@ impl<S: WorldStorage, M: Material> World<S, M> {
     /// Sets the solver: [`Solver::Newton`], [`Solver::Relax`] or [`Solver::Explicit`].
     ///
     /// # Errors
-    /// [`BodyError::Solver`] for Vertex Block Descent (no body–body contact there yet),
+    /// [`BodyError::Solver`] for Vertex Block Descent (no body–body contact there yet) and
+    /// for [`Solver::Auto`] (its rule and fallbacks are a [`Body`](crate::body::Body)'s; a
+    /// world's solver is chosen by name),
     /// [`BodyError::StableFraction`] for an explicit `stable_fraction` outside `(0, 1]`,
     /// [`BodyError::Capacity`] if its scratch does not fit; the solver is unchanged then.
     pub fn set_solver(&mut self, solver: Solver) -> Result<(), BodyError> {
