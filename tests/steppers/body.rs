@@ -825,6 +825,40 @@ fn a_failed_automatic_step_leaves_the_state_and_a_world_refuses_the_automatic_so
     }
 }
 
+/// `FixedStorage<36, 60>` but for the vector scratch, with room for Newton's nine vectors a
+/// vertex and not the automatic solver's eleven.
+struct NineVectors;
+
+impl softfem::body::Storage for NineVectors {
+    type Vectors = softfem::body::Fixed<Vec3, 1, 36>;
+    type Reals = softfem::body::Fixed<f32, 1, 36>;
+    type Flags = softfem::body::Fixed<bool, 1, 36>;
+    type Tets = softfem::body::Fixed<[u32; 4], 1, 60>;
+    type Rests = softfem::body::Fixed<TetRest, 1, 60>;
+    type RestBlocks = softfem::body::Fixed<softfem::mesh::TetRestBlock, 0, 1>;
+    type Scratch = softfem::body::Fixed<Vec3, 9, 36>;
+    type Blocks = softfem::body::Fixed<softfem::glam::Mat3, 1, 36>;
+    type Hessians = softfem::body::Fixed<softfem::element::TetHessian, 1, 60>;
+    type Indices = softfem::body::Fixed<u32, 17, 60>;
+    type LayoutValues = softfem::body::Fixed<f32, 0, 1>;
+    type LayoutCorners = softfem::body::Fixed<u32, 0, 1>;
+}
+
+#[test]
+fn a_storage_without_room_for_the_automatic_solver_says_which_buffer() {
+    // The default solver needs 11 vectors a vertex (Newton's 9 and the frame's start for the
+    // retry in half steps): a storage with 9 is refused when the body is built, naming the
+    // vector scratch and the 11 x 36 entries it needs, not at the first fallback.
+    let refused = Body::<NineVectors, _>::from_box(LOW, HIGH, CELLS, DENSITY, jelly());
+    assert_eq!(
+        refused.err(),
+        Some(BodyError::Capacity {
+            buffer: BodyBuffer::Scratch,
+            needed: 11 * 36
+        })
+    );
+}
+
 #[test]
 fn double_precision_body_steps() {
     use softfem::f64::body::{Body, FixedStorage};
