@@ -48,12 +48,13 @@ impl AutoSettings {
     /// The default crossover: 100 substeps a frame. Measured on the tuning map (a 0.2 m cube
     /// of 320 tetrahedra dropped on the ground, E 1e3 to 1e9 Pa, nu 0.3 to 0.49, 30 to 240 Hz;
     /// `docs/charts/tuning_map.csv`, Intel Xeon with AVX-512, KVM guest, 2 vCPUs): one
-    /// explicit substep costs 4.5 us (median over the 79 stable explicit cells, 4.3 to 5.5 us)
+    /// explicit substep costs 4.5 us (median over the 81 stable explicit cells, 4.3 to 5.5 us)
     /// and one Newton frame 0.47 ms (median over the 84 cells, 0.32 to 1.5 ms), so Newton
     /// pays off beyond about 105 substeps a frame, rounded to 100. Both costs grow with the
-    /// mesh, Newton's somewhat faster (more conjugate-gradient iterations on a finer mesh), so
-    /// the crossover of a large body lies higher; set it from a measurement of the body at hand
-    /// where the cost matters.
+    /// vertices; Newton's frame also with its conjugate-gradient iterations, which a finer mesh
+    /// needs more of, so a large body's crossover likely lies higher (measured on this cube
+    /// only): set it from a measurement of the body at hand where the cost matters
+    /// ([`with_crossover`](Self::with_crossover)).
     pub const CROSSOVER_SUBSTEPS: u32 = 100;
 
     /// The default growth limit of the explicit stepper's blow-up detector
@@ -63,14 +64,15 @@ impl AutoSettings {
     /// Why: the stable step is proven for the body at rest, and a body squashed far from its
     /// rest shape can be stiffer. On the tuning map the jelly of E = 1e3 Pa, nu = 0.49 lands
     /// flattened (its weight, 2 kPa over its base, is twice its modulus) and its explicit steps
-    /// at half the rest shape's stable step (substeps of 1.4 to 1.75 ms at 30 to 120 Hz) gain
-    /// energy until it doubles, 0.25 s in, unseen by a limit of 100 (measured: a quarter of
-    /// the stable step, or substeps of 1.4 ms at 240 Hz, stay stable). A mode at `k` times its
+    /// at half the rest shape's stable step (substeps of 1.67 to 1.75 ms at 120 to 30 Hz) gain
+    /// energy until it doubles, 0.23 to 0.27 s in, unseen by a limit of 100 (measured: 0.35
+    /// and 0.25 of the stable step stay stable, and so do the 1.39 ms substeps at 240 Hz). A mode at `k` times its
     /// critical step multiplies the indicator by about `(4 k^2 - 2)^2` a substep once it
     /// dominates: a limit of 100 catches it only for `k > 1.73`, a limit of 6 for
     /// `k > 1.054`, while stable motion grows it by at most 4 in practice (a body starting from
-    /// rest). Measured on those cells: 6 catches the blow-up (2 to 4 frames of the 30 to 120
-    /// fall back to Newton's method, the cells stay stable), 10 and 20 do not. A false alarm
+    /// rest). Measured on those cells: 6 (and 4) catches the blow-up (2 to 4 frames of the 30
+    /// to 120 fall back to Newton's method, the cells stay stable), 10 and 20 do not; on no
+    /// other cell of the map did a frame fall back. A false alarm
     /// costs one frame of Newton's method, not a failure; the limit is tight for that reason.
     pub const ENERGY_GROWTH: Real = 6.0;
 
@@ -190,8 +192,9 @@ pub struct AutoReport {
 impl AutoReport {
     /// Whether the run reached its tolerance: always for an explicit run; for Newton's method
     /// its report's [`converged`](NewtonReport::converged) (of both halves after a fallback to
-    /// half steps). A stop at the rounding floor is not convergence (see
-    /// [`resolved`](Self::resolved)).
+    /// half steps), nothing added: a stop at a rounding floor that Newton's report does not
+    /// call converged (a floor at or above the starting residual) is not convergence here
+    /// either (see [`resolved`](Self::resolved)).
     #[inline]
     #[must_use]
     pub fn converged(&self) -> bool {
