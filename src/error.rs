@@ -1037,7 +1037,8 @@ pub enum BodyError {
     /// A [`World`](crate::world::World)'s contact settings or surface were refused.
     Contact(ContactError),
     /// A [`World`](crate::world::World) steps with Newton's method, the relaxation or the
-    /// explicit stepper: Vertex Block Descent does not take body–body contact yet.
+    /// explicit stepper: Vertex Block Descent does not take body–body contact yet, and the
+    /// automatic solver ([`Solver::Auto`](crate::body::Solver::Auto)) is a body's only.
     Solver,
 }
 
@@ -1095,7 +1096,7 @@ impl fmt::Display for BodyError {
             BodyError::Contact(error) => write!(f, "{error}"),
             BodyError::Solver => f.write_str(
                 "a world steps with Newton's method, the relaxation or the explicit stepper (VBD \
-                 does not take body-body contact yet)",
+                 does not take body-body contact yet; the automatic solver is a body's only)",
             ),
         }
     }

@@ -12,9 +12,9 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::Grid;
-use crate::measure::{CellResult, MAX_SUBSTEPS_PER_FRAME, Outcome};
+use crate::measure::{CellResult, MAX_SUBSTEPS_PER_FRAME, Outcome, SolverKind};
 
-const WIDTH: u32 = 1200;
+const WIDTH: u32 = 1500;
 const HEIGHT: u32 = 960;
 const TITLE_HEIGHT: u32 = 50;
 /// The column on the right: colour bar and legend.
@@ -128,7 +128,8 @@ pub fn to_svg(grid: &Grid, results: &[CellResult]) -> Result<String, String> {
             ))
             .map_err(plot_error)?;
         let (panels, legend) = body.split_horizontally(WIDTH - LEGEND_WIDTH);
-        let columns = 2;
+        // Five solvers: three panels a row (two rows); four or fewer: two.
+        let columns = if grid.solvers.len() > 4 { 3 } else { 2 };
         let rows = grid.solvers.len().div_ceil(columns).max(1);
         let areas = panels.split_evenly((rows, columns));
         for (&solver, area) in grid.solvers.iter().zip(&areas) {
@@ -138,10 +139,60 @@ pub fn to_svg(grid: &Grid, results: &[CellResult]) -> Result<String, String> {
                 .collect();
             draw_panel(grid, solver.name(), &of, scale, area)?;
         }
+        // The automatic solver's check in the first free panel, where there is one.
+        if grid.solvers.contains(&SolverKind::Auto)
+            && let Some(area) = areas.get(grid.solvers.len())
+        {
+            draw_auto_check(&crate::auto_check(grid, results), area)?;
+        }
         draw_legend(grid, scale, &legend)?;
         root.present().map_err(plot_error)?;
     }
     Ok(svg)
+}
+
+/// The automatic solver's check as text: the cells that meet the target, the worst ratios and
+/// the cells that miss (each on two lines: where, and why).
+fn draw_auto_check(
+    check: &crate::AutoCheck,
+    area: &DrawingArea<SVGBackend<'_>, Shift>,
+) -> Result<(), String> {
+    let text = |s: String, at: (i32, i32), size: u32| {
+        area.draw(&Text::new(s, at, ("sans-serif", size).into_font()))
+            .map_err(plot_error)
+    };
+    text("auto against the issue's target:".into(), (20, 30), 16)?;
+    text(
+        format!(
+            "{} of {} cells stable, resolved and within {}x",
+            check.met,
+            check.cells,
+            crate::AUTO_COST_TARGET
+        ),
+        (20, 54),
+        14,
+    )?;
+    text("the cheapest other resolved solver".into(), (20, 72), 14)?;
+    let worst = |label: &str, worst: &Option<(f64, String)>| {
+        worst
+            .as_ref()
+            .map_or(format!("{label}: none"), |(ratio, at)| {
+                format!("{label}: {ratio:.2}x at {at}")
+            })
+    };
+    text(worst("worst", &check.worst), (20, 96), 13)?;
+    text(
+        worst("worst against explicit or newton", &check.worst_own),
+        (20, 114),
+        13,
+    )?;
+    let mut y = 142;
+    for miss in &check.misses {
+        text(format!("misses at {}:", miss.cell), (20, y), 12)?;
+        text(format!("  {}", miss.why), (20, y + 15), 11)?;
+        y += 34;
+    }
+    Ok(())
 }
 
 /// The frame rates left to right: the longest frame time on the right.
@@ -416,6 +467,8 @@ mod tests {
             frames_run: if ran { 60 } else { 0 },
             frames_converged: if ran { frames_converged } else { 0 },
             frames_at_floor: 0,
+            frames_explicit: 0,
+            frames_fallback: 0,
             cost_per_frame: if ran { 1e-3 } else { f64::NAN },
             stable_step: 1e-4,
             work_per_frame: 3.0,
@@ -433,6 +486,36 @@ mod tests {
     /// circles (white under black), the cross four lines (two strokes, white under black),
     /// the too-costly dot one circle and the grey fill; the caption counts what is stable and
     /// resolved.
+    /// With auto among five solvers the sixth panel holds its check: the count, the worst
+    /// ratio, and a miss by name (auto at 2 ms against Newton's 1 ms: twice the cost).
+    #[test]
+    fn the_free_panel_shows_the_auto_check() {
+        let grid = Grid {
+            youngs: vec![1e6],
+            poissons: vec![0.3],
+            frame_rates: vec![60],
+            solvers: vec![
+                SolverKind::Explicit,
+                SolverKind::Relax,
+                SolverKind::Newton,
+                SolverKind::Vbd,
+                SolverKind::Auto,
+            ],
+            duration: 1.0,
+            ground: Ground::Body,
+        };
+        let newton = cell(Outcome::Stable, 60);
+        let mut auto = cell(Outcome::Stable, 60);
+        auto.input.solver = SolverKind::Auto;
+        auto.cost_per_frame = 2e-3;
+        let svg = to_svg(&grid, &[newton, auto]).unwrap();
+        assert!(svg.contains("auto against the issue"), "{svg}");
+        assert!(svg.contains("0 of 1 cells stable, resolved and within 1.5x"));
+        assert!(svg.contains("worst: 2.00x at E = 1e6 Pa, nu = 0.3, dt = 1/60"));
+        assert!(svg.contains("misses at E = 1e6 Pa, nu = 0.3, dt = 1/60:"));
+        assert!(svg.contains("2.00x the cheapest, newton"));
+    }
+
     #[test]
     fn each_outcome_gets_its_mark() {
         let grid = Grid {

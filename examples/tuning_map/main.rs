@@ -2,7 +2,8 @@
 //! stable, converged and cheapest at which stiffness and frame time, measured (issue #41).
 //!
 //! Sweeps Young's modulus (1e3 to 1e9 Pa), Poisson's ratio (0.3, 0.45, 0.49), the frame time
-//! (1/30 to 1/240 s) and the solver (explicit with substeps, relaxation, Newton, VBD) on one
+//! (1/30 to 1/240 s) and the solver (explicit with substeps, relaxation, Newton, VBD, and the
+//! automatic choice between them, `Solver::auto()`) on one
 //! standard scene (a jelly cube dropped onto the ground, see `measure.rs`), one step a frame for
 //! one simulated second, and writes into the output directory:
 //!
@@ -75,7 +76,7 @@ pub struct Grid {
 }
 
 impl Grid {
-    /// The full map: 7 x 3 x 4 x 4 = 336 cells of one simulated second.
+    /// The full map: 7 x 3 x 4 x 5 = 420 cells of one simulated second.
     pub fn full() -> Grid {
         Grid {
             youngs: vec![1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9],
@@ -87,7 +88,7 @@ impl Grid {
         }
     }
 
-    /// The CI grid: 3 x 1 x 2 x 4 = 24 cells of 0.2 s.
+    /// The CI grid: 3 x 1 x 2 x 5 = 30 cells of 0.2 s.
     pub fn quick() -> Grid {
         Grid {
             youngs: vec![1e4, 1e6, 1e8],
@@ -134,8 +135,11 @@ impl Grid {
 /// iterations a frame (implicit); `energy_lost_j_per_s` is the total energy (kinetic, elastic,
 /// gravity above the ground) at the start minus at the last frame run over the time run, and
 /// `energy_lost_share_per_s` the same over the starting energy (1/s); `volume_error` is the
-/// largest `|V / V0 - 1|` over the frames run. Measurements of a cell not run are empty.
-pub const COLUMNS: [&str; 22] = [
+/// largest `|V / V0 - 1|` over the frames run; `explicit_frames` counts the frames the
+/// explicit stepper produced (every frame of `explicit`, the explicit choices of `auto` that
+/// did not fall back) and `fallback_frames` the frames of `auto` that took a fallback.
+/// Measurements of a cell not run are empty.
+pub const COLUMNS: [&str; 24] = [
     "solver",
     "young_pa",
     "poisson",
@@ -158,6 +162,8 @@ pub const COLUMNS: [&str; 22] = [
     "energy_lost_j_per_s",
     "energy_lost_share_per_s",
     "volume_error",
+    "explicit_frames",
+    "fallback_frames",
 ];
 
 /// A number for a CSV cell: 6 significant digits; empty when not measured (NaN).
@@ -204,6 +210,8 @@ pub fn to_csv(results: &[CellResult]) -> String {
             measured(r.energy_lost_per_second),
             measured(r.energy_lost_share_per_second()),
             measured(r.volume_error),
+            r.frames_explicit.to_string(),
+            r.frames_fallback.to_string(),
         ];
         let _ = writeln!(csv, "{}", cells.join(","));
     }
@@ -346,11 +354,16 @@ pub fn summary(grid: &Grid, results: &[CellResult]) -> Vec<String> {
             of.len()
         ));
     }
+    if grid.solvers.contains(&SolverKind::Auto) {
+        lines.extend(auto_check(grid, results).lines());
+    }
     for &poisson in &grid.poissons {
         for &rate in &grid.frame_rates {
-            let mut line = format!("nu = {poisson}, dt = 1/{rate}: cheapest resolved solver by E:");
+            let mut line = format!(
+                "nu = {poisson}, dt = 1/{rate}: cheapest resolved solver (auto aside) by E:"
+            );
             for &young in &grid.youngs {
-                let best = cheapest_resolved(results, young, poisson, rate);
+                let best = cheapest_of(results, young, poisson, rate, |s| s != SolverKind::Auto);
                 let _ = write!(
                     line,
                     " {young:.0e} {}",
@@ -364,12 +377,13 @@ pub fn summary(grid: &Grid, results: &[CellResult]) -> Vec<String> {
 }
 
 /// The cell of least cost per frame among the stable and resolved ones at this material and
-/// frame rate.
-pub fn cheapest_resolved(
+/// frame rate, of the solvers `admitted` lets in.
+fn cheapest_of(
     results: &[CellResult],
     young: f32,
     poisson: f32,
     rate: u32,
+    admitted: impl Fn(SolverKind) -> bool,
 ) -> Option<&CellResult> {
     results
         .iter()
@@ -379,8 +393,144 @@ pub fn cheapest_resolved(
                 && (1.0 / r.input.frame_time).round() as u32 == rate
                 && r.outcome == Outcome::Stable
                 && r.resolved()
+                && admitted(r.input.solver)
         })
         .min_by(|a, b| a.cost_per_frame.total_cmp(&b.cost_per_frame))
+}
+
+/// The automatic solver's target (issue #41): in every cell, stable, resolved (every frame
+/// converged or stopped at its rounding floor) and at most this many times the cost of the
+/// cell's cheapest resolved solver among the four others.
+pub const AUTO_COST_TARGET: f64 = 1.5;
+
+/// The check of the automatic solver against [`AUTO_COST_TARGET`] over a grid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AutoCheck {
+    /// Cells with an auto result, and those that meet the target.
+    pub cells: usize,
+    pub met: usize,
+    /// The largest cost of auto over the cell's cheapest resolved other solver, and its cell.
+    pub worst: Option<(f64, String)>,
+    /// The same over the cheaper of explicit and Newton where either resolved (auto's own two
+    /// choices: how well the rule picks between them).
+    pub worst_own: Option<(f64, String)>,
+    /// The cells that miss.
+    pub misses: Vec<AutoMiss>,
+}
+
+/// A cell where the automatic solver misses its target.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AutoMiss {
+    /// `E = .. Pa, nu = .., dt = 1/..`.
+    pub cell: String,
+    /// Unstable, unresolved frames, or the cost ratio against the cheapest.
+    pub why: String,
+    /// How many frames ran explicit and how many fell back.
+    pub frames: String,
+}
+
+impl AutoCheck {
+    /// The summary line, then one line per miss.
+    pub fn lines(&self) -> Vec<String> {
+        let ratio = |worst: &Option<(f64, String)>| {
+            worst
+                .as_ref()
+                .map_or("none".to_owned(), |(r, at)| format!("{r:.2} at {at}"))
+        };
+        let mut lines = vec![format!(
+            "auto: {} of {} cells stable, resolved and within {AUTO_COST_TARGET}x the cheapest resolved solver; worst cost ratio {}; against the cheaper of explicit and newton (its own choices) worst {}",
+            self.met,
+            self.cells,
+            ratio(&self.worst),
+            ratio(&self.worst_own)
+        )];
+        lines.extend(
+            self.misses
+                .iter()
+                .map(|m| format!("auto misses at {}: {} ({})", m.cell, m.why, m.frames)),
+        );
+        lines
+    }
+}
+
+/// Keeps the larger of `worst` and `(ratio, at)`, ignoring a ratio that is not finite.
+fn keep_worst(worst: &mut Option<(f64, String)>, ratio: Option<f64>, at: &str) {
+    if let Some(ratio) = ratio.filter(|r| r.is_finite())
+        && worst.as_ref().is_none_or(|(w, _)| ratio > *w)
+    {
+        *worst = Some((ratio, at.to_owned()));
+    }
+}
+
+/// Checks the automatic solver in every cell of `grid`: stable, resolved, and at most
+/// [`AUTO_COST_TARGET`] times the cost of the cheapest resolved solver among the others. A cell
+/// where no other solver resolved is measured against nothing: it meets the target when auto is
+/// stable and resolved.
+pub fn auto_check(grid: &Grid, results: &[CellResult]) -> AutoCheck {
+    let mut check = AutoCheck {
+        cells: 0,
+        met: 0,
+        worst: None,
+        worst_own: None,
+        misses: Vec::new(),
+    };
+    for &poisson in &grid.poissons {
+        for &young in &grid.youngs {
+            for &rate in &grid.frame_rates {
+                let Some(auto) = results.iter().find(|r| {
+                    r.input.solver == SolverKind::Auto
+                        && r.input.young == young
+                        && r.input.poisson == poisson
+                        && (1.0 / r.input.frame_time).round() as u32 == rate
+                }) else {
+                    continue;
+                };
+                check.cells += 1;
+                let name = format!("E = {young:.0e} Pa, nu = {poisson}, dt = 1/{rate}");
+                let best = cheapest_of(results, young, poisson, rate, |s| s != SolverKind::Auto);
+                let own = cheapest_of(results, young, poisson, rate, |s| {
+                    matches!(s, SolverKind::Explicit | SolverKind::Newton)
+                });
+                let ratio = best.map(|b| auto.cost_per_frame / b.cost_per_frame);
+                keep_worst(&mut check.worst, ratio, &name);
+                let own_ratio = own.map(|b| auto.cost_per_frame / b.cost_per_frame);
+                keep_worst(&mut check.worst_own, own_ratio, &name);
+                let why = if auto.outcome != Outcome::Stable {
+                    Some(format!("not stable ({})", auto.outcome.status()))
+                } else if !auto.resolved() {
+                    Some(format!(
+                        "{} of {} frames neither converged nor at the floor",
+                        auto.frames_run - auto.frames_converged - auto.frames_at_floor,
+                        auto.frames_run
+                    ))
+                } else {
+                    match (ratio, best) {
+                        (Some(ratio), Some(best)) if ratio > AUTO_COST_TARGET || ratio.is_nan() => {
+                            Some(format!(
+                                "{ratio:.2}x the cheapest, {} ({:.3} ms against {:.3} ms a frame)",
+                                best.input.solver.name(),
+                                1e3 * auto.cost_per_frame,
+                                1e3 * best.cost_per_frame
+                            ))
+                        }
+                        _ => None,
+                    }
+                };
+                match why {
+                    None => check.met += 1,
+                    Some(why) => check.misses.push(AutoMiss {
+                        cell: name,
+                        why,
+                        frames: format!(
+                            "{} of {} frames explicit, {} fell back",
+                            auto.frames_explicit, auto.frames_run, auto.frames_fallback
+                        ),
+                    }),
+                }
+            }
+        }
+    }
+    check
 }
 
 #[cfg(test)]
@@ -451,10 +601,84 @@ mod tests {
         assert_eq!(r.frames_run, 0);
     }
 
+    /// A measured cell of `solver` at `young`, nu = 0.3, 1/60 s: stable, every frame
+    /// converged, `cost` s a frame (no stepping: the check reads only these fields).
+    fn measured(solver: SolverKind, young: f32, cost: f64) -> CellResult {
+        CellResult {
+            input: cell(solver, young, 60, 1.0),
+            outcome: Outcome::Stable,
+            frames: 60,
+            frames_run: 60,
+            frames_converged: 60,
+            frames_at_floor: 0,
+            frames_explicit: 0,
+            frames_fallback: 0,
+            cost_per_frame: cost,
+            stable_step: 1e-4,
+            work_per_frame: 2.0,
+            initial_energy: 15.7,
+            energy_lost_per_second: 7.8,
+            volume_error: 1e-3,
+        }
+    }
+
+    /// The auto check counts a cell within 1.5x of the cheapest other resolved solver (auto
+    /// itself left out), names the worst ratio, and lists a cell that costs too much, one that
+    /// did not resolve and one that was unstable, each with why.
+    #[test]
+    fn the_auto_check_counts_the_cells_within_the_target_and_names_the_misses() {
+        let grid = Grid {
+            youngs: vec![1e4, 1e5, 1e6, 1e7],
+            poissons: vec![0.3],
+            frame_rates: vec![60],
+            solvers: vec![SolverKind::Newton, SolverKind::Relax, SolverKind::Auto],
+            duration: 1.0,
+            ground: Ground::Body,
+        };
+        let mut results = Vec::new();
+        for young in grid.youngs.clone() {
+            results.push(measured(SolverKind::Newton, young, 1e-3));
+            results.push(measured(SolverKind::Relax, young, 2e-3));
+        }
+        // 1.4x Newton: met. 2x Newton: too costly. Unresolved. Unstable.
+        results.push(measured(SolverKind::Auto, 1e4, 1.4e-3));
+        results.push(measured(SolverKind::Auto, 1e5, 2e-3));
+        let mut unresolved = measured(SolverKind::Auto, 1e6, 1e-3);
+        unresolved.frames_converged = 50;
+        results.push(unresolved);
+        let mut unstable = measured(SolverKind::Auto, 1e7, 1e-3);
+        unstable.outcome = Outcome::Unstable {
+            frame: 3,
+            reason: "EnergyGrew".into(),
+        };
+        results.push(unstable);
+        let check = auto_check(&grid, &results);
+        assert_eq!((check.met, check.cells), (1, 4), "{check:?}");
+        let worst = Some((2.0, "E = 1e5 Pa, nu = 0.3, dt = 1/60".to_owned()));
+        assert_eq!(check.worst, worst);
+        assert_eq!(
+            check.worst_own, worst,
+            "Newton is the cheaper of explicit and Newton"
+        );
+        let lines = check.lines();
+        assert_eq!(lines.len(), 4, "{lines:?}");
+        assert!(
+            lines[0].starts_with("auto: 1 of 4 cells stable, resolved and within 1.5x"),
+            "{lines:?}"
+        );
+        assert!(
+            lines[0].contains("worst cost ratio 2.00 at E = 1e5 Pa, nu = 0.3, dt = 1/60;"),
+            "{lines:?}"
+        );
+        assert!(lines[1].contains("E = 1e5 Pa") && lines[1].contains("2.00x the cheapest, newton"));
+        assert!(lines[2].contains("E = 1e6 Pa") && lines[2].contains("10 of 60 frames neither"));
+        assert!(lines[3].contains("E = 1e7 Pa") && lines[3].contains("not stable (unstable)"));
+    }
+
     #[test]
     fn the_grids_have_the_cells_the_issue_asks_for() {
-        assert_eq!(Grid::full().cells().len(), 7 * 3 * 4 * 4);
-        assert_eq!(Grid::quick().cells().len(), 3 * 2 * 4);
+        assert_eq!(Grid::full().cells().len(), 7 * 3 * 4 * 5);
+        assert_eq!(Grid::quick().cells().len(), 3 * 2 * 5);
         let header = to_csv(&[]);
         assert_eq!(header.trim_end().split(',').count(), COLUMNS.len());
     }

@@ -9,10 +9,11 @@
 //! `step_with_colliders`: the same plane through the collider path, which the implicit solvers
 //! handle differently (measured: more iterations, each dearer; see the guide's solver chapter).
 //! The solvers are the constructors of `softfem::body::Solver` with their defaults:
-//! `explicit()` (substeps of half the stable step), `relax()`, `newton()`, `vbd()`.
+//! `explicit()` (substeps of half the stable step), `relax()`, `newton()`, `vbd()`, and
+//! `auto()`, the body's default, which picks explicit or Newton each frame and falls back.
 
 use softfem::StepError;
-use softfem::body::{Body, Solver, StepReport, VecStorage};
+use softfem::body::{AutoRun, Body, Solver, StepReport, VecStorage};
 use softfem::glam::Vec3;
 use softfem::material::StableNeoHookean;
 use softfem::step::{Collider, HalfSpace, RelaxReport};
@@ -32,21 +33,24 @@ pub const MAX_SUBSTEPS_PER_FRAME: u32 = 20_000;
 const ESCAPE: f32 = 10.0;
 const ENERGY_GROWTH: f64 = 2.0;
 
-/// The solvers of the map, in the order of its panels and rows.
+/// The solvers of the map, in the order of its panels and rows: the four a user can name, and
+/// the automatic one (`Solver::auto()`, the body's default) that picks between them per frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SolverKind {
     Explicit,
     Relax,
     Newton,
     Vbd,
+    Auto,
 }
 
 impl SolverKind {
-    pub const ALL: [SolverKind; 4] = [
+    pub const ALL: [SolverKind; 5] = [
         SolverKind::Explicit,
         SolverKind::Relax,
         SolverKind::Newton,
         SolverKind::Vbd,
+        SolverKind::Auto,
     ];
 
     /// The name in the CSV and on the chart.
@@ -56,6 +60,7 @@ impl SolverKind {
             SolverKind::Relax => "relax",
             SolverKind::Newton => "newton",
             SolverKind::Vbd => "vbd",
+            SolverKind::Auto => "auto",
         }
     }
 
@@ -65,6 +70,7 @@ impl SolverKind {
             SolverKind::Relax => Solver::relax(),
             SolverKind::Newton => Solver::newton(),
             SolverKind::Vbd => Solver::vbd(),
+            SolverKind::Auto => Solver::auto(),
         }
     }
 }
@@ -145,6 +151,12 @@ pub struct CellResult {
     /// a body at rest starts within its floor; issue #44). The other frames run spent the
     /// budget or stalled above the floor.
     pub frames_at_floor: usize,
+    /// Frames run by the explicit stepper in the end (the explicit solver: every frame run;
+    /// the automatic one: its explicit choices that did not fall back).
+    pub frames_explicit: usize,
+    /// Frames of the automatic solver that took a fallback (explicit to Newton, Newton to half
+    /// steps); 0 for the others.
+    pub frames_fallback: usize,
     /// Thread CPU time (or wall time, see [`CLOCK`]) of the step calls per frame run (s).
     pub cost_per_frame: f64,
     /// The body's stable explicit step (s), for every solver (the scale of the stiffness).
@@ -296,6 +308,8 @@ pub fn run_cell(input: &CellInput) -> Result<CellResult, String> {
         frames_run: 0,
         frames_converged: 0,
         frames_at_floor: 0,
+        frames_explicit: 0,
+        frames_fallback: 0,
         cost_per_frame: f64::NAN,
         stable_step,
         work_per_frame: f64::NAN,
@@ -372,8 +386,17 @@ pub fn run_cell(input: &CellInput) -> Result<CellResult, String> {
             StepReport::Relax(r) => u64::from(r.iterations),
             StepReport::Newton(r) => u64::from(r.iterations),
             StepReport::Vbd(r) => u64::from(r.iterations),
+            StepReport::Auto(r) => u64::from(r.iterations()),
             _ => 0,
         };
+        result.frames_explicit += usize::from(match report {
+            StepReport::Explicit(_) => true,
+            StepReport::Auto(r) => matches!(r.run, AutoRun::Explicit(_)),
+            _ => false,
+        });
+        if let StepReport::Auto(r) = report {
+            result.frames_fallback += usize::from(r.fallback_count() > 0);
+        }
         let error = (volume(body.tets(), body.positions()) / rest_volume - 1.0).abs();
         result.volume_error = result.volume_error.max(error);
         result.frames_run += 1;
@@ -390,9 +413,11 @@ pub fn run_cell(input: &CellInput) -> Result<CellResult, String> {
     Ok(result)
 }
 
-/// Whether an implicit solve that did not converge stopped at its rounding floor.
+/// Whether an implicit solve that did not converge stopped at its rounding floor (the
+/// automatic solver: its every Newton solve converged or stopped there, not all converged).
 fn stopped_at_floor(report: &StepReport) -> bool {
     let (converged, stagnated, residual, floor) = match report {
+        StepReport::Auto(r) => return !r.converged() && r.resolved(),
         StepReport::Relax(r) => (r.converged, r.stagnated, r.residual, r.rounding_floor),
         StepReport::Newton(r) => (r.converged, r.stagnated, r.residual, r.rounding_floor),
         StepReport::Vbd(r) => (r.converged, r.stagnated, r.residual, r.rounding_floor),

@@ -15,7 +15,8 @@
 //! `static` and build in place with [`Body::rebuild_from_box`] or
 //! [`Body::rebuild_from_arrays`]; the same methods reuse a body's storage for a new mesh.
 //!
-//! A jelly cube dropped onto the ground and stepped explicitly for a second (y up), no heap:
+//! A jelly cube dropped onto the ground and stepped for a second (y up), no heap, by the
+//! default [`Solver::auto`] (here explicit substeps: a soft body at 60 Hz needs few):
 //! ```
 //! use softfem::body::{Body, FixedStorage};
 //! use softfem::{glam::Vec3, material::StableNeoHookean, step::HalfSpace};
@@ -27,7 +28,8 @@
 //! body.set_gravity(Vec3::new(0.0, -9.81, 0.0)); // m/s^2
 //! body.set_ground(Some(HalfSpace::new(Vec3::Y, 0.0).with_friction(0.5))); // the plane y = 0
 //! for _ in 0..60 {
-//!     body.step(1.0 / 60.0)?; // substeps of half the stable step, computed once
+//!     let report = body.step(1.0 / 60.0)?; // substeps of half the stable step, computed once
+//!     assert!(report.converged());
 //! }
 //! assert!(body.positions().iter().all(|x| x.y > -1e-3 && x.y < 0.25)); // landed
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -54,9 +56,11 @@
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 
+mod auto;
 mod solver;
 mod storage;
 
+pub use auto::{AutoChoice, AutoReport, AutoRun, AutoSettings, Fallback, stopped_at_floor};
 pub use solver::{Solver, StepReport};
 #[cfg(feature = "alloc")]
 pub use storage::VecStorage;
@@ -83,7 +87,8 @@ use crate::error::{BodyBuffer, BodyError, StepError};
 /// `VecStorage`), `M` the [`Material`]. Built by [`from_box`](Self::from_box),
 /// [`from_arrays`](Self::from_arrays) or (feature `std`) `from_tetgen`; then
 /// [`step`](Self::step) with the [`Solver`] chosen by [`set_solver`](Self::set_solver)
-/// (explicit by default).
+/// (by default [`Solver::auto`], which picks the explicit stepper or Newton's method each
+/// frame).
 ///
 /// * Pinned vertices ([`set_pinned`](Self::set_pinned)) keep their position and velocity.
 /// * A kinematic vertex ([`set_target`](Self::set_target)) is pinned and moved to its target at
@@ -151,7 +156,7 @@ pub struct Body<S: Storage, M: Material> {
 }
 
 /// The literal of a [`Body`] with no vertices, no tetrahedra and no history: `$material`, the
-/// explicit solver, no gravity or ground, every buffer `$buffer(zero)` for the zero of its
+/// automatic solver, no gravity or ground, every buffer `$buffer(zero)` for the zero of its
 /// entries (`Fixed::filled` in the `const` [`Body::empty`], [`no_entries`] for any storage).
 macro_rules! unbuilt_body {
     ($material:expr, $buffer:path) => {
@@ -177,7 +182,7 @@ macro_rules! unbuilt_body {
             layout_corners: $buffer(0),
             layout_built: None,
             material: $material,
-            solver: Solver::explicit(),
+            solver: Solver::auto(),
             gravity: Vec3::ZERO,
             ground: None,
             explicit_memory: ExplicitMemory::FRESH,
@@ -197,7 +202,7 @@ fn no_entries<X: Copy, B: Slots<X>>(_zero: X) -> B {
 impl<S: Storage, M: Material> Body<S, M> {
     /// A box `[min, max]` (m) of `cells[0] x cells[1] x cells[2]` cubes, five tetrahedra each
     /// ([`BoxSplit::Alternating5`]), of `material` with `density` (kg/m^3), at rest at its rest
-    /// shape, nothing pinned, no gravity or ground, the explicit [`Solver::explicit`].
+    /// shape, nothing pinned, no gravity or ground, the automatic [`Solver::auto`].
     ///
     /// # Errors
     /// [`BodyError::Generate`] for the box (see [`fill_box`]), [`BodyError::Capacity`] if the
@@ -376,7 +381,7 @@ impl<S: Storage, M: Material> Body<S, M> {
         built
     }
 
-    /// A body with no vertices and no tetrahedra, the explicit solver, no gravity or ground.
+    /// A body with no vertices and no tetrahedra, the automatic solver, no gravity or ground.
     fn unbuilt(material: M) -> Self {
         unbuilt_body!(material, no_entries)
     }
@@ -443,7 +448,9 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// scratch, last, is unchanged when it does not fit.
     fn size_scratch(&mut self, solver: &Solver) -> Result<(), BodyError> {
         let (n, t) = (self.vertex_count(), self.tet_count());
-        if let Solver::Newton(_) = solver {
+        // The automatic solver holds Newton's buffers from the start: a fallback in the middle
+        // of a frame cannot stop to grow them.
+        if let Solver::Newton(_) | Solver::Auto(_) = solver {
             let fits = self.blocks.resize(n, super::types::Mat3::ZERO)
                 && self.hessians.resize(t, Default::default());
             capacity(fits, BodyBuffer::Tetrahedra, t)?;
@@ -471,6 +478,7 @@ impl<S: Storage, M: Material> Body<S, M> {
             Solver::Explicit { .. } => 4,
             Solver::Relax(_) | Solver::Vbd(_) => 5,
             Solver::Newton(_) => 9,
+            Solver::Auto(_) => auto::AUTO_VECTORS,
         };
         let needed = n.saturating_mul(vectors);
         capacity(
@@ -859,7 +867,9 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// failed), [`StepError::Substeps`] if the explicit solver's `stable_fraction` is not
     /// positive or asks for more than [`MAX_SUBSTEPS`](super::step::ExplicitSettings::MAX_SUBSTEPS)
     /// substeps (nothing touched in these cases), or the stepper's error (a scene out of range
-    /// included), with positions, velocities and targets restored bit for bit.
+    /// included), with positions, velocities and targets restored bit for bit. The automatic
+    /// solver returns an error only where its fallbacks could not take the frame: an explicit
+    /// error that is not a blow-up, or Newton's method's error.
     pub fn step_with(&mut self, scene: &Scene<'_, Vec3>) -> Result<StepReport, StepError> {
         let dt = scene.dt;
         check_time_step(dt)?;
@@ -872,6 +882,16 @@ impl<S: Storage, M: Material> Body<S, M> {
                 stable_fraction: Some(fraction),
             } => substeps(dt, fraction * self.stable_time_step()?, settings.substeps),
             Solver::Explicit { settings, .. } => settings.substeps,
+            // The substeps the explicit stepper would need; a body whose stable step cannot be
+            // computed gets Newton's method (u32::MAX substeps), which reports its own errors.
+            Solver::Auto(settings) => match self.stable_time_step() {
+                Ok(stable) => substeps(
+                    dt,
+                    settings.stable_fraction * stable,
+                    settings.explicit.substeps,
+                ),
+                Err(_) => u32::MAX,
+            },
             _ => 1,
         };
         self.move_kinematic(dt);
@@ -922,7 +942,8 @@ impl<S: Storage, M: Material> Body<S, M> {
         }
     }
 
-    /// One call of the solver's stepper in `scene` (the explicit one in `substeps` substeps).
+    /// One call of the solver's stepper in `scene` (the explicit one in `substeps` substeps;
+    /// the automatic solver's choice for a frame of `substeps` explicit substeps).
     fn run_solver(
         &mut self,
         scene: &Scene<'_, Vec3>,
@@ -984,6 +1005,20 @@ impl<S: Storage, M: Material> Body<S, M> {
                 self.layout_built = scratch.layout_built();
                 outcome.map(StepReport::Vbd)
             }
+            Solver::Auto(settings) => {
+                let mut parts = auto::AutoParts {
+                    masses,
+                    pinned,
+                    positions: x,
+                    velocities: v,
+                    vectors,
+                    blocks: self.blocks.slice_mut(),
+                    hessians: self.hessians.slice_mut(),
+                    memory: &mut self.explicit_memory,
+                };
+                let choice = settings.choose(substeps);
+                auto::run_auto(&model, scene, &settings, choice, &mut parts).map(StepReport::Auto)
+            }
         }
     }
 }
@@ -998,7 +1033,7 @@ fn copy_into<X: Copy>(target: &mut [X], source: &[X]) {
 }
 
 impl<const V: usize, const T: usize, M: Material> Body<FixedStorage<V, T>, M> {
-    /// A fixed-capacity body with no vertices and no tetrahedra, the explicit solver, no
+    /// A fixed-capacity body with no vertices and no tetrahedra, the automatic solver, no
     /// gravity or ground: a `const` value, so the body can be a `static` (in `.bss`, never on
     /// the stack), then built in place with [`rebuild_from_box`](Body::rebuild_from_box) or
     /// [`rebuild_from_arrays`](Body::rebuild_from_arrays). This is the firmware way: the

@@ -45,7 +45,8 @@ pub trait Storage {
     /// storage that cannot hold them runs the force passes without (the same bits, slower
     /// with wide SIMD).
     type RestBlocks: Slots<TetRestBlock>;
-    /// The solvers' vector scratch: up to nine vectors per vertex (Newton's method).
+    /// The solvers' vector scratch: up to eleven vectors per vertex (the automatic solver:
+    /// Newton's nine and a copy of the frame's start positions and velocities).
     type Scratch: Slots<Vec3>;
     /// One 3x3 block per vertex (Newton's preconditioner).
     type Blocks: Slots<Mat3>;
@@ -121,9 +122,9 @@ impl<X: Copy + Default, const ROWS: usize, const N: usize> Slots<X> for Fixed<X,
 /// [`BodyError::Capacity`](crate::BodyError::Capacity), never a panic.
 ///
 /// Every buffer has room for every solver, so the solver can change without running out. In
-/// f32 (twice in f64) that is, per vertex, 214 bytes: the rest and current positions, the
-/// velocities, the targets and a velocity backup (5 vectors), the solvers' vector scratch (9,
-/// Newton's method), the mass, a stiffness scalar, 2 flags and Newton's 3x3 block; and per
+/// f32 (twice in f64) that is, per vertex, 238 bytes: the rest and current positions, the
+/// velocities, the targets and a velocity backup (5 vectors), the solvers' vector scratch (11:
+/// Newton's method's 9 and the automatic solver's copy of a frame's start), the mass, a stiffness scalar, 2 flags and Newton's 3x3 block; and per
 /// tetrahedron 304 bytes: the indices (16), the rest data (40), Newton's Hessian (180) and 17
 /// entries of Vertex Block Descent's index scratch (68), whose `3 V + 1 + 4 T` entries fit in
 /// `17 T` whenever `V <= 4 T` (every steppable body: a vertex in no tetrahedron has no mass).
@@ -143,7 +144,7 @@ impl<const V: usize, const T: usize> Storage for FixedStorage<V, T> {
     type Tets = Fixed<[u32; 4], 1, T>;
     type Rests = Fixed<TetRest, 1, T>;
     type RestBlocks = Fixed<TetRestBlock, 0, 1>;
-    type Scratch = Fixed<Vec3, 9, V>;
+    type Scratch = Fixed<Vec3, 11, V>;
     type Blocks = Fixed<Mat3, 1, V>;
     type Hessians = Fixed<TetHessian, 1, T>;
     type Indices = Fixed<u32, 17, T>;

@@ -641,6 +641,7 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             Solver::Relax(_) | Solver::Explicit { .. } => 5,
             // The sweeps' five and the contact's gradient.
             Solver::Vbd(_) => 6,
+            Solver::Auto(_) => return Err(BodyError::Solver),
         };
         self.topology = None;
         if let Solver::Vbd(_) = solver {
@@ -904,6 +905,8 @@ impl<S: WorldStorage, M: Material> World<S, M> {
     /// [`Solver::Explicit`].
     ///
     /// # Errors
+    /// [`BodyError::Solver`] for [`Solver::Auto`] (its rule and fallbacks are a
+    /// [`Body`](crate::body::Body)'s; a world's solver is chosen by name),
     /// [`BodyError::StableFraction`] for an explicit `stable_fraction` outside `(0, 1]`,
     /// [`BodyError::Capacity`] if its scratch does not fit; the solver is unchanged then.
     pub fn set_solver(&mut self, solver: Solver) -> Result<(), BodyError> {
@@ -1195,6 +1198,10 @@ impl<S: WorldStorage, M: Material> World<S, M> {
                 let ready = scratch.stiffness_ready();
                 (outcome.map(StepReport::Relax), ready, memory)
             }
+            // `set_solver` refuses it: the world never holds it.
+            Solver::Auto(_) => return Err(StepError::Mesh(MeshError::Contact(
+                ContactError::BuffersInUse,
+            ))),
         };
         let counts = model.counts();
         let reuse_needed = model.reuse_needed();

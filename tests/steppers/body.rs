@@ -4,7 +4,9 @@
 //! `alloc` module runs without the `alloc` feature (`cargo test --no-default-features --test
 //! body`).
 
-use softfem::body::{Body, FixedStorage, Solver, StepReport};
+use softfem::body::{
+    AutoChoice, AutoReport, AutoRun, AutoSettings, Body, Fallback, FixedStorage, Solver, StepReport,
+};
 use softfem::element::TetRest;
 use softfem::generate::{BoxSplit, box_counts, fill_box};
 use softfem::glam::Vec3;
@@ -46,6 +48,11 @@ struct Reference {
 
 impl Reference {
     fn new() -> Reference {
+        Reference::of(jelly())
+    }
+
+    /// The pieces of the box of [`small_body`] in `material`.
+    fn of(material: StableNeoHookean) -> Reference {
         let (n, t) = box_counts(CELLS[0], CELLS[1], CELLS[2], BoxSplit::Alternating5).unwrap();
         let (mut rest, mut tets) = (vec![Vec3::ZERO; n], vec![[0; 4]; t]);
         let [nx, ny, nz] = CELLS;
@@ -67,7 +74,7 @@ impl Reference {
         let mut masses = vec![0.0; n];
         mesh.lumped_masses(DENSITY, &mut masses).unwrap();
         Reference {
-            model: TetElastic::new(mesh, jelly()),
+            model: TetElastic::new(mesh, material),
             x: rest.to_vec(),
             v: vec![Vec3::ZERO; n],
             pinned: vec![false; n],
@@ -377,6 +384,8 @@ fn pinned_vertices_stay_put_under_every_solver() {
         Solver::relax(),
         Solver::newton(),
         Solver::vbd(),
+        Solver::auto(),
+        Solver::Auto(AutoSettings::new().with_crossover(0)),
     ] {
         let mut body = small_body();
         body.set_solver(solver).unwrap();
@@ -409,6 +418,8 @@ fn kinematic_vertices_follow_their_targets() {
         Solver::relax(),
         Solver::newton(),
         Solver::vbd(),
+        Solver::auto(),
+        Solver::Auto(AutoSettings::new().with_crossover(0)),
     ] {
         let mut body = small_body();
         body.set_ground(None);
@@ -461,6 +472,7 @@ fn a_failed_step_restores_positions_velocities_and_targets() {
         Solver::relax(),
         Solver::newton(),
         Solver::vbd(),
+        Solver::auto(),
     ] {
         let mut body = small_body();
         body.set_solver(solver).unwrap();
@@ -497,7 +509,7 @@ fn a_failed_step_restores_positions_velocities_and_targets() {
             Err(BodyError::StableFraction),
             "{fraction}"
         );
-        assert_eq!(body.solver(), &Solver::explicit());
+        assert_eq!(body.solver(), &Solver::auto());
         assert_eq!(bits(body.positions()), x);
         assert_eq!(bits(body.velocities()), v);
     }
@@ -532,6 +544,321 @@ fn a_failed_step_restores_positions_velocities_and_targets() {
     assert!(failed, "3x the stable step must blow up within 200 steps");
 }
 
+/// Newton's scratch over fresh buffers for the box of [`small_body`], for the reference calls.
+struct NewtonBuffers {
+    vectors: Vec<Vec3>,
+    blocks: Vec<softfem::glam::Mat3>,
+    hessians: Vec<softfem::element::TetHessian>,
+}
+
+impl NewtonBuffers {
+    fn new() -> NewtonBuffers {
+        let lengths = scratch_len::newton(36, 60);
+        NewtonBuffers {
+            vectors: vec![Vec3::ZERO; lengths.vectors],
+            blocks: vec![Default::default(); lengths.blocks],
+            hessians: vec![Default::default(); lengths.hessians],
+        }
+    }
+
+    /// One low-level `newton_step` of `reference` in `scene`.
+    fn step(
+        &mut self,
+        reference: &mut Reference,
+        scene: &Scene<'_, Vec3>,
+        settings: &NewtonSettings,
+    ) -> softfem::step::NewtonReport {
+        let mut scratch =
+            NewtonScratch::new(&mut self.vectors, &mut self.blocks, &mut self.hessians);
+        newton_step(
+            &reference.model,
+            &reference.masses,
+            &reference.pinned,
+            scene,
+            settings,
+            &mut reference.x,
+            &mut reference.v,
+            &mut scratch,
+        )
+        .unwrap()
+    }
+}
+
+/// The automatic solver's report of `report`, or a failure naming what came instead.
+fn auto_report(report: StepReport) -> AutoReport {
+    match report {
+        StepReport::Auto(report) => report,
+        other => panic!("not the automatic solver's report: {other:?}"),
+    }
+}
+
+#[test]
+fn the_automatic_solver_is_the_default_and_picks_explicit_for_a_soft_body() {
+    // The soft jelly (50 kPa) at 60 Hz: the substeps of half the stable step, counted here
+    // from the low-level stable step, are few (under the crossover of 100): explicit, with
+    // exactly those substeps, bit for bit the low-level explicit stepper's.
+    let mut reference = Reference::new();
+    let mut body = small_body();
+    assert_eq!(body.solver(), &Solver::auto());
+    let stable = stable_time_step(
+        &reference.model,
+        &reference.masses,
+        &reference.pinned,
+        &mut [0.0; 36],
+    )
+    .unwrap();
+    let dt = 1.0 / 60.0;
+    let substeps = (1..).find(|&k| dt / k as f32 <= 0.5 * stable).unwrap();
+    assert!(
+        substeps > 1 && substeps <= AutoSettings::CROSSOVER_SUBSTEPS,
+        "{substeps}"
+    );
+    let scene = Scene::new(dt).with_gravity(GRAVITY).with_ground(ground());
+    let settings = ExplicitSettings::new().with_substeps(substeps);
+    let mut buffer = vec![Vec3::ZERO; scratch_len::explicit(36)];
+    let mut scratch = ExplicitScratch::new(&mut buffer);
+    for step in 0..30 {
+        let expected = explicit_step(
+            &reference.model,
+            &reference.masses,
+            &reference.pinned,
+            &scene,
+            &settings,
+            &mut reference.x,
+            &mut reference.v,
+            &mut scratch,
+        )
+        .unwrap();
+        let report = auto_report(body.step(dt).unwrap());
+        assert_eq!(
+            report.chosen,
+            AutoChoice::Explicit { substeps },
+            "step {step}"
+        );
+        assert_eq!(report.fallbacks, [None, None], "step {step}");
+        assert_eq!(report.run, AutoRun::Explicit(expected), "step {step}");
+        assert!(report.converged() && report.resolved());
+        assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
+        assert_eq!(bits(body.velocities()), bits(&reference.v), "step {step}");
+    }
+    assert!(
+        body.positions()
+            .iter()
+            .zip(reference.rest)
+            .any(|(x, r)| (*x - *r).length() > 1e-3)
+    );
+}
+
+#[test]
+fn the_automatic_solver_picks_newton_for_a_stiff_body_and_switches_at_the_crossover() {
+    // 100 MPa (a hard rubber or a plastic) at 60 Hz: 10 000 times the jelly's stiffness,
+    // 100 times the substeps, far over the crossover: Newton's method, bit for bit the
+    // low-level step with the automatic solver's Newton settings.
+    let stiff = StableNeoHookean::from_young_poisson(1.0e8, 0.45).unwrap();
+    let mut reference = Reference::of(stiff);
+    let mut body = Body::<Small, _>::from_box(LOW, HIGH, CELLS, DENSITY, stiff).unwrap();
+    body.set_gravity(GRAVITY);
+    body.set_ground(Some(ground()));
+    let stable = stable_time_step(
+        &reference.model,
+        &reference.masses,
+        &reference.pinned,
+        &mut [0.0; 36],
+    )
+    .unwrap();
+    let dt = 1.0 / 60.0;
+    let substeps = (1..).find(|&k| dt / k as f32 <= 0.5 * stable).unwrap();
+    assert!(substeps > AutoSettings::CROSSOVER_SUBSTEPS, "{substeps}");
+    let scene = Scene::new(dt).with_gravity(GRAVITY).with_ground(ground());
+    let mut newton = NewtonBuffers::new();
+    for step in 0..10 {
+        let expected = newton.step(&mut reference, &scene, &NewtonSettings::new());
+        let report = auto_report(body.step(dt).unwrap());
+        assert_eq!(report.chosen, AutoChoice::Newton, "step {step}");
+        assert_eq!(report.fallbacks, [None, None], "step {step}");
+        assert_eq!(report.run, AutoRun::Newton(expected), "step {step}");
+        assert_eq!(report.converged(), expected.converged);
+        assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
+        assert_eq!(bits(body.velocities()), bits(&reference.v), "step {step}");
+    }
+    // The rule's edge: a crossover at exactly the substeps goes explicit, one below goes Newton.
+    for (crossover, choice) in [
+        (substeps, AutoChoice::Explicit { substeps }),
+        (substeps - 1, AutoChoice::Newton),
+    ] {
+        let settings = AutoSettings::new().with_crossover(crossover);
+        assert_eq!(settings.choose(substeps), choice);
+        body.set_solver(Solver::Auto(settings)).unwrap();
+        assert_eq!(auto_report(body.step(dt).unwrap()).chosen, choice);
+    }
+    // A fraction that is no fraction is refused, as the explicit solver's.
+    let bad = AutoSettings {
+        stable_fraction: 0.0,
+        ..AutoSettings::new()
+    };
+    assert_eq!(
+        body.set_solver(Solver::Auto(bad)),
+        Err(BodyError::StableFraction)
+    );
+}
+
+#[test]
+fn an_explicit_blow_up_falls_back_to_newton_from_the_restored_state() {
+    // A growth limit of 1.0001 makes the blow-up detector trip on a body merely falling (its
+    // kinetic energy grows by far more than 0.01 % a substep): the explicit stepper refuses
+    // the frame and restores the state, and Newton's method steps the frame from that state,
+    // bit for bit the low-level Newton step from the same start.
+    let mut reference = Reference::new();
+    let mut body = small_body();
+    let touchy = AutoSettings {
+        explicit: ExplicitSettings {
+            max_energy_growth: 1.0001,
+            ..ExplicitSettings::new()
+        },
+        ..AutoSettings::new()
+    };
+    body.set_solver(Solver::Auto(touchy)).unwrap();
+    let dt = 1.0 / 60.0;
+    let scene = Scene::new(dt).with_gravity(GRAVITY).with_ground(ground());
+    let mut newton = NewtonBuffers::new();
+    // Three frames of free fall: the box starts 2 cm above the ground, reached after
+    // sqrt(2 * 0.02 / 9.81) = 64 ms, in the fourth frame.
+    for step in 0..3 {
+        let expected = newton.step(&mut reference, &scene, &touchy.newton);
+        let report = auto_report(body.step(dt).unwrap());
+        assert!(
+            matches!(report.chosen, AutoChoice::Explicit { .. }),
+            "{report:?}"
+        );
+        assert_eq!(
+            report.fallbacks,
+            [
+                Some(Fallback::ExplicitToNewton {
+                    error: StepError::EnergyBlowUp
+                }),
+                None
+            ],
+            "step {step}"
+        );
+        assert_eq!(report.fallback_count(), 1);
+        assert_eq!(report.run, AutoRun::Newton(expected), "step {step}");
+        assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
+        assert_eq!(bits(body.velocities()), bits(&reference.v), "step {step}");
+    }
+    assert!(
+        body.positions()
+            .iter()
+            .zip(reference.rest)
+            .any(|(x, r)| (*x - *r).length() > 1e-3)
+    );
+}
+
+#[test]
+fn newton_that_does_not_converge_is_retried_in_two_half_steps_and_reported() {
+    // Newton's method with one iteration and a tolerance no step of a falling body meets in
+    // one: the whole step spends its budget above the floor, so the frame is stepped again
+    // from its start as two half steps. The thrown-away step's report, the halves' reports and
+    // the state are those of the low-level calls, bit for bit; the report says not converged.
+    let mut reference = Reference::new();
+    let mut body = small_body();
+    let starved = AutoSettings {
+        newton: NewtonSettings::new().with_tolerance(1e-7, 1),
+        ..AutoSettings::new().with_crossover(0)
+    };
+    body.set_solver(Solver::Auto(starved)).unwrap();
+    let dt = 1.0 / 60.0;
+    let scene = Scene::new(dt).with_gravity(GRAVITY).with_ground(ground());
+    let half = Scene::new(0.5 * dt)
+        .with_gravity(GRAVITY)
+        .with_ground(ground());
+    let mut newton = NewtonBuffers::new();
+    for step in 0..3 {
+        let (x, v) = (reference.x.clone(), reference.v.clone());
+        let whole = newton.step(&mut reference, &scene, &starved.newton);
+        assert!(
+            !whole.converged && !softfem::body::stopped_at_floor(&whole),
+            "{whole:?}"
+        );
+        (reference.x, reference.v) = (x, v);
+        let first = newton.step(&mut reference, &half, &starved.newton);
+        let second = newton.step(&mut reference, &half, &starved.newton);
+        let report = auto_report(body.step(dt).unwrap());
+        assert_eq!(report.chosen, AutoChoice::Newton);
+        assert_eq!(
+            report.fallbacks,
+            [Some(Fallback::NewtonToHalfSteps { report: whole }), None],
+            "step {step}"
+        );
+        assert_eq!(
+            report.run,
+            AutoRun::NewtonHalves([first, second]),
+            "step {step}"
+        );
+        assert_eq!(report.converged(), first.converged && second.converged);
+        assert!(
+            !report.converged(),
+            "a one-iteration Newton step at 1e-7 of the load"
+        );
+        assert_eq!(report.iterations(), first.iterations + second.iterations);
+        assert_eq!(bits(body.positions()), bits(&reference.x), "step {step}");
+        assert_eq!(bits(body.velocities()), bits(&reference.v), "step {step}");
+    }
+}
+
+#[test]
+fn a_failed_automatic_step_leaves_the_state_and_a_world_refuses_the_automatic_solver() {
+    // A wrong-length load is refused by whichever stepper the rule picked (explicit here,
+    // Newton's method with the crossover at 0), before anything runs: no fallback hides it,
+    // and the state and a kinematic target are as they were.
+    for settings in [AutoSettings::new(), AutoSettings::new().with_crossover(0)] {
+        let mut body = small_body();
+        body.set_solver(Solver::Auto(settings)).unwrap();
+        body.step(1.0 / 60.0).unwrap();
+        body.set_target(0, Vec3::new(-0.1, 0.0, 0.0)).unwrap();
+        let (x, v) = (bits(body.positions()), bits(body.velocities()));
+        let forces = [Vec3::Y; 3];
+        let scene = body.scene(1.0 / 60.0).with_external_forces(&forces);
+        assert!(body.step_with(&scene).is_err());
+        assert_eq!(bits(body.positions()), x, "{settings:?}");
+        assert_eq!(bits(body.velocities()), v, "{settings:?}");
+        assert_eq!(body.target(0), Some(Vec3::new(-0.1, 0.0, 0.0)));
+    }
+}
+
+/// `FixedStorage<36, 60>` but for the vector scratch, with room for Newton's nine vectors a
+/// vertex and not the automatic solver's eleven.
+struct NineVectors;
+
+impl softfem::body::Storage for NineVectors {
+    type Vectors = softfem::body::Fixed<Vec3, 1, 36>;
+    type Reals = softfem::body::Fixed<f32, 1, 36>;
+    type Flags = softfem::body::Fixed<bool, 1, 36>;
+    type Tets = softfem::body::Fixed<[u32; 4], 1, 60>;
+    type Rests = softfem::body::Fixed<TetRest, 1, 60>;
+    type RestBlocks = softfem::body::Fixed<softfem::mesh::TetRestBlock, 0, 1>;
+    type Scratch = softfem::body::Fixed<Vec3, 9, 36>;
+    type Blocks = softfem::body::Fixed<softfem::glam::Mat3, 1, 36>;
+    type Hessians = softfem::body::Fixed<softfem::element::TetHessian, 1, 60>;
+    type Indices = softfem::body::Fixed<u32, 17, 60>;
+    type LayoutValues = softfem::body::Fixed<f32, 0, 1>;
+    type LayoutCorners = softfem::body::Fixed<u32, 0, 1>;
+}
+
+#[test]
+fn a_storage_without_room_for_the_automatic_solver_says_which_buffer() {
+    // The default solver needs 11 vectors a vertex (Newton's 9 and the frame's start for the
+    // retry in half steps): a storage with 9 is refused when the body is built, naming the
+    // vector scratch and the 11 x 36 entries it needs, not at the first fallback.
+    let refused = Body::<NineVectors, _>::from_box(LOW, HIGH, CELLS, DENSITY, jelly());
+    assert_eq!(
+        refused.err(),
+        Some(BodyError::Capacity {
+            buffer: BodyBuffer::Scratch,
+            needed: 11 * 36
+        })
+    );
+}
+
 #[test]
 fn double_precision_body_steps() {
     use softfem::f64::body::{Body, FixedStorage};
@@ -557,6 +884,21 @@ fn double_precision_body_steps() {
     let drop = body.rest_positions()[0].y - body.positions()[0].y;
     let exact = 0.5 * 9.81 * 0.1 * 0.1;
     assert!((drop - exact).abs() < 0.05 * exact, "{drop} vs {exact}");
+    // That was the automatic solver's explicit choice (few substeps for the jelly); a stiff
+    // body's frames go to Newton's method in f64 as in f32.
+    use softfem::f64::body::{AutoChoice, StepReport};
+    let report = body.step(dt).unwrap();
+    assert!(
+        matches!(report, StepReport::Auto(r) if matches!(r.chosen, AutoChoice::Explicit { .. })),
+        "{report:?}"
+    );
+    let stiff = StableNeoHookean::from_young_poisson(1.0e8, 0.45).unwrap();
+    body.set_material(stiff);
+    let report = body.step(1.0 / 60.0).unwrap();
+    assert!(
+        matches!(report, StepReport::Auto(r) if r.chosen == AutoChoice::Newton && r.resolved()),
+        "{report:?}"
+    );
 }
 
 #[cfg(feature = "alloc")]
@@ -614,11 +956,11 @@ mod alloc_storage {
 
 #[test]
 fn fixed_storage_takes_the_memory_its_documentation_states() {
-    // 214 bytes per vertex and 304 per tetrahedron in f32 (see `FixedStorage`), plus the
+    // 238 bytes per vertex and 304 per tetrahedron in f32 (see `FixedStorage`), plus the
     // lengths, the material, the solver settings and the caches: under 1 KB.
     type Bar = Body<FixedStorage<54, 120>, StableNeoHookean>;
     let size = core::mem::size_of::<Bar>();
-    let buffers = 54 * 214 + 120 * 304;
+    let buffers = 54 * 238 + 120 * 304;
     println!("Body<FixedStorage<54, 120>, StableNeoHookean>: {size} bytes");
     assert!(
         size >= buffers && size < buffers + 1024,

@@ -309,6 +309,8 @@ fn bodies_are_added_removed_and_refused_with_the_world_unchanged() {
         )
     );
     // Settings refused.
+    // The automatic solver: its explicit choice and fallbacks are the body's, not the world's.
+    assert_eq!(world.set_solver(Solver::auto()), Err(BodyError::Solver));
     let too_large = Solver::Explicit {
         settings: softfem::f64::step::ExplicitSettings::new(),
         stable_fraction: Some(2.0),
