@@ -1,7 +1,9 @@
 //! Newton's method for implicit Euler and quasi-static equilibrium (`docs/math.md` section 7):
 //! the settings, scratch and report. The loop is the shared descent loop (`descent/mod.rs`:
 //! the relaxation's objective `Phi`, Armijo line search and stopping test), the direction from
-//! the projected Hessian `step/descent/newton/cg.rs`.
+//! the projected Hessian `step/descent/newton/cg.rs`, preconditioned by block Jacobi or (feature
+//! `alloc`, `Preconditioner::Multilevel`) by smoothed-aggregation multigrid
+//! (`step/descent/newton/amg/`, `docs/math.md` section 7.1.1).
 //!
 //! The algorithm and the stopping test are documented on [`newton_step`].
 
@@ -211,7 +213,12 @@ pub type NewtonReport = DescentReport<NewtonDetails>;
 ///    Numer. Anal. 1982; Eisenstat and Walker, "Choosing the forcing terms in an inexact Newton
 ///    method", SIAM J. Sci. Comput. 1996). A non-positive curvature `p . A p` (only possible
 ///    without inertia, at vertices with no stiffness) ends the solve; at the first iteration the
-///    preconditioned gradient is used instead.
+///    preconditioned gradient is used instead. With `Preconditioner::Multilevel` (feature
+///    `alloc`) the preconditioner is `S M^-1 S` instead, `M^-1` one V-cycle of
+///    smoothed-aggregation multigrid on the assembled `S A S + (I - S)` (`Multilevel`): CG
+///    iterations about flat in the resolution (4.7 and 4.1 a Newton iteration on the static
+///    cantilever of issue #40 at 10 240 and 98 260 tetrahedra, where block Jacobi took 96 and
+///    190), for a setup that is reused across Newton iterations (and solves, if kept).
 /// 4. Armijo backtracking along `d` from the full step (the relaxation's test, with Hager and
 ///    Zhang's rounding-proof fallback), every trial point projected onto the ground.
 ///

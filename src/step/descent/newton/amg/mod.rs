@@ -1,5 +1,5 @@
 //! Smoothed-aggregation algebraic multigrid (feature `alloc`): the multilevel preconditioner
-//! of Newton's linear solves (`docs/math.md` section 7.1), after Vaněk, Mandel and Brezina,
+//! of Newton's linear solves (`docs/math.md` section 7.1.1), after Vaněk, Mandel and Brezina,
 //! "Algebraic multigrid by smoothed aggregation for second and fourth order elliptic
 //! problems" (Computing 56, 1996).
 //!
