@@ -57,6 +57,9 @@ struct Args {
     /// The relative residual Newton's method stops at (and the peer's solvers).
     #[arg(long, default_value_t = 1e-8)]
     tolerance: f64,
+    /// Young's modulus (Pa): 1e6 is issue #40's near-linear bar; 1e4 makes it droop far.
+    #[arg(long, default_value_t = 1.0e6)]
+    young: f64,
     /// Skip the block-Jacobi solve (slow at a million tetrahedra).
     #[arg(long)]
     no_block_jacobi: bool,
@@ -147,8 +150,8 @@ fn main() -> Result<(), Box<dyn Error>> {
     let peer = std::env::var_os("SOFTFEM_SKFEM_PEER");
     let python = std::env::var_os("SOFTFEM_PYTHON").unwrap_or_else(|| "python3".into());
     println!(
-        "static cantilever {LENGTH} x 1 x 1 m, E 1 MPa, nu 0.3, density {DENSITY}, tolerance {:e}, one thread",
-        args.tolerance
+        "static cantilever {LENGTH} x 1 x 1 m, E {:e} Pa, nu 0.3, density {DENSITY}, tolerance {:e}, one thread",
+        args.young, args.tolerance
     );
     for &(nx, ny, nz) in &args.cells {
         let split = BoxSplit::Alternating5;
@@ -169,7 +172,7 @@ fn main() -> Result<(), Box<dyn Error>> {
         let mut masses = vec![0.0; vertices];
         mesh.lumped_masses(DENSITY, &mut masses)?;
         let pinned: Vec<bool> = rest.iter().map(|p| p.x == 0.0).collect();
-        let model = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e6, 0.3)?);
+        let model = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(args.young, 0.3)?);
         println!("{nx}x{ny}x{nz} cubes: {elements} tets, {vertices} vertices");
 
         // One build at the rest shape: the setup the multilevel solve pays.
@@ -186,6 +189,27 @@ fn main() -> Result<(), Box<dyn Error>> {
         println!(
             "  hierarchy: build {build:.3} s, levels {}",
             levels.join(", ")
+        );
+        // What one CG iteration costs: a V-cycle and a matrix-free Hessian product.
+        let residual: Vec<Vec3> = pinned
+            .iter()
+            .map(|&p| if p { Vec3::ZERO } else { Vec3::ONE })
+            .collect();
+        let mut out = vec![Vec3::ZERO; vertices];
+        let clock = Instant::now();
+        for _ in 0..10 {
+            multilevel.apply(&residual, &mut out)?;
+        }
+        let cycle = clock.elapsed().as_secs_f64() / 10.0;
+        let clock = Instant::now();
+        for _ in 0..10 {
+            mesh.add_hessian_product(&hessians, &residual, &mut out)?;
+        }
+        let product = clock.elapsed().as_secs_f64() / 10.0;
+        println!(
+            "  one V-cycle {:.2} ms, one Hessian product {:.2} ms",
+            cycle * 1e3,
+            product * 1e3
         );
         drop(multilevel);
 
