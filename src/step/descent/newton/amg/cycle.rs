@@ -73,11 +73,23 @@ impl Level {
         }
     }
 
-    /// `r = b - A x`.
-    pub fn residual(&mut self) {
-        self.matrix.product(&self.x, &mut self.r);
-        for (r, &b) in self.r.iter_mut().zip(&self.b) {
-            *r = b - *r;
+    /// `r = b - A x` right after a forward sweep from `x = 0`: the sweep left `(D + L) x = b`
+    /// on every row it updated (to rounding), so there `r = -U x` and only the entries right of
+    /// the diagonal are read (half the stream); frozen rows take the whole row.
+    pub fn residual_after_forward_sweep(&mut self) {
+        for (i, r) in self.r.iter_mut().enumerate() {
+            let (columns, values) = self.matrix.row(i);
+            let frozen = self.inverse_diagonal.get(i).is_none_or(|&d| d == 0.0);
+            let (start, mut sum) = if frozen {
+                (0, self.b.get(i).copied().unwrap_or(0.0))
+            } else {
+                (columns.partition_point(|&c| c as usize <= i), 0.0)
+            };
+            let upper = columns.get(start..).unwrap_or(&[]);
+            for (&c, &a) in upper.iter().zip(values.get(start..).unwrap_or(&[])) {
+                sum -= a * self.x.get(c as usize).copied().unwrap_or(0.0);
+            }
+            *r = sum;
         }
     }
 }
@@ -200,7 +212,7 @@ pub(crate) fn v_cycle(levels: &mut [Level], coarsest: &Coarsest) {
             break;
         };
         this.gauss_seidel(true);
-        this.residual();
+        this.residual_after_forward_sweep();
         this.restriction.product(&this.r, &mut next.b);
     }
     for l in (0..depth.saturating_sub(1)).rev() {
