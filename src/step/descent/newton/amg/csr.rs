@@ -78,7 +78,7 @@ impl Csr {
     pub fn transpose(&self) -> Result<Csr, OutOfMemory> {
         let mut starts = filled(self.cols + 1, 0usize)?;
         for &c in &self.columns {
-            if let Some(count) = starts.get_mut(c as usize + 1) {
+            if let Some(count) = starts.get_mut((c as usize).saturating_add(1)) {
                 *count += 1;
             }
         }

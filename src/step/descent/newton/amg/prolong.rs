@@ -28,7 +28,7 @@ pub(crate) fn tentative(
     // The nodes of each aggregate, in node order: a counting sort.
     let mut first = filled(count + 1, 0usize)?;
     for &a in aggregate {
-        if let Some(c) = first.get_mut(a as usize + 1) {
+        if let Some(c) = first.get_mut((a as usize).saturating_add(1)) {
             *c += 1;
         }
     }
@@ -189,7 +189,7 @@ pub(crate) fn spectral_radius(
     // A fixed start with every component non-zero and no symmetry of the mesh.
     let mut x = filled(n, 0.0)?;
     for (i, v) in x.iter_mut().enumerate() {
-        *v = 1.0 + ((i * 7919) % 1009) as Real / 1009.0;
+        *v = 1.0 + (i.wrapping_mul(7919) % 1009) as Real / 1009.0;
     }
     let mut scaled = filled(n, 0.0)?;
     let mut y = filled(n, 0.0)?;
