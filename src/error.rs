@@ -598,6 +598,9 @@ pub enum StepError {
     /// [`Body::empty`]: crate::body::Body::empty
     /// [`Body::rebuild_from_box`]: crate::body::Body::rebuild_from_box
     EmptyBody,
+    /// An allocation of Newton's multilevel preconditioner (feature `alloc`) failed: its
+    /// hierarchy of sparse matrices did not fit in memory. Nothing was moved.
+    OutOfMemory,
 }
 
 /// What is wrong with a collider ([`StepError::Collider`]).
@@ -686,6 +689,9 @@ impl fmt::Display for StepError {
                 "element {element} names vertex {index}, beyond the vertex count"
             ),
             StepError::NewtonSettings => f.write_str("a Newton setting is out of range"),
+            StepError::OutOfMemory => {
+                f.write_str("Newton's multilevel preconditioner could not allocate its hierarchy")
+            }
             StepError::NonFiniteInput { vertex } => {
                 write!(f, "position or velocity of vertex {vertex} is not finite")
             }

@@ -625,6 +625,13 @@ impl<M: Material + Sync> ElasticHessian for ParallelTetElastic<'_, M> {
             add_vertex_hessian_blocks(partition, cache, blocks)
         })
     }
+    fn for_each_element_hessian(
+        &self,
+        cache: &[TetHessian],
+        visit: impl FnMut([u32; 4], &TetHessian),
+    ) -> bool {
+        self.body.for_each_element_hessian(cache, visit)
+    }
 }
 
 /// Vertex Block Descent's sweeps ([`vbd_step`](super::step::vbd_step)) run the updates of each

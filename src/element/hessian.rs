@@ -179,6 +179,28 @@ impl TetHessian {
     }
 }
 
+impl TetHessian {
+    /// The 3x3 block of the 12x12 element Hessian with rows of corner `a` and columns of corner
+    /// `b` (0..4; N/m): `K_ab` on the edges for `a, b >= 1`, and for corner 0 (whose
+    /// displacement enters every edge with a minus sign) minus the sum over that corner's edge
+    /// index, both sums for `a = b = 0`. `block(b, a)` is its transpose; a corner out of range
+    /// gives the zero matrix. What an assembled (sparse) Hessian is built from.
+    #[inline]
+    #[must_use]
+    pub fn corner_block(&self, a: usize, b: usize) -> Mat3 {
+        let k = &self.stiffness;
+        let column_sum = |edge_b: usize| k.block(0, edge_b) + k.block(1, edge_b) + k.block(2, edge_b);
+        let row_sum = |edge_a: usize| k.block(edge_a, 0) + k.block(edge_a, 1) + k.block(edge_a, 2);
+        match (a, b) {
+            (0, 0) => column_sum(0) + column_sum(1) + column_sum(2),
+            (0, 1..=3) => -column_sum(b - 1),
+            (1..=3, 0) => -row_sum(a - 1),
+            (1..=3, 1..=3) => k.block(a - 1, b - 1),
+            _ => Mat3::ZERO,
+        }
+    }
+}
+
 /// The gradient `g_a` (m^-1) of corner `a`'s shape function: row `a - 1` of `Dm^-1` for
 /// `a = 1, 2, 3`, minus their sum for `a = 0`; `None` out of range.
 #[inline]

@@ -233,9 +233,11 @@ pub(crate) mod state;
 pub mod vertex_pass;
 
 pub use contact::{Collider, HalfSpace, SUGGESTED_STICKING_SPEED, Shape, SignedDistance};
+#[cfg(feature = "alloc")]
+pub use descent::newton::{MAX_COARSE, Multilevel, REBUILD_FACTOR};
 pub use descent::newton::{
-    NewtonDetails, NewtonOptions, NewtonReport, NewtonScratch, NewtonSettings, newton_quasi_static,
-    newton_step,
+    NewtonDetails, NewtonOptions, NewtonReport, NewtonScratch, NewtonSettings, Preconditioner,
+    newton_quasi_static, newton_step,
 };
 pub use descent::relax::{
     RelaxOptions, RelaxReport, RelaxScratch, RelaxSettings, gradient_descent_quasi_static,

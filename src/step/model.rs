@@ -170,6 +170,21 @@ pub trait ElasticHessian: ElasticEnergy<Vector = Vec3> {
         cache: &[TetHessian],
         blocks: &mut [Mat3],
     ) -> Result<(), MeshError>;
+
+    /// Calls `visit(corners, hessian)` for every tetrahedron in element order with its entry of
+    /// `cache` and returns `true`, or returns `false` without a call where the model's Hessian is
+    /// not a sum of tetrahedra over its vertices (the default). An assembled Hessian is built
+    /// from it: Newton's multilevel preconditioner (feature `alloc`) needs it and falls back
+    /// to block Jacobi where a model answers `false`.
+    #[inline]
+    fn for_each_element_hessian(
+        &self,
+        cache: &[TetHessian],
+        visit: impl FnMut([u32; 4], &TetHessian),
+    ) -> bool {
+        let _ = (cache, visit);
+        false
+    }
 }
 
 /// A tetrahedral body with the direct stress [`Material::first_piola`]: the forces are the
@@ -325,6 +340,16 @@ impl<M: Material> ElasticHessian for TetElastic<'_, M> {
         blocks: &mut [Mat3],
     ) -> Result<(), MeshError> {
         self.mesh.add_vertex_hessian_blocks(cache, blocks)
+    }
+    fn for_each_element_hessian(
+        &self,
+        cache: &[TetHessian],
+        mut visit: impl FnMut([u32; 4], &TetHessian),
+    ) -> bool {
+        for (&corners, hessian) in self.mesh.tets().iter().zip(cache) {
+            visit(corners, hessian);
+        }
+        true
     }
 }
 

@@ -21,6 +21,9 @@ mod explicit_colliders;
 mod firmware_body;
 mod frequency;
 mod loads;
+// The multilevel preconditioner needs the package's `alloc` feature.
+#[cfg(feature = "alloc")]
+mod multilevel;
 mod newton;
 mod parallel;
 mod pile;

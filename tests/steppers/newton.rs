@@ -276,7 +276,7 @@ macro_rules! newton_tests {
                     NewtonSettings { tolerance: 1.0, ..settings },
                     NewtonSettings { armijo: 0.0, ..settings },
                     NewtonSettings { backtrack: 1.0, ..settings },
-                    NewtonSettings { options: NewtonOptions { max_cg_iterations: 0 }, ..settings },
+                    NewtonSettings { options: NewtonOptions { max_cg_iterations: 0, ..settings.options }, ..settings },
                 ] {
                     assert_eq!(
                         newton_step(&model, &masses, &pinned, &scene, &broken, &mut x, &mut v, &mut buffers.scratch()),

@@ -560,7 +560,7 @@ macro_rules! precision_tests {
                 use sf::parallel::{self, ParallelTetClamped, ParallelTetElastic};
                 use sf::step::{
                     ElasticHessian, ElasticModel, ExplicitScratch, ExplicitSettings, HalfSpace, NewtonScratch, NewtonSettings,
-                    RelaxScratch, RelaxSettings, Scene, scratch_len, explicit_step,
+                    Preconditioner, RelaxScratch, RelaxSettings, Scene, scratch_len, explicit_step,
                     newton_step, relax_step, stable_time_step, TetClamped,
                 };
 
@@ -1060,12 +1060,12 @@ macro_rules! precision_tests {
                 }
 
                 /// `steps` Newton steps of 1/30 s of `model` from `start` at rest, onto the
-                /// ground, as [`relax_run`].
+                /// ground, as [`relax_run`], with `preconditioner`.
                 fn newton_run<F: ElasticHessian>(
                     model: &F,
                     masses: &[Real],
                     start: &[Vec3],
-                    (steps, sticking_speed): (usize, Real),
+                    (steps, sticking_speed, preconditioner): (usize, Real, Preconditioner),
                 ) -> RunBits {
                     let (n, ne) = (start.len(), model.element_count());
                     let ground = HalfSpace::new(Vec3::Y, 0.0)
@@ -1074,7 +1074,9 @@ macro_rules! precision_tests {
                     let scene = Scene::new(1.0 / 30.0)
                         .with_gravity(Vec3::new(0.0, -9.81, 0.0))
                         .with_ground(ground);
-                    let settings = NewtonSettings::new().with_tolerance(1.0e-4, 30);
+                    let settings = NewtonSettings::new()
+                        .with_tolerance(1.0e-4, 30)
+                        .with_preconditioner(preconditioner);
                     let (mut x, mut v) = (start.to_vec(), vec![Vec3::ZERO; n]);
                     let lengths = scratch_len::newton(n, ne);
                     let mut vectors = vec![Vec3::ZERO; lengths.vectors];
@@ -1102,7 +1104,9 @@ macro_rules! precision_tests {
                 /// Whole relaxation and Newton runs of the dropped box (landing included),
                 /// sequential against `ParallelTetElastic` on 1, 2, 3 and 8 threads: every
                 /// position, velocity and report bit, with the ground's friction applied after
-                /// the solve and in the objective (`SUGGESTED_STICKING_SPEED`).
+                /// the solve and in the objective (`SUGGESTED_STICKING_SPEED`); Newton with
+                /// block Jacobi and (feature `alloc`) with the multilevel preconditioner, whose
+                /// hierarchy then carries the ground's active set and friction's blocks.
                 #[test]
                 fn relaxation_and_newton_runs_on_1_2_3_8_threads_give_the_sequential_bits() {
                     for sticking_speed in [0.0, sf::step::SUGGESTED_STICKING_SPEED] {
@@ -1118,9 +1122,20 @@ macro_rules! precision_tests {
                     let material = StableNeoHookean::from_young_poisson(5.0e4, 0.45).unwrap();
                     let body = TetElastic::new(mesh, material);
                     let relaxed = relax_run(&body, &masses, &start, (6, sticking_speed));
-                    let newton = newton_run(&body, &masses, &start, (4, sticking_speed));
+                    let preconditioners = [
+                        Preconditioner::BlockJacobi,
+                        #[cfg(feature = "alloc")]
+                        Preconditioner::Multilevel,
+                    ];
+                    let newton: Vec<RunBits> = preconditioners
+                        .iter()
+                        .map(|&p| newton_run(&body, &masses, &start, (4, sticking_speed, p)))
+                        .collect();
                     // Landed: some vertex is on the ground (y = 0) at the end.
-                    for (x, _, _) in [&relaxed, &newton] {
+                    // The multilevel runs built their hierarchy (no fallback to block Jacobi).
+                    #[cfg(feature = "alloc")]
+                    assert!(newton[1].2.contains("multilevel_builds: 1"), "{}", newton[1].2);
+                    for (x, _, _) in newton.iter().chain([&relaxed]) {
                         assert!(x.iter().any(|p| p[1] == 0.0f64.to_bits()), "not landed");
                     }
                     for threads in THREADS {
@@ -1135,8 +1150,10 @@ macro_rules! precision_tests {
                                 .with_pool(&pool);
                         let got = relax_run(&parallel_body, &masses, &start, (6, sticking_speed));
                         assert!(got == relaxed, "{threads} threads: relaxation run differs");
-                        let got = newton_run(&parallel_body, &masses, &start, (4, sticking_speed));
-                        assert!(got == newton, "{threads} threads: Newton run differs");
+                        for (&preconditioner, newton) in preconditioners.iter().zip(&newton) {
+                            let got = newton_run(&parallel_body, &masses, &start, (4, sticking_speed, preconditioner));
+                            assert!(got == *newton, "{threads} threads: Newton run with {preconditioner:?} differs");
+                        }
                     }
                 }
 

@@ -16,6 +16,8 @@ use super::super::objective::Objective;
 use super::super::stopping::rounding_floor;
 use super::super::{Direction, Extrapolation, Iterate, Search};
 use crate::error::StepError;
+#[cfg(feature = "alloc")]
+use super::amg::{Multilevel, projection_matrix};
 
 /// Newton's direction over its scratch: the Hessian cache, the inverted preconditioner blocks
 /// and the vectors of conjugate gradients.
@@ -29,6 +31,13 @@ pub(crate) struct Newton<'b> {
     pub normal: Option<Vec3>,
     /// CG iterations so far.
     pub cg_iterations: u32,
+    /// The multilevel preconditioner, where the settings ask for it.
+    #[cfg(feature = "alloc")]
+    pub multilevel: Option<&'b mut Multilevel>,
+    /// Whether a model without element Hessians made the multilevel preconditioner fall back
+    /// to block Jacobi.
+    #[cfg(feature = "alloc")]
+    pub multilevel_unsupported: bool,
     /// `max |x|_inf` at the initial guess (m).
     reach: Real,
     /// The estimated rounding floor at the last Hessian evaluation (0 before it).
@@ -50,6 +59,10 @@ impl<'b> Newton<'b> {
             max_cg_iterations,
             normal,
             cg_iterations: 0,
+            #[cfg(feature = "alloc")]
+            multilevel: None,
+            #[cfg(feature = "alloc")]
+            multilevel_unsupported: false,
             reach: 0.0,
             floor: 0.0,
             forcing: Forcing::default(),
@@ -141,15 +154,41 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
             gradient: at.gradient,
         };
         let eta = self.forcing.next(at);
-        self.cg_iterations += conjugate_gradients(
+        #[cfg(feature = "alloc")]
+        let multilevel = match self.multilevel.as_deref_mut() {
+            Some(multilevel) if !self.multilevel_unsupported => {
+                if multilevel.needs_build(at.x.len()) {
+                    let inertia = objective.inertia;
+                    let diagonal = |i: usize| {
+                        let m = masses.get(i).copied().unwrap_or(0.0);
+                        let block = Mat3::from_diagonal(Vec3::splat(m * inertia));
+                        rough(i).map_or(block, |friction| block + friction)
+                    };
+                    let projection = |i: usize| projection_matrix(|v| constraints.apply(i, v));
+                    let built =
+                        multilevel.rebuild(model, self.hessians, at.x, &diagonal, &projection)?;
+                    self.multilevel_unsupported = !built;
+                }
+                if self.multilevel_unsupported {
+                    None
+                } else {
+                    Some(multilevel)
+                }
+            }
+            _ => None,
+        };
+        #[cfg(not(feature = "alloc"))]
+        let multilevel: Option<&mut GlobalPreconditioner> = None;
+        let (iterations, _reduction) = conjugate_gradients(
             model,
             (self.hessians, self.blocks, masses, objective.inertia),
             &rough,
             &constraints,
             (eta, self.max_cg_iterations),
             direction,
-            &mut self.cg,
+            (&mut self.cg, multilevel),
         )?;
+        self.cg_iterations += iterations;
         Ok(slope_and_trial_pass(
             model,
             &objective.frames,
@@ -307,8 +346,9 @@ fn conjugate_gradients<F: ElasticHessian>(
     constraints: &Constraints<'_>,
     (eta, max): (Real, u32),
     direction: &mut [Vec3],
-    cg: &mut CgVectors<'_>,
-) -> Result<u32, StepError> {
+    (cg, mut multilevel): (&mut CgVectors<'_>, Option<&mut GlobalPreconditioner>),
+) -> Result<(u32, Real), StepError> {
+    let local = multilevel.is_none();
     let CgVectors {
         residual,
         preconditioned,
@@ -334,11 +374,13 @@ fn conjugate_gradients<F: ElasticHessian>(
                 let g = constraints.gradient.get(i).copied().unwrap_or(Vec3::ZERO);
                 *r = constraints.apply(i, -g);
                 *d = Vec3::ZERO;
-                *z = precondition(i, *r);
-                *p = *z;
                 *q = Vec3::ZERO;
                 rr += r.dot(*r);
-                rz += r.dot(*z);
+                if local {
+                    *z = precondition(i, *r);
+                    *p = *z;
+                    rz += r.dot(*z);
+                }
             }
             (rr, rz)
         };
@@ -350,7 +392,24 @@ fn conjugate_gradients<F: ElasticHessian>(
         &mut **product,
     );
     let (rr, mut rz) = model.run_vertex_pass(Blocks::new(n, parts, &start));
-    let stop = eta * math::sqrt(rr);
+    // The global preconditioner: `z = S M^-1 S r` (`r` is already projected) and `r.z`.
+    let project = |first: usize, (preconditioned, residual): (&mut [Vec3], &[Vec3])| {
+        let mut rz = -0.0;
+        for (j, (z, r)) in preconditioned.iter_mut().zip(residual).enumerate() {
+            *z = constraints.apply(first + j, *z);
+            rz += r.dot(*z);
+        }
+        rz
+    };
+    if let Some(global) = multilevel.as_deref_mut() {
+        apply_global(global, residual, preconditioned);
+        let parts = (&mut **preconditioned, &**residual);
+        rz = model.run_vertex_pass(Blocks::new(n, parts, &project));
+        split_copy(model, conjugate, preconditioned);
+    }
+    let initial = math::sqrt(rr);
+    let stop = eta * initial;
+    let mut last = initial;
     let mut iterations = 0;
     // q = S (H p + M / h^2 p + F p) from q = H p; the curvature p.q.
     let complete = |first: usize, (product, conjugate): (&mut [Vec3], &[Vec3])| {
@@ -393,9 +452,11 @@ fn conjugate_gradients<F: ElasticHessian>(
                 for (j, ((d, (r, z)), (&p, &q))) in rows.enumerate() {
                     *d += p * step;
                     *r -= q * step;
-                    *z = precondition(first + j, *r);
                     rr += r.dot(*r);
-                    rz += r.dot(*z);
+                    if local {
+                        *z = precondition(first + j, *r);
+                        rz += r.dot(*z);
+                    }
                 }
                 (rr, rz)
             };
@@ -406,10 +467,16 @@ fn conjugate_gradients<F: ElasticHessian>(
             &**conjugate,
             &**product,
         );
-        let (rr, rz_next) = model.run_vertex_pass(Blocks::new(n, parts, &update));
+        let (rr, mut rz_next) = model.run_vertex_pass(Blocks::new(n, parts, &update));
         iterations += 1;
-        if math::sqrt(rr) <= stop {
+        last = math::sqrt(rr);
+        if last <= stop {
             break;
+        }
+        if let Some(global) = multilevel.as_deref_mut() {
+            apply_global(global, residual, preconditioned);
+            let parts = (&mut **preconditioned, &**residual);
+            rz_next = model.run_vertex_pass(Blocks::new(n, parts, &project));
         }
         if !positive(rz_next) {
             break;
@@ -426,7 +493,34 @@ fn conjugate_gradients<F: ElasticHessian>(
         let parts = (&mut **conjugate, &mut **product, &**preconditioned);
         model.run_vertex_pass(Blocks::new(n, parts, &next));
     }
-    Ok(iterations)
+    let reduction = if initial > 0.0 { last / initial } else { 1.0 };
+    #[cfg(feature = "alloc")]
+    if let Some(global) = multilevel {
+        global.record(iterations, reduction);
+    }
+    Ok((iterations, reduction))
+}
+
+/// A preconditioner applied to the whole residual at once (not vertex by vertex).
+#[cfg(feature = "alloc")]
+type GlobalPreconditioner = Multilevel;
+
+/// Without `alloc` there is none.
+#[cfg(not(feature = "alloc"))]
+pub(crate) enum GlobalPreconditioner {}
+
+/// `z = M^-1 r`.
+#[cfg(feature = "alloc")]
+#[inline]
+fn apply_global(global: &mut GlobalPreconditioner, r: &[Vec3], z: &mut [Vec3]) {
+    global.apply_unchecked(r, z);
+}
+
+/// Never called: there is no global preconditioner without `alloc`.
+#[cfg(not(feature = "alloc"))]
+#[inline]
+fn apply_global(global: &mut GlobalPreconditioner, _: &[Vec3], _: &mut [Vec3]) {
+    match *global {}
 }
 
 /// A block's share of the update pass's buffers.

@@ -1,0 +1,437 @@
+//! Smoothed-aggregation algebraic multigrid (feature `alloc`): the multilevel preconditioner
+//! of Newton's linear solves (`docs/math.md` section 7.1.1), after Vaněk, Mandel and Brezina,
+//! "Algebraic multigrid by smoothed aggregation for second and fourth order elliptic
+//! problems" (Computing 56, 1996).
+//!
+//! Setup ([`Multilevel::build`]): the projected Hessian assembled with its constraints
+//! (`assemble.rs`); per level, the strong connections and aggregates (`aggregate.rs`), the
+//! tentative prolongator from the six rigid-body modes orthonormalised per aggregate and its
+//! Jacobi smoothing (`prolong.rs`), the Galerkin product `P^T A P` (`csr.rs`); until a level
+//! has at most [`MAX_COARSE`] unknowns, whose matrix is factored by dense Cholesky. The
+//! application is one V-cycle (`cycle.rs`), a symmetric positive definite operator.
+//!
+//! Every step runs in a fixed order on one thread (no hash maps, sorted columns, sums in row
+//! order), so the bits depend on the input only; every allocation is fallible.
+
+mod aggregate;
+mod assemble;
+mod csr;
+mod cycle;
+mod prolong;
+
+use alloc::vec::Vec;
+
+use super::super::super::super::element::TetHessian;
+use super::super::super::super::types::{Mat3, Real, Vec3};
+use super::super::super::model::ElasticHessian;
+use crate::error::{StepBuffer, StepError};
+use cycle::{Coarsest, Level, v_cycle};
+
+pub(crate) use assemble::projection_matrix;
+
+/// The near-null space's size: three translations and three rotations.
+pub(crate) const MODES: usize = 6;
+
+/// A level with at most this many unknowns is the coarsest.
+pub const MAX_COARSE: usize = 300;
+
+/// At most this many levels.
+const MAX_LEVELS: usize = 12;
+
+/// An allocation failed.
+#[derive(Debug)]
+pub(crate) struct OutOfMemory;
+
+/// Why a hierarchy was not built.
+#[derive(Debug)]
+pub(crate) enum SetupError {
+    /// An allocation failed.
+    OutOfMemory,
+    /// The model does not expose its element Hessians.
+    Unsupported,
+    /// An element (first) names a vertex (second) at or beyond the vertex count.
+    VertexIndex(usize, u32),
+}
+
+impl From<OutOfMemory> for SetupError {
+    fn from(_: OutOfMemory) -> SetupError {
+        SetupError::OutOfMemory
+    }
+}
+
+/// A vector of `len` copies of `value`, or [`OutOfMemory`].
+pub(crate) fn filled<T: Clone>(len: usize, value: T) -> Result<Vec<T>, OutOfMemory> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len).map_err(|_| OutOfMemory)?;
+    v.resize(len, value);
+    Ok(v)
+}
+
+/// Pushes `value`, or [`OutOfMemory`].
+#[inline]
+pub(crate) fn push<T>(v: &mut Vec<T>, value: T) -> Result<(), OutOfMemory> {
+    v.try_reserve(1).map_err(|_| OutOfMemory)?;
+    v.push(value);
+    Ok(())
+}
+
+/// The levels and the coarsest solve.
+#[derive(Debug, Default)]
+struct Hierarchy {
+    levels: Vec<Level>,
+    coarsest: Coarsest,
+    /// The vertex count of the finest level.
+    vertices: usize,
+}
+
+impl Hierarchy {
+    /// The hierarchy of the matrix of `assemble.rs` at `positions`.
+    fn new<F: ElasticHessian>(
+        model: &F,
+        hessians: &[TetHessian],
+        positions: &[Vec3],
+        diagonal: &dyn Fn(usize) -> Mat3,
+        projection: &dyn Fn(usize) -> Mat3,
+    ) -> Result<Hierarchy, SetupError> {
+        let n = positions.len();
+        let fine = assemble::assemble(model, hessians, n, diagonal, projection)?;
+        let modes = rigid_modes(positions, projection)?;
+        let mut levels: Vec<Level> = Vec::new();
+        push(&mut levels, Level::new(fine)?)?;
+        let mut modes = modes;
+        let mut block = 3;
+        while levels.len() < MAX_LEVELS {
+            let Some(level) = levels.last_mut() else {
+                break;
+            };
+            let rows = level.matrix.rows;
+            if rows <= MAX_COARSE {
+                break;
+            }
+            let strength = aggregate::strength(&level.matrix, block)?;
+            let (aggregates, count) = aggregate::aggregates(&strength)?;
+            let coarse_rows = count as usize * MODES;
+            // No coarsening to speak of (isolated nodes): stop here.
+            if count == 0 || 5 * coarse_rows > 4 * rows {
+                break;
+            }
+            let (tentative, coarse_modes) =
+                prolong::tentative((block, &aggregates, count), &modes)?;
+            let prolongator = prolong::smoothed(&level.matrix, &level.inverse_diagonal, &tentative)?;
+            drop(tentative);
+            let restriction = prolongator.transpose()?;
+            let product = level.matrix.multiply(&prolongator)?;
+            let mut coarse = restriction.multiply(&product)?;
+            drop(product);
+            coarse.symmetrize()?;
+            level.prolongator = prolongator;
+            level.restriction = restriction;
+            push(&mut levels, Level::new(coarse)?)?;
+            modes = coarse_modes;
+            block = MODES;
+        }
+        let coarsest = match levels.last() {
+            Some(level) => Coarsest::new(&level.matrix)?,
+            None => Coarsest::default(),
+        };
+        Ok(Hierarchy {
+            levels,
+            coarsest,
+            vertices: n,
+        })
+    }
+
+    /// `z = M^-1 r` by one V-cycle.
+    fn apply(&mut self, r: &[Vec3], z: &mut [Vec3]) {
+        let Some(fine) = self.levels.first_mut() else {
+            z.fill(Vec3::ZERO);
+            return;
+        };
+        for (b, v) in fine.b.chunks_exact_mut(3).zip(r) {
+            b.copy_from_slice(&v.to_array());
+        }
+        v_cycle(&mut self.levels, &self.coarsest);
+        if let Some(fine) = self.levels.first() {
+            for (out, x) in z.iter_mut().zip(fine.x.chunks_exact(3)) {
+                *out = Vec3::from_slice(x);
+            }
+        }
+    }
+}
+
+/// The six rigid-body modes at `positions` (about their mean), each vertex's rows projected
+/// by its `S_i`: row-major, [`MODES`] numbers a row, three rows a vertex.
+fn rigid_modes(
+    positions: &[Vec3],
+    projection: &dyn Fn(usize) -> Mat3,
+) -> Result<Vec<Real>, OutOfMemory> {
+    let n = positions.len();
+    let mean = positions.iter().fold(Vec3::ZERO, |a, &p| a + p) / (n.max(1) as Real);
+    let mut modes = filled(3 * n * MODES, 0.0)?;
+    for (i, (&x, rows)) in positions
+        .iter()
+        .zip(modes.chunks_exact_mut(3 * MODES))
+        .enumerate()
+    {
+        let p = x - mean;
+        let s = projection(i);
+        let columns = [
+            Vec3::X,
+            Vec3::Y,
+            Vec3::Z,
+            Vec3::new(0.0, -p.z, p.y),
+            Vec3::new(p.z, 0.0, -p.x),
+            Vec3::new(-p.y, p.x, 0.0),
+        ];
+        for (c, column) in columns.into_iter().enumerate() {
+            let v = (s * column).to_array();
+            for (r, value) in v.into_iter().enumerate() {
+                if let Some(slot) = rows.get_mut(r * MODES + c) {
+                    *slot = value;
+                }
+            }
+        }
+    }
+    Ok(modes)
+}
+
+/// The CG iterations per `e`-fold reduction of the linear residual beyond which a solve
+/// counts as slow for the rebuild policy: [`REBUILD_FACTOR`] times the first solve's after a
+/// build.
+pub const REBUILD_FACTOR: Real = 2.0;
+
+/// Smoothed-aggregation multigrid for Newton's linear solves (feature `alloc`): the
+/// hierarchy and the policy that decides when to rebuild it. Give one to
+/// [`NewtonScratch::with_multilevel`](super::NewtonScratch::with_multilevel) to keep it across
+/// solves (time steps); without one, a solve that asks for
+/// [`Preconditioner::Multilevel`](super::Preconditioner::Multilevel) builds its own.
+///
+/// # Rebuild policy
+/// The hierarchy is built at the first Newton iteration that needs it and then reused, across
+/// Newton iterations and across solves, while the Hessian drifts from the one it was built
+/// for. A linear solve's cost is measured as CG iterations per `e`-fold reduction of its
+/// residual, `k / ln(|r_0| / |r_k|)` (the forcing term asks for a different reduction every
+/// iteration, so raw counts would not compare); when a solve costs more than
+/// [`REBUILD_FACTOR`] times the first solve after the build (and more than 4 iterations),
+/// the next Newton iteration rebuilds. [`invalidate`](Self::invalidate) asks for a rebuild
+/// (after a remesh or a change of material, say).
+///
+/// ```
+/// use softfem::element::{TetHessian, TetRest};
+/// use softfem::glam::Vec3;
+/// use softfem::material::StableNeoHookean;
+/// use softfem::mesh::TetMesh;
+/// use softfem::step::{Multilevel, TetElastic};
+///
+/// let rest = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z];
+/// let tets = [[0, 1, 2, 3]];
+/// let mut rest_data = [TetRest::default(); 1];
+/// let mesh = TetMesh::new(&rest, &tets, &mut rest_data)?;
+/// let body = TetElastic::new(mesh, StableNeoHookean::from_young_poisson(1.0e4, 0.3)?);
+/// let mut hessians = [TetHessian::default(); 1];
+/// mesh.projected_hessians(&body.material, &rest, &mut hessians)?;
+/// let mut multilevel = Multilevel::new();
+/// // Vertex 0 pinned, unit masses, a step of 0.1 s (inertia 1 / h^2).
+/// multilevel.build(&body, &hessians, &[1.0; 4], 100.0, &[true, false, false, false], &rest)?;
+/// let mut z = [Vec3::ZERO; 4];
+/// multilevel.apply(&[Vec3::X; 4], &mut z)?;
+/// assert!(z[1].x > 0.0);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+#[derive(Debug, Default)]
+pub struct Multilevel {
+    hierarchy: Option<Hierarchy>,
+    /// The cost (CG iterations per e-fold) of the first solve after the build.
+    first_cost: Option<Real>,
+    /// Whether the next Newton iteration rebuilds.
+    stale: bool,
+    /// Builds so far.
+    builds: u32,
+}
+
+impl Multilevel {
+    /// No hierarchy yet: built at first use.
+    #[inline]
+    #[must_use]
+    pub const fn new() -> Self {
+        Multilevel {
+            hierarchy: None,
+            first_cost: None,
+            stale: false,
+            builds: 0,
+        }
+    }
+
+    /// Builds the hierarchy of `A = masses * inertia + H` (`H` the element Hessians in
+    /// `hessians`, N/m; `inertia` 1/s^2: `1 / h^2` for a step of `h`, 0 for a static solve),
+    /// pinned vertices removed, with the rigid-body modes at `positions` (m).
+    ///
+    /// # Errors
+    /// [`StepError::LengthMismatch`] for a buffer of the wrong length,
+    /// [`StepError::NewtonSettings`] for a model without element Hessians
+    /// ([`ElasticHessian::for_each_element_hessian`]), [`StepError::VertexIndex`],
+    /// [`StepError::OutOfMemory`].
+    pub fn build<F: ElasticHessian>(
+        &mut self,
+        model: &F,
+        hessians: &[TetHessian],
+        masses: &[Real],
+        inertia: Real,
+        pinned: &[bool],
+        positions: &[Vec3],
+    ) -> Result<(), StepError> {
+        let n = model.vertex_count();
+        let check = |buffer, actual: usize, expected: usize| {
+            if actual == expected {
+                Ok(())
+            } else {
+                Err(StepError::LengthMismatch {
+                    buffer,
+                    expected,
+                    actual,
+                })
+            }
+        };
+        check(StepBuffer::Positions, positions.len(), n)?;
+        check(StepBuffer::Masses, masses.len(), n)?;
+        if !pinned.is_empty() {
+            check(StepBuffer::Pinned, pinned.len(), n)?;
+        }
+        check(
+            StepBuffer::HessianScratch,
+            hessians.len(),
+            model.element_count(),
+        )?;
+        let diagonal = |i: usize| {
+            Mat3::from_diagonal(Vec3::splat(
+                masses.get(i).copied().unwrap_or(0.0) * inertia,
+            ))
+        };
+        let projection = |i: usize| {
+            if pinned.get(i).copied().unwrap_or(false) {
+                Mat3::ZERO
+            } else {
+                Mat3::IDENTITY
+            }
+        };
+        if self.rebuild(model, hessians, positions, &diagonal, &projection)? {
+            Ok(())
+        } else {
+            Err(StepError::NewtonSettings)
+        }
+    }
+
+    /// `out = M^-1 residual`, one V-cycle (zero where nothing is built).
+    ///
+    /// # Errors
+    /// [`StepError::LengthMismatch`] unless both buffers have one entry per vertex of the build.
+    pub fn apply(&mut self, residual: &[Vec3], out: &mut [Vec3]) -> Result<(), StepError> {
+        let n = self.hierarchy.as_ref().map_or(0, |h| h.vertices);
+        for (buffer, actual) in [
+            (StepBuffer::Scratch, residual.len()),
+            (StepBuffer::Scratch, out.len()),
+        ] {
+            if actual != n {
+                return Err(StepError::LengthMismatch {
+                    buffer,
+                    expected: n,
+                    actual,
+                });
+            }
+        }
+        self.apply_unchecked(residual, out);
+        Ok(())
+    }
+
+    /// [`apply`](Self::apply) without the length check (the solver's buffers are checked).
+    pub(crate) fn apply_unchecked(&mut self, residual: &[Vec3], out: &mut [Vec3]) {
+        match self.hierarchy.as_mut() {
+            Some(hierarchy) => hierarchy.apply(residual, out),
+            None => out.fill(Vec3::ZERO),
+        }
+    }
+
+    /// Asks for a rebuild at the next Newton iteration that uses it.
+    #[inline]
+    pub fn invalidate(&mut self) {
+        self.stale = true;
+    }
+
+    /// Whether a hierarchy is built.
+    #[inline]
+    #[must_use]
+    pub fn is_built(&self) -> bool {
+        self.hierarchy.is_some()
+    }
+
+    /// How many times the hierarchy was built.
+    #[inline]
+    #[must_use]
+    pub fn builds(&self) -> u32 {
+        self.builds
+    }
+
+    /// The unknowns of each level, finest first (empty before the first build), and the
+    /// stored entries of its matrix.
+    pub fn level_sizes(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.hierarchy
+            .iter()
+            .flat_map(|h| h.levels.iter())
+            .map(|level| (level.matrix.rows, level.matrix.entries()))
+    }
+
+    /// Whether the next Newton iteration must build.
+    pub(crate) fn needs_build(&self, vertices: usize) -> bool {
+        self.stale || self.hierarchy.as_ref().is_none_or(|h| h.vertices != vertices)
+    }
+
+    /// Builds from the solver's own diagonal additions and projections; `false` (nothing
+    /// built) for a model without element Hessians.
+    pub(crate) fn rebuild<F: ElasticHessian>(
+        &mut self,
+        model: &F,
+        hessians: &[TetHessian],
+        positions: &[Vec3],
+        diagonal: &dyn Fn(usize) -> Mat3,
+        projection: &dyn Fn(usize) -> Mat3,
+    ) -> Result<bool, StepError> {
+        self.hierarchy = None;
+        let hierarchy = match Hierarchy::new(model, hessians, positions, diagonal, projection) {
+            Ok(hierarchy) => hierarchy,
+            Err(SetupError::Unsupported) => return Ok(false),
+            Err(SetupError::OutOfMemory) => return Err(StepError::OutOfMemory),
+            Err(SetupError::VertexIndex(element, index)) => {
+                return Err(StepError::VertexIndex { element, index });
+            }
+        };
+        self.hierarchy = Some(hierarchy);
+        self.first_cost = None;
+        self.stale = false;
+        self.builds += 1;
+        Ok(true)
+    }
+
+    /// Records a linear solve of `iterations` that reduced its residual by `reduction`
+    /// (`|r_k| / |r_0|`), for the rebuild policy.
+    pub(crate) fn record(&mut self, iterations: u32, reduction: Real) {
+        let folds = -libm_ln(reduction);
+        if !(folds > 0.0 && folds.is_finite()) {
+            return;
+        }
+        let cost = iterations as Real / folds;
+        match self.first_cost {
+            None => self.first_cost = Some(cost),
+            Some(first) => {
+                if iterations > 4 && cost > REBUILD_FACTOR * first {
+                    self.stale = true;
+                }
+            }
+        }
+    }
+}
+
+/// The natural logarithm from the precision's math shim.
+#[inline]
+fn libm_ln(x: Real) -> Real {
+    super::super::super::super::math::ln(x)
+}
