@@ -24,6 +24,17 @@
 //! guarantee, with fewer converged steps than Newton's method where many bodies press on each
 //! other.
 //!
+//! With the `rayon` feature, [`set_threads`](World::set_threads) (or
+//! [`set_pool`](World::set_pool)) runs the world's elastic passes on a rayon pool, the bodies in
+//! parallel: one task per body writes only its own vertices' forces, products and Hessian blocks
+//! (and its own tetrahedra's Hessians) through disjoint slices, its kernel running on its own
+//! vertices with body-local indices, the energies added in body order afterwards; the steppers'
+//! passes over the vertices run in blocks on the pool and Vertex Block Descent runs each body's
+//! colours in parallel. Every step gives the bits of the world on the calling thread, at any
+//! thread count. The contact model's pair work (broad phase, barrier, friction, continuous
+//! collision detection) and Newton's conjugate gradients stay on the calling thread, so a pile
+//! whose steps are mostly contact gains less than its bodies' share.
+//!
 //! Bodies are added ([`add_box`](World::add_box), [`add_body`](World::add_body)), removed
 //! ([`remove_body`](World::remove_body)) and moved
 //! ([`body_positions_mut`](World::body_positions_mut)) between steps. A body is named by its
