@@ -503,7 +503,7 @@ impl Join for RayonJoin {
 }
 
 /// `run` on `pool` if there is one, else on the current pool.
-fn on_pool<T: Send>(pool: Option<&ThreadPool>, run: impl FnOnce() -> T + Send) -> T {
+pub(crate) fn on_pool<T: Send>(pool: Option<&ThreadPool>, run: impl FnOnce() -> T + Send) -> T {
     match pool {
         Some(pool) => pool.install(run),
         None => run(),

@@ -24,6 +24,17 @@
 //! guarantee, with fewer converged steps than Newton's method where many bodies press on each
 //! other.
 //!
+//! With the `rayon` feature, [`set_threads`](World::set_threads) (or
+//! [`set_pool`](World::set_pool)) runs the world's elastic passes on a rayon pool, the bodies in
+//! parallel: one task per body writes only its own vertices' forces, products and Hessian blocks
+//! (and its own tetrahedra's Hessians) through disjoint slices, its kernel running on its own
+//! vertices with body-local indices, the energies added in body order afterwards; the steppers'
+//! passes over the vertices run in blocks on the pool and Vertex Block Descent runs each body's
+//! colours in parallel. Every step gives the bits of the world on the calling thread, at any
+//! thread count. The contact model's pair work (broad phase, barrier, friction, continuous
+//! collision detection) and Newton's conjugate gradients stay on the calling thread, so a pile
+//! whose steps are mostly contact gains less than its bodies' share.
+//!
 //! Bodies are added ([`add_box`](World::add_box), [`add_body`](World::add_body)), removed
 //! ([`remove_body`](World::remove_body)) and moved
 //! ([`body_positions_mut`](World::body_positions_mut)) between steps. A body is named by its
@@ -60,6 +71,8 @@
 
 mod model;
 mod storage;
+#[cfg(feature = "rayon")]
+mod threads;
 
 pub use storage::{FixedWorld, List, WorldStorage};
 
@@ -199,6 +212,9 @@ pub struct World<S: WorldStorage, M: Material> {
     stable_step: Option<Real>,
     explicit_memory: ExplicitMemory,
     counts: ContactCounts,
+    /// The thread pool of the elastic passes and what they keep ([`set_threads`](Self::set_threads)).
+    #[cfg(feature = "rayon")]
+    threads: Option<threads::Threads<M>>,
 }
 
 /// The barrier of a world that was given none.
@@ -272,6 +288,8 @@ macro_rules! unbuilt_world {
                 grid_queries: 0,
                 reused_queries: 0,
             },
+            #[cfg(feature = "rayon")]
+            threads: None,
         }
     };
 }
@@ -564,6 +582,8 @@ impl<S: WorldStorage, M: Material> World<S, M> {
     /// scratch for them.
     fn rebuild_surface(&mut self) -> Result<(), BodyError> {
         self.forget_history();
+        #[cfg(feature = "rayon")]
+        self.fit_threads();
         let too_many = |buffer, needed| BodyError::Capacity { buffer, needed };
         let n = self.positions.slice().len();
         let triangle_total = self.parts.slice().last().map_or(0, |part| {
@@ -705,6 +725,8 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             rest: self.rest_data.slice(),
             parts: self.parts.slice(),
             vertex_count: self.positions.slice().len(),
+            #[cfg(feature = "rayon")]
+            threads: None,
         };
         let dt = stable_time_step(
             &elastic,
@@ -1089,6 +1111,8 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             rest: self.rest_data.slice(),
             parts: self.parts.slice(),
             vertex_count: n,
+            #[cfg(feature = "rayon")]
+            threads: self.threads.as_ref(),
         };
         let surface = ContactSurface {
             vertices: self
@@ -1223,6 +1247,91 @@ impl<S: WorldStorage, M: Material> World<S, M> {
         self.explicit_memory = memory;
         self.topology = topology;
         outcome
+    }
+}
+
+#[cfg(feature = "rayon")]
+impl<S: WorldStorage, M: Material> World<S, M> {
+    /// Refits what the parallel passes keep to the world's bodies (after a body was added or
+    /// removed). Where the memory is refused they are dropped, and the passes run on the
+    /// calling thread until the next refit (the same bits).
+    fn fit_threads(&mut self) {
+        if let Some(threads) = &mut self.threads {
+            let _ = threads.fit(self.parts.slice(), self.tets.slice());
+        }
+    }
+
+    /// The number of threads of the world's pool ([`set_threads`](Self::set_threads)), or 0
+    /// for none (the passes on the calling thread).
+    #[must_use]
+    pub fn threads(&self) -> usize {
+        self.threads
+            .as_ref()
+            .map_or(0, |threads| threads.pool().current_num_threads())
+    }
+}
+
+/// The world on all cores (feature `rayon`).
+#[cfg(feature = "rayon")]
+impl<S: WorldStorage, M: Material + Sync> World<S, M> {
+    /// Runs the elastic passes of every step on a rayon pool of `threads` threads of the
+    /// world's own, or on the calling thread for `0` (the default).
+    ///
+    /// On the pool the bodies run in parallel, one task per body: the forces, the fused
+    /// energy-and-force pass, the projected Hessians, their products and diagonal blocks, each
+    /// body writing only its own range of vertices (or of Hessians), the energies added in body
+    /// order afterwards; the steppers' passes over the vertices run in blocks on the pool
+    /// (as [`ParallelTetElastic`](crate::parallel::ParallelTetElastic)'s), and Vertex Block
+    /// Descent runs each body's colours in parallel. Every position and velocity is **bit for
+    /// bit** that of the world on one thread, at any thread count. The contact model's work
+    /// (broad phase, barrier, friction, continuous collision detection) and Newton's
+    /// conjugate gradients stay on the calling thread; a world of one body gains only from
+    /// the vertex passes and VBD's colours.
+    ///
+    /// ```
+    /// # #[cfg(feature = "alloc")] {
+    /// use softfem::body::VecStorage;
+    /// use softfem::world::World;
+    /// use softfem::{glam::Vec3, material::NeoHookean};
+    ///
+    /// let rubber = NeoHookean::from_young_poisson(1e6, 0.4)?;
+    /// let mut one = World::<VecStorage, _>::new();
+    /// one.add_box(Vec3::ZERO, Vec3::splat(0.1), [2; 3], 1000.0, rubber)?;
+    /// one.add_box(Vec3::new(0.0, 0.0, 0.1005), Vec3::new(0.1, 0.1, 0.2), [2; 3], 1000.0, rubber)?;
+    /// one.set_gravity(Vec3::new(0.0, 0.0, -9.81));
+    /// let mut two = World::<VecStorage, _>::new();
+    /// two.add_box(Vec3::ZERO, Vec3::splat(0.1), [2; 3], 1000.0, rubber)?;
+    /// two.add_box(Vec3::new(0.0, 0.0, 0.1005), Vec3::new(0.1, 0.1, 0.2), [2; 3], 1000.0, rubber)?;
+    /// two.set_gravity(Vec3::new(0.0, 0.0, -9.81));
+    /// two.set_threads(2)?;
+    /// for _ in 0..3 {
+    ///     one.step(0.01)?;
+    ///     two.step(0.01)?;
+    /// }
+    /// assert_eq!(one.positions(), two.positions()); // and bit for bit
+    /// # }
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// rayon's, if the pool cannot be built; the world keeps its pool (or none) then.
+    pub fn set_threads(&mut self, threads: usize) -> Result<(), rayon::ThreadPoolBuildError> {
+        if threads == 0 {
+            self.set_pool(None);
+            return Ok(());
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()?;
+        self.set_pool(Some(std::sync::Arc::new(pool)));
+        Ok(())
+    }
+
+    /// As [`set_threads`](Self::set_threads), on `pool` (shared with other worlds or work:
+    /// its thread count), or on the calling thread for `None`.
+    pub fn set_pool(&mut self, pool: Option<std::sync::Arc<rayon::ThreadPool>>) {
+        self.threads = pool.map(threads::Threads::new);
+        self.fit_threads();
     }
 }
 

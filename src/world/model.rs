@@ -12,6 +12,10 @@ use super::super::step::{
 };
 use super::super::types::{Mat3, Real, Vec3};
 use super::Part;
+#[cfg(feature = "rayon")]
+use super::threads::Threads;
+#[cfg(feature = "rayon")]
+use super::super::step::vertex_pass::VertexPass;
 use crate::error::{Buffer, MeshError, StepError};
 
 /// Every body of a world as one [`ElasticHessian`]: body `k`'s tetrahedra are
@@ -19,12 +23,17 @@ use crate::error::{Buffer, MeshError, StepError};
 /// range of `rest`, its material `part.material`. Forces, energies and Hessian products are
 /// each body's, added in body order; the Hessian cache holds the bodies' elements in the same
 /// order as `tets`.
+///
+/// With a thread pool (`threads`, feature `rayon`) the passes run body by body on the pool
+/// (`world/threads.rs`), with the same bits.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct WorldElastic<'a, M: Material> {
     pub(crate) tets: &'a [[u32; 4]],
     pub(crate) rest: &'a [TetRest],
     pub(crate) parts: &'a [Part<M>],
     pub(crate) vertex_count: usize,
+    #[cfg(feature = "rayon")]
+    pub(crate) threads: Option<&'a Threads<M>>,
 }
 
 impl<'a, M: Material> WorldElastic<'a, M> {
@@ -49,6 +58,69 @@ impl<'a, M: Material> WorldElastic<'a, M> {
         }
         Ok(())
     }
+
+    /// [`ElasticModel::add_forces`] body after body on the calling thread.
+    pub(crate) fn sequential_add_forces(
+        &self,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        self.each_body(|model, _| model.add_forces(positions, forces))
+    }
+
+    /// [`ElasticEnergy::energy_and_add_forces`] body after body on the calling thread.
+    pub(crate) fn sequential_energy_and_add_forces(
+        &self,
+        positions: &[Vec3],
+        forces: &mut [Vec3],
+    ) -> Result<Real, MeshError> {
+        let mut total: Real = 0.0;
+        self.each_body(|model, _| {
+            total += model.energy_and_add_forces(positions, forces)?;
+            Ok(())
+        })?;
+        Ok(total)
+    }
+
+    /// [`ElasticHessian::projected_hessians`] body after body on the calling thread.
+    pub(crate) fn sequential_projected_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError> {
+        check_cache(cache.len(), self.tets.len())?;
+        self.each_body(|model, range| {
+            let cache = cache.get_mut(range).unwrap_or(&mut []);
+            model.projected_hessians(positions, cache)
+        })
+    }
+
+    /// [`ElasticHessian::add_hessian_product`] body after body on the calling thread.
+    pub(crate) fn sequential_add_hessian_product(
+        &self,
+        cache: &[TetHessian],
+        direction: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), MeshError> {
+        check_cache(cache.len(), self.tets.len())?;
+        self.each_body(|model, range| {
+            let cache = cache.get(range).unwrap_or(&[]);
+            model.add_hessian_product(cache, direction, out)
+        })
+    }
+
+    /// [`ElasticHessian::add_vertex_hessian_blocks`] body after body on the calling thread.
+    pub(crate) fn sequential_add_vertex_hessian_blocks(
+        &self,
+        cache: &[TetHessian],
+        blocks: &mut [Mat3],
+    ) -> Result<(), MeshError> {
+        check_cache(cache.len(), self.tets.len())?;
+        self.each_body(|model, range| {
+            let cache = cache.get(range).unwrap_or(&[]);
+            model.add_vertex_hessian_blocks(cache, blocks)
+        })
+    }
 }
 
 impl<M: Material> ElasticModel for WorldElastic<'_, M> {
@@ -60,12 +132,24 @@ impl<M: Material> ElasticModel for WorldElastic<'_, M> {
     }
 
     fn add_forces(&self, positions: &[Vec3], forces: &mut [Vec3]) -> Result<(), MeshError> {
-        self.each_body(|model, _| model.add_forces(positions, forces))
+        #[cfg(feature = "rayon")]
+        if let Some(threads) = self.threads {
+            return threads.add_forces(self, positions, forces);
+        }
+        self.sequential_add_forces(positions, forces)
     }
 
     fn for_each_element_stiffness(&self, mut visit: impl FnMut(&[u32], Real, Real)) {
         for part in self.parts {
             self.body(part).0.for_each_element_stiffness(&mut visit);
+        }
+    }
+
+    #[cfg(feature = "rayon")]
+    fn run_vertex_pass<P: VertexPass>(&self, pass: P) -> P::Output {
+        match self.threads {
+            Some(threads) => threads.run_vertex_pass(pass),
+            None => pass.run_with(&super::super::step::vertex_pass::InOrder),
         }
     }
 }
@@ -76,12 +160,11 @@ impl<M: Material> ElasticEnergy for WorldElastic<'_, M> {
         positions: &[Vec3],
         forces: &mut [Vec3],
     ) -> Result<Real, MeshError> {
-        let mut total: Real = 0.0;
-        self.each_body(|model, _| {
-            total += model.energy_and_add_forces(positions, forces)?;
-            Ok(())
-        })?;
-        Ok(total)
+        #[cfg(feature = "rayon")]
+        if let Some(threads) = self.threads {
+            return threads.energy_and_add_forces(self, positions, forces);
+        }
+        self.sequential_energy_and_add_forces(positions, forces)
     }
 }
 
@@ -96,11 +179,11 @@ impl<M: Material> ElasticHessian for WorldElastic<'_, M> {
         positions: &[Vec3],
         cache: &mut [TetHessian],
     ) -> Result<(), MeshError> {
-        check_cache(cache.len(), self.tets.len())?;
-        self.each_body(|model, range| {
-            let cache = cache.get_mut(range).unwrap_or(&mut []);
-            model.projected_hessians(positions, cache)
-        })
+        #[cfg(feature = "rayon")]
+        if let Some(threads) = self.threads {
+            return threads.projected_hessians(self, positions, cache);
+        }
+        self.sequential_projected_hessians(positions, cache)
     }
 
     fn add_hessian_product(
@@ -109,11 +192,11 @@ impl<M: Material> ElasticHessian for WorldElastic<'_, M> {
         direction: &[Vec3],
         out: &mut [Vec3],
     ) -> Result<(), MeshError> {
-        check_cache(cache.len(), self.tets.len())?;
-        self.each_body(|model, range| {
-            let cache = cache.get(range).unwrap_or(&[]);
-            model.add_hessian_product(cache, direction, out)
-        })
+        #[cfg(feature = "rayon")]
+        if let Some(threads) = self.threads {
+            return threads.add_hessian_product(self, cache, direction, out);
+        }
+        self.sequential_add_hessian_product(cache, direction, out)
     }
 
     fn add_vertex_hessian_blocks(
@@ -121,11 +204,11 @@ impl<M: Material> ElasticHessian for WorldElastic<'_, M> {
         cache: &[TetHessian],
         blocks: &mut [Mat3],
     ) -> Result<(), MeshError> {
-        check_cache(cache.len(), self.tets.len())?;
-        self.each_body(|model, range| {
-            let cache = cache.get(range).unwrap_or(&[]);
-            model.add_vertex_hessian_blocks(cache, blocks)
-        })
+        #[cfg(feature = "rayon")]
+        if let Some(threads) = self.threads {
+            return threads.add_vertex_hessian_blocks(self, cache, blocks);
+        }
+        self.sequential_add_vertex_hessian_blocks(cache, blocks)
     }
 }
 
@@ -144,7 +227,9 @@ fn check_cache(actual: usize, expected: usize) -> Result<(), MeshError> {
 
 /// Vertex Block Descent over a world's bodies in contact: each sweep visits the bodies one
 /// after the other, each with its own material, and takes the contact's terms at its start
-/// ([`ContactModel::vertex_terms`]); the updates run in order on the calling thread.
+/// ([`ContactModel::vertex_terms`]); the updates run in order on the calling thread, or, with
+/// a thread pool (feature `rayon`), each body's colours in parallel on the pool: the contact's
+/// terms are only read during a sweep, so the same bits.
 impl<M: Material> SweepSchedule for ContactModel<'_, WorldElastic<'_, M>> {
     type Material = M;
 
@@ -171,6 +256,10 @@ impl<M: Material> SweepSchedule for ContactModel<'_, WorldElastic<'_, M>> {
 
     #[inline]
     fn run_sweep(&self, run: SweepRun<'_, '_, M>) {
+        #[cfg(feature = "rayon")]
+        if let Some(threads) = self.model().threads {
+            return threads.run_sweep(run);
+        }
         run.in_order();
     }
 }

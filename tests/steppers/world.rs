@@ -718,3 +718,147 @@ fn hostile_input_is_refused_and_the_world_keeps_its_state() {
     assert!(same(world.positions(), &x) && same(world.velocities(), &v));
     assert!(world.body_positions(1).is_none() && world.body_velocities_mut(7).is_none());
 }
+
+/// The world on a thread pool (`World::set_threads`, feature `rayon`): bodies in parallel,
+/// the same bits as on the calling thread.
+#[cfg(feature = "rayon")]
+mod threads {
+    use super::{Material, material};
+    use softfem::f64::body::{Solver, StepReport, VecStorage};
+    use softfem::f64::step::HalfSpace;
+    use softfem::f64::world::World;
+    use softfem::glam::DVec3;
+
+    /// Four boxes of three materials in contact from the start (gaps of 0.5 mm, half the
+    /// default contact gap): two side by side on the ground, a third across both, a fourth on
+    /// the third, with friction between them; stepped by `solver` on `threads` threads (0: the
+    /// calling thread, the world's default).
+    fn stack(solver: Solver, threads: usize) -> World<VecStorage, Material> {
+        let mut world = World::new();
+        let boxes = [
+            (DVec3::new(0.0, 0.0, 0.0), DVec3::new(0.1, 0.1, 0.1), 1e6),
+            (
+                DVec3::new(0.1005, 0.0, 0.0),
+                DVec3::new(0.2005, 0.1, 0.1),
+                3e5,
+            ),
+            (
+                DVec3::new(0.05, 0.02, 0.1005),
+                DVec3::new(0.15, 0.08, 0.1505),
+                1e5,
+            ),
+            (
+                DVec3::new(0.07, 0.03, 0.151),
+                DVec3::new(0.13, 0.07, 0.191),
+                5e4,
+            ),
+        ];
+        for (low, high, young) in boxes {
+            world
+                .add_box(low, high, [2; 3], 1000.0, material(young))
+                .unwrap();
+        }
+        world.set_gravity(DVec3::new(0.0, 0.0, -9.81));
+        world.set_ground(Some(HalfSpace::new(DVec3::Z, 0.0)));
+        world.set_friction(0.3).unwrap();
+        world.set_solver(solver).unwrap();
+        world.set_threads(threads).unwrap();
+        assert_eq!(world.threads(), threads);
+        world
+    }
+
+    /// Every coordinate's bits.
+    fn bits(vectors: &[DVec3]) -> Vec<[u64; 3]> {
+        vectors
+            .iter()
+            .map(|v| v.to_array().map(f64::to_bits))
+            .collect()
+    }
+
+    /// `steps` steps of `dt` on the calling thread and on 1, 2 and 3 threads: the same
+    /// positions, velocities and reports, bit for bit, after every step; returns the
+    /// sequential world's reports.
+    fn same_bits_on_every_pool(solver: Solver, steps: usize, dt: f64) -> Vec<StepReport> {
+        let mut sequential = stack(solver, 0);
+        let mut pooled: Vec<_> = [1, 2, 3].map(|n| stack(solver, n)).into();
+        let mut reports = Vec::new();
+        for step in 0..steps {
+            let report = sequential.step(dt).unwrap();
+            for world in &mut pooled {
+                let threads = world.threads();
+                let other = world.step(dt).unwrap();
+                assert_eq!(report, other, "step {step}, {threads} threads");
+                assert_eq!(
+                    bits(sequential.positions()),
+                    bits(world.positions()),
+                    "step {step}, {threads} threads"
+                );
+                assert_eq!(
+                    bits(sequential.velocities()),
+                    bits(world.velocities()),
+                    "step {step}, {threads} threads"
+                );
+            }
+            reports.push(report);
+        }
+        // In contact: pairs within the gap between the bodies.
+        let counts = sequential.contact_counts();
+        assert!(counts.vertex_triangle + counts.edge_edge > 0, "{counts:?}");
+        reports
+    }
+
+    #[test]
+    fn newton_gives_the_bits_of_one_thread_on_every_pool() {
+        let reports = same_bits_on_every_pool(Solver::newton(), 12, 0.01);
+        assert!(reports.iter().all(StepReport::converged), "{reports:?}");
+    }
+
+    #[test]
+    fn the_relaxation_gives_the_bits_of_one_thread_on_every_pool() {
+        same_bits_on_every_pool(Solver::relax(), 6, 0.01);
+    }
+
+    #[test]
+    fn vbd_gives_the_bits_of_one_thread_on_every_pool() {
+        let reports = same_bits_on_every_pool(Solver::vbd(), 12, 0.01);
+        assert!(reports.iter().any(StepReport::converged), "{reports:?}");
+    }
+
+    #[test]
+    fn the_explicit_stepper_gives_the_bits_of_one_thread_on_every_pool() {
+        same_bits_on_every_pool(Solver::explicit(), 2, 0.002);
+    }
+
+    #[test]
+    fn bodies_added_and_removed_on_a_pool_keep_the_bits() {
+        // The body-local tetrahedra are refitted when bodies change.
+        let mut sequential = stack(Solver::newton(), 0);
+        let mut pooled = stack(Solver::newton(), 2);
+        for world in [&mut sequential, &mut pooled] {
+            world.step(0.01).unwrap();
+            world.remove_body(1).unwrap();
+            let (low, high) = (DVec3::new(0.3, 0.0, 0.0), DVec3::new(0.4, 0.1, 0.1));
+            world
+                .add_box(low, high, [3, 2, 2], 1000.0, material(2e5))
+                .unwrap();
+            world.step(0.01).unwrap();
+        }
+        assert_eq!(bits(sequential.positions()), bits(pooled.positions()));
+        assert_eq!(bits(sequential.velocities()), bits(pooled.velocities()));
+    }
+
+    #[test]
+    fn a_bad_position_gives_the_error_of_one_thread_and_the_state_back() {
+        let mut sequential = stack(Solver::newton(), 0);
+        let mut pooled = stack(Solver::newton(), 3);
+        let mut errors = Vec::new();
+        for world in [&mut sequential, &mut pooled] {
+            world.step(0.01).unwrap();
+            world.body_positions_mut(2).unwrap()[5].z = f64::NAN;
+            let before = bits(world.positions());
+            errors.push(world.step(0.01).unwrap_err());
+            assert_eq!(bits(world.positions()), before);
+        }
+        assert_eq!(errors[0], errors[1]);
+    }
+}

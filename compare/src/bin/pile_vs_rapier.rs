@@ -10,8 +10,10 @@
 //! * softfem: `softfem::world::World` (f32, growable storage), one `add_body` per ball, Newton
 //!   with the pile example's tolerance (1e-5 relative, at most 100 iterations), the barrier of
 //!   Incremental Potential Contact (dhat 1 mm, the world's default), friction 0.3 between the
-//!   balls, the ground a half-space, the walls box colliders (`step_with_colliders`). The world
-//!   has no thread pool yet: it runs on the calling thread only.
+//!   balls, the ground a half-space, the walls box colliders (`step_with_colliders`). One
+//!   thread: the world without a pool (the calling thread); all cores: `World::set_threads`
+//!   with `--threads` threads (feature `rayon`: the balls' elastic passes in parallel, a task
+//!   per ball, the contact's pair work on the calling thread; the same bits as one thread).
 //! * rapier: `PhysicsWorld` with one `SoftBodyBuilder` body per ball (`SoftBodySolver::Fem`,
 //!   `SoftBodyCellModel::NeoHookean`, the same Young's modulus and Poisson ratio, no material
 //!   damping, self contacts on as softfem's world has them, contact skin `--skin`), the ground and
@@ -20,7 +22,8 @@
 //!   one worker (`configure_thread_pool(1)`); all cores: a pool of `--threads` workers (feature
 //!   `parallel`). rapier reports no convergence of its linear solves.
 //!
-//! Each repetition runs softfem, rapier on one thread, rapier on all cores, in that order
+//! Each repetition runs softfem on one thread, softfem on all cores, rapier on one thread,
+//! rapier on all cores, in that order
 //! (interleaved, so that a change of the machine's load hits all alike). Timed: the step calls
 //! alone, wall time and the process's CPU time (`CLOCK_PROCESS_CPUTIME_ID`, all threads), per
 //! simulated second. After every step, untimed: the pairs of boundary triangles that intersect
@@ -76,11 +79,11 @@ struct Args {
     #[arg(long, default_value_t = 2.0)]
     duration: f64,
 
-    /// Repetitions (each: softfem, rapier on one thread, rapier on all cores).
+    /// Repetitions (each: softfem and rapier, each on one thread and on all cores).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
     repetitions: u32,
 
-    /// Worker threads of rapier's all-cores runs (default: the machine's available
+    /// Worker threads of the all-cores runs of both engines (default: the machine's available
     /// parallelism).
     #[arg(long)]
     threads: Option<usize>,
@@ -353,22 +356,21 @@ fn softfem_walls() -> Vec<Collider<'static>> {
 /// Which engine, on how many threads.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Engine {
-    Softfem,
+    Softfem { threads: usize },
     Rapier { threads: usize },
 }
 
 impl Engine {
     fn name(self) -> &'static str {
         match self {
-            Engine::Softfem => "softfem",
+            Engine::Softfem { .. } => "softfem",
             Engine::Rapier { .. } => "rapier",
         }
     }
 
     fn threads(self) -> usize {
         match self {
-            Engine::Softfem => 1,
-            Engine::Rapier { threads } => threads,
+            Engine::Softfem { threads } | Engine::Rapier { threads } => threads,
         }
     }
 }
@@ -426,9 +428,13 @@ impl Run {
     }
 }
 
-/// `steps` steps of `dt` of the pile in softfem.
-fn run_softfem(pile: &Pile, steps: usize, dt: f64) -> Result<Run, String> {
+/// `steps` steps of `dt` of the pile in softfem, on the calling thread (`threads` 1) or on a
+/// pool of `threads` threads.
+fn run_softfem(pile: &Pile, steps: usize, dt: f64, threads: usize) -> Result<Run, String> {
     let mut world = softfem_world(pile)?;
+    if threads > 1 {
+        world.set_threads(threads).map_err(|e| e.to_string())?;
+    }
     let walls = softfem_walls();
     let mut run = Run::new();
     for step in 0..steps {
@@ -598,7 +604,7 @@ fn run(args: &Args) -> Result<(), String> {
         args.step
     );
     println!(
-        "softfem   World, f32, Newton (tolerance {TOLERANCE}, at most {MAX_ITERATIONS} iterations), dhat 1 mm; no thread pool: one thread"
+        "softfem   World, f32, Newton (tolerance {TOLERANCE}, at most {MAX_ITERATIONS} iterations), dhat 1 mm; 1 and {threads} threads"
     );
     println!(
         "rapier    0.36 PhysicsWorld, SoftBodySolver::Fem, NeoHookean cells, skin {} m, 4 solver iterations; 1 and {threads} threads",
@@ -607,7 +613,8 @@ fn run(args: &Args) -> Result<(), String> {
     println!("machine   {available} logical CPUs");
 
     let engines = [
-        Engine::Softfem,
+        Engine::Softfem { threads: 1 },
+        Engine::Softfem { threads },
         Engine::Rapier { threads: 1 },
         Engine::Rapier { threads },
     ];
@@ -615,7 +622,7 @@ fn run(args: &Args) -> Result<(), String> {
     for repetition in 1..=args.repetitions {
         for &engine in &engines {
             let run = match engine {
-                Engine::Softfem => run_softfem(&pile, steps, args.step)?,
+                Engine::Softfem { threads } => run_softfem(&pile, steps, args.step, threads)?,
                 Engine::Rapier { threads } => {
                     run_rapier(&pile, steps, args.step, threads, args.skin)?
                 }
@@ -688,7 +695,7 @@ fn run(args: &Args) -> Result<(), String> {
         let cpus: Vec<f64> = of.iter().map(|r| r.cpu / simulated).collect();
         let min = |v: &[f64]| v.iter().copied().fold(f64::INFINITY, f64::min);
         let converged = match engine {
-            Engine::Softfem => format!(
+            Engine::Softfem { .. } => format!(
                 "{:.1} %",
                 100.0 * of.iter().map(|r| r.converged).sum::<usize>() as f64
                     / of.iter().map(|r| r.steps).sum::<usize>() as f64
