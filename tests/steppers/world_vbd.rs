@@ -2,12 +2,12 @@
 //! `src/step/descent/vbd/sweep.rs`), in both precisions, every step checked by the exact
 //! triangle–triangle test of `tests/common/intersection.rs` (not by the barrier that is meant to
 //! ensure it): a soft box dropped onto a stiff one comes to rest on it with the gap between their
-//! faces in `(0, dhat]`; a one-cell plate at 20 m/s against a block does not pass through it; the
-//! eight balls of the pile never intersect and keep their volumes. Every solve converges (f32: or
-//! stops at its rounding floor, which the report says).
+//! faces in `(0, dhat]` (f64); a one-cell plate at 20 m/s against a block does not pass through
+//! it; the eight balls of the pile never intersect and keep their volumes (f64). The converged
+//! shares asserted are those measured (a step that ends on its budget says so).
 
 macro_rules! world_vbd_tests {
-    ($precision:ident, $($api:ident)::+ $(, $pile:ident)?) => {
+    ($precision:ident, $($api:ident)::+ $(, $boxes:ident, $pile:ident)?) => {
         mod $precision {
             use $($api)::+::body::{Solver, StepReport, VecStorage};
             use $($api)::+::material::StableNeoHookean;
@@ -57,8 +57,13 @@ macro_rules! world_vbd_tests {
                 (z.clone().fold(Real::INFINITY, Real::min), z.fold(Real::NEG_INFINITY, Real::max))
             }
 
+            // Where named (f64 only: in f32 the resting contact's residual ends 100 to 700 times
+            // the target, on the budget, in about half the steps (measured 48 of 100, the
+            // faces 0.831 mm apart, no intersection), which costs two minutes of the debug
+            // build's CPU; docs/math.md section 8.13 gives it).
+            $(
             #[test]
-            fn a_soft_box_dropped_on_a_stiff_one_rests_on_it() {
+            fn $boxes() {
                 let mut world = vbd_world();
                 let stiff = world
                     .add_box(Vec3::ZERO, Vec3::splat(0.1), [2; 3], 1000.0, material(1e6))
@@ -86,15 +91,13 @@ macro_rules! world_vbd_tests {
                      {solved} of 100 steps solved, {total} sweeps",
                     stringify!($precision)
                 );
-                // f64: every step (measured 100 of 100). f32: the resting contact's residual ends
-                // 100 to 700 times the target and above the floor estimate, on the budget, in
-                // about half the steps (measured 48 of 100); the physics above holds either way.
-                let least = if Real::EPSILON > 1e-10 { 40 } else { 100 };
-                assert!(solved >= least, "{solved} of 100 steps solved");
+                // Every step (measured 100 of 100).
+                assert_eq!(solved, 100, "{solved} of 100 steps solved");
                 assert!(gap > 0.0 && gap <= dhat, "{gap}");
                 assert!(speed < 1e-2, "{speed}");
                 assert!(world.contact_counts().friction > 0);
             }
+            )?
 
             #[test]
             fn a_plate_at_20_m_per_s_does_not_pass_through_a_block() {
@@ -203,5 +206,6 @@ world_vbd_tests!(single, softfem);
 world_vbd_tests!(
     double,
     softfem::f64,
+    a_soft_box_dropped_on_a_stiff_one_rests_on_it,
     eight_soft_balls_in_a_box_never_intersect
 );
