@@ -24,6 +24,7 @@ use alloc::vec::Vec;
 use super::super::super::super::element::TetHessian;
 use super::super::super::super::types::{Mat3, Real, Vec3};
 use super::super::super::model::ElasticHessian;
+use super::super::super::state::check_length;
 use crate::error::{StepBuffer, StepError};
 use cycle::{Coarsest, Level, v_cycle};
 
@@ -281,27 +282,13 @@ impl Multilevel {
         positions: &[Vec3],
     ) -> Result<(), StepError> {
         let n = model.vertex_count();
-        let check = |buffer, actual: usize, expected: usize| {
-            if actual == expected {
-                Ok(())
-            } else {
-                Err(StepError::LengthMismatch {
-                    buffer,
-                    expected,
-                    actual,
-                })
-            }
-        };
-        check(StepBuffer::Positions, positions.len(), n)?;
-        check(StepBuffer::Masses, masses.len(), n)?;
+        check_length(StepBuffer::Positions, n, positions.len())?;
+        check_length(StepBuffer::Masses, n, masses.len())?;
         if !pinned.is_empty() {
-            check(StepBuffer::Pinned, pinned.len(), n)?;
+            check_length(StepBuffer::Pinned, n, pinned.len())?;
         }
-        check(
-            StepBuffer::HessianScratch,
-            hessians.len(),
-            model.element_count(),
-        )?;
+        let elements = model.element_count();
+        check_length(StepBuffer::HessianScratch, elements, hessians.len())?;
         let diagonal = |i: usize| {
             Mat3::from_diagonal(Vec3::splat(
                 masses.get(i).copied().unwrap_or(0.0) * inertia,
