@@ -457,6 +457,11 @@ pub enum StepBuffer {
     /// The previous step's velocities of Vertex Block Descent's settings: empty (none) or one
     /// per vertex.
     PreviousVelocities,
+    /// The colliders' contact impulses of a step, one per vertex (see
+    /// `ExplicitScratch::with_impulses`).
+    Impulses,
+    /// The colliders' reactions of a step, one per collider (see `Body::step_with_reactions`).
+    Reactions,
 }
 
 impl fmt::Display for StepBuffer {
@@ -478,6 +483,8 @@ impl fmt::Display for StepBuffer {
             StepBuffer::ExternalForces => "external forces",
             StepBuffer::FixedAxes => "fixed axes",
             StepBuffer::PreviousVelocities => "previous velocities",
+            StepBuffer::Impulses => "contact impulses",
+            StepBuffer::Reactions => "collider reactions",
         })
     }
 }

@@ -291,6 +291,8 @@ pub(super) struct AutoParts<'a> {
     pub(super) hessians: &'a mut [TetHessian],
     /// The explicit stepper's blow-up history, kept across frames.
     pub(super) memory: &'a mut ExplicitMemory,
+    /// Whether the explicit stepper records the contact impulses (see `Body::step_with_reactions`).
+    pub(super) record: bool,
 }
 
 /// One frame of the automatic solver in `scene`: the run of `choice` and its fallbacks. On an
@@ -366,11 +368,8 @@ impl AutoParts<'_> {
         settings: &ExplicitSettings,
     ) -> Result<ExplicitReport, StepError> {
         let n = self.positions.len();
-        let buffer = self
-            .vectors
-            .get_mut(..n.saturating_mul(4))
-            .unwrap_or(&mut []);
-        let mut scratch = ExplicitScratch::resume(buffer, *self.memory);
+        let (buffer, impulses) = super::explicit_slots(self.vectors, n, self.record);
+        let mut scratch = ExplicitScratch::resume(buffer, *self.memory).with_impulses(impulses);
         let outcome = explicit_step(
             model,
             self.masses,

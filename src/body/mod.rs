@@ -72,13 +72,15 @@ use super::element::{TetHessian, TetRest};
 use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
 use super::mesh::{TetMesh, TetRestBlock, rest_block_count};
+use super::step::state::check_length;
 use super::step::{
-    Collider, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, RelaxScratch, Scene,
-    TetElastic, VbdScratch, VbdTopology, check_time_step, explicit_step, newton_step, relax_step,
-    scratch_len, stable_time_step, vbd_step,
+    Collider, ElasticModel, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, Reaction,
+    RelaxScratch, Scene, TetElastic, VbdScratch, VbdTopology, add_collider_reactions,
+    check_time_step, explicit_step, implicit_impulses, newton_step, relax_step, scratch_len,
+    stable_time_step, vbd_step,
 };
 use super::types::{Mat3, Real, Vec3};
-use crate::error::{BodyBuffer, BodyError, StepError};
+use crate::error::{BodyBuffer, BodyError, StepBuffer, StepError};
 
 /// An elastic tetrahedral body that owns everything a step needs; see the
 /// [module documentation](self).
@@ -474,13 +476,12 @@ impl<S: Storage, M: Material> Body<S, M> {
             }
             self.layout_built = None;
         }
-        let vectors = match solver {
-            Solver::Explicit { .. } => 4,
-            Solver::Relax(_) | Solver::Vbd(_) => 5,
-            Solver::Newton(_) => 9,
-            Solver::Auto(_) => auto::AUTO_VECTORS,
-        };
-        let needed = n.saturating_mul(vectors);
+        // Every solver's scratch has the automatic solver's eleven vectors per vertex: the
+        // explicit stepper uses four, the relaxation and VBD five, Newton's method nine, and a
+        // step recorded for reactions keeps its impulses and start velocities in the last two
+        // (see `reaction_slots`).
+        let _ = solver;
+        let needed = n.saturating_mul(auto::AUTO_VECTORS);
         capacity(
             self.vectors.resize(needed, Vec3::ZERO),
             BodyBuffer::Scratch,
@@ -871,6 +872,66 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// solver returns an error only where its fallbacks could not take the frame: an explicit
     /// error that is not a blow-up, or Newton's method's error.
     pub fn step_with(&mut self, scene: &Scene<'_, Vec3>) -> Result<StepReport, StepError> {
+        self.step_recording(scene, None)
+    }
+
+    /// [`step_with`](Self::step_with), and what each of the scene's colliders received from the
+    /// body over the step into `reactions` (one per collider, in the scene's order; see
+    /// [`Reaction`]): the impulse on the collider and its moment about the collider's position,
+    /// for a host engine that owns the colliders as rigid bodies and applies the reaction to
+    /// them (`docs/math.md` section 8.14, with the stability condition of that staggered
+    /// coupling). Every solver reports it: the explicit stepper sums the impulses of its
+    /// collider projections over the substeps; after an implicit step each touching vertex's
+    /// momentum balance gives its impulse (one more force pass). The automatic solver's
+    /// fallback to two half steps reports the balance of the whole frame with the forces at
+    /// its end (first order in the step). The ground's reaction is not reported: pass the
+    /// ground as a half-space [`Collider`] to get it.
+    ///
+    /// ```
+    /// use softfem::body::{Body, FixedStorage, Solver};
+    /// use softfem::step::{Collider, Reaction};
+    /// use softfem::{glam::Vec3, material::StableNeoHookean};
+    ///
+    /// let jelly = StableNeoHookean::from_young_poisson(5.0e4, 0.45)?; // Pa
+    /// let (low, high) = (Vec3::new(-0.1, 0.0, -0.1), Vec3::new(0.1, 0.2, 0.1)); // m
+    /// let mut body = Body::<FixedStorage<27, 40>, _>::from_box(low, high, [2; 3], 1000.0, jelly)?;
+    /// body.set_solver(Solver::newton())?;
+    /// let floor = [Collider::half_space(Vec3::ZERO, Vec3::Y)];
+    /// let mut reactions = [Reaction::ZERO];
+    /// for _ in 0..120 {
+    ///     let scene = body.scene(1.0 / 60.0).with_gravity(Vec3::new(0.0, -9.81, 0.0));
+    ///     body.step_with_reactions(&scene.with_colliders(&floor), &mut reactions)?;
+    /// }
+    /// // At rest the floor carries the weight: 8 kg, 78.5 N down.
+    /// let weight = body.masses().iter().sum::<f32>() * 9.81;
+    /// assert!((reactions[0].force(1.0 / 60.0).y + weight).abs() < 0.01 * weight);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`StepError::LengthMismatch`] (buffer [`StepBuffer::Reactions`])
+    /// unless `reactions` has one entry per collider, before anything is touched; otherwise as
+    /// [`step_with`](Self::step_with), `reactions` then unspecified.
+    pub fn step_with_reactions(
+        &mut self,
+        scene: &Scene<'_, Vec3>,
+        reactions: &mut [Reaction],
+    ) -> Result<StepReport, StepError> {
+        check_length(
+            StepBuffer::Reactions,
+            scene.colliders.len(),
+            reactions.len(),
+        )?;
+        self.step_recording(scene, Some(reactions))
+    }
+
+    /// [`step_with`](Self::step_with), recording the colliders' reactions where `reactions` is
+    /// given (its length checked).
+    fn step_recording(
+        &mut self,
+        scene: &Scene<'_, Vec3>,
+        reactions: Option<&mut [Reaction]>,
+    ) -> Result<StepReport, StepError> {
         let dt = scene.dt;
         check_time_step(dt)?;
         if self.vertex_count() == 0 {
@@ -895,9 +956,56 @@ impl<S: Storage, M: Material> Body<S, M> {
             _ => 1,
         };
         self.move_kinematic(dt);
-        let outcome = self.run_solver(scene, substeps);
+        if reactions.is_some() {
+            let n = self.vertex_count();
+            let (_, _, start_velocities) = reaction_slots(self.vectors.slice_mut(), n);
+            copy_into(start_velocities, self.velocities.slice());
+        }
+        let record = reactions.is_some();
+        let outcome = self.run_solver(scene, substeps, record);
         self.settle_kinematic(outcome.is_ok());
-        outcome
+        let report = outcome?;
+        if let Some(reactions) = reactions {
+            self.collider_reactions(scene, &report, reactions)?;
+        }
+        Ok(report)
+    }
+
+    /// After a step recorded for reactions ([`step_with_reactions`](Self::step_with_reactions)):
+    /// the contact impulse at each vertex (the explicit stepper's record, or the implicit
+    /// momentum balance from the start velocities), then each collider's reaction.
+    fn collider_reactions(
+        &mut self,
+        scene: &Scene<'_, Vec3>,
+        report: &StepReport,
+        reactions: &mut [Reaction],
+    ) -> Result<(), StepError> {
+        let n = self.vertex_count();
+        let explicit = match report {
+            StepReport::Explicit(_) => true,
+            StepReport::Auto(auto) => matches!(auto.run, AutoRun::Explicit(_)),
+            _ => false,
+        };
+        let mesh = mesh_over(
+            self.tets.slice(),
+            self.rest_data.slice(),
+            self.rest_blocks.slice(),
+            self.gradient_gain,
+            n,
+        );
+        let model = TetElastic::new(mesh, self.material);
+        let (forces, impulses, start_velocities) = reaction_slots(self.vectors.slice_mut(), n);
+        let positions = self.positions.slice();
+        if !explicit {
+            forces.fill(Vec3::ZERO);
+            model.add_forces(positions, forces)?;
+            let state = (positions, &*forces);
+            let balance = (&*start_velocities, self.velocities.slice());
+            let body = (self.masses.slice(), self.pinned.slice());
+            implicit_impulses(scene, body, state, balance, impulses)?;
+        }
+        reactions.fill(Reaction::ZERO);
+        add_collider_reactions(scene.colliders, positions, impulses, reactions)
     }
 
     /// Moves the kinematic vertices to their targets with the velocity that takes them there;
@@ -948,6 +1056,7 @@ impl<S: Storage, M: Material> Body<S, M> {
         &mut self,
         scene: &Scene<'_, Vec3>,
         substeps: u32,
+        record: bool,
     ) -> Result<StepReport, StepError> {
         let n = self.vertex_count();
         let mesh = mesh_over(
@@ -964,8 +1073,9 @@ impl<S: Storage, M: Material> Body<S, M> {
         match self.solver {
             Solver::Explicit { settings, .. } => {
                 let settings = settings.with_substeps(substeps);
-                let buffer = vectors.get_mut(..n.saturating_mul(4)).unwrap_or(&mut []);
-                let mut scratch = ExplicitScratch::resume(buffer, self.explicit_memory);
+                let (buffer, impulses) = explicit_slots(vectors, n, record);
+                let mut scratch =
+                    ExplicitScratch::resume(buffer, self.explicit_memory).with_impulses(impulses);
                 let outcome =
                     explicit_step(&model, masses, pinned, scene, &settings, x, v, &mut scratch);
                 self.explicit_memory = scratch.memory();
@@ -1015,6 +1125,7 @@ impl<S: Storage, M: Material> Body<S, M> {
                     blocks: self.blocks.slice_mut(),
                     hessians: self.hessians.slice_mut(),
                     memory: &mut self.explicit_memory,
+                    record,
                 };
                 let choice = settings.choose(substeps);
                 auto::run_auto(&model, scene, &settings, choice, &mut parts).map(StepReport::Auto)
@@ -1022,6 +1133,44 @@ impl<S: Storage, M: Material> Body<S, M> {
         }
     }
 }
+
+/// The solvers' vector scratch (eleven vectors per vertex) as a step recorded for reactions uses
+/// it: the first `n` vectors (elastic forces after an implicit step, free once the step is
+/// done), the tenth `n` (the contact impulses, which the explicit stepper, using at most the
+/// first five, records there) and the eleventh (the velocities at the step's start, where the
+/// automatic solver's frame copy keeps them too). Empty slices where the scratch is shorter,
+/// which the sizing rules out.
+fn reaction_slots(vectors: &mut [Vec3], n: usize) -> (&mut [Vec3], &mut [Vec3], &mut [Vec3]) {
+    let (forces, rest) = vectors.split_at_mut_checked(n).unwrap_or_default();
+    let middle = n.saturating_mul(RECORDED_IMPULSES - 1);
+    let (_, rest) = rest.split_at_mut_checked(middle).unwrap_or_default();
+    let (impulses, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    let start_velocities = rest.get_mut(..n).unwrap_or(&mut []);
+    (forces, impulses, start_velocities)
+}
+
+/// The explicit stepper's scratch (four vectors per vertex) and, where the step is `record`ed,
+/// the contact impulses' slot (see [`reaction_slots`]; else empty), both from the solvers' vector
+/// scratch.
+pub(super) fn explicit_slots(
+    vectors: &mut [Vec3],
+    n: usize,
+    record: bool,
+) -> (&mut [Vec3], &mut [Vec3]) {
+    let (buffer, rest) = vectors
+        .split_at_mut_checked(n.saturating_mul(4))
+        .unwrap_or_default();
+    let start = n.saturating_mul(RECORDED_IMPULSES - 4);
+    let impulses = match record {
+        true => rest.get_mut(start..start.saturating_add(n)).unwrap_or(&mut []),
+        false => &mut [],
+    };
+    (buffer, impulses)
+}
+
+/// The vector (counted per vertex from 0) of the scratch where a recorded step keeps the contact
+/// impulses (see [`reaction_slots`]).
+const RECORDED_IMPULSES: usize = 9;
 
 /// `source` into `target`, entry by entry: the storage sized both alike, but `copy_from_slice`
 /// would keep a panic path for lengths the optimiser cannot prove equal (the firmware's link

@@ -45,8 +45,10 @@ pub trait Storage {
     /// storage that cannot hold them runs the force passes without (the same bits, slower
     /// with wide SIMD).
     type RestBlocks: Slots<TetRestBlock>;
-    /// The solvers' vector scratch: up to eleven vectors per vertex (the automatic solver:
-    /// Newton's nine and a copy of the frame's start positions and velocities).
+    /// The solvers' vector scratch: eleven vectors per vertex, whatever the solver (the
+    /// automatic solver's: Newton's nine and a copy of the frame's start positions and
+    /// velocities; a step recorded for reactions keeps its contact impulses and start
+    /// velocities in the last two).
     type Scratch: Slots<Vec3>;
     /// One 3x3 block per vertex (Newton's preconditioner).
     type Blocks: Slots<Mat3>;

@@ -232,7 +232,10 @@ pub mod scratch_len;
 pub(crate) mod state;
 pub mod vertex_pass;
 
-pub use contact::{Collider, HalfSpace, SUGGESTED_STICKING_SPEED, Shape, SignedDistance};
+pub use contact::{
+    Collider, HalfSpace, Reaction, SUGGESTED_STICKING_SPEED, Shape, SignedDistance,
+    add_collider_reactions, implicit_impulses,
+};
 #[cfg(feature = "alloc")]
 pub use descent::newton::{MAX_COARSE, Multilevel, REBUILD_FACTOR};
 pub use descent::newton::{

@@ -27,6 +27,7 @@ mod multilevel;
 mod newton;
 mod parallel;
 mod pile;
+mod reactions;
 mod relax;
 mod self_contact;
 mod stability;

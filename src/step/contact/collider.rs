@@ -842,13 +842,20 @@ impl<'a> Colliders<'a> {
     /// The first collider `x` touches and its outward normal there.
     #[inline]
     pub fn touching(&self, x: Vec3) -> Option<(&'a Collider<'a>, Vec3)> {
+        let (index, normal) = self.touching_index(x)?;
+        Some((self.list.get(index)?, normal))
+    }
+
+    /// The index in the list of the first collider `x` touches, and its outward normal there.
+    #[inline]
+    pub fn touching_index(&self, x: Vec3) -> Option<(usize, Vec3)> {
         for (index, c) in self.list.iter().enumerate() {
             if self.settled_outside(index, c, x, true) {
                 continue;
             }
             let mut slot = None;
             if let Some(normal) = c.touching(x, self.pose(index, c, &mut slot)) {
-                return Some((c, normal));
+                return Some((index, normal));
             }
         }
         None

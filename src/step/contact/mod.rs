@@ -1,8 +1,9 @@
 //! What a body touches and how contact acts on it: the [`HalfSpace`] half-space
 //! (`step/contact/half_space.rs`), rigid [`Collider`]s (`step/contact/collider.rs`), the projection of
 //! vertices and directions onto the admissible set that every stepper shares (`floor.rs`), Coulomb
-//! friction inside the implicit objective (`step/contact/friction.rs`), and the one record of a
-//! contact at a vertex that they exchange ([`Contact`]).
+//! friction inside the implicit objective (`step/contact/friction.rs`), the one record of a
+//! contact at a vertex that they exchange ([`Contact`]), and what the colliders took from a body
+//! over a step ([`reaction`]: contact impulses per vertex, reactions per collider).
 //!
 //! Body–body and self contact (Incremental Potential Contact, Li et al. 2020):
 //! * [`boundary`]: a contact surface's primitives (vertices, edges, triangles) from its
@@ -31,6 +32,7 @@ pub(crate) mod friction;
 pub(crate) mod half_space;
 pub mod model;
 pub mod potential;
+pub mod reaction;
 pub(crate) mod vertex;
 
 use super::super::types::Real;
@@ -39,6 +41,7 @@ pub use collider::{Collider, Shape, SignedDistance};
 pub use friction::SUGGESTED_STICKING_SPEED;
 pub use half_space::HalfSpace;
 pub use model::{ContactBuffers, ContactModel};
+pub use reaction::{Reaction, add_collider_reactions, implicit_impulses};
 
 /// What friction needs of one contact at a vertex.
 #[derive(Clone, Copy, Debug)]

@@ -162,6 +162,9 @@ impl ExplicitSettings {
 #[derive(Debug)]
 pub struct ExplicitScratch<'a, V> {
     buffer: &'a mut [V],
+    /// Where the colliders' contact impulses go (empty for nowhere), see
+    /// [`with_impulses`](ExplicitScratch::with_impulses).
+    impulses: &'a mut [V],
     /// The detector's memory of the last accepted substep.
     history: Option<History>,
     /// Whether the first quarter of `buffer` (rather than the second) holds the forces of the
@@ -198,9 +201,21 @@ impl<'a, V: Vector> ExplicitScratch<'a, V> {
         ExplicitScratch {
             vertex_count: buffer.len() / 4,
             buffer,
+            impulses: &mut [],
             history: None,
             latest_first: true,
         }
+    }
+
+    /// This scratch, recording into `impulses` (one per vertex, length checked by
+    /// [`explicit_step`]) the impulse (N s) the colliders applied to each vertex over a step:
+    /// `m (v_after - v_before)` of every collider projection of every substep, summed (zero
+    /// where no collider acted; the ground's projections are not counted). A step sets every
+    /// entry; after an error the entries are unspecified.
+    #[inline]
+    #[must_use]
+    pub fn with_impulses(self, impulses: &'a mut [V]) -> Self {
+        ExplicitScratch { impulses, ..self }
     }
 
     /// Forgets the previous substeps: the next substep is not checked for energy growth (only
@@ -245,6 +260,7 @@ impl<'a, V: Vector> ExplicitScratch<'a, V> {
         ExplicitScratch {
             vertex_count: buffer.len() / 4,
             buffer,
+            impulses: &mut [],
             history: memory.history,
             latest_first: memory.latest_first,
         }
@@ -406,6 +422,10 @@ pub fn explicit_step<F: ElasticModel>(
         scratch_len::explicit(n)
     };
     check_length(StepBuffer::Scratch, scratch_needed, scratch.buffer.len())?;
+    if !scratch.impulses.is_empty() {
+        check_length(StepBuffer::Impulses, n, scratch.impulses.len())?;
+        scratch.impulses.fill(F::Vector::ZERO);
+    }
     scratch.vertex_count = n;
     let (first_forces, rest) = scratch.buffer.split_at_mut_checked(n).unwrap_or_default();
     let (second_forces, backup) = rest.split_at_mut_checked(n).unwrap_or_default();
@@ -443,8 +463,7 @@ pub fn explicit_step<F: ElasticModel>(
             (scene, settings),
             ground.as_ref(),
             h,
-            positions,
-            velocities,
+            (positions, velocities, &mut *scratch.impulses),
             (forces, previous_forces),
             substep_start.as_deref_mut(),
             &mut scratch.history,
@@ -484,8 +503,7 @@ fn substep<F: ElasticModel>(
     (scene, settings): (&Scene<'_, F::Vector>, &ExplicitSettings),
     ground: Option<&HalfSpace<F::Vector>>,
     h: Real,
-    positions: &mut [F::Vector],
-    velocities: &mut [F::Vector],
+    (positions, velocities, impulses): Recorded<'_, F::Vector>,
     (forces, previous_forces): (&mut [F::Vector], &[F::Vector]),
     mut substep_start: Option<&mut [F::Vector]>,
     history: &mut Option<History>,
@@ -514,8 +532,8 @@ fn substep<F: ElasticModel>(
         h,
         gravity_squared: scene.gravity.dot(scene.gravity),
     };
-    let update = |first, ((x, v), (f, previous, m, pinned)): Rows<'_, F::Vector>| {
-        frame.block(first, (x, v), (f, previous, m, pinned))
+    let update = |first, ((x, v), (f, previous, m, pinned), impulses): Rows<'_, F::Vector>| {
+        frame.block(first, (x, v), (f, previous, m, pinned), impulses)
     };
     if let Some(start) = substep_start.as_deref_mut() {
         copy(start, positions);
@@ -523,7 +541,7 @@ fn substep<F: ElasticModel>(
     let state = (&mut *positions, &mut *velocities);
     let inputs = (&*forces, previous_forces, masses, pinned);
     let (sums, contacts, kinetic_energy, non_finite) =
-        model.run_vertex_pass(Blocks::new(n, (state, inputs), &update));
+        model.run_vertex_pass(Blocks::new(n, (state, inputs, impulses), &update));
     // sum of the indicator terms, of |f|^2 / m, of f_n . f_(n-1) / m, and of the collider
     // contacts' work
     let (indicator, force_norm, reversal, contact_work) = sums;
@@ -576,9 +594,16 @@ fn substep<F: ElasticModel>(
 /// A block's share of the positions and velocities.
 type State<'r, V> = (&'r mut [V], &'r mut [V]);
 
+/// The positions, the velocities and the contact impulses (empty for none) of a substep.
+type Recorded<'r, V> = (&'r mut [V], &'r mut [V], &'r mut [V]);
+
 /// A block's share of the substep's buffers: positions and velocities, then forces, previous
-/// forces, masses and pinned flags.
-type Rows<'r, V> = (State<'r, V>, (&'r [V], &'r [V], &'r [Real], &'r [bool]));
+/// forces, masses and pinned flags, then the contact impulses (empty for none).
+type Rows<'r, V> = (
+    State<'r, V>,
+    (&'r [V], &'r [V], &'r [Real], &'r [bool]),
+    &'r mut [V],
+);
 
 /// What the update pass of a substep needs besides the buffers.
 struct Update<'s, 'a, V: Vector> {
@@ -621,6 +646,7 @@ impl<V: Vector> Update<'_, '_, V> {
         first: usize,
         (positions, velocities): (&mut [V], &mut [V]),
         (forces, previous_forces, masses, pinned): (&[V], &[V], &[Real], &[bool]),
+        impulses: &mut [V],
     ) -> ((Real, Real, Real, Real), usize, Real, Option<usize>) {
         let scene = self.scene;
         let kernel = UpdatePass {
@@ -628,6 +654,7 @@ impl<V: Vector> Update<'_, '_, V> {
             first,
             state: (positions, velocities),
             inputs: (forces, previous_forces, masses, pinned),
+            impulses,
         };
         let plain = scene.colliders.is_empty() && scene.fixed_axes.is_empty();
         let tally = if plain {
@@ -657,7 +684,7 @@ impl<V: Vector> Update<'_, '_, V> {
         i: usize,
         (x, v): (&mut V, &mut V),
         (f, previous): (&V, &V),
-        m: Real,
+        (m, impulse): (Real, Option<&mut V>),
         pinned: bool,
         tally: &mut Tally,
     ) {
@@ -693,6 +720,9 @@ impl<V: Vector> Update<'_, '_, V> {
                 *x = loads.keep_fixed(i, *x, before);
                 *v = loads.free_part(i, *v);
                 tally.contact_work += contact_work(m, h, (*x - free_x, free_v, *v));
+                if let Some(impulse) = impulse {
+                    *impulse += (*v - free_v) * m;
+                }
             }
         }
         tally.kinetic_energy += 0.5 * m * v.dot(*v);
@@ -848,6 +878,9 @@ struct UpdatePass<'u, 's, 'a, 'r, V: Vector> {
     first: usize,
     state: State<'r, V>,
     inputs: (&'r [V], &'r [V], &'r [Real], &'r [bool]),
+    /// The block's contact impulses (empty for none; only [`singles`](Self::singles) runs
+    /// where colliders are).
+    impulses: &'r mut [V],
 }
 
 impl<V: Vector> UpdatePass<'_, '_, '_, '_, V> {
@@ -890,8 +923,9 @@ impl<V: Vector> UpdatePass<'_, '_, '_, '_, V> {
         let rows = rows.zip(masses).zip(pinned_flags(pinned)).enumerate();
         for (j, ((((x, v), (f, previous)), &m), pinned)) in rows.skip(done) {
             let i = self.first + j;
+            let impulse = self.impulses.get_mut(j);
             self.update
-                .one(i, (x, v), (f, previous), m, pinned, &mut tally);
+                .one(i, (x, v), (f, previous), (m, impulse), pinned, &mut tally);
         }
         tally
     }

@@ -1,0 +1,228 @@
+//! What the colliders receive from a body ([`Body::step_with_reactions`], issue #42 item 2),
+//! against balances that do not use the code's own attribution: a body at rest on a floor gives
+//! it its weight and the weight's moment about the floor's reference point; a bar on two
+//! supports splits its weight by the lever rule; a kinematic collider's impulses over a
+//! collision are the body's change of momentum less gravity's impulse (every solver); a
+//! reactions buffer of the wrong length is refused before anything moves.
+
+use softfem::StepBuffer;
+use softfem::StepError;
+use softfem::f64::body::{AutoRun, Body, FixedStorage, Solver, StepReport};
+use softfem::f64::material::StableNeoHookean;
+use softfem::f64::step::{Collider, ExplicitSettings, NewtonSettings, Reaction, Scene};
+use softfem::f64::types::{Quat, Real, Vec3};
+
+/// 45 vertices and up to 80 tetrahedra: a box of 4 x 2 x 2 cells.
+type Block = Body<FixedStorage<45, 80>, StableNeoHookean>;
+
+/// 99 vertices and up to 200 tetrahedra: a bar of 10 x 2 x 2 cells.
+type Bar = Body<FixedStorage<99, 200>, StableNeoHookean>;
+
+const GRAVITY: Real = 9.81;
+const DT: Real = 1.0 / 60.0;
+
+fn gravity() -> Vec3 {
+    Vec3::new(0.0, -GRAVITY, 0.0)
+}
+
+/// A 0.4 x 0.2 x 0.2 m block of 4 x 2 x 2 cells (E 200 kPa, nu 0.4, 1000 kg/m^3) with its lowest
+/// face on `y = 0`, its centre at `x = 0.2`, under gravity.
+fn block(solver: Solver) -> Block {
+    let material = StableNeoHookean::from_young_poisson(2.0e5, 0.4).unwrap();
+    let (low, high) = (Vec3::new(0.0, 0.0, -0.1), Vec3::new(0.4, 0.2, 0.1));
+    let mut body = Block::from_box(low, high, [4, 2, 2], 1000.0, material).unwrap();
+    body.set_solver(solver).unwrap();
+    body.set_gravity(gravity());
+    body
+}
+
+/// The solvers under test: Newton's method and the relaxation and VBD at tight tolerances (f64),
+/// the explicit stepper with some damping (so that the body settles), and the automatic one.
+fn solvers() -> [(&'static str, Solver); 4] {
+    let newton = NewtonSettings::new().with_tolerance(1e-10, 50);
+    // No damping: the explicit stepper's is a drag on every vertex's velocity, which would
+    // take its share of the contact impulses too.
+    let explicit = ExplicitSettings::new();
+    [
+        ("newton", Solver::Newton(newton)),
+        (
+            "explicit",
+            Solver::Explicit {
+                settings: explicit,
+                stable_fraction: Some(0.5),
+            },
+        ),
+        ("vbd", Solver::vbd()),
+        ("auto", Solver::auto()),
+    ]
+}
+
+fn total_mass(body: &Block) -> Real {
+    body.masses().iter().sum()
+}
+
+fn centre_of_mass(body: &Block) -> Vec3 {
+    let weighted = body.positions().iter().zip(body.masses());
+    weighted.map(|(&x, &m)| x * m).sum::<Vec3>() / total_mass(body)
+}
+
+fn momentum(body: &Block) -> Vec3 {
+    let weighted = body.velocities().iter().zip(body.masses());
+    weighted.map(|(&v, &m)| v * m).sum()
+}
+
+#[test]
+fn a_resting_body_gives_the_floor_its_weight_and_the_weight_s_moment() {
+    // The floor's reference point off the body, so that the moment is not zero.
+    let origin = Vec3::new(-0.3, 0.0, 0.2);
+    let floor = [Collider::half_space(origin, Vec3::Y)];
+    for (name, solver) in solvers() {
+        let mut body = block(solver);
+        let weight = total_mass(&body) * GRAVITY;
+        let mut reactions = [Reaction::ZERO];
+        // Two seconds to settle, then the mean over the third: whatever oscillation is left
+        // changes the momentum, which the mean's balance bounds.
+        let (mut impulse, mut moment) = (Vec3::ZERO, Vec3::ZERO);
+        let frames = 60;
+        for frame in 0..3 * frames {
+            let scene = body.scene(DT).with_colliders(&floor);
+            body.step_with_reactions(&scene, &mut reactions)
+                .unwrap_or_else(|e| panic!("{name}: frame {frame}: {e}"));
+            if frame >= 2 * frames {
+                impulse += reactions[0].impulse;
+                moment += reactions[0].angular_impulse;
+            }
+        }
+        let time = frames as Real * DT;
+        let force = impulse / time;
+        // On the floor: the weight, down.
+        assert!(
+            (force - Vec3::new(0.0, -weight, 0.0)).length() < 0.01 * weight,
+            "{name}: mean force {force} for a weight of {weight} N"
+        );
+        // Its moment about the floor's point: the weight's, applied at the centre of mass.
+        let expected = (centre_of_mass(&body) - origin).cross(Vec3::new(0.0, -weight, 0.0));
+        let torque = moment / time;
+        assert!(
+            (torque - expected).length() < 0.01 * expected.length(),
+            "{name}: mean torque {torque}, the weight's moment {expected}"
+        );
+        assert!(reactions[0].vertices > 0, "{name}");
+    }
+}
+
+#[test]
+fn a_bar_on_two_supports_splits_its_weight_by_the_lever_rule() {
+    // A 1.0 x 0.1 x 0.1 m bar (E 5 MPa) resting on two supports across it at x = 0.2 and
+    // x = 0.9; its centre of mass at x = 0.5, a = 0.3 and b = 0.4 from them.
+    let material = StableNeoHookean::from_young_poisson(5.0e6, 0.3).unwrap();
+    let (low, high) = (Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 0.1, 0.1));
+    let mut bar = Bar::from_box(low, high, [10, 2, 2], 1000.0, material).unwrap();
+    bar.set_solver(Solver::Newton(
+        NewtonSettings::new().with_tolerance(1e-8, 50),
+    ))
+    .unwrap();
+    bar.set_gravity(gravity());
+    // Flat strips 6 cm wide across the bar, their tops at y = 0 under the rows of vertices at
+    // x = 0.2 and 0.9, with friction so that the bending bar does not slide off.
+    let strip = |x: Real| {
+        let centre = Vec3::new(x, -0.01, 0.05);
+        Collider::cuboid(centre, Vec3::new(0.03, 0.01, 0.5), Quat::IDENTITY).with_friction(0.5)
+    };
+    let supports = [strip(0.2), strip(0.9)];
+    let mut reactions = [Reaction::ZERO; 2];
+    for frame in 0..40 {
+        let scene = bar.scene(DT).with_colliders(&supports);
+        bar.step_with_reactions(&scene, &mut reactions)
+            .unwrap_or_else(|e| panic!("frame {frame}: {e}"));
+    }
+    let weight = bar.masses().iter().sum::<Real>() * GRAVITY;
+    let (a, b) = (0.3, 0.4);
+    let expected = [weight * b / (a + b), weight * a / (a + b)];
+    for (k, (reaction, expected)) in reactions.iter().zip(expected).enumerate() {
+        let force = reaction.force(DT);
+        assert!(
+            (force.y + expected).abs() < 1e-3 * expected && force.x.abs() < 1e-3 * weight,
+            "support {k}: {force} N, the lever rule gives {expected} N down"
+        );
+    }
+}
+
+#[test]
+fn a_kinematic_collider_takes_the_body_s_momentum_change_less_gravity_s_impulse() {
+    // A block resting on a ball that rises at 0.5 m/s and lifts it for ten frames; each frame
+    // the ball is advanced with the body. Without the explicit stepper's damping (a drag on
+    // every vertex, which no collider applies) and without VBD (whose default tolerance leaves
+    // residual forces of 1e-4 of the load). An implicit step's balance holds to its residual
+    // (a force, per vertex; `dt` times the sum over the vertices at most).
+    let newton = NewtonSettings::new().with_tolerance(1e-10, 50);
+    let explicit = Solver::Explicit {
+        settings: ExplicitSettings::new(),
+        stable_fraction: Some(0.5),
+    };
+    let solvers = [
+        ("newton", Solver::Newton(newton)),
+        ("explicit", explicit),
+        ("auto", Solver::auto()),
+    ];
+    for (name, solver) in solvers {
+        let mut body = block(solver);
+        let mass = total_mass(&body);
+        let vertices = body.vertex_count() as Real;
+        let start = Vec3::new(0.2, -0.15, 0.0);
+        let mut ball = [Collider::sphere(start, 0.15).with_velocity(Vec3::Y * 0.5, Vec3::ZERO)];
+        let mut reactions = [Reaction::ZERO];
+        let mut touched = 0;
+        for frame in 0..10 {
+            let before = momentum(&body);
+            let scene: Scene<'_, Vec3> = body.scene(DT).with_colliders(&ball);
+            let report = body
+                .step_with_reactions(&scene, &mut reactions)
+                .unwrap_or_else(|e| panic!("{name}: frame {frame}: {e}"));
+            let residual = match report {
+                StepReport::Newton(newton) => newton.residual,
+                StepReport::Auto(auto) => match auto.run {
+                    AutoRun::Newton(newton) => newton.residual,
+                    _ => 0.0,
+                },
+                _ => 0.0,
+            };
+            let change = momentum(&body) - before - gravity() * (mass * DT);
+            let received = -reactions[0].impulse;
+            let bound = 1e-6 * change.length() + 1e-9 + DT * vertices.sqrt() * residual;
+            assert!(
+                (received - change).length() <= bound,
+                "{name}: frame {frame}: the ball gave {received} N s, the momentum changed by \
+                 {change} less gravity's (residual {residual} N)"
+            );
+            touched += usize::from(reactions[0].vertices > 0);
+            ball[0] = ball[0].advanced(DT);
+        }
+        assert!(touched >= 8, "{name}: the ball touched in {touched} frames");
+    }
+}
+
+#[test]
+fn a_reactions_buffer_of_the_wrong_length_is_refused_before_the_step() {
+    let mut body = block(Solver::newton());
+    let floor = [Collider::cuboid(
+        Vec3::new(0.2, -0.5, 0.0),
+        Vec3::splat(0.5),
+        Quat::IDENTITY,
+    )];
+    let positions = body.positions().to_vec();
+    let mut reactions = [Reaction::ZERO; 2];
+    let scene = body.scene(DT).with_colliders(&floor);
+    let error = body
+        .step_with_reactions(&scene, &mut reactions)
+        .unwrap_err();
+    assert_eq!(
+        error,
+        StepError::LengthMismatch {
+            buffer: StepBuffer::Reactions,
+            expected: 1,
+            actual: 2
+        }
+    );
+    assert_eq!(body.positions(), &positions[..]);
+}
