@@ -592,6 +592,13 @@ pub enum StepError {
         /// The vertex index.
         vertex: usize,
     },
+    /// An attachment names a vertex at or beyond the vertex count.
+    AttachedVertex {
+        /// The entry of the attachment's vertex list.
+        entry: usize,
+        /// The vertex index found there.
+        vertex: u32,
+    },
     /// A collider of the settings (or of the body's step) is out of range.
     Collider {
         /// Its index in the collider slice.
@@ -722,6 +729,10 @@ impl fmt::Display for StepError {
             StepError::ExternalForce { vertex } => {
                 write!(f, "the external force on vertex {vertex} is not finite")
             }
+            StepError::AttachedVertex { entry, vertex } => write!(
+                f,
+                "entry {entry} of the attachment names vertex {vertex}, beyond the vertex count"
+            ),
             StepError::FixedAxes { vertex } => write!(
                 f,
                 "the fixed-axis mask of vertex {vertex} names an axis this space does not have"

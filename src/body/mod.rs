@@ -76,7 +76,7 @@ use super::step::state::check_length;
 use super::step::{
     Collider, ElasticModel, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, Reaction,
     RelaxScratch, Scene, TetElastic, VbdScratch, VbdTopology, add_collider_reactions,
-    check_time_step, explicit_step, implicit_impulses, newton_step, relax_step, scratch_len,
+    attachment_reaction, check_time_step, explicit_step, implicit_impulses, newton_step, relax_step, scratch_len,
     stable_time_step, vbd_step,
 };
 use super::types::{Mat3, Real, Vec3};
@@ -955,12 +955,14 @@ impl<S: Storage, M: Material> Body<S, M> {
             },
             _ => 1,
         };
-        self.move_kinematic(dt);
+        // The velocities before the kinematic vertices are moved: their change is the
+        // attachment's impulse too.
         if reactions.is_some() {
             let n = self.vertex_count();
             let (_, _, start_velocities) = reaction_slots(self.vectors.slice_mut(), n);
             copy_into(start_velocities, self.velocities.slice());
         }
+        self.move_kinematic(dt);
         let record = reactions.is_some();
         let outcome = self.run_solver(scene, substeps, record);
         self.settle_kinematic(outcome.is_ok());
@@ -996,16 +998,56 @@ impl<S: Storage, M: Material> Body<S, M> {
         let model = TetElastic::new(mesh, self.material);
         let (forces, impulses, start_velocities) = reaction_slots(self.vectors.slice_mut(), n);
         let positions = self.positions.slice();
-        if !explicit {
+        let (masses, pinned) = (self.masses.slice(), self.pinned.slice());
+        if explicit {
+            // The kinematic vertices' move at the step's start (the stepper saw them pinned).
+            let rows = impulses.iter_mut().zip(self.velocities.slice());
+            let rows = rows.zip(start_velocities.iter().zip(masses).zip(pinned));
+            for ((impulse, &v), ((&v0, &m), &pinned)) in rows {
+                if pinned {
+                    *impulse += (v - v0) * m;
+                }
+            }
+        } else {
             forces.fill(Vec3::ZERO);
             model.add_forces(positions, forces)?;
             let state = (positions, &*forces);
             let balance = (&*start_velocities, self.velocities.slice());
-            let body = (self.masses.slice(), self.pinned.slice());
-            implicit_impulses(scene, body, state, balance, impulses)?;
+            implicit_impulses(scene, (masses, pinned), state, balance, impulses)?;
         }
         reactions.fill(Reaction::ZERO);
-        add_collider_reactions(scene.colliders, positions, impulses, reactions)
+        add_collider_reactions(scene.colliders, (positions, pinned), impulses, reactions)
+    }
+
+    /// The impulse (N s) each vertex received over the last step of
+    /// [`step_with_reactions`](Self::step_with_reactions): from the colliders at the free
+    /// vertices that touched one, from its pin at each pinned or kinematic vertex (what held
+    /// it against its forces, and moved it to its target), zero elsewhere (`docs/math.md`
+    /// section 8.14). Valid until the next step or change of the body; sum it over the
+    /// vertices attached to a rigid part with [`attachment_reaction`](Self::attachment_reaction).
+    #[must_use]
+    pub fn last_impulses(&self) -> &[Vec3] {
+        let n = self.vertex_count();
+        let start = n.saturating_mul(RECORDED_IMPULSES);
+        let vectors = self.vectors.slice();
+        vectors.get(start..start.saturating_add(n)).unwrap_or(&[])
+    }
+
+    /// What a rigid part received over the last step of
+    /// [`step_with_reactions`](Self::step_with_reactions) from the body's `vertices` attached
+    /// to it (kinematic vertices whose targets the part moves, see
+    /// [`set_target`](Self::set_target)): the impulse on the part and its moment about `origin`
+    /// (m), to apply to the part in the host engine ([`step::attachment_reaction`](
+    /// super::step::attachment_reaction) of [`last_impulses`](Self::last_impulses)).
+    ///
+    /// # Errors
+    /// [`StepError::AttachedVertex`] for the first entry of `vertices` beyond the vertex count.
+    pub fn attachment_reaction(
+        &self,
+        vertices: &[u32],
+        origin: Vec3,
+    ) -> Result<Reaction, StepError> {
+        attachment_reaction(vertices, self.positions.slice(), self.last_impulses(), origin)
     }
 
     /// Moves the kinematic vertices to their targets with the velocity that takes them there;

@@ -234,7 +234,7 @@ pub mod vertex_pass;
 
 pub use contact::{
     Collider, HalfSpace, Reaction, SUGGESTED_STICKING_SPEED, Shape, SignedDistance,
-    add_collider_reactions, implicit_impulses,
+    add_collider_reactions, attachment_reaction, implicit_impulses,
 };
 #[cfg(feature = "alloc")]
 pub use descent::newton::{MAX_COARSE, Multilevel, REBUILD_FACTOR};

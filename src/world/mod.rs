@@ -89,13 +89,17 @@ use super::step::contact::model::CandidateReuse;
 use super::step::contact::model::{ContactCounts, FrictionPair};
 use super::step::contact::potential::{ContactBarrier, PairHessian};
 use super::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
+use super::step::state::check_length;
 use super::step::{
-    Collider, ContactBuffersVbd, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch,
-    NewtonSettings, RelaxScratch, Scene, VbdScratch, VbdTopology, check_time_step, explicit_step,
-    newton_step, relax_step, scratch_len, stable_time_step, vbd_step,
+    Collider, ContactBuffersVbd, ElasticModel, ExplicitMemory, ExplicitScratch, HalfSpace,
+    NewtonScratch, NewtonSettings, Reaction, RelaxScratch, Scene, VbdScratch, VbdTopology,
+    add_collider_reactions, check_time_step, explicit_step, implicit_impulses, newton_step,
+    relax_step, scratch_len, stable_time_step, vbd_step,
 };
 use super::types::{Mat3, Real, Vec3};
-use crate::error::{BodyBuffer, BodyError, ContactBuffer, ContactError, MeshError, StepError};
+use crate::error::{
+    BodyBuffer, BodyError, ContactBuffer, ContactError, MeshError, StepBuffer, StepError,
+};
 use model::WorldElastic;
 use storage::remove_range;
 
@@ -656,13 +660,11 @@ impl<S: WorldStorage, M: Material> World<S, M> {
     fn size_scratch(&mut self, solver: &Solver) -> Result<(), BodyError> {
         let (n, t) = (self.vertex_count(), self.tet_count());
         let too_many = |buffer, needed| BodyError::Capacity { buffer, needed };
-        let vectors = match solver {
-            Solver::Newton(_) => 9,
-            Solver::Relax(_) | Solver::Explicit { .. } => 5,
-            // The sweeps' five and the contact's gradient.
-            Solver::Vbd(_) => 6,
-            Solver::Auto(_) => return Err(BodyError::Solver),
-        };
+        if let Solver::Auto(_) = solver {
+            return Err(BodyError::Solver);
+        }
+        // The solver's and the two of a step recorded for reactions (see `recording_slots`).
+        let vectors = solver_vectors(solver) + 2;
         self.topology = None;
         if let Solver::Vbd(_) = solver {
             let vertex_len = scratch_len::vbd_indices(n, 0);
@@ -1047,6 +1049,42 @@ impl<S: WorldStorage, M: Material> World<S, M> {
     /// [`MeshError::Contact`] with [`ContactError::Capacity`]), with every position and
     /// velocity restored bit for bit.
     pub fn step_with(&mut self, scene: &Scene<'_, Vec3>) -> Result<StepReport, StepError> {
+        self.step_recording(scene, None)
+    }
+
+    /// [`step_with`](Self::step_with), and what each of the scene's colliders received from the
+    /// world's bodies over the step into `reactions` (one per collider, in the scene's order):
+    /// the impulse on it and its moment about its position, as
+    /// [`Body::step_with_reactions`](crate::body::Body::step_with_reactions) reports them (the
+    /// explicit stepper's record of its collider projections, or after an implicit step the
+    /// momentum balance of each vertex touching a collider, the contact between the bodies
+    /// taken out with the elastic forces; `docs/math.md` section 8.14). Friction between two
+    /// bodies at a vertex that also touches a collider goes to the collider.
+    ///
+    /// # Errors
+    /// [`StepError::LengthMismatch`] (buffer [`StepBuffer::Reactions`]) unless `reactions` has
+    /// one entry per collider, before anything is touched; otherwise as
+    /// [`step_with`](Self::step_with), `reactions` then unspecified.
+    pub fn step_with_reactions(
+        &mut self,
+        scene: &Scene<'_, Vec3>,
+        reactions: &mut [Reaction],
+    ) -> Result<StepReport, StepError> {
+        check_length(
+            StepBuffer::Reactions,
+            scene.colliders.len(),
+            reactions.len(),
+        )?;
+        self.step_recording(scene, Some(reactions))
+    }
+
+    /// [`step_with`](Self::step_with), recording the colliders' reactions where `reactions` is
+    /// given (its length checked).
+    fn step_recording(
+        &mut self,
+        scene: &Scene<'_, Vec3>,
+        reactions: Option<&mut [Reaction]>,
+    ) -> Result<StepReport, StepError> {
         let dt = scene.dt;
         check_time_step(dt)?;
         if self.vertex_count() == 0 {
@@ -1060,8 +1098,15 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             Solver::Explicit { settings, .. } => settings.substeps,
             _ => 1,
         };
+        let record = reactions.is_some();
+        if record {
+            let n = self.vertex_count();
+            let k = solver_vectors(&self.solver);
+            let (_, _, start_velocities) = recording_slots(self.vectors.slice_mut(), n, k);
+            copy_into(start_velocities, self.velocities.slice());
+        }
         loop {
-            let outcome = self.solve(scene, substeps);
+            let outcome = self.solve(scene, substeps, record);
             if let Err(StepError::Mesh(MeshError::Contact(ContactError::Capacity {
                 buffer,
                 needed,
@@ -1071,8 +1116,41 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             {
                 continue;
             }
-            return outcome;
+            let report = outcome?;
+            if let Some(reactions) = reactions {
+                self.collider_reactions(scene, &report, reactions)?;
+            }
+            return Ok(report);
         }
+    }
+
+    /// After a step recorded for reactions: the contact impulse at each vertex (the explicit
+    /// stepper's record, or the implicit momentum balance from the start velocities with the
+    /// elastic and contact forces of the world's model at the result), then each collider's
+    /// reaction.
+    fn collider_reactions(
+        &mut self,
+        scene: &Scene<'_, Vec3>,
+        report: &StepReport,
+        reactions: &mut [Reaction],
+    ) -> Result<(), StepError> {
+        let n = self.vertex_count();
+        let k = solver_vectors(&self.solver);
+        let explicit = matches!(report, StepReport::Explicit(_));
+        let (model, parts) = self.contact_parts();
+        let model = model.map_err(|error| StepError::Mesh(MeshError::Contact(error)))?;
+        let positions = &*parts.positions;
+        let (forces, impulses, start_velocities) = recording_slots(parts.vectors, n, k);
+        if !explicit {
+            forces.fill(Vec3::ZERO);
+            model.add_forces(positions, forces)?;
+            let state = (positions, &*forces);
+            let balance = (&*start_velocities, &*parts.velocities);
+            implicit_impulses(scene, (parts.masses, parts.pinned), state, balance, impulses)?;
+        }
+        reactions.fill(Reaction::ZERO);
+        let state = (positions, parts.pinned);
+        add_collider_reactions(scene.colliders, state, impulses, reactions)
     }
 
     /// Grows the contact list `buffer` to hold `needed` entries with room to spare; `false`
@@ -1168,8 +1246,14 @@ impl<S: WorldStorage, M: Material> World<S, M> {
     }
 
     /// One solve of the world's solver in `scene`.
-    fn solve(&mut self, scene: &Scene<'_, Vec3>, substeps: u32) -> Result<StepReport, StepError> {
+    fn solve(
+        &mut self,
+        scene: &Scene<'_, Vec3>,
+        substeps: u32,
+        record: bool,
+    ) -> Result<StepReport, StepError> {
         let solver = self.solver;
+        let solver_vectors = solver_vectors(&solver);
         let ready = self.preconditioner_ready;
         let memory = self.explicit_memory;
         let mut topology = self.topology;
@@ -1186,6 +1270,14 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             hessians,
             indices,
         } = parts;
+        let n = masses.len();
+        let (vectors, recorded) = vectors
+            .split_at_mut_checked(n.saturating_mul(solver_vectors))
+            .unwrap_or_default();
+        let impulses = match record {
+            true => recorded.get_mut(..n).unwrap_or(&mut []),
+            false => &mut [],
+        };
         let (outcome, ready, memory) = match solver {
             Solver::Newton(settings) => {
                 let mut scratch = NewtonScratch::new(vectors, blocks, hessians);
@@ -1195,13 +1287,12 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             }
             Solver::Explicit { settings, .. } => {
                 let settings = settings.with_substeps(substeps);
-                let mut scratch = ExplicitScratch::resume(vectors, memory);
+                let mut scratch = ExplicitScratch::resume(vectors, memory).with_impulses(impulses);
                 let outcome =
                     explicit_step(&model, masses, pinned, scene, &settings, x, v, &mut scratch);
                 (outcome.map(StepReport::Explicit), ready, scratch.memory())
             }
             Solver::Vbd(settings) => {
-                let n = masses.len();
                 let (sweeps, gradient) =
                     vectors.split_at_mut(scratch_len::vbd(n).min(vectors.len()));
                 let contact = ContactBuffersVbd {
@@ -1398,6 +1489,36 @@ fn extend_by<X: Copy, L: List<X>>(list: &mut L, count: usize, fill: X) -> bool {
         }
     }
     true
+}
+
+/// The vectors per vertex of `solver`'s scratch in a world (a world never holds the automatic
+/// solver: 0).
+fn solver_vectors(solver: &Solver) -> usize {
+    match solver {
+        Solver::Newton(_) => 9,
+        Solver::Relax(_) | Solver::Explicit { .. } => 5,
+        // The sweeps' five and the contact's gradient.
+        Solver::Vbd(_) => 6,
+        Solver::Auto(_) => 0,
+    }
+}
+
+/// The world's vector scratch (`k` vectors per vertex for the solver, then two) as a step
+/// recorded for reactions uses it: the first `n` vectors (the forces after an implicit step,
+/// free once it is done), then after the solver's `k` the contact impulses and the velocities
+/// at the step's start. Empty slices where the scratch is shorter, which the sizing rules out.
+fn recording_slots(
+    vectors: &mut [Vec3],
+    n: usize,
+    k: usize,
+) -> (&mut [Vec3], &mut [Vec3], &mut [Vec3]) {
+    let (solver, recorded) = vectors
+        .split_at_mut_checked(n.saturating_mul(k))
+        .unwrap_or_default();
+    let forces = solver.get_mut(..n).unwrap_or(&mut []);
+    let (impulses, rest) = recorded.split_at_mut_checked(n).unwrap_or_default();
+    let start_velocities = rest.get_mut(..n).unwrap_or(&mut []);
+    (forces, impulses, start_velocities)
 }
 
 /// Sizes `buffer` to `room` entries of `fill`, or else to `needed`; `false` if neither fits.

@@ -226,3 +226,161 @@ fn a_reactions_buffer_of_the_wrong_length_is_refused_before_the_step() {
     );
     assert_eq!(body.positions(), &positions[..]);
 }
+
+/// The world of bodies (feature `alloc` for its growable storage): a soft box resting on a
+/// stiff one, both on a floor given as a collider; the floor carries both weights.
+#[cfg(feature = "alloc")]
+#[test]
+fn a_floor_carries_the_weight_of_a_stack_of_bodies_in_a_world() {
+    use softfem::f64::body::VecStorage;
+    use softfem::f64::world::World;
+
+    let material = |young| StableNeoHookean::from_young_poisson(young, 0.3).unwrap();
+    let mut world = World::<VecStorage, _>::new();
+    let (low, high) = (Vec3::ZERO, Vec3::splat(0.1));
+    world
+        .add_box(low, high, [2; 3], 1000.0, material(1e6))
+        .unwrap();
+    let (low, high) = (Vec3::new(0.02, 0.02, 0.102), Vec3::new(0.08, 0.08, 0.162));
+    world
+        .add_box(low, high, [2; 3], 1000.0, material(5e4))
+        .unwrap();
+    world.set_gravity(Vec3::new(0.0, 0.0, -GRAVITY));
+    let floor = [Collider::half_space(Vec3::ZERO, Vec3::Z)];
+    let weight = (1.0e-3 + 2.16e-4) * 1000.0 * GRAVITY;
+    let mut reactions = [Reaction::ZERO];
+    let (dt, frames, averaged) = (0.01, 60, 20);
+    let mut impulse = Vec3::ZERO;
+    for frame in 0..frames {
+        let scene = world.scene(dt).with_colliders(&floor);
+        let report = world.step_with_reactions(&scene, &mut reactions).unwrap();
+        assert!(report.converged(), "frame {frame}: {report:?}");
+        if frame >= frames - averaged {
+            impulse += reactions[0].impulse;
+        }
+    }
+    let force = impulse / (averaged as Real * dt);
+    assert!(
+        (force - Vec3::new(0.0, 0.0, -weight)).length() < 0.01 * weight,
+        "the floor takes {force} N for the boxes' {weight} N"
+    );
+    // A wrong length is refused as by the body.
+    let scene = world.scene(dt).with_colliders(&floor);
+    let error = world.step_with_reactions(&scene, &mut []).unwrap_err();
+    assert!(matches!(
+        error,
+        StepError::LengthMismatch {
+            buffer: StepBuffer::Reactions,
+            ..
+        }
+    ));
+}
+
+/// A bar clamped at one end (its vertices at x = 0 pinned): the clamp carries the weight and
+/// the weight's moment about the clamp's origin, once the bar has settled (Newton's method;
+/// the explicit stepper damped), over the mean of the last second.
+#[test]
+fn a_clamp_carries_the_weight_and_moment_of_the_bar_it_holds() {
+    let newton = Solver::Newton(NewtonSettings::new().with_tolerance(1e-10, 50));
+    // Damped so that the cantilever settles (at rest the drag acts no more).
+    let explicit = Solver::Explicit {
+        settings: ExplicitSettings::new().with_damping(10.0),
+        stable_fraction: Some(0.5),
+    };
+    for (name, solver) in [("newton", newton), ("explicit", explicit)] {
+        let mut body = block(solver);
+        let clamped: Vec<u32> = (0..body.vertex_count() as u32)
+            .filter(|&i| body.rest_positions()[i as usize].x == 0.0)
+            .collect();
+        for &i in &clamped {
+            body.set_pinned(i as usize, true).unwrap();
+        }
+        let origin = Vec3::new(0.0, 0.1, 0.0);
+        let weight = total_mass(&body) * GRAVITY;
+        let (frames, averaged) = (120, 60);
+        let (mut impulse, mut moment) = (Vec3::ZERO, Vec3::ZERO);
+        for frame in 0..frames {
+            let scene = body.scene(DT);
+            body.step_with_reactions(&scene, &mut []).unwrap();
+            if frame >= frames - averaged {
+                let reaction = body.attachment_reaction(&clamped, origin).unwrap();
+                assert_eq!(reaction.vertices as usize, clamped.len());
+                impulse += reaction.impulse;
+                moment += reaction.angular_impulse;
+            }
+        }
+        let time = averaged as Real * DT;
+        let (force, torque) = (impulse / time, moment / time);
+        let down = Vec3::new(0.0, -weight, 0.0);
+        // The clamp's pinned vertices stay where they are, the free ones sag: the centre of
+        // mass of the whole body (pinned share included) at the end.
+        let expected = (centre_of_mass(&body) - origin).cross(down);
+        assert!(
+            (force - down).length() < 0.01 * weight,
+            "{name}: the clamp takes {force} N for a weight of {weight} N"
+        );
+        assert!(
+            (torque - expected).length() < 0.01 * expected.length(),
+            "{name}: its moment {torque} N m, the weight's {expected} N m"
+        );
+    }
+    // A vertex beyond the body is refused, naming the entry.
+    let body = block(Solver::newton());
+    assert_eq!(
+        body.attachment_reaction(&[0, 45], Vec3::ZERO),
+        Err(StepError::AttachedVertex {
+            entry: 1,
+            vertex: 45
+        })
+    );
+}
+
+/// Kinematic vertices lifting a body: what they apply, the attachment's reaction reversed, is
+/// the body's change of momentum less gravity's impulse (the top face moves up at 0.3 m/s, its
+/// targets set each frame as a host engine would from its rigid body).
+#[test]
+fn kinematic_vertices_apply_the_body_s_momentum_change_less_gravity_s_impulse() {
+    let newton = Solver::Newton(NewtonSettings::new().with_tolerance(1e-10, 50));
+    let explicit = Solver::Explicit {
+        settings: ExplicitSettings::new(),
+        stable_fraction: Some(0.5),
+    };
+    for (name, solver) in [
+        ("newton", newton),
+        ("explicit", explicit),
+        ("auto", Solver::auto()),
+    ] {
+        let mut body = block(solver);
+        let mass = total_mass(&body);
+        let top: Vec<u32> = (0..body.vertex_count() as u32)
+            .filter(|&i| body.rest_positions()[i as usize].y == 0.2)
+            .collect();
+        let rest = body.rest_positions().to_vec();
+        for frame in 0..20 {
+            let lift = Vec3::Y * (0.3 * DT * (frame + 1) as Real);
+            for &i in &top {
+                body.set_target(i as usize, rest[i as usize] + lift)
+                    .unwrap();
+            }
+            let before = momentum(&body);
+            let report = body.step_with_reactions(&body.scene(DT), &mut []).unwrap();
+            let residual = match report {
+                StepReport::Newton(newton) => newton.residual,
+                StepReport::Auto(auto) => match auto.run {
+                    AutoRun::Newton(newton) => newton.residual,
+                    _ => 0.0,
+                },
+                _ => 0.0,
+            };
+            let change = momentum(&body) - before - gravity() * (mass * DT);
+            let applied = -body.attachment_reaction(&top, Vec3::ZERO).unwrap().impulse;
+            let vertices = body.vertex_count() as Real;
+            let bound = 1e-6 * change.length() + 1e-9 + DT * vertices.sqrt() * residual;
+            assert!(
+                (applied - change).length() <= bound,
+                "{name}: frame {frame}: the attachment applied {applied} N s, the momentum \
+                 changed by {change} less gravity's"
+            );
+        }
+    }
+}

@@ -41,7 +41,7 @@ pub use collider::{Collider, Shape, SignedDistance};
 pub use friction::SUGGESTED_STICKING_SPEED;
 pub use half_space::HalfSpace;
 pub use model::{ContactBuffers, ContactModel};
-pub use reaction::{Reaction, add_collider_reactions, implicit_impulses};
+pub use reaction::{Reaction, add_collider_reactions, attachment_reaction, implicit_impulses};
 
 /// What friction needs of one contact at a vertex.
 #[derive(Clone, Copy, Debug)]

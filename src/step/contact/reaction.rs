@@ -11,8 +11,10 @@
 //!   `J_i = m_i (v_i - v0_i) - h (f_i(x) + f_ext,i + m_i g)` ([`implicit_impulses`]): the
 //!   projection's reaction, the velocity's approach removed and the friction, whichever way
 //!   the solver applied them.
-//! * [`add_collider_reactions`] gives each vertex's impulse to the collider closest to it and
-//!   sums, per collider, the opposite impulse and its moment about the collider's position.
+//! * [`add_collider_reactions`] gives each free vertex's impulse to the collider closest to it
+//!   and sums, per collider, the opposite impulse and its moment about the collider's position.
+//! * At pinned and kinematic vertices both give the pin's impulse, what held or moved the
+//!   vertex; [`attachment_reaction`] sums it over the vertices attached to a rigid part.
 
 use super::super::super::types::{Real, Vec3};
 use super::super::scene::Scene;
@@ -60,13 +62,14 @@ impl Reaction {
     }
 }
 
-/// The contact impulse (N s) the colliders applied to each vertex over an implicit Euler step
+/// The impulse (N s) the colliders and pins applied to each vertex over an implicit Euler step
 /// of `scene.dt` from velocities `before` to `after`, the body at `positions` after it with
 /// elastic forces `elastic_forces` there (N; e.g. [`ElasticModel::add_forces`](
-/// crate::step::ElasticModel::add_forces) into zeros): at a free vertex that touches a collider
-/// (within the contact tolerance),
-/// `m (after - before) - dt (elastic_force + external_force + m gravity)`; zero at every other
-/// vertex (pinned ones included: their balance is the pin's, not a collider's).
+/// crate::step::ElasticModel::add_forces) into zeros):
+/// `m (after - before) - dt (elastic_force + external_force + m gravity)` at every pinned vertex
+/// (what held it, or moved it where it is kinematic: pass the velocities before its move as
+/// `before`) and at every free vertex that touches a collider (within the contact tolerance);
+/// zero at every other vertex.
 ///
 /// Exact for a step that solved its objective exactly; the solver's tolerance bounds the
 /// error (the residual at a vertex is a force, times `dt`). A vertex touching the ground and a
@@ -100,9 +103,6 @@ pub fn implicit_impulses(
     let dt = scene.dt;
     for (i, impulse) in impulses.iter_mut().enumerate() {
         *impulse = Vec3::ZERO;
-        if pinned.get(i).copied().unwrap_or(false) {
-            continue;
-        }
         let (Some(&m), Some(&x), Some(&f), Some(&v0), Some(&v)) = (
             masses.get(i),
             positions.get(i),
@@ -112,7 +112,8 @@ pub fn implicit_impulses(
         ) else {
             continue;
         };
-        if colliders.touching_index(x).is_none() {
+        let held = pinned.get(i).copied().unwrap_or(false);
+        if !held && colliders.touching_index(x).is_none() {
             continue;
         }
         let load = f + external.get(i).copied().unwrap_or(Vec3::ZERO) + scene.gravity * m;
@@ -121,26 +122,60 @@ pub fn implicit_impulses(
     Ok(())
 }
 
+/// What a rigid part received from the vertices attached to it over a step: minus the sum of
+/// their impulses (N s, as [`implicit_impulses`] or the explicit stepper's record give them at
+/// pinned and kinematic vertices) and its moment about `origin` (the part's centre of mass or
+/// frame origin, m), each vertex at its position after the step; `vertices` the attached
+/// vertices' count. For a host engine that moves attached vertices with its rigid body (as
+/// kinematic targets) and applies the reaction back to it.
+///
+/// # Errors
+/// [`StepError::LengthMismatch`] unless `impulses` has one entry per position;
+/// [`StepError::AttachedVertex`] for the first entry of `vertices` at or beyond their count.
+pub fn attachment_reaction(
+    vertices: &[u32],
+    positions: &[Vec3],
+    impulses: &[Vec3],
+    origin: Vec3,
+) -> Result<Reaction, StepError> {
+    check_length(StepBuffer::Impulses, positions.len(), impulses.len())?;
+    let mut reaction = Reaction::ZERO;
+    for (entry, &vertex) in vertices.iter().enumerate() {
+        let index = usize::try_from(vertex).unwrap_or(usize::MAX);
+        let (Some(&x), Some(&impulse)) = (positions.get(index), impulses.get(index)) else {
+            return Err(StepError::AttachedVertex { entry, vertex });
+        };
+        reaction.impulse -= impulse;
+        reaction.angular_impulse -= (x - origin).cross(impulse);
+        reaction.vertices = reaction.vertices.saturating_add(1);
+    }
+    Ok(reaction)
+}
+
 /// Adds each vertex's contact impulse (`impulses`, N s, one per vertex, the body at `positions`)
 /// to the collider whose signed distance at the vertex is the smallest (the one it touches;
 /// the first of equals), as `reactions[k]` for `colliders[k]`: the impulse on the collider is
 /// minus the vertex's, its moment is about the collider's position. Vertices with a zero
-/// impulse are skipped. Adds, so the bodies of a world can go one after the other into the same
+/// impulse and pinned vertices (whose impulse is their pin's, `pinned` empty for none) are
+/// skipped. Adds, so the bodies of a world can go one after the other into the same
 /// reactions; start from [`Reaction::ZERO`].
 ///
 /// # Errors
-/// [`StepError::LengthMismatch`] unless `impulses` has one entry per position and `reactions`
-/// one per collider.
+/// [`StepError::LengthMismatch`] unless `impulses` has one entry per position, `pinned` is
+/// empty or as long, and `reactions` has one per collider.
 pub fn add_collider_reactions(
     colliders: &[Collider<'_>],
-    positions: &[Vec3],
+    (positions, pinned): (&[Vec3], &[bool]),
     impulses: &[Vec3],
     reactions: &mut [Reaction],
 ) -> Result<(), StepError> {
     check_length(StepBuffer::Impulses, positions.len(), impulses.len())?;
+    if !pinned.is_empty() {
+        check_length(StepBuffer::Pinned, positions.len(), pinned.len())?;
+    }
     check_length(StepBuffer::Reactions, colliders.len(), reactions.len())?;
-    for (&x, &impulse) in positions.iter().zip(impulses) {
-        if impulse == Vec3::ZERO {
+    for (i, (&x, &impulse)) in positions.iter().zip(impulses).enumerate() {
+        if impulse == Vec3::ZERO || pinned.get(i).copied().unwrap_or(false) {
             continue;
         }
         let mut nearest: Option<(usize, Real)> = None;

@@ -208,10 +208,13 @@ impl<'a, V: Vector> ExplicitScratch<'a, V> {
     }
 
     /// This scratch, recording into `impulses` (one per vertex, length checked by
-    /// [`explicit_step`]) the impulse (N s) the colliders applied to each vertex over a step:
-    /// `m (v_after - v_before)` of every collider projection of every substep, summed (zero
-    /// where no collider acted; the ground's projections are not counted). A step sets every
-    /// entry; after an error the entries are unspecified.
+    /// [`explicit_step`]) the impulse (N s) the colliders and pins applied to each vertex over
+    /// a step: at a free vertex `m (v_after - v_before)` of every collider projection of every
+    /// substep, summed (zero where no collider acted; the ground's projections are not
+    /// counted); at a pinned vertex `-h (f + f_ext + m g)` summed over the substeps, what held
+    /// it against its forces. A step sets every entry; after an error the entries are
+    /// unspecified. Recording runs the update one vertex at a time (the same bits as the SIMD
+    /// lanes).
     #[inline]
     #[must_use]
     pub fn with_impulses(self, impulses: &'a mut [V]) -> Self {
@@ -656,7 +659,9 @@ impl<V: Vector> Update<'_, '_, V> {
             inputs: (forces, previous_forces, masses, pinned),
             impulses,
         };
-        let plain = scene.colliders.is_empty() && scene.fixed_axes.is_empty();
+        // Recording impulses takes the one-vertex path (the same bits as the lanes).
+        let plain =
+            scene.colliders.is_empty() && scene.fixed_axes.is_empty() && kernel.impulses.is_empty();
         let tally = if plain {
             dispatch(kernel)
         } else {
@@ -724,6 +729,13 @@ impl<V: Vector> Update<'_, '_, V> {
                     *impulse += (*v - free_v) * m;
                 }
             }
+        } else if let Some(impulse) = impulse {
+            // The pin holds the vertex against its forces: its impulse over the substep.
+            let mut load = *f + gravity * m;
+            if !loads.forces.is_empty() {
+                load += loads.force(i);
+            }
+            *impulse -= load * h;
         }
         tally.kinetic_energy += 0.5 * m * v.dot(*v);
         if tally.non_finite.is_none() && !(x.is_finite() && v.is_finite()) {
