@@ -37,27 +37,16 @@ impl Csr {
         self.columns.len()
     }
 
-    /// `y = A x` (missing entries of `x` read as zero; `y` as long as it is, at most `rows`).
-    pub fn product(&self, x: &[Real], y: &mut [Real]) {
-        for (i, out) in y.iter_mut().enumerate() {
-            let (columns, values) = self.row(i);
+    /// Rows `first..first + y.len()` of `A x` into `y`, or added to it (`add`); missing
+    /// entries of `x` read as zero, each row summed in its column order.
+    pub fn product_rows(&self, first: usize, x: &[Real], y: &mut [Real], add: bool) {
+        for (j, out) in y.iter_mut().enumerate() {
+            let (columns, values) = self.row(first + j);
             let mut sum = 0.0;
             for (&c, &a) in columns.iter().zip(values) {
                 sum += a * x.get(c as usize).copied().unwrap_or(0.0);
             }
-            *out = sum;
-        }
-    }
-
-    /// `y += A x`.
-    pub fn add_product(&self, x: &[Real], y: &mut [Real]) {
-        for (i, out) in y.iter_mut().enumerate() {
-            let (columns, values) = self.row(i);
-            let mut sum = 0.0;
-            for (&c, &a) in columns.iter().zip(values) {
-                sum += a * x.get(c as usize).copied().unwrap_or(0.0);
-            }
-            *out += sum;
+            *out = if add { *out + sum } else { sum };
         }
     }
 

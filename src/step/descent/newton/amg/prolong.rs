@@ -205,7 +205,7 @@ pub(crate) fn spectral_radius(
         for ((s, &v), &r) in scaled.iter_mut().zip(&x).zip(&root) {
             *s = v * r;
         }
-        matrix.product(&scaled, &mut y);
+        matrix.product_rows(0, &scaled, &mut y, false);
         for (v, &r) in y.iter_mut().zip(&root) {
             *v *= r;
         }
