@@ -150,12 +150,6 @@ impl Level {
 /// that no node is split between two blocks.
 pub(crate) const ROW_BLOCK: usize = 192;
 
-/// `y = A x`, or `y += A x` (`add`), in blocks of [`ROW_BLOCK`] rows of `y` given to `join`.
-fn product<J: Join + Sync>(join: &J, matrix: &Csr, x: &[Real], y: &mut [Real], add: bool) {
-    let block = |first: usize, y: &mut [Real]| matrix.product_rows(first, x, y, add);
-    Blocks::of_len(ROW_BLOCK, y.len(), y, &block).run_with(join);
-}
-
 /// The largest coarsest level factored densely (unknowns): its factor takes `n^2` numbers.
 pub(crate) const DENSE_LIMIT: usize = 1500;
 
@@ -276,7 +270,7 @@ pub(crate) fn v_cycle<J: Join + Sync>(join: &J, levels: &mut [Level], coarsest: 
         };
         this.gauss_seidel(join, true);
         this.residual_after_forward_sweep(join);
-        product(join, &this.restriction, &this.r, &mut next.b, false);
+        this.restriction.product_with(join, &this.r, &mut next.b, false);
     }
     for l in (0..depth.saturating_sub(1)).rev() {
         let (this, rest) = match levels.get_mut(l..) {
@@ -284,7 +278,7 @@ pub(crate) fn v_cycle<J: Join + Sync>(join: &J, levels: &mut [Level], coarsest: 
             _ => return,
         };
         if let Some(next) = rest.first() {
-            product(join, &this.prolongator, &next.x, &mut this.x, true);
+            this.prolongator.product_with(join, &next.x, &mut this.x, true);
         }
         this.gauss_seidel(join, false);
     }

@@ -38,6 +38,7 @@ use super::super::super::vertex_pass::sealed::Sealed;
 use super::super::super::vertex_pass::{Blocks, InOrder, Join, VertexPass};
 use crate::error::{StepBuffer, StepError};
 use colour::{Colouring, renumbered};
+use csr::Multiply;
 use cycle::{Coarsest, Level, ROW_BLOCK, v_cycle};
 
 pub(crate) use assemble::projection_matrix;
@@ -134,11 +135,18 @@ impl Hierarchy {
             }
             let (tentative, coarse_modes) =
                 prolong::tentative((block, &aggregates, count), &modes)?;
-            let prolongator = prolong::smoothed(&level.matrix, &level.inverse_diagonal, &tentative)?;
+            let prolongator =
+                prolong::smoothed(model, &level.matrix, &level.inverse_diagonal, &tentative)?;
             drop(tentative);
             let restriction = prolongator.transpose()?;
-            let product = level.matrix.multiply(&prolongator)?;
-            let mut coarse = restriction.multiply(&product)?;
+            let product = model.run_vertex_pass(Multiply {
+                left: &level.matrix,
+                right: &prolongator,
+            })?;
+            let mut coarse = model.run_vertex_pass(Multiply {
+                left: &restriction,
+                right: &product,
+            })?;
             drop(product);
             coarse.symmetrize()?;
             level.prolongator = prolongator;
