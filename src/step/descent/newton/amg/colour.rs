@@ -1,10 +1,12 @@
 //! The order the cycle's Gauss-Seidel sweeps run in: every level's nodes (a vertex's three
-//! rows on the finest level, an aggregate's six on the coarser ones) coloured greedily so that
-//! no two nodes of one colour share a stored entry, then the level renumbered colour by colour
-//! (the matrix on both sides, the transfer operators on theirs). A sweep in the new row order
-//! updates the nodes of one colour independently of each other, so it runs them on any number
-//! of threads with the bits of the plain sweep (`cycle.rs`); the colouring depends on the
-//! matrix's pattern only.
+//! rows on the finest level, an aggregate's six on the coarser ones) taken in groups of
+//! consecutive nodes, the groups coloured greedily so that no two groups of one colour share a
+//! stored entry, then the level renumbered colour by colour, group by group, keeping the node
+//! order inside each group (the matrix on both sides, the transfer operators on theirs). A
+//! sweep in the new row order updates the groups of one colour independently of each other,
+//! so it runs them on any number of threads with the bits of the plain sweep (`cycle.rs`);
+//! inside a group it is the plain sweep in the mesh's own order, whose neighbours are near in
+//! memory. The colouring depends on the matrix's pattern only.
 
 use alloc::vec::Vec;
 
@@ -14,48 +16,54 @@ use super::{OutOfMemory, filled, push};
 
 /// A level's renumbering: `order[k]` is the node that becomes node `k` (colour by colour, in
 /// node order within a colour), `position` its inverse, `starts[c]..starts[c + 1]` the new
-/// nodes of colour `c`, and `width` the rows per node.
+/// nodes of colour `c`, `width` the rows per node and `group` the nodes per group. Every group
+/// but the level's last is whole, and the last is last in its colour, so a colour's groups
+/// start `group` nodes apart from the colour's first node.
 #[derive(Debug, Default)]
 pub(crate) struct Colouring {
     pub order: Vec<u32>,
     pub position: Vec<u32>,
     pub starts: Vec<usize>,
     pub width: usize,
+    pub group: usize,
 }
 
 impl Colouring {
-    /// The greedy colouring of the nodes of `matrix` (`width` rows each) in node order: each
-    /// node takes the smallest colour no neighbour took before it (a neighbour shares a stored
-    /// entry with one of its rows).
-    pub fn new(matrix: &Csr, width: usize) -> Result<Colouring, OutOfMemory> {
-        let width = width.max(1);
+    /// The greedy colouring of the groups of `group` consecutive nodes of `matrix` (`width`
+    /// rows each) in group order: each group takes the smallest colour no neighbour took
+    /// before it (a neighbour shares a stored entry with one of its rows).
+    pub fn new(matrix: &Csr, width: usize, group: usize) -> Result<Colouring, OutOfMemory> {
+        let (width, group) = (width.max(1), group.max(1));
         let nodes = matrix.rows.div_ceil(width);
-        let mut colour = filled(nodes, u32::MAX)?;
-        // `seen[c] == node` marks colour `c` as taken by a neighbour of `node`.
+        let groups = nodes.div_ceil(group);
+        let rows = group * width;
+        let mut colour = filled(groups, u32::MAX)?;
+        // `seen[c] == g` marks colour `c` as taken by a neighbour of group `g`.
         let mut seen: Vec<usize> = Vec::new();
         let mut counts: Vec<usize> = Vec::new();
-        for node in 0..nodes {
-            for row in node * width..((node + 1) * width).min(matrix.rows) {
+        for g in 0..groups {
+            for row in g * rows..((g + 1) * rows).min(matrix.rows) {
                 for &c in matrix.row(row).0 {
-                    let neighbour = colour.get(c as usize / width).copied().unwrap_or(u32::MAX);
+                    let neighbour = colour.get(c as usize / rows).copied().unwrap_or(u32::MAX);
                     if let Some(slot) = seen.get_mut(neighbour as usize) {
-                        *slot = node;
+                        *slot = g;
                     }
                 }
             }
-            let free = seen.iter().position(|&s| s != node).unwrap_or(seen.len());
+            let free = seen.iter().position(|&s| s != g).unwrap_or(seen.len());
             if free == seen.len() {
-                push(&mut seen, node)?;
+                push(&mut seen, g)?;
                 push(&mut counts, 0)?;
             }
             if let Some(count) = counts.get_mut(free) {
-                *count += 1;
+                *count += group.min(nodes - g * group);
             }
-            if let Some(slot) = colour.get_mut(node) {
+            if let Some(slot) = colour.get_mut(g) {
                 *slot = free as u32;
             }
         }
-        // A counting sort of the nodes on their colour (stable: node order within a colour).
+        // A counting sort of the nodes on their group's colour (stable: group, then node
+        // order within a colour; the last, partial group last in its colour).
         let mut starts = filled(counts.len() + 1, 0usize)?;
         for (c, &count) in counts.iter().enumerate() {
             let previous = starts.get(c).copied().unwrap_or(0);
@@ -66,7 +74,8 @@ impl Colouring {
         let mut next = starts.clone();
         let mut order = filled(nodes, 0u32)?;
         let mut position = filled(nodes, 0u32)?;
-        for (node, &c) in colour.iter().enumerate() {
+        for node in 0..nodes {
+            let c = colour.get(node / group).copied().unwrap_or(0);
             let Some(at) = next.get_mut(c as usize) else {
                 continue;
             };
@@ -83,7 +92,14 @@ impl Colouring {
             position,
             starts,
             width,
+            group,
         })
+    }
+
+    /// The rows of a whole group.
+    #[inline]
+    pub fn group_rows(&self) -> usize {
+        self.group * self.width
     }
 
     /// The new row of old row `row`.

@@ -3,9 +3,10 @@
 //! operator and conjugate gradients stay valid), and at the coarsest level a dense Cholesky
 //! factorisation (or, for a coarsest level too large to factor, symmetric Gauss-Seidel
 //! sweeps). The levels are numbered colour by colour (`colour.rs`), so a sweep updates the
-//! nodes of one colour at a time, independently; the sweeps, residuals and transfers run in
-//! blocks of [`ROW_BLOCK`] rows on the caller's [`Join`] (a model's thread pool), every row
-//! summed in its column order, so the cycle has the same bits on any number of threads.
+//! groups of nodes of one colour at a time, independently; the sweeps (a group a block), the
+//! residuals and transfers (blocks of [`ROW_BLOCK`] rows) run on the caller's [`Join`] (a
+//! model's thread pool), every row summed in its column order, so the cycle has the same bits
+//! on any number of threads.
 
 use alloc::vec::Vec;
 
@@ -31,6 +32,8 @@ pub(crate) struct Level {
     /// The first row of every colour and the row count last (`colour.rs`; empty until the
     /// hierarchy colours the level, and a sweep does nothing before).
     pub colours: Vec<usize>,
+    /// The rows of a group of the colouring: a colour's groups start this many rows apart.
+    pub group_rows: usize,
 }
 
 impl Level {
@@ -54,14 +57,14 @@ impl Level {
             b: filled(n, 0.0)?,
             r: filled(n, 0.0)?,
             colours: Vec::new(),
+            group_rows: 1,
         })
     }
 
     /// One Gauss-Seidel sweep on `A x = b`: rows ascending (`forward`), colour by colour, or
-    /// descending. The nodes of one colour share no entry, so their updates are independent:
-    /// they run in blocks of [`ROW_BLOCK`] rows given to `join`, each block's rows in the
-    /// sweep's order (a node's own rows one after the other, as the plain sweep), with the bits
-    /// of the plain sweep in the new row order for any `join`.
+    /// descending. The groups of one colour share no entry, so their updates are independent:
+    /// they run one group a block given to `join`, each group's rows in the sweep's order, with
+    /// the bits of the plain sweep in the new row order for any `join`.
     pub fn gauss_seidel<J: Join + Sync>(&mut self, join: &J, forward: bool) {
         let colours = self.colours.len().saturating_sub(1);
         for k in 0..colours {
@@ -87,7 +90,7 @@ impl Level {
                         return;
                     }
                     let (columns, values) = matrix.row(i);
-                    // Columns ascend: before this colour, this block's own node, after it.
+                    // Columns ascend: before this colour, this block's own group, after it.
                     let low = columns.partition_point(|&c| (c as usize) < start);
                     let high = columns.partition_point(|&c| (c as usize) < end);
                     let mut sum = b.get(i).copied().unwrap_or(0.0);
@@ -114,7 +117,7 @@ impl Level {
                     (0..rows).rev().for_each(&mut update);
                 }
             };
-            Blocks::of_len(ROW_BLOCK, own.len(), own, &block).run_with(join);
+            Blocks::of_len(self.group_rows, own.len(), own, &block).run_with(join);
         }
     }
 
@@ -146,8 +149,8 @@ impl Level {
     }
 }
 
-/// The rows per block of the cycle's passes: a multiple of both node widths (3 and 6 rows), so
-/// that no node is split between two blocks.
+/// The rows per block of the cycle's passes but the sweeps (residual, transfers, the finest
+/// level's gather).
 pub(crate) const ROW_BLOCK: usize = 192;
 
 /// The largest coarsest level factored densely (unknowns): its factor takes `n^2` numbers.

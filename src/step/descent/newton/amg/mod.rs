@@ -199,6 +199,14 @@ impl Hierarchy {
     }
 }
 
+/// The vertices of a group of the finest level's colouring (`colour.rs`): a task of its sweeps,
+/// run in the mesh's order.
+const FINE_GROUP: usize = 64;
+
+/// The aggregates of a group of a coarser level's colouring: fewer, since a coarse node has
+/// many more neighbours (fewer groups would share a colour).
+const COARSE_GROUP: usize = 8;
+
 /// Renumbers every level colour by colour (`colour.rs`): its matrix on both sides, its
 /// prolongator's rows by its own renumbering and columns by the next level's, the restriction
 /// transposed again; returns the finest level's renumbering.
@@ -208,8 +216,12 @@ fn colour_levels(levels: &mut [Level]) -> Result<Colouring, OutOfMemory> {
         .try_reserve_exact(levels.len())
         .map_err(|_| OutOfMemory)?;
     for (l, level) in levels.iter().enumerate() {
-        let width = if l == 0 { 3 } else { MODES };
-        colourings.push(Colouring::new(&level.matrix, width)?);
+        let (width, group) = if l == 0 {
+            (3, FINE_GROUP)
+        } else {
+            (MODES, COARSE_GROUP)
+        };
+        colourings.push(Colouring::new(&level.matrix, width, group)?);
     }
     for (l, level) in levels.iter_mut().enumerate() {
         let (Some(own), next) = (colourings.get(l), colourings.get(l + 1)) else {
@@ -226,6 +238,7 @@ fn colour_levels(levels: &mut [Level]) -> Result<Colouring, OutOfMemory> {
         level.prolongator = prolongator;
         level.restriction = restriction;
         level.colours = own.row_starts()?;
+        level.group_rows = own.group_rows();
     }
     let fine = match colourings.first_mut() {
         Some(fine) => core::mem::take(fine),

@@ -9,7 +9,7 @@ use super::super::super::super::super::types::Real;
 use super::super::super::super::vertex_pass::{InOrder, Join};
 use super::colour::{Colouring, renumbered};
 use super::csr::Csr;
-use super::cycle::{Level, ROW_BLOCK};
+use super::cycle::Level;
 
 /// A [`Join`] that runs `b` before `a`: any order gives the same bits.
 struct Reversed;
@@ -79,16 +79,24 @@ fn grid(side: usize, width: usize) -> Csr {
     }
 }
 
-/// Every colour's nodes share no entry (each row's columns inside its own colour are its own
-/// node's rows), the renumbering is a permutation with its inverse, and the renumbered matrix
+/// The (width, group) pairs of the tests: single nodes and groups, a last group cut short
+/// (5 does not divide the grids' node counts).
+const SHAPES: [(usize, usize); 4] = [(3, 1), (3, 4), (6, 2), (6, 5)];
+
+/// Every colour's groups share no entry (each row's columns inside its own colour are its own
+/// group's rows), the renumbering is a permutation with its inverse, and the renumbered matrix
 /// holds the same entries at the renumbered places.
 #[test]
 fn colours_are_independent_sets_and_renumbering_permutes() {
-    for width in [3, 6] {
+    for (width, group) in SHAPES {
         let matrix = grid(12, width);
-        let colouring = Colouring::new(&matrix, width).unwrap();
+        let colouring = Colouring::new(&matrix, width, group).unwrap();
         let nodes = matrix.rows / width;
-        assert!(colouring.starts.len() >= 5, "a nine-point stencil: four colours at least");
+        let rows = colouring.group_rows();
+        assert_eq!(rows, width * group);
+        if group == 1 {
+            assert!(colouring.starts.len() >= 5, "a nine-point stencil: four colours at least");
+        }
         assert_eq!(colouring.starts.last().copied(), Some(nodes));
         for (k, &node) in colouring.order.iter().enumerate() {
             assert_eq!(colouring.position[node as usize] as usize, k);
@@ -104,7 +112,8 @@ fn colours_are_independent_sets_and_renumbering_permutes() {
                 for (&j, &a) in columns.iter().zip(values) {
                     let j = j as usize;
                     if (start..end).contains(&j) {
-                        assert_eq!(j / width, i / width, "colour {c}: rows {i} and {j}");
+                        let same = (j - start) / rows == (i - start) / rows;
+                        assert!(same, "colour {c}: rows {i} and {j}, groups of {group}");
                     }
                     // The same entry as the old matrix's at the old places.
                     let (old_i, old_j) = (colouring.old_row(i), colouring.old_row(j));
@@ -136,20 +145,21 @@ fn plain_sweep(matrix: &Csr, b: &[Real], x: &mut [Real], forward: bool) {
     }
 }
 
-/// On a coloured level, the colour-by-colour sweeps in blocks of `ROW_BLOCK` rows (in order,
-/// and with every join's halves swapped) give the plain sweeps' bits, forward from zero then
+/// On a coloured level, the colour-by-colour sweeps a group a block (in order, and with every
+/// join's halves swapped) give the plain sweeps' bits, forward from zero then
 /// backward; the residual after the forward sweep is `b - A x` to rounding (the skipped lower
 /// part cancels `b` but for a few ulps of the row's terms).
 #[test]
 fn coloured_sweeps_give_the_plain_sweeps_bits_on_any_join() {
-    for width in [3, 6] {
+    for (width, group) in SHAPES {
         let matrix = grid(24, width);
-        let colouring = Colouring::new(&matrix, width).unwrap();
+        let colouring = Colouring::new(&matrix, width, group).unwrap();
         let matrix = renumbered(&matrix, &colouring, &colouring).unwrap();
         let rows = matrix.rows;
         let row_starts = colouring.row_starts().unwrap();
         let widest = row_starts.windows(2).map(|w| w[1] - w[0]).max().unwrap();
-        assert!(widest > 2 * ROW_BLOCK, "colours of several blocks: {widest} rows");
+        let group_rows = colouring.group_rows();
+        assert!(widest > 2 * group_rows, "colours of several groups: {widest} rows");
         let b: Vec<Real> = (0..rows)
             .map(|i| 1.0 + ((i * 37) % 19) as Real * 0.25 - 2.0)
             .collect();
@@ -175,6 +185,7 @@ fn coloured_sweeps_give_the_plain_sweeps_bits_on_any_join() {
             })
             .unwrap();
             level.colours = row_starts.clone();
+            level.group_rows = group_rows;
             level.b.copy_from_slice(&b);
             let forward = |level: &mut Level| {
                 if reversed {
