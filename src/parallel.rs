@@ -8,10 +8,12 @@
 //! The steppers' own passes over the vertices (the explicit update, the relaxation's gradient,
 //! direction and trial points, with their sums) run on the pool too, in blocks of
 //! [`VERTEX_BLOCK`](super::step::vertex_pass::VERTEX_BLOCK) vertices ([`RayonJoin`]) whose sums are combined
-//! over a fixed tree, so their bits do not depend on the thread count either. Newton's own
-//! vector operations (conjugate gradients) stay on the calling thread; VBD's sweeps run the
-//! vertex updates of each colour in parallel ([`ParallelTetElastic`]'s
-//! [`VertexBlockModel`]).
+//! over a fixed tree, so their bits do not depend on the thread count either. Newton's
+//! conjugate gradients run their vector passes the same way, and with the multilevel
+//! preconditioner (feature `alloc`) each V-cycle runs on the pool as one pass: its
+//! Gauss-Seidel sweeps one colour of nodes at a time, its residuals and transfers, in fixed
+//! blocks of rows (`step::Multilevel`). VBD's sweeps run the vertex
+//! updates of each colour in parallel ([`ParallelTetElastic`]'s [`VertexBlockModel`]).
 //!
 //! The owner-computes passes (forces, fused pass, Hessian products and blocks) run one task per
 //! *span* of consecutive vertex pieces, evaluated as one owner: on a pool of one thread a single

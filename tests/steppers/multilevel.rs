@@ -442,3 +442,160 @@ fn single_precision_agrees_with_block_jacobi() {
     assert!(sag > 1e-4 && relative < 1e-2, "{sag} {relative}");
     assert!(difference <= 20.0 * relative * sag, "{difference}");
 }
+
+/// The multilevel preconditioner on a rayon pool (feature `rayon`): `ParallelTetElastic`
+/// runs the V-cycle's sweeps, residuals and transfers (`src/step/descent/newton/amg/cycle.rs`)
+/// and CG's vector passes on its pool, with the bits of the sequential solve.
+#[cfg(feature = "rayon")]
+mod threads {
+    use super::{Bar, DENSITY, GRAVITY, bar, random, solve};
+    use softfem::f64::element::{TetHessian, TetRest};
+    use softfem::f64::material::StableNeoHookean;
+    use softfem::f64::mesh::{
+        TetMesh, TetPartition, element_forces_len, partition_incident_len, partition_offsets_len,
+    };
+    use softfem::f64::parallel::ParallelTetElastic;
+    use softfem::f64::step::{
+        Multilevel, NewtonReport, NewtonScratch, NewtonSettings, Preconditioner, Scene, TetElastic,
+        newton_quasi_static, scratch_len,
+    };
+    use softfem::f64::types::{Mat3, Real, Vec3};
+
+    fn pool(threads: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+    }
+
+    /// `f` with `body` run through a partition of `pieces` pieces on a pool of `threads`.
+    fn with_parallel<T>(
+        body: TetElastic<'_, StableNeoHookean>,
+        (threads, pieces): (usize, usize),
+        f: impl FnOnce(&ParallelTetElastic<'_, StableNeoHookean>) -> T,
+    ) -> T {
+        let mesh: TetMesh<'_> = body.mesh;
+        let (n, ne) = (mesh.vertex_count(), mesh.element_count());
+        let (mut offsets, mut incident) = (
+            vec![0; partition_offsets_len(n)],
+            vec![0; partition_incident_len(ne)],
+        );
+        let partition = TetPartition::new(mesh, pieces, &mut offsets, &mut incident).unwrap();
+        let (mut element_forces, mut energies) =
+            (vec![[Vec3::ZERO; 4]; element_forces_len(ne)], vec![0.0; ne]);
+        let pool = pool(threads);
+        let parallel = ParallelTetElastic::new(body, partition, &mut element_forces, &mut energies)
+            .unwrap()
+            .with_pool(&pool);
+        f(&parallel)
+    }
+
+    fn bits(x: &[Vec3]) -> Vec<[u64; 3]> {
+        x.iter().map(|p| p.to_array().map(f64::to_bits)).collect()
+    }
+
+    /// One V-cycle at 10 240 tetrahedra (the finest level's colours span two blocks of rows
+    /// or more) through `ParallelTetElastic` on 1, 2 and 3 threads, and with
+    /// partitions of other sizes: the bits of `Multilevel::apply` on the calling thread.
+    #[test]
+    fn v_cycle_on_1_2_3_threads_gives_the_sequential_bits() {
+        let bar: Bar = bar((32, 8, 8));
+        crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, DENSITY);
+        let body = TetElastic::new(
+            mesh,
+            StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap(),
+        );
+        let n = bar.rest.len();
+        let mut hessians = vec![TetHessian::default(); bar.tets.len()];
+        mesh.projected_hessians(&body.material, &bar.rest, &mut hessians)
+            .unwrap();
+        let mut multilevel = Multilevel::new();
+        multilevel
+            .build(&body, &hessians, &masses, 0.0, &bar.pinned, &bar.rest)
+            .unwrap();
+        let mut state = 11;
+        let residual: Vec<Vec3> = (0..n)
+            .map(|i| {
+                let v = Vec3::new(random(&mut state), random(&mut state), random(&mut state));
+                if bar.pinned[i] { Vec3::ZERO } else { v }
+            })
+            .collect();
+        let mut sequential = vec![Vec3::ZERO; n];
+        multilevel.apply(&residual, &mut sequential).unwrap();
+        assert!(sequential.iter().any(|z| z.length() > 0.0));
+        for (threads, pieces) in [(1, 5), (2, 9), (3, 13), (2, 64)] {
+            let out = with_parallel(body, (threads, pieces), |parallel| {
+                let mut out = vec![Vec3::splat(Real::NAN); n];
+                multilevel
+                    .apply_with(parallel, &residual, &mut out)
+                    .unwrap();
+                out
+            });
+            assert_eq!(
+                bits(&out),
+                bits(&sequential),
+                "{threads} threads, {pieces} pieces"
+            );
+        }
+    }
+
+    /// The static cantilever at 4 320 tetrahedra solved by multilevel Newton-CG on 1, 2 and 3
+    /// threads: every position and the report, bit for bit the sequential solve's, which agrees
+    /// with block Jacobi's to the tolerance (`static_cantilever_agrees_with_block_jacobi`'s
+    /// bound: `20 x 1e-8` of the sag).
+    #[test]
+    fn static_solve_on_1_2_3_threads_gives_the_sequential_bits() {
+        let bar: Bar = bar((24, 6, 6));
+        let (sequential, x_sequential, _) = solve(&bar, Preconditioner::Multilevel);
+        let (jacobi, x_jacobi, _) = solve(&bar, Preconditioner::BlockJacobi);
+        assert!(sequential.converged && jacobi.converged);
+        assert_eq!(sequential.details.multilevel_builds, 1);
+        crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &bar.rest, &bar.tets, DENSITY);
+        let body = TetElastic::new(
+            mesh,
+            StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap(),
+        );
+        let n = bar.rest.len();
+        let len = scratch_len::newton(n, bar.tets.len());
+        for threads in [1, 2, 3] {
+            let (report, x): (NewtonReport, Vec<Vec3>) =
+                with_parallel(body, (threads, 4 * threads + 1), |parallel| {
+                    let mut vectors = vec![Vec3::ZERO; len.vectors];
+                    let mut blocks = vec![Mat3::ZERO; len.blocks];
+                    let mut hessians = vec![TetHessian::default(); len.hessians];
+                    let settings = NewtonSettings::new()
+                        .with_tolerance(1e-8, 50)
+                        .with_preconditioner(Preconditioner::Multilevel);
+                    let mut x = bar.rest.clone();
+                    let report = newton_quasi_static(
+                        parallel,
+                        &masses,
+                        &bar.pinned,
+                        &Scene::new(1.0).with_gravity(GRAVITY),
+                        &settings,
+                        &mut x,
+                        &mut NewtonScratch::new(&mut vectors, &mut blocks, &mut hessians),
+                    )
+                    .unwrap();
+                    (report, x)
+                });
+            println!("{threads} threads: {report:?}");
+            assert_eq!(bits(&x), bits(&x_sequential), "{threads} threads");
+            assert_eq!(format!("{report:?}"), format!("{sequential:?}"));
+        }
+        let sag = bar
+            .rest
+            .iter()
+            .zip(&x_jacobi)
+            .map(|(r, x)| r.z - x.z)
+            .fold(0.0, Real::max);
+        let difference = x_jacobi
+            .iter()
+            .zip(&x_sequential)
+            .map(|(a, b)| (*a - *b).length())
+            .fold(0.0, Real::max);
+        println!("sag {sag:.6e} m, |x_jacobi - x_multilevel| {difference:.2e} m");
+        assert!(sag > 1e-4);
+        assert!(difference <= 20.0 * 1e-8 * sag, "{difference}");
+    }
+}

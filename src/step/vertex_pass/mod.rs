@@ -61,7 +61,7 @@ impl Join for InOrder {
     }
 }
 
-mod sealed {
+pub(crate) mod sealed {
     /// Only the steppers' own passes are [`VertexPass`](super::VertexPass)es.
     pub trait Sealed {}
 }
@@ -172,6 +172,8 @@ split_tuple!(A 0, B 1, C 2, D 3, E 4);
 pub(crate) struct Blocks<'f, S, R, F> {
     first: usize,
     vertices: usize,
+    /// The entries per block: [`VERTEX_BLOCK`], or another fixed length ([`Blocks::of_len`]).
+    len: usize,
     parts: S,
     block: &'f F,
     result: PhantomData<fn() -> R>,
@@ -181,9 +183,18 @@ impl<'f, S: Split, R: Total, F: Fn(usize, S) -> R + Sync> Blocks<'f, S, R, F> {
     /// The pass of `block` over the `vertices` vertices of `parts`.
     #[inline(always)]
     pub fn new(vertices: usize, parts: S, block: &'f F) -> Self {
+        Self::of_len(VERTEX_BLOCK, vertices, parts, block)
+    }
+
+    /// The pass of `block` over the `entries` entries of `parts` in blocks of `len` entries
+    /// (at least one): the same fixed tree over those blocks, for passes over other things
+    /// than vertices (the rows of the multilevel preconditioner's matrices).
+    #[inline(always)]
+    pub fn of_len(len: usize, entries: usize, parts: S, block: &'f F) -> Self {
         Blocks {
             first: 0,
-            vertices,
+            vertices: entries,
+            len: len.max(1),
             parts,
             block,
             result: PhantomData,
@@ -194,15 +205,16 @@ impl<'f, S: Split, R: Total, F: Fn(usize, S) -> R + Sync> Blocks<'f, S, R, F> {
     /// single block.
     #[inline(always)]
     fn halves(self) -> Result<(Self, Self), Self> {
-        let blocks = self.vertices.div_ceil(VERTEX_BLOCK);
+        let blocks = self.vertices.div_ceil(self.len);
         if blocks < 2 {
             return Err(self);
         }
-        let at = blocks / 2 * VERTEX_BLOCK;
+        let at = blocks / 2 * self.len;
         let (left, right) = self.parts.split(at);
         let half = |first, vertices, parts| Blocks {
             first,
             vertices,
+            len: self.len,
             parts,
             block: self.block,
             result: PhantomData,

@@ -402,7 +402,7 @@ fn conjugate_gradients<F: ElasticHessian>(
         rz
     };
     if let Some(global) = multilevel.as_deref_mut() {
-        apply_global(global, residual, preconditioned);
+        apply_global(global, model, residual, preconditioned);
         let parts = (&mut **preconditioned, &**residual);
         rz = model.run_vertex_pass(Blocks::new(n, parts, &project));
         split_copy(model, conjugate, preconditioned);
@@ -474,7 +474,7 @@ fn conjugate_gradients<F: ElasticHessian>(
             break;
         }
         if let Some(global) = multilevel.as_deref_mut() {
-            apply_global(global, residual, preconditioned);
+            apply_global(global, model, residual, preconditioned);
             let parts = (&mut **preconditioned, &**residual);
             rz_next = model.run_vertex_pass(Blocks::new(n, parts, &project));
         }
@@ -509,17 +509,22 @@ type GlobalPreconditioner = Multilevel;
 #[cfg(not(feature = "alloc"))]
 pub(crate) enum GlobalPreconditioner {}
 
-/// `z = M^-1 r`.
+/// `z = M^-1 r`, the cycle's passes on `model`'s pool (`amg/cycle.rs`).
 #[cfg(feature = "alloc")]
 #[inline]
-fn apply_global(global: &mut GlobalPreconditioner, r: &[Vec3], z: &mut [Vec3]) {
-    global.apply_unchecked(r, z);
+fn apply_global<F: ElasticHessian>(
+    global: &mut GlobalPreconditioner,
+    model: &F,
+    r: &[Vec3],
+    z: &mut [Vec3],
+) {
+    global.apply_unchecked(model, r, z);
 }
 
 /// Never called: there is no global preconditioner without `alloc`.
 #[cfg(not(feature = "alloc"))]
 #[inline]
-fn apply_global(global: &mut GlobalPreconditioner, _: &[Vec3], _: &mut [Vec3]) {
+fn apply_global<F>(global: &mut GlobalPreconditioner, _: &F, _: &[Vec3], _: &mut [Vec3]) {
     match *global {}
 }
 

@@ -2,12 +2,17 @@
 //! correction and backward after it (each other's adjoint, so the cycle is a symmetric
 //! operator and conjugate gradients stay valid), and at the coarsest level a dense Cholesky
 //! factorisation (or, for a coarsest level too large to factor, symmetric Gauss-Seidel
-//! sweeps).
+//! sweeps). The levels are numbered colour by colour (`colour.rs`), so a sweep updates the
+//! groups of nodes of one colour at a time, independently; the sweeps (a group a block), the
+//! residuals and transfers (blocks of [`ROW_BLOCK`] rows) run on the caller's [`Join`] (a
+//! model's thread pool), every row summed in its column order, so the cycle has the same bits
+//! on any number of threads.
 
 use alloc::vec::Vec;
 
 use super::super::super::super::super::math;
 use super::super::super::super::super::types::Real;
+use super::super::super::super::vertex_pass::{Blocks, Join, VertexPass};
 use super::csr::Csr;
 use super::{OutOfMemory, filled};
 
@@ -24,6 +29,11 @@ pub(crate) struct Level {
     pub x: Vec<Real>,
     pub b: Vec<Real>,
     pub r: Vec<Real>,
+    /// The first row of every colour and the row count last (`colour.rs`; empty until the
+    /// hierarchy colours the level, and a sweep does nothing before).
+    pub colours: Vec<usize>,
+    /// The rows of a group of the colouring: a colour's groups start this many rows apart.
+    pub group_rows: usize,
 }
 
 impl Level {
@@ -46,53 +56,102 @@ impl Level {
             x: filled(n, 0.0)?,
             b: filled(n, 0.0)?,
             r: filled(n, 0.0)?,
+            colours: Vec::new(),
+            group_rows: 1,
         })
     }
 
-    /// One Gauss-Seidel sweep on `A x = b`, rows ascending (`forward`) or descending.
-    pub fn gauss_seidel(&mut self, forward: bool) {
-        let n = self.matrix.rows;
-        let mut sweep = |i: usize| {
-            let inverse = self.inverse_diagonal.get(i).copied().unwrap_or(0.0);
-            if inverse == 0.0 {
-                return;
-            }
-            let (columns, values) = self.matrix.row(i);
-            let mut sum = self.b.get(i).copied().unwrap_or(0.0);
-            for (&c, &a) in columns.iter().zip(values) {
-                sum -= a * self.x.get(c as usize).copied().unwrap_or(0.0);
-            }
-            if let Some(x) = self.x.get_mut(i) {
-                *x += inverse * sum;
-            }
-        };
-        if forward {
-            (0..n).for_each(&mut sweep);
-        } else {
-            (0..n).rev().for_each(&mut sweep);
+    /// One Gauss-Seidel sweep on `A x = b`: rows ascending (`forward`), colour by colour, or
+    /// descending. The groups of one colour share no entry, so their updates are independent:
+    /// they run one group a block given to `join`, each group's rows in the sweep's order, with
+    /// the bits of the plain sweep in the new row order for any `join`.
+    pub fn gauss_seidel<J: Join + Sync>(&mut self, join: &J, forward: bool) {
+        let colours = self.colours.len().saturating_sub(1);
+        for k in 0..colours {
+            let c = if forward { k } else { colours - 1 - k };
+            let (Some(&start), Some(&end)) = (self.colours.get(c), self.colours.get(c + 1)) else {
+                continue;
+            };
+            let Some((before, rest)) = self.x.split_at_mut_checked(start) else {
+                continue;
+            };
+            let Some((own, after)) = rest.split_at_mut_checked(end.saturating_sub(start)) else {
+                continue;
+            };
+            let (before, after): (&[Real], &[Real]) = (before, after);
+            let (matrix, b, inverse_diagonal) = (&self.matrix, &self.b, &self.inverse_diagonal);
+            let block = |first: usize, own: &mut [Real]| {
+                let rows = own.len();
+                let offset = start + first;
+                let mut update = |j: usize| {
+                    let i = offset + j;
+                    let inverse = inverse_diagonal.get(i).copied().unwrap_or(0.0);
+                    if inverse == 0.0 {
+                        return;
+                    }
+                    let (columns, values) = matrix.row(i);
+                    // Columns ascend: before this colour, this block's own group, after it.
+                    let low = columns.partition_point(|&c| (c as usize) < start);
+                    let high = columns.partition_point(|&c| (c as usize) < end);
+                    let mut sum = b.get(i).copied().unwrap_or(0.0);
+                    for (&c, &a) in columns.iter().zip(values).take(low) {
+                        sum -= a * before.get(c as usize).copied().unwrap_or(0.0);
+                    }
+                    let middle = columns.get(low..high).unwrap_or(&[]);
+                    for (&c, &a) in middle.iter().zip(values.get(low..high).unwrap_or(&[])) {
+                        let local = (c as usize).wrapping_sub(offset);
+                        sum -= a * own.get(local).copied().unwrap_or(0.0);
+                    }
+                    let upper = columns.get(high..).unwrap_or(&[]);
+                    for (&c, &a) in upper.iter().zip(values.get(high..).unwrap_or(&[])) {
+                        let index = (c as usize).wrapping_sub(end);
+                        sum -= a * after.get(index).copied().unwrap_or(0.0);
+                    }
+                    if let Some(x) = own.get_mut(j) {
+                        *x += inverse * sum;
+                    }
+                };
+                if forward {
+                    (0..rows).for_each(&mut update);
+                } else {
+                    (0..rows).rev().for_each(&mut update);
+                }
+            };
+            Blocks::of_len(self.group_rows, own.len(), own, &block).run_with(join);
         }
     }
 
     /// `r = b - A x` right after a forward sweep from `x = 0`: the sweep left `(D + L) x = b`
     /// on every row it updated (to rounding), so there `r = -U x` and only the entries right of
-    /// the diagonal are read (half the stream); frozen rows take the whole row.
-    pub fn residual_after_forward_sweep(&mut self) {
-        for (i, r) in self.r.iter_mut().enumerate() {
-            let (columns, values) = self.matrix.row(i);
-            let frozen = self.inverse_diagonal.get(i).is_none_or(|&d| d == 0.0);
-            let (start, mut sum) = if frozen {
-                (0, self.b.get(i).copied().unwrap_or(0.0))
-            } else {
-                (columns.partition_point(|&c| c as usize <= i), 0.0)
-            };
-            let upper = columns.get(start..).unwrap_or(&[]);
-            for (&c, &a) in upper.iter().zip(values.get(start..).unwrap_or(&[])) {
-                sum -= a * self.x.get(c as usize).copied().unwrap_or(0.0);
+    /// the diagonal are read (half the stream); frozen rows take the whole row. In blocks of
+    /// [`ROW_BLOCK`] rows given to `join`.
+    pub fn residual_after_forward_sweep<J: Join + Sync>(&mut self, join: &J) {
+        let (matrix, b, x, inverse_diagonal) =
+            (&self.matrix, &self.b, &self.x, &self.inverse_diagonal);
+        let block = |first: usize, r: &mut [Real]| {
+            for (j, r) in r.iter_mut().enumerate() {
+                let i = first + j;
+                let (columns, values) = matrix.row(i);
+                let frozen = inverse_diagonal.get(i).is_none_or(|&d| d == 0.0);
+                let (start, mut sum) = if frozen {
+                    (0, b.get(i).copied().unwrap_or(0.0))
+                } else {
+                    (columns.partition_point(|&c| c as usize <= i), 0.0)
+                };
+                let upper = columns.get(start..).unwrap_or(&[]);
+                for (&c, &a) in upper.iter().zip(values.get(start..).unwrap_or(&[])) {
+                    sum -= a * x.get(c as usize).copied().unwrap_or(0.0);
+                }
+                *r = sum;
             }
-            *r = sum;
-        }
+        };
+        Blocks::of_len(ROW_BLOCK, self.r.len(), &mut self.r[..], &block).run_with(join);
     }
 }
+
+/// The rows per block of the cycle's passes but the sweeps (residual, transfers, the finest
+/// level's gather).
+pub(crate) const ROW_BLOCK: usize = 192;
 
 /// The largest coarsest level factored densely (unknowns): its factor takes `n^2` numbers.
 pub(crate) const DENSE_LIMIT: usize = 1500;
@@ -190,8 +249,9 @@ impl Coarsest {
 }
 
 /// One V-cycle on `levels[0]`'s system from `x = 0` with right-hand side `levels[0].b`; the
-/// answer in `levels[0].x`.
-pub(crate) fn v_cycle(levels: &mut [Level], coarsest: &Coarsest) {
+/// answer in `levels[0].x`. Every pass but the coarsest level's dense solve runs in blocks of
+/// rows given to `join`, each row's sum in its column order: the same bits for any `join`.
+pub(crate) fn v_cycle<J: Join + Sync>(join: &J, levels: &mut [Level], coarsest: &Coarsest) {
     let depth = levels.len();
     for l in 0..depth {
         let (this, rest) = match levels.get_mut(l..) {
@@ -205,15 +265,15 @@ pub(crate) fn v_cycle(levels: &mut [Level], coarsest: &Coarsest) {
                 coarsest.solve(&this.b, &mut this.x);
             } else {
                 for _ in 0..COARSE_SWEEPS {
-                    this.gauss_seidel(true);
-                    this.gauss_seidel(false);
+                    this.gauss_seidel(join, true);
+                    this.gauss_seidel(join, false);
                 }
             }
             break;
         };
-        this.gauss_seidel(true);
-        this.residual_after_forward_sweep();
-        this.restriction.product(&this.r, &mut next.b);
+        this.gauss_seidel(join, true);
+        this.residual_after_forward_sweep(join);
+        this.restriction.product_with(join, &this.r, &mut next.b, false);
     }
     for l in (0..depth.saturating_sub(1)).rev() {
         let (this, rest) = match levels.get_mut(l..) {
@@ -221,8 +281,8 @@ pub(crate) fn v_cycle(levels: &mut [Level], coarsest: &Coarsest) {
             _ => return,
         };
         if let Some(next) = rest.first() {
-            this.prolongator.add_product(&next.x, &mut this.x);
+            this.prolongator.product_with(join, &next.x, &mut this.x, true);
         }
-        this.gauss_seidel(false);
+        this.gauss_seidel(join, false);
     }
 }

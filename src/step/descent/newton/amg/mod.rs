@@ -7,26 +7,39 @@
 //! (`assemble.rs`); per level, the strong connections and aggregates (`aggregate.rs`), the
 //! tentative prolongator from the six rigid-body modes orthonormalised per aggregate and its
 //! Jacobi smoothing (`prolong.rs`), the Galerkin product `P^T A P` (`csr.rs`); until a level
-//! has at most [`MAX_COARSE`] unknowns, whose matrix is factored by dense Cholesky. The
-//! application is one V-cycle (`cycle.rs`), a symmetric positive definite operator.
+//! has at most [`MAX_COARSE`] unknowns, whose matrix is factored by dense Cholesky; then every
+//! level renumbered colour by colour (`colour.rs`). The application is one V-cycle
+//! (`cycle.rs`), a symmetric positive definite operator.
 //!
-//! Every step runs in a fixed order on one thread (no hash maps, sorted columns, sums in row
-//! order), so the bits depend on the input only; every allocation is fallible.
+//! The setup runs in a fixed order on one thread (no hash maps, sorted columns, sums in row
+//! order), so the bits depend on the input only; every allocation is fallible. The V-cycle's
+//! passes (the sweeps one colour at a time, the residual, restriction and prolongation) run
+//! in fixed blocks of rows on the model's thread pool where it has one
+//! (`parallel::ParallelTetElastic`, feature `rayon`: a Newton
+//! solve through it runs its V-cycles there, one pool entry per cycle), every row's sum in its
+//! column order, so the bits do not depend on the thread count either.
 
 mod aggregate;
 mod assemble;
+mod colour;
 mod csr;
 mod cycle;
 mod prolong;
+#[cfg(test)]
+mod tests;
 
 use alloc::vec::Vec;
 
 use super::super::super::super::element::TetHessian;
 use super::super::super::super::types::{Mat3, Real, Vec3};
-use super::super::super::model::ElasticHessian;
+use super::super::super::model::{ElasticHessian, ElasticModel};
 use super::super::super::state::check_length;
+use super::super::super::vertex_pass::sealed::Sealed;
+use super::super::super::vertex_pass::{Blocks, InOrder, Join, VertexPass};
 use crate::error::{StepBuffer, StepError};
-use cycle::{Coarsest, Level, v_cycle};
+use colour::{Colouring, renumbered};
+use csr::Multiply;
+use cycle::{Coarsest, Level, ROW_BLOCK, v_cycle};
 
 pub(crate) use assemble::projection_matrix;
 
@@ -83,6 +96,10 @@ struct Hierarchy {
     coarsest: Coarsest,
     /// The vertex count of the finest level.
     vertices: usize,
+    /// The finest level's renumbering: `order[k]` is the vertex at node `k`, `position` the
+    /// inverse.
+    order: Vec<u32>,
+    position: Vec<u32>,
 }
 
 impl Hierarchy {
@@ -118,11 +135,18 @@ impl Hierarchy {
             }
             let (tentative, coarse_modes) =
                 prolong::tentative((block, &aggregates, count), &modes)?;
-            let prolongator = prolong::smoothed(&level.matrix, &level.inverse_diagonal, &tentative)?;
+            let prolongator =
+                prolong::smoothed(model, &level.matrix, &level.inverse_diagonal, &tentative)?;
             drop(tentative);
             let restriction = prolongator.transpose()?;
-            let product = level.matrix.multiply(&prolongator)?;
-            let mut coarse = restriction.multiply(&product)?;
+            let product = model.run_vertex_pass(Multiply {
+                left: &level.matrix,
+                right: &prolongator,
+            })?;
+            let mut coarse = model.run_vertex_pass(Multiply {
+                left: &restriction,
+                right: &product,
+            })?;
             drop(product);
             coarse.symmetrize()?;
             level.prolongator = prolongator;
@@ -131,6 +155,7 @@ impl Hierarchy {
             modes = coarse_modes;
             block = MODES;
         }
+        let fine = colour_levels(&mut levels)?;
         let coarsest = match levels.last() {
             Some(level) => Coarsest::new(&level.matrix)?,
             None => Coarsest::default(),
@@ -139,24 +164,104 @@ impl Hierarchy {
             levels,
             coarsest,
             vertices: n,
+            order: fine.order,
+            position: fine.position,
         })
     }
 
-    /// `z = M^-1 r` by one V-cycle.
-    fn apply(&mut self, r: &[Vec3], z: &mut [Vec3]) {
+    /// `z = M^-1 r` by one V-cycle, its passes given to `join`.
+    fn apply<J: Join + Sync>(&mut self, join: &J, r: &[Vec3], z: &mut [Vec3]) {
         let Some(fine) = self.levels.first_mut() else {
             z.fill(Vec3::ZERO);
             return;
         };
-        for (b, v) in fine.b.chunks_exact_mut(3).zip(r) {
-            b.copy_from_slice(&v.to_array());
-        }
-        v_cycle(&mut self.levels, &self.coarsest);
-        if let Some(fine) = self.levels.first() {
-            for (out, x) in z.iter_mut().zip(fine.x.chunks_exact(3)) {
-                *out = Vec3::from_slice(x);
+        let order = &self.order;
+        let gather = |first: usize, b: &mut [Real]| {
+            for (j, b) in b.iter_mut().enumerate() {
+                let row = first + j;
+                let vertex = order.get(row / 3).copied().unwrap_or(0) as usize;
+                *b = r.get(vertex).map_or(0.0, |v| v[row % 3]);
             }
+        };
+        Blocks::of_len(ROW_BLOCK, fine.b.len(), &mut fine.b[..], &gather).run_with(join);
+        v_cycle(join, &mut self.levels, &self.coarsest);
+        let (Some(fine), position) = (self.levels.first(), &self.position) else {
+            return;
+        };
+        let scatter = |first: usize, z: &mut [Vec3]| {
+            for (j, z) in z.iter_mut().enumerate() {
+                let node = position.get(first + j).copied().unwrap_or(0) as usize;
+                let x = |a: usize| fine.x.get(3 * node + a).copied().unwrap_or(0.0);
+                *z = Vec3::new(x(0), x(1), x(2));
+            }
+        };
+        Blocks::new(z.len(), z, &scatter).run_with(join);
+    }
+}
+
+/// The vertices of a group of the finest level's colouring (`colour.rs`): a task of its sweeps,
+/// run in the mesh's order.
+const FINE_GROUP: usize = 64;
+
+/// The aggregates of a group of a coarser level's colouring: fewer, since a coarse node has
+/// many more neighbours (fewer groups would share a colour).
+const COARSE_GROUP: usize = 8;
+
+/// Renumbers every level colour by colour (`colour.rs`): its matrix on both sides, its
+/// prolongator's rows by its own renumbering and columns by the next level's, the restriction
+/// transposed again; returns the finest level's renumbering.
+fn colour_levels(levels: &mut [Level]) -> Result<Colouring, OutOfMemory> {
+    let mut colourings: Vec<Colouring> = Vec::new();
+    colourings
+        .try_reserve_exact(levels.len())
+        .map_err(|_| OutOfMemory)?;
+    for (l, level) in levels.iter().enumerate() {
+        let (width, group) = if l == 0 {
+            (3, FINE_GROUP)
+        } else {
+            (MODES, COARSE_GROUP)
+        };
+        colourings.push(Colouring::new(&level.matrix, width, group)?);
+    }
+    for (l, level) in levels.iter_mut().enumerate() {
+        let (Some(own), next) = (colourings.get(l), colourings.get(l + 1)) else {
+            continue;
+        };
+        let matrix = renumbered(&level.matrix, own, own)?;
+        if let Some(next) = next {
+            level.prolongator = renumbered(&level.prolongator, own, next)?;
+            level.restriction = level.prolongator.transpose()?;
         }
+        let prolongator = core::mem::take(&mut level.prolongator);
+        let restriction = core::mem::take(&mut level.restriction);
+        *level = Level::new(matrix)?;
+        level.prolongator = prolongator;
+        level.restriction = restriction;
+        level.colours = own.row_starts()?;
+        level.group_rows = own.group_rows();
+    }
+    let fine = match colourings.first_mut() {
+        Some(fine) => core::mem::take(fine),
+        None => Colouring::default(),
+    };
+    Ok(fine)
+}
+
+/// One V-cycle as one pass for a model's thread pool ([`ElasticModel::run_vertex_pass`]): the
+/// model installs its pool once, and the cycle's passes split on it.
+struct Cycle<'c> {
+    hierarchy: &'c mut Hierarchy,
+    residual: &'c [Vec3],
+    out: &'c mut [Vec3],
+}
+
+impl Sealed for Cycle<'_> {}
+
+impl VertexPass for Cycle<'_> {
+    type Output = ();
+
+    fn run_with<J: Join + Sync>(self, join: &J) {
+        self.hierarchy.apply(join, self.residual, self.out);
     }
 }
 
@@ -308,11 +413,39 @@ impl Multilevel {
         }
     }
 
-    /// `out = M^-1 residual`, one V-cycle (zero where nothing is built).
+    /// `out = M^-1 residual`, one V-cycle (zero where nothing is built), on the calling thread.
     ///
     /// # Errors
     /// [`StepError::LengthMismatch`] unless both buffers have one entry per vertex of the build.
     pub fn apply(&mut self, residual: &[Vec3], out: &mut [Vec3]) -> Result<(), StepError> {
+        self.check_apply(residual, out)?;
+        match self.hierarchy.as_mut() {
+            Some(hierarchy) => hierarchy.apply(&InOrder, residual, out),
+            None => out.fill(Vec3::ZERO),
+        }
+        Ok(())
+    }
+
+    /// [`apply`](Self::apply) with the cycle's passes run as `model` runs its passes over the
+    /// vertices ([`ElasticModel::run_vertex_pass`]): on the pool of a
+    /// `parallel::ParallelTetElastic` (feature `rayon`), with the bits of
+    /// [`apply`](Self::apply) on any number of threads.
+    ///
+    /// # Errors
+    /// As [`apply`](Self::apply).
+    pub fn apply_with<F: ElasticModel>(
+        &mut self,
+        model: &F,
+        residual: &[Vec3],
+        out: &mut [Vec3],
+    ) -> Result<(), StepError> {
+        self.check_apply(residual, out)?;
+        self.apply_unchecked(model, residual, out);
+        Ok(())
+    }
+
+    /// `Ok` where both buffers have one entry per vertex of the build.
+    fn check_apply(&self, residual: &[Vec3], out: &[Vec3]) -> Result<(), StepError> {
         let n = self.hierarchy.as_ref().map_or(0, |h| h.vertices);
         for (buffer, actual) in [
             (StepBuffer::Scratch, residual.len()),
@@ -326,14 +459,23 @@ impl Multilevel {
                 });
             }
         }
-        self.apply_unchecked(residual, out);
         Ok(())
     }
 
-    /// [`apply`](Self::apply) without the length check (the solver's buffers are checked).
-    pub(crate) fn apply_unchecked(&mut self, residual: &[Vec3], out: &mut [Vec3]) {
+    /// [`apply_with`](Self::apply_with) without the length check (the solver's buffers are
+    /// checked).
+    pub(crate) fn apply_unchecked<F: ElasticModel>(
+        &mut self,
+        model: &F,
+        residual: &[Vec3],
+        out: &mut [Vec3],
+    ) {
         match self.hierarchy.as_mut() {
-            Some(hierarchy) => hierarchy.apply(residual, out),
+            Some(hierarchy) => model.run_vertex_pass(Cycle {
+                hierarchy,
+                residual,
+                out,
+            }),
             None => out.fill(Vec3::ZERO),
         }
     }

@@ -7,7 +7,8 @@ use alloc::vec::Vec;
 
 use super::super::super::super::super::math;
 use super::super::super::super::super::types::Real;
-use super::csr::Csr;
+use super::super::super::super::model::ElasticModel;
+use super::csr::{Csr, Multiply, Product};
 use super::{MODES, OutOfMemory, filled};
 
 /// A column of a local QR whose norm after orthogonalisation is below this fraction of its
@@ -174,7 +175,8 @@ const POWER_ITERATIONS: u32 = 20;
 /// frozen rows), `A` symmetric positive semi-definite: the Rayleigh quotient of the symmetric
 /// `D^-1/2 A D^-1/2` after [`POWER_ITERATIONS`] power steps from a fixed start vector, raised by
 /// 5 % (the quotient approaches the radius from below).
-pub(crate) fn spectral_radius(
+pub(crate) fn spectral_radius<F: ElasticModel>(
+    model: &F,
     matrix: &Csr,
     inverse_diagonal: &[Real],
 ) -> Result<Real, OutOfMemory> {
@@ -205,7 +207,11 @@ pub(crate) fn spectral_radius(
         for ((s, &v), &r) in scaled.iter_mut().zip(&x).zip(&root) {
             *s = v * r;
         }
-        matrix.product(&scaled, &mut y);
+        model.run_vertex_pass(Product {
+            matrix,
+            x: &scaled,
+            y: &mut y,
+        });
         for (v, &r) in y.iter_mut().zip(&root) {
             *v *= r;
         }
@@ -217,18 +223,22 @@ pub(crate) fn spectral_radius(
 
 /// `P = P_tent - omega D^-1 (A P_tent)`, `omega = 4 / (3 rho)`: the pattern of `A P_tent`
 /// (which contains `P_tent`'s where every aggregated row has a diagonal entry).
-pub(crate) fn smoothed(
+pub(crate) fn smoothed<F: ElasticModel>(
+    model: &F,
     matrix: &Csr,
     inverse_diagonal: &[Real],
     tentative: &Csr,
 ) -> Result<Csr, OutOfMemory> {
-    let rho = spectral_radius(matrix, inverse_diagonal)?;
+    let rho = spectral_radius(model, matrix, inverse_diagonal)?;
     let omega = if rho > 0.0 && rho.is_finite() {
         4.0 / (3.0 * rho)
     } else {
         0.0
     };
-    let mut product = matrix.multiply(tentative)?;
+    let mut product = model.run_vertex_pass(Multiply {
+        left: matrix,
+        right: tentative,
+    })?;
     for i in 0..product.rows {
         let scale = -omega * inverse_diagonal.get(i).copied().unwrap_or(0.0);
         let start = product.starts.get(i).copied().unwrap_or(0);
