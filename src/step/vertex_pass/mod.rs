@@ -172,8 +172,10 @@ split_tuple!(A 0, B 1, C 2, D 3, E 4);
 pub(crate) struct Blocks<'f, S, R, F> {
     first: usize,
     vertices: usize,
-    /// The entries per block: [`VERTEX_BLOCK`], or another fixed length ([`Blocks::of_len`]).
-    len: usize,
+    /// The entries per block: [`VERTEX_BLOCK`], or another fixed length ([`Blocks::of_len`]);
+    /// non-zero by type, so that the divisions by it keep no panic path (the firmware's link
+    /// check).
+    len: core::num::NonZeroUsize,
     parts: S,
     block: &'f F,
     result: PhantomData<fn() -> R>,
@@ -194,7 +196,7 @@ impl<'f, S: Split, R: Total, F: Fn(usize, S) -> R + Sync> Blocks<'f, S, R, F> {
         Blocks {
             first: 0,
             vertices: entries,
-            len: len.max(1),
+            len: core::num::NonZeroUsize::new(len).unwrap_or(core::num::NonZeroUsize::MIN),
             parts,
             block,
             result: PhantomData,
@@ -205,11 +207,11 @@ impl<'f, S: Split, R: Total, F: Fn(usize, S) -> R + Sync> Blocks<'f, S, R, F> {
     /// single block.
     #[inline(always)]
     fn halves(self) -> Result<(Self, Self), Self> {
-        let blocks = self.vertices.div_ceil(self.len);
+        let blocks = self.vertices / self.len + usize::from(self.vertices % self.len != 0);
         if blocks < 2 {
             return Err(self);
         }
-        let at = blocks / 2 * self.len;
+        let at = blocks / 2 * self.len.get();
         let (left, right) = self.parts.split(at);
         let half = |first, vertices, parts| Blocks {
             first,

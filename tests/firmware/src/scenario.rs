@@ -228,7 +228,8 @@ macro_rules! precision {
                 scratch_len, stable_time_step,
             };
             use $($softfem)::+::svd::Svd3;
-            use $($softfem)::+::types::{Mat3, Real, Vec3};
+            use $($softfem)::+::types::{Mat3, Quat, Real, Vec3};
+            use $($softfem)::+::step::Reaction;
             use $($softfem)::+::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
             use $($softfem)::+::step::contact::boundary::ContactSurface;
             use $($softfem)::+::step::contact::model::{CandidateReuse, FrictionPair};
@@ -255,7 +256,7 @@ macro_rules! precision {
                 use $($softfem)::+::element::TetRest;
                 use $($softfem)::+::{BodyError, MeshError, StepError};
                 use $($softfem)::+::body::StepReport;
-                use $($softfem)::+::step::Collider;
+                use $($softfem)::+::step::{Collider, Reaction};
                 use $($softfem)::+::step::contact::ContactModel;
 
                 use super::ColliderBody;
@@ -373,6 +374,17 @@ macro_rules! precision {
                 ) -> Result<(), BodyError> {
                     slot.set_material(material);
                     slot.rebuild_from_box(min, max, super::COLLIDER_CELLS, density)
+                }
+
+                /// `Body::step_with_reactions` of that body: the step and each collider's
+                /// reaction.
+                #[inline(never)]
+                pub fn body_step_with_reactions(
+                    body: &mut ColliderBody,
+                    scene: &Scene<'_, Vec3>,
+                    reactions: &mut [Reaction],
+                ) -> Result<StepReport, StepError> {
+                    body.step_with_reactions(scene, reactions)
                 }
 
                 /// `Body::step_with_colliders` of that body, whichever its solver.
@@ -1306,12 +1318,74 @@ macro_rules! precision {
                 push(records, concat!($prefix, " contact pair, steps failed or not converged"), count, failed as Real);
             }
 
+            /// Steps of [`rigid_on_body`].
+            const RIGID_STEPS: u32 = 30;
+
+            /// Two-way coupling with a rigid body in firmware (issue #42): the owned 10 cm
+            /// jelly cube ([`ColliderBody`], E = 50 kPa) standing on the ground as a half-space
+            /// collider, a 0.2 kg rigid box (a cuboid collider wider than the cube) set on its
+            /// top, stepped by Newton's method at 60 Hz with `Body::step_with_reactions`; the
+            /// box is integrated here from the reaction (`v += J / m - g dt`, `y += v dt`), as a
+            /// host engine would. Records the box's height and the floor's and box's reactions.
+            #[inline(never)]
+            fn rigid_on_body(meter: &mut impl Meter, records: &mut Records, body: &mut ColliderBody) {
+                let Ok(material) = StableNeoHookean::from_young_poisson(black_box(5.0e4), black_box(0.4)) else {
+                    push(records, concat!($prefix, " rigid on body setup"), Digest::new(), Real::NAN);
+                    return;
+                };
+                let (low, high) = (Vec3::new(-0.05, 0.0, -0.05), Vec3::new(0.05, 0.1, 0.05));
+                let built = pieces::body_new(body, low, high, 1000.0, material);
+                if built.is_err() || body.set_solver(Solver::newton()).is_err() {
+                    push(records, concat!($prefix, " rigid on body build"), Digest::new(), Real::NAN);
+                    return;
+                }
+                body.set_gravity(Vec3::new(0.0, -9.81, 0.0));
+                let (mass, half, dt) = (0.2, Vec3::new(0.08, 0.02, 0.08), 1.0 / 60.0);
+                let (mut y, mut v) = (0.1 + half.y, 0.0);
+                let mut reactions = [Reaction::ZERO; 2];
+                let mut digest = Digest::new();
+                for step in 1..=RIGID_STEPS {
+                    let colliders = [
+                        Collider::half_space(Vec3::ZERO, Vec3::new(0.0, 1.0, 0.0)),
+                        Collider::cuboid(Vec3::new(0.0, y, 0.0), half, Quat::IDENTITY)
+                            .with_velocity(Vec3::new(0.0, v, 0.0), Vec3::ZERO),
+                    ];
+                    let scene = body.scene(dt).with_colliders(&colliders);
+                    let report = meter.measure(concat!($prefix, " body step with reactions"), || {
+                        pieces::body_step_with_reactions(body, &scene, &mut reactions)
+                    });
+                    match report {
+                        Ok(report) => digest.u64(u64::from(report.converged())),
+                        Err(_) => digest.u64(u64::MAX),
+                    }
+                    for reaction in &reactions {
+                        vec3(&mut digest, reaction.impulse);
+                        vec3(&mut digest, reaction.angular_impulse);
+                        digest.u64(u64::from(reaction.vertices));
+                    }
+                    let impulse = reactions.get(1).map_or(0.0, |r| r.impulse.y);
+                    v += impulse / mass - 9.81 * dt;
+                    y += v * dt;
+                    real(&mut digest, y);
+                    if step == RIGID_STEPS {
+                        digest.u64(state_digest(body.positions(), body.velocities()).finish());
+                        push(records, concat!($prefix, " rigid box on body, step 30 (height)"), digest, y);
+                        // The floor carries both: the body's weight and the box's.
+                        let floor = reactions.first().map_or(Real::NAN, |r| r.impulse.y) / dt;
+                        let mut force = Digest::new();
+                        real(&mut force, floor);
+                        push(records, concat!($prefix, " rigid box on body, floor force (N)"), force, -floor);
+                    }
+                }
+            }
+
             /// The whole workload in this precision.
             pub fn run(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody, descent: &mut DescentScratch, owned: &mut ColliderBody) {
                 svds(meter, records);
                 forces(meter, records);
                 drop(meter, records, body, descent);
                 on_colliders(meter, records, owned);
+                rigid_on_body(meter, records, owned);
                 contact_pair(meter, records);
             }
         }
