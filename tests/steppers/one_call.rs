@@ -146,6 +146,28 @@ fn cook_membrane_in_plane_strain_matches_the_published_tip_deflection() {
     );
 }
 
+/// The Cook membrane with its thickness direction free: a 1 mm slab 44 mm wide buckles out of
+/// its plane (lateral-torsional buckling) at a small fraction of the load, and
+/// `newton_quasi_static` at its defaults, from rest, reaches the buckled equilibrium of the full
+/// load to `1e-8` in one call (the load steps take it through the bifurcation). Optimised
+/// builds only (tests/release): minutes unoptimised.
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn cook_membrane_with_the_thickness_free_converges_from_rest_in_one_call() {
+    for n in [16, 32] {
+        let clock = std::time::Instant::now();
+        let (free, free_tip) = solve_cook(n, false);
+        let seconds = clock.elapsed().as_secs_f64();
+        println!("Cook n = {n}, z free: tip {free_tip:.4} mm, {seconds:.2} s, {free:?}");
+        assert!(free.converged && free.residual <= free.target, "{free:?}");
+        assert_eq!(free.details.load_reached, LOAD_UNITS);
+        // Out of its plane the slab carries the load by twisting and bending about its width as
+        // well: the in-plane deflection differs from plane strain's (12.9 mm at n = 16), but is
+        // the same order (a free edge load of 1 N on the same membrane).
+        assert!(free_tip > 5.0 && free_tip < 30.0, "{free_tip}");
+    }
+}
+
 /// A stable neo-Hookean bar 0.2 x 0.1 x 0.1 m (4 x 2 x 2 cubes), E = 1 MPa, nu = 0.3, clamped
 /// at x = 0 and its x = 0.2 m face pushed to x = 0.1 m, the other vertices at rest.
 fn compressed(settings: &NewtonSettings) -> NewtonReport {
@@ -216,15 +238,23 @@ fn half_length_compression_converges_quadratically_in_one_call() {
     );
     assert_eq!(residuals.last().copied(), Some(report.residual));
     let k = residuals.len();
-    assert!(k >= 3, "{residuals:?}");
-    let (r0, r1, r2) = (residuals[k - 3], residuals[k - 2], residuals[k - 1]);
+    assert!(k >= 4, "{residuals:?}");
+    // The last step only needs the target (the forcing term's floor, half the target over the
+    // residual: no linear solve is tighter), so the rate is read on the two before it.
+    let (r0, r1, r2, last) = (
+        residuals[k - 4],
+        residuals[k - 3],
+        residuals[k - 2],
+        residuals[k - 1],
+    );
     let (q1, q2) = (r1 / (r0 * r0), r2 / (r1 * r1));
-    println!("r_(k+1) / r_k^2: {q1:.3e}, {q2:.3e} (1/N)");
-    // Quadratic: each ratio at most a constant; linear convergence at rate c < 1 would give
-    // q = c / r, growing by 1 / c each step. Bound: the second ratio no more than 10 times the
-    // first (a linear rate of 0.1 would already give 1 / (0.1 * 0.1)... see the print).
-    assert!(r2 < 1e-3 * r1 && r1 < 0.1 * r0, "{residuals:?}");
+    println!("r_(k+1) / r_k^2 before the last step: {q1:.3e}, {q2:.3e} (1/N)");
+    // Quadratic: r_(k+1) / r_k^2 stays bounded. At a linear rate c it is c / r_k and grows as
+    // r_k falls, here by r0 / r1 (more than 5) from one step to the next; 10 allows for the
+    // inexact linear solves.
+    assert!(r2 < 1e-2 * r1 && r1 < 0.2 * r0, "{residuals:?}");
     assert!(q2 <= 10.0 * q1, "{q1} {q2}");
+    assert!(last <= report.target, "{residuals:?}");
 }
 
 #[test]
@@ -278,4 +308,67 @@ fn probe_cook_load_path() {
             r.details.exact_fallbacks
         );
     }
+}
+
+/// The static cantilever of issue #40 (4 x 1 x 1 m, clamped at x = 0, stable neo-Hookean
+/// E = 1 MPa, nu = 0.3, density 1 kg/m^3, gravity along -z) at 40 x 10 x 10 cubes (24 000
+/// tetrahedra) to `1e-8`: at the defaults no linear solve ends on the CG budget. Optimised
+/// builds only (tests/release): seconds there, minutes unoptimised.
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn a_24k_static_cantilever_stays_within_the_automatic_cg_budget() {
+    let split = BoxSplit::Kuhn6;
+    let (nx, ny, nz) = (40, 10, 10);
+    let (vertices, elements) = box_counts(nx, ny, nz, split).unwrap();
+    let (mut rest, mut tets) = (vec![Vec3::ZERO; vertices], vec![[0u32; 4]; elements]);
+    fill_box(
+        Vec3::ZERO,
+        Vec3::new(4.0, 1.0, 1.0),
+        nx,
+        ny,
+        nz,
+        split,
+        &mut rest,
+        &mut tets,
+    )
+    .unwrap();
+    let mut rest_data = vec![TetRest::default(); tets.len()];
+    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
+    let mut masses = vec![0.0; rest.len()];
+    mesh.lumped_masses(1.0, &mut masses).unwrap();
+    let model = TetElastic::new(
+        mesh,
+        StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap(),
+    );
+    let pinned: Vec<bool> = rest.iter().map(|p| p.x == 0.0).collect();
+    let scene = Scene::new(1.0).with_gravity(Vec3::new(0.0, 0.0, -9.81));
+    let mut buffers = Buffers::new(rest.len(), tets.len());
+    let mut run = |settings: NewtonSettings| {
+        let mut x = rest.clone();
+        let clock = std::time::Instant::now();
+        let report = newton_quasi_static(
+            &model,
+            &masses,
+            &pinned,
+            &scene,
+            &settings,
+            &mut x,
+            &mut buffers.scratch(),
+        )
+        .unwrap();
+        (report, clock.elapsed().as_secs_f64())
+    };
+    let (fixed, fixed_time) = run(NewtonSettings::new()
+        .with_tolerance(1e-8, 50)
+        .with_cg_iterations(2000)
+        .with_load_steps(0));
+    println!("{elements} tets, 2000 CG a Newton iteration: {fixed_time:.2} s, {fixed:?}");
+    let (automatic, automatic_time) = run(NewtonSettings::new().with_tolerance(1e-8, 50));
+    println!("{elements} tets, automatic budget: {automatic_time:.2} s, {automatic:?}");
+    assert!(automatic.converged, "{automatic:?}");
+    assert_eq!(automatic.details.truncated_solves, 0, "{automatic:?}");
+    assert!(
+        automatic.details.largest_linear_solve < automatic.details.cg_budget,
+        "{automatic:?}"
+    );
 }

@@ -92,8 +92,6 @@ const ETA_MAX: Real = 0.5;
 struct Forcing {
     /// `|g_(k-1)|` and `eta_(k-1)`, after the first solve.
     last: Option<(Real, Real)>,
-    /// The residual of the iterate the last term was chosen at.
-    at_iterate: Option<Real>,
 }
 
 impl Forcing {
@@ -101,15 +99,6 @@ impl Forcing {
 
     /// The forcing term of the linear solve at `at`.
     fn next(&mut self, at: &Iterate<'_, Vec3>) -> Real {
-        // A second solve at the same iterate (the exact Hessian's fallback, `ExactSwitch`)
-        // keeps that iterate's forcing term.
-        if let Some(at_iterate) = self.at_iterate
-            && at_iterate == at.residual
-            && let Some((_, eta)) = self.last
-        {
-            return eta;
-        }
-        self.at_iterate = Some(at.residual);
         let eta = match self.last {
             None => ETA_MAX,
             Some((previous, last_eta)) => {
@@ -156,6 +145,8 @@ pub(crate) struct ExactSwitch {
     retry_below: Real,
     /// Whether the direction just computed came from the exact Hessian.
     in_use: bool,
+    /// Whether the next search is at the iterate of the last one (after a fallback).
+    redo: bool,
     /// The Newton iterations whose direction came from the exact Hessian.
     pub iterations: u32,
     /// The fallbacks to the projected Hessian.
@@ -169,6 +160,7 @@ impl Default for ExactSwitch {
             previous: None,
             retry_below: Real::INFINITY,
             in_use: false,
+            redo: false,
             iterations: 0,
             fallbacks: 0,
         }
@@ -176,6 +168,15 @@ impl Default for ExactSwitch {
 }
 
 impl ExactSwitch {
+    /// A switch that never takes the exact Hessian (implicit Euler steps: the mass term keeps
+    /// the projected Hessian close, and their bits stay those of every model alike).
+    pub(crate) fn off() -> Self {
+        ExactSwitch {
+            unsupported: true,
+            ..ExactSwitch::default()
+        }
+    }
+
     /// Whether to try the exact Hessian at an iterate of residual `residual`; records it.
     fn wanted(&mut self, residual: Real) -> bool {
         let halved = self.previous.is_some_and(|previous| residual <= 0.5 * previous);
@@ -241,7 +242,12 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
             x: at.x,
             gradient: at.gradient,
         };
-        let eta = self.forcing.next(at);
+        // A second search at the same iterate (after `fall_back`) keeps its forcing term.
+        let eta = match (self.exact.redo, self.forcing.last) {
+            (true, Some((_, eta))) => eta,
+            _ => self.forcing.next(at),
+        };
+        self.exact.redo = false;
         loop {
             let (stiffness_squared, indefinite) = invert_blocks(
                 model,
@@ -341,6 +347,7 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
         }
         let residual = self.exact.previous.unwrap_or(Real::INFINITY);
         self.exact.failed(residual);
+        self.exact.redo = true;
         true
     }
 }

@@ -5,7 +5,10 @@
 //! `alloc`, `Preconditioner::Multilevel`) by smoothed-aggregation multigrid
 //! (`step/descent/newton/amg/`, `docs/math.md` section 7.1.1).
 //!
-//! The algorithm and the stopping test are documented on [`newton_step`].
+//! The algorithm and the stopping test are documented on [`newton_step`]; the exact Hessian
+//! near the solution, the load steps (`step/descent/newton/continuation.rs`) and the longer
+//! steps along a too-stiff model on [`newton_quasi_static`] (`docs/math.md` sections 7.1.2 to
+//! 7.1.5).
 
 #[cfg(feature = "alloc")]
 mod amg;
@@ -26,13 +29,15 @@ use super::super::state::check_length;
 use super::settings::{DescentReport, DescentSettings};
 use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
-use cg::{CgVectors, Newton};
+use cg::{CgVectors, ExactSwitch, Newton};
 
 #[cfg(feature = "alloc")]
 pub use amg::{MAX_COARSE, Multilevel, REBUILD_FACTOR};
 
 /// Scratch space of Newton's method over caller buffers of the lengths of
 /// [`scratch_len::newton`] (checked by the solvers). Nothing in it survives between solves.
+/// The load steps of [`newton_quasi_static`] need no more: each step starts from the loop's
+/// copy of its start positions.
 #[derive(Debug)]
 pub struct NewtonScratch<'a> {
     vectors: &'a mut [Vec3],
@@ -255,7 +260,7 @@ pub struct NewtonDetails {
     /// directions).
     pub truncated_solves: u32,
     /// Newton iterations whose direction came from the exact (unprojected) element Hessians
-    /// (`docs/math.md` section 7.1.2).
+    /// (quasi-static solves only, `docs/math.md` section 7.1.2).
     pub exact_iterations: u32,
     /// Times the exact Hessian was given up for the projected one at an iterate (negative
     /// curvature, an indefinite preconditioner block, a rejected full step).
@@ -418,8 +423,28 @@ pub fn newton_step<F: ElasticHessian>(
 /// and the ground's reaction. The body must be held (pins or ground) against rigid motion, or
 /// the Hessian is singular along it; vertices in no element do not move.
 ///
+/// # One call
+/// What [`newton_step`] does, and two things for static answers far from the start
+/// (`docs/math.md` sections 7.1.2 to 7.1.5):
+/// * near the solution the exact element Hessians replace the projected ones where they are
+///   positive definite, so that the last iterations converge quadratically (the projected
+///   Hessian again on negative curvature, an indefinite block or a rejected full step);
+/// * **load steps**: where the full-load solve does not converge (its budget is spent, or it
+///   stalls), `positions` are restored to the caller's and gravity and the external forces
+///   are applied in increments, each solved from the last equilibrium: first half the load,
+///   each increment halved after a step that fails and doubled after one that converges, at
+///   most [`NewtonOptions::max_load_steps`] tries (32 by default; 0: the one solve answers),
+///   none below `1 / LOAD_UNITS` of the load, each with four times the settings' Newton budget
+///   (near a bifurcation one step took 102 Newton iterations on the Cook membrane). The report counts the iterations and CG
+///   iterations of every solve, its residual, target and `phi` are the last step's, and
+///   [`converged`](DescentReport::converged) means the full load converged
+///   ([`NewtonDetails::load_steps`], [`NewtonDetails::load_reached`]: where the steps run out,
+///   `positions` hold the equilibrium of that fraction of the load). Prescribed displacements (pins the caller
+///   moved) are applied at once, not stepped.
+///
 /// # Errors
-/// As [`newton_step`] (without the time-step errors).
+/// As [`newton_step`] (without the time-step errors); a load step that ends in a non-finite
+/// state ([`StepError::NonFiniteState`]) is a step that failed, not an error.
 pub fn newton_quasi_static<F: ElasticHessian>(
     model: &F,
     masses: &[Real],
@@ -504,6 +529,8 @@ fn solve<F: ElasticHessian>(
     let mut multilevel = PhantomData;
     let mut attempt = Attempt {
         settings,
+        max_iterations: settings.max_iterations,
+        quasi_static,
         cg_budget,
         restore_unconverged: load_steps > 0,
         vectors,
@@ -530,8 +557,8 @@ fn solve<F: ElasticHessian>(
 }
 
 /// How many times Newton's line search may double a full step whose end is still steeply
-/// downhill (`docs/math.md` section 7.1.5): up to `2^6` times the Newton step.
-const MAX_EXPANSIONS: u32 = 0;
+/// downhill (`docs/math.md` section 7.1.5): up to `2^8` times the Newton step.
+const MAX_EXPANSIONS: u32 = 8;
 
 /// The multilevel preconditioner a solve keeps across its load steps (feature `alloc`).
 #[cfg(feature = "alloc")]
@@ -545,6 +572,11 @@ type Kept<'b> = PhantomData<&'b mut ()>;
 /// solve so far.
 struct Attempt<'s, 'b> {
     settings: &'s NewtonSettings,
+    /// The Newton iterations a solve may take (the settings' budget; more for a load step).
+    max_iterations: u32,
+    /// A quasi-static solve: the exact Hessian near the solution and the longer steps
+    /// (`docs/math.md` sections 7.1.2 and 7.1.5) are for these only.
+    quasi_static: bool,
     cg_budget: u32,
     /// Whether a solve that does not converge restores the start positions (the load steps).
     restore_unconverged: bool,
@@ -585,6 +617,9 @@ impl Attempt<'_, '_> {
             self.cg_budget,
             problem.ground.as_ref().map(|g| g.normal),
         );
+        if !self.quasi_static {
+            newton.exact = ExactSwitch::off();
+        }
         #[cfg(feature = "alloc")]
         let builds_before = {
             newton.multilevel = self.multilevel.as_deref_mut();
@@ -592,7 +627,12 @@ impl Attempt<'_, '_> {
         };
         let loop_settings = LoopSettings {
             restore_unconverged: self.restore_unconverged,
-            max_expansions: MAX_EXPANSIONS,
+            max_expansions: if self.quasi_static {
+                MAX_EXPANSIONS
+            } else {
+                0
+            },
+            max_iterations: self.max_iterations,
             ..LoopSettings::new(self.settings, StallRule::Halving)
         };
         let outcome = descent::solve(
