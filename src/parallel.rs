@@ -634,6 +634,15 @@ impl<M: Material + Sync> ElasticHessian for ParallelTetElastic<'_, M> {
     ) -> bool {
         self.body.for_each_element_hessian(cache, visit)
     }
+    /// The sequential body's exact Hessians (one element at a time, the same bits; Newton
+    /// takes them only in its last few iterations).
+    fn exact_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<bool, MeshError> {
+        self.body.exact_hessians(positions, cache)
+    }
 }
 
 /// Vertex Block Descent's sweeps ([`vbd_step`](super::step::vbd_step)) run the updates of each

@@ -94,6 +94,28 @@ impl TetMesh<'_> {
         Ok(())
     }
 
+    /// Writes the exact (unprojected, possibly indefinite) Hessian data of every tetrahedron of
+    /// `material` at deformed `positions` (m) into `cache` ([`TetHessian::exact`], one SVD per
+    /// element): what Newton's method takes near the solution, where the exact Hessian is
+    /// positive definite and keeps its convergence quadratic (`docs/math.md` section 7.1.2).
+    ///
+    /// # Errors
+    /// As [`projected_hessians`](TetMesh::projected_hessians); `cache` unchanged then.
+    pub fn exact_hessians<M: Material>(
+        &self,
+        material: &M,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<(), MeshError> {
+        check_positions(self.vertex_count(), positions)?;
+        check_length(Buffer::Hessians, self.element_count(), cache.len())?;
+        let elements = self.tets().iter().zip(self.rest());
+        for ((corners, rest), slot) in elements.zip(cache.iter_mut()) {
+            *slot = TetHessian::exact(material, rest, gather(positions, corners));
+        }
+        Ok(())
+    }
+
     /// Adds `H d` (N) into `out`: the mesh Hessian represented by `cache` (from
     /// [`projected_hessians`](TetMesh::projected_hessians), or [`TetHessian::exact`] per element)
     /// times the per-vertex `direction` (m).

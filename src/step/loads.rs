@@ -25,6 +25,9 @@ pub(crate) struct Loads<'a, V> {
     pub forces: &'a [V],
     /// Empty or one mask per vertex (bit 0 x, 1 y, 2 z).
     pub fixed_axes: &'a [u8],
+    /// The fraction of `forces` applied (1 but in the load steps of Newton's continuation,
+    /// `step/descent/newton/continuation.rs`; `f * 1` is `f`, bit for bit).
+    pub scale: Real,
 }
 
 impl<V: Vector> Loads<'_, V> {
@@ -61,7 +64,9 @@ impl<V: Vector> Loads<'_, V> {
     /// The external force on vertex `i` (zero past the end).
     #[inline(always)]
     pub fn force(&self, i: usize) -> V {
-        self.forces.get(i).copied().unwrap_or(V::zero())
+        self.forces
+            .get(i)
+            .map_or(V::zero(), |force| force.scale(self.scale))
     }
 
     /// `v` without its fixed components at vertex `i`.

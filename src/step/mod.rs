@@ -239,8 +239,8 @@ pub use contact::{
 #[cfg(feature = "alloc")]
 pub use descent::newton::{MAX_COARSE, Multilevel, REBUILD_FACTOR};
 pub use descent::newton::{
-    NewtonDetails, NewtonOptions, NewtonReport, NewtonScratch, NewtonSettings, Preconditioner,
-    newton_quasi_static, newton_step,
+    LOAD_UNITS, NewtonDetails, NewtonOptions, NewtonReport, NewtonScratch, NewtonSettings,
+    Preconditioner, automatic_cg_budget, newton_quasi_static, newton_step,
 };
 pub use descent::relax::{
     RelaxOptions, RelaxReport, RelaxScratch, RelaxSettings, gradient_descent_quasi_static,

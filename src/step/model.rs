@@ -150,6 +150,23 @@ pub trait ElasticHessian: ElasticEnergy<Vector = Vec3> {
         cache: &mut [TetHessian],
     ) -> Result<(), MeshError>;
 
+    /// Writes the exact (unprojected, possibly indefinite) Hessian data of every element at
+    /// `positions` (m) into `cache` and returns `true`, or returns `false` without writing
+    /// anything where the model has none (the default): Newton's method then keeps the
+    /// projected Hessian near the solution too (`docs/math.md` section 7.1.2).
+    ///
+    /// # Errors
+    /// As [`TetMesh::exact_hessians`]; `cache` unchanged then.
+    #[inline]
+    fn exact_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<bool, MeshError> {
+        let _ = (positions, cache);
+        Ok(false)
+    }
+
     /// Adds `H d` (N) into `out` for the Hessian in `cache` and the direction `direction` (m).
     ///
     /// # Errors
@@ -325,6 +342,15 @@ impl<M: Material> ElasticHessian for TetElastic<'_, M> {
     ) -> Result<(), MeshError> {
         self.mesh
             .projected_hessians(&self.material, positions, cache)
+    }
+    fn exact_hessians(
+        &self,
+        positions: &[Vec3],
+        cache: &mut [TetHessian],
+    ) -> Result<bool, MeshError> {
+        self.mesh
+            .exact_hessians(&self.material, positions, cache)
+            .map(|()| true)
     }
     fn add_hessian_product(
         &self,

@@ -189,6 +189,7 @@ impl<'a, V: Vector> Scene<'a, V> {
         Loads {
             forces: self.external_forces,
             fixed_axes: self.fixed_axes,
+            scale: 1.0,
         }
     }
 }

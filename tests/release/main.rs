@@ -14,6 +14,8 @@ mod common;
 mod body;
 #[path = "../steppers/colliders.rs"]
 mod colliders;
+#[path = "../steppers/one_call.rs"]
+mod one_call;
 #[path = "../steppers/parallel.rs"]
 mod parallel;
 #[path = "../kernels/simd.rs"]

@@ -25,6 +25,7 @@ mod loads;
 #[cfg(feature = "alloc")]
 mod multilevel;
 mod newton;
+mod one_call;
 mod parallel;
 mod pile;
 mod reactions;

@@ -422,6 +422,28 @@ fn admit_guess<F: ElasticEnergy>(
     Ok(true)
 }
 
+/// The fraction of the iterate's slope `g.d` that the slope at an accepted full step must
+/// still exceed in magnitude for the step to be doubled ([`Descender::expand`]): Wolfe's
+/// curvature constant `c2` of a Newton line search is 0.9 ([NW06] section 3.1); 0.5 doubles
+/// only where the step was clearly short.
+const EXPAND_SLOPE: Real = 0.5;
+
+/// A trial point's evaluation, or `None` where the model did not admit the step.
+struct Trial(Option<Evaluation>);
+
+impl Trial {
+    /// The evaluation where `keep` holds and the step was admitted.
+    fn filter(self, keep: bool) -> Option<Evaluation> {
+        self.0.filter(|_| keep)
+    }
+
+    /// `Phi` at the trial (infinite where the step was not admitted).
+    #[inline]
+    fn phi(&self) -> Real {
+        self.0.as_ref().map_or(Real::INFINITY, |e| e.phi)
+    }
+}
+
 /// What the loop does after a phase of an iteration.
 pub(super) enum Flow {
     /// Go on: the next iteration, if the stopping test and the budget allow.
@@ -828,6 +850,9 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
                     && slope_along(trial_gradient, direction)
                         <= (2.0 * settings.armijo - 1.0) * slope)
             {
+                if attempt == 0 && settings.max_expansions > 0 {
+                    return self.expand(slope, evaluation);
+                }
                 return Ok(LineSearch::Accepted(evaluation));
             }
             if attempt == 0 && self.rule.fall_back() {
@@ -837,6 +862,82 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
             self.report.backtracks += 1;
         }
         Ok(LineSearch::Failed)
+    }
+
+    /// After a full first step passed the line search: while the slope at the accepted point
+    /// is still more than [`EXPAND_SLOPE`] times the slope at the iterate (the curvature test
+    /// of Wolfe's conditions fails: the direction's model was too stiff along it, as the
+    /// projected Hessian is along a buckling mode), the step is doubled, up to
+    /// `max_expansions` times, and kept where `Phi` falls further and still passes the Armijo
+    /// test; the first doubling that does not goes back to the last step kept (evaluated
+    /// again: the trial buffer held the rejected point). Nocedal and Wright's bracketing phase
+    /// of a Wolfe line search ([NW06] algorithm 3.5, `docs/math.md` section 7.1.5).
+    ///
+    /// # Errors
+    /// The model's.
+    fn expand(&mut self, slope: Real, accepted: Evaluation) -> Result<LineSearch, StepError> {
+        let settings = self.settings;
+        let mut best = accepted;
+        for _ in 0..settings.max_expansions {
+            let points = &mut self.points;
+            let trial_slope = slope_along(&*points.trial_gradient, &*self.direction);
+            let steep = trial_slope <= EXPAND_SLOPE * slope;
+            if !steep {
+                break;
+            }
+            let kept = self.alpha;
+            self.alpha *= 2.0;
+            let trial = self.evaluate_trial()?;
+            let phi = trial.phi();
+            let sufficient = phi.is_finite()
+                && phi < best.phi
+                && phi - self.report.phi <= settings.armijo * self.alpha * slope;
+            if let Some(evaluation) = trial.filter(sufficient) {
+                best = evaluation;
+                continue;
+            }
+            self.alpha = kept;
+            match self.evaluate_trial()?.filter(true) {
+                Some(evaluation) => best = evaluation,
+                None => break,
+            }
+            break;
+        }
+        Ok(LineSearch::Accepted(best))
+    }
+
+    /// Forms the trial point at the step `alpha` along the direction and evaluates it
+    /// (friction lagged to the iterate); `None` inside where the model does not admit the
+    /// step (contact).
+    ///
+    /// # Errors
+    /// The model's.
+    fn evaluate_trial(&mut self) -> Result<Trial, StepError> {
+        let objective = self.objective;
+        let points = &mut self.points;
+        split_trial_pass(
+            objective.model,
+            &objective.frames,
+            objective.vertices.pinned,
+            (points.current, self.direction),
+            self.alpha,
+            TrialPoint {
+                positions: points.other,
+                gradient: points.trial_gradient,
+            },
+        );
+        objective.loads.restore_fixed(points.current, points.other);
+        if objective
+            .model
+            .admissible_step(points.current, points.other)?
+            < 1.0
+        {
+            return Ok(Trial(None));
+        }
+        let lag = Lag::new(points.current, points.gradient);
+        let evaluation = objective.evaluate(points.other, points.trial_gradient, Some(lag))?;
+        self.report.energy_evaluations += 1;
+        Ok(Trial(Some(evaluation)))
     }
 
     /// The evaluated trial point becomes the iterate: friction re-lagged to it, the points

@@ -245,6 +245,12 @@ pub(crate) struct LoopSettings {
     /// Whether to also try [`Objective::rigid_guess`] after Coulomb friction on the velocity
     /// (VBD, see [`Start::try_rigid`]).
     pub rigid_guess: bool,
+    /// Whether a quasi-static solve that did not converge restores the start positions, as a
+    /// failed one does (Newton's load steps, `newton/continuation.rs`, retry from there).
+    pub restore_unconverged: bool,
+    /// How many times a full first step that passed the line search may be doubled while the
+    /// slope stays steep (`descend.rs`, `Descender::expand`; 0 for never).
+    pub max_expansions: u32,
 }
 
 impl LoopSettings {
@@ -264,6 +270,8 @@ impl LoopSettings {
             acceleration: AccelerationSettings::NONE,
             stall,
             rigid_guess: false,
+            restore_unconverged: false,
+            max_expansions: 0,
         }
     }
 }
@@ -627,6 +635,9 @@ pub(crate) fn solve<F: ElasticEnergy, D: Direction<F>>(
             if let Some(vertex) = finish.quasi_static(problem.model, positions, spare) {
                 restore(positions);
                 return Err(StepError::NonFiniteState { vertex });
+            }
+            if settings.restore_unconverged && !summary.converged {
+                restore(positions);
             }
         }
     }

@@ -31,6 +31,12 @@ pub(crate) struct Newton<'b> {
     pub normal: Option<Vec3>,
     /// CG iterations so far.
     pub cg_iterations: u32,
+    /// The most CG iterations of one linear solve so far.
+    pub largest_linear_solve: u32,
+    /// Linear solves that ended on the budget (truncated) so far.
+    pub truncated_solves: u32,
+    /// When to take the exact Hessian instead of the projected one.
+    pub exact: ExactSwitch,
     /// The multilevel preconditioner, where the settings ask for it.
     #[cfg(feature = "alloc")]
     pub multilevel: Option<&'b mut Multilevel>,
@@ -59,6 +65,9 @@ impl<'b> Newton<'b> {
             max_cg_iterations,
             normal,
             cg_iterations: 0,
+            largest_linear_solve: 0,
+            truncated_solves: 0,
+            exact: ExactSwitch::default(),
             #[cfg(feature = "alloc")]
             multilevel: None,
             #[cfg(feature = "alloc")]
@@ -112,6 +121,77 @@ impl Forcing {
     }
 }
 
+/// The fraction of the residual at a failed exact-Hessian iteration below which the exact
+/// Hessian is tried again: a failure (negative curvature, an indefinite diagonal block, a
+/// rejected full step) says the iterate is outside the region where the exact Hessian is
+/// positive definite, and Newton's projected steps must first bring the residual down by this
+/// factor (`docs/math.md` section 7.1.2).
+pub(crate) const EXACT_RETRY: Real = 1.0 / 64.0;
+
+/// The switch from the projected to the exact element Hessians near the solution (`docs/math.md`
+/// section 7.1.2): the exact Hessian is taken at an iterate whose residual is at most half the
+/// previous iterate's (the projected steps converge there: a full Newton step was as good as
+/// the model predicts) and below [`EXACT_RETRY`] times the residual of the last failure; a
+/// linear solve that meets non-positive curvature or an indefinite preconditioner block, and a
+/// first trial step the line search rejects, fall back to the projected Hessian at the same
+/// iterate.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ExactSwitch {
+    /// The model has no exact Hessians (it answered `false`).
+    unsupported: bool,
+    /// The residual at the previous iterate (N).
+    previous: Option<Real>,
+    /// Exact Hessians are tried only below this residual (N).
+    retry_below: Real,
+    /// Whether the direction just computed came from the exact Hessian.
+    in_use: bool,
+    /// Whether the next search is at the iterate of the last one (after a fallback).
+    redo: bool,
+    /// The Newton iterations whose direction came from the exact Hessian.
+    pub iterations: u32,
+    /// The fallbacks to the projected Hessian.
+    pub fallbacks: u32,
+}
+
+impl Default for ExactSwitch {
+    fn default() -> Self {
+        ExactSwitch {
+            unsupported: false,
+            previous: None,
+            retry_below: Real::INFINITY,
+            in_use: false,
+            redo: false,
+            iterations: 0,
+            fallbacks: 0,
+        }
+    }
+}
+
+impl ExactSwitch {
+    /// A switch that never takes the exact Hessian (implicit Euler steps: the mass term keeps
+    /// the projected Hessian close, and their bits stay those of every model alike).
+    pub(crate) fn off() -> Self {
+        ExactSwitch {
+            unsupported: true,
+            ..ExactSwitch::default()
+        }
+    }
+
+    /// Whether to try the exact Hessian at an iterate of residual `residual`; records it.
+    fn wanted(&mut self, residual: Real) -> bool {
+        let halved = self.previous.is_some_and(|previous| residual <= 0.5 * previous);
+        self.previous = Some(residual);
+        !self.unsupported && halved && residual < self.retry_below
+    }
+
+    /// The exact Hessian failed at an iterate of residual `residual`.
+    fn failed(&mut self, residual: Real) {
+        self.in_use = false;
+        self.fallbacks += 1;
+        self.retry_below = residual * EXACT_RETRY;
+    }
+}
+
 impl<F: ElasticHessian> Direction<F> for Newton<'_> {
     fn begin(&mut self, _objective: &Objective<'_, F>, x: &[Vec3]) {
         // Every coordinate is known to its rounding, half an ulp: `eps max |x| / 2` at most.
@@ -124,7 +204,24 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
         let (objective, at, direction) = (search.objective, search.at, search.direction);
         let model = objective.model;
         let (masses, pinned) = (objective.vertices.masses, objective.vertices.pinned);
-        model.projected_hessians(at.x, self.hessians)?;
+        let mut exact = self.exact.wanted(at.residual);
+        // A multilevel hierarchy is built from the projected Hessians only (its coarse
+        // Cholesky factors need them semi-definite): an iteration that rebuilds keeps them.
+        #[cfg(feature = "alloc")]
+        if exact
+            && !self.multilevel_unsupported
+            && let Some(multilevel) = self.multilevel.as_deref()
+            && multilevel.needs_build(at.x.len())
+        {
+            exact = false;
+        }
+        if exact {
+            exact = model.exact_hessians(at.x, self.hessians)?;
+            self.exact.unsupported = !exact;
+        }
+        if !exact {
+            model.projected_hessians(at.x, self.hessians)?;
+        }
         // Friction's tangent blocks at the iterate, with its own normal forces
         // (`step/contact/friction.rs`).
         let friction = &objective.friction;
@@ -137,14 +234,6 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
             let (x, x0, g) = (at_vertex(at.x)?, at_vertex(start)?, at_vertex(at.gradient)?);
             friction.block(x, x0, g)
         };
-        let stiffness_squared = invert_blocks(
-            model,
-            self.hessians,
-            (masses, pinned, objective.inertia),
-            &rough,
-            self.blocks,
-        )?;
-        self.floor = rounding_floor(self.reach, stiffness_squared);
         let constraints = Constraints {
             pinned,
             fixed_axes: objective.loads.fixed_axes,
@@ -153,42 +242,84 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
             x: at.x,
             gradient: at.gradient,
         };
-        let eta = self.forcing.next(at);
-        #[cfg(feature = "alloc")]
-        let multilevel = match self.multilevel.as_deref_mut() {
-            Some(multilevel) if !self.multilevel_unsupported => {
-                if multilevel.needs_build(at.x.len()) {
-                    let inertia = objective.inertia;
-                    let diagonal = |i: usize| {
-                        let m = masses.get(i).copied().unwrap_or(0.0);
-                        let block = Mat3::from_diagonal(Vec3::splat(m * inertia));
-                        rough(i).map_or(block, |friction| block + friction)
-                    };
-                    let projection = |i: usize| projection_matrix(|v| constraints.apply(i, v));
-                    let built =
-                        multilevel.rebuild(model, self.hessians, at.x, &diagonal, &projection)?;
-                    self.multilevel_unsupported = !built;
-                }
-                if self.multilevel_unsupported {
-                    None
-                } else {
-                    Some(multilevel)
-                }
-            }
-            _ => None,
+        // A second search at the same iterate (after `fall_back`) keeps its forcing term.
+        let eta = match (self.exact.redo, self.forcing.last) {
+            (true, Some((_, eta))) => eta,
+            _ => self.forcing.next(at),
         };
-        #[cfg(not(feature = "alloc"))]
-        let multilevel: Option<&mut GlobalPreconditioner> = None;
-        let (iterations, _reduction) = conjugate_gradients(
-            model,
-            (self.hessians, self.blocks, masses, objective.inertia),
-            &rough,
-            &constraints,
-            (eta, self.max_cg_iterations),
-            direction,
-            (&mut self.cg, multilevel),
-        )?;
-        self.cg_iterations += iterations;
+        self.exact.redo = false;
+        loop {
+            let (stiffness_squared, indefinite) = invert_blocks(
+                model,
+                self.hessians,
+                (masses, pinned, objective.inertia),
+                &rough,
+                self.blocks,
+            )?;
+            if exact && indefinite > 0 {
+                // Block Jacobi needs positive definite blocks: not near enough yet.
+                exact = false;
+                self.exact.failed(at.residual);
+                model.projected_hessians(at.x, self.hessians)?;
+                continue;
+            }
+            self.floor = rounding_floor(self.reach, stiffness_squared);
+            #[cfg(feature = "alloc")]
+            let multilevel = match self.multilevel.as_deref_mut() {
+                Some(multilevel) if !self.multilevel_unsupported => {
+                    if multilevel.needs_build(at.x.len()) {
+                        let inertia = objective.inertia;
+                        let diagonal = |i: usize| {
+                            let m = masses.get(i).copied().unwrap_or(0.0);
+                            let block = Mat3::from_diagonal(Vec3::splat(m * inertia));
+                            rough(i).map_or(block, |friction| block + friction)
+                        };
+                        let projection =
+                            |i: usize| projection_matrix(|v| constraints.apply(i, v));
+                        let built = multilevel.rebuild(
+                            model,
+                            self.hessians,
+                            at.x,
+                            &diagonal,
+                            &projection,
+                        )?;
+                        self.multilevel_unsupported = !built;
+                    }
+                    if self.multilevel_unsupported {
+                        None
+                    } else {
+                        Some(multilevel)
+                    }
+                }
+                _ => None,
+            };
+            #[cfg(not(feature = "alloc"))]
+            let multilevel: Option<&mut GlobalPreconditioner> = None;
+            let outcome = conjugate_gradients(
+                model,
+                (self.hessians, self.blocks, masses, objective.inertia),
+                &rough,
+                &constraints,
+                (eta, self.max_cg_iterations),
+                direction,
+                (&mut self.cg, multilevel),
+            )?;
+            self.cg_iterations += outcome.iterations;
+            self.largest_linear_solve = self.largest_linear_solve.max(outcome.iterations);
+            if exact && outcome.negative_curvature {
+                // The exact Hessian is indefinite here: the projected one at the same iterate.
+                exact = false;
+                self.exact.failed(at.residual);
+                model.projected_hessians(at.x, self.hessians)?;
+                continue;
+            }
+            if outcome.truncated {
+                self.truncated_solves += 1;
+            }
+            break;
+        }
+        self.exact.in_use = exact;
+        self.exact.iterations += u32::from(exact);
         Ok(slope_and_trial_pass(
             model,
             &objective.frames,
@@ -206,6 +337,18 @@ impl<F: ElasticHessian> Direction<F> for Newton<'_> {
 
     fn rounding_floor(&self) -> Real {
         self.floor
+    }
+
+    fn fall_back(&mut self) -> bool {
+        // A direction from the exact Hessian that is not downhill, or whose full step the line
+        // search rejects: the projected Hessian at the same iterate instead (7.1.2).
+        if !self.exact.in_use {
+            return false;
+        }
+        let residual = self.exact.previous.unwrap_or(Real::INFINITY);
+        self.exact.failed(residual);
+        self.exact.redo = true;
+        true
     }
 }
 
@@ -263,19 +406,21 @@ impl Constraints<'_> {
 /// whose determinant is below `eps max(diag)^3` (singular or nearly: a vertex with no stiffness and
 /// no inertia) is replaced by the inverse of its diagonal, zero where a diagonal entry is not
 /// positive. Returns `sum |B_i + m_i / h^2 I|_F^2` over the free vertices (N^2/m^2), for the
-/// rounding floor: a sum over vertex blocks (`step/vertex_pass/mod.rs`), as every sum of this file.
+/// rounding floor: a sum over vertex blocks (`step/vertex_pass/mod.rs`), as every sum of this file;
+/// and the number of free vertices whose block is not positive definite (Sylvester's test),
+/// which only the exact Hessian can have.
 fn invert_blocks<F: ElasticHessian>(
     model: &F,
     hessians: &[TetHessian],
     (masses, pinned, inertia): (&[Real], &[bool], Real),
     rough: &(impl Fn(usize) -> Option<Mat3> + Sync),
     blocks: &mut [Mat3],
-) -> Result<Real, StepError> {
+) -> Result<(Real, usize), StepError> {
     let clear = |_, blocks: &mut [Mat3]| blocks.fill(Mat3::ZERO);
     model.run_vertex_pass(Blocks::new(blocks.len(), &mut *blocks, &clear));
     model.add_vertex_hessian_blocks(hessians, blocks)?;
     let invert = |first: usize, (blocks, masses): (&mut [Mat3], &[Real])| {
-        let mut stiffness_squared = 0.0;
+        let (mut stiffness_squared, mut indefinite) = (0.0, 0);
         for (j, (block, &m)) in blocks.iter_mut().zip(masses).enumerate() {
             let i = first + j;
             let mut b = *block + Mat3::from_diagonal(Vec3::splat(m * inertia));
@@ -286,10 +431,11 @@ fn invert_blocks<F: ElasticHessian>(
                 stiffness_squared += b.x_axis.length_squared()
                     + b.y_axis.length_squared()
                     + b.z_axis.length_squared();
+                indefinite += usize::from(!positive_definite(b));
             }
             *block = inverted(b);
         }
-        stiffness_squared
+        (stiffness_squared, indefinite)
     };
     Ok(model.run_vertex_pass(Blocks::new(blocks.len(), (blocks, masses), &invert)))
 }
@@ -317,6 +463,24 @@ fn inverted(b: Mat3) -> Mat3 {
 #[inline(always)]
 fn positive(x: Real) -> bool {
     x > 0.0
+}
+
+/// Whether the symmetric `b` is positive definite: its leading principal minors are positive
+/// (Sylvester's criterion; false for NaN).
+#[inline(always)]
+fn positive_definite(b: Mat3) -> bool {
+    let minor = b.x_axis.x * b.y_axis.y - b.x_axis.y * b.y_axis.x;
+    positive(b.x_axis.x) && positive(minor) && positive(b.determinant())
+}
+
+/// How a linear solve ended.
+pub(crate) struct CgOutcome {
+    /// The CG iterations it took.
+    pub iterations: u32,
+    /// Whether it met a direction of non-positive curvature `p . A p <= 0`.
+    pub negative_curvature: bool,
+    /// Whether it ended on the budget before the forcing term's residual.
+    pub truncated: bool,
 }
 
 /// A block's share of conjugate gradients' five vectors.
@@ -347,7 +511,7 @@ fn conjugate_gradients<F: ElasticHessian>(
     (eta, max): (Real, u32),
     direction: &mut [Vec3],
     (cg, mut multilevel): (&mut CgVectors<'_>, Option<&mut GlobalPreconditioner>),
-) -> Result<(u32, Real), StepError> {
+) -> Result<CgOutcome, StepError> {
     let local = multilevel.is_none();
     let CgVectors {
         residual,
@@ -411,6 +575,7 @@ fn conjugate_gradients<F: ElasticHessian>(
     let stop = eta * initial;
     let mut last = initial;
     let mut iterations = 0;
+    let mut negative_curvature = false;
     // q = S (H p + M / h^2 p + F p) from q = H p; the curvature p.q.
     let complete = |first: usize, (product, conjugate): (&mut [Vec3], &[Vec3])| {
         let mut curvature = -0.0;
@@ -431,6 +596,7 @@ fn conjugate_gradients<F: ElasticHessian>(
         let parts = (&mut **product, &**conjugate);
         let curvature = model.run_vertex_pass(Blocks::new(n, parts, &complete));
         if !positive(curvature) {
+            negative_curvature = true;
             if iterations == 0 {
                 // No curvature along the preconditioned gradient (a body free to move rigidly
                 // without inertia): take that descent direction for the line search.
@@ -493,12 +659,16 @@ fn conjugate_gradients<F: ElasticHessian>(
         let parts = (&mut **conjugate, &mut **product, &**preconditioned);
         model.run_vertex_pass(Blocks::new(n, parts, &next));
     }
-    let reduction = if initial > 0.0 { last / initial } else { 1.0 };
     #[cfg(feature = "alloc")]
     if let Some(global) = multilevel {
+        let reduction = if initial > 0.0 { last / initial } else { 1.0 };
         global.record(iterations, reduction);
     }
-    Ok((iterations, reduction))
+    Ok(CgOutcome {
+        iterations,
+        negative_curvature,
+        truncated: iterations >= max && last > stop,
+    })
 }
 
 /// A preconditioner applied to the whole residual at once (not vertex by vertex).

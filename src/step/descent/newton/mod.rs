@@ -5,15 +5,23 @@
 //! `alloc`, `Preconditioner::Multilevel`) by smoothed-aggregation multigrid
 //! (`step/descent/newton/amg/`, `docs/math.md` section 7.1.1).
 //!
-//! The algorithm and the stopping test are documented on [`newton_step`].
+//! The algorithm and the stopping test are documented on [`newton_step`]; the exact Hessian
+//! near the solution, the load steps (`step/descent/newton/continuation.rs`) and the longer
+//! steps along a too-stiff model on [`newton_quasi_static`] (`docs/math.md` sections 7.1.2 to
+//! 7.1.5).
 
 #[cfg(feature = "alloc")]
 mod amg;
 mod cg;
+mod continuation;
+
+#[cfg(not(feature = "alloc"))]
+use core::marker::PhantomData;
 
 use super::super::super::element::TetHessian;
 use super::super::super::types::{Mat3, Real, Vec3};
-use super::super::descent::{self, LoopSettings, SolveInputs, Work};
+use super::super::super::math;
+use super::super::descent::{self, LoopSettings, Problem, SolveInputs, Summary, Work};
 use super::super::model::ElasticHessian;
 use super::super::scene::Scene;
 use super::super::scratch_len;
@@ -21,13 +29,15 @@ use super::super::state::check_length;
 use super::settings::{DescentReport, DescentSettings};
 use super::stopping::StallRule;
 use crate::error::{StepBuffer, StepError};
-use cg::{CgVectors, Newton};
+use cg::{CgVectors, ExactSwitch, Newton};
 
 #[cfg(feature = "alloc")]
 pub use amg::{MAX_COARSE, Multilevel, REBUILD_FACTOR};
 
 /// Scratch space of Newton's method over caller buffers of the lengths of
 /// [`scratch_len::newton`] (checked by the solvers). Nothing in it survives between solves.
+/// The load steps of [`newton_quasi_static`] need no more: each step starts from the loop's
+/// copy of its start positions.
 #[derive(Debug)]
 pub struct NewtonScratch<'a> {
     vectors: &'a mut [Vec3],
@@ -90,19 +100,66 @@ pub enum Preconditioner {
     Multilevel,
 }
 
-/// What only Newton's method has: the conjugate-gradient budget of its linear solves. The
-/// rest of [`NewtonSettings`] is shared with every implicit solver ([`DescentSettings`]).
+/// What only Newton's method has: the conjugate-gradient budget of its linear solves, its
+/// preconditioner and the budget of its load steps. The rest of [`NewtonSettings`] is shared
+/// with every implicit solver ([`DescentSettings`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NewtonOptions {
-    /// The budget of conjugate-gradient iterations per Newton iteration (at least 1). The
-    /// forcing term ends CG long before it on most steps; the budget only bounds the rest. Too
-    /// small a budget is costly: on a slender 10 800-tet static cantilever, 200 CG iterations a
-    /// Newton iteration left Newton unconverged after 50 iterations (truncated directions),
-    /// where the default 2000 converged in 9 (1216 CG in all).
+    /// The budget of conjugate-gradient iterations per Newton iteration (at least 1), or
+    /// [`AUTOMATIC_CG`](Self::AUTOMATIC_CG) (the default) for a budget that follows the problem
+    /// and the preconditioner ([`automatic_cg_budget`]). The forcing term ends CG long before
+    /// it on most steps; the budget only bounds the rest. Too small a budget is costly: on a
+    /// slender 10 800-tet static cantilever, 200 CG iterations a Newton iteration left Newton
+    /// unconverged after 50 iterations (truncated directions), where 2000 converged in 9 (1216
+    /// CG in all).
     pub max_cg_iterations: u32,
     /// The preconditioner of the linear solves ([`Preconditioner::BlockJacobi`] by default).
     pub preconditioner: Preconditioner,
+    /// The most load steps a quasi-static solve ([`newton_quasi_static`]) tries after its
+    /// full-load solve fails (accepted and rejected ones together; 0: none, the one solve
+    /// answers). 32 by default; see [`newton_quasi_static`] for the continuation.
+    pub max_load_steps: u32,
 }
+
+impl NewtonOptions {
+    /// The value of [`max_cg_iterations`](Self::max_cg_iterations) that asks for the automatic
+    /// budget ([`automatic_cg_budget`]).
+    pub const AUTOMATIC_CG: u32 = u32::MAX;
+}
+
+/// The automatic conjugate-gradient budget per Newton iteration
+/// ([`NewtonOptions::AUTOMATIC_CG`]) for a body of `free_vertices` vertices that are not
+/// pinned: with block Jacobi, whose CG iterations grow with `1 / h`, that is with the cube root
+/// of the vertex count, `max(2000, 250 cbrt(free_vertices))` (2000 up to 512 free vertices;
+/// `docs/math.md` section 7.1.3 has the measurement that chose it); with the multilevel
+/// preconditioner, whose count stays about flat, 200.
+#[must_use]
+pub fn automatic_cg_budget(preconditioner: Preconditioner, free_vertices: usize) -> u32 {
+    match preconditioner {
+        Preconditioner::BlockJacobi => {
+            // `free_vertices` as a float is exact to 2^24 (f32); the cube root's rounding does
+            // not matter to a budget.
+            #[allow(clippy::cast_precision_loss)]
+            let root = math::cbrt(free_vertices as Real);
+            let scaled = BLOCK_JACOBI_CG_PER_ROOT * root;
+            // Saturating: a budget beyond u32 is no budget.
+            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+            let scaled = if scaled < 4.0e9 { scaled as u32 } else { 4_000_000_000 };
+            scaled.max(MIN_CG_BUDGET)
+        }
+        #[cfg(feature = "alloc")]
+        Preconditioner::Multilevel => MULTILEVEL_CG_BUDGET,
+    }
+}
+
+/// The smallest automatic block-Jacobi budget (the former fixed default).
+const MIN_CG_BUDGET: u32 = 2000;
+/// The automatic block-Jacobi budget per cube root of the free vertex count (`docs/math.md`
+/// section 7.1.3).
+const BLOCK_JACOBI_CG_PER_ROOT: Real = 250.0;
+/// The automatic budget with the multilevel preconditioner (`docs/math.md` section 7.1.3).
+#[cfg(feature = "alloc")]
+const MULTILEVEL_CG_BUDGET: u32 = 200;
 
 /// The settings of Newton's method ([`newton_step`], [`newton_quasi_static`]): the shared
 /// [`DescentSettings`] with [`NewtonOptions`]. The tolerance is reachable to `1e-8` and below
@@ -112,8 +169,9 @@ pub struct NewtonOptions {
 pub type NewtonSettings = DescentSettings<NewtonOptions>;
 
 impl DescentSettings<NewtonOptions> {
-    /// Relative tolerance `1e-4`, 50 Newton and 2000 CG iterations, Armijo `c = 1e-4`,
-    /// `beta = 0.5`, 30 backtracks.
+    /// Relative tolerance `1e-4`, 50 Newton iterations (per load step), the automatic CG
+    /// budget, block Jacobi, at most 32 load steps, Armijo `c = 1e-4`, `beta = 0.5`, 30
+    /// backtracks.
     #[inline]
     #[must_use]
     pub const fn new() -> Self {
@@ -124,8 +182,9 @@ impl DescentSettings<NewtonOptions> {
             backtrack: 0.5,
             max_backtracks: 30,
             options: NewtonOptions {
-                max_cg_iterations: 2000,
+                max_cg_iterations: NewtonOptions::AUTOMATIC_CG,
                 preconditioner: Preconditioner::BlockJacobi,
+                max_load_steps: 32,
             },
         }
     }
@@ -137,6 +196,20 @@ impl DescentSettings<NewtonOptions> {
         DescentSettings {
             options: NewtonOptions {
                 max_cg_iterations,
+                ..self.options
+            },
+            ..self
+        }
+    }
+
+    /// These settings with at most `max_load_steps` load steps after a failed full-load
+    /// quasi-static solve (0: none).
+    #[inline]
+    #[must_use]
+    pub fn with_load_steps(self, max_load_steps: u32) -> Self {
+        DescentSettings {
+            options: NewtonOptions {
+                max_load_steps,
                 ..self.options
             },
             ..self
@@ -178,7 +251,34 @@ pub struct NewtonDetails {
     /// Builds of the multilevel hierarchy during the solve (0 with block Jacobi, or where the
     /// model made it fall back to block Jacobi).
     pub multilevel_builds: u32,
+    /// The CG budget per Newton iteration the solve ran with (the setting, or the automatic
+    /// budget, [`automatic_cg_budget`]).
+    pub cg_budget: u32,
+    /// The most CG iterations one Newton iteration took.
+    pub largest_linear_solve: u32,
+    /// Linear solves that ended on the CG budget before their forcing term (truncated
+    /// directions).
+    pub truncated_solves: u32,
+    /// Newton iterations whose direction came from the exact (unprojected) element Hessians
+    /// (quasi-static solves only, `docs/math.md` section 7.1.2).
+    pub exact_iterations: u32,
+    /// Times the exact Hessian was given up for the projected one at an iterate (negative
+    /// curvature, an indefinite preconditioner block, a rejected full step).
+    pub exact_fallbacks: u32,
+    /// Load steps that converged after the full-load quasi-static solve failed (0 where it
+    /// converged at once; see [`newton_quasi_static`]).
+    pub load_steps: u32,
+    /// Load steps that did not converge (each halving the next increment).
+    pub rejected_load_steps: u32,
+    /// The load whose equilibrium `positions` hold, in units of `1 / LOAD_UNITS` of the full
+    /// load ([`LOAD_UNITS`] where the full load converged or no solve was tried; less where the
+    /// load steps ran out, `positions` then at that equilibrium).
+    pub load_reached: u32,
 }
+
+/// The unit of [`NewtonDetails::load_reached`]: `1 / LOAD_UNITS` of the full load, the smallest
+/// load step (`docs/math.md` section 7.1.4).
+pub const LOAD_UNITS: u32 = 1024;
 
 /// What a Newton solve did: the shared [`DescentReport`] with [`NewtonDetails`]. Its
 /// [`converged`](DescentReport::converged) also counts a stop at the rounding floor when that
@@ -323,8 +423,28 @@ pub fn newton_step<F: ElasticHessian>(
 /// and the ground's reaction. The body must be held (pins or ground) against rigid motion, or
 /// the Hessian is singular along it; vertices in no element do not move.
 ///
+/// # One call
+/// What [`newton_step`] does, and two things for static answers far from the start
+/// (`docs/math.md` sections 7.1.2 to 7.1.5):
+/// * near the solution the exact element Hessians replace the projected ones where they are
+///   positive definite, so that the last iterations converge quadratically (the projected
+///   Hessian again on negative curvature, an indefinite block or a rejected full step);
+/// * **load steps**: where the full-load solve does not converge (its budget is spent, or it
+///   stalls), `positions` are restored to the caller's and gravity and the external forces
+///   are applied in increments, each solved from the last equilibrium: first half the load,
+///   each increment halved after a step that fails and doubled after one that converges, at
+///   most [`NewtonOptions::max_load_steps`] tries (32 by default; 0: the one solve answers),
+///   none below `1 / LOAD_UNITS` of the load, each with four times the settings' Newton budget
+///   (near a bifurcation one step took 102 Newton iterations on the Cook membrane). The report counts the iterations and CG
+///   iterations of every solve, its residual, target and `phi` are the last step's, and
+///   [`converged`](DescentReport::converged) means the full load converged
+///   ([`NewtonDetails::load_steps`], [`NewtonDetails::load_reached`]: where the steps run out,
+///   `positions` hold the equilibrium of that fraction of the load). Prescribed displacements (pins the caller
+///   moved) are applied at once, not stepped.
+///
 /// # Errors
-/// As [`newton_step`] (without the time-step errors).
+/// As [`newton_step`] (without the time-step errors); a load step that ends in a non-finite
+/// state ([`StepError::NonFiniteState`]) is a step that failed, not an error.
 pub fn newton_quasi_static<F: ElasticHessian>(
     model: &F,
     masses: &[Real],
@@ -344,7 +464,9 @@ pub fn newton_quasi_static<F: ElasticHessian>(
     )
 }
 
-/// The shared solve of [`newton_step`] (`velocities` given) and [`newton_quasi_static`].
+/// The shared solve of [`newton_step`] (`velocities` given) and [`newton_quasi_static`]: the
+/// checks, then one solve at the full load and, for a quasi-static solve that fails, the load
+/// steps (`continuation.rs`).
 fn solve<F: ElasticHessian>(
     (model, masses, pinned): (&F, &[Real], &[bool]),
     scene: &Scene<'_, Vec3>,
@@ -369,53 +491,172 @@ fn solve<F: ElasticHessian>(
         let hessians = scratch.hessians.len();
         check_length(StepBuffer::HessianScratch, lengths.hessians, hessians)
     })?;
-    let problem = checked.problem((model, masses, pinned), &[], scene);
-
-    let (work, rest) = Work::split(scratch.vectors, n);
-    let (residual, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (preconditioned, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let (conjugate, product) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let cg = CgVectors {
-        residual,
-        preconditioned,
-        conjugate,
-        product,
+    let mut problem = checked.problem((model, masses, pinned), &[], scene);
+    let cg_budget = match settings.options.max_cg_iterations {
+        NewtonOptions::AUTOMATIC_CG => {
+            let free = (0..n)
+                .filter(|&i| !pinned.get(i).copied().unwrap_or(false))
+                .count();
+            automatic_cg_budget(settings.options.preconditioner, free)
+        }
+        budget => budget,
     };
-    let mut newton = Newton::new(
-        (&mut *scratch.hessians, &mut *scratch.blocks, cg),
-        settings.options.max_cg_iterations,
-        problem.ground.as_ref().map(|g| g.normal),
-    );
+    let quasi_static = velocities.is_none();
+    let load_steps = if quasi_static {
+        settings.options.max_load_steps
+    } else {
+        0
+    };
+    let NewtonScratch {
+        vectors,
+        blocks,
+        hessians,
+        #[cfg(feature = "alloc")]
+        multilevel: kept,
+    } = scratch;
     #[cfg(feature = "alloc")]
     let mut own = Multilevel::new();
     #[cfg(feature = "alloc")]
-    let builds_before = {
-        if settings.options.preconditioner == Preconditioner::Multilevel {
-            newton.multilevel = Some(match scratch.multilevel.as_deref_mut() {
-                Some(kept) => kept,
-                None => &mut own,
-            });
-        }
-        newton.multilevel.as_ref().map_or(0, |m| m.builds())
+    let mut multilevel = if settings.options.preconditioner == Preconditioner::Multilevel {
+        Some(match kept.as_deref_mut() {
+            Some(kept) => kept,
+            None => &mut own,
+        })
+    } else {
+        None
     };
-    let loop_settings = LoopSettings::new(settings, StallRule::Halving);
-    let summary = descent::solve(
-        &problem,
-        &loop_settings,
-        &mut newton,
-        positions,
-        velocities,
-        work,
-    )?;
-    #[cfg(feature = "alloc")]
-    let multilevel_builds = newton
-        .multilevel
-        .as_ref()
-        .map_or(0, |m| m.builds() - builds_before);
     #[cfg(not(feature = "alloc"))]
-    let multilevel_builds = 0;
-    Ok(summary.with_details(NewtonDetails {
-        cg_iterations: newton.cg_iterations,
-        multilevel_builds,
-    }))
+    let mut multilevel = PhantomData;
+    let mut attempt = Attempt {
+        settings,
+        max_iterations: settings.max_iterations,
+        quasi_static,
+        cg_budget,
+        restore_unconverged: load_steps > 0,
+        vectors,
+        blocks,
+        hessians,
+        multilevel: &mut multilevel,
+        totals: NewtonDetails {
+            cg_budget,
+            load_reached: LOAD_UNITS,
+            ..NewtonDetails::default()
+        },
+    };
+    let first = attempt.run(&problem, positions, velocities)?;
+    if first.converged || load_steps == 0 {
+        return Ok(first.with_details(attempt.totals));
+    }
+    continuation::load_steps(
+        (&mut problem, scene.gravity),
+        load_steps,
+        first,
+        positions,
+        &mut attempt,
+    )
+}
+
+/// How many times Newton's line search may double a full step whose end is still steeply
+/// downhill (`docs/math.md` section 7.1.5): up to `2^8` times the Newton step.
+const MAX_EXPANSIONS: u32 = 8;
+
+/// The multilevel preconditioner a solve keeps across its load steps (feature `alloc`).
+#[cfg(feature = "alloc")]
+type Kept<'b> = Option<&'b mut Multilevel>;
+
+/// Nothing to keep without `alloc`.
+#[cfg(not(feature = "alloc"))]
+type Kept<'b> = PhantomData<&'b mut ()>;
+
+/// One descent solve of Newton's method over the caller's scratch, with the counts of every
+/// solve so far.
+struct Attempt<'s, 'b> {
+    settings: &'s NewtonSettings,
+    /// The Newton iterations a solve may take (the settings' budget; more for a load step).
+    max_iterations: u32,
+    /// A quasi-static solve: the exact Hessian near the solution and the longer steps
+    /// (`docs/math.md` sections 7.1.2 and 7.1.5) are for these only.
+    quasi_static: bool,
+    cg_budget: u32,
+    /// Whether a solve that does not converge restores the start positions (the load steps).
+    restore_unconverged: bool,
+    vectors: &'s mut [Vec3],
+    blocks: &'s mut [Mat3],
+    hessians: &'s mut [TetHessian],
+    #[cfg_attr(not(feature = "alloc"), allow(dead_code))]
+    multilevel: &'s mut Kept<'b>,
+    /// The counts of every solve so far.
+    totals: NewtonDetails,
+}
+
+impl Attempt<'_, '_> {
+    /// Runs `problem` from `positions`; adds its counts to the totals and returns its summary,
+    /// with the iteration counts of every solve so far.
+    ///
+    /// # Errors
+    /// The descent loop's.
+    fn run<F: ElasticHessian>(
+        &mut self,
+        problem: &Problem<'_, F>,
+        positions: &mut [Vec3],
+        velocities: Option<&mut [Vec3]>,
+    ) -> Result<Summary, StepError> {
+        let n = problem.model.vertex_count();
+        let (work, rest) = Work::split(self.vectors, n);
+        let (residual, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+        let (preconditioned, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+        let (conjugate, product) = rest.split_at_mut_checked(n).unwrap_or_default();
+        let cg = CgVectors {
+            residual,
+            preconditioned,
+            conjugate,
+            product,
+        };
+        let mut newton = Newton::new(
+            (&mut *self.hessians, &mut *self.blocks, cg),
+            self.cg_budget,
+            problem.ground.as_ref().map(|g| g.normal),
+        );
+        if !self.quasi_static {
+            newton.exact = ExactSwitch::off();
+        }
+        #[cfg(feature = "alloc")]
+        let builds_before = {
+            newton.multilevel = self.multilevel.as_deref_mut();
+            newton.multilevel.as_ref().map_or(0, |m| m.builds())
+        };
+        let loop_settings = LoopSettings {
+            restore_unconverged: self.restore_unconverged,
+            max_expansions: if self.quasi_static {
+                MAX_EXPANSIONS
+            } else {
+                0
+            },
+            max_iterations: self.max_iterations,
+            ..LoopSettings::new(self.settings, StallRule::Halving)
+        };
+        let outcome = descent::solve(
+            problem,
+            &loop_settings,
+            &mut newton,
+            positions,
+            velocities,
+            work,
+        );
+        #[cfg(feature = "alloc")]
+        let multilevel_builds = newton
+            .multilevel
+            .as_ref()
+            .map_or(0, |m| m.builds() - builds_before);
+        #[cfg(not(feature = "alloc"))]
+        let multilevel_builds = 0;
+        let totals = &mut self.totals;
+        totals.cg_iterations += newton.cg_iterations;
+        totals.multilevel_builds += multilevel_builds;
+        totals.largest_linear_solve = totals.largest_linear_solve.max(newton.largest_linear_solve);
+        totals.truncated_solves += newton.truncated_solves;
+        totals.exact_iterations += newton.exact.iterations;
+        totals.exact_fallbacks += newton.exact.fallbacks;
+        outcome
+    }
 }
