@@ -808,3 +808,31 @@ fn the_contact_scene_rests_one_cube_on_the_other() {
         assert!(gap > 0.0 && gap <= 5e-4, "{precision}: {gap}");
     }
 }
+
+/// The rigid box of the firmware scenario (1 kg on the 1 kg jelly cube, coupled through
+/// `Body::step_with_reactions`, issue #42) rests on the cube after 30 steps: the floor carries
+/// both weights (within 1 %; measured 19.620 N of 19.62), the box sits on the compressed
+/// cube's top (below its 0.12 m start, above the cube's rest top).
+#[test]
+fn the_rigid_box_rests_on_the_body_and_the_floor_carries_both() {
+    let records = host_records();
+    let value = |name: &str| {
+        records
+            .as_slice()
+            .iter()
+            .find(|r| r.name == name)
+            .unwrap_or_else(|| panic!("no record {name:?}"))
+            .value
+    };
+    for precision in ["f32", "f64"] {
+        let height = value(&format!("{precision} rigid box on body, step 30 (height)"));
+        let floor = value(&format!("{precision} rigid box on body, floor force (N)"));
+        println!("{precision}: the box at {height:.4} m, the floor carries {floor:.3} N");
+        let weights = (1.0 + 1.0) * 9.81;
+        assert!(
+            (floor - weights).abs() < 0.01 * weights,
+            "{precision}: {floor} N"
+        );
+        assert!(height > 0.1 && height < 0.12, "{precision}: {height} m");
+    }
+}
