@@ -72,11 +72,12 @@ use super::element::{TetHessian, TetRest};
 use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
 use super::mesh::{TetMesh, TetRestBlock, rest_block_count};
+use super::step::contact::reaction::{recorded_reactions, recording_slots};
 use super::step::state::check_length;
 use super::step::{
-    Collider, ElasticModel, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, Reaction,
-    RelaxScratch, Scene, TetElastic, VbdScratch, VbdTopology, add_collider_reactions,
-    attachment_reaction, check_time_step, explicit_step, implicit_impulses, newton_step, relax_step, scratch_len,
+    Collider,  ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, Reaction,
+    RelaxScratch, Scene, TetElastic, VbdScratch, VbdTopology, 
+    attachment_reaction, check_time_step, explicit_step,  newton_step, relax_step, scratch_len,
     stable_time_step, vbd_step,
 };
 use super::types::{Mat3, Real, Vec3};
@@ -479,7 +480,7 @@ impl<S: Storage, M: Material> Body<S, M> {
         // Every solver's scratch has the automatic solver's eleven vectors per vertex: the
         // explicit stepper uses four, the relaxation and VBD five, Newton's method nine, and a
         // step recorded for reactions keeps its impulses and start velocities in the last two
-        // (see `reaction_slots`).
+        // (see `recording_slots`).
         let _ = solver;
         let needed = n.saturating_mul(auto::AUTO_VECTORS);
         capacity(
@@ -959,7 +960,8 @@ impl<S: Storage, M: Material> Body<S, M> {
         // attachment's impulse too.
         if reactions.is_some() {
             let n = self.vertex_count();
-            let (_, _, start_velocities) = reaction_slots(self.vectors.slice_mut(), n);
+            let slots = recording_slots(self.vectors.slice_mut(), n, RECORDED_IMPULSES);
+            let (_, _, start_velocities) = slots;
             copy_into(start_velocities, self.velocities.slice());
         }
         self.move_kinematic(dt);
@@ -996,27 +998,17 @@ impl<S: Storage, M: Material> Body<S, M> {
             n,
         );
         let model = TetElastic::new(mesh, self.material);
-        let (forces, impulses, start_velocities) = reaction_slots(self.vectors.slice_mut(), n);
-        let positions = self.positions.slice();
-        let (masses, pinned) = (self.masses.slice(), self.pinned.slice());
-        if explicit {
-            // The kinematic vertices' move at the step's start (the stepper saw them pinned).
-            let rows = impulses.iter_mut().zip(self.velocities.slice());
-            let rows = rows.zip(start_velocities.iter().zip(masses).zip(pinned));
-            for ((impulse, &v), ((&v0, &m), &pinned)) in rows {
-                if pinned {
-                    *impulse += (v - v0) * m;
-                }
-            }
-        } else {
-            forces.fill(Vec3::ZERO);
-            model.add_forces(positions, forces)?;
-            let state = (positions, &*forces);
-            let balance = (&*start_velocities, self.velocities.slice());
-            implicit_impulses(scene, (masses, pinned), state, balance, impulses)?;
-        }
-        reactions.fill(Reaction::ZERO);
-        add_collider_reactions(scene.colliders, (positions, pinned), impulses, reactions)
+        let slots = recording_slots(self.vectors.slice_mut(), n, RECORDED_IMPULSES);
+        let (forces, impulses, start_velocities) = slots;
+        recorded_reactions(
+            &model,
+            scene,
+            (self.masses.slice(), self.pinned.slice()),
+            (self.positions.slice(), self.velocities.slice()),
+            (forces, impulses, start_velocities),
+            explicit,
+            reactions,
+        )
     }
 
     /// The impulse (N s) each vertex received over the last step of
@@ -1176,23 +1168,8 @@ impl<S: Storage, M: Material> Body<S, M> {
     }
 }
 
-/// The solvers' vector scratch (eleven vectors per vertex) as a step recorded for reactions uses
-/// it: the first `n` vectors (elastic forces after an implicit step, free once the step is
-/// done), the tenth `n` (the contact impulses, which the explicit stepper, using at most the
-/// first five, records there) and the eleventh (the velocities at the step's start, where the
-/// automatic solver's frame copy keeps them too). Empty slices where the scratch is shorter,
-/// which the sizing rules out.
-fn reaction_slots(vectors: &mut [Vec3], n: usize) -> (&mut [Vec3], &mut [Vec3], &mut [Vec3]) {
-    let (forces, rest) = vectors.split_at_mut_checked(n).unwrap_or_default();
-    let middle = n.saturating_mul(RECORDED_IMPULSES - 1);
-    let (_, rest) = rest.split_at_mut_checked(middle).unwrap_or_default();
-    let (impulses, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
-    let start_velocities = rest.get_mut(..n).unwrap_or(&mut []);
-    (forces, impulses, start_velocities)
-}
-
 /// The explicit stepper's scratch (four vectors per vertex) and, where the step is `record`ed,
-/// the contact impulses' slot (see [`reaction_slots`]; else empty), both from the solvers' vector
+/// the contact impulses' slot (see `recording_slots`; else empty), both from the solvers' vector
 /// scratch.
 pub(super) fn explicit_slots(
     vectors: &mut [Vec3],
@@ -1211,7 +1188,7 @@ pub(super) fn explicit_slots(
 }
 
 /// The vector (counted per vertex from 0) of the scratch where a recorded step keeps the contact
-/// impulses (see [`reaction_slots`]).
+/// impulses, then the start velocities: after Newton's nine (`recording_slots` with `k` = 9).
 const RECORDED_IMPULSES: usize = 9;
 
 /// `source` into `target`, entry by entry: the storage sized both alike, but `copy_from_slice`

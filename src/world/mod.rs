@@ -89,11 +89,12 @@ use super::step::contact::model::CandidateReuse;
 use super::step::contact::model::{ContactCounts, FrictionPair};
 use super::step::contact::potential::{ContactBarrier, PairHessian};
 use super::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
+use super::step::contact::reaction::{recorded_reactions, recording_slots};
 use super::step::state::check_length;
 use super::step::{
-    Collider, ContactBuffersVbd, ElasticModel, ExplicitMemory, ExplicitScratch, HalfSpace,
+    Collider, ContactBuffersVbd,  ExplicitMemory, ExplicitScratch, HalfSpace,
     NewtonScratch, NewtonSettings, Reaction, RelaxScratch, Scene, VbdScratch, VbdTopology,
-    add_collider_reactions, check_time_step, explicit_step, implicit_impulses, newton_step,
+     check_time_step, explicit_step,  newton_step,
     relax_step, scratch_len, stable_time_step, vbd_step,
 };
 use super::types::{Mat3, Real, Vec3};
@@ -1139,18 +1140,16 @@ impl<S: WorldStorage, M: Material> World<S, M> {
         let explicit = matches!(report, StepReport::Explicit(_));
         let (model, parts) = self.contact_parts();
         let model = model.map_err(|error| StepError::Mesh(MeshError::Contact(error)))?;
-        let positions = &*parts.positions;
         let (forces, impulses, start_velocities) = recording_slots(parts.vectors, n, k);
-        if !explicit {
-            forces.fill(Vec3::ZERO);
-            model.add_forces(positions, forces)?;
-            let state = (positions, &*forces);
-            let balance = (&*start_velocities, &*parts.velocities);
-            implicit_impulses(scene, (parts.masses, parts.pinned), state, balance, impulses)?;
-        }
-        reactions.fill(Reaction::ZERO);
-        let state = (positions, parts.pinned);
-        add_collider_reactions(scene.colliders, state, impulses, reactions)
+        recorded_reactions(
+            &model,
+            scene,
+            (parts.masses, parts.pinned),
+            (&*parts.positions, &*parts.velocities),
+            (forces, impulses, start_velocities),
+            explicit,
+            reactions,
+        )
     }
 
     /// Grows the contact list `buffer` to hold `needed` entries with room to spare; `false`
@@ -1501,24 +1500,6 @@ fn solver_vectors(solver: &Solver) -> usize {
         Solver::Vbd(_) => 6,
         Solver::Auto(_) => 0,
     }
-}
-
-/// The world's vector scratch (`k` vectors per vertex for the solver, then two) as a step
-/// recorded for reactions uses it: the first `n` vectors (the forces after an implicit step,
-/// free once it is done), then after the solver's `k` the contact impulses and the velocities
-/// at the step's start. Empty slices where the scratch is shorter, which the sizing rules out.
-fn recording_slots(
-    vectors: &mut [Vec3],
-    n: usize,
-    k: usize,
-) -> (&mut [Vec3], &mut [Vec3], &mut [Vec3]) {
-    let (solver, recorded) = vectors
-        .split_at_mut_checked(n.saturating_mul(k))
-        .unwrap_or_default();
-    let forces = solver.get_mut(..n).unwrap_or(&mut []);
-    let (impulses, rest) = recorded.split_at_mut_checked(n).unwrap_or_default();
-    let start_velocities = rest.get_mut(..n).unwrap_or(&mut []);
-    (forces, impulses, start_velocities)
 }
 
 /// Sizes `buffer` to `room` entries of `fill`, or else to `needed`; `false` if neither fits.

@@ -17,6 +17,7 @@
 //!   vertex; [`attachment_reaction`] sums it over the vertices attached to a rigid part.
 
 use super::super::super::types::{Real, Vec3};
+use super::super::model::ElasticModel;
 use super::super::scene::Scene;
 use super::super::state::check_length;
 use super::collider::{Collider, Colliders};
@@ -194,4 +195,63 @@ pub fn add_collider_reactions(
         reaction.vertices = reaction.vertices.saturating_add(1);
     }
     Ok(())
+}
+
+/// An owner's vector scratch (a body's or a world's: `k` vectors per vertex for its solver, then
+/// two) as a step recorded for reactions uses it: the first `n` vectors (the elastic forces
+/// after an implicit step, free once it is done), then after the solver's `k` the contact
+/// impulses and the velocities at the step's start. Empty slices where the scratch is shorter,
+/// which the owners' sizing rules out.
+pub(crate) fn recording_slots(
+    vectors: &mut [Vec3],
+    n: usize,
+    k: usize,
+) -> (&mut [Vec3], &mut [Vec3], &mut [Vec3]) {
+    let (solver, recorded) = vectors
+        .split_at_mut_checked(n.saturating_mul(k))
+        .unwrap_or_default();
+    let forces = solver.get_mut(..n).unwrap_or(&mut []);
+    let (impulses, rest) = recorded.split_at_mut_checked(n).unwrap_or_default();
+    let start_velocities = rest.get_mut(..n).unwrap_or(&mut []);
+    (forces, impulses, start_velocities)
+}
+
+/// After a step recorded for reactions (by a body or a world): each vertex's impulse, then each
+/// collider's reaction into `reactions`. After the explicit stepper (`explicit`) `impulses`
+/// holds its record, to which the pinned vertices' velocity change at the step's start (the
+/// kinematic move, zero for a plain pin) is added; after an implicit step they come from the
+/// momentum balance ([`implicit_impulses`]) with `model`'s forces at `positions`, written into
+/// `forces`. `start_velocities` are those before the step (and before any kinematic move).
+///
+/// # Errors
+/// The model's force error (not expected: the step evaluated it there), and those of
+/// [`implicit_impulses`] and [`add_collider_reactions`].
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn recorded_reactions<F: ElasticModel<Vector = Vec3>>(
+    model: &F,
+    scene: &Scene<'_, Vec3>,
+    (masses, pinned): (&[Real], &[bool]),
+    (positions, velocities): (&[Vec3], &[Vec3]),
+    (forces, impulses, start_velocities): (&mut [Vec3], &mut [Vec3], &[Vec3]),
+    explicit: bool,
+    reactions: &mut [Reaction],
+) -> Result<(), StepError> {
+    if explicit {
+        // The kinematic vertices' move at the step's start (the stepper saw them pinned).
+        let rows = impulses.iter_mut().zip(velocities);
+        let rows = rows.zip(start_velocities.iter().zip(masses).zip(pinned));
+        for ((impulse, &v), ((&v0, &m), &pinned)) in rows {
+            if pinned {
+                *impulse += (v - v0) * m;
+            }
+        }
+    } else {
+        forces.fill(Vec3::ZERO);
+        model.add_forces(positions, forces)?;
+        let state = (positions, &*forces);
+        let balance = (start_velocities, velocities);
+        implicit_impulses(scene, (masses, pinned), state, balance, impulses)?;
+    }
+    reactions.fill(Reaction::ZERO);
+    add_collider_reactions(scene.colliders, (positions, pinned), impulses, reactions)
 }
