@@ -756,14 +756,7 @@ fn firmware_reproduces_the_host_bit_for_bit_on_a_cortex_m4f() {
 #[test]
 fn the_collider_scene_lands_on_its_colliders_and_stays_there() {
     let records = host_records();
-    let clearance = |name: &str| {
-        records
-            .as_slice()
-            .iter()
-            .find(|r| r.name == name)
-            .unwrap_or_else(|| panic!("no record {name:?}"))
-            .value
-    };
+    let clearance = |name: &str| record_value(&records, name);
     for precision in ["f32", "f64"] {
         for (run, steps) in [("explicit", [15, 30]), ("relax", [10, 20])] {
             for (i, step) in steps.into_iter().enumerate() {
@@ -780,20 +773,23 @@ fn the_collider_scene_lands_on_its_colliders_and_stays_there() {
     }
 }
 
+/// The value of the host's record `name` (panics naming it if there is none).
+fn record_value(records: &Records, name: &str) -> f64 {
+    records
+        .as_slice()
+        .iter()
+        .find(|r| r.name == name)
+        .unwrap_or_else(|| panic!("no record {name:?}"))
+        .value
+}
+
 /// The contact scene's rows measure a contact that works: every one of its Newton steps
 /// converged (none failed, none ran out of a buffer), and after 10 steps the dropped cube rests
 /// on the other with a gap between their faces in `(0, dhat]` (dhat 0.5 mm), in both precisions.
 #[test]
 fn the_contact_scene_rests_one_cube_on_the_other() {
     let records = host_records();
-    let value = |name: &str| {
-        records
-            .as_slice()
-            .iter()
-            .find(|r| r.name == name)
-            .unwrap_or_else(|| panic!("no record {name:?}"))
-            .value
-    };
+    let value = |name: &str| record_value(&records, name);
     for precision in ["f32", "f64"] {
         let failed = value(&format!(
             "{precision} contact pair, steps failed or not converged"
@@ -816,14 +812,7 @@ fn the_contact_scene_rests_one_cube_on_the_other() {
 #[test]
 fn the_rigid_box_rests_on_the_body_and_the_floor_carries_both() {
     let records = host_records();
-    let value = |name: &str| {
-        records
-            .as_slice()
-            .iter()
-            .find(|r| r.name == name)
-            .unwrap_or_else(|| panic!("no record {name:?}"))
-            .value
-    };
+    let value = |name: &str| record_value(&records, name);
     for precision in ["f32", "f64"] {
         let height = value(&format!("{precision} rigid box on body, step 30 (height)"));
         let floor = value(&format!("{precision} rigid box on body, floor force (N)"));

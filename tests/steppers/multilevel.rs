@@ -157,17 +157,8 @@ fn static_cantilever_agrees_with_block_jacobi() {
     assert!(jacobi.converged && multilevel.converged);
     assert!(multilevel.details.multilevel_builds >= 1);
     assert_eq!(jacobi.details.multilevel_builds, 0);
-    let sag = bar
-        .rest
-        .iter()
-        .zip(&x_jacobi)
-        .map(|(r, x)| r.z - x.z)
-        .fold(0.0, Real::max);
-    let difference = x_jacobi
-        .iter()
-        .zip(&x_multilevel)
-        .map(|(a, b)| (*a - *b).length())
-        .fold(0.0, Real::max);
+    let sag = largest_sag(&bar.rest, &x_jacobi);
+    let difference = largest_distance(&x_jacobi, &x_multilevel);
     println!("sag {sag:.6e} m, |x_jacobi - x_multilevel| {difference:.2e} m");
     assert!(sag > 1e-4);
     assert!(difference <= 20.0 * 1e-8 * sag, "{difference}");
@@ -354,17 +345,8 @@ fn kept_hierarchy_is_reused_across_time_steps() {
     assert_eq!(builds[5], 1, "invalidate rebuilds");
     assert_eq!(builds.iter().sum::<u32>(), kept.builds());
     assert!(kept.builds() <= 4, "{builds:?}");
-    let swing = bar
-        .rest
-        .iter()
-        .zip(&x_jacobi)
-        .map(|(r, x)| (*r - *x).length())
-        .fold(0.0, Real::max);
-    let difference = x_jacobi
-        .iter()
-        .zip(&x_kept)
-        .map(|(a, b)| (*a - *b).length())
-        .fold(0.0, Real::max);
+    let swing = largest_distance(&bar.rest, &x_jacobi);
+    let difference = largest_distance(&x_jacobi, &x_kept);
     println!("swing {swing:.4e} m, |x_jacobi - x_multilevel| {difference:.2e} m");
     assert!(swing > 1e-3);
     assert!(difference <= 1e-6 * swing, "{difference}");
@@ -448,7 +430,7 @@ fn single_precision_agrees_with_block_jacobi() {
 /// and CG's vector passes on its pool, with the bits of the sequential solve.
 #[cfg(feature = "rayon")]
 mod threads {
-    use super::{Bar, DENSITY, GRAVITY, bar, random, solve};
+    use super::{Bar, DENSITY, GRAVITY, bar, largest_distance, largest_sag, random, solve};
     use softfem::f64::element::{TetHessian, TetRest};
     use softfem::f64::material::StableNeoHookean;
     use softfem::f64::mesh::{
@@ -583,19 +565,26 @@ mod threads {
             assert_eq!(bits(&x), bits(&x_sequential), "{threads} threads");
             assert_eq!(format!("{report:?}"), format!("{sequential:?}"));
         }
-        let sag = bar
-            .rest
-            .iter()
-            .zip(&x_jacobi)
-            .map(|(r, x)| r.z - x.z)
-            .fold(0.0, Real::max);
-        let difference = x_jacobi
-            .iter()
-            .zip(&x_sequential)
-            .map(|(a, b)| (*a - *b).length())
-            .fold(0.0, Real::max);
+        let sag = largest_sag(&bar.rest, &x_jacobi);
+        let difference = largest_distance(&x_jacobi, &x_sequential);
         println!("sag {sag:.6e} m, |x_jacobi - x_multilevel| {difference:.2e} m");
         assert!(sag > 1e-4);
         assert!(difference <= 20.0 * 1e-8 * sag, "{difference}");
     }
+}
+
+/// The largest distance (m) between matching points of `a` and `b`.
+fn largest_distance(a: &[Vec3], b: &[Vec3]) -> Real {
+    a.iter()
+        .zip(b)
+        .map(|(a, b)| (*a - *b).length())
+        .fold(0.0, Real::max)
+}
+
+/// The largest sag (m): how far below its rest height `rest` a point of `x` is (along z).
+fn largest_sag(rest: &[Vec3], x: &[Vec3]) -> Real {
+    rest.iter()
+        .zip(x)
+        .map(|(r, x)| r.z - x.z)
+        .fold(0.0, Real::max)
 }
