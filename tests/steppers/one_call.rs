@@ -45,20 +45,12 @@ impl Buffers {
 /// (48, 60) mm edge).
 #[allow(clippy::type_complexity)]
 fn cook(n: usize) -> (Vec<Vec3>, Vec<[u32; 4]>, Vec<bool>, Vec<Vec3>, Vec<usize>) {
-    let split = BoxSplit::Kuhn6;
-    let (vertices, elements) = box_counts(n, n, 1, split).unwrap();
-    let (mut unit, mut tets) = (vec![Vec3::ZERO; vertices], vec![[0u32; 4]; elements]);
-    fill_box(
+    let (unit, tets) = crate::common::scenes::generated_box!(
         Vec3::ZERO,
         Vec3::new(1.0, 1.0, 1.0),
-        n,
-        n,
-        1,
-        split,
-        &mut unit,
-        &mut tets,
-    )
-    .unwrap();
+        (n, n, 1),
+        BoxSplit::Kuhn6
+    );
     let mm = 1e-3;
     // (u, v) in the unit square onto the trapezoid: x = 48 u, y from the lower edge
     // (44/48 x) to the upper one (44 + 16/48 x); a map with positive Jacobian 48 (44 - 28 u).
@@ -69,7 +61,7 @@ fn cook(n: usize) -> (Vec<Vec3>, Vec<[u32; 4]>, Vec<bool>, Vec<Vec3>, Vec<usize>
     let pinned: Vec<bool> = unit.iter().map(|p| p.x == 0.0).collect();
     // Each face cell is 16/n mm by 1 mm; its corners take a quarter of its force each.
     let face_cells = n as f64;
-    let mut forces = vec![Vec3::ZERO; vertices];
+    let mut forces = vec![Vec3::ZERO; unit.len()];
     for (i, p) in unit.iter().enumerate() {
         if p.x == 1.0 {
             let row = (p.y * face_cells).round();
@@ -171,25 +163,13 @@ fn cook_membrane_with_the_thickness_free_converges_from_rest_in_one_call() {
 /// A stable neo-Hookean bar 0.2 x 0.1 x 0.1 m (4 x 2 x 2 cubes), E = 1 MPa, nu = 0.3, clamped
 /// at x = 0 and its x = 0.2 m face pushed to x = 0.1 m, the other vertices at rest.
 fn compressed(settings: &NewtonSettings) -> NewtonReport {
-    let split = BoxSplit::Kuhn6;
-    let (nx, ny, nz) = (4, 2, 2);
-    let (vertices, elements) = box_counts(nx, ny, nz, split).unwrap();
-    let (mut rest, mut tets) = (vec![Vec3::ZERO; vertices], vec![[0u32; 4]; elements]);
-    fill_box(
+    let (rest, tets) = crate::common::scenes::generated_box!(
         Vec3::ZERO,
         Vec3::new(0.2, 0.1, 0.1),
-        nx,
-        ny,
-        nz,
-        split,
-        &mut rest,
-        &mut tets,
-    )
-    .unwrap();
-    let mut rest_data = vec![TetRest::default(); tets.len()];
-    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
-    let mut masses = vec![0.0; rest.len()];
-    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+        (4, 2, 2),
+        BoxSplit::Kuhn6
+    );
+    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
     let model = TetElastic::new(
         mesh,
         StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap(),
@@ -269,10 +249,7 @@ fn probe_cook_load_path() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(16);
     let (rest, tets, pinned, forces, tip) = cook(n);
-    let mut rest_data = vec![TetRest::default(); tets.len()];
-    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
-    let mut masses = vec![0.0; rest.len()];
-    mesh.lumped_masses(1000.0, &mut masses).unwrap();
+    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1000.0);
     let model = TetElastic::new(mesh, cook_material());
     let mut buffers = Buffers::new(rest.len(), tets.len());
     let mut x = rest.clone();
@@ -317,25 +294,13 @@ fn probe_cook_load_path() {
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn a_24k_static_cantilever_stays_within_the_automatic_cg_budget() {
-    let split = BoxSplit::Kuhn6;
-    let (nx, ny, nz) = (40, 10, 10);
-    let (vertices, elements) = box_counts(nx, ny, nz, split).unwrap();
-    let (mut rest, mut tets) = (vec![Vec3::ZERO; vertices], vec![[0u32; 4]; elements]);
-    fill_box(
+    let (rest, tets) = crate::common::scenes::generated_box!(
         Vec3::ZERO,
         Vec3::new(4.0, 1.0, 1.0),
-        nx,
-        ny,
-        nz,
-        split,
-        &mut rest,
-        &mut tets,
-    )
-    .unwrap();
-    let mut rest_data = vec![TetRest::default(); tets.len()];
-    let mesh = TetMesh::new(&rest, &tets, &mut rest_data).unwrap();
-    let mut masses = vec![0.0; rest.len()];
-    mesh.lumped_masses(1.0, &mut masses).unwrap();
+        (40, 10, 10),
+        BoxSplit::Kuhn6
+    );
+    crate::common::scenes::mesh_and_masses!(rest_data, mesh, masses; &rest, &tets, 1.0);
     let model = TetElastic::new(
         mesh,
         StableNeoHookean::from_young_poisson(1.0e6, 0.3).unwrap(),
@@ -362,6 +327,7 @@ fn a_24k_static_cantilever_stays_within_the_automatic_cg_budget() {
         .with_tolerance(1e-8, 50)
         .with_cg_iterations(2000)
         .with_load_steps(0));
+    let elements = tets.len();
     println!("{elements} tets, 2000 CG a Newton iteration: {fixed_time:.2} s, {fixed:?}");
     let (automatic, automatic_time) = run(NewtonSettings::new().with_tolerance(1e-8, 50));
     println!("{elements} tets, automatic budget: {automatic_time:.2} s, {automatic:?}");
