@@ -615,6 +615,20 @@ pub enum StepError {
     /// An allocation of Newton's multilevel preconditioner (feature `alloc`) failed: its
     /// hierarchy of sparse matrices did not fit in memory. Nothing was moved.
     OutOfMemory,
+    /// A coupled step ([`Body::step_with_rigid_bodies`]) was given more dynamic colliders than
+    /// it takes. Nothing was moved.
+    ///
+    /// [`Body::step_with_rigid_bodies`]: crate::body::Body::step_with_rigid_bodies
+    TooManyDynamicColliders {
+        /// The most it takes ([`MAX_DYNAMIC_COLLIDERS`](crate::step::MAX_DYNAMIC_COLLIDERS)).
+        limit: usize,
+    },
+    /// A coupled step was given a scene with colliders of its own: it takes every collider,
+    /// static, kinematic and dynamic, in its `colliders` argument. Nothing was moved.
+    SceneColliders,
+    /// The coupling settings are out of range: the tolerance not finite and `> 0`, or no
+    /// iteration allowed ([`CouplingSettings`](crate::step::CouplingSettings)).
+    CouplingSettings,
 }
 
 /// What is wrong with a collider ([`StepError::Collider`]).
@@ -637,6 +651,9 @@ pub enum ColliderProblem {
     Friction,
     /// Colliders were given to a 2D body: they act on 3D bodies only.
     Dimension,
+    /// The mass is NaN, infinite or negative, or the collider is dynamic (a positive mass)
+    /// and a moment of inertia is not finite and `> 0`.
+    Mass,
 }
 
 impl fmt::Display for ColliderProblem {
@@ -649,6 +666,7 @@ impl fmt::Display for ColliderProblem {
             ColliderProblem::Restitution => "its restitution is outside [0, 1]",
             ColliderProblem::Friction => "its friction coefficient is not finite and >= 0, or its sticking speed not finite and >= 0",
             ColliderProblem::Dimension => "colliders act on 3D bodies only",
+            ColliderProblem::Mass => "its mass is not finite and >= 0, or it is dynamic and a moment of inertia is not finite and > 0",
         })
     }
 }
@@ -740,6 +758,16 @@ impl fmt::Display for StepError {
             StepError::Collider { collider, problem } => {
                 write!(f, "collider {collider}: {problem}")
             }
+            StepError::TooManyDynamicColliders { limit } => write!(
+                f,
+                "a coupled step takes at most {limit} dynamic colliders (a positive mass)"
+            ),
+            StepError::SceneColliders => f.write_str(
+                "a coupled step takes its colliders in its own argument: the scene must have none",
+            ),
+            StepError::CouplingSettings => f.write_str(
+                "the coupling tolerance is not finite and > 0, or no iteration is allowed",
+            ),
         }
     }
 }

@@ -61,7 +61,7 @@ mod solver;
 mod storage;
 
 pub use auto::{AutoChoice, AutoReport, AutoRun, AutoSettings, Fallback, stopped_at_floor};
-pub use solver::{Solver, StepReport};
+pub use solver::{CoupledReport, Solver, StepReport};
 #[cfg(feature = "alloc")]
 pub use storage::VecStorage;
 pub use storage::{Fixed, FixedStorage, Slots, Storage};
@@ -72,10 +72,12 @@ use super::element::{TetHessian, TetRest};
 use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
 use super::mesh::{TetMesh, TetRestBlock, rest_block_count};
+use super::step::contact::collider::check_colliders;
 use super::step::contact::reaction::{recorded_reactions, recording_slots};
+use super::step::contact::rigid::couple;
 use super::step::state::check_length;
 use super::step::{
-    Collider,  ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, Reaction,
+    Collider, CouplingSettings, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, Reaction,
     RelaxScratch, Scene, TetElastic, VbdScratch, VbdTopology, 
     attachment_reaction, check_time_step, explicit_step,  newton_step, relax_step, scratch_len,
     stable_time_step, vbd_step,
@@ -136,7 +138,7 @@ pub struct Body<S: Storage, M: Material> {
     held_velocities: S::Vectors,
     positions: S::Vectors,
     velocities: S::Vectors,
-    /// Vector scratch of the solver (4, 5, 9 or 5 vectors per vertex).
+    /// Vector scratch of the solvers and of a coupled step (13 vectors per vertex).
     vectors: S::Scratch,
     /// The relaxation's preconditioner stiffness, or the stable step's stiffness buffer.
     scalars: S::Reals,
@@ -150,6 +152,7 @@ pub struct Body<S: Storage, M: Material> {
     layout_built: Option<bool>,
     material: M,
     solver: Solver,
+    coupling: CouplingSettings,
     gravity: Vec3,
     ground: Option<HalfSpace<Vec3>>,
     explicit_memory: ExplicitMemory,
@@ -186,6 +189,7 @@ macro_rules! unbuilt_body {
             layout_built: None,
             material: $material,
             solver: Solver::auto(),
+            coupling: CouplingSettings::DEFAULT,
             gravity: Vec3::ZERO,
             ground: None,
             explicit_memory: ExplicitMemory::FRESH,
@@ -477,12 +481,13 @@ impl<S: Storage, M: Material> Body<S, M> {
             }
             self.layout_built = None;
         }
-        // Every solver's scratch has the automatic solver's eleven vectors per vertex: the
-        // explicit stepper uses four, the relaxation and VBD five, Newton's method nine, and a
-        // step recorded for reactions keeps its impulses and start velocities in the last two
-        // (see `recording_slots`).
+        // Every solver's scratch has the automatic solver's eleven vectors per vertex and two
+        // more: the explicit stepper uses four, the relaxation and VBD five, Newton's method
+        // nine, a step recorded for reactions keeps its impulses and start velocities in the
+        // tenth and eleventh (see `recording_slots`), and a coupled step its start in the last
+        // two (`coupling_slots`).
         let _ = solver;
-        let needed = n.saturating_mul(auto::AUTO_VECTORS);
+        let needed = n.saturating_mul(BODY_VECTORS);
         capacity(
             self.vectors.resize(needed, Vec3::ZERO),
             BodyBuffer::Scratch,
@@ -926,6 +931,136 @@ impl<S: Storage, M: Material> Body<S, M> {
         self.step_recording(scene, Some(reactions))
     }
 
+    /// One step of `scene` with the dynamic colliders among `colliders` (those given a mass,
+    /// [`Collider::with_mass`]) solved with the body: a crate resting on the body, a body
+    /// squeezed between two plates, a ball thrown at it (`docs/math.md` section 8.15). Each
+    /// dynamic collider's end-of-step velocity is an unknown of the same implicit Euler step:
+    /// the body steps with the collider at the pose that velocity gives it, the collider's
+    /// momentum balance with the impulse the body applied gives its velocity again, and the
+    /// two are iterated (with Aitken's relaxation) until they agree within the body's
+    /// [`coupling`](Self::coupling) tolerance. Unlike the staggered coupling of
+    /// [`step_with_reactions`](Self::step_with_reactions), it is stable whatever the masses,
+    /// stiffness and step. Each iteration is one step of the body's solver from the same
+    /// start (the report counts them); a collider that does not touch the body costs none
+    /// beyond the first.
+    ///
+    /// On return every dynamic collider has its new pose and velocities (its `position` is its
+    /// centre of mass), and `reactions` what every collider received over the step, as in
+    /// [`step_with_reactions`](Self::step_with_reactions). Static and kinematic colliders are
+    /// not changed: advance kinematic ones between steps yourself. The scene's own colliders
+    /// must be empty: every collider goes in `colliders`. Contact between colliders is not
+    /// solved (a host engine's job); gravity is the scene's.
+    ///
+    /// ```
+    /// use softfem::body::{Body, FixedStorage, Solver};
+    /// use softfem::step::{Collider, HalfSpace, Reaction};
+    /// use softfem::{glam::{Quat, Vec3}, material::StableNeoHookean};
+    ///
+    /// let jelly = StableNeoHookean::from_young_poisson(5.0e4, 0.45)?; // Pa
+    /// let (low, high) = (Vec3::new(-0.1, 0.0, -0.1), Vec3::new(0.1, 0.2, 0.1)); // m
+    /// let mut body = Body::<FixedStorage<27, 40>, _>::from_box(low, high, [2; 3], 1000.0, jelly)?;
+    /// body.set_solver(Solver::newton())?;
+    /// body.set_ground(Some(HalfSpace::new(Vec3::Y, 0.0)));
+    /// // A 2 kg lid of 30 x 10 x 30 cm with friction, dropped onto the jelly from 1 cm above.
+    /// let half = Vec3::new(0.15, 0.05, 0.15);
+    /// let inertia = Vec3::new(0.017, 0.03, 0.017); // kg m^2: m/3 (b^2 + c^2), ...
+    /// let box_ = Collider::cuboid(Vec3::new(0.0, 0.26, 0.0), half, Quat::IDENTITY)
+    ///     .with_mass(2.0, inertia)
+    ///     .with_friction(0.5);
+    /// let mut colliders = [box_];
+    /// let mut reactions = [Reaction::ZERO];
+    /// let g = Vec3::new(0.0, -9.81, 0.0);
+    /// for _ in 0..120 {
+    ///     let scene = body.scene(1.0 / 60.0).with_gravity(g);
+    ///     let report = body.step_with_rigid_bodies(&scene, &mut colliders, &mut reactions)?;
+    ///     assert!(report.coupling.iterations <= 30);
+    /// }
+    /// // At rest the box pushes on the jelly with its weight, 19.6 N.
+    /// assert!((reactions[0].force(1.0 / 60.0).y - 2.0 * 9.81).abs() < 0.02 * 2.0 * 9.81);
+    /// assert!(colliders[0].linear_velocity.length() < 1e-2);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// Before anything is moved: [`StepError::SceneColliders`] if the scene has colliders,
+    /// [`StepError::LengthMismatch`] (buffer [`StepBuffer::Reactions`]) unless `reactions`
+    /// has one entry per collider, [`StepError::Collider`] for a collider out of range,
+    /// [`StepError::TooManyDynamicColliders`] beyond
+    /// [`MAX_DYNAMIC_COLLIDERS`](super::step::MAX_DYNAMIC_COLLIDERS), and the errors of
+    /// [`step_with`](Self::step_with)'s checks. A soft step that fails returns its error with
+    /// the body's state and every collider as they were before the call.
+    pub fn step_with_rigid_bodies(
+        &mut self,
+        scene: &Scene<'_, Vec3>,
+        colliders: &mut [Collider<'_>],
+        reactions: &mut [Reaction],
+    ) -> Result<CoupledReport, StepError> {
+        if !scene.colliders.is_empty() {
+            return Err(StepError::SceneColliders);
+        }
+        check_length(StepBuffer::Reactions, colliders.len(), reactions.len())?;
+        check_colliders(colliders, true)?;
+        check_time_step(scene.dt)?;
+        if !self.coupling.valid() {
+            return Err(StepError::CouplingSettings);
+        }
+        let n = self.vertex_count();
+        if n == 0 {
+            return Err(StepError::EmptyBody);
+        }
+        let mass: Real = self.masses.slice().iter().sum();
+        let vertex_mass = mass / n as Real;
+        // The step's start, for every iteration after the first and for a failure.
+        let memory = self.explicit_memory;
+        let (start_positions, start_velocities) = coupling_slots(self.vectors.slice_mut(), n);
+        copy_into(start_positions, self.positions.slice());
+        copy_into(start_velocities, self.velocities.slice());
+        let settings = self.coupling;
+        let time = (scene.dt, scene.gravity);
+        let outcome = couple(colliders, time, &settings, vertex_mass, reactions, |colliders, reactions, iteration| {
+            if iteration > 0 {
+                self.restore_coupling_start(memory);
+            }
+            let report = self.step_recording(&scene.with_colliders(colliders), Some(reactions))?;
+            let residual = match report.converged() {
+                true => report.residual(),
+                false => Real::INFINITY,
+            };
+            Ok((report, residual))
+        });
+        match outcome {
+            Ok((step, coupling)) => Ok(CoupledReport { step, coupling }),
+            Err(error) => {
+                self.restore_coupling_start(memory);
+                Err(error)
+            }
+        }
+    }
+
+    /// The coupling iteration's settings (see [`step_with_rigid_bodies`](Self::step_with_rigid_bodies)).
+    #[inline]
+    #[must_use]
+    pub fn coupling(&self) -> &CouplingSettings {
+        &self.coupling
+    }
+
+    /// Sets the coupling iteration's settings; checked by the step
+    /// ([`StepError::CouplingSettings`]).
+    #[inline]
+    pub fn set_coupling(&mut self, settings: CouplingSettings) {
+        self.coupling = settings;
+    }
+
+    /// Puts back the positions and velocities kept at the start of a coupled step, and the
+    /// explicit stepper's `memory` of then.
+    fn restore_coupling_start(&mut self, memory: ExplicitMemory) {
+        let n = self.vertex_count();
+        let (start_positions, start_velocities) = coupling_slots(self.vectors.slice_mut(), n);
+        copy_into(self.positions.slice_mut(), start_positions);
+        copy_into(self.velocities.slice_mut(), start_velocities);
+        self.explicit_memory = memory;
+    }
+
     /// [`step_with`](Self::step_with), recording the colliders' reactions where `reactions` is
     /// given (its length checked).
     fn step_recording(
@@ -1185,6 +1320,19 @@ pub(super) fn explicit_slots(
         false => &mut [],
     };
     (buffer, impulses)
+}
+
+/// The vectors per vertex of a body's scratch: the automatic solver's eleven and a coupled
+/// step's copy of its start positions and velocities.
+const BODY_VECTORS: usize = auto::AUTO_VECTORS + 2;
+
+/// The vectors of the scratch where a coupled step keeps the positions and velocities of its
+/// start: after the automatic solver's (and the recorded impulses and start velocities).
+fn coupling_slots(vectors: &mut [Vec3], n: usize) -> (&mut [Vec3], &mut [Vec3]) {
+    let start = n.saturating_mul(auto::AUTO_VECTORS);
+    let rest = vectors.get_mut(start..).unwrap_or(&mut []);
+    let (positions, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    (positions, rest.get_mut(..n).unwrap_or(&mut []))
 }
 
 /// The vector (counted per vertex from 0) of the scratch where a recorded step keeps the contact

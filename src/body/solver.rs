@@ -2,11 +2,11 @@
 
 #[allow(unused_imports)] // `Scene` is named by the documentation only.
 use super::super::step::{
-    ExplicitReport, ExplicitSettings, NewtonReport, NewtonSettings, RelaxReport, RelaxSettings,
+    CouplingReport, ExplicitReport, ExplicitSettings, NewtonReport, NewtonSettings, RelaxReport, RelaxSettings,
     Scene, VbdReport, VbdSettings,
 };
 use super::super::types::Real;
-use super::auto::{AutoReport, AutoSettings};
+use super::auto::{AutoReport, AutoRun, AutoSettings};
 use crate::error::BodyError;
 
 /// The stepper of a [`Body`](super::Body) and its settings.
@@ -144,7 +144,45 @@ pub enum StepReport {
     Auto(AutoReport),
 }
 
+/// What a coupled step ([`Body::step_with_rigid_bodies`](super::Body::step_with_rigid_bodies))
+/// did: the last soft step's report and the coupling iteration's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoupledReport {
+    /// The report of the last soft step, the one whose state the body kept.
+    pub step: StepReport,
+    /// How the iteration between the body and its dynamic colliders ended.
+    pub coupling: CouplingReport,
+}
+
+impl CoupledReport {
+    /// Whether both the last soft step ([`StepReport::converged`]) and the coupling iteration
+    /// ([`CouplingReport::converged`]) met their tolerances.
+    #[inline]
+    #[must_use]
+    pub fn converged(&self) -> bool {
+        self.step.converged() && self.coupling.converged
+    }
+}
+
 impl StepReport {
+    /// The force (N) the step's solve left unbalanced: its report's `residual` (the larger of
+    /// two half steps'); zero for an explicit step, which solves no equation.
+    #[inline]
+    #[must_use]
+    pub fn residual(&self) -> Real {
+        match self {
+            StepReport::Explicit(_) => 0.0,
+            StepReport::Relax(report) => report.residual,
+            StepReport::Newton(report) => report.residual,
+            StepReport::Vbd(report) => report.residual,
+            StepReport::Auto(report) => match &report.run {
+                AutoRun::Explicit(_) => 0.0,
+                AutoRun::Newton(newton) => newton.residual,
+                AutoRun::NewtonHalves([first, second]) => first.residual.max(second.residual),
+            },
+        }
+    }
+
     /// Whether the step reached its solver's tolerance (always `true` for an explicit step,
     /// which has none; for [`Solver::Auto`], [`AutoReport::converged`]: a stop at the
     /// rounding floor is not convergence). A step that did not still advanced the state:

@@ -45,10 +45,11 @@ pub trait Storage {
     /// storage that cannot hold them runs the force passes without (the same bits, slower
     /// with wide SIMD).
     type RestBlocks: Slots<TetRestBlock>;
-    /// The solvers' vector scratch: eleven vectors per vertex, whatever the solver (the
-    /// automatic solver's: Newton's nine and a copy of the frame's start positions and
-    /// velocities; a step recorded for reactions keeps its contact impulses and start
-    /// velocities in the last two).
+    /// The solvers' vector scratch: thirteen vectors per vertex, whatever the solver (the
+    /// automatic solver's eleven: Newton's nine and a copy of the frame's start positions and
+    /// velocities, where a step recorded for reactions keeps its contact impulses and start
+    /// velocities; then a coupled step's copy of its start positions and velocities,
+    /// [`Body::step_with_rigid_bodies`](super::Body::step_with_rigid_bodies)).
     type Scratch: Slots<Vec3>;
     /// One 3x3 block per vertex (Newton's preconditioner).
     type Blocks: Slots<Mat3>;
@@ -124,14 +125,15 @@ impl<X: Copy + Default, const ROWS: usize, const N: usize> Slots<X> for Fixed<X,
 /// [`BodyError::Capacity`](crate::BodyError::Capacity), never a panic.
 ///
 /// Every buffer has room for every solver, so the solver can change without running out. In
-/// f32 (twice in f64) that is, per vertex, 238 bytes: the rest and current positions, the
-/// velocities, the targets and a velocity backup (5 vectors), the solvers' vector scratch (11:
-/// Newton's method's 9 and the automatic solver's copy of a frame's start), the mass, a stiffness scalar, 2 flags and Newton's 3x3 block; and per
+/// f32 (twice in f64) that is, per vertex, 262 bytes: the rest and current positions, the
+/// velocities, the targets and a velocity backup (5 vectors), the solvers' vector scratch (13:
+/// Newton's method's 9, the automatic solver's copy of a frame's start and a coupled step's
+/// copy of its start), the mass, a stiffness scalar, 2 flags and Newton's 3x3 block; and per
 /// tetrahedron 304 bytes: the indices (16), the rest data (40), Newton's Hessian (180) and 17
 /// entries of Vertex Block Descent's index scratch (68), whose `3 V + 1 + 4 T` entries fit in
 /// `17 T` whenever `V <= 4 T` (every steppable body: a vertex in no tetrahedron has no mass).
 /// `core::mem::size_of::<Body<FixedStorage<V, T>, M>>()` is the total (the bar of
-/// `tests/steppers/body.rs`, 54 vertices and 120 tetrahedra, takes 48 KB). It has no room for
+/// `tests/steppers/body.rs`, 54 vertices and 120 tetrahedra, takes 50 KB). It has no room for
 /// Vertex Block Descent's packed sweep layout (312 bytes per tetrahedron in f32), so its sweeps
 /// gather the rest data element by element (the same bits; `VecStorage` keeps the layout), nor for
 /// the rest data in blocks (40 bytes per tetrahedron), which serve only the wide SIMD lanes of a
@@ -146,7 +148,7 @@ impl<const V: usize, const T: usize> Storage for FixedStorage<V, T> {
     type Tets = Fixed<[u32; 4], 1, T>;
     type Rests = Fixed<TetRest, 1, T>;
     type RestBlocks = Fixed<TetRestBlock, 0, 1>;
-    type Scratch = Fixed<Vec3, 11, V>;
+    type Scratch = Fixed<Vec3, 13, V>;
     type Blocks = Fixed<Mat3, 1, V>;
     type Hessians = Fixed<TetHessian, 1, T>;
     type Indices = Fixed<u32, 17, T>;

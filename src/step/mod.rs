@@ -233,8 +233,9 @@ pub(crate) mod state;
 pub mod vertex_pass;
 
 pub use contact::{
-    Collider, HalfSpace, Reaction, SUGGESTED_STICKING_SPEED, Shape, SignedDistance,
-    add_collider_reactions, attachment_reaction, implicit_impulses,
+    Collider, CouplingReport, CouplingSettings, HalfSpace, MAX_DYNAMIC_COLLIDERS, Reaction,
+    SUGGESTED_STICKING_SPEED, Shape, SignedDistance, add_collider_reactions, attachment_reaction,
+    implicit_impulses,
 };
 #[cfg(feature = "alloc")]
 pub use descent::newton::{MAX_COARSE, Multilevel, REBUILD_FACTOR};

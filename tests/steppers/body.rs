@@ -846,15 +846,15 @@ impl softfem::body::Storage for NineVectors {
 
 #[test]
 fn a_storage_without_room_for_the_automatic_solver_says_which_buffer() {
-    // The default solver needs 11 vectors a vertex (Newton's 9 and the frame's start for the
-    // retry in half steps): a storage with 9 is refused when the body is built, naming the
-    // vector scratch and the 11 x 36 entries it needs, not at the first fallback.
+    // A body needs 13 vectors a vertex (Newton's 9, the frame's start for the retry in half
+    // steps, and a coupled step's start): a storage with 9 is refused when the body is built,
+    // naming the vector scratch and the 13 x 36 entries it needs, not at the first fallback.
     let refused = Body::<NineVectors, _>::from_box(LOW, HIGH, CELLS, DENSITY, jelly());
     assert_eq!(
         refused.err(),
         Some(BodyError::Capacity {
             buffer: BodyBuffer::Scratch,
-            needed: 11 * 36
+            needed: 13 * 36
         })
     );
 }
@@ -956,11 +956,11 @@ mod alloc_storage {
 
 #[test]
 fn fixed_storage_takes_the_memory_its_documentation_states() {
-    // 238 bytes per vertex and 304 per tetrahedron in f32 (see `FixedStorage`), plus the
+    // 262 bytes per vertex and 304 per tetrahedron in f32 (see `FixedStorage`), plus the
     // lengths, the material, the solver settings and the caches: under 1 KB.
     type Bar = Body<FixedStorage<54, 120>, StableNeoHookean>;
     let size = core::mem::size_of::<Bar>();
-    let buffers = 54 * 238 + 120 * 304;
+    let buffers = 54 * 262 + 120 * 304;
     println!("Body<FixedStorage<54, 120>, StableNeoHookean>: {size} bytes");
     assert!(
         size >= buffers && size < buffers + 1024,

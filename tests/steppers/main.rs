@@ -30,6 +30,7 @@ mod parallel;
 mod pile;
 mod reactions;
 mod relax;
+mod rigid_bodies;
 mod self_contact;
 mod stability;
 mod stagnation;

@@ -181,6 +181,15 @@ pub struct Collider<'a> {
     /// [`HalfSpace`](super::super::HalfSpace)'s [`sticking_speed`](super::super::HalfSpace::sticking_speed),
     /// relative to the collider's surface velocity.
     pub sticking_speed: Real,
+    /// The mass (kg, finite `>= 0`; default 0). A collider with a positive mass is a dynamic
+    /// rigid body where the step solves its motion with the soft body's
+    /// ([`Body::step_with_rigid_bodies`](crate::body::Body::step_with_rigid_bodies),
+    /// `docs/math.md` section 8.15): `position` is then its centre of mass. Every other step
+    /// moves it as a kinematic collider, with its velocities.
+    pub mass: Real,
+    /// The principal moments of inertia (kg m^2) about `position`, along the collider's own
+    /// axes: each finite and `> 0` for a dynamic collider (`mass > 0`), unused otherwise.
+    pub inertia: Vec3,
 }
 
 /// The contact tolerance's factor: a vertex projected onto a curved surface lands within a few
@@ -228,7 +237,7 @@ fn rotation_from_z(to: Vec3) -> Quat {
 /// `v` rotated by the unit quaternion `(x, y, z, w)` = `q`, in plain scalar arithmetic (same
 /// bits on every target): `v + w t + q_v x t` with `t = 2 q_v x v`.
 #[inline(always)]
-fn rotate(q: [Real; 4], v: Vec3) -> Vec3 {
+pub(super) fn rotate(q: [Real; 4], v: Vec3) -> Vec3 {
     let [x, y, z, w] = q;
     let axis = Vec3::new(x, y, z);
     let t = axis.cross(v) * 2.0;
@@ -237,7 +246,7 @@ fn rotate(q: [Real; 4], v: Vec3) -> Vec3 {
 
 /// `v` rotated by the inverse of the unit quaternion `q`.
 #[inline(always)]
-fn rotate_back(q: [Real; 4], v: Vec3) -> Vec3 {
+pub(super) fn rotate_back(q: [Real; 4], v: Vec3) -> Vec3 {
     let [x, y, z, w] = q;
     rotate([-x, -y, -z, w], v)
 }
@@ -270,6 +279,8 @@ impl<'a> Collider<'a> {
             restitution: 0.0,
             friction: 0.0,
             sticking_speed: 0.0,
+            mass: 0.0,
+            inertia: Vec3::ZERO,
         }
     }
 
@@ -349,6 +360,39 @@ impl<'a> Collider<'a> {
         Collider { friction, ..self }
     }
 
+    /// This collider as a dynamic rigid body of `mass` (kg, finite `> 0`) with the principal
+    /// moments of inertia `inertia` (kg m^2, each finite `> 0`) about its position (its centre
+    /// of mass) along its own axes. A solid box of half extents `(a, b, c)` has
+    /// `inertia = mass / 3 (b^2 + c^2, a^2 + c^2, a^2 + b^2)`; a solid ball of radius `r`,
+    /// `2/5 mass r^2` about every axis.
+    ///
+    /// ```
+    /// use softfem::glam::{Quat, Vec3};
+    /// use softfem::step::Collider;
+    ///
+    /// let (mass, half) = (5.0, Vec3::splat(0.1)); // kg, m
+    /// let inertia = Vec3::splat(mass / 3.0 * 2.0 * 0.1 * 0.1);
+    /// let crate_ = Collider::cuboid(Vec3::new(0.0, 0.5, 0.0), half, Quat::IDENTITY)
+    ///     .with_mass(mass, inertia);
+    /// assert!(crate_.is_dynamic() && crate_.check().is_ok());
+    /// ```
+    #[inline]
+    #[must_use]
+    pub fn with_mass(self, mass: Real, inertia: Vec3) -> Self {
+        Collider {
+            mass,
+            inertia,
+            ..self
+        }
+    }
+
+    /// Whether the collider is a dynamic rigid body (a positive [`mass`](Self::mass)).
+    #[inline]
+    #[must_use]
+    pub fn is_dynamic(&self) -> bool {
+        self.mass > 0.0
+    }
+
     /// This collider with the implicit solvers' sticking speed `sticking_speed` (m/s, finite
     /// `>= 0`; see [`HalfSpace::sticking_speed`](super::super::HalfSpace::sticking_speed)).
     #[inline]
@@ -418,7 +462,7 @@ impl<'a> Collider<'a> {
     ///
     /// # Errors
     /// The first problem found, in the order shape, position, rotation, velocity, restitution,
-    /// friction.
+    /// friction, mass.
     pub fn check(&self) -> Result<(), ColliderProblem> {
         let positive = |r: Real| r > 0.0 && r.is_finite();
         let non_negative = |r: Real| r >= 0.0 && r.is_finite();
@@ -454,12 +498,18 @@ impl<'a> Collider<'a> {
         {
             return Err(ColliderProblem::Friction);
         }
+        let i = self.inertia;
+        let mass = non_negative(self.mass)
+            && (self.mass == 0.0 || (positive(i.x) && positive(i.y) && positive(i.z)));
+        if !mass {
+            return Err(ColliderProblem::Mass);
+        }
         Ok(())
     }
 
     /// The rotation normalised, as `[x, y, z, w]`.
     #[inline(always)]
-    fn unit_rotation(&self) -> [Real; 4] {
+    pub(super) fn unit_rotation(&self) -> [Real; 4] {
         let q = self.rotation;
         let norm = math::sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
         let inverse = 1.0 / norm;

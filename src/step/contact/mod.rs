@@ -3,7 +3,8 @@
 //! vertices and directions onto the admissible set that every stepper shares (`floor.rs`), Coulomb
 //! friction inside the implicit objective (`step/contact/friction.rs`), the one record of a
 //! contact at a vertex that they exchange ([`Contact`]), and what the colliders took from a body
-//! over a step ([`reaction`]: contact impulses per vertex, reactions per collider).
+//! over a step ([`reaction`]: contact impulses per vertex, reactions per collider), and the
+//! colliders with a mass whose motion a step solves with the soft body's (`rigid.rs`).
 //!
 //! Body–body and self contact (Incremental Potential Contact, Li et al. 2020):
 //! * [`boundary`]: a contact surface's primitives (vertices, edges, triangles) from its
@@ -33,6 +34,7 @@ pub(crate) mod half_space;
 pub mod model;
 pub mod potential;
 pub mod reaction;
+pub(crate) mod rigid;
 pub(crate) mod vertex;
 
 use super::super::types::Real;
@@ -42,6 +44,7 @@ pub use friction::SUGGESTED_STICKING_SPEED;
 pub use half_space::HalfSpace;
 pub use model::{ContactBuffers, ContactModel};
 pub use reaction::{Reaction, add_collider_reactions, attachment_reaction, implicit_impulses};
+pub use rigid::{CouplingReport, CouplingSettings, MAX_DYNAMIC_COLLIDERS};
 
 /// What friction needs of one contact at a vertex.
 #[derive(Clone, Copy, Debug)]

@@ -255,7 +255,7 @@ macro_rules! precision {
                 use $($softfem)::+::types::{Mat3, Real, Vec3};
                 use $($softfem)::+::element::TetRest;
                 use $($softfem)::+::{BodyError, MeshError, StepError};
-                use $($softfem)::+::body::StepReport;
+                use $($softfem)::+::body::{CoupledReport, StepReport};
                 use $($softfem)::+::step::{Collider, Reaction};
                 use $($softfem)::+::step::contact::ContactModel;
 
@@ -385,6 +385,18 @@ macro_rules! precision {
                     reactions: &mut [Reaction],
                 ) -> Result<StepReport, StepError> {
                     body.step_with_reactions(scene, reactions)
+                }
+
+                /// `Body::step_with_rigid_bodies` of that body: the coupled step with its dynamic
+                /// colliders.
+                #[inline(never)]
+                pub fn body_step_with_rigid_bodies(
+                    body: &mut ColliderBody,
+                    scene: &Scene<'_, Vec3>,
+                    colliders: &mut [Collider<'_>],
+                    reactions: &mut [Reaction],
+                ) -> Result<CoupledReport, StepError> {
+                    body.step_with_rigid_bodies(scene, colliders, reactions)
                 }
 
                 /// `Body::step_with_colliders` of that body, whichever its solver.
@@ -1381,6 +1393,71 @@ macro_rules! precision {
                 }
             }
 
+            /// A dynamic rigid body solved with the soft body in firmware (issue #42 item 1): the
+            /// cube of [`rigid_on_body`] with a 0.2 kg box on its top, a box the staggered loop
+            /// throws off at 60 Hz, stepped by `Body::step_with_rigid_bodies` (Newton's method),
+            /// the box's motion solved with the cube's. Records the box's height, the floor's
+            /// force and the coupling iterations.
+            #[inline(never)]
+            fn dynamic_on_body(meter: &mut impl Meter, records: &mut Records, body: &mut ColliderBody) {
+                let Ok(material) = StableNeoHookean::from_young_poisson(black_box(5.0e4), black_box(0.4)) else {
+                    push(records, concat!($prefix, " dynamic on body setup"), Digest::new(), Real::NAN);
+                    return;
+                };
+                let (low, high) = (Vec3::new(-0.05, 0.0, -0.05), Vec3::new(0.05, 0.1, 0.05));
+                let built = pieces::body_new(body, low, high, 1000.0, material);
+                if built.is_err() || body.set_solver(Solver::newton()).is_err() {
+                    push(records, concat!($prefix, " dynamic on body build"), Digest::new(), Real::NAN);
+                    return;
+                }
+                body.set_gravity(Vec3::new(0.0, -9.81, 0.0));
+                let (mass, half, dt) = (0.2, Vec3::new(0.08, 0.02, 0.08), 1.0 / 60.0);
+                let moments = Vec3::new(
+                    half.y * half.y + half.z * half.z,
+                    half.x * half.x + half.z * half.z,
+                    half.x * half.x + half.y * half.y,
+                ) * (mass / 3.0);
+                let mut colliders = [
+                    Collider::half_space(Vec3::ZERO, Vec3::new(0.0, 1.0, 0.0)),
+                    Collider::cuboid(Vec3::new(0.0, 0.1 + half.y, 0.0), half, Quat::IDENTITY)
+                        .with_mass(mass, moments),
+                ];
+                let mut reactions = [Reaction::ZERO; 2];
+                let (mut digest, mut iterations) = (Digest::new(), 0);
+                for step in 1..=RIGID_STEPS {
+                    let scene = body.scene(dt);
+                    let report = meter.measure(concat!($prefix, " body step with rigid bodies"), || {
+                        pieces::body_step_with_rigid_bodies(body, &scene, &mut colliders, &mut reactions)
+                    });
+                    match report {
+                        Ok(report) => {
+                            digest.u64(u64::from(report.converged()));
+                            iterations += report.coupling.iterations;
+                        }
+                        Err(_) => digest.u64(u64::MAX),
+                    }
+                    for reaction in &reactions {
+                        vec3(&mut digest, reaction.impulse);
+                        vec3(&mut digest, reaction.angular_impulse);
+                        digest.u64(u64::from(reaction.vertices));
+                    }
+                    let y = colliders.get(1).map_or(Real::NAN, |c| c.position.y);
+                    real(&mut digest, y);
+                    if step == RIGID_STEPS {
+                        digest.u64(state_digest(body.positions(), body.velocities()).finish());
+                        digest.u64(u64::from(iterations));
+                        push(records, concat!($prefix, " dynamic box on body, step 30 (height)"), digest, y);
+                        let floor = reactions.first().map_or(Real::NAN, |r| r.impulse.y) / dt;
+                        let mut force = Digest::new();
+                        real(&mut force, floor);
+                        push(records, concat!($prefix, " dynamic box on body, floor force (N)"), force, -floor);
+                        let mut count = Digest::new();
+                        count.u64(u64::from(iterations));
+                        push(records, concat!($prefix, " dynamic box on body, coupling iterations"), count, iterations as Real);
+                    }
+                }
+            }
+
             /// The whole workload in this precision.
             pub fn run(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody, descent: &mut DescentScratch, owned: &mut ColliderBody) {
                 svds(meter, records);
@@ -1388,6 +1465,7 @@ macro_rules! precision {
                 drop(meter, records, body, descent);
                 on_colliders(meter, records, owned);
                 rigid_on_body(meter, records, owned);
+                dynamic_on_body(meter, records, owned);
                 contact_pair(meter, records);
             }
         }
