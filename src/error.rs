@@ -623,6 +623,19 @@ pub enum StepError {
         /// The most it takes ([`MAX_DYNAMIC_COLLIDERS`](crate::step::MAX_DYNAMIC_COLLIDERS)).
         limit: usize,
     },
+    /// An attachment names a collider at or beyond the step's collider count, or its point is
+    /// not finite.
+    AttachedCollider {
+        /// The entry of the attachment list.
+        entry: usize,
+        /// The collider index found there.
+        collider: u32,
+    },
+    /// A coupled step was given more attachments than it takes. Nothing was moved.
+    TooManyAttachments {
+        /// The most it takes ([`MAX_ATTACHMENTS`](crate::step::MAX_ATTACHMENTS)).
+        limit: usize,
+    },
     /// A coupled step was given a scene with colliders of its own: it takes every collider,
     /// static, kinematic and dynamic, in its `colliders` argument. Nothing was moved.
     SceneColliders,
@@ -762,6 +775,13 @@ impl fmt::Display for StepError {
                 f,
                 "a coupled step takes at most {limit} dynamic colliders (a positive mass)"
             ),
+            StepError::AttachedCollider { entry, collider } => write!(
+                f,
+                "attachment {entry} names collider {collider}, beyond the collider count, or its point is not finite"
+            ),
+            StepError::TooManyAttachments { limit } => {
+                write!(f, "a coupled step takes at most {limit} attachments")
+            }
             StepError::SceneColliders => f.write_str(
                 "a coupled step takes its colliders in its own argument: the scene must have none",
             ),

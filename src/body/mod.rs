@@ -74,10 +74,13 @@ use super::material::Material;
 use super::mesh::{TetMesh, TetRestBlock, rest_block_count};
 use super::step::contact::collider::check_colliders;
 use super::step::contact::reaction::{recorded_reactions, recording_slots};
+use super::step::contact::attachment::{
+    MAX_ATTACHMENTS, add_attachment_reactions, check_attachments, end_anchor,
+};
 use super::step::contact::rigid::couple;
 use super::step::state::check_length;
 use super::step::{
-    Collider, CouplingSettings, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, Reaction,
+    Attachment, Collider, CouplingSettings, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, Reaction,
     RelaxScratch, Scene, TetElastic, VbdScratch, VbdTopology, 
     attachment_reaction, check_time_step, explicit_step,  newton_step, relax_step, scratch_len,
     stable_time_step, vbd_step,
@@ -995,6 +998,62 @@ impl<S: Storage, M: Material> Body<S, M> {
         colliders: &mut [Collider<'_>],
         reactions: &mut [Reaction],
     ) -> Result<CoupledReport, StepError> {
+        self.step_with_rigid_bodies_and_attachments(scene, colliders, &[], reactions)
+    }
+
+    /// [`step_with_rigid_bodies`](Self::step_with_rigid_bodies) with body vertices held at
+    /// points of the colliders' frames (hard attachments: a jelly hanging from a crate, a
+    /// lamp, a gripper). Each attached vertex is made kinematic
+    /// ([`set_target`](Self::set_target)) with its target on its collider at the step's end:
+    /// a dynamic collider's solved pose, any other collider's pose moved over the step by its
+    /// velocities. What held the vertex there joins the collider's reaction, so a dynamic
+    /// collider carries the body hanging from it; [`last_impulses`](Self::last_impulses) has
+    /// each attached vertex's share. The vertices stay kinematic after the step (at their new
+    /// positions: free them with [`set_pinned`](Self::set_pinned)); list each vertex once.
+    ///
+    /// ```
+    /// use softfem::body::{Body, FixedStorage, Solver};
+    /// use softfem::step::{Attachment, Collider, Reaction};
+    /// use softfem::{glam::{Quat, Vec3}, material::StableNeoHookean};
+    ///
+    /// // Without gravity, a 1 kg box thrown at 1 m/s drags the jelly hanging from it.
+    /// let jelly = StableNeoHookean::from_young_poisson(5.0e4, 0.45)?; // Pa
+    /// let (low, high) = (Vec3::new(-0.1, -0.2, -0.1), Vec3::new(0.1, 0.0, 0.1)); // m
+    /// let mut body = Body::<FixedStorage<27, 40>, _>::from_box(low, high, [2; 3], 100.0, jelly)?;
+    /// body.set_solver(Solver::newton())?;
+    /// let half = Vec3::new(0.1, 0.05, 0.1);
+    /// let box_ = Collider::cuboid(Vec3::new(0.0, 0.05, 0.0), half, Quat::IDENTITY)
+    ///     .with_mass(1.0, Vec3::new(0.004, 0.007, 0.004))
+    ///     .with_velocity(Vec3::X, Vec3::ZERO);
+    /// let top: Vec<Attachment> = (0..27u32)
+    ///     .filter(|&i| body.positions()[i as usize].y == 0.0)
+    ///     .map(|i| Attachment::at(i, 0, &box_, body.positions()[i as usize]))
+    ///     .collect();
+    /// let (mut colliders, mut reactions) = ([box_], [Reaction::ZERO]);
+    /// for _ in 0..30 {
+    ///     let scene = body.scene(1.0 / 60.0);
+    ///     body.step_with_rigid_bodies_and_attachments(&scene, &mut colliders, &top, &mut reactions)?;
+    /// }
+    /// // The momentum of box and jelly is what the box brought: 1 kg m/s.
+    /// let jelly_momentum: Vec3 = body.velocities().iter().zip(body.masses()).map(|(&v, &m)| v * m).sum();
+    /// let total = jelly_momentum + colliders[0].linear_velocity * 1.0;
+    /// assert!((total - Vec3::X).length() < 1e-3);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// As [`step_with_rigid_bodies`](Self::step_with_rigid_bodies), and before anything is
+    /// moved [`StepError::TooManyAttachments`] beyond
+    /// [`MAX_ATTACHMENTS`](super::step::MAX_ATTACHMENTS), [`StepError::AttachedVertex`] or
+    /// [`StepError::AttachedCollider`] for an entry out of range. A failed step also puts
+    /// back the attached vertices' pins and targets.
+    pub fn step_with_rigid_bodies_and_attachments(
+        &mut self,
+        scene: &Scene<'_, Vec3>,
+        colliders: &mut [Collider<'_>],
+        attachments: &[Attachment],
+        reactions: &mut [Reaction],
+    ) -> Result<CoupledReport, StepError> {
         if !scene.colliders.is_empty() {
             return Err(StepError::SceneColliders);
         }
@@ -1008,6 +1067,22 @@ impl<S: Storage, M: Material> Body<S, M> {
         if n == 0 {
             return Err(StepError::EmptyBody);
         }
+        check_attachments(attachments, n, colliders.len())?;
+        // The attached vertices' pins before the call, put back if it fails.
+        let mut pins: heapless::Vec<(bool, bool, Vec3), MAX_ATTACHMENTS> = heapless::Vec::new();
+        for a in attachments {
+            let v = a.vertex as usize;
+            let pin = (
+                self.pinned.slice().get(v).copied().unwrap_or(false),
+                self.kinematic.slice().get(v).copied().unwrap_or(false),
+                self.targets.slice().get(v).copied().unwrap_or(Vec3::ZERO),
+            );
+            if pins.push(pin).is_err() {
+                return Err(StepError::TooManyAttachments {
+                    limit: MAX_ATTACHMENTS,
+                });
+            }
+        }
         let mass: Real = self.masses.slice().iter().sum();
         let vertex_mass = mass / n as Real;
         // The step's start, for every iteration after the first and for a failure.
@@ -1016,22 +1091,53 @@ impl<S: Storage, M: Material> Body<S, M> {
         copy_into(start_positions, self.positions.slice());
         copy_into(start_velocities, self.velocities.slice());
         let settings = self.coupling;
-        let time = (scene.dt, scene.gravity);
-        let outcome = couple(colliders, time, &settings, vertex_mass, reactions, |colliders, reactions, iteration| {
+        let (dt, gravity) = (scene.dt, scene.gravity);
+        let soft_step = |colliders: &[Collider<'_>], reactions: &mut [Reaction], iteration| {
             if iteration > 0 {
                 self.restore_coupling_start(memory);
             }
-            let report = self.step_recording(&scene.with_colliders(colliders), Some(reactions))?;
+            for (entry, a) in attachments.iter().enumerate() {
+                if let Some(collider) = colliders.get(a.collider as usize) {
+                    // Refused only for a non-finite anchor (the vertex is in range).
+                    let target = end_anchor(a, collider, dt);
+                    let collider = a.collider;
+                    self.set_target(a.vertex as usize, target)
+                        .map_err(|_| StepError::AttachedCollider { entry, collider })?;
+                }
+            }
+            let stepped = scene.with_colliders(colliders);
+            let report = self.step_recording(&stepped, Some(reactions))?;
+            let state = (self.positions.slice(), self.last_impulses());
+            add_attachment_reactions(attachments, colliders, state, reactions);
             let residual = match report.converged() {
                 true => report.residual(),
                 false => Real::INFINITY,
             };
             Ok((report, residual))
-        });
+        };
+        let outcome = couple(
+            colliders,
+            (dt, gravity),
+            &settings,
+            vertex_mass,
+            reactions,
+            soft_step,
+        );
         match outcome {
             Ok((step, coupling)) => Ok(CoupledReport { step, coupling }),
             Err(error) => {
                 self.restore_coupling_start(memory);
+                for (a, &(pinned, kinematic, target)) in attachments.iter().zip(&pins) {
+                    let v = a.vertex as usize;
+                    if let (Some(p), Some(k), Some(t)) = (
+                        self.pinned.slice_mut().get_mut(v),
+                        self.kinematic.slice_mut().get_mut(v),
+                        self.targets.slice_mut().get_mut(v),
+                    ) {
+                        (*p, *k, *t) = (pinned, kinematic, target);
+                    }
+                }
+                self.stable_step = None;
                 Err(error)
             }
         }

@@ -233,7 +233,7 @@ pub(crate) mod state;
 pub mod vertex_pass;
 
 pub use contact::{
-    Collider, CouplingReport, CouplingSettings, HalfSpace, MAX_DYNAMIC_COLLIDERS, Reaction,
+    Attachment, Collider, CouplingReport, CouplingSettings, HalfSpace, MAX_ATTACHMENTS, MAX_DYNAMIC_COLLIDERS, Reaction,
     SUGGESTED_STICKING_SPEED, Shape, SignedDistance, add_collider_reactions, attachment_reaction,
     implicit_impulses,
 };

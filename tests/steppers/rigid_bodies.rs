@@ -10,7 +10,8 @@ use softfem::StepError;
 use softfem::f64::body::{Body, CoupledReport, FixedStorage, Solver, StepReport, stopped_at_floor};
 use softfem::f64::material::StableNeoHookean;
 use softfem::f64::step::{
-    Collider, CouplingSettings, HalfSpace, NewtonSettings, Reaction, RelaxSettings, VbdSettings,
+    Attachment, Collider, CouplingSettings, HalfSpace, NewtonSettings, Reaction, RelaxSettings,
+    VbdSettings,
 };
 use softfem::f64::types::{Quat, Real, Vec3};
 use softfem::{ColliderProblem, StepBuffer};
@@ -102,6 +103,9 @@ fn a_rigid_box_rests_on_a_soft_block_carried_by_its_weight_with_every_implicit_s
         let weight = mass * GRAVITY;
         let compression = edge + 0.05 - height;
         let expected = uniaxial(weight, young, edge);
+        println!(
+            "{name}: support {force} N of {weight} N, compression {compression} m against {expected} m, at most {most} coupling iterations"
+        );
         assert!(converged, "{name}: a step did not converge");
         assert!(most <= 10, "{name}: {most} coupling iterations");
         assert!(
@@ -150,6 +154,9 @@ fn a_light_box_the_staggered_coupling_throws_off_rests_when_solved_with_the_bloc
         y += v * dt;
         fastest = fastest.max(v.abs());
     }
+    println!(
+        "light box: support {force} N of {weight} N, at most {most} coupling iterations; staggered: {fastest} m/s"
+    );
     assert!(
         fastest > 1.0,
         "the staggered box stayed below {fastest} m/s"
@@ -190,6 +197,10 @@ fn a_jelly_squeezed_between_two_free_plates_conserves_the_momentum_of_the_three(
         .map(|(&v, &m)| v * m)
         .sum();
     let after = soft + (colliders[0].linear_velocity + colliders[1].linear_velocity) * mass;
+    println!(
+        "plates: momentum error {}",
+        (after - before).length() / before.length()
+    );
     assert!(
         colliders[1].linear_velocity.x > 0.05,
         "the right plate moves at {}",
@@ -232,6 +243,10 @@ fn a_jelly_thrown_at_a_free_box_off_centre_pushes_and_spins_it_conserving_moment
     }
     let after = momentum(&jelly) + colliders[0].linear_velocity * mass;
     let spin = colliders[0].angular_velocity;
+    println!(
+        "thrown: momentum error {}, spin {spin}",
+        (after - before).length() / before.length()
+    );
     assert!(
         colliders[0].linear_velocity.x > 0.1 && spin.z.abs() > 0.1,
         "{spin}"
@@ -306,4 +321,154 @@ fn bad_coupled_steps_are_refused_with_the_body_and_the_colliders_untouched() {
         refused(&mut block, &mut [lid], 1, false),
         StepError::CouplingSettings
     );
+}
+
+/// The top face of `body` (its highest vertices) held where it is on collider `index`.
+fn top_attachments(body: &Block, index: u32, collider: &Collider<'_>) -> Vec<Attachment> {
+    let x = body.positions();
+    let top = x.iter().map(|x| x.y).fold(Real::MIN, Real::max);
+    (0..x.len() as u32)
+        .filter(|&i| x[i as usize].y == top)
+        .map(|i| Attachment::at(i, index, collider, x[i as usize]))
+        .collect()
+}
+
+fn body_momentum(body: &Block) -> Vec3 {
+    let rows = body.velocities().iter().zip(body.masses());
+    rows.map(|(&v, &m)| v * m).sum()
+}
+
+/// A jelly hanging by its top face from a static hook collider: at rest the hook carries its
+/// weight (within 1 %), and what held each attached vertex is in the hook's reaction.
+#[test]
+fn a_hook_carries_the_weight_of_the_jelly_hanging_from_it() {
+    let newton = Solver::Newton(NewtonSettings::new().with_tolerance(1e-10, 50));
+    let mut jelly = soft_cube(2.0e4, 0.2, newton);
+    jelly.set_ground(None);
+    jelly.set_gravity(Vec3::ZERO);
+    let hook = Collider::cuboid(Vec3::new(0.0, 0.25, 0.0), Vec3::splat(0.05), Quat::IDENTITY);
+    let attachments = top_attachments(&jelly, 0, &hook);
+    jelly.set_gravity(Vec3::new(0.0, -GRAVITY, 0.0));
+    let (mut colliders, mut reactions) = ([hook], [Reaction::ZERO]);
+    let dt = 1.0 / 60.0;
+    let mut force = 0.0;
+    for frame in 0..120 {
+        let scene = jelly.scene(dt);
+        jelly
+            .step_with_rigid_bodies_and_attachments(
+                &scene,
+                &mut colliders,
+                &attachments,
+                &mut reactions,
+            )
+            .unwrap();
+        if frame >= 90 {
+            force += reactions[0].impulse.y / dt / 30.0;
+        }
+    }
+    let weight = jelly.masses().iter().sum::<Real>() * GRAVITY;
+    println!("hook: {force} N of {weight} N");
+    assert_eq!(colliders[0], hook, "a static collider is not moved");
+    assert_eq!(reactions[0].vertices as usize, attachments.len());
+    assert!(
+        (force + weight).abs() < 0.01 * weight,
+        "the hook carries {force} N of the jelly's {weight} N"
+    );
+}
+
+/// A jelly hanging from a free rigid box: under gravity the pair falls together, its total
+/// momentum growing by the total weight's impulse exactly (to 1e-6 relative); without gravity,
+/// the box thrown sideways drags the jelly along and the momentum is what it brought.
+#[test]
+fn a_jelly_hanging_from_a_free_box_moves_with_it_conserving_momentum() {
+    for gravity in [Vec3::new(0.0, -GRAVITY, 0.0), Vec3::ZERO] {
+        let newton = Solver::Newton(NewtonSettings::new().with_tolerance(1e-10, 50));
+        let mut jelly = soft_cube(2.0e4, 0.2, newton);
+        jelly.set_ground(None);
+        jelly.set_gravity(gravity);
+        let (mass, half) = (1.0, Vec3::new(0.1, 0.05, 0.1));
+        let crate_ = Collider::cuboid(Vec3::new(0.0, 0.25, 0.0), half, Quat::IDENTITY)
+            .with_mass(mass, box_inertia(mass, half))
+            .with_velocity(Vec3::new(0.5, 0.0, 0.0), Vec3::ZERO);
+        let attachments = top_attachments(&jelly, 0, &crate_);
+        let (mut colliders, mut reactions) = ([crate_], [Reaction::ZERO]);
+        let total_mass = mass + jelly.masses().iter().sum::<Real>();
+        let before = Vec3::new(0.5 * mass, 0.0, 0.0);
+        let (dt, frames) = (1.0 / 60.0, 30);
+        for _ in 0..frames {
+            let scene = jelly.scene(dt);
+            let report = jelly
+                .step_with_rigid_bodies_and_attachments(
+                    &scene,
+                    &mut colliders,
+                    &attachments,
+                    &mut reactions,
+                )
+                .unwrap();
+            assert!(settled(&report), "{report:?}");
+        }
+        let after = body_momentum(&jelly) + colliders[0].linear_velocity * mass;
+        let expected = before + gravity * (total_mass * dt * frames as Real);
+        println!(
+            "hanging: momentum error {}",
+            (after - expected).length() / expected.length()
+        );
+        assert!(
+            (after - expected).length() <= 1e-6 * expected.length(),
+            "momentum {after}, expected {expected}"
+        );
+        // The jelly went with the box: its top face is still on it.
+        let on_box = attachments.iter().all(|a| {
+            (jelly.positions()[a.vertex as usize] - a.anchor(&colliders[0])).length() < 1e-9
+        });
+        assert!(
+            on_box && colliders[0].position.x > 0.1,
+            "{}",
+            colliders[0].position
+        );
+    }
+}
+
+/// Attachments out of range are refused before anything moves, and a refused call leaves
+/// the pins as they were.
+#[test]
+fn bad_attachments_are_refused_with_the_body_untouched() {
+    let mut jelly = soft_cube(2.0e4, 0.2, Solver::newton());
+    let hook = Collider::sphere(Vec3::new(0.0, 0.3, 0.0), 0.05);
+    let positions = jelly.positions().to_vec();
+    let mut reactions = [Reaction::ZERO];
+    let scene = jelly.scene(0.01);
+    for (attachment, error) in [
+        (
+            Attachment::new(27, 0, Vec3::ZERO),
+            StepError::AttachedVertex {
+                entry: 0,
+                vertex: 27,
+            },
+        ),
+        (
+            Attachment::new(0, 1, Vec3::ZERO),
+            StepError::AttachedCollider {
+                entry: 0,
+                collider: 1,
+            },
+        ),
+        (
+            Attachment::new(0, 0, Vec3::NAN),
+            StepError::AttachedCollider {
+                entry: 0,
+                collider: 0,
+            },
+        ),
+    ] {
+        let refused = jelly.step_with_rigid_bodies_and_attachments(
+            &scene,
+            &mut [hook],
+            &[attachment],
+            &mut reactions,
+        );
+        assert_eq!(refused.unwrap_err(), error);
+        assert_eq!(jelly.positions(), &positions[..]);
+        assert!(jelly.pinned().iter().all(|&p| !p));
+    }
 }

@@ -22,6 +22,7 @@
 //!   continuous collision detection in its admissible steps, which the implicit solvers take
 //!   as any model (`model.rs`).
 
+pub(crate) mod attachment;
 pub mod barrier;
 pub mod boundary;
 pub mod broad_phase;
@@ -39,6 +40,7 @@ pub(crate) mod vertex;
 
 use super::super::types::Real;
 
+pub use attachment::{Attachment, MAX_ATTACHMENTS};
 pub use collider::{Collider, Shape, SignedDistance};
 pub use friction::SUGGESTED_STICKING_SPEED;
 pub use half_space::HalfSpace;
