@@ -71,12 +71,13 @@ impl Default for CouplingSettings {
 /// What the coupling iteration of one step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CouplingReport {
-    /// The soft steps run (1 without a dynamic collider, or where none touched the body).
+    /// The soft steps run (1 without a dynamic collider, or where none touched the body; one
+    /// beyond the budget where it ran out and an earlier iterate was better).
     pub iterations: u32,
     /// Whether `|G(u) - u|` met the tolerance of [`CouplingSettings`] for every dynamic
-    /// collider. `false` means the budget ran out: the last iterate is kept (the soft body's
-    /// state and the colliders' poses of the last soft step, the colliders' velocities from
-    /// its momentum balance).
+    /// collider. `false` means the budget ran out: the iterate of the smallest residual is
+    /// kept (the soft body's state and the colliders' poses of a soft step run there, the
+    /// colliders' velocities from its momentum balance).
     pub converged: bool,
     /// The largest `|G(u) - u|` over the dynamic colliders at the last iterate, rotation
     /// scaled by the radius of gyration (m/s).
@@ -92,6 +93,8 @@ struct Rigid {
     /// The velocities the soft step sees: `u = (v, w)`, the trial.
     velocity: Vec3,
     angular: Vec3,
+    /// The iterate of the smallest residual so far.
+    best: (Vec3, Vec3),
     /// The last accepted iterate, its residual `G(u) - u` (rotation scaled by `rho`) and
     /// whether the collider touched the body there.
     base: (Vec3, Vec3),
@@ -203,6 +206,7 @@ pub(crate) fn couple<R>(
             velocity,
             angular,
             base: (velocity, angular),
+            best: (velocity, angular),
             residual: [Vec3::ZERO; 2],
             touched: false,
             trial_residual: [Vec3::ZERO; 2],
@@ -227,6 +231,7 @@ pub(crate) fn couple<R>(
     };
     let mut relaxation: Real = 1.0;
     let (mut iteration, mut rejected) = (0, 0);
+    let (mut best, mut retried) = (Real::INFINITY, false);
     loop {
         for r in &rigid {
             if let Some(c) = colliders.get_mut(r.index) {
@@ -286,7 +291,23 @@ pub(crate) fn couple<R>(
             converged,
             residual: largest,
         };
-        if converged || iteration >= settings.max_iterations {
+        if largest < best {
+            best = largest;
+            for r in rigid.iter_mut() {
+                r.best = (r.velocity, r.angular);
+            }
+        }
+        let out_of_budget = iteration >= settings.max_iterations;
+        if out_of_budget && !converged && largest > best && !retried {
+            // Unconverged, and an earlier iterate was closer: end there (one more soft step),
+            // not wherever the last update went.
+            retried = true;
+            for r in rigid.iter_mut() {
+                (r.velocity, r.angular) = r.best;
+            }
+            continue;
+        }
+        if converged || out_of_budget || retried {
             // Keep the poses the soft step saw; the velocities of the momentum balance.
             for r in &rigid {
                 let (Some(c), Some(reaction)) =
@@ -311,7 +332,10 @@ pub(crate) fn couple<R>(
                 // The soft mass the colliders meet resists them at least by its inertia.
                 mass / (mass + touching * vertex_mass)
             } else if squared > 0.0 {
-                (-relaxation * dot / squared).clamp(MIN_RELAXATION, MAX_RELAXATION)
+                let aitken = -relaxation * dot / squared;
+                aitken
+                    .min(MAX_GROWTH * relaxation)
+                    .clamp(MIN_RELAXATION, MAX_RELAXATION)
             } else {
                 relaxation
             };
@@ -331,6 +355,11 @@ pub(crate) fn couple<R>(
         }
     }
 }
+
+/// How much Aitken's factor may grow from one update to the next: where the soft step's
+/// tolerance leaves the impulse noisy, two close iterates can suggest a factor far beyond the
+/// response's, and the jump it makes lands far from the contact.
+const MAX_GROWTH: Real = 4.0;
 
 /// How many times in a row an update that separated a collider from the body is cut to a tenth
 /// before it is taken as it is (the step may truly separate them).
