@@ -631,6 +631,10 @@ pub enum StepError {
         /// The collider index found there.
         collider: u32,
     },
+    /// A coupled step with a soft attachment was asked of the explicit stepper: the spring and
+    /// the damper are terms of the implicit objective. Use an implicit solver (the automatic
+    /// one takes Newton's method for such steps). Nothing was moved.
+    SoftAttachmentSolver,
     /// A coupled step was given more attachments than it takes. Nothing was moved.
     TooManyAttachments {
         /// The most it takes ([`MAX_ATTACHMENTS`](crate::step::MAX_ATTACHMENTS)).
@@ -778,6 +782,9 @@ impl fmt::Display for StepError {
             StepError::AttachedCollider { entry, collider } => write!(
                 f,
                 "attachment {entry} names collider {collider}, beyond the collider count, or its point is not finite"
+            ),
+            StepError::SoftAttachmentSolver => f.write_str(
+                "soft attachments need an implicit solver (Newton, the relaxation, VBD or the automatic one)",
             ),
             StepError::TooManyAttachments { limit } => {
                 write!(f, "a coupled step takes at most {limit} attachments")

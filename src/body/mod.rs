@@ -75,7 +75,7 @@ use super::mesh::{TetMesh, TetRestBlock, rest_block_count};
 use super::step::contact::collider::check_colliders;
 use super::step::contact::reaction::{recorded_reactions, recording_slots};
 use super::step::contact::attachment::{
-    MAX_ATTACHMENTS, add_attachment_reactions, check_attachments, end_anchor,
+    MAX_ATTACHMENTS, SoftPull, add_attachment_reactions, check_attachments, end_anchor,
 };
 use super::step::contact::rigid::couple;
 use super::step::state::check_length;
@@ -1044,7 +1044,7 @@ impl<S: Storage, M: Material> Body<S, M> {
     /// # Errors
     /// As [`step_with_rigid_bodies`](Self::step_with_rigid_bodies), and before anything is
     /// moved [`StepError::TooManyAttachments`] beyond
-    /// [`MAX_ATTACHMENTS`](super::step::MAX_ATTACHMENTS), [`StepError::AttachedVertex`] or
+    /// [`MAX_ATTACHMENTS`], [`StepError::AttachedVertex`] or
     /// [`StepError::AttachedCollider`] for an entry out of range. A failed step also puts
     /// back the attached vertices' pins and targets.
     pub fn step_with_rigid_bodies_and_attachments(
@@ -1068,19 +1068,32 @@ impl<S: Storage, M: Material> Body<S, M> {
             return Err(StepError::EmptyBody);
         }
         check_attachments(attachments, n, colliders.len())?;
-        // The attached vertices' pins before the call, put back if it fails.
-        let mut pins: heapless::Vec<(bool, bool, Vec3), MAX_ATTACHMENTS> = heapless::Vec::new();
+        // The attached vertices' pins and masses before the call, put back if it fails (the
+        // masses after every soft step).
+        let mut pins: heapless::Vec<(bool, bool, Vec3, Real), MAX_ATTACHMENTS> =
+            heapless::Vec::new();
         for a in attachments {
             let v = a.vertex as usize;
             let pin = (
                 self.pinned.slice().get(v).copied().unwrap_or(false),
                 self.kinematic.slice().get(v).copied().unwrap_or(false),
                 self.targets.slice().get(v).copied().unwrap_or(Vec3::ZERO),
+                self.masses.slice().get(v).copied().unwrap_or(0.0),
             );
             if pins.push(pin).is_err() {
                 return Err(StepError::TooManyAttachments {
                     limit: MAX_ATTACHMENTS,
                 });
+            }
+        }
+        // Soft attachments are terms of the implicit objective: the explicit stepper has none,
+        // and the automatic solver takes Newton's method for the step.
+        let solver = self.solver;
+        if attachments.iter().any(Attachment::is_soft) {
+            match solver {
+                Solver::Explicit { .. } => return Err(StepError::SoftAttachmentSolver),
+                Solver::Auto(settings) => self.solver = Solver::Newton(settings.newton),
+                _ => {}
             }
         }
         let mass: Real = self.masses.slice().iter().sum();
@@ -1097,18 +1110,35 @@ impl<S: Storage, M: Material> Body<S, M> {
                 self.restore_coupling_start(memory);
             }
             for (entry, a) in attachments.iter().enumerate() {
-                if let Some(collider) = colliders.get(a.collider as usize) {
+                let Some(collider) = colliders.get(a.collider as usize) else {
+                    continue;
+                };
+                let v = a.vertex as usize;
+                if a.is_soft() {
+                    self.pull_softly(a, collider, (dt, gravity));
+                } else {
                     // Refused only for a non-finite anchor (the vertex is in range).
                     let target = end_anchor(a, collider, dt);
                     let collider = a.collider;
-                    self.set_target(a.vertex as usize, target)
+                    self.set_target(v, target)
                         .map_err(|_| StepError::AttachedCollider { entry, collider })?;
                 }
             }
             let stepped = scene.with_colliders(colliders);
-            let report = self.step_recording(&stepped, Some(reactions))?;
-            let state = (self.positions.slice(), self.last_impulses());
-            add_attachment_reactions(attachments, colliders, state, reactions);
+            let report = self.step_recording(&stepped, Some(reactions));
+            for (a, &(.., mass)) in attachments.iter().zip(&pins) {
+                if let Some(m) = self.masses.slice_mut().get_mut(a.vertex as usize) {
+                    *m = mass;
+                }
+            }
+            let report = report?;
+            let state = (
+                self.positions.slice(),
+                self.coupling_start_positions(),
+                self.pinned.slice(),
+            );
+            let held = (self.last_impulses(), dt);
+            add_attachment_reactions(attachments, colliders, state, held, reactions);
             let residual = match report.converged() {
                 true => report.residual(),
                 false => Real::INFINITY,
@@ -1123,18 +1153,20 @@ impl<S: Storage, M: Material> Body<S, M> {
             reactions,
             soft_step,
         );
+        self.solver = solver;
         match outcome {
             Ok((step, coupling)) => Ok(CoupledReport { step, coupling }),
             Err(error) => {
                 self.restore_coupling_start(memory);
-                for (a, &(pinned, kinematic, target)) in attachments.iter().zip(&pins) {
+                for (a, &(pinned, kinematic, target, mass)) in attachments.iter().zip(&pins) {
                     let v = a.vertex as usize;
-                    if let (Some(p), Some(k), Some(t)) = (
+                    if let (Some(p), Some(k), Some(t), Some(m)) = (
                         self.pinned.slice_mut().get_mut(v),
                         self.kinematic.slice_mut().get_mut(v),
                         self.targets.slice_mut().get_mut(v),
+                        self.masses.slice_mut().get_mut(v),
                     ) {
-                        (*p, *k, *t) = (pinned, kinematic, target);
+                        (*p, *k, *t, *m) = (pinned, kinematic, target, mass);
                     }
                 }
                 self.stable_step = None;
@@ -1155,6 +1187,34 @@ impl<S: Storage, M: Material> Body<S, M> {
     #[inline]
     pub fn set_coupling(&mut self, settings: CouplingSettings) {
         self.coupling = settings;
+    }
+
+    /// The positions at the start of a coupled step, kept in its scratch.
+    fn coupling_start_positions(&self) -> &[Vec3] {
+        let n = self.vertex_count();
+        let start = n.saturating_mul(auto::AUTO_VECTORS);
+        let vectors = self.vectors.slice();
+        vectors.get(start..start.saturating_add(n)).unwrap_or(&[])
+    }
+
+    /// Hands the soft attachment `a` to the collider `collider` (as the step sees it) to the
+    /// solver for a step of `h` (s) under `gravity`: its vertex's mass and start velocity become
+    /// those whose inertia term carries the spring and the damper (`SoftPull::inertia`). A
+    /// pinned vertex is left as it is. The caller puts the mass back after the step.
+    fn pull_softly(&mut self, a: &Attachment, collider: &Collider<'_>, (h, gravity): (Real, Vec3)) {
+        let v = a.vertex as usize;
+        if self.pinned.slice().get(v).copied().unwrap_or(true) {
+            return;
+        }
+        let (Some(m), Some(&x_n), Some(velocity)) = (
+            self.masses.slice_mut().get_mut(v),
+            self.positions.slice().get(v),
+            self.velocities.slice_mut().get_mut(v),
+        ) else {
+            return;
+        };
+        let pull = SoftPull::new(a, collider, x_n, h);
+        (*m, *velocity) = pull.inertia((*m, x_n, *velocity), (h, gravity));
     }
 
     /// Puts back the positions and velocities kept at the start of a coupled step, and the

@@ -472,3 +472,194 @@ fn bad_attachments_are_refused_with_the_body_untouched() {
         assert!(jelly.pinned().iter().all(|&p| !p));
     }
 }
+
+/// A stiff jelly hanging by soft attachments (springs of `k` each, with dampers) from a static
+/// hook: at rest the springs carry its weight, `k sum (a_i - x_i).y = m g` (the static balance of
+/// the springs, within 1 %), and so does the hook's reaction.
+#[test]
+fn springs_carry_the_weight_of_a_jelly_hanging_softly_from_a_hook() {
+    let newton = Solver::Newton(NewtonSettings::new().with_tolerance(1e-10, 50));
+    let mut jelly = soft_cube(1.0e6, 0.2, newton);
+    jelly.set_ground(None);
+    let hook = Collider::cuboid(Vec3::new(0.0, 0.25, 0.0), Vec3::splat(0.05), Quat::IDENTITY);
+    let stiffness = 50.0; // N/m per vertex
+    let springs: Vec<Attachment> = top_attachments(&jelly, 0, &hook)
+        .into_iter()
+        .map(|a| a.with_spring(stiffness, 2.0))
+        .collect();
+    let (mut colliders, mut reactions) = ([hook], [Reaction::ZERO]);
+    let dt = 1.0 / 60.0;
+    for _ in 0..240 {
+        let scene = jelly.scene(dt);
+        jelly
+            .step_with_rigid_bodies_and_attachments(
+                &scene,
+                &mut colliders,
+                &springs,
+                &mut reactions,
+            )
+            .unwrap();
+    }
+    let weight = jelly.masses().iter().sum::<Real>() * GRAVITY;
+    let stretch: Real = springs
+        .iter()
+        .map(|a| (a.anchor(&hook) - jelly.positions()[a.vertex as usize]).y)
+        .sum();
+    let carried = stiffness * stretch;
+    let force = -reactions[0].impulse.y / dt;
+    println!("soft hook: springs {carried} N, hook {force} N, weight {weight} N");
+    assert!(
+        (carried - weight).abs() < 0.01 * weight,
+        "{carried} N of {weight} N"
+    );
+    assert!(
+        (force - weight).abs() < 0.01 * weight,
+        "{force} N of {weight} N"
+    );
+    assert!(
+        jelly.pinned().iter().all(|&p| !p),
+        "soft attachments pin nothing"
+    );
+}
+
+/// A jelly tied by springs and dampers to a free box, without gravity, the box thrown sideways:
+/// the springs pull the jelly along and the total momentum is what the box brought (1e-6
+/// relative); the explicit stepper is refused with nothing moved.
+#[test]
+fn a_jelly_on_springs_behind_a_free_box_conserves_momentum() {
+    let newton = Solver::Newton(NewtonSettings::new().with_tolerance(1e-10, 50));
+    let mut jelly = soft_cube(1.0e5, 0.2, newton);
+    jelly.set_ground(None);
+    jelly.set_gravity(Vec3::ZERO);
+    let (mass, half) = (1.0, Vec3::new(0.1, 0.05, 0.1));
+    let crate_ = Collider::cuboid(Vec3::new(0.0, 0.25, 0.0), half, Quat::IDENTITY)
+        .with_mass(mass, box_inertia(mass, half))
+        .with_velocity(Vec3::new(0.5, 0.0, 0.0), Vec3::ZERO);
+    let springs: Vec<Attachment> = top_attachments(&jelly, 0, &crate_)
+        .into_iter()
+        .map(|a| a.with_spring(200.0, 1.0))
+        .collect();
+    let (mut colliders, mut reactions) = ([crate_], [Reaction::ZERO]);
+    let before = Vec3::new(0.5 * mass, 0.0, 0.0);
+    for _ in 0..30 {
+        let scene = jelly.scene(1.0 / 60.0);
+        let report = jelly
+            .step_with_rigid_bodies_and_attachments(
+                &scene,
+                &mut colliders,
+                &springs,
+                &mut reactions,
+            )
+            .unwrap();
+        assert!(settled(&report), "{report:?}");
+    }
+    let after = body_momentum(&jelly) + colliders[0].linear_velocity * mass;
+    println!(
+        "springs behind a box: momentum error {}",
+        (after - before).length() / before.length()
+    );
+    let jelly_speed = body_momentum(&jelly).x / jelly.masses().iter().sum::<Real>();
+    assert!(
+        jelly_speed > 0.1,
+        "the jelly stays behind: {jelly_speed} m/s"
+    );
+    assert!(
+        (after - before).length() <= 1e-6 * before.length(),
+        "{after} against {before}"
+    );
+
+    let explicit = Solver::Explicit {
+        settings: softfem::f64::step::ExplicitSettings::new(),
+        stable_fraction: Some(0.5),
+    };
+    jelly.set_solver(explicit).unwrap();
+    let positions = jelly.positions().to_vec();
+    let scene = jelly.scene(1.0 / 60.0);
+    let refused = jelly.step_with_rigid_bodies_and_attachments(
+        &scene,
+        &mut colliders,
+        &springs,
+        &mut reactions,
+    );
+    assert_eq!(refused.unwrap_err(), StepError::SoftAttachmentSolver);
+    assert_eq!(jelly.positions(), &positions[..]);
+}
+
+/// A nearly rigid jelly of mass `M` on the springs of its top face (total stiffness `K = n k`,
+/// no gravity), released 1 cm above its rest on them. Without dampers it oscillates with
+/// implicit Euler's period of the oscillator `w = sqrt(K / M)` at this step,
+/// `2 pi h / atan(h w)` (the phase of one step of `z' = z / (1 - i h w)`), within 1 %. With
+/// dampers of total `C = n c` its amplitude falls over a period by implicit Euler's factor for
+/// `z'' + (C/M) z' + w^2 z = 0`, `|r|^(T/h)` with `|r|^2 = 1 / (1 + h C/M + h^2 w^2)` (the
+/// product of the roots of its two-step recurrence), within 2 %.
+#[test]
+fn a_jelly_on_springs_oscillates_and_decays_as_implicit_euler_s_oscillator() {
+    let (k, h) = (50.0, 1.0 / 600.0);
+    for damping in [0.0, 0.1] {
+        let newton = Solver::Newton(NewtonSettings::new().with_tolerance(1e-10, 50));
+        let mut jelly = soft_cube(1.0e7, 0.2, newton);
+        jelly.set_ground(None);
+        jelly.set_gravity(Vec3::ZERO);
+        let hook = Collider::cuboid(Vec3::new(0.0, 0.26, 0.0), Vec3::splat(0.05), Quat::IDENTITY);
+        let springs: Vec<Attachment> = top_attachments(&jelly, 0, &hook)
+            .into_iter()
+            .map(|a| {
+                let lower = a.local - Vec3::new(0.0, 0.01, 0.0);
+                Attachment { local: lower, ..a }.with_spring(k, damping)
+            })
+            .collect();
+        let mass: Real = jelly.masses().iter().sum();
+        let n = springs.len() as Real;
+        let omega = (n * k / mass).sqrt();
+        let period = 2.0 * core::f64::consts::PI * h / (h * omega).atan();
+        let (mut colliders, mut reactions) = ([hook], [Reaction::ZERO]);
+        let centre = |jelly: &Block| {
+            let rows = jelly.positions().iter().zip(jelly.masses());
+            rows.map(|(&x, &m)| x.y * m).sum::<Real>() / mass
+        };
+        let rest = centre(&jelly) - 0.01;
+        let (mut crossings, mut before) = (Vec::new(), centre(&jelly) - rest);
+        let mut peaks = [0.0 as Real; 4];
+        let steps = (3.2 * period / h) as usize;
+        for step in 0..steps {
+            let scene = jelly.scene(h);
+            jelly
+                .step_with_rigid_bodies_and_attachments(
+                    &scene,
+                    &mut colliders,
+                    &springs,
+                    &mut reactions,
+                )
+                .unwrap();
+            let now = centre(&jelly) - rest;
+            if before < 0.0 && now >= 0.0 {
+                crossings.push((step as Real + before / (before - now)) * h);
+            }
+            // The largest excursion in each of the first periods after the release.
+            if let Some(peak) = peaks.get_mut(((step + 1) as Real * h / period) as usize) {
+                *peak = peak.max(now.abs());
+            }
+            before = now;
+        }
+        if damping == 0.0 {
+            assert!(crossings.len() >= 3, "{crossings:?}");
+            let last = crossings.len() - 1;
+            let measured = (crossings[last] - crossings[0]) / last as Real;
+            println!("springs: period {measured} s, implicit Euler's {period} s");
+            assert!(
+                (measured - period).abs() < 0.01 * period,
+                "{measured} s against {period} s"
+            );
+        } else {
+            let gamma = n * damping / mass;
+            let per_step = 1.0 / (1.0 + h * gamma + h * h * omega * omega).sqrt();
+            let expected = per_step.powf(period / h);
+            let measured = peaks[2] / peaks[1];
+            println!("dampers: decay over a period {measured}, implicit Euler's {expected}");
+            assert!(
+                (measured - expected).abs() < 0.02 * expected,
+                "{measured} against {expected}"
+            );
+        }
+    }
+}
