@@ -834,6 +834,22 @@ fn the_dynamic_box_rests_on_the_body_and_the_floor_carries_both() {
     }
 }
 
+/// The jelly cube of the firmware scenario hanging from a static hook by hard (corners) and soft
+/// (springs and dampers) attachments (issue #42 item 3): after 30 steps at 60 Hz the hook
+/// carries the cube's weight, 9.81 N, within 5 % (the springs still swing a little).
+#[test]
+fn the_hook_carries_the_hanging_body() {
+    let records = host_records();
+    for precision in ["f32", "f64"] {
+        let force = record_value(
+            &records,
+            &format!("{precision} hanging body, hook force (N)"),
+        );
+        println!("{precision}: the hook carries {force:.3} N");
+        assert!((force - 9.81).abs() < 0.05 * 9.81, "{precision}: {force} N");
+    }
+}
+
 /// The rigid box of the firmware scenario (1 kg on the 1 kg jelly cube, coupled through
 /// `Body::step_with_reactions`, issue #42) rests on the cube after 30 steps: the floor carries
 /// both weights (within 1 %; measured 19.620 N of 19.62), the box sits on the compressed

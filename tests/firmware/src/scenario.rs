@@ -229,7 +229,7 @@ macro_rules! precision {
             };
             use $($softfem)::+::svd::Svd3;
             use $($softfem)::+::types::{Mat3, Quat, Real, Vec3};
-            use $($softfem)::+::step::Reaction;
+            use $($softfem)::+::step::{Attachment, Reaction};
             use $($softfem)::+::asset::surface::{BoundaryFace, boundary_faces, boundary_scratch_len};
             use $($softfem)::+::step::contact::boundary::ContactSurface;
             use $($softfem)::+::step::contact::model::{CandidateReuse, FrictionPair};
@@ -256,7 +256,7 @@ macro_rules! precision {
                 use $($softfem)::+::element::TetRest;
                 use $($softfem)::+::{BodyError, MeshError, StepError};
                 use $($softfem)::+::body::{CoupledReport, StepReport};
-                use $($softfem)::+::step::{Collider, Reaction};
+                use $($softfem)::+::step::{Attachment, Collider, Reaction};
                 use $($softfem)::+::step::contact::ContactModel;
 
                 use super::ColliderBody;
@@ -397,6 +397,18 @@ macro_rules! precision {
                     reactions: &mut [Reaction],
                 ) -> Result<CoupledReport, StepError> {
                     body.step_with_rigid_bodies(scene, colliders, reactions)
+                }
+
+                /// `Body::step_with_rigid_bodies_and_attachments` of that body.
+                #[inline(never)]
+                pub fn body_step_attached(
+                    body: &mut ColliderBody,
+                    scene: &Scene<'_, Vec3>,
+                    colliders: &mut [Collider<'_>],
+                    attachments: &[Attachment],
+                    reactions: &mut [Reaction],
+                ) -> Result<CoupledReport, StepError> {
+                    body.step_with_rigid_bodies_and_attachments(scene, colliders, attachments, reactions)
                 }
 
                 /// `Body::step_with_colliders` of that body, whichever its solver.
@@ -1458,6 +1470,62 @@ macro_rules! precision {
                 }
             }
 
+            /// Attachments in firmware (issue #42 item 3): the owned jelly cube hangs from a
+            /// static hook collider, its four top corners on hard attachments and the rest of
+            /// its top face on springs (200 N/m) and dampers (2 N s/m), stepped by Newton's
+            /// method at 60 Hz with `Body::step_with_rigid_bodies_and_attachments`. Records the
+            /// hook's force after 30 steps and the state.
+            #[inline(never)]
+            fn hanging_body(meter: &mut impl Meter, records: &mut Records, body: &mut ColliderBody) {
+                let Ok(material) = StableNeoHookean::from_young_poisson(black_box(5.0e4), black_box(0.4)) else {
+                    push(records, concat!($prefix, " hanging body setup"), Digest::new(), Real::NAN);
+                    return;
+                };
+                let (low, high) = (Vec3::new(-0.05, 0.0, -0.05), Vec3::new(0.05, 0.1, 0.05));
+                let built = pieces::body_new(body, low, high, 1000.0, material);
+                if built.is_err() || body.set_solver(Solver::newton()).is_err() {
+                    push(records, concat!($prefix, " hanging body build"), Digest::new(), Real::NAN);
+                    return;
+                }
+                body.set_gravity(Vec3::new(0.0, -9.81, 0.0));
+                let hook = Collider::cuboid(Vec3::new(0.0, 0.12, 0.0), Vec3::new(0.06, 0.02, 0.06), Quat::IDENTITY);
+                let mut attachments = [Attachment::new(0, 0, Vec3::ZERO); 9];
+                let mut count = 0;
+                for (i, &x) in body.positions().iter().enumerate() {
+                    if x.y == 0.1 && count < attachments.len() {
+                        let corner = x.x.abs() == 0.05 && x.z.abs() == 0.05;
+                        let hold = Attachment::at(i as u32, 0, &hook, x);
+                        attachments[count] = match corner {
+                            true => hold,
+                            false => hold.with_spring(200.0, 2.0),
+                        };
+                        count += 1;
+                    }
+                }
+                let attached = attachments.get(..count).unwrap_or(&[]);
+                let mut colliders = [hook];
+                let mut reactions = [Reaction::ZERO];
+                let (mut digest, dt) = (Digest::new(), 1.0 / 60.0);
+                for step in 1..=RIGID_STEPS {
+                    let scene = body.scene(dt);
+                    let report = meter.measure(concat!($prefix, " body step with attachments"), || {
+                        pieces::body_step_attached(body, &scene, &mut colliders, attached, &mut reactions)
+                    });
+                    match report {
+                        Ok(report) => digest.u64(u64::from(report.converged())),
+                        Err(_) => digest.u64(u64::MAX),
+                    }
+                    let reaction = reactions.first().copied().unwrap_or(Reaction::ZERO);
+                    vec3(&mut digest, reaction.impulse);
+                    vec3(&mut digest, reaction.angular_impulse);
+                    if step == RIGID_STEPS {
+                        digest.u64(state_digest(body.positions(), body.velocities()).finish());
+                        let force = -reaction.impulse.y / dt;
+                        push(records, concat!($prefix, " hanging body, hook force (N)"), digest, force);
+                    }
+                }
+            }
+
             /// The whole workload in this precision.
             pub fn run(meter: &mut impl Meter, records: &mut Records, body: &mut DropBody, descent: &mut DescentScratch, owned: &mut ColliderBody) {
                 svds(meter, records);
@@ -1466,6 +1534,7 @@ macro_rules! precision {
                 on_colliders(meter, records, owned);
                 rigid_on_body(meter, records, owned);
                 dynamic_on_body(meter, records, owned);
+                hanging_body(meter, records, owned);
                 contact_pair(meter, records);
             }
         }
