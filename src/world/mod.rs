@@ -79,7 +79,7 @@ pub use storage::{FixedWorld, List, WorldStorage};
 use core::ops::Range;
 
 use super::asset::surface::{BoundaryFace, boundary_faces};
-use super::body::{Fixed, Slots, Solver, StepReport, substeps};
+use super::body::{CoupledReport, Fixed, Slots, Solver, StepReport, substeps};
 use super::element::{TetHessian, TetRest};
 use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
@@ -89,10 +89,12 @@ use super::step::contact::model::CandidateReuse;
 use super::step::contact::model::{ContactCounts, FrictionPair};
 use super::step::contact::potential::{ContactBarrier, PairHessian};
 use super::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
+use super::step::contact::collider::check_colliders;
 use super::step::contact::reaction::{recorded_reactions, recording_slots};
+use super::step::contact::rigid::couple;
 use super::step::state::check_length;
 use super::step::{
-    Collider, ContactBuffersVbd,  ExplicitMemory, ExplicitScratch, HalfSpace,
+    Collider, ContactBuffersVbd, CouplingSettings, ExplicitMemory, ExplicitScratch, HalfSpace,
     NewtonScratch, NewtonSettings, Reaction, RelaxScratch, Scene, VbdScratch, VbdTopology,
      check_time_step, explicit_step,  newton_step,
     relax_step, scratch_len, stable_time_step, vbd_step,
@@ -207,6 +209,7 @@ pub struct World<S: WorldStorage, M: Material> {
     tet_indices: S::TetIndices,
     topology: VbdTopology,
     solver: Solver,
+    coupling: CouplingSettings,
     gravity: Vec3,
     ground: Option<HalfSpace<Vec3>>,
     /// `None`: the default, [`ContactBarrier::holding`]`(DEFAULT_GAP, DEFAULT_HOLDING_FORCE)`.
@@ -278,6 +281,7 @@ macro_rules! unbuilt_world {
             tet_indices: $slots(0),
             topology: None,
             solver: Solver::Newton(NewtonSettings::new()),
+            coupling: CouplingSettings::DEFAULT,
             gravity: Vec3::ZERO,
             ground: None,
             barrier: None,
@@ -664,8 +668,9 @@ impl<S: WorldStorage, M: Material> World<S, M> {
         if let Solver::Auto(_) = solver {
             return Err(BodyError::Solver);
         }
-        // The solver's and the two of a step recorded for reactions (see `recording_slots`).
-        let vectors = solver_vectors(solver) + 2;
+        // The solver's, the two of a step recorded for reactions (see `recording_slots`) and
+        // the two of a coupled step's start (see `coupling_slots`).
+        let vectors = solver_vectors(solver) + EXTRA_VECTORS;
         self.topology = None;
         if let Solver::Vbd(_) = solver {
             let vertex_len = scratch_len::vbd_indices(n, 0);
@@ -1077,6 +1082,150 @@ impl<S: WorldStorage, M: Material> World<S, M> {
             reactions.len(),
         )?;
         self.step_recording(scene, Some(reactions))
+    }
+
+    /// One step of `scene` with the dynamic colliders among `colliders` (those given a mass,
+    /// [`Collider::with_mass`]) solved with every body of the world: a crate lying across two
+    /// bodies, a lid on a stack, a box thrown into a pile (`docs/math.md` section 8.15). As
+    /// [`Body::step_with_rigid_bodies`](crate::body::Body::step_with_rigid_bodies): each
+    /// dynamic collider's end-of-step velocity is an unknown of the same implicit Euler step,
+    /// the world steps with the collider at the pose that velocity gives it (one solve over
+    /// every body, with their contact), the collider's momentum balance with the impulse the
+    /// bodies applied gives its velocity again, and the two are iterated (Aitken's relaxation)
+    /// until they agree within the world's [`coupling`](Self::coupling) tolerance. Every
+    /// iteration is one step of the world's solver from the same start: the positions and
+    /// velocities of every body and the explicit stepper's memory are put back before each
+    /// iteration after the first (what else the world keeps between steps, the relaxation's
+    /// preconditioner and Vertex Block Descent's colouring, depends on the meshes only).
+    ///
+    /// On return every dynamic collider has its new pose and velocities (its `position` is its
+    /// centre of mass), and `reactions` what every collider received over the step, as in
+    /// [`step_with_reactions`](Self::step_with_reactions). Static and kinematic colliders are
+    /// not changed. The scene's own colliders must be empty: every collider goes in
+    /// `colliders`. Contact between colliders is not solved; gravity is the scene's.
+    ///
+    /// ```
+    /// # #[cfg(feature = "alloc")] {
+    /// use softfem::body::VecStorage;
+    /// use softfem::step::{Collider, HalfSpace, Reaction};
+    /// use softfem::world::World;
+    /// use softfem::{glam::{Quat, Vec3}, material::StableNeoHookean};
+    ///
+    /// // Two jelly cubes side by side on the ground and a 1 kg plank lying across both.
+    /// let jelly = StableNeoHookean::from_young_poisson(5.0e4, 0.3)?; // Pa
+    /// let mut world = World::<VecStorage, _>::new();
+    /// world.add_box(Vec3::new(-0.22, 0.0, -0.1), Vec3::new(-0.02, 0.2, 0.1), [1; 3], 100.0, jelly)?;
+    /// world.add_box(Vec3::new(0.02, 0.0, -0.1), Vec3::new(0.22, 0.2, 0.1), [1; 3], 100.0, jelly)?;
+    /// world.set_gravity(Vec3::new(0.0, -9.81, 0.0));
+    /// world.set_ground(Some(HalfSpace::new(Vec3::Y, 0.0)));
+    /// // Wider than the cubes: collider contact is tested at the cubes' vertices.
+    /// let half = Vec3::new(0.25, 0.02, 0.15); // m
+    /// let inertia = Vec3::new(0.0076, 0.028, 0.021); // kg m^2: m/3 (b^2 + c^2), ...
+    /// let plank = Collider::cuboid(Vec3::new(0.0, 0.22, 0.0), half, Quat::IDENTITY);
+    /// let mut colliders = [plank.with_mass(1.0, inertia)];
+    /// let mut reactions = [Reaction::ZERO];
+    /// for _ in 0..30 {
+    ///     let scene = world.scene(1.0 / 60.0);
+    ///     world.step_with_rigid_bodies(&scene, &mut colliders, &mut reactions)?;
+    /// }
+    /// // The cubes carry the plank's weight, 9.81 N.
+    /// assert!((reactions[0].force(1.0 / 60.0).y - 9.81).abs() < 0.02 * 9.81);
+    /// # }
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// Before anything is moved: [`StepError::SceneColliders`] if the scene has colliders,
+    /// [`StepError::LengthMismatch`] (buffer [`StepBuffer::Reactions`]) unless `reactions`
+    /// has one entry per collider, [`StepError::Collider`] for a collider out of range,
+    /// [`StepError::TimeStep`] or [`StepError::TimeStepTooSmall`] for the scene's `dt`,
+    /// [`StepError::CouplingSettings`] for coupling settings out of range,
+    /// [`StepError::EmptyBody`] for a world without bodies and
+    /// [`StepError::TooManyDynamicColliders`] beyond
+    /// [`MAX_DYNAMIC_COLLIDERS`](crate::step::MAX_DYNAMIC_COLLIDERS). A soft step that fails
+    /// returns its error (as [`step_with`](Self::step_with)'s) with every body's positions and
+    /// velocities and every collider as they were before the call.
+    pub fn step_with_rigid_bodies(
+        &mut self,
+        scene: &Scene<'_, Vec3>,
+        colliders: &mut [Collider<'_>],
+        reactions: &mut [Reaction],
+    ) -> Result<CoupledReport, StepError> {
+        if !scene.colliders.is_empty() {
+            return Err(StepError::SceneColliders);
+        }
+        check_length(StepBuffer::Reactions, colliders.len(), reactions.len())?;
+        check_colliders(colliders, true)?;
+        check_time_step(scene.dt)?;
+        if !self.coupling.valid() {
+            return Err(StepError::CouplingSettings);
+        }
+        let n = self.vertex_count();
+        if n == 0 {
+            return Err(StepError::EmptyBody);
+        }
+        let mass: Real = self.masses.slice().iter().sum();
+        let vertex_mass = mass / n as Real;
+        // The step's start, for every iteration after the first and for a failure.
+        let memory = self.explicit_memory;
+        let k = solver_vectors(&self.solver);
+        let (start_positions, start_velocities) = coupling_slots(self.vectors.slice_mut(), n, k);
+        copy_into(start_positions, self.positions.slice());
+        copy_into(start_velocities, self.velocities.slice());
+        let settings = self.coupling;
+        let time = (scene.dt, scene.gravity);
+        let outcome = couple(
+            colliders,
+            time,
+            &settings,
+            vertex_mass,
+            reactions,
+            |colliders, reactions, iteration| {
+                if iteration > 0 {
+                    self.restore_coupling_start(memory);
+                }
+                let scene = scene.with_colliders(colliders);
+                let report = self.step_recording(&scene, Some(reactions))?;
+                let residual = match report.converged() {
+                    true => report.residual(),
+                    false => Real::INFINITY,
+                };
+                Ok((report, residual))
+            },
+        );
+        match outcome {
+            Ok((step, coupling)) => Ok(CoupledReport { step, coupling }),
+            Err(error) => {
+                self.restore_coupling_start(memory);
+                Err(error)
+            }
+        }
+    }
+
+    /// The coupling iteration's settings (see
+    /// [`step_with_rigid_bodies`](Self::step_with_rigid_bodies)).
+    #[inline]
+    #[must_use]
+    pub fn coupling(&self) -> &CouplingSettings {
+        &self.coupling
+    }
+
+    /// Sets the coupling iteration's settings; checked by the step
+    /// ([`StepError::CouplingSettings`]).
+    #[inline]
+    pub fn set_coupling(&mut self, settings: CouplingSettings) {
+        self.coupling = settings;
+    }
+
+    /// Puts back the positions and velocities kept at the start of a coupled step, and the
+    /// explicit stepper's `memory` of then.
+    fn restore_coupling_start(&mut self, memory: ExplicitMemory) {
+        let n = self.vertex_count();
+        let k = solver_vectors(&self.solver);
+        let (start_positions, start_velocities) = coupling_slots(self.vectors.slice_mut(), n, k);
+        copy_into(self.positions.slice_mut(), start_positions);
+        copy_into(self.velocities.slice_mut(), start_velocities);
+        self.explicit_memory = memory;
     }
 
     /// [`step_with`](Self::step_with), recording the colliders' reactions where `reactions` is
@@ -1500,6 +1649,20 @@ fn solver_vectors(solver: &Solver) -> usize {
         Solver::Vbd(_) => 6,
         Solver::Auto(_) => 0,
     }
+}
+
+/// The vectors per vertex of a world's scratch beyond its solver's: the impulses and start
+/// velocities of a step recorded for reactions (`recording_slots`), then a coupled step's
+/// start positions and velocities (`coupling_slots`).
+const EXTRA_VECTORS: usize = 4;
+
+/// The vectors of the scratch where a coupled step keeps the positions and velocities of its
+/// start: after the `k` of the solver and the two of a recorded step.
+fn coupling_slots(vectors: &mut [Vec3], n: usize, k: usize) -> (&mut [Vec3], &mut [Vec3]) {
+    let start = n.saturating_mul(k.saturating_add(2));
+    let rest = vectors.get_mut(start..).unwrap_or(&mut []);
+    let (positions, rest) = rest.split_at_mut_checked(n).unwrap_or_default();
+    (positions, rest.get_mut(..n).unwrap_or(&mut []))
 }
 
 /// Sizes `buffer` to `room` entries of `fill`, or else to `needed`; `false` if neither fits.

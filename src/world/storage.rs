@@ -134,8 +134,11 @@ pub trait WorldStorage {
     type Tets: List<[u32; 4]>;
     /// One rest datum per tetrahedron, kept.
     type Rests: List<TetRest>;
-    /// The solvers' vector scratch: up to eleven vectors per vertex (Newton's method's nine
-    /// and the two of a step recorded for reactions).
+    /// The solvers' vector scratch, per vertex: the solver's own vectors (Newton's method's
+    /// nine at most) and four more, the impulses and start velocities of a step recorded for
+    /// reactions and the start positions and velocities of a coupled step
+    /// ([`World::step_with_rigid_bodies`](super::World::step_with_rigid_bodies)): thirteen at
+    /// most.
     type Scratch: Slots<Vec3>;
     /// One scalar per vertex of scratch (the relaxation's preconditioner).
     type Scalars: Slots<Real>;
@@ -214,7 +217,7 @@ impl<const B: usize, const V: usize, const T: usize, const C: usize, const P: us
     type Flags = heapless::Vec<bool, V>;
     type Tets = heapless::Vec<[u32; 4], T>;
     type Rests = heapless::Vec<TetRest, T>;
-    type Scratch = Fixed<Vec3, 11, V>;
+    type Scratch = Fixed<Vec3, 13, V>;
     type Scalars = Fixed<Real, 1, V>;
     type Blocks = Fixed<Mat3, 1, V>;
     type Hessians = Fixed<TetHessian, 1, T>;

@@ -40,4 +40,6 @@ mod vbd;
 #[cfg(feature = "alloc")]
 mod world;
 #[cfg(feature = "alloc")]
+mod world_rigid;
+#[cfg(feature = "alloc")]
 mod world_vbd;
