@@ -72,12 +72,11 @@ use super::element::{TetHessian, TetRest};
 use super::generate::{BoxSplit, box_counts, fill_box};
 use super::material::Material;
 use super::mesh::{TetMesh, TetRestBlock, rest_block_count};
-use super::step::contact::collider::check_colliders;
 use super::step::contact::reaction::{recorded_reactions, recording_slots};
 use super::step::contact::attachment::{
     MAX_ATTACHMENTS, SoftPull, add_attachment_reactions, check_attachments, end_anchor,
 };
-use super::step::contact::rigid::couple;
+use super::step::contact::rigid::{check_coupled_step, couple};
 use super::step::state::check_length;
 use super::step::{
     Attachment, Collider, CouplingSettings, ExplicitMemory, ExplicitScratch, HalfSpace, NewtonScratch, Reaction,
@@ -1054,15 +1053,7 @@ impl<S: Storage, M: Material> Body<S, M> {
         attachments: &[Attachment],
         reactions: &mut [Reaction],
     ) -> Result<CoupledReport, StepError> {
-        if !scene.colliders.is_empty() {
-            return Err(StepError::SceneColliders);
-        }
-        check_length(StepBuffer::Reactions, colliders.len(), reactions.len())?;
-        check_colliders(colliders, true)?;
-        check_time_step(scene.dt)?;
-        if !self.coupling.valid() {
-            return Err(StepError::CouplingSettings);
-        }
+        check_coupled_step(scene, colliders, reactions, &self.coupling)?;
         let n = self.vertex_count();
         if n == 0 {
             return Err(StepError::EmptyBody);
@@ -1132,18 +1123,19 @@ impl<S: Storage, M: Material> Body<S, M> {
                 }
             }
             let report = report?;
-            let state = (
-                self.positions.slice(),
-                self.coupling_start_positions(),
-                self.pinned.slice(),
-            );
-            let held = (self.last_impulses(), dt);
-            add_attachment_reactions(attachments, colliders, state, held, reactions);
-            let residual = match report.converged() {
-                true => report.residual(),
-                false => Real::INFINITY,
-            };
-            Ok((report, residual))
+            // The recorded impulses and the coupled step's start, from one scratch.
+            let (head, tail) = self
+                .vectors
+                .slice_mut()
+                .split_at_mut_checked(n.saturating_mul(auto::AUTO_VECTORS))
+                .unwrap_or_default();
+            let first = n.saturating_mul(RECORDED_IMPULSES);
+            let impulses = head.get_mut(first..first.saturating_add(n)).unwrap_or(&mut []);
+            let starts = tail.get(..n).unwrap_or(&[]);
+            let (x, v) = (self.positions.slice(), self.velocities.slice());
+            let state = (x, v, starts, self.pinned.slice());
+            add_attachment_reactions(attachments, colliders, state, (impulses, dt), reactions);
+            Ok((report, report.coupling_residual()))
         };
         let outcome = couple(
             colliders,
@@ -1187,14 +1179,6 @@ impl<S: Storage, M: Material> Body<S, M> {
     #[inline]
     pub fn set_coupling(&mut self, settings: CouplingSettings) {
         self.coupling = settings;
-    }
-
-    /// The positions at the start of a coupled step, kept in its scratch.
-    fn coupling_start_positions(&self) -> &[Vec3] {
-        let n = self.vertex_count();
-        let start = n.saturating_mul(auto::AUTO_VECTORS);
-        let vectors = self.vectors.slice();
-        vectors.get(start..start.saturating_add(n)).unwrap_or(&[])
     }
 
     /// Hands the soft attachment `a` to the collider `collider` (as the step sees it) to the

@@ -165,6 +165,17 @@ impl CoupledReport {
 }
 
 impl StepReport {
+    /// What a coupled step's iteration is told of this soft step (`step/contact/rigid.rs`,
+    /// `couple`): its [`residual`](Self::residual) where it converged, else infinity (no
+    /// floor granted).
+    #[inline]
+    pub(crate) fn coupling_residual(&self) -> Real {
+        match self.converged() {
+            true => self.residual(),
+            false => Real::INFINITY,
+        }
+    }
+
     /// The force (N) the step's solve left unbalanced: its report's `residual` (the larger of
     /// two half steps'); zero for an explicit step, which solves no equation.
     #[inline]

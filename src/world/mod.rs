@@ -89,12 +89,14 @@ use super::step::contact::model::CandidateReuse;
 use super::step::contact::model::{ContactCounts, FrictionPair};
 use super::step::contact::potential::{ContactBarrier, PairHessian};
 use super::step::contact::{ContactBuffers, ContactModel, SUGGESTED_STICKING_SPEED};
-use super::step::contact::collider::check_colliders;
 use super::step::contact::reaction::{recorded_reactions, recording_slots};
-use super::step::contact::rigid::couple;
+use super::step::contact::attachment::{
+    MAX_ATTACHMENTS, SoftPull, add_attachment_reactions, check_attachments, end_anchor,
+};
+use super::step::contact::rigid::{check_coupled_step, couple};
 use super::step::state::check_length;
 use super::step::{
-    Collider, ContactBuffersVbd, CouplingSettings, ExplicitMemory, ExplicitScratch, HalfSpace,
+    Attachment, Collider, ContactBuffersVbd, CouplingSettings, ExplicitMemory, ExplicitScratch, HalfSpace,
     NewtonScratch, NewtonSettings, Reaction, RelaxScratch, Scene, VbdScratch, VbdTopology,
      check_time_step, explicit_step,  newton_step,
     relax_step, scratch_len, stable_time_step, vbd_step,
@@ -1151,18 +1153,89 @@ impl<S: WorldStorage, M: Material> World<S, M> {
         colliders: &mut [Collider<'_>],
         reactions: &mut [Reaction],
     ) -> Result<CoupledReport, StepError> {
-        if !scene.colliders.is_empty() {
-            return Err(StepError::SceneColliders);
-        }
-        check_length(StepBuffer::Reactions, colliders.len(), reactions.len())?;
-        check_colliders(colliders, true)?;
-        check_time_step(scene.dt)?;
-        if !self.coupling.valid() {
-            return Err(StepError::CouplingSettings);
-        }
+        self.step_with_rigid_bodies_and_attachments(scene, colliders, &[], reactions)
+    }
+
+    /// [`step_with_rigid_bodies`](Self::step_with_rigid_bodies) with vertices held at points of
+    /// the colliders' frames, as
+    /// [`Body::step_with_rigid_bodies_and_attachments`](crate::body::Body::step_with_rigid_bodies_and_attachments),
+    /// each [`Attachment::vertex`] a vertex index of the world (body after body: add a body's
+    /// first index, [`Part::vertices`]). A hard attachment pins its vertex (it stays pinned
+    /// after the step: free it with [`set_pinned`](Self::set_pinned)) and moves it to its
+    /// point on the collider at the step's end; a soft one pulls it there by a spring and a
+    /// damper, terms of the implicit step (the explicit stepper refuses them). What holds each
+    /// vertex joins its collider's reaction.
+    ///
+    /// ```
+    /// # #[cfg(feature = "alloc")] {
+    /// use softfem::body::VecStorage;
+    /// use softfem::step::{Attachment, Collider, Reaction};
+    /// use softfem::world::World;
+    /// use softfem::{glam::{Quat, Vec3}, material::StableNeoHookean};
+    ///
+    /// // Two jellies hanging side by side from a static bar, one on springs and dampers.
+    /// let jelly = StableNeoHookean::from_young_poisson(5.0e4, 0.3)?; // Pa
+    /// let mut world = World::<VecStorage, _>::new();
+    /// world.add_box(Vec3::new(-0.3, -0.2, -0.1), Vec3::new(-0.1, 0.0, 0.1), [1; 3], 100.0, jelly)?;
+    /// world.add_box(Vec3::new(0.1, -0.2, -0.1), Vec3::new(0.3, 0.0, 0.1), [1; 3], 100.0, jelly)?;
+    /// world.set_gravity(Vec3::new(0.0, -9.81, 0.0));
+    /// let bar = Collider::cuboid(Vec3::new(0.0, 0.05, 0.0), Vec3::new(0.4, 0.05, 0.15), Quat::IDENTITY);
+    /// let top: Vec<Attachment> = (0..world.vertex_count() as u32)
+    ///     .filter(|&i| world.positions()[i as usize].y == 0.0)
+    ///     .map(|i| {
+    ///         let hold = Attachment::at(i, 0, &bar, world.positions()[i as usize]);
+    ///         if world.positions()[i as usize].x > 0.0 { hold.with_spring(500.0, 5.0) } else { hold }
+    ///     })
+    ///     .collect();
+    /// let (mut colliders, mut reactions) = ([bar], [Reaction::ZERO]);
+    /// for _ in 0..60 {
+    ///     let scene = world.scene(1.0 / 60.0);
+    ///     world.step_with_rigid_bodies_and_attachments(&scene, &mut colliders, &top, &mut reactions)?;
+    /// }
+    /// // The bar carries both jellies: 2 x 0.8 kg.
+    /// let weight = world.masses().iter().sum::<f32>() * 9.81;
+    /// assert!((reactions[0].force(1.0 / 60.0).y + weight).abs() < 0.05 * weight);
+    /// # }
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// # Errors
+    /// As [`step_with_rigid_bodies`](Self::step_with_rigid_bodies), and before anything is
+    /// moved [`StepError::TooManyAttachments`], [`StepError::AttachedVertex`] or
+    /// [`StepError::AttachedCollider`] for an entry out of range, and
+    /// [`StepError::SoftAttachmentSolver`] for a soft attachment with the explicit stepper. A
+    /// failed step also puts back the attached vertices' pins.
+    pub fn step_with_rigid_bodies_and_attachments(
+        &mut self,
+        scene: &Scene<'_, Vec3>,
+        colliders: &mut [Collider<'_>],
+        attachments: &[Attachment],
+        reactions: &mut [Reaction],
+    ) -> Result<CoupledReport, StepError> {
+        check_coupled_step(scene, colliders, reactions, &self.coupling)?;
         let n = self.vertex_count();
         if n == 0 {
             return Err(StepError::EmptyBody);
+        }
+        check_attachments(attachments, n, colliders.len())?;
+        let soft = attachments.iter().any(Attachment::is_soft);
+        if soft && matches!(self.solver, Solver::Explicit { .. }) {
+            return Err(StepError::SoftAttachmentSolver);
+        }
+        // The attached vertices' pins and masses before the call, put back if it fails (the
+        // masses after every soft step).
+        let mut pins: heapless::Vec<(bool, Real), MAX_ATTACHMENTS> = heapless::Vec::new();
+        for a in attachments {
+            let v = a.vertex as usize;
+            let pin = (
+                self.pinned.slice().get(v).copied().unwrap_or(false),
+                self.masses.slice().get(v).copied().unwrap_or(0.0),
+            );
+            if pins.push(pin).is_err() {
+                return Err(StepError::TooManyAttachments {
+                    limit: MAX_ATTACHMENTS,
+                });
+            }
         }
         let mass: Real = self.masses.slice().iter().sum();
         let vertex_mass = mass / n as Real;
@@ -1173,10 +1246,10 @@ impl<S: WorldStorage, M: Material> World<S, M> {
         copy_into(start_positions, self.positions.slice());
         copy_into(start_velocities, self.velocities.slice());
         let settings = self.coupling;
-        let time = (scene.dt, scene.gravity);
+        let (dt, gravity) = (scene.dt, scene.gravity);
         let outcome = couple(
             colliders,
-            time,
+            (dt, gravity),
             &settings,
             vertex_mass,
             reactions,
@@ -1184,22 +1257,112 @@ impl<S: WorldStorage, M: Material> World<S, M> {
                 if iteration > 0 {
                     self.restore_coupling_start(memory);
                 }
-                let scene = scene.with_colliders(colliders);
-                let report = self.step_recording(&scene, Some(reactions))?;
-                let residual = match report.converged() {
-                    true => report.residual(),
-                    false => Real::INFINITY,
-                };
-                Ok((report, residual))
+                self.hold_attached(attachments, colliders, (dt, gravity));
+                let report = self.step_recording(&scene.with_colliders(colliders), Some(reactions));
+                for (a, &(_, mass)) in attachments.iter().zip(&pins) {
+                    if let Some(m) = self.masses.slice_mut().get_mut(a.vertex as usize) {
+                        *m = mass;
+                    }
+                }
+                let report = report?;
+                self.add_attachment_reactions(attachments, colliders, dt, reactions);
+                Ok((report, report.coupling_residual()))
             },
         );
         match outcome {
             Ok((step, coupling)) => Ok(CoupledReport { step, coupling }),
             Err(error) => {
                 self.restore_coupling_start(memory);
+                for (a, &(pinned, mass)) in attachments.iter().zip(&pins) {
+                    let v = a.vertex as usize;
+                    if let (Some(p), Some(m)) = (
+                        self.pinned.slice_mut().get_mut(v),
+                        self.masses.slice_mut().get_mut(v),
+                    ) {
+                        (*p, *m) = (pinned, mass);
+                    }
+                }
+                self.stable_step = None;
                 Err(error)
             }
         }
+    }
+
+    /// Before a soft step of a coupled step of `h` (s) under `gravity`: each hard-attached
+    /// vertex pinned at its anchor at the step's end with the velocity that takes it there
+    /// from its start, each free soft-attached one given the mass and start velocity that put
+    /// its spring and damper into the step's objective (`SoftPull::inertia`).
+    fn hold_attached(
+        &mut self,
+        attachments: &[Attachment],
+        colliders: &[Collider<'_>],
+        (h, gravity): (Real, Vec3),
+    ) {
+        for a in attachments {
+            let v = a.vertex as usize;
+            let Some(collider) = colliders.get(a.collider as usize) else {
+                continue;
+            };
+            let (Some(pinned), Some(m), Some(x), Some(velocity)) = (
+                self.pinned.slice_mut().get_mut(v),
+                self.masses.slice_mut().get_mut(v),
+                self.positions.slice_mut().get_mut(v),
+                self.velocities.slice_mut().get_mut(v),
+            ) else {
+                continue;
+            };
+            if a.is_soft() {
+                if !*pinned {
+                    let pull = SoftPull::new(a, collider, *x, h);
+                    (*m, *velocity) = pull.inertia((*m, *x, *velocity), (h, gravity));
+                }
+            } else {
+                let anchor = end_anchor(a, collider, h);
+                if !*pinned {
+                    *pinned = true;
+                    self.stable_step = None;
+                }
+                *velocity = (anchor - *x) / h;
+                *x = anchor;
+            }
+        }
+    }
+
+    /// After a soft step of a coupled step: each hard-attached vertex's recorded impulse
+    /// completed with its move at the step's start (`m (v - v0)`, `v0` its velocity at the
+    /// coupled step's start: the soft step saw it pinned at its new velocity), then every
+    /// attachment's share of its collider's reaction.
+    fn add_attachment_reactions(
+        &mut self,
+        attachments: &[Attachment],
+        colliders: &[Collider<'_>],
+        h: Real,
+        reactions: &mut [Reaction],
+    ) {
+        let n = self.vertex_count();
+        let k = solver_vectors(&self.solver);
+        let vectors = self.vectors.slice_mut();
+        let (recorded, coupling) = vectors
+            .split_at_mut_checked(n.saturating_mul(k.saturating_add(2)))
+            .unwrap_or_default();
+        let impulses = recorded
+            .get_mut(n.saturating_mul(k)..n.saturating_mul(k.saturating_add(1)))
+            .unwrap_or(&mut []);
+        let (starts, start_velocities) = coupling.split_at_checked(n).unwrap_or_default();
+        for a in attachments.iter().filter(|a| !a.is_soft()) {
+            let v = a.vertex as usize;
+            let masses = self.masses.slice();
+            let velocities = self.velocities.slice();
+            let rows = (masses.get(v), velocities.get(v), start_velocities.get(v));
+            if let ((Some(&m), Some(&now), Some(&before)), Some(impulse)) = (rows, impulses.get_mut(v))
+            {
+                *impulse += (now - before) * m;
+            }
+        }
+        let starts = starts.get(..n).unwrap_or(&[]);
+        let (x, v) = (self.positions.slice(), self.velocities.slice());
+        let state = (x, v, starts, self.pinned.slice());
+        add_attachment_reactions(attachments, colliders, state, (impulses, h), reactions);
     }
 
     /// The coupling iteration's settings (see

@@ -10,7 +10,7 @@
 
 use super::super::super::types::{Real, Vec3};
 use super::collider::{Collider, rotate, rotate_back};
-use super::reaction::Reaction;
+use super::reaction::{Reaction, nearest_collider};
 use crate::error::StepError;
 
 /// How many attachments one coupled step takes: the attached vertices' pins and targets before
@@ -195,35 +195,54 @@ impl SoftPull {
     }
 }
 
-/// Adds to each collider's reaction what its attached vertices took from it over the step,
-/// the body at `positions` (m) after it and at `starts` before it: at a hard attachment minus
-/// the vertex's pin impulse `impulses[vertex]` (N s), at a soft one minus its pull's impulse
-/// ([`SoftPull::impulse`]; none at a pinned vertex, which the pull does not move), with the
-/// moment about the collider's position of the impulse at the vertex (hard) or at the anchor
-/// (soft). Entries out of range are skipped (checked before the step).
+/// Adds to each collider's reaction what its attached vertices took from it over the step of
+/// `h` (s), the body at `positions` (m) and `velocities` (m/s) after it and at `starts` before
+/// it: at a hard attachment minus the vertex's pin impulse `impulses[vertex]` (N s), at a soft
+/// one minus its pull's impulse ([`SoftPull::impulse`]; none at a pinned vertex, which the pull
+/// does not move), with the moment about the collider's position of the impulse at the vertex
+/// (hard) or at the anchor (soft). Entries out of range are skipped (checked before the step).
+///
+/// A soft-attached vertex that touched a collider had its contact impulse recorded with the
+/// step's mass `m'` (see [`SoftPull`]): the velocity change the solver's contact applied after
+/// the solve, `v - (x - x_n)/h`, weighed `m' - m = h^2 k'` too much. That share is taken back
+/// from `impulses[vertex]` and from the reaction of the collider it went to.
 pub(crate) fn add_attachment_reactions(
     attachments: &[Attachment],
     colliders: &[Collider<'_>],
-    (positions, starts, pinned): (&[Vec3], &[Vec3], &[bool]),
-    (impulses, h): (&[Vec3], Real),
+    (positions, velocities, starts, pinned): (&[Vec3], &[Vec3], &[Vec3], &[bool]),
+    (impulses, h): (&mut [Vec3], Real),
     reactions: &mut [Reaction],
 ) {
     for a in attachments {
         let (v, c) = (a.vertex as usize, a.collider as usize);
-        let (Some(&x), Some(&x_n), Some(&held)) = (positions.get(v), starts.get(v), impulses.get(v))
+        let rows = (positions.get(v), velocities.get(v), starts.get(v));
+        let ((Some(&x), Some(&velocity), Some(&x_n)), Some(held)) = (rows, impulses.get_mut(v))
         else {
             continue;
         };
-        let (Some(collider), Some(reaction)) = (colliders.get(c), reactions.get_mut(c)) else {
+        let Some(collider) = colliders.get(c) else {
             continue;
         };
         let (impulse, at) = match a.is_soft() {
             true if pinned.get(v).copied().unwrap_or(false) => continue,
             true => {
                 let pull = SoftPull::new(a, collider, x_n, h);
+                if *held != Vec3::ZERO {
+                    let excess = (velocity - (x - x_n) / h) * (h * h * pull.stiffness);
+                    *held -= excess;
+                    if let Some(k) = nearest_collider(colliders, x)
+                        && let (Some(r), Some(touched)) = (reactions.get_mut(k), colliders.get(k))
+                    {
+                        r.impulse += excess;
+                        r.angular_impulse += (x - touched.position).cross(excess);
+                    }
+                }
                 (pull.impulse(x, h), end_anchor(a, collider, h))
             }
-            false => (held, x),
+            false => (*held, x),
+        };
+        let Some(reaction) = reactions.get_mut(c) else {
+            continue;
         };
         reaction.impulse -= impulse;
         reaction.angular_impulse -= (at - collider.position).cross(impulse);

@@ -179,14 +179,9 @@ pub fn add_collider_reactions(
         if impulse == Vec3::ZERO || pinned.get(i).copied().unwrap_or(false) {
             continue;
         }
-        let mut nearest: Option<(usize, Real)> = None;
-        for (k, collider) in colliders.iter().enumerate() {
-            let distance = collider.distance(x);
-            if nearest.is_none_or(|(_, best)| distance < best) {
-                nearest = Some((k, distance));
-            }
-        }
-        let Some((k, _)) = nearest else { continue };
+        let Some(k) = nearest_collider(colliders, x) else {
+            continue;
+        };
         let (Some(reaction), Some(collider)) = (reactions.get_mut(k), colliders.get(k)) else {
             continue;
         };
@@ -195,6 +190,19 @@ pub fn add_collider_reactions(
         reaction.vertices = reaction.vertices.saturating_add(1);
     }
     Ok(())
+}
+
+/// The collider a vertex at `x` (m) gives its contact impulse to: the one of the smallest signed
+/// distance (the first of equals); `None` without colliders.
+pub(crate) fn nearest_collider(colliders: &[Collider<'_>], x: Vec3) -> Option<usize> {
+    let mut nearest: Option<(usize, Real)> = None;
+    for (k, collider) in colliders.iter().enumerate() {
+        let distance = collider.distance(x);
+        if nearest.is_none_or(|(_, best)| distance < best) {
+            nearest = Some((k, distance));
+        }
+    }
+    nearest.map(|(k, _)| k)
 }
 
 /// An owner's vector scratch (a body's or a world's: `k` vectors per vertex for its solver, then

@@ -20,9 +20,11 @@
 
 use super::super::super::math;
 use super::super::super::types::{Real, Vec3};
-use super::collider::{Collider, rotate, rotate_back};
+use super::super::scene::{Scene, check_time_step};
+use super::super::state::check_length;
+use super::collider::{Collider, check_colliders, rotate, rotate_back};
 use super::reaction::Reaction;
-use crate::error::StepError;
+use crate::error::{StepBuffer, StepError};
 
 /// How many dynamic colliders one coupled step takes: their start states and iterates sit on
 /// the stack (about 200 bytes each in f32, 400 in f64): 16 on a host, 4 on bare metal
@@ -143,6 +145,32 @@ pub(crate) fn momentum_balance(
     ) + reaction.angular_impulse;
     let angular = inertia_solve(rotation, start.inertia, momentum);
     (velocity, angular)
+}
+
+/// The checks of an owner's coupled step (a body's or a world's) before anything moves: no
+/// colliders in `scene` (they all go in `colliders`), one reaction per collider, every collider
+/// in range, the time step, the coupling settings.
+///
+/// # Errors
+/// [`StepError::SceneColliders`], [`StepError::LengthMismatch`] (buffer
+/// [`StepBuffer::Reactions`]), [`StepError::Collider`], [`StepError::TimeStep`],
+/// [`StepError::CouplingSettings`], in that order.
+pub(crate) fn check_coupled_step(
+    scene: &Scene<'_, Vec3>,
+    colliders: &[Collider<'_>],
+    reactions: &[Reaction],
+    settings: &CouplingSettings,
+) -> Result<(), StepError> {
+    if !scene.colliders.is_empty() {
+        return Err(StepError::SceneColliders);
+    }
+    check_length(StepBuffer::Reactions, colliders.len(), reactions.len())?;
+    check_colliders(colliders, true)?;
+    check_time_step(scene.dt)?;
+    if !settings.valid() {
+        return Err(StepError::CouplingSettings);
+    }
+    Ok(())
 }
 
 /// Aitken's factor is kept in `[MIN_RELAXATION, MAX_RELAXATION]`: a factor of the wrong sign or
