@@ -140,10 +140,10 @@ pub(crate) fn end_anchor(attachment: &Attachment, collider: &Collider<'_>, dt: R
     }
 }
 
-/// The surface velocity (m/s) of `collider` at the step's end at the attachment's anchor: on a
-/// dynamic collider its trial velocities, on any other its own.
-fn anchor_velocity(attachment: &Attachment, collider: &Collider<'_>, dt: Real) -> Vec3 {
-    let anchor = end_anchor(attachment, collider, dt);
+/// The surface velocity (m/s) of `collider` at the step's end at `anchor` (m, the
+/// attachment's [`end_anchor`]): on a dynamic collider its trial velocities, on any other its
+/// own.
+fn anchor_velocity(anchor: Vec3, collider: &Collider<'_>, dt: Real) -> Vec3 {
     let centre = match collider.is_dynamic() {
         true => collider.position,
         false => collider.position + collider.linear_velocity * dt,
@@ -160,6 +160,8 @@ fn anchor_velocity(attachment: &Attachment, collider: &Collider<'_>, dt: Real) -
 /// which is how the body hands them to every implicit solver.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct SoftPull {
+    /// The anchor `a` at the step's end (m), where the pull acts on the collider.
+    pub anchor: Vec3,
     /// `k'` (N/m).
     pub stiffness: Real,
     /// `b` (m).
@@ -173,8 +175,9 @@ impl SoftPull {
         let anchor = end_anchor(attachment, collider, h);
         let (k, c) = (attachment.stiffness, attachment.damping / h);
         let stiffness = k + c;
-        let moving = start + anchor_velocity(attachment, collider, h) * h;
+        let moving = start + anchor_velocity(anchor, collider, h) * h;
         SoftPull {
+            anchor,
             stiffness,
             centre: (anchor * k + moving * c) / stiffness,
         }
@@ -237,7 +240,7 @@ pub(crate) fn add_attachment_reactions(
                         r.angular_impulse += (x - touched.position).cross(excess);
                     }
                 }
-                (pull.impulse(x, h), end_anchor(a, collider, h))
+                (pull.impulse(x, h), pull.anchor)
             }
             false => (*held, x),
         };

@@ -102,7 +102,8 @@ struct Rigid {
     base: (Vec3, Vec3),
     residual: [Vec3; 2],
     touched: bool,
-    /// The trial's residual and contact.
+    /// The trial's momentum balance `G(u)`, its residual and contact.
+    balance: (Vec3, Vec3),
     trial_residual: [Vec3; 2],
     trial_touched: bool,
     /// `sqrt(max I / M)` (m).
@@ -237,6 +238,7 @@ pub(crate) fn couple<R>(
             best: (velocity, angular),
             residual: [Vec3::ZERO; 2],
             touched: false,
+            balance: (velocity, angular),
             trial_residual: [Vec3::ZERO; 2],
             trial_touched: false,
             gyration: math::sqrt(largest / collider.mass),
@@ -308,6 +310,7 @@ pub(crate) fn couple<R>(
                 dot += before.dot(change);
                 squared += change.dot(change);
             }
+            r.balance = (v, w);
             r.trial_residual = residual;
             separated |= r.touched && reaction.vertices == 0;
             r.trial_touched = reaction.vertices > 0;
@@ -338,14 +341,9 @@ pub(crate) fn couple<R>(
         if converged || out_of_budget || retried {
             // Keep the poses the soft step saw; the velocities of the momentum balance.
             for r in &rigid {
-                let (Some(c), Some(reaction)) =
-                    (colliders.get_mut(r.index), reactions.get(r.index))
-                else {
-                    continue;
-                };
-                let (v, w) = momentum_balance(&r.start, c.unit_rotation(), reaction, (dt, gravity));
-                c.linear_velocity = v;
-                c.angular_velocity = w;
+                if let Some(c) = colliders.get_mut(r.index) {
+                    (c.linear_velocity, c.angular_velocity) = r.balance;
+                }
             }
             return Ok((outcome, report));
         }
