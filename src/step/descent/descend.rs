@@ -801,22 +801,11 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
     /// The model's.
     fn line_search(&mut self, slope: Real) -> Result<LineSearch, StepError> {
         let (objective, settings) = (self.objective, self.settings);
-        let points = &mut self.points;
         for attempt in 0..=settings.max_backtracks {
             if attempt > 0 {
-                split_trial_pass(
-                    objective.model,
-                    &objective.frames,
-                    objective.vertices.pinned,
-                    (points.current, self.direction),
-                    self.alpha,
-                    TrialPoint {
-                        positions: points.other,
-                        gradient: points.trial_gradient,
-                    },
-                );
-                objective.loads.restore_fixed(points.current, points.other);
+                self.form_trial();
             }
+            let points = &mut self.points;
             // A trial the model does not admit (contact: a surface would pass through another
             // on the way) is not evaluated: the step shrinks to the admitted fraction, and the
             // trial is formed again there.
@@ -906,13 +895,9 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
         Ok(LineSearch::Accepted(best))
     }
 
-    /// Forms the trial point at the step `alpha` along the direction and evaluates it
-    /// (friction lagged to the iterate); `None` inside where the model does not admit the
-    /// step (contact).
-    ///
-    /// # Errors
-    /// The model's.
-    fn evaluate_trial(&mut self) -> Result<Trial, StepError> {
+    /// Forms the trial point `x + alpha d` in the trial buffer (projected on the contacts, `x`
+    /// at pinned vertices, fixed coordinates kept), its gradient zeroed.
+    fn form_trial(&mut self) {
         let objective = self.objective;
         let points = &mut self.points;
         split_trial_pass(
@@ -927,6 +912,18 @@ impl<'a, 'p, 'b, F: ElasticEnergy, D: Direction<F>> Descender<'a, 'p, 'b, F, D> 
             },
         );
         objective.loads.restore_fixed(points.current, points.other);
+    }
+
+    /// Forms the trial point at the step `alpha` along the direction and evaluates it
+    /// (friction lagged to the iterate); `None` inside where the model does not admit the
+    /// step (contact).
+    ///
+    /// # Errors
+    /// The model's.
+    fn evaluate_trial(&mut self) -> Result<Trial, StepError> {
+        let objective = self.objective;
+        self.form_trial();
+        let points = &mut self.points;
         if objective
             .model
             .admissible_step(points.current, points.other)?
