@@ -33,3 +33,33 @@ macro_rules! mesh_and_masses {
     };
 }
 pub(crate) use mesh_and_masses;
+
+/// Declares `Buffers` where it expands: owned scratch for Newton's method, sized by
+/// `scratch_len::newton`, with `Vec3`, `Mat3`, `TetHessian`, `NewtonScratch` and `scratch_len`
+/// of the precision in scope there.
+macro_rules! newton_buffers {
+    () => {
+        /// Owned scratch buffers for Newton's method.
+        struct Buffers {
+            vectors: Vec<Vec3>,
+            blocks: Vec<Mat3>,
+            hessians: Vec<TetHessian>,
+        }
+
+        impl Buffers {
+            fn new(vertices: usize, elements: usize) -> Self {
+                let len = scratch_len::newton(vertices, elements);
+                Buffers {
+                    vectors: vec![Vec3::ZERO; len.vectors],
+                    blocks: vec![Mat3::ZERO; len.blocks],
+                    hessians: vec![TetHessian::default(); len.hessians],
+                }
+            }
+
+            fn scratch(&mut self) -> NewtonScratch<'_> {
+                NewtonScratch::new(&mut self.vectors, &mut self.blocks, &mut self.hessians)
+            }
+        }
+    };
+}
+pub(crate) use newton_buffers;

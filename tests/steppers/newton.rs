@@ -36,27 +36,7 @@ macro_rules! newton_tests {
                 Body { rest, tets }
             }
 
-            /// Owned scratch buffers for Newton's method.
-            struct Buffers {
-                vectors: Vec<Vec3>,
-                blocks: Vec<Mat3>,
-                hessians: Vec<TetHessian>,
-            }
-
-            impl Buffers {
-                fn new(vertices: usize, elements: usize) -> Self {
-                    let len = scratch_len::newton(vertices, elements);
-                    Buffers {
-                        vectors: vec![Vec3::ZERO; len.vectors],
-                        blocks: vec![Mat3::ZERO; len.blocks],
-                        hessians: vec![TetHessian::default(); len.hessians],
-                    }
-                }
-
-                fn scratch(&mut self) -> NewtonScratch<'_> {
-                    NewtonScratch::new(&mut self.vectors, &mut self.blocks, &mut self.hessians)
-                }
-            }
+            crate::common::scenes::newton_buffers!();
 
             /// `|f_elastic + m g|` over the free vertices (N), from the force kernel.
             fn imbalance<M: Material>(mesh: &TetMesh, material: &M, x: &[Vec3], masses: &[Real], pinned: &[bool]) -> f64 {

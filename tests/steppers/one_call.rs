@@ -14,27 +14,7 @@ use softfem::f64::step::{
 };
 use softfem::f64::types::{Mat3, Vec3};
 
-/// Owned scratch buffers for Newton's method.
-struct Buffers {
-    vectors: Vec<Vec3>,
-    blocks: Vec<Mat3>,
-    hessians: Vec<TetHessian>,
-}
-
-impl Buffers {
-    fn new(vertices: usize, elements: usize) -> Self {
-        let len = scratch_len::newton(vertices, elements);
-        Buffers {
-            vectors: vec![Vec3::ZERO; len.vectors],
-            blocks: vec![Mat3::ZERO; len.blocks],
-            hessians: vec![TetHessian::default(); len.hessians],
-        }
-    }
-
-    fn scratch(&mut self) -> NewtonScratch<'_> {
-        NewtonScratch::new(&mut self.vectors, &mut self.blocks, &mut self.hessians)
-    }
-}
+crate::common::scenes::newton_buffers!();
 
 /// The Cook membrane of the deal.II code gallery ("Quasi-static finite-strain compressible
 /// elasticity", Pelteret and McBride 2016): the trapezoid (0,0)-(48,44)-(48,60)-(0,44) mm, 1 mm
